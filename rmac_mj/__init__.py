@@ -1,0 +1,9 @@
+"""rmac-mj: actor-critic control with reference model learning on MuJoCo.
+
+Reproduces Grondman et al., "Actor-Critic Control with Reference Model Learning": the DC-motor pendulum
+(``rmac_mj.models``, ``rmac_mj.tasks``), LLR and tile-coding approximators (``rmac_mj.approximators``),
+the RMAC and S-AC learners (``rmac_mj.agents``) and the experiments that compare them
+(``rmac_mj.experiments``).
+"""
+
+__version__ = "0.1.0"
