@@ -1,0 +1,59 @@
+"""The rmac-mj task suite, loaded like ``dm_control.suite`` (installed as ``rmac_mj.tasks``).
+
+    from rmac_mj import tasks
+    env = tasks.load("dc_pendulum", "swingup", task_kwargs={"random": 0})
+"""
+
+from __future__ import annotations
+
+import inspect
+from typing import Any
+
+from dm_control.rl import control
+
+from rmac_mj.tasks import dc_pendulum
+
+_DOMAINS = {name: module for name, module in [("dc_pendulum", dc_pendulum)]}
+
+#: Every (domain_name, task_name) pair in the suite.
+ALL_TASKS = tuple(sorted((domain, task) for domain, module in _DOMAINS.items()
+                         for task in module.SUITE))
+
+#: Domain name -> the tuple of its task names (like ``dm_control.suite.TASKS_BY_DOMAIN``).
+TASKS_BY_DOMAIN = {domain: tuple(sorted(module.SUITE)) for domain, module in _DOMAINS.items()}
+
+#: Domain name -> its ``containers.TaggedTasks`` registry.
+SUITE = {domain: module.SUITE for domain, module in _DOMAINS.items()}
+
+
+def load(domain_name: str, task_name: str, task_kwargs: dict[str, Any] | None = None,
+         environment_kwargs: dict[str, Any] | None = None) -> control.Environment:
+    """Return the environment of ``domain_name``/``task_name``, mirroring ``dm_control.suite.load``.
+
+    Args:
+      domain_name: e.g. ``"dc_pendulum"``.
+      task_name: e.g. ``"swingup"`` or ``"balance"``.
+      task_kwargs: keyword arguments of the task factory (``time_limit``, ``control_timestep``,
+        ``state_weights``, ``action_weight``, ``start_state``, ``start_noise``, ``random``).
+      environment_kwargs: keyword arguments of ``dm_control.rl.control.Environment``.
+    """
+    return build_environment(domain_name, task_name, task_kwargs, environment_kwargs)
+
+
+def build_environment(domain_name: str, task_name: str, task_kwargs: dict[str, Any] | None = None,
+                      environment_kwargs: dict[str, Any] | None = None) -> control.Environment:
+    """Like :func:`load`; kept for parity with ``dm_control.suite.build_environment``."""
+    if domain_name not in _DOMAINS:
+        raise ValueError(f"unknown domain_name {domain_name!r}; available: {sorted(_DOMAINS)}")
+    registry = _DOMAINS[domain_name].SUITE
+    if task_name not in registry:
+        raise ValueError(f"unknown task_name {task_name!r} for domain {domain_name!r}; "
+                         f"available: {sorted(registry)}")
+    factory = registry[task_name]
+    task_kwargs = dict(task_kwargs or {})
+    accepted = set(inspect.signature(factory).parameters) - {"environment_kwargs"}
+    unknown = sorted(set(task_kwargs) - accepted)
+    if unknown:
+        raise ValueError(f"unknown task_kwargs {unknown} for {domain_name}/{task_name}; "
+                         f"accepted: {sorted(accepted)}")
+    return factory(environment_kwargs=environment_kwargs, **task_kwargs)

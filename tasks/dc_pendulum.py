@@ -1,0 +1,210 @@
+"""DC-motor pendulum domain: the swing-up task of Grondman et al., section 6.
+
+The physics is the MJCF model ``models/dc_pendulum.xml`` (Table 1; MuJoCo's ``<dcmotor>`` actuator
+produces the input torque (K/R) u and the back-EMF damping K^2/R). The tasks add what the paper
+defines on top: a 0.03 s control step, 3 s trials (100 control steps), the start state and the
+quadratic reward
+
+    r_k = -x_{k-1}^T Q x_{k-1} - P u_{k-1}^2,   x = [phi, phi_dot],   Q = diag(5, 0.1),  P = 1,
+
+computed from the state *before* the step (phi wrapped to [-pi, pi)) and the voltage applied during it.
+A voltage outside [-3, 3] V is saturated by the actuator's control range, as on the real rig, and the
+reward is charged for the saturated (applied) voltage.
+"""
+
+from __future__ import annotations
+
+import collections
+from typing import Any
+
+import numpy as np
+from dm_control import mujoco
+from dm_control.rl import control
+from dm_control.suite import base
+from dm_control.utils import containers
+
+from rmac_mj.models import model_path
+
+_DEFAULT_TIME_LIMIT = 3.0        # s, one trial (section 6)
+_CONTROL_TIMESTEP = 0.03         # s; the paper leaves it open, its group's follow-up work uses 0.03 s
+_STATE_WEIGHTS = (5.0, 0.1)      # Q = diag(5, 0.1)
+_ACTION_WEIGHT = 1.0             # P
+_SWINGUP_START = (np.pi, 0.0)    # x_0 = [pi, 0]: hanging down, at rest
+_BALANCE_START = (0.0, 0.0)
+_BALANCE_START_NOISE = 0.1       # rad: half-width of the uniform perturbation of the balance start angle
+
+#: Highest angular speed the pendulum reaches under |u| <= 3 V (rad/s), measured on the model by
+#: spinning it with a constant 3 V from every start on a grid: 57.5 rad/s. The nominal velocity range
+#: of the state space is rounded up from it.
+MAX_SPEED = 60.0
+
+SUITE = containers.TaggedTasks()
+
+
+def get_model_and_assets() -> tuple[str, dict[str, Any]]:
+    """The model XML string and its (empty) asset dict."""
+    return model_path("dc_pendulum").read_text(), {}
+
+
+def _make_environment(task: "SwingUp", time_limit: float, control_timestep: float,
+                      environment_kwargs: dict[str, Any] | None) -> control.Environment:
+    environment_kwargs = dict(environment_kwargs or {})
+    for clash in ("control_timestep", "n_sub_steps", "time_limit"):
+        if clash in environment_kwargs:
+            raise ValueError(
+                f"environment_kwargs[{clash!r}] is set by the task; pass it as a task_kwarg instead")
+    physics = Physics.from_xml_string(*get_model_and_assets())
+    _check_positive("time_limit", time_limit)
+    _check_positive("control_timestep", control_timestep)
+    n_sub_steps = control_timestep / physics.timestep()
+    if abs(n_sub_steps - round(n_sub_steps)) > 1e-8 or round(n_sub_steps) < 1:
+        raise ValueError(f"control_timestep must be a positive multiple of the physics timestep "
+                         f"{physics.timestep()} s, got {control_timestep!r}")
+    n_steps = time_limit / control_timestep
+    if abs(n_steps - round(n_steps)) > 1e-8:
+        raise ValueError(f"time_limit must be a whole number of control steps of {control_timestep} s, "
+                         f"got {time_limit!r}")
+    # dm-control ends an episode once step_count >= time_limit / control_timestep; 3.0 / 0.03 is
+    # 100.00000000000001 in floating point, which would give 101 steps. Half a step less is exact.
+    return control.Environment(physics, task, time_limit=(round(n_steps) - 0.5) * control_timestep,
+                               control_timestep=control_timestep, **environment_kwargs)
+
+
+@SUITE.add("benchmarking")
+def swingup(time_limit: float = _DEFAULT_TIME_LIMIT, control_timestep: float = _CONTROL_TIMESTEP,
+            state_weights=_STATE_WEIGHTS, action_weight: float = _ACTION_WEIGHT,
+            start_state=_SWINGUP_START, start_noise: float = 0.0, random=None,
+            environment_kwargs: dict[str, Any] | None = None) -> control.Environment:
+    """The paper's task: swing up from [pi, 0] and balance, 100 steps of 0.03 s."""
+    task = SwingUp(state_weights=state_weights, action_weight=action_weight,
+                   start_state=start_state, start_noise=start_noise, random=random)
+    return _make_environment(task, time_limit, control_timestep, environment_kwargs)
+
+
+@SUITE.add("benchmarking")
+def balance(time_limit: float = _DEFAULT_TIME_LIMIT, control_timestep: float = _CONTROL_TIMESTEP,
+            state_weights=_STATE_WEIGHTS, action_weight: float = _ACTION_WEIGHT,
+            start_state=_BALANCE_START, start_noise: float = _BALANCE_START_NOISE, random=None,
+            environment_kwargs: dict[str, Any] | None = None) -> control.Environment:
+    """Balance upright from a small random perturbation of the start angle; same reward."""
+    task = SwingUp(state_weights=state_weights, action_weight=action_weight,
+                   start_state=start_state, start_noise=start_noise, random=random)
+    return _make_environment(task, time_limit, control_timestep, environment_kwargs)
+
+
+def wrap_angle(phi):
+    """Wrap an angle (rad, scalar or array) to [-pi, pi)."""
+    return (np.asarray(phi) + np.pi) % (2.0 * np.pi) - np.pi
+
+
+class Physics(mujoco.Physics):
+    """The DC-motor pendulum with its physical quantities by name."""
+
+    def angle(self) -> float:
+        """phi in [-pi, pi) (rad): 0 upright, -pi hanging down."""
+        return float(wrap_angle(self.named.data.qpos["hinge"][0]))
+
+    def angular_velocity(self) -> float:
+        """phi_dot (rad/s)."""
+        return float(self.named.data.qvel["hinge"][0])
+
+    def state(self) -> np.ndarray:
+        """x = [phi, phi_dot], phi wrapped; ndarray of shape (2,)."""
+        return np.array([self.angle(), self.angular_velocity()])
+
+    def set_state_vector(self, phi: float, phi_dot: float) -> None:
+        """Put the pendulum at angle ``phi`` (rad) with speed ``phi_dot`` (rad/s), at rest otherwise."""
+        self.named.data.qpos["hinge"] = phi
+        self.named.data.qvel["hinge"] = phi_dot
+
+    def voltage(self) -> float:
+        """The motor voltage applied now (V), after saturation to the control range."""
+        low, high = self.named.model.actuator_ctrlrange["motor"]
+        return float(np.clip(self.named.data.ctrl["motor"], low, high))
+
+    def motor_torque(self) -> float:
+        """Shaft torque of the motor (N m): (K/R) u - (K^2/R) phi_dot."""
+        return float(self.named.data.actuator_force["motor"])
+
+    def orientation(self) -> np.ndarray:
+        """[cos(phi), sin(phi)]; ndarray of shape (2,)."""
+        phi = self.named.data.qpos["hinge"][0]
+        return np.array([np.cos(phi), np.sin(phi)])
+
+
+def _check_positive(name: str, value) -> None:
+    if not (np.isscalar(value) and np.isfinite(value) and value > 0):
+        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+
+
+class SwingUp(base.Task):
+    """Swing-up and balance with the quadratic reward of section 6 (see the module docstring)."""
+
+    def __init__(self, state_weights=_STATE_WEIGHTS, action_weight: float = _ACTION_WEIGHT,
+                 start_state=_SWINGUP_START, start_noise: float = 0.0, random=None):
+        """
+        Args:
+          state_weights: Q, as its diagonal (2,) or a full symmetric positive semi-definite (2, 2).
+          action_weight: P >= 0.
+          start_state: x_0 = [phi, phi_dot] of every episode (rad, rad/s).
+          start_noise: half-width (rad) of a uniform perturbation of the start angle, drawn from the
+            task's random state; 0 makes every episode start exactly at ``start_state``.
+          random: int seed, ``numpy.random.RandomState`` or None (dm-control's convention).
+        """
+        q = np.asarray(state_weights, dtype=float)
+        if q.shape == (2,):
+            q = np.diag(q)
+        if (q.shape != (2, 2) or not np.all(np.isfinite(q)) or not np.allclose(q, q.T)
+                or np.min(np.linalg.eigvalsh(q)) < 0):
+            raise ValueError("state_weights must be a diagonal of shape (2,) or a symmetric positive "
+                             f"semi-definite (2, 2) matrix, got {state_weights!r}")
+        if not (np.isscalar(action_weight) and np.isfinite(action_weight) and action_weight >= 0):
+            raise ValueError(f"action_weight must be a finite number >= 0, got {action_weight!r}")
+        x0 = np.asarray(start_state, dtype=float)
+        if x0.shape != (2,) or not np.all(np.isfinite(x0)):
+            raise ValueError(f"start_state must be finite [phi, phi_dot], got {start_state!r}")
+        if not (np.isscalar(start_noise) and np.isfinite(start_noise) and 0 <= start_noise <= np.pi):
+            raise ValueError(f"start_noise must be in [0, pi] rad, got {start_noise!r}")
+        self._q = q
+        self._p = float(action_weight)
+        self._start_state = x0
+        self._start_noise = float(start_noise)
+        self._reward = 0.0
+        super().__init__(random=random)
+
+    def initialize_episode(self, physics: Physics) -> None:
+        phi, phi_dot = self._start_state
+        if self._start_noise > 0:
+            phi += self.random.uniform(-self._start_noise, self._start_noise)
+        physics.set_state_vector(phi, phi_dot)
+        self._reward = 0.0
+        super().initialize_episode(physics)
+
+    def before_step(self, action, physics: Physics) -> None:
+        """Check the action, apply it, and charge r_k for the state before the step and the action."""
+        action = np.asarray(action, dtype=float)
+        if action.shape not in ((1,), ()):
+            raise ValueError(f"action must have shape (1,) (one voltage), got shape {action.shape}")
+        if not np.all(np.isfinite(action)):
+            raise ValueError(f"action must be finite, got {action!r}")
+        physics.set_control(action.reshape(1))
+        x = physics.state()
+        u = physics.voltage()
+        self._reward = -float(x @ self._q @ x) - self._p * u * u
+
+    def get_observation(self, physics: Physics) -> collections.OrderedDict:
+        obs = collections.OrderedDict()
+        obs["angle"] = np.array([physics.angle()])
+        obs["velocity"] = np.array([physics.angular_velocity()])
+        obs["orientation"] = physics.orientation()
+        return obs
+
+    def get_reward(self, physics: Physics) -> float:
+        """r_k of the step just taken (0 at reset, where dm-control reports no reward anyway)."""
+        return self._reward
+
+    @property
+    def state_bounds(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Nominal box of x = [phi, phi_dot]: (low, high, periodic), each of shape (2,)."""
+        return (np.array([-np.pi, -MAX_SPEED]), np.array([np.pi, MAX_SPEED]),
+                np.array([True, False]))
