@@ -1,0 +1,75 @@
+"""The learners: RMAC (Algorithm 2) and the S-AC baseline (Algorithm 1), behind one interface."""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+import typing
+from typing import Any
+
+import numpy as np
+
+from rmac_mj.agents.base import ActionSpace, Agent, Exploration, StateSpace
+
+#: Algorithm key -> (module, agent class, config class). Imported lazily: numba kernels compile on use.
+_REGISTRY = {
+    "rmac": ("rmac_mj.agents.rmac", "RMAC", "RMACConfig"),
+    "s-ac": ("rmac_mj.agents.sac", "SAC", "SACConfig"),
+}
+
+#: The algorithm keys, as used on the command line and in results.
+ALGORITHMS = tuple(_REGISTRY)
+
+
+def _lookup(name: str):
+    if name not in _REGISTRY:
+        raise ValueError(f"unknown algorithm {name!r}; available: {', '.join(ALGORITHMS)}")
+    module_name, agent_name, config_name = _REGISTRY[name]
+    module = importlib.import_module(module_name)
+    return getattr(module, agent_name), getattr(module, config_name)
+
+
+def config_class(name: str) -> type:
+    """The hyperparameter dataclass of algorithm ``name``."""
+    return _lookup(name)[1]
+
+
+def config_from_dict(cls: type, values: dict[str, Any]):
+    """Rebuild a (possibly nested) frozen config dataclass from ``dataclasses.asdict`` output."""
+    hints = typing.get_type_hints(cls)
+    kwargs = {}
+    for field in dataclasses.fields(cls):
+        if field.name not in values:
+            continue
+        value = values[field.name]
+        hint = hints.get(field.name)
+        if dataclasses.is_dataclass(hint) and isinstance(value, dict):
+            value = config_from_dict(hint, value)
+        elif isinstance(value, list):
+            value = tuple(value)
+        kwargs[field.name] = value
+    unknown = sorted(set(values) - {f.name for f in dataclasses.fields(cls)})
+    if unknown:
+        raise ValueError(f"{cls.__name__}: unknown hyperparameters {unknown}")
+    return cls(**kwargs)
+
+
+def make_agent(name: str, state_space: StateSpace, action_space: ActionSpace,
+               config: Any = None, seed: int | np.random.Generator | None = None) -> Agent:
+    """Build the learner ``name`` (``"rmac"`` or ``"s-ac"``).
+
+    ``config`` is its config dataclass, a dict of overrides of the paper's defaults, or None.
+    """
+    agent_cls, config_cls = _lookup(name)
+    if config is None:
+        config = config_cls()
+    elif isinstance(config, dict):
+        config = config_from_dict(config_cls, config)
+    elif not isinstance(config, config_cls):
+        raise TypeError(f"config for {name!r} must be a {config_cls.__name__} or dict, "
+                        f"got {type(config).__name__}")
+    return agent_cls(state_space, action_space, config=config, seed=seed)
+
+
+__all__ = ["ALGORITHMS", "ActionSpace", "Agent", "Exploration", "StateSpace", "config_class",
+           "config_from_dict", "make_agent"]

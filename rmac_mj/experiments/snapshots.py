@@ -1,0 +1,68 @@
+"""Agent snapshots: one ``.npz`` file, readable with ``numpy.load(path, allow_pickle=False)``.
+
+A snapshot holds the agent's learned state (``Agent.state_dict``, one array per key, prefixed
+``agent/``) and a JSON document ``meta`` (a 0-d unicode array) with the algorithm, its hyperparameters,
+the task it learned on and where in the experiment it was taken. No pickle: opening a snapshot someone
+sent you cannot run code.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import pathlib
+import tempfile
+from typing import Any
+
+import numpy as np
+
+from rmac_mj.agents import Agent, make_agent
+from rmac_mj.agents.base import ActionSpace, StateSpace
+
+_PREFIX = "agent/"
+
+
+def save_snapshot(path: str | os.PathLike, agent: Agent, state_space: StateSpace,
+                  action_space: ActionSpace, **meta: Any) -> pathlib.Path:
+    """Write ``agent`` atomically to ``path``; ``meta`` (JSON-ready) is stored beside it.
+
+    ``meta`` conventionally holds ``domain``, ``task``, ``task_kwargs``, ``experiment``, ``seed`` and
+    ``trial`` (the number of learning trials done).
+    """
+    path = pathlib.Path(path)
+    document = {
+        "algorithm": agent.name,
+        "config": agent.config_dict(),
+        "state_space": {"low": state_space.low.tolist(), "high": state_space.high.tolist(),
+                        "periodic": state_space.periodic.tolist()},
+        "action_space": {"low": action_space.low.tolist(), "high": action_space.high.tolist()},
+        **meta,
+    }
+    arrays = {_PREFIX + key: np.asarray(value) for key, value in agent.state_dict().items()}
+    for key, value in arrays.items():
+        if value.dtype == object:
+            raise TypeError(f"state_dict entry {key[len(_PREFIX):]!r} is not a numeric array")
+    arrays["meta"] = np.array(json.dumps(document))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.NamedTemporaryFile(dir=path.parent, prefix=path.name, suffix=".tmp",
+                                     delete=False) as handle:
+        np.savez(handle, **arrays)
+    os.replace(handle.name, path)
+    return path
+
+
+def load_snapshot(path: str | os.PathLike) -> tuple[Agent, dict[str, Any]]:
+    """Rebuild the agent saved at ``path``; return it and the snapshot's meta document."""
+    path = pathlib.Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"no snapshot at {path}")
+    with np.load(path, allow_pickle=False) as data:
+        if "meta" not in data.files:
+            raise ValueError(f"{path} is not an rmac-mj snapshot (no 'meta' entry)")
+        meta = json.loads(str(data["meta"]))
+        state = {key[len(_PREFIX):]: data[key] for key in data.files if key.startswith(_PREFIX)}
+    state_space = StateSpace(**meta["state_space"])
+    action_space = ActionSpace(**meta["action_space"])
+    agent = make_agent(meta["algorithm"], state_space, action_space, config=meta["config"], seed=0)
+    agent.load_state_dict(state)
+    return agent, meta
