@@ -1,0 +1,347 @@
+"""S-AC: the standard actor-critic baseline of the paper (section 3, Algorithm 1, section 6.1).
+
+Critic V(x, theta) and actor pi(x, vartheta) are both linear in tile-coding features
+(:mod:`rmac_mj.approximators.tile_coding`). Per control step k (Algorithm 1):
+
+* line 6:  Delta u_k, Gaussian noise every ``exploration.period``-th step, else 0 (section 6.1);
+* line 8:  u_k = pi(x_k, vartheta_{k-1}) + Delta u_k, saturated to the action bounds;
+* line 10: delta_k = r_k + gamma V(x_k, theta_{k-1}) - V(x_{k-1}, theta_{k-1})                  (eq. 2);
+* line 11: replacing traces, e(tiles of x_{k-1}) = 1, all others decay by lambda * gamma;
+* line 12: theta_k = theta_{k-1} + alpha_c delta_k sum_x dV/dtheta(x) e_k(x)                  (eq. 3);
+* line 13: vartheta_k = vartheta_{k-1} + alpha_a delta_k Delta u_{k-1} dpi/dvartheta(x_{k-1}) (eq. 4).
+
+Choices where the paper is silent or ambiguous (each a :class:`SACConfig` field or documented here,
+and measured in docs/sac.md):
+
+* **Whose trace is set (line 11).** Algorithm 1 writes e_k(x_k) = 1, but delta_k is the TD error of
+  x_{k-1} (eq. 2) and eq. 3 updates V at x_{k-1}; setting the trace of x_k would credit a state for an
+  error it has not yet made. The trace of the state being updated, x_{k-1}, is set to 1, which is
+  Sutton and Barto's TD(lambda) with replacing traces and reduces to eq. 3 for lambda = 0.
+* **Learning rate per tiling or split** (``rate_split``). With tile coding dV/dtheta is 1 on each of
+  the T active tiles, so a step of alpha on every active weight moves V(x) by T * alpha. ``"both"``
+  divides alpha_c and alpha_a by T (each update moves V(x) and pi(x) by the paper's alpha), ``"actor"``
+  only alpha_a, ``"none"`` applies both in full to every weight.
+* **The exploration in eq. 4** is the perturbation actually applied, u_{k-1} - pi(x_{k-1}) after
+  saturation: noise that the bounds cut off was not tried, so it is not credited.
+* **The actor's output stays within the action bounds**: pi(x) is read saturated, and an actor update
+  never pushes pi(x_{k-1}) beyond a bound (it may move it back inside).
+* **End of a trial** (``stop``): the trial ends on a time limit, not in a terminal state, so the last
+  TD error bootstraps from V(x_K) like every other.
+* **Finite traces** (paper footnote 1): traces are kept only for tiles whose trace is at least
+  ``trace_cutoff``; the others are exactly 0. With lambda gamma = 0.63 and the default 1e-5 that is the
+  last ~25 states.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Literal
+
+import numba
+import numpy as np
+
+from rmac_mj.agents.base import ActionSpace, Agent, Exploration, StateSpace
+from rmac_mj.approximators.tile_coding import Backend, TileCoder, TileCodingConfig
+
+
+@dataclasses.dataclass(frozen=True)
+class SACConfig:
+    """Hyperparameters of S-AC; defaults are the paper's (section 6.1) unless noted.
+
+    Attributes:
+      gamma: discount factor. Paper: 0.97.
+      lam: trace decay lambda. Paper: 0.65.
+      alpha_actor: actor learning rate alpha_a (eq. 4). Paper: 0.005.
+      alpha_critic: critic learning rate alpha_c (eq. 3). Paper: 0.1.
+      rate_split: which learning rates are divided over the ``num_tilings`` active weights:
+        ``"both"``, ``"actor"`` or ``"none"`` (not in the paper; measured in docs/sac.md).
+      tile_coding: the tiling layout of actor and critic. Paper: 16 tilings of 7 x 7 tiles.
+      tile_low, tile_high: range of the tile coder per state dimension, overriding the agent's
+        StateSpace where given (e.g. a velocity range narrower than the task's nominal box; states
+        outside are clipped). None: the StateSpace's box.
+      exploration: Delta u schedule. Paper: sigma 1 every third step.
+      trace_cutoff: traces below this are dropped (set to 0); 0 keeps every nonzero trace.
+      backend: ``"numba"`` (compiled) or ``"numpy"`` (reference); same results.
+    """
+
+    gamma: float = 0.97
+    lam: float = 0.65
+    alpha_actor: float = 0.005
+    alpha_critic: float = 0.1
+    rate_split: Literal["both", "actor", "none"] = "both"
+    tile_coding: TileCodingConfig = TileCodingConfig()
+    tile_low: tuple[float, ...] | None = None
+    tile_high: tuple[float, ...] | None = None
+    exploration: Exploration = Exploration()
+    trace_cutoff: float = 1e-5
+    backend: Backend = "numba"
+
+    def __post_init__(self) -> None:
+        def check(name: str, ok: bool, expected: str) -> None:
+            if not ok:
+                raise ValueError(f"SACConfig.{name} must be {expected}, got {getattr(self, name)!r}")
+
+        finite = lambda v: isinstance(v, (int, float)) and math.isfinite(v)  # noqa: E731
+        check("gamma", finite(self.gamma) and 0 <= self.gamma < 1, "in [0, 1)")
+        check("lam", finite(self.lam) and 0 <= self.lam <= 1, "in [0, 1]")
+        check("alpha_actor", finite(self.alpha_actor) and 0 <= self.alpha_actor <= 1, "in [0, 1]")
+        check("alpha_critic", finite(self.alpha_critic) and 0 <= self.alpha_critic <= 1, "in [0, 1]")
+        check("rate_split", self.rate_split in ("both", "actor", "none"),
+              "'both', 'actor' or 'none'")
+        check("tile_coding", isinstance(self.tile_coding, TileCodingConfig), "a TileCodingConfig")
+        check("exploration", isinstance(self.exploration, Exploration), "an Exploration")
+        check("trace_cutoff", finite(self.trace_cutoff) and 0 <= self.trace_cutoff < 1, "in [0, 1)")
+        check("backend", self.backend in ("numba", "numpy"), "'numba' or 'numpy'")
+        for name in ("tile_low", "tile_high"):
+            value = getattr(self, name)
+            if value is not None:
+                check(name, isinstance(value, tuple) and all(v is None or finite(v) for v in value),
+                      "None or a tuple of finite floats (None entries keep the StateSpace's bound)")
+
+
+# --------------------------------------------------------------------------------------------------
+# Compiled kernels. Each mirrors a numpy method of SAC below (the reference), operation for operation.
+
+@numba.njit(cache=True)
+def _policy_numba(actor, tiles, low, high, out):
+    """out = clip(sum_j actor[tiles[j]], low, high): pi(x), shape (m,)."""
+    for i in range(out.shape[0]):
+        s = 0.0
+        for t in tiles:
+            s += actor[t, i]
+        out[i] = min(max(s, low[i]), high[i])
+    return out
+
+
+@numba.njit(cache=True)
+def _learn_numba(critic, actor, traces, trace_idx, n_traces, prev_tiles, tiles, reward, gamma,
+                 decay, cutoff, a_critic, a_actor, prev_du, a_low, a_high):
+    """Lines 10-13 of Algorithm 1 in place; returns (delta_k, number of live traces)."""
+    v_prev = 0.0
+    v_next = 0.0
+    for t in prev_tiles:
+        v_prev += critic[t]
+    for t in tiles:
+        v_next += critic[t]
+    delta = reward + gamma * v_next - v_prev
+    # Line 11: decay the live traces, drop the ones below the cutoff, replace those of x_{k-1}.
+    live = 0
+    for i in range(n_traces):
+        t = trace_idx[i]
+        traces[t] *= decay
+        if traces[t] >= cutoff:
+            trace_idx[live] = t
+            live += 1
+        else:
+            traces[t] = 0.0
+    for t in prev_tiles:
+        if traces[t] == 0.0:
+            trace_idx[live] = t
+            live += 1
+        traces[t] = 1.0
+    # Line 12.
+    step = a_critic * delta
+    for i in range(live):
+        t = trace_idx[i]
+        critic[t] += step * traces[t]
+    # Line 13, keeping pi(x_{k-1}) within the bounds.
+    num_tilings = prev_tiles.shape[0]
+    for i in range(actor.shape[1]):
+        if prev_du[i] == 0.0:
+            continue
+        s = a_actor * delta * prev_du[i]
+        raw = 0.0
+        for t in prev_tiles:
+            raw += actor[t, i]
+        new = raw + num_tilings * s
+        if new > max(a_high[i], raw) or new < min(a_low[i], raw):
+            new = min(max(new, min(a_low[i], raw)), max(a_high[i], raw))
+            s = (new - raw) / num_tilings
+        for t in prev_tiles:
+            actor[t, i] += s
+    return delta, live
+
+
+class SAC(Agent):
+    """Standard actor-critic (Algorithm 1) with tile-coded actor and critic.
+
+    Args:
+      state_space: the task's nominal state box (n dimensions).
+      action_space: the action bounds (m dimensions); actions and pi(x) are saturated to them.
+      config: hyperparameters.
+      seed: seed or Generator of the exploration noise.
+
+    Attributes (learned state ends in an underscore):
+      critic_: ndarray of shape (num_features,), theta.
+      actor_: ndarray of shape (num_features, m), vartheta.
+      last_delta_: the most recent TD error delta_k.
+    """
+
+    name = "s-ac"
+
+    def __init__(self, state_space: StateSpace, action_space: ActionSpace,
+                 config: SACConfig = SACConfig(),
+                 seed: int | np.random.Generator | None = None) -> None:
+        if not isinstance(state_space, StateSpace):
+            raise TypeError(f"state_space must be a StateSpace, got {type(state_space).__name__}")
+        if not isinstance(action_space, ActionSpace):
+            raise TypeError(f"action_space must be an ActionSpace, got {type(action_space).__name__}")
+        if not isinstance(config, SACConfig):
+            raise TypeError(f"config must be an SACConfig, got {type(config).__name__}")
+        self.state_space = state_space
+        self.action_space = action_space
+        self.config = config
+        self.rng = np.random.default_rng(seed)
+
+        low, high = state_space.low.copy(), state_space.high.copy()
+        for name, bound in (("tile_low", low), ("tile_high", high)):
+            override = getattr(config, name)
+            if override is None:
+                continue
+            if len(override) != state_space.dim:
+                raise ValueError(f"SACConfig.{name} has {len(override)} entries, the state has "
+                                 f"{state_space.dim} dimensions")
+            for d, v in enumerate(override):
+                if v is not None:
+                    bound[d] = v
+        self.coder = TileCoder(low, high, state_space.periodic, config.tile_coding, config.backend)
+        T = self.coder.num_tilings
+        self.alpha_critic = config.alpha_critic / T if config.rate_split == "both" else config.alpha_critic
+        self.alpha_actor = (config.alpha_actor / T if config.rate_split in ("both", "actor")
+                            else config.alpha_actor)
+        self._decay = config.gamma * config.lam
+        self._a_low = action_space.low
+        self._a_high = action_space.high
+        m = action_space.dim
+
+        # Algorithm 1 line 2: theta_0 = 0 (V starts at 0, section 6.1) and vartheta_0 = 0.
+        self.critic_ = np.zeros(self.coder.num_features)
+        self.actor_ = np.zeros((self.coder.num_features, m))
+        self._traces = np.zeros(self.coder.num_features)
+        self._trace_idx = np.zeros(self.coder.num_features, dtype=np.int64)
+        self._n_traces = 0
+        self._prev_tiles = np.zeros(T, dtype=np.int64)
+        self._tiles = np.zeros(T, dtype=np.int64)
+        self._prev_du = np.zeros(m)
+        self._k = -1  # -1: no trial running
+        self.last_delta_ = 0.0
+
+    # ----------------------------------------------------------------------------------- protocol
+    def start(self, x0: np.ndarray) -> np.ndarray:
+        """Lines 1-4: reset the traces, apply u_0 = pi(x_0) + Delta u_0; returns shape (m,)."""
+        self._traces[self._trace_idx[:self._n_traces]] = 0.0
+        self._n_traces = 0
+        self._k = 0
+        self._tiles_of(x0, self._prev_tiles)
+        u, self._prev_du = self._act(self._prev_tiles, 0)
+        return u
+
+    def step(self, reward: float, x: np.ndarray) -> np.ndarray:
+        """Lines 6-14 for r_k and x_k; returns u_k of shape (m,)."""
+        self._check_running()
+        self._k += 1
+        self._tiles_of(x, self._tiles)
+        u, du = self._act(self._tiles, self._k)  # line 8 uses vartheta_{k-1}: act before learning
+        self._learn(self._check_reward(reward))
+        self._prev_tiles, self._tiles = self._tiles, self._prev_tiles
+        self._prev_du = du
+        return u
+
+    def stop(self, reward: float, x: np.ndarray) -> None:
+        """Learn from the trial's last transition (bootstrapping from V(x_K)); ends the trial."""
+        self._check_running()
+        self._tiles_of(x, self._tiles)
+        self._learn(self._check_reward(reward))
+        self._k = -1
+
+    def greedy_action(self, x: np.ndarray) -> np.ndarray:
+        """pi(x) saturated to the action bounds, shape (m,); no exploration, no learning."""
+        return self._policy(self.coder.active_tiles(x))
+
+    def value(self, x: np.ndarray) -> float:
+        """V(x, theta)."""
+        return float(self.critic_[self.coder.active_tiles(x)].sum())
+
+    def state_dict(self) -> dict[str, np.ndarray]:
+        """theta and vartheta (traces are per trial and the exploration stream is not included)."""
+        return {"critic": self.critic_.copy(), "actor": self.actor_.copy()}
+
+    def load_state_dict(self, state: dict[str, np.ndarray]) -> None:
+        for key, ref in (("critic", self.critic_), ("actor", self.actor_)):
+            if key not in state:
+                raise ValueError(f"state dict lacks {key!r}; has {sorted(state)}")
+            value = np.asarray(state[key], dtype=float)
+            if value.shape != ref.shape or not np.all(np.isfinite(value)):
+                raise ValueError(f"state[{key!r}] must be finite of shape {ref.shape}, got {value.shape}")
+        self.critic_ = np.array(state["critic"], dtype=float)
+        self.actor_ = np.array(state["actor"], dtype=float)
+
+    # ---------------------------------------------------------------------------------- internals
+    def _check_running(self) -> None:
+        if self._k < 0:
+            raise RuntimeError("S-AC: call start(x0) before step/stop")
+
+    @staticmethod
+    def _check_reward(reward: float) -> float:
+        reward = float(reward)
+        if not math.isfinite(reward):
+            raise ValueError(f"reward must be finite, got {reward}")
+        return reward
+
+    def _tiles_of(self, x: np.ndarray, out: np.ndarray) -> None:
+        """Active tiles of a checked x, written into ``out``."""
+        x = self.coder.check_state(x)
+        if self.config.backend == "numba":
+            self.coder._active_tiles_into(x, out)
+        else:
+            out[:] = self.coder._active_tiles_numpy(x)
+
+    def _policy(self, tiles: np.ndarray) -> np.ndarray:
+        if self.config.backend == "numba":
+            return _policy_numba(self.actor_, tiles, self._a_low, self._a_high,
+                                 np.empty(self.action_space.dim))
+        return np.clip(self.actor_[tiles].sum(axis=0), self._a_low, self._a_high)
+
+    def _act(self, tiles: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """Lines 6 and 8: u_k = sat(pi(x_k) + Delta u_k) and the applied exploration u_k - pi(x_k)."""
+        pi = self._policy(tiles)
+        u = np.clip(pi + self.config.exploration.sample(k, self.action_space.dim, self.rng),
+                    self._a_low, self._a_high)
+        return u, u - pi
+
+    def _learn(self, reward: float) -> None:
+        """Lines 10-13 for the transition x_{k-1} -> x_k (tiles in _prev_tiles and _tiles)."""
+        c = self.config
+        if c.backend == "numba":
+            self.last_delta_, self._n_traces = _learn_numba(
+                self.critic_, self.actor_, self._traces, self._trace_idx, self._n_traces,
+                self._prev_tiles, self._tiles, reward, c.gamma, self._decay, c.trace_cutoff,
+                self.alpha_critic, self.alpha_actor, self._prev_du, self._a_low, self._a_high)
+        else:
+            self._learn_numpy(reward)
+
+    def _learn_numpy(self, reward: float) -> None:
+        """Reference implementation of lines 10-13 (dense traces, same cutoff)."""
+        c, prev, tiles = self.config, self._prev_tiles, self._tiles
+        # Line 10 (eq. 2).
+        delta = reward + c.gamma * self.critic_[tiles].sum() - self.critic_[prev].sum()
+        # Line 11: replacing traces; the trace of x_{k-1}, whose value is being corrected, is set.
+        self._traces *= self._decay
+        self._traces[self._traces < c.trace_cutoff] = 0.0
+        self._traces[prev] = 1.0
+        self._n_traces = int(np.count_nonzero(self._traces))
+        self._trace_idx[:self._n_traces] = np.flatnonzero(self._traces)
+        # Line 12 (eq. 3 with traces): dV/dtheta(x) is the indicator of x's tiles.
+        self.critic_ += (self.alpha_critic * delta) * self._traces
+        # Line 13 (eq. 4): dpi/dvartheta(x_{k-1}) is the indicator of x_{k-1}'s tiles.
+        T = prev.shape[0]
+        raw = self.actor_[prev].sum(axis=0)
+        step = self.alpha_actor * delta * self._prev_du
+        new = raw + T * step
+        lo, hi = np.minimum(self._a_low, raw), np.maximum(self._a_high, raw)
+        clipped = (new > hi) | (new < lo)
+        step = np.where(clipped, (np.clip(new, lo, hi) - raw) / T, step)
+        step = np.where(self._prev_du == 0.0, 0.0, step)
+        self.actor_[prev] += step
+        self.last_delta_ = float(delta)

@@ -1,0 +1,207 @@
+"""S-AC (Algorithm 1): hand-worked TD and trace updates, actor direction, back ends, learning."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from rmac_mj.agents.base import ActionSpace, Exploration, StateSpace
+from rmac_mj.agents.sac import SAC, SACConfig
+from rmac_mj.approximators.tile_coding import TileCodingConfig
+
+PENDULUM = StateSpace(low=[-np.pi, -60.0], high=[np.pi, 60.0], periodic=[True, False])
+VOLTS = ActionSpace(low=[-3.0], high=[3.0])
+LINE = StateSpace(low=[0.0], high=[1.0], periodic=[False])
+NO_EXPLORATION = Exploration(sigma=0.0)
+
+
+def line_agent(backend="numba", **kwargs):
+    """1-D state in [0, 1], one tiling of 2 tiles: x = 0.25 is tile 0, x = 0.75 is tile 1."""
+    config = dict(gamma=0.9, lam=0.5, alpha_critic=0.5, alpha_actor=0.1, rate_split="none",
+                  tile_coding=TileCodingConfig(num_tilings=1, tiles=2), exploration=NO_EXPLORATION,
+                  backend=backend)
+    config.update(kwargs)
+    return SAC(LINE, VOLTS, SACConfig(**config), seed=0)
+
+
+@pytest.mark.parametrize("backend", ["numba", "numpy"])
+def test_two_step_td_with_traces(backend):
+    agent = line_agent(backend)
+    agent.start([0.25])
+    # delta_1 = -1 + 0.9 * V(0.75) - V(0.25) = -1; the trace of x_0 (tile 0) is 1, so only tile 0
+    # moves. Setting the trace of x_1 instead (Algorithm 1 line 11 as printed) would move tile 1.
+    agent.step(-1.0, [0.75])
+    np.testing.assert_allclose(agent.critic_[:2], [-0.5, 0.0])
+    # delta_2 = -2 + 0.9 * (-0.5) - 0 = -2.45; traces: tile 0 decayed to 0.9 * 0.5 = 0.45, tile 1 = 1.
+    agent.step(-2.0, [0.25])
+    np.testing.assert_allclose(agent.critic_[:2], [-0.5 - 0.5 * 2.45 * 0.45, -0.5 * 2.45])
+    assert agent.last_delta_ == pytest.approx(-2.45)
+    # stop bootstraps from V(x_K): delta_3 = -1 + 0.9 * V(0.75) - V(0.25); tile 0 replaced to 1.
+    theta = agent.critic_[:2].copy()
+    delta3 = -1.0 + 0.9 * theta[1] - theta[0]
+    agent.stop(-1.0, [0.75])
+    np.testing.assert_allclose(agent.critic_[:2],
+                               [theta[0] + 0.5 * delta3, theta[1] + 0.5 * delta3 * 0.45])
+    np.testing.assert_array_equal(agent.actor_, 0.0)  # no exploration, no actor update
+
+
+def test_traces_reset_each_trial():
+    agent = line_agent()
+    agent.start([0.25])
+    agent.step(-1.0, [0.75])
+    agent.stop(-1.0, [0.75])
+    before = agent.critic_[:2].copy()
+    agent.start([0.75])  # a new trial: the old trace of tile 0 must be gone
+    agent.step(-1.0, [0.75])
+    assert agent.critic_[0] == before[0]
+
+
+@pytest.mark.parametrize("rate_split, v_change", [("both", -0.1), ("actor", -1.6), ("none", -1.6)])
+def test_rate_split(rate_split, v_change):
+    config = SACConfig(rate_split=rate_split, exploration=NO_EXPLORATION)
+    agent = SAC(PENDULUM, VOLTS, config, seed=0)
+    x0 = np.array([np.pi, 0.0])
+    agent.start(x0)
+    agent.step(-1.0, [0.0, 30.0])  # delta = -1; 16 active weights each move by alpha(_c / 16)
+    assert agent.value(x0) == pytest.approx(v_change)
+    assert agent.alpha_actor == pytest.approx(0.005 / 16 if rate_split != "none" else 0.005)
+
+
+@pytest.mark.parametrize("backend", ["numba", "numpy"])
+@pytest.mark.parametrize("reward, toward", [(10.0, True), (-10.0, False)])
+def test_actor_follows_rewarded_perturbation(backend, reward, toward):
+    config = SACConfig(exploration=Exploration(sigma=1.0), backend=backend)
+    agent = SAC(PENDULUM, VOLTS, config, seed=3)
+    x0 = np.array([np.pi, 0.0])
+    u0 = agent.start(x0)  # step 0 explores; pi(x0) = 0, so u0 is the perturbation
+    assert u0[0] != 0.0
+    agent.step(reward, [np.pi - 0.1, 1.0])
+    delta = agent.last_delta_
+    assert (delta > 0) == (reward > 0)
+    moved = agent.greedy_action(x0)[0]
+    assert np.sign(moved) == (np.sign(u0[0]) if toward else -np.sign(u0[0]))
+    # eq. 4 with the rate split over the 16 tilings: pi(x0) moves by alpha_a delta Delta u_0.
+    assert moved == pytest.approx(0.005 * delta * u0[0])
+
+
+def test_actor_output_stays_within_bounds():
+    config = SACConfig(alpha_actor=1.0, rate_split="none", exploration=Exploration(sigma=1.0))
+    agent = SAC(PENDULUM, VOLTS, config, seed=3)
+    x0 = np.array([np.pi, 0.0])
+    u0 = agent.start(x0)
+    agent.step(1e3, [np.pi, 0.0])  # a huge positive delta pushes pi(x0) far past the bound
+    raw = agent.actor_[agent.coder.active_tiles(x0)].sum()
+    assert raw == pytest.approx(3.0 * np.sign(u0[0]))
+
+
+def test_saturated_exploration_is_not_credited():
+    """With pi(x0) on the upper bound, noise pointing up is cut off and must not move the actor."""
+    x0 = np.array([np.pi, 0.0])
+    for seed in range(6):
+        draw = np.random.default_rng(seed).normal(0.0, 1.0, size=1)[0]  # the agent's first Delta u
+        agent = SAC(PENDULUM, VOLTS, SACConfig(exploration=Exploration(sigma=1.0)), seed=seed)
+        state = agent.state_dict()
+        state["actor"][agent.coder.active_tiles(x0)] = 3.0 / 16
+        agent.load_state_dict(state)
+        u0 = agent.start(x0)
+        assert u0[0] == pytest.approx(min(3.0, 3.0 + draw))
+        agent.step(10.0, [np.pi, 0.0])
+        moved = agent.actor_[agent.coder.active_tiles(x0)].sum() - 3.0
+        if draw > 0:
+            assert moved == 0.0
+        else:  # tried lower with a positive delta: pi(x0) moves down by alpha_a delta Delta u
+            assert moved == pytest.approx(0.005 * agent.last_delta_ * draw)
+
+
+def test_backends_agree_and_seed_reproduces():
+    rng = np.random.default_rng(5)
+    xs = rng.uniform([-4, -70], [4, 70], size=(300, 2))
+    rs = rng.normal(-20, 10, size=300)
+
+    def run(backend, seed):
+        agent = SAC(PENDULUM, VOLTS, SACConfig(backend=backend), seed=seed)
+        us = [agent.start(xs[0])]
+        for k in range(1, 300):
+            if k % 100 == 0:
+                agent.stop(rs[k], xs[k])
+                us.append(agent.start(xs[k]))
+            else:
+                us.append(agent.step(rs[k], xs[k]))
+        return np.array(us), agent
+
+    u_fast, fast = run("numba", 7)
+    u_ref, ref = run("numpy", 7)
+    np.testing.assert_allclose(u_fast, u_ref, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(fast.critic_, ref.critic_, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(fast.actor_, ref.actor_, rtol=1e-9, atol=1e-12)
+    assert np.any(fast.actor_ != 0) and np.any(fast.critic_ != 0)
+    u_again, _ = run("numba", 7)
+    np.testing.assert_array_equal(u_again, u_fast)
+    u_other, _ = run("numba", 8)
+    assert not np.array_equal(u_other, u_fast)
+
+
+def test_state_dict_round_trip():
+    agent = SAC(PENDULUM, VOLTS, seed=0)
+    agent.start([np.pi, 0.0])
+    for k in range(30):
+        agent.step(-5.0, [np.pi - 0.05 * k, 0.5 * k])
+    state = agent.state_dict()
+    assert all(isinstance(v, np.ndarray) and v.dtype.kind == "f" for v in state.values())
+    clone = SAC(PENDULUM, VOLTS, seed=1)
+    clone.load_state_dict(state)
+    for x in ([np.pi, 0.0], [1.0, 5.0], [-0.5, -3.0]):
+        assert clone.value(x) == agent.value(x)
+        np.testing.assert_array_equal(clone.greedy_action(x), agent.greedy_action(x))
+    with pytest.raises(ValueError, match="actor"):
+        clone.load_state_dict({"critic": state["critic"], "actor": state["actor"][:-1]})
+
+
+def test_generic_dimensions():
+    space = StateSpace(low=[-np.pi, -1.0, 0.0], high=[np.pi, 1.0, 2.0], periodic=[True, False, False])
+    actions = ActionSpace(low=[-1.0, 0.0], high=[1.0, 5.0])
+    config = SACConfig(tile_coding=TileCodingConfig(num_tilings=8, tiles=4))
+    agent = SAC(space, actions, config, seed=0)
+    u = agent.start([0.0, 0.0, 1.0])
+    for _ in range(20):
+        u = agent.step(-1.0, np.random.default_rng(0).uniform(-2, 2, 3))
+        assert u.shape == (2,) and np.all(u >= actions.low) and np.all(u <= actions.high)
+    assert agent.actor_.shape == (agent.coder.num_features, 2)
+
+
+@pytest.mark.parametrize("field, value", [
+    ("gamma", 1.0), ("gamma", -0.1), ("lam", 1.5), ("alpha_actor", -0.01), ("alpha_critic", 2.0),
+    ("alpha_critic", float("nan")), ("rate_split", "half"), ("trace_cutoff", 1.0),
+    ("backend", "cuda"), ("tile_low", [0.0, 1.0]), ("tile_high", (0.0, float("inf"))),
+    ("exploration", 1.0), ("tile_coding", 16),
+])
+def test_config_validation(field, value):
+    with pytest.raises(ValueError, match=f"SACConfig.{field}"):
+        SACConfig(**{field: value})
+
+
+def test_boundary_errors():
+    agent = SAC(PENDULUM, VOLTS, seed=0)
+    with pytest.raises(RuntimeError, match="start"):
+        agent.step(-1.0, [0.0, 0.0])
+    agent.start([np.pi, 0.0])
+    with pytest.raises(ValueError, match="finite"):
+        agent.step(-1.0, [np.nan, 0.0])
+    with pytest.raises(ValueError, match="reward"):
+        agent.step(float("inf"), [0.0, 0.0])
+    with pytest.raises(ValueError, match="tile_high"):
+        SAC(PENDULUM, VOLTS, SACConfig(tile_high=(1.0,)))
+    assert dataclasses.asdict(agent.config)["alpha_critic"] == 0.1
+    assert agent.config_dict()["exploration"]["period"] == 3
+
+
+def test_improves_on_swingup():
+    """A short run (150 trials, ~2 s): S-AC leaves the hanging-down return (about -4900) behind."""
+    from rmac_mj import tasks
+    from rmac_mj.experiments.episode import action_space_of, run_trial, state_space_of
+
+    env = tasks.load("dc_pendulum", "swingup", task_kwargs={"random": 0})
+    agent = SAC(state_space_of(env), action_space_of(env), seed=np.random.default_rng(11))
+    untrained = run_trial(env, agent, learn=False)
+    returns = [run_trial(env, agent) for _ in range(150)]
+    assert np.mean(returns[-20:]) > untrained + 1000.0, (untrained, np.mean(returns[-20:]))
