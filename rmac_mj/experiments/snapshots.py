@@ -11,25 +11,24 @@ from __future__ import annotations
 import json
 import os
 import pathlib
-import tempfile
 from typing import Any
 
 import numpy as np
 
 from rmac_mj.agents import Agent, make_agent
 from rmac_mj.agents.base import ActionSpace, StateSpace
+from rmac_mj.experiments.results import write_npz
 
 _PREFIX = "agent/"
 
 
-def save_snapshot(path: str | os.PathLike, agent: Agent, state_space: StateSpace,
-                  action_space: ActionSpace, **meta: Any) -> pathlib.Path:
-    """Write ``agent`` atomically to ``path``; ``meta`` (JSON-ready) is stored beside it.
+def snapshot_arrays(agent: Agent, state_space: StateSpace, action_space: ActionSpace,
+                    **meta: Any) -> dict[str, np.ndarray]:
+    """The arrays of a snapshot of ``agent`` (what :func:`save_snapshot` writes).
 
-    ``meta`` conventionally holds ``domain``, ``task``, ``task_kwargs``, ``experiment``, ``seed`` and
-    ``trial`` (the number of learning trials done).
+    ``meta`` (JSON-ready) conventionally holds ``domain``, ``task``, ``task_kwargs``, ``experiment``,
+    ``seed`` and ``trial`` (the number of learning trials done).
     """
-    path = pathlib.Path(path)
     document = {
         "algorithm": agent.name,
         "config": agent.config_dict(),
@@ -43,12 +42,13 @@ def save_snapshot(path: str | os.PathLike, agent: Agent, state_space: StateSpace
         if value.dtype == object:
             raise TypeError(f"state_dict entry {key[len(_PREFIX):]!r} is not a numeric array")
     arrays["meta"] = np.array(json.dumps(document))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.NamedTemporaryFile(dir=path.parent, prefix=path.name, suffix=".tmp",
-                                     delete=False) as handle:
-        np.savez(handle, **arrays)
-    os.replace(handle.name, path)
-    return path
+    return arrays
+
+
+def save_snapshot(path: str | os.PathLike, agent: Agent, state_space: StateSpace,
+                  action_space: ActionSpace, **meta: Any) -> pathlib.Path:
+    """Write a snapshot of ``agent`` to ``path`` atomically (see :func:`snapshot_arrays`)."""
+    return write_npz(path, **snapshot_arrays(agent, state_space, action_space, **meta))
 
 
 def load_snapshot(path: str | os.PathLike) -> tuple[Agent, dict[str, Any]]:

@@ -1,0 +1,236 @@
+"""The ``rmac-mj`` command: reproduce the paper's comparison, draw its figures, render, benchmark.
+
+    rmac-mj reproduce [--experiments 40] [--trials 600] [--algorithms rmac,s-ac] [--seed 0]
+                      [--jobs N] [--out DIR] [--resume] [--evaluate-every N] [--scheduler ADDRESS]
+    rmac-mj compare DIR [DIR ...] [--out STEM]
+    rmac-mj policy SNAPSHOT [--out STEM]
+    rmac-mj optimal [--refresh]
+    rmac-mj render SNAPSHOT --out swingup.mp4 | rmac-mj render --progression DIR --out progression.mp4
+    rmac-mj bench [--json FILE]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import pathlib
+import sys
+from typing import Sequence
+
+
+class _Parser(argparse.ArgumentParser):
+    """Argument errors as one line and exit status 2, not a usage dump."""
+
+    def error(self, message: str):  # noqa: D102
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+class UsageError(Exception):
+    """A bad argument found after parsing: reported as one line, exit status 2."""
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {value}")
+    return value
+
+
+def _non_negative_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {value}")
+    return value
+
+
+def _writable_dir(path: pathlib.Path) -> pathlib.Path:
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        probe = path / ".write-probe"
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as error:
+        raise UsageError(f"cannot write to {path}: {error.strerror or error}") from None
+    return path
+
+
+def _parser() -> argparse.ArgumentParser:
+    from rmac_mj.agents import ALGORITHMS
+
+    parser = _Parser(prog="rmac-mj", description=__doc__.split("\n\n")[0])
+    commands = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    reproduce = commands.add_parser("reproduce", help="run the paper's comparison (section 6)")
+    reproduce.add_argument("--experiments", type=_positive_int, default=40,
+                           help="learning experiments per learner (paper: 40)")
+    reproduce.add_argument("--trials", type=_positive_int, default=600,
+                           help="consecutive 3 s trials per experiment (paper: 600)")
+    reproduce.add_argument("--algorithms", default=",".join(ALGORITHMS),
+                           help=f"comma-separated learners, from {', '.join(ALGORITHMS)}")
+    reproduce.add_argument("--seed", type=_non_negative_int, default=0, help="root random seed")
+    reproduce.add_argument("--jobs", type=_positive_int, default=None,
+                           help="worker processes (default: all cores)")
+    reproduce.add_argument("--out", type=pathlib.Path, default=pathlib.Path("results/reproduce"),
+                           help="result directory")
+    reproduce.add_argument("--resume", action="store_true",
+                           help="finish an interrupted run in --out")
+    reproduce.add_argument("--evaluate-every", type=_non_negative_int, default=0,
+                           help="a greedy trial after every N learning trials (0: none)")
+    reproduce.add_argument("--scheduler", default=None,
+                           help="Dask scheduler address (tcp://host:8786) to run experiments on")
+    reproduce.add_argument("--no-optimal", action="store_true",
+                           help="skip the near-optimal reference (dynamic programming)")
+    reproduce.add_argument("--no-progress", action="store_true", help="no progress bars")
+
+    compare = commands.add_parser("compare", help="overlay the learning curves of result dirs")
+    compare.add_argument("dirs", nargs="+", type=pathlib.Path)
+    compare.add_argument("--out", type=pathlib.Path, default=pathlib.Path("compare"),
+                         help="figure path without suffix (.png and .pdf are written)")
+
+    policy = commands.add_parser("policy", help="draw a snapshot's policy and critic (Figs. 3, 4)")
+    policy.add_argument("snapshot", type=pathlib.Path)
+    policy.add_argument("--out", type=pathlib.Path, default=None,
+                        help="figure path without suffix (default: beside the snapshot)")
+    policy.add_argument("--max-speed", type=float, default=30.0, help="velocity axis range (rad/s)")
+
+    optimal = commands.add_parser("optimal", help="near-optimal return by dynamic programming")
+    optimal.add_argument("--refresh", action="store_true", help="recompute, ignoring the cache")
+
+    render = commands.add_parser("render", help="render greedy swingups off-screen to MP4 or GIF")
+    render.add_argument("snapshot", nargs="?", type=pathlib.Path, default=None)
+    render.add_argument("--progression", type=pathlib.Path, default=None, metavar="RESULT_DIR",
+                        help="one experiment after trials 1, 10, 50, 200 and the last, in sequence")
+    render.add_argument("--compare", type=pathlib.Path, default=None, metavar="RESULT_DIR",
+                        help="S-AC and RMAC side by side after the same trial")
+    render.add_argument("--experiment", type=_non_negative_int, default=0)
+    render.add_argument("--out", type=pathlib.Path, required=True, help=".mp4 or .gif")
+    render.add_argument("--width", type=_positive_int, default=320)
+    render.add_argument("--height", type=_positive_int, default=240)
+    render.add_argument("--no-overlay", action="store_true", help="no text overlay")
+
+    bench = commands.add_parser("bench", help="microseconds per step, against env.step")
+    bench.add_argument("--json", type=pathlib.Path, default=None, help="also write the figures here")
+    bench.add_argument("--quick", action="store_true", help="fewer repeats and a shorter experiment")
+    return parser
+
+
+def _optimal_for(protocol) -> float | None:
+    """The near-optimal return of the protocol's task, when it is the paper's swing-up."""
+    if (protocol.domain, protocol.task, protocol.task_kwargs) != ("dc_pendulum", "swingup", {}):
+        return None
+    from rmac_mj.experiments import optimal
+    return float(optimal.optimal_return().simulated_return)
+
+
+def _reproduce(args) -> int:
+    from rmac_mj.experiments import runner
+
+    protocol = runner.Protocol(algorithms=tuple(a.strip() for a in args.algorithms.split(",") if a),
+                               experiments=args.experiments, trials=args.trials, seed=args.seed,
+                               evaluate_every=args.evaluate_every)
+    out = _writable_dir(args.out)
+    if args.jobs is not None and args.scheduler:
+        raise UsageError("--jobs and --scheduler exclude each other")
+    summary = runner.run_protocol(protocol, out, jobs=args.jobs, resume=args.resume,
+                                  scheduler=args.scheduler, progress=not args.no_progress,
+                                  optimal=None if args.no_optimal else _optimal_for)
+    print(runner.summary_table(summary, protocol.algorithms))
+    print(f"wall time {summary['wall_time_s']:.1f} s; results in {out}/ "
+          f"(summary.json, returns.csv, fig2_learning_curves.png)")
+    return 0
+
+
+def _compare(args) -> int:
+    from rmac_mj.experiments import plots, runner
+
+    summaries = {}
+    for directory in args.dirs:
+        path = directory / "summary.json"
+        if not path.is_file():
+            raise UsageError(f"{directory} has no summary.json (not a finished `reproduce` run)")
+        summaries[directory.name or str(directory)] = json.loads(path.read_text())
+    optimal = next((s["optimal_return"] for s in summaries.values() if s.get("optimal_return")), None)
+    paths = plots.plot_learning_curves(summaries, args.out, optimal_return=optimal)
+    for label, summary in summaries.items():
+        print(f"== {label}")
+        print(runner.summary_table(summary))
+    print("figure:", ", ".join(map(str, paths)))
+    return 0
+
+
+def _policy(args) -> int:
+    from rmac_mj.experiments import plots
+    from rmac_mj.experiments.snapshots import load_snapshot
+
+    agent, meta = load_snapshot(args.snapshot)
+    stem = args.out or args.snapshot.with_name(args.snapshot.stem + "_policy")
+    paths = plots.plot_policy(agent, meta, stem, max_speed=args.max_speed)
+    print("figure:", ", ".join(map(str, paths)))
+    return 0
+
+
+def _optimal(args) -> int:
+    from rmac_mj.experiments import optimal
+
+    result = optimal.optimal_return(refresh=args.refresh)
+    print(optimal.describe(result) if hasattr(optimal, "describe") else result)
+    return 0
+
+
+def _render(args) -> int:
+    chosen = [x for x in (args.snapshot, args.progression, args.compare) if x is not None]
+    if len(chosen) != 1:
+        raise UsageError("give exactly one of SNAPSHOT, --progression DIR or --compare DIR")
+    from rmac_mj.experiments import render
+
+    options = {"width": args.width, "height": args.height, "overlay": not args.no_overlay}
+    if args.snapshot is not None:
+        path = render.render_snapshot(args.snapshot, args.out, **options)
+    elif args.progression is not None:
+        path = render.render_progression(args.progression, args.out, experiment=args.experiment,
+                                         **options)
+    else:
+        path = render.render_comparison(args.compare, args.out, experiment=args.experiment,
+                                        **options)
+    print("video:", path)
+    return 0
+
+
+def _bench(args) -> int:
+    from rmac_mj.experiments import bench
+
+    report = bench.run(quick=args.quick)
+    print(bench.format_table(report))
+    if args.json:
+        from rmac_mj.experiments.results import write_json
+        write_json(args.json, report)
+        print("json:", args.json)
+    return 0
+
+
+_COMMANDS = {"reproduce": _reproduce, "compare": _compare, "policy": _policy, "optimal": _optimal,
+             "render": _render, "bench": _bench}
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    prog = "rmac-mj"
+    try:
+        return _COMMANDS[args.command](args)
+    except KeyboardInterrupt:
+        print(f"\n{prog}: interrupted; finished experiments are saved, run again with --resume",
+              file=sys.stderr)
+        return 130
+    except (UsageError, ValueError, FileNotFoundError) as error:  # runner.ResumeRefused included
+        print(f"{prog}: error: {error}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

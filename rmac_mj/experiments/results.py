@@ -1,0 +1,182 @@
+"""Learning-curve statistics, provenance and atomic result files.
+
+Everything written here is plain: JSON, CSV and ``.npz`` files that numpy or pandas read without this
+package (``numpy.load(..., allow_pickle=False)``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib.metadata
+import json
+import os
+import pathlib
+import platform
+import subprocess
+import tempfile
+from typing import Any, Sequence
+
+import numpy as np
+from scipy import stats
+
+#: Seconds of simulated time per trial in the paper's protocol (3 s trials).
+TRIAL_SECONDS = 3.0
+#: Trials over which the final level is averaged.
+FINAL_WINDOW = 50
+#: An experiment whose final level is below this return is counted as stuck.
+STUCK_BELOW = -1500.0
+#: "First 10 minutes" of simulated time, in trials of 3 s.
+FIRST_10_MIN_TRIALS = 200
+
+
+def confidence_interval(samples: np.ndarray, confidence: float = 0.95, axis: int = 0):
+    """Student-t confidence interval of the mean along ``axis``.
+
+    Args:
+      samples: ndarray with the experiments along ``axis``.
+    Returns:
+      (mean, low, high), each of the shape of ``samples`` without ``axis``; low and high are NaN where
+      fewer than two samples exist.
+    """
+    samples = np.asarray(samples, dtype=float)
+    n = samples.shape[axis]
+    mean = samples.mean(axis=axis)
+    if n < 2:
+        nan = np.full_like(mean, np.nan)
+        return mean, nan, nan.copy()
+    half = stats.t.ppf(0.5 + confidence / 2, n - 1) * samples.std(axis=axis, ddof=1) / np.sqrt(n)
+    return mean, mean - half, mean + half
+
+
+def minutes_to_within(curve: np.ndarray, fraction: float = 0.1, window: int = FINAL_WINDOW,
+                      trial_seconds: float = TRIAL_SECONDS) -> float:
+    """Simulated minutes until ``curve`` first comes within ``fraction`` of its final level.
+
+    The final level is the mean of the last ``window`` trials; trial t (1-based) ends at
+    t * trial_seconds.
+    """
+    curve = np.asarray(curve, dtype=float)
+    final = curve[-window:].mean()
+    close = np.abs(curve - final) <= fraction * abs(final)
+    first = int(np.argmax(close)) + 1  # close[-1] may be False, but the window mean lies inside it
+    return first * trial_seconds / 60.0
+
+
+def _nan_to_none(values) -> Any:
+    array = np.asarray(values, dtype=float)
+    if array.ndim == 0:
+        return None if not np.isfinite(array) else float(array)
+    return [None if not np.isfinite(v) else float(v) for v in array]
+
+
+def summarise(returns: np.ndarray, greedy: np.ndarray | None = None,
+              greedy_trials: Sequence[int] = (), optimal_return: float | None = None) -> dict:
+    """The summary of one learner: returns is an ndarray of shape (experiments, trials).
+
+    ``greedy`` (experiments, evaluations) holds the greedy-trial returns after the trials listed in
+    ``greedy_trials``.
+    """
+    returns = np.asarray(returns, dtype=float)
+    n_experiments, n_trials = returns.shape
+    window = min(FINAL_WINDOW, n_trials)
+    mean, low, high = confidence_interval(returns)
+    finals = returns[:, -window:].mean(axis=1)
+    final_mean, final_low, final_high = confidence_interval(finals)
+    summary = {
+        "experiments": n_experiments,
+        "trials": n_trials,
+        "mean_return_per_trial": mean.tolist(),
+        "ci95_low_per_trial": _nan_to_none(low),
+        "ci95_high_per_trial": _nan_to_none(high),
+        "final_return_mean": float(final_mean),
+        "final_return_ci95": [_nan_to_none(final_low), _nan_to_none(final_high)],
+        "final_return_per_experiment": finals.tolist(),
+        "minutes_to_90pct": minutes_to_within(mean, window=window),
+        "mean_return_first_10min": float(returns[:, :FIRST_10_MIN_TRIALS].mean()),
+        "stuck_experiments": int(np.sum(finals < STUCK_BELOW)),
+    }
+    if optimal_return is not None:
+        summary["gap_to_optimal"] = float(optimal_return - final_mean)
+    if greedy is not None and len(greedy_trials):
+        greedy = np.asarray(greedy, dtype=float)
+        summary["greedy_eval_trials"] = [int(t) for t in greedy_trials]
+        summary["greedy_return_per_eval"] = greedy.mean(axis=0).tolist()
+    return summary
+
+
+def write_atomic(path: str | os.PathLike, write) -> pathlib.Path:
+    """Call ``write(file_handle)`` on a temporary file beside ``path``, then rename it into place.
+
+    A reader never sees a half-written ``path``: it is either absent or complete.
+    """
+    path = pathlib.Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handle = tempfile.NamedTemporaryFile(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp",
+                                         delete=False)
+    try:
+        with handle:
+            write(handle)
+        os.replace(handle.name, path)
+    except BaseException:
+        pathlib.Path(handle.name).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def write_json(path: str | os.PathLike, document: Any) -> pathlib.Path:
+    text = json.dumps(document, indent=2, sort_keys=False, allow_nan=False)
+    return write_atomic(path, lambda handle: handle.write(text.encode() + b"\n"))
+
+
+def write_npz(path: str | os.PathLike, **arrays: np.ndarray) -> pathlib.Path:
+    return write_atomic(path, lambda handle: np.savez(handle, **arrays))
+
+
+def code_version() -> dict[str, Any]:
+    """The package version and, in a git checkout, the commit and whether the tree is dirty."""
+    version = {"package": _version("rmac-mj")}
+    root = pathlib.Path(__file__).resolve().parents[2]
+    try:
+        commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True,
+                                text=True, timeout=10, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=root,
+                               capture_output=True, text=True, timeout=10, check=True).stdout.strip()
+        version["commit"] = commit
+        version["dirty"] = bool(dirty)
+    except (OSError, subprocess.SubprocessError):
+        version["commit"] = None
+    return version
+
+
+def _version(distribution: str) -> str | None:
+    try:
+        return importlib.metadata.version(distribution)
+    except importlib.metadata.PackageNotFoundError:
+        return None
+
+
+def provenance() -> dict[str, Any]:
+    """Package versions, code version and machine: stored beside every result."""
+    return {
+        "code": code_version(),
+        "packages": {name: _version(name) for name in
+                     ("mujoco", "dm-control", "numpy", "scipy", "numba", "matplotlib")},
+        "python": platform.python_version(),
+        "machine": {"cpus": os.cpu_count(), "processor": platform.processor() or platform.machine(),
+                    "system": platform.system()},
+    }
+
+
+def as_jsonable(value: Any) -> Any:
+    """Dataclasses, tuples and numpy scalars/arrays as plain JSON data."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return as_jsonable(dataclasses.asdict(value))
+    if isinstance(value, dict):
+        return {str(k): as_jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [as_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value

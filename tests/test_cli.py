@@ -1,0 +1,44 @@
+"""The command line: bad arguments give one clear line and a non-zero exit, not a traceback."""
+
+import subprocess
+import sys
+
+import pytest
+
+
+def rmac_mj(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "rmac_mj.cli", *args], capture_output=True,
+                          text=True, timeout=120, cwd=cwd)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["reproduce", "--experiments", "-2"], "positive integer"),
+    (["reproduce", "--trials", "zero"], "positive integer"),
+    (["reproduce", "--algorithms", "rmac,dqn", "--out", "{tmp}/x"], "unknown algorithm 'dqn'"),
+    (["reproduce", "--out", "{tmp}/file/sub"], "cannot write"),
+    (["policy", "{tmp}/missing.npz"], "no snapshot"),
+    (["compare", "{tmp}"], "no summary.json"),
+    (["render", "--out", "{tmp}/x.mp4"], "exactly one of"),
+])
+def test_bad_arguments_give_one_line(tmp_path, args, message):
+    (tmp_path / "file").write_text("not a directory")
+    result = rmac_mj(*[a.replace("{tmp}", str(tmp_path)) for a in args])
+    assert result.returncode == 2
+    assert message in result.stderr
+    assert "Traceback" not in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
+
+
+def test_reproduce_and_compare_and_policy(tmp_path):
+    out = tmp_path / "run"
+    result = rmac_mj("reproduce", "--algorithms", "s-ac", "--experiments", "2", "--trials", "3",
+                     "--jobs", "1", "--out", str(out), "--no-optimal", "--no-progress")
+    assert result.returncode == 0, result.stderr
+    assert "s-ac" in result.stdout and "final return" in result.stdout
+    result = rmac_mj("compare", str(out), str(out), "--out", str(tmp_path / "cmp"))
+    assert result.returncode == 0, result.stderr
+    assert (tmp_path / "cmp.png").is_file()
+    result = rmac_mj("policy", str(out / "snapshots/s-ac/exp_000/trial_0003.npz"), "--out",
+                     str(tmp_path / "policy"))
+    assert result.returncode == 0, result.stderr
+    assert (tmp_path / "policy.png").is_file()

@@ -1,0 +1,62 @@
+"""Learning-curve statistics against hand-computed values; atomic writes."""
+
+import json
+
+import numpy as np
+import pytest
+
+from rmac_mj.experiments import results
+
+
+def test_confidence_interval_by_hand():
+    samples = np.array([[1.0, 10.0], [2.0, 10.0], [3.0, 10.0], [6.0, 10.0]])
+    mean, low, high = results.confidence_interval(samples)
+    # column 0: mean 3, sample std sqrt(14/3), t(0.975, 3) = 3.182446305284263
+    half = 3.182446305284263 * np.sqrt(14 / 3) / 2
+    np.testing.assert_allclose(mean, [3.0, 10.0])
+    np.testing.assert_allclose(low, [3.0 - half, 10.0])
+    np.testing.assert_allclose(high, [3.0 + half, 10.0])
+
+
+def test_confidence_interval_of_one_sample_is_undefined():
+    mean, low, high = results.confidence_interval(np.array([[4.0, 5.0]]))
+    np.testing.assert_array_equal(mean, [4.0, 5.0])
+    assert np.all(np.isnan(low)) and np.all(np.isnan(high))
+
+
+def test_minutes_to_within_ten_percent_of_final_level():
+    curve = np.concatenate([np.full(20, -3000.0), np.full(10, -1150.0), np.full(70, -1000.0)])
+    # final level -1000; -1150 is 15% away, so the first trial within 10% is trial 31 (1.55 min)
+    assert results.minutes_to_within(curve) == pytest.approx(31 * 3 / 60)
+
+
+def test_summary_keys_shapes_and_stuck_count():
+    rng = np.random.default_rng(0)
+    returns = np.vstack([np.linspace(-3000, -1000, 300), np.linspace(-3000, -1800, 300)])
+    returns = returns + rng.normal(0, 1, returns.shape)
+    greedy = np.array([[-2000.0, -900.0], [-2500.0, -1700.0]])
+    summary = results.summarise(returns, greedy, [100, 200], optimal_return=-800.0)
+    assert summary["experiments"] == 2 and summary["trials"] == 300
+    for key in ("mean_return_per_trial", "ci95_low_per_trial", "ci95_high_per_trial"):
+        assert len(summary[key]) == 300
+    assert summary["stuck_experiments"] == 1
+    finals = returns[:, -50:].mean(axis=1)
+    assert summary["final_return_mean"] == pytest.approx(finals.mean())
+    assert summary["gap_to_optimal"] == pytest.approx(-800.0 - finals.mean())
+    assert summary["mean_return_first_10min"] == pytest.approx(returns[:, :200].mean())
+    assert summary["greedy_return_per_eval"] == pytest.approx([-2250.0, -1300.0])
+    json.dumps(summary, allow_nan=False)  # valid JSON, no NaN
+
+
+def test_write_atomic_leaves_nothing_behind_on_failure(tmp_path):
+    target = tmp_path / "file.json"
+    results.write_json(target, {"a": 1})
+
+    def fail(handle):
+        handle.write(b"half")
+        raise RuntimeError("killed")
+
+    with pytest.raises(RuntimeError):
+        results.write_atomic(target, fail)
+    assert json.loads(target.read_text()) == {"a": 1}
+    assert [p.name for p in tmp_path.iterdir()] == ["file.json"]
