@@ -1,0 +1,219 @@
+"""Numba kernels of Local Linear Regression (the fast path of :mod:`rmac_mj.approximators.llr`).
+
+Every function here mirrors one of the plain numpy reference functions in ``llr.py`` step by step
+(same distance, same tie-breaking, same normal-equation fit), so the two back ends give the same
+neighbours and, up to rounding, the same local models; ``tests/test_llr.py`` cross-checks them.
+
+A memory is passed as the tuple returned by ``LLRMemory._pack()``::
+
+    (Xt, Y, stamp, meta, weights, in_period, out_period, iparams, fparams, dist)
+
+Xt: (n, N) inputs, stored by dimension so that the distance loop runs over contiguous memory and
+vectorises (5x faster than row-wise here); periodic inputs are kept in [-period/2, period/2). Y: (N, m)
+outputs; stamp: (N,) int64 insertion times; meta: int64 [count, clock];
+weights: (n,); in_period: (n,), 0 for a non-periodic input; out_period: (m,); iparams: int64
+[n_neighbours, norm, clip, replacement]; fparams: float64 [eig_cutoff, ridge]; dist: (N,) scratch space for distances.
+Arrays are mutated in place, so a jitted learner can update a memory without leaving compiled code.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+# Codes shared with llr.py.
+REPLACE_OLDEST = 0
+REPLACE_NEAREST = 1
+
+
+@njit(cache=True)
+def wrap(d: float, period: float) -> float:
+    """d mapped to [-period/2, period/2) when period > 0; d itself otherwise."""
+    if period > 0.0:
+        return d - period * np.floor(d / period + 0.5)
+    return d
+
+
+@njit(cache=True)
+def canonical(x, period, out):
+    """Periodic entries of x (shape (n,)) mapped to [-period/2, period/2); others copied."""
+    for j in range(x.shape[0]):
+        out[j] = wrap(x[j], period[j])
+
+
+@njit(cache=True, fastmath=True)
+def distances(Xt, count, xq, w, period, norm, d):
+    """d[i] = sum_j |w_j wrap(x_ij - xq_j)| (norm 1) or sum_j (w_j wrap(x_ij - xq_j))^2 (norm 2,
+    the squared 2-norm, which orders identically) for the first ``count`` samples.
+
+    Stored and query inputs lie in [-period/2, period/2), so a difference needs at most one shift
+    by a period; the branch-free loops over contiguous rows vectorise.
+    """
+    d[:count] = 0.0
+    for j in range(Xt.shape[0]):
+        p = period[j]
+        half = 0.5 * p
+        wj = w[j]
+        q = xq[j]
+        row = Xt[j]
+        if p > 0.0 and norm == 1:
+            for i in range(count):
+                e = row[i] - q
+                d[i] += abs(wj * (e - p * (e >= half) + p * (e < -half)))
+        elif p > 0.0:
+            for i in range(count):
+                e = row[i] - q
+                e = wj * (e - p * (e >= half) + p * (e < -half))
+                d[i] += e * e
+        elif norm == 1:
+            for i in range(count):
+                d[i] += abs(wj * (row[i] - q))
+        else:
+            for i in range(count):
+                e = wj * (row[i] - q)
+                d[i] += e * e
+
+
+@njit(cache=True)
+def smallest(d, count, k, idx_out):
+    """Indices of the min(k, count) smallest d[:count], smallest first, ties to the lower index (as
+    a stable sort); returns how many."""
+    nk = min(k, count)
+    best = np.empty(nk)
+    found = 0
+    block = 16
+    i = 0
+    while i < count:
+        if found == nk and i + block <= count:
+            # Skip a block that cannot contain a new neighbour (the common case once full).
+            lo = d[i]
+            for b in range(1, block):
+                lo = min(lo, d[i + b])
+            if lo >= best[nk - 1]:
+                i += block
+                continue
+        stop = min(i + block, count)
+        while i < stop:
+            di = d[i]
+            if found < nk:
+                pos = found
+                found += 1
+            elif di < best[nk - 1]:
+                pos = nk - 1
+            else:
+                i += 1
+                continue
+            while pos > 0 and best[pos - 1] > di:
+                best[pos] = best[pos - 1]
+                idx_out[pos] = idx_out[pos - 1]
+                pos -= 1
+            best[pos] = di
+            idx_out[pos] = i
+            i += 1
+    return nk
+
+
+@njit(cache=True)
+def search(Xt, count, xq, w, period, norm, k, idx_out, d):
+    """Indices of the min(k, count) nearest stored inputs to xq, nearest first; returns how many."""
+    distances(Xt, count, xq, w, period, norm, d)
+    return smallest(d, count, k, idx_out)
+
+
+@njit(cache=True)
+def fit(Xt, Y, idx, nk, xq, w, in_period, out_period, eig_cutoff, ridge, clip, beta_out, pred_out):
+    """Affine least-squares fit to the neighbours ``idx[:nk]``, centred on and valid around ``xq``.
+
+    The regressors are the weighted, wrapped offsets z_i = w * wrap(x_i - xq) plus a 1. The normal
+    matrix G = A^T A (+ ridge on the slopes) is inverted through its eigen-decomposition, dropping
+    eigenvalues below ``eig_cutoff * max`` (a truncated SVD of A with relative cutoff
+    sqrt(eig_cutoff)); this gives the minimum-norm solution when the fit is under-determined.
+    Periodic outputs are unwrapped around the nearest neighbour's output. Writes beta (m, n+1) in raw
+    input units, with beta @ [xq; 1] == prediction, and the prediction (m,), clipped to the
+    neighbours' output range when ``clip``.
+    """
+    n = Xt.shape[0]
+    m = Y.shape[1]
+    p = n + 1
+    if nk == 0:
+        beta_out[:, :] = 0.0
+        pred_out[:] = 0.0
+        return
+    A = np.empty((nk, p))
+    Yn = np.empty((nk, m))
+    for a in range(nk):
+        i = idx[a]
+        for j in range(n):
+            A[a, j] = w[j] * wrap(Xt[j, i] - xq[j], in_period[j])
+        A[a, n] = 1.0
+        for o in range(m):
+            if out_period[o] > 0.0 and a > 0:
+                Yn[a, o] = Yn[0, o] + wrap(Y[i, o] - Y[idx[0], o], out_period[o])
+            else:
+                Yn[a, o] = Y[i, o]
+    G = A.T @ A
+    for j in range(n):
+        G[j, j] += ridge
+    evals, evecs = np.linalg.eigh(G)
+    top = evals[p - 1]
+    Ginv = np.zeros((p, p))
+    for c in range(p):
+        if evals[c] > eig_cutoff * top and evals[c] > 0.0:
+            for a in range(p):
+                for b in range(p):
+                    Ginv[a, b] += evecs[a, c] * evecs[b, c] / evals[c]
+    g = Ginv @ (A.T @ Yn)  # (p, m)
+    for o in range(m):
+        pred = g[n, o]
+        if clip:
+            lo = Yn[0, o]
+            hi = Yn[0, o]
+            for a in range(1, nk):
+                lo = min(lo, Yn[a, o])
+                hi = max(hi, Yn[a, o])
+            pred = min(max(pred, lo), hi)
+        offset = pred
+        for j in range(n):
+            beta_out[o, j] = g[j, o] * w[j]
+            offset -= beta_out[o, j] * xq[j]
+        beta_out[o, n] = offset
+        pred_out[o] = pred
+
+
+@njit(cache=True)
+def query(mem, x, idx_out, beta_out, pred_out):
+    """Neighbour search and fit at ``x``; returns the number of neighbours found."""
+    Xt, Y, stamp, meta, w, in_period, out_period, ip, fp, d = mem
+    xq = np.empty(x.shape[0])
+    canonical(x, in_period, xq)
+    nk = search(Xt, meta[0], xq, w, in_period, ip[1], ip[0], idx_out, d)
+    fit(Xt, Y, idx_out, nk, xq, w, in_period, out_period, fp[0], fp[1], ip[2] != 0, beta_out,
+        pred_out)
+    return nk
+
+
+@njit(cache=True)
+def insert(mem, x, y, nearest):
+    """Store [x | y]; returns its slot. ``nearest`` is the slot of the stored input closest to x
+    (used by the 'nearest' replacement policy once the memory is full; -1 to search for it)."""
+    Xt, Y, stamp, meta, w, in_period, out_period, ip, fp, d = mem
+    count = meta[0]
+    if count < Y.shape[0]:
+        slot = count
+        meta[0] = count + 1
+    elif ip[3] == REPLACE_NEAREST:
+        if nearest < 0:
+            xq = np.empty(x.shape[0])
+            canonical(x, in_period, xq)
+            one = np.empty(1, dtype=np.int64)
+            search(Xt, count, xq, w, in_period, ip[1], 1, one, d)
+            nearest = one[0]
+        slot = nearest
+    else:  # oldest
+        slot = int(np.argmin(stamp))
+    for j in range(Xt.shape[0]):
+        Xt[j, slot] = wrap(x[j], in_period[j])
+    Y[slot, :] = y
+    stamp[slot] = meta[1]
+    meta[1] += 1
+    return slot

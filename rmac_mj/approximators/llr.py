@@ -1,0 +1,372 @@
+"""Local Linear Regression (LLR), section 4 of Grondman et al.
+
+A memory holds at most N samples s_i = [x_i | y_i], x_i in R^n, y_i in R^m. A query x_q selects the K
+nearest samples K(x_q) under a weighted distance, fits the affine model y = beta [x; 1] to them by
+least squares (minimum-norm when under-determined) and predicts y_q = beta [x_q; 1].
+
+Where the paper is silent, the choice is a constructor parameter (defaults in brackets):
+
+* ``norm`` [1]: 1- or 2-norm of the weighted input difference. The 1-norm is what the authors'
+  group's code uses; the ordering of neighbours is all that depends on it.
+* ``input_period`` [none periodic]: per input, the period of a periodic input (an angle: 2 pi) or 0.
+  Differences of periodic inputs are wrapped to [-period/2, period/2) both in the distance and in
+  the regression, so angles near +pi and -pi are neighbours and one affine model spans the seam.
+  ``output_period`` does the same for outputs (a desired or next angle): the neighbours' outputs are
+  unwrapped around the nearest one's before fitting, so predictions of periodic outputs may leave the
+  nominal range by up to half a period; callers wrap what they compare.
+* ``conditioning`` ['svd'] and ``rcond`` [0.01]: the K neighbours along a past trajectory lie almost on
+  a line, and the plain least-squares fit then extrapolates wildly (a trial here drove the critic's
+  values positive). The fit is made in the weighted, query-centred input space and singular values
+  below ``rcond`` times the largest are dropped ('svd', a truncated SVD); 'ridge' adds ``ridge`` to the
+  slopes' diagonal instead (as TU Delft's GRL does); 'none' is the plain pseudo-inverse.
+* ``clip`` [False]: clip each prediction to the range of its neighbours' outputs (GRL does this).
+* ``replacement`` ['nearest']: when the memory is full, a new sample replaces either the stored sample
+  most redundant with it, its nearest neighbour ('nearest'), or the oldest sample ('oldest'). The
+  paper leaves memory management open (section 7); replacing the oldest made RMAC's critic forget
+  all but the last ~20 trials and degrade late, replacing the most redundant did not.
+* A query on an empty memory predicts 0 with beta = 0 (Algorithm 2 line 2: V_0 = 0, beta^P = 0).
+
+Two back ends give the same results: ``algorithm='numba'`` (compiled kernels in ``_llr_kernels``) and
+``algorithm='numpy'`` (the readable reference below). Brute force beats a k-d tree at N <= 2000 and
+n <= 3 once compiled (a query costs a few microseconds), and needs no rebuild when samples change.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from rmac_mj.approximators import _llr_kernels as _k
+
+_CONDITIONINGS = ("svd", "ridge", "none")
+_REPLACEMENTS = {"oldest": _k.REPLACE_OLDEST, "nearest": _k.REPLACE_NEAREST}
+_ALGORITHMS = ("numba", "numpy")
+#: Relative eigenvalue cutoff of G = A^T A used for 'none' and 'ridge' (a singular value ratio of
+#: about 3e-7): only numerically singular directions are dropped.
+_NUMERICAL_EIG_CUTOFF = 1e-13
+
+
+# --------------------------------------------------------------------------------------------------
+# Reference implementation (plain numpy). The numba kernels follow these line by line.
+
+def wrap(d: np.ndarray, period: np.ndarray) -> np.ndarray:
+    """Differences ``d`` (shape (..., n)) wrapped to [-period/2, period/2) where period > 0."""
+    d = np.asarray(d, dtype=float)
+    safe = np.where(period > 0, period, 1.0)
+    return np.where(period > 0, d - safe * np.floor(d / safe + 0.5), d)
+
+
+def search_reference(X: np.ndarray, xq: np.ndarray, weights: np.ndarray, period: np.ndarray,
+                     norm: int, k: int) -> np.ndarray:
+    """Indices of the min(k, len(X)) nearest rows of X (shape (N, n)) to xq (n,), nearest first."""
+    e = weights * wrap(X - xq, period)
+    d = np.abs(e).sum(axis=1) if norm == 1 else (e * e).sum(axis=1)
+    return np.argsort(d, kind="stable")[:k]
+
+
+def fit_reference(X: np.ndarray, Y: np.ndarray, xq: np.ndarray, weights: np.ndarray,
+                  in_period: np.ndarray, out_period: np.ndarray, eig_cutoff: float, ridge: float,
+                  clip: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Local affine model of neighbours X (k, n) -> Y (k, m) around xq (n,).
+
+    Returns (prediction of shape (m,), beta of shape (m, n+1)) with beta @ [xq; 1] == prediction.
+    See ``_llr_kernels.fit`` for the method; this is the same computation in numpy.
+    """
+    k, n = X.shape
+    m = Y.shape[1]
+    if k == 0:
+        return np.zeros(m), np.zeros((m, n + 1))
+    A = np.hstack([weights * wrap(X - xq, in_period), np.ones((k, 1))])
+    Yn = Y.copy()
+    Yn[1:] = Y[0] + wrap(Y[1:] - Y[0], out_period)  # no-op for non-periodic outputs
+    G = A.T @ A + ridge * np.diag(np.r_[np.ones(n), 0.0])
+    evals, evecs = np.linalg.eigh(G)
+    keep = (evals > eig_cutoff * evals[-1]) & (evals > 0)
+    G_inv = (evecs[:, keep] / evals[keep]) @ evecs[:, keep].T
+    g = G_inv @ (A.T @ Yn)  # (n+1, m): slopes in weighted units, then the value at xq
+    pred = g[n].copy()
+    if clip:
+        pred = np.clip(pred, Yn.min(axis=0), Yn.max(axis=0))
+    beta = np.empty((m, n + 1))
+    beta[:, :n] = (g[:n] * weights[:, None]).T
+    beta[:, n] = pred - beta[:, :n] @ xq
+    return pred, beta
+
+
+# --------------------------------------------------------------------------------------------------
+
+class LLRMemory:
+    """A memory of at most ``capacity`` samples [x | y] with local linear regression queries.
+
+    Args:
+      input_dim, output_dim: n and m.
+      capacity: N, the maximum number of samples (Table 2: 2000 critic/reference, 100 process).
+      n_neighbours: K (Table 2: 20 critic/reference, 9 process); at most ``capacity``.
+      input_weights: ndarray of shape (n,), >= 0, scaling each input in the distance (Table 2). Default
+        ones.
+      norm: 1 or 2.
+      input_period, output_period: ndarrays of shape (n,) and (m,): period of each periodic dimension,
+        0 elsewhere. Default: nothing periodic.
+      conditioning: 'svd', 'ridge' or 'none'; rcond, ridge: their parameters.
+      clip: clip predictions to the neighbours' output range.
+      replacement: 'nearest' or 'oldest'.
+      algorithm: 'numba' or 'numpy'.
+
+    Learned state: ``X_`` (N, n), ``Y_`` (N, m) (the first ``n_samples_`` rows are valid) and
+    ``stamp_`` (N,), the insertion time of each sample.
+    """
+
+    def __init__(self, input_dim: int, output_dim: int, capacity: int, n_neighbours: int,
+                 input_weights: Any = None, norm: int = 1, input_period: Any = None,
+                 output_period: Any = None, conditioning: str = "svd", rcond: float = 0.01,
+                 ridge: float = 1e-3, clip: bool = False, replacement: str = "nearest",
+                 algorithm: str = "numba") -> None:
+        self.input_dim = input_dim
+        self.output_dim = output_dim
+        self.capacity = capacity
+        self.n_neighbours = n_neighbours
+        self.input_weights = input_weights
+        self.norm = norm
+        self.input_period = input_period
+        self.output_period = output_period
+        self.conditioning = conditioning
+        self.rcond = rcond
+        self.ridge = ridge
+        self.clip = clip
+        self.replacement = replacement
+        self.algorithm = algorithm
+        self._validate()
+        n, m, N = self.input_dim, self.output_dim, self.capacity
+        self._Xt = np.zeros((n, N))  # inputs by dimension: see _llr_kernels
+        self._dist = np.empty(N)
+        self.Y_ = np.zeros((N, m))
+        self.stamp_ = np.zeros(N, dtype=np.int64)
+        self._meta = np.zeros(2, dtype=np.int64)  # [count, clock]
+        self._idx = np.empty(self.n_neighbours, dtype=np.int64)
+        self._beta = np.empty((m, n + 1))
+        self._pred = np.empty(m)
+
+    # -- configuration ------------------------------------------------------------------------------
+    def _validate(self) -> None:
+        for name in ("input_dim", "output_dim", "capacity", "n_neighbours"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+                raise ValueError(f"LLRMemory: {name} must be a positive integer, got {value!r}")
+        if self.n_neighbours > self.capacity:
+            raise ValueError(f"LLRMemory: n_neighbours={self.n_neighbours} exceeds "
+                             f"capacity={self.capacity}")
+        n, m = self.input_dim, self.output_dim
+        self._w = self._vector("input_weights", self.input_weights, n, 1.0)
+        self._pin = self._vector("input_period", self.input_period, n, 0.0)
+        self._pout = self._vector("output_period", self.output_period, m, 0.0)
+        if self.norm not in (1, 2):
+            raise ValueError(f"LLRMemory: norm must be 1 or 2, got {self.norm!r}")
+        if self.conditioning not in _CONDITIONINGS:
+            raise ValueError(f"LLRMemory: conditioning must be one of {_CONDITIONINGS}, "
+                             f"got {self.conditioning!r}")
+        if not (np.isfinite(self.rcond) and 0 <= self.rcond < 1):
+            raise ValueError(f"LLRMemory: rcond must be in [0, 1), got {self.rcond!r}")
+        if not (np.isfinite(self.ridge) and self.ridge >= 0):
+            raise ValueError(f"LLRMemory: ridge must be finite and >= 0, got {self.ridge!r}")
+        if self.replacement not in _REPLACEMENTS:
+            raise ValueError(f"LLRMemory: replacement must be one of {tuple(_REPLACEMENTS)}, "
+                             f"got {self.replacement!r}")
+        if self.algorithm not in _ALGORITHMS:
+            raise ValueError(f"LLRMemory: algorithm must be one of {_ALGORITHMS}, "
+                             f"got {self.algorithm!r}")
+        if self.conditioning == "svd":
+            self._eig_cutoff = max(float(self.rcond) ** 2, _NUMERICAL_EIG_CUTOFF)
+        else:
+            self._eig_cutoff = _NUMERICAL_EIG_CUTOFF
+        self._ridge = float(self.ridge) if self.conditioning == "ridge" else 0.0
+
+    @staticmethod
+    def _vector(name: str, value: Any, size: int, default: float) -> np.ndarray:
+        if value is None:
+            return np.full(size, default)
+        v = np.asarray(value, dtype=float).reshape(-1)
+        if v.shape != (size,):
+            raise ValueError(f"LLRMemory: {name} must have length {size}, got shape {v.shape} "
+                             f"({value!r})")
+        if not np.all(np.isfinite(v)) or np.any(v < 0):
+            raise ValueError(f"LLRMemory: {name} must be finite and >= 0, got {value!r}")
+        return v
+
+    def _check(self, name: str, value: Any, size: int) -> np.ndarray:
+        v = np.asarray(value, dtype=float).reshape(-1)
+        if v.shape != (size,):
+            raise ValueError(f"LLRMemory: {name} must have shape ({size},), got {np.shape(value)}")
+        if not np.all(np.isfinite(v)):
+            raise ValueError(f"LLRMemory: {name} must be finite, got {value!r}")
+        return v
+
+    def _pack(self) -> tuple:
+        """The memory as the tuple the numba kernels take (see ``_llr_kernels``)."""
+        ip = np.array([self.n_neighbours, self.norm, int(bool(self.clip)),
+                       _REPLACEMENTS[self.replacement]], dtype=np.int64)
+        fp = np.array([self._eig_cutoff, self._ridge])
+        return (self._Xt, self.Y_, self.stamp_, self._meta, self._w, self._pin, self._pout, ip, fp,
+                self._dist)
+
+    @property
+    def X_(self) -> np.ndarray:
+        """Stored inputs, ndarray of shape (N, n) (a view; periodic inputs in [-period/2, period/2))."""
+        return self._Xt.T
+
+    def _canonical(self, x: np.ndarray) -> np.ndarray:
+        return np.where(self._pin > 0, wrap(x, self._pin), x)
+
+    # -- state --------------------------------------------------------------------------------------
+    @property
+    def n_samples_(self) -> int:
+        return int(self._meta[0])
+
+    def reset(self) -> None:
+        """Forget every sample."""
+        self._meta[:] = 0
+        self.stamp_[:] = 0
+
+    def fit(self, X: Any, Y: Any) -> "LLRMemory":
+        """Initialise the memory from given samples (prior knowledge, section 7).
+
+        X: array of shape (s, n), Y: (s, m), s <= capacity. Replaces all current samples.
+        """
+        X = np.asarray(X, dtype=float)
+        Y = np.asarray(Y, dtype=float)
+        if X.ndim != 2 or X.shape[1] != self.input_dim:
+            raise ValueError(f"LLRMemory.fit: X must have shape (s, {self.input_dim}), got {X.shape}")
+        if Y.shape != (X.shape[0], self.output_dim):
+            raise ValueError(f"LLRMemory.fit: Y must have shape ({X.shape[0]}, {self.output_dim}), "
+                             f"got {Y.shape}")
+        if X.shape[0] > self.capacity:
+            raise ValueError(f"LLRMemory.fit: {X.shape[0]} samples exceed capacity={self.capacity}")
+        if not (np.all(np.isfinite(X)) and np.all(np.isfinite(Y))):
+            raise ValueError("LLRMemory.fit: X and Y must be finite")
+        s = X.shape[0]
+        self.reset()
+        self.X_[:s] = self._canonical(X)
+        self.Y_[:s] = Y
+        self.stamp_[:s] = np.arange(s)
+        self._meta[:] = (s, s)
+        return self
+
+    def state_dict(self, prefix: str = "") -> dict[str, np.ndarray]:
+        """Samples and bookkeeping as numeric arrays, keys prefixed with ``prefix``."""
+        return {prefix + "X": self.X_.copy(), prefix + "Y": self.Y_.copy(),
+                prefix + "stamp": self.stamp_.copy(), prefix + "meta": self._meta.copy()}
+
+    def load_state_dict(self, state: dict[str, np.ndarray], prefix: str = "") -> None:
+        for key, arr in (("X", self.X_), ("Y", self.Y_), ("stamp", self.stamp_),
+                         ("meta", self._meta)):
+            value = np.asarray(state[prefix + key])
+            if value.shape != arr.shape:
+                raise ValueError(f"LLRMemory.load_state_dict: {prefix + key} has shape "
+                                 f"{value.shape}, expected {arr.shape}")
+            arr[...] = value
+
+    # -- queries ------------------------------------------------------------------------------------
+    def neighbours(self, x: Any) -> np.ndarray:
+        """K(x): indices (int64, shape (min(K, n_samples_),)) of the nearest samples, nearest first."""
+        xq = self._check("x", x, self.input_dim)
+        return self._neighbours(self._canonical(xq)).copy()
+
+    def _neighbours(self, xq: np.ndarray) -> np.ndarray:
+        """Unvalidated K(xq) for a canonical xq (periodic entries in [-period/2, period/2))."""
+        count = int(self._meta[0])
+        if self.algorithm == "numba":
+            nk = _k.search(self._Xt, count, xq, self._w, self._pin, self.norm, self.n_neighbours,
+                           self._idx, self._dist)
+            return self._idx[:nk]
+        return search_reference(self.X_[:count], xq, self._w, self._pin, self.norm,
+                                self.n_neighbours)
+
+    def query(self, x: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """LLR at x (shape (n,)).
+
+        Returns:
+          prediction: ndarray of shape (m,).
+          beta: ndarray of shape (m, n+1), the local affine model [beta_x beta_b], with
+            beta @ [x; 1] == prediction (for periodic inputs: valid for wrapped offsets from x).
+          neighbours: int64 ndarray of shape (min(K, n_samples_),), nearest first.
+        """
+        xq = self._check("x", x, self.input_dim)
+        pred, beta, idx = self._query(xq)
+        return pred.copy(), beta.copy(), idx.copy()
+
+    def _query(self, xq: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Unvalidated query; returned arrays may be internal buffers (copy before keeping)."""
+        if self.algorithm == "numba":
+            nk = _k.query(self._pack_cached(), xq, self._idx, self._beta, self._pred)
+            return self._pred, self._beta, self._idx[:nk]
+        xq = self._canonical(xq)
+        idx = self._neighbours(xq)
+        pred, beta = fit_reference(self.X_[idx], self.Y_[idx], xq, self._w, self._pin, self._pout,
+                                   self._eig_cutoff, self._ridge, bool(self.clip))
+        return pred, beta, idx
+
+    def _pack_cached(self) -> tuple:
+        packed = getattr(self, "_packed", None)
+        if packed is None:
+            packed = self._packed = self._pack()
+        return packed
+
+    def predict(self, X: Any) -> np.ndarray:
+        """Predictions for a batch of queries X of shape (q, n); returns shape (q, m)."""
+        X = np.asarray(X, dtype=float)
+        if X.ndim != 2 or X.shape[1] != self.input_dim:
+            raise ValueError(f"LLRMemory.predict: X must have shape (q, {self.input_dim}), "
+                             f"got {X.shape}")
+        if not np.all(np.isfinite(X)):
+            raise ValueError("LLRMemory.predict: X must be finite")
+        return np.array([self._query(x)[0].copy() for x in X]).reshape(X.shape[0], self.output_dim)
+
+    # -- updates ------------------------------------------------------------------------------------
+    def insert(self, x: Any, y: Any, nearest: int | None = None) -> int:
+        """Store the sample [x | y] and return its slot.
+
+        When the memory is full the replacement policy chooses the slot. ``nearest``, if given, is the
+        slot of the stored input nearest to x (saves a search under 'nearest' replacement).
+        """
+        xv = self._check("x", x, self.input_dim)
+        yv = self._check("y", y, self.output_dim)
+        return self._insert(xv, yv, -1 if nearest is None else int(nearest))
+
+    def _insert(self, x: np.ndarray, y: np.ndarray, nearest: int = -1) -> int:
+        if self.algorithm == "numba":
+            return int(_k.insert(self._pack_cached(), x, y, nearest))
+        count = int(self._meta[0])
+        x = self._canonical(x)
+        if count < self.capacity:
+            slot = count
+            self._meta[0] += 1
+        elif self.replacement == "nearest":
+            slot = nearest if nearest >= 0 else int(
+                search_reference(self.X_, x, self._w, self._pin, self.norm, 1)[0])
+        else:
+            slot = int(np.argmin(self.stamp_))
+        self.X_[slot] = x
+        self.Y_[slot] = y
+        self.stamp_[slot] = self._meta[1]
+        self._meta[1] += 1
+        return slot
+
+    def adjust(self, indices: Any, delta: Any) -> None:
+        """Add ``delta`` (shape (m,) or (len(indices), m)) to the outputs of the given samples."""
+        idx = np.asarray(indices, dtype=np.int64).reshape(-1)
+        if np.any((idx < 0) | (idx >= self._meta[0])):
+            raise ValueError(f"LLRMemory.adjust: indices must be in [0, {self.n_samples_}), "
+                             f"got {indices!r}")
+        delta = np.asarray(delta, dtype=float)
+        if not np.all(np.isfinite(delta)):
+            raise ValueError("LLRMemory.adjust: delta must be finite")
+        self.Y_[idx] += delta
+
+    def outputs(self, indices: Any) -> np.ndarray:
+        """The stored outputs of the given samples, shape (len(indices), m)."""
+        return self.Y_[np.asarray(indices, dtype=np.int64).reshape(-1)].copy()
+
+    def __repr__(self) -> str:
+        return (f"LLRMemory(input_dim={self.input_dim}, output_dim={self.output_dim}, "
+                f"capacity={self.capacity}, n_neighbours={self.n_neighbours}, "
+                f"n_samples_={self.n_samples_}, algorithm={self.algorithm!r})")

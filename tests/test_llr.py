@@ -1,0 +1,196 @@
+"""Local Linear Regression memories (section 4): fits, neighbours, memory management, back ends."""
+
+import numpy as np
+import pytest
+
+from rmac_mj.approximators.llr import LLRMemory
+
+ALGORITHMS = ("numba", "numpy")
+TWO_PI = 2 * np.pi
+
+
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+@pytest.mark.parametrize("conditioning", ["svd", "none"])
+def test_recovers_affine_function_exactly(algorithm, conditioning):
+    rng = np.random.default_rng(0)
+    A = np.array([[1.0, -2.0, 0.5], [0.3, 0.0, 4.0]])
+    b = np.array([0.7, -1.2])
+    X = rng.uniform(-1, 1, size=(50, 3))
+    memory = LLRMemory(3, 2, 100, 10, input_weights=[1, 0.5, 2], conditioning=conditioning,
+                       algorithm=algorithm).fit(X, X @ A.T + b)
+    for xq in rng.uniform(-1, 1, size=(5, 3)):
+        pred, beta, idx = memory.query(xq)
+        np.testing.assert_allclose(pred, A @ xq + b, atol=1e-10)
+        np.testing.assert_allclose(beta, np.c_[A, b], atol=1e-10)
+        assert len(idx) == 10
+
+
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+def test_minimum_norm_with_one_and_two_samples(algorithm):
+    w = np.array([1.0, 0.1])
+    xq = np.array([0.2, 3.0])
+    for X, Y in ((np.array([[0.5, 1.0]]), np.array([[2.0]])),
+                 (np.array([[0.5, 1.0], [-0.1, 7.0]]), np.array([[2.0], [-1.0]]))):
+        memory = LLRMemory(2, 1, 10, 5, input_weights=w, conditioning="none",
+                           algorithm=algorithm).fit(X, Y)
+        pred, beta, idx = memory.query(xq)
+        assert len(idx) == len(X)
+        # The minimum-norm solution of the under-determined fit in centred, weighted coordinates.
+        A = np.c_[(X - xq) * w, np.ones(len(X))]
+        g = np.linalg.lstsq(A, Y, rcond=None)[0]
+        np.testing.assert_allclose(pred, g[-1], atol=1e-12)
+        np.testing.assert_allclose(beta @ np.r_[xq, 1.0], pred, atol=1e-12)
+        np.testing.assert_allclose(beta[0, :2], g[:2, 0] * w, atol=1e-12)
+        # The fit passes through every sample (it is under-determined).
+        np.testing.assert_allclose(beta @ np.c_[X, np.ones(len(X))].T, Y.T, atol=1e-10)
+
+
+def test_empty_memory_predicts_zero_with_zero_beta():
+    memory = LLRMemory(2, 3, 10, 4)
+    pred, beta, idx = memory.query([1.0, 2.0])
+    assert pred.shape == (3,) and beta.shape == (3, 3) and idx.shape == (0,)
+    assert not pred.any() and not beta.any()
+
+
+def _brute_force_neighbours(X, xq, w, period, k, norm):
+    d = np.zeros(len(X))
+    for i, x in enumerate(X):
+        diff = x - xq
+        for j, p in enumerate(period):
+            if p > 0:
+                diff[j] = (diff[j] + p / 2) % p - p / 2
+        d[i] = np.sum(np.abs(w * diff)) if norm == 1 else np.sqrt(np.sum((w * diff) ** 2))
+    return sorted(range(len(X)), key=lambda i: (d[i], i))[:k]
+
+
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+@pytest.mark.parametrize("norm", [1, 2])
+def test_neighbours_match_brute_force_with_weights_and_periodic_input(algorithm, norm):
+    rng = np.random.default_rng(1)
+    w, period = np.array([1.0, 0.1]), np.array([TWO_PI, 0.0])
+    X = np.c_[rng.uniform(-np.pi, np.pi, 300), rng.uniform(-20, 20, 300)]
+    memory = LLRMemory(2, 1, 300, 15, input_weights=w, input_period=period, norm=norm,
+                       algorithm=algorithm).fit(X, np.zeros((300, 1)))
+    for xq in np.r_[[[np.pi - 0.01, 0.0], [-np.pi, 5.0]], rng.uniform(-3, 3, size=(20, 2))]:
+        expected = _brute_force_neighbours(X, xq, w, period, 15, norm)
+        np.testing.assert_array_equal(memory.neighbours(xq), expected)
+
+
+def test_angles_near_plus_and_minus_pi_are_neighbours():
+    X = np.array([[-np.pi + 0.01, 0.0], [0.5, 0.0], [np.pi - 0.3, 0.0]])
+    memory = LLRMemory(2, 1, 10, 1, input_period=[TWO_PI, 0]).fit(X, np.zeros((3, 1)))
+    assert memory.neighbours([np.pi - 0.01, 0.0])[0] == 0
+    flat = LLRMemory(2, 1, 10, 1).fit(X, np.zeros((3, 1)))
+    assert flat.neighbours([np.pi - 0.01, 0.0])[0] == 2
+
+
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+def test_periodic_fit_spans_the_seam(algorithm):
+    # y = wrapped angle shifted by 0.1 (a next-state-like periodic output), queried at the seam.
+    phis = np.linspace(np.pi - 0.2, np.pi + 0.2, 9)
+    X = ((phis + np.pi) % TWO_PI - np.pi)[:, None]
+    Y = ((phis + 0.1 + np.pi) % TWO_PI - np.pi)[:, None]
+    memory = LLRMemory(1, 1, 20, 9, input_period=[TWO_PI], output_period=[TWO_PI],
+                       algorithm=algorithm).fit(X, Y)
+    pred, beta, _ = memory.query([np.pi - 0.05])
+    assert abs(((pred[0] - (np.pi + 0.05)) + np.pi) % TWO_PI - np.pi) < 1e-10
+    np.testing.assert_allclose(beta[0, 0], 1.0, atol=1e-10)
+
+
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+def test_truncated_svd_tames_nearly_collinear_neighbours(algorithm):
+    # Neighbours along a trajectory: on a line in (phi, phi_dot) with tiny scatter across it.
+    rng = np.random.default_rng(2)
+    t = np.linspace(-0.5, 0.5, 20)
+    X = np.c_[t, 10 * t] + rng.normal(0, 1e-4, size=(20, 2))
+    Y = (-100 + 5 * t + rng.normal(0, 1.0, 20))[:, None]
+    xq = np.array([0.0, 3.0])  # off the line
+    kwargs = dict(input_weights=[1, 0.1], algorithm=algorithm)
+    wild = LLRMemory(2, 1, 20, 20, conditioning="none", **kwargs).fit(X, Y).query(xq)[0][0]
+    tame = LLRMemory(2, 1, 20, 20, conditioning="svd", rcond=0.01, **kwargs).fit(X, Y).query(xq)[0]
+    ridge = LLRMemory(2, 1, 20, 20, conditioning="ridge", ridge=1e-3, **kwargs).fit(X, Y)
+    assert abs(wild + 100) > 50  # the plain fit extrapolates along the noise direction
+    assert Y.min() - 5 < tame[0] < Y.max() + 5
+    assert Y.min() - 5 < ridge.query(xq)[0][0] < Y.max() + 5
+    clipped = LLRMemory(2, 1, 20, 20, conditioning="none", clip=True, **kwargs).fit(X, Y)
+    assert Y.min() <= clipped.query(xq)[0][0] <= Y.max()
+
+
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+def test_replace_oldest(algorithm):
+    memory = LLRMemory(1, 1, 3, 1, replacement="oldest", algorithm=algorithm)
+    for v in (0.0, 1.0, 2.0):
+        memory.insert([v], [v])
+    assert memory.insert([0.9], [9.0]) == 0  # slot of the first sample
+    assert memory.insert([0.1], [9.0]) == 1
+    np.testing.assert_array_equal(memory.X_[:, 0], [0.9, 0.1, 2.0])
+
+
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+def test_replace_nearest(algorithm):
+    memory = LLRMemory(2, 1, 3, 1, input_weights=[1, 0.01], replacement="nearest",
+                       algorithm=algorithm)
+    for x in ([0.0, 0.0], [1.0, 0.0], [2.0, 0.0]):
+        memory.insert(x, [0.0])
+    assert memory.insert([1.1, 50.0], [7.0]) == 1  # nearest under the weighting
+    assert memory.insert([2.2, 0.0], [7.0], nearest=0) == 0  # a given nearest slot is used
+    np.testing.assert_array_equal(memory.X_, [[2.2, 0.0], [1.1, 50.0], [2.0, 0.0]])
+
+
+def test_back_ends_agree_on_a_random_history():
+    rng = np.random.default_rng(3)
+    kwargs = dict(input_dim=3, output_dim=2, capacity=60, n_neighbours=9,
+                  input_weights=[1, 0.1, 1], input_period=[TWO_PI, 0, 0],
+                  output_period=[TWO_PI, 0], clip=True)
+    for replacement in ("nearest", "oldest"):
+        fast = LLRMemory(**kwargs, replacement=replacement, algorithm="numba")
+        slow = LLRMemory(**kwargs, replacement=replacement, algorithm="numpy")
+        for _ in range(200):
+            x = np.r_[rng.uniform(-4, 4), rng.normal(0, 10), rng.uniform(-3, 3)]
+            y = np.r_[rng.uniform(-np.pi, np.pi), rng.normal()]
+            a, b = fast.query(x), slow.query(x)
+            np.testing.assert_array_equal(a[2], b[2])
+            np.testing.assert_allclose(a[0], b[0], atol=1e-9)
+            np.testing.assert_allclose(a[1], b[1], atol=1e-8)
+            assert fast.insert(x, y) == slow.insert(x, y)
+            if len(a[2]):
+                fast.adjust(a[2], 0.1)
+                slow.adjust(b[2], 0.1)
+        np.testing.assert_array_equal(fast.X_, slow.X_)
+
+
+def test_initialise_from_samples_and_state_dict_round_trip():
+    rng = np.random.default_rng(4)
+    X, Y = rng.normal(size=(30, 2)), rng.normal(size=(30, 1))
+    memory = LLRMemory(2, 1, 50, 5).fit(X, Y)
+    assert memory.n_samples_ == 30
+    copy = LLRMemory(2, 1, 50, 5)
+    copy.load_state_dict(memory.state_dict(prefix="c."), prefix="c.")
+    for xq in rng.normal(size=(5, 2)):
+        np.testing.assert_array_equal(memory.query(xq)[0], copy.query(xq)[0])
+    np.testing.assert_allclose(memory.predict(X[:3]), np.array([memory.query(x)[0] for x in X[:3]]))
+
+
+@pytest.mark.parametrize("kwargs, name", [
+    (dict(capacity=0), "capacity"), (dict(n_neighbours=0), "n_neighbours"),
+    (dict(capacity=5, n_neighbours=6), "n_neighbours"), (dict(input_weights=[1.0]), "input_weights"),
+    (dict(input_weights=[1.0, -0.1]), "input_weights"), (dict(norm=3), "norm"),
+    (dict(conditioning="qr"), "conditioning"), (dict(rcond=1.5), "rcond"),
+    (dict(replacement="random"), "replacement"), (dict(algorithm="kd_tree"), "algorithm"),
+    (dict(input_period=[1.0]), "input_period"),
+])
+def test_bad_configuration_names_the_parameter(kwargs, name):
+    args = dict(input_dim=2, output_dim=1, capacity=10, n_neighbours=3)
+    args.update(kwargs)
+    with pytest.raises(ValueError, match=name):
+        LLRMemory(**args)
+
+
+def test_non_finite_input_is_rejected():
+    memory = LLRMemory(2, 1, 10, 3)
+    with pytest.raises(ValueError, match="x"):
+        memory.query([np.nan, 0.0])
+    with pytest.raises(ValueError, match="y"):
+        memory.insert([0.0, 0.0], [np.inf])
+    with pytest.raises(ValueError, match="shape"):
+        memory.insert([0.0], [1.0])
