@@ -1,0 +1,375 @@
+"""Reference Model Actor-Critic (RMAC): section 5 and Algorithm 2 of Grondman et al.
+
+RMAC has no explicit actor. It learns three LLR memories (section 4):
+
+* the process model M^P, samples [x, u | x'], giving the local model x' = beta^P [x; u; 1];
+* the reference model M^R, samples [x | x_hat], mapping a state to the desired next state R(x);
+* the critic M^C, samples [x | V].
+
+The action is the least-squares inverse of the local process model for the desired state,
+u_k = f^-1(x_k, R(x_k)) (+ exploration). The reference model is moved towards the best reachable state
+x_r: the vertex of the reachable set (all 2^m combinations of action extremes applied to the local
+process model) with the highest value under the critic's local linear model. The critic learns by
+TD(lambda) with eligibility traces on its memory samples.
+
+Every choice the paper leaves open is a field of :class:`RMACConfig`; docs/rmac.md lists them with
+what was measured for each. Two back ends compute the same thing: ``backend='numpy'`` is the readable
+reference below, written line by line after Algorithm 2; ``backend='numba'`` runs the same steps in
+the compiled kernels of :mod:`rmac_mj.agents._rmac_kernels` (the learner must cost at most about two
+``env.step`` calls).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+
+import numpy as np
+
+from rmac_mj.agents.base import ActionSpace, Agent, Exploration, StateSpace
+from rmac_mj.approximators.llr import LLRMemory, wrap
+
+_BACKENDS = ("numba", "numpy")
+_INVERSE_QUERIES = ("previous", "zero")
+_GRADIENT_AT = ("next", "previous")
+_INITIAL_VALUES = ("critic", "zero")
+_CONDITIONINGS = ("svd", "ridge", "none")
+_REPLACEMENTS = ("nearest", "oldest")
+
+
+@dataclasses.dataclass(frozen=True)
+class RMACConfig:
+    """Hyperparameters of RMAC. Defaults: section 6.2 and Table 2, then the documented choices."""
+
+    gamma: float = 0.97
+    """Discount factor (section 6.2)."""
+    lam: float = 0.65
+    """Trace decay lambda (section 6.2)."""
+    alpha_c: float = 0.1
+    """Critic learning rate (Table 2)."""
+    alpha_r: float = 0.005
+    """Reference model learning rate (Table 2)."""
+
+    critic_capacity: int = 2000
+    """Critic memory size (Table 2)."""
+    critic_neighbours: int = 20
+    """Critic nearest neighbours K (Table 2)."""
+    critic_weights: tuple[float, ...] = (1.0, 0.1)
+    """Critic input weighting over x (Table 2)."""
+    process_capacity: int = 100
+    """Process memory size (Table 2)."""
+    process_neighbours: int = 9
+    """Process nearest neighbours K (Table 2)."""
+    process_weights: tuple[float, ...] = (1.0, 0.1, 1.0)
+    """Process input weighting over [x, u] (Table 2)."""
+    reference_capacity: int = 2000
+    """Reference memory size (Table 2)."""
+    reference_neighbours: int = 20
+    """Reference nearest neighbours K (Table 2)."""
+    reference_weights: tuple[float, ...] = (1.0, 0.1)
+    """Reference input weighting over x (Table 2)."""
+
+    exploration: Exploration = Exploration()
+    """Exploration Delta u_k. The paper says RMAC still needs it but not how; the default is the S-AC
+    schedule of section 6.1 (N(0, 1) every third step). Without it beta_u stays 0 and u = 0 forever."""
+
+    norm: int = 1
+    """1- or 2-norm of the weighted input difference in all memories (section 4 allows both)."""
+    conditioning: str = "svd"
+    """How the local least-squares fits are conditioned: 'svd' (truncated SVD, ``rcond``), 'ridge'
+    (``ridge`` on the slopes) or 'none' (plain pseudo-inverse, which let the critic diverge)."""
+    rcond: float = 0.01
+    """Relative singular value cutoff for conditioning='svd'."""
+    ridge: float = 1e-3
+    """Ridge term for conditioning='ridge', in weighted input units squared."""
+    critic_clip: bool = True
+    """Clip critic predictions to the range of the neighbours' values (as GRL does)."""
+    reference_clip: bool = False
+    """Clip reference predictions to the range of the neighbours' desired states."""
+    process_clip: bool = False
+    """Clip process model predictions to the neighbours' next states."""
+    critic_replacement: str = "nearest"
+    """Critic memory management when full: 'nearest' (the sample most redundant with the new one)
+    or 'oldest'."""
+    process_replacement: str = "nearest"
+    """Process memory management when full."""
+    reference_replacement: str = "nearest"
+    """Reference memory management when full."""
+    inverse_query: str = "previous"
+    """Where the process model is linearised for the inverse (Alg. 2 lines 5, 11): at (x_k, u_{k-1}),
+    the previously applied action ('previous'; u_{-1} = 0), or at (x_k, 0) ('zero')."""
+    critic_gradient_at: str = "next"
+    """Where the critic's local model that ranks the reachable states (line 16) is fitted: at x_k
+    ('next', the reached state, which lies among the vertices) or at x_{k-1} ('previous')."""
+    initial_value: str = "critic"
+    """V_0 of a trial (line 2): the critic's estimate V(x_0) ('critic'; 0 on the empty memory) or the
+    literal 0 every trial ('zero')."""
+    backend: str = "numba"
+    """'numba' (compiled kernels) or 'numpy' (the readable reference); both give the same results."""
+
+    def __post_init__(self) -> None:
+        for name in ("gamma", "lam", "alpha_c", "alpha_r"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and 0.0 <= value <= 1.0):
+                raise ValueError(f"RMACConfig.{name} must be in [0, 1], got {value!r}")
+        for prefix in ("critic", "process", "reference"):
+            capacity = getattr(self, f"{prefix}_capacity")
+            neighbours = getattr(self, f"{prefix}_neighbours")
+            for name, value in ((f"{prefix}_capacity", capacity),
+                                (f"{prefix}_neighbours", neighbours)):
+                if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+                    raise ValueError(f"RMACConfig.{name} must be a positive integer, got {value!r}")
+            if neighbours > capacity:
+                raise ValueError(f"RMACConfig.{prefix}_neighbours={neighbours} exceeds "
+                                 f"{prefix}_capacity={capacity}")
+            weights = tuple(float(w) for w in getattr(self, f"{prefix}_weights"))
+            if not weights or not all(np.isfinite(w) and w >= 0 for w in weights):
+                raise ValueError(f"RMACConfig.{prefix}_weights must be finite and >= 0, "
+                                 f"got {weights!r}")
+            object.__setattr__(self, f"{prefix}_weights", weights)
+            replacement = getattr(self, f"{prefix}_replacement")
+            if replacement not in _REPLACEMENTS:
+                raise ValueError(f"RMACConfig.{prefix}_replacement must be one of {_REPLACEMENTS}, "
+                                 f"got {replacement!r}")
+        if not isinstance(self.exploration, Exploration):
+            raise ValueError(f"RMACConfig.exploration must be an Exploration, "
+                             f"got {self.exploration!r}")
+        for name, allowed in (("conditioning", _CONDITIONINGS), ("inverse_query", _INVERSE_QUERIES),
+                              ("critic_gradient_at", _GRADIENT_AT),
+                              ("initial_value", _INITIAL_VALUES), ("backend", _BACKENDS)):
+            if getattr(self, name) not in allowed:
+                raise ValueError(f"RMACConfig.{name} must be one of {allowed}, "
+                                 f"got {getattr(self, name)!r}")
+        if self.norm not in (1, 2):
+            raise ValueError(f"RMACConfig.norm must be 1 or 2, got {self.norm!r}")
+        if not (np.isfinite(self.rcond) and 0 <= self.rcond < 1):
+            raise ValueError(f"RMACConfig.rcond must be in [0, 1), got {self.rcond!r}")
+        if not (np.isfinite(self.ridge) and self.ridge >= 0):
+            raise ValueError(f"RMACConfig.ridge must be finite and >= 0, got {self.ridge!r}")
+
+
+class RMAC(Agent):
+    """The RMAC learner (Algorithm 2) over a flat state box and a bounded action.
+
+    Args:
+      state_space: the n-dimensional state (periodic dimensions are wrapped in every memory).
+      action_space: the m-dimensional action box; its 2^m vertices span the reachable set.
+      config: hyperparameters; the weightings must have n (critic, reference) and n + m (process)
+        entries.
+      seed: seed or Generator of the exploration noise, the only randomness.
+    """
+
+    name = "rmac"
+
+    def __init__(self, state_space: StateSpace, action_space: ActionSpace,
+                 config: RMACConfig = RMACConfig(),
+                 seed: int | np.random.Generator | None = None) -> None:
+        if not isinstance(config, RMACConfig):
+            raise TypeError(f"RMAC: config must be an RMACConfig, got {type(config).__name__}")
+        self.state_space = state_space
+        self.action_space = action_space
+        self.config = config
+        self.rng = np.random.default_rng(seed)
+        n, m = state_space.dim, action_space.dim
+        self.n, self.m = n, m
+        for prefix, size in (("critic", n), ("reference", n), ("process", n + m)):
+            weights = getattr(config, f"{prefix}_weights")
+            if len(weights) != size:
+                raise ValueError(f"RMAC: config.{prefix}_weights has {len(weights)} entries, this "
+                                 f"task needs {size} ({'x' if size == n else '[x, u]'})")
+        self.period = state_space.period  # (n,), 0 for non-periodic dimensions
+        common = dict(norm=config.norm, conditioning=config.conditioning, rcond=config.rcond,
+                      ridge=config.ridge, algorithm=config.backend)
+        self.process = LLRMemory(
+            n + m, n, config.process_capacity, config.process_neighbours,
+            input_weights=config.process_weights, input_period=np.r_[self.period, np.zeros(m)],
+            output_period=self.period, clip=config.process_clip,
+            replacement=config.process_replacement, **common)
+        self.reference = LLRMemory(
+            n, n, config.reference_capacity, config.reference_neighbours,
+            input_weights=config.reference_weights, input_period=self.period,
+            output_period=self.period, clip=config.reference_clip,
+            replacement=config.reference_replacement, **common)
+        self.critic = LLRMemory(
+            n, 1, config.critic_capacity, config.critic_neighbours,
+            input_weights=config.critic_weights, input_period=self.period,
+            clip=config.critic_clip, replacement=config.critic_replacement, **common)
+        #: e(s_i) of Algorithm 2 line 26, one per critic memory slot.
+        self.traces = np.zeros(config.critic_capacity)
+        #: U_R without the state rows: the 2^m combinations of action extremes, (2^m, m), max first.
+        self.vertices = np.array(list(itertools.product(
+            *[(hi, lo) for lo, hi in zip(action_space.low, action_space.high)])), dtype=float)
+        self._k = 0
+        self._x_prev = np.zeros(n)
+        self._u_prev = np.zeros(m)
+        self._v_prev = 0.0
+        self._u_greedy = np.zeros(m)
+        if config.backend == "numba":
+            from rmac_mj.agents import _rmac_kernels
+            self._kernels = _rmac_kernels
+            self._params = _rmac_kernels.pack_params(self)
+
+    # -- the policy: u = f^-1(x, R(x)) ------------------------------------------------------------------
+    def _canonical(self, x: np.ndarray) -> np.ndarray:
+        return np.where(self.period > 0, wrap(x, self.period), x)
+
+    def _inverse(self, x: np.ndarray, x_desired: np.ndarray, u_query: np.ndarray) -> np.ndarray:
+        """f^-1(x, x_desired): least-squares inverse of the local process model (section 5).
+
+        The model is linearised at (x, u_query): x' = f(x, u_query) + beta_u (u - u_query), so
+        u = u_query + pinv(beta_u) wrap(x_desired - f(x, u_query)), which is the paper's
+        u = pinv(beta_u) (x_desired - beta_x x - beta_b) written around the query point. Returns
+        u = 0 when beta_u = 0 (section 5); saturated to the action bounds.
+        """
+        pred, beta, _ = self.process._query(np.concatenate([x, u_query]))
+        beta_u = beta[:, self.n:self.n + self.m]
+        if not np.any(beta_u):
+            return np.zeros(self.m)
+        u = u_query + np.linalg.pinv(beta_u) @ wrap(x_desired - pred, self.period)
+        return self.action_space.clip(u)
+
+    def _u_query(self, u_prev: np.ndarray) -> np.ndarray:
+        return u_prev if self.config.inverse_query == "previous" else np.zeros(self.m)
+
+    def _act(self, x: np.ndarray, u_prev: np.ndarray) -> np.ndarray:
+        """The greedy action in x: lines 10-11 without Delta u_k."""
+        x_desired = self.reference._query(x)[0].copy()  # line 10: x_hat_{k+1} = R(x_k)
+        return self._inverse(x, x_desired, self._u_query(u_prev))
+
+    def policy(self, states: np.ndarray, u_query: np.ndarray | None = None) -> np.ndarray:
+        """u = f^-1(x, R(x)) without exploration for a batch of states (policy plots, Fig. 4).
+
+        states: shape (q, n); u_query: shape (m,) or (q, m), where the process model is linearised
+        (default 0). Returns shape (q, m).
+        """
+        states = np.asarray(states, dtype=float).reshape(-1, self.n)
+        if not np.all(np.isfinite(states)):
+            raise ValueError("RMAC.policy: states must be finite")
+        uq = np.broadcast_to(np.zeros(self.m) if u_query is None else
+                             np.asarray(u_query, dtype=float), (len(states), self.m))
+        out = np.empty((len(states), self.m))
+        for i, x in enumerate(states):
+            x = self._canonical(x)
+            out[i] = self._inverse(x, self.reference._query(x)[0].copy(), uq[i])
+        return out
+
+    # -- Agent interface --------------------------------------------------------------------------------
+    def _check_state(self, x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x, dtype=float).reshape(-1)
+        if x.shape != (self.n,) or not np.all(np.isfinite(x)):
+            raise ValueError(f"RMAC: state must be finite with shape ({self.n},), got {x!r}")
+        return self._canonical(x)
+
+    def start(self, x0: np.ndarray) -> np.ndarray:
+        """Lines 1-6: reset the traces, u_0 = f^-1(x_0, R(x_0)) + Delta u_0."""
+        x0 = self._check_state(x0)
+        self.traces[:] = 0.0  # line 3
+        self._k = 0
+        self._u_greedy = np.zeros(self.m)
+        self._v_prev = (self.critic._query(x0)[0][0] if self.config.initial_value == "critic"
+                        else 0.0)  # line 2
+        u = self._explore(self._act(x0, np.zeros(self.m)))
+        self._x_prev, self._u_prev = x0, u
+        return u.copy()
+
+    def _explore(self, u_greedy: np.ndarray) -> np.ndarray:
+        du = self.config.exploration.sample(self._k, self.m, self.rng)  # line 8
+        return self.action_space.clip(u_greedy + du)
+
+    def step(self, reward: float, x: np.ndarray) -> np.ndarray:
+        """Lines 8-29 for one control step: act with the current models, then learn."""
+        x = self._check_state(x)
+        self._k += 1
+        if self.config.backend == "numba":
+            u_greedy = self._kernels.act(self, x, self._u_prev)
+            u = self._explore(u_greedy)
+            self._v_prev = self._kernels.update(self, float(reward), x)
+        else:
+            u = self._explore(self._act(x, self._u_prev))  # lines 10-12
+            self._v_prev = self._update(float(reward), x)   # lines 13-28
+        self._x_prev, self._u_prev = x, u
+        return u.copy()
+
+    def stop(self, reward: float, x: np.ndarray) -> None:
+        """The last transition of a trial: learn (lines 13-28), no action."""
+        x = self._check_state(x)
+        if self.config.backend == "numba":
+            self._kernels.update(self, float(reward), x)
+        else:
+            self._update(float(reward), x)
+
+    def _update(self, reward: float, x: np.ndarray) -> float:
+        """Lines 13-28 (reference implementation); returns V_k."""
+        cfg, n = self.config, self.n
+        x_prev, u_prev = self._x_prev, self._u_prev
+        # Line 14: insert [x_{k-1}, u_{k-1} | x_k] in M^P.
+        self.process._insert(np.concatenate([x_prev, u_prev]), x)
+        # Line 16: the best reachable state. X_R = beta^P U_R, linearised at (x_{k-1}, u_{k-1}).
+        pred, beta, _ = self.process._query(np.concatenate([x_prev, u_prev]))
+        beta_u = beta[:, n:n + self.m]
+        reachable = pred + (self.vertices - u_prev) @ beta_u.T  # (2^m, n)
+        # The critic's local linear model, V(x) = V(x_c) + beta^C_x wrap(x - x_c).
+        v_k, beta_c, _ = self.critic._query(x)
+        v_k = float(v_k[0])
+        if cfg.critic_gradient_at == "next":
+            x_c, slope = x, beta_c[0, :n].copy()
+        else:
+            x_c, slope = x_prev, self.critic._query(x_prev)[1][0, :n].copy()
+        values = wrap(reachable - x_c, self.period) @ slope
+        x_r = self._canonical(reachable[int(np.argmax(values))])
+        # Lines 17-20: insert [x_{k-1} | x_r] in M^R and move K(x_{k-1}) towards x_r.
+        near = self.reference._neighbours(x_prev).copy()
+        self.reference._insert(x_prev, x_r, int(near[0]) if len(near) else -1)
+        Y = self.reference.Y_
+        Y[near] += cfg.alpha_r * wrap(x_r - Y[near], self.period)
+        Y[near] = np.where(self.period > 0, wrap(Y[near], self.period), Y[near])
+        # Lines 22-28: TD(lambda) on the critic's samples. V_k was computed above (line 22).
+        near = self.critic._neighbours(x_prev).copy()
+        slot = self.critic._insert(x_prev, np.array([self._v_prev]),
+                                   int(near[0]) if len(near) else -1)  # line 23
+        delta = reward + cfg.gamma * v_k - self._v_prev  # line 24
+        self.traces *= cfg.lam * cfg.gamma  # line 26
+        self.traces[near] = 1.0
+        self.traces[slot] = 1.0
+        count = self.critic.n_samples_
+        self.critic.Y_[:count, 0] += cfg.alpha_c * delta * self.traces[:count]  # line 27
+        return v_k
+
+    def greedy_action(self, x: np.ndarray) -> np.ndarray:
+        """u = f^-1(x, R(x)) without exploration or learning. With inverse_query='previous' the
+        process model is linearised at the action greedy_action returned last (0 after start())."""
+        x = self._check_state(x)
+        u = self._act(x, self._u_greedy)
+        self._u_greedy = u
+        return u.copy()
+
+    def value(self, x: np.ndarray) -> float:
+        """V(x), the critic's LLR estimate."""
+        return float(self.critic._query(self._check_state(x))[0][0])
+
+    # -- state ------------------------------------------------------------------------------------------
+    def state_dict(self) -> dict[str, np.ndarray]:
+        state: dict[str, np.ndarray] = {}
+        for name in ("process", "reference", "critic"):
+            state.update(getattr(self, name).state_dict(prefix=f"{name}."))
+        state["traces"] = self.traces.copy()
+        state["rng_state"] = np.frombuffer(
+            repr(self.rng.bit_generator.state).encode(), dtype=np.uint8).copy()
+        state["k"] = np.array(self._k)
+        state["x_prev"] = self._x_prev.copy()
+        state["u_prev"] = self._u_prev.copy()
+        state["v_prev"] = np.array(self._v_prev)
+        state["u_greedy"] = self._u_greedy.copy()
+        return state
+
+    def load_state_dict(self, state: dict[str, np.ndarray]) -> None:
+        import ast
+        for name in ("process", "reference", "critic"):
+            getattr(self, name).load_state_dict(state, prefix=f"{name}.")
+        self.traces[:] = state["traces"]
+        self.rng.bit_generator.state = ast.literal_eval(bytes(state["rng_state"]).decode())
+        self._k = int(state["k"])
+        self._x_prev = np.array(state["x_prev"], dtype=float)
+        self._u_prev = np.array(state["u_prev"], dtype=float)
+        self._v_prev = float(state["v_prev"])
+        self._u_greedy = np.array(state["u_greedy"], dtype=float)
