@@ -16,10 +16,11 @@ from rmac_mj.approximators import _llr_kernels as _k
 
 def pack_params(agent) -> tuple:
     """The agent's constants as the kernels take them."""
+    from rmac_mj.agents.rmac import BETA_U_ZERO
     cfg = agent.config
     return (np.ascontiguousarray(agent.vertices), agent.period.copy(),
             agent.action_space.low.copy(), agent.action_space.high.copy(),
-            np.array([cfg.gamma, cfg.lam, cfg.alpha_c, cfg.alpha_r]),
+            np.array([cfg.gamma, cfg.lam, cfg.alpha_c, cfg.alpha_r, BETA_U_ZERO]),
             np.array([cfg.inverse_query == "previous", cfg.critic_gradient_at == "next"],
                      dtype=np.int64))
 
@@ -38,7 +39,7 @@ def update(agent, reward: float, x: np.ndarray) -> float:
 
 
 @njit(cache=True)
-def _inverse(P, x, x_desired, u_query, period, low, high):
+def _inverse(P, x, x_desired, u_query, period, low, high, beta_u_zero):
     """f^-1(x, x_desired) linearised at (x, u_query); see RMAC._inverse."""
     n = x.shape[0]
     m = u_query.shape[0]
@@ -51,7 +52,7 @@ def _inverse(P, x, x_desired, u_query, period, low, high):
     _k.query(P, z, idx, beta, pred)
     beta_u = np.ascontiguousarray(beta[:, n:n + m])
     u = np.zeros(m)
-    if not np.any(beta_u != 0.0):
+    if np.abs(beta_u).max() <= beta_u_zero * max(1.0, np.abs(beta[:, :n]).max()):
         return u
     e = np.empty(n)
     for j in range(n):
@@ -79,7 +80,7 @@ def _act(P, R, x, u_prev, params):
     x_desired = np.empty(n)
     _k.query(R, x, idx, beta, x_desired)  # line 10
     u_query = u_prev.copy() if flags[0] else np.zeros(u_prev.shape[0])
-    return _inverse(P, x, x_desired, u_query, period, low, high)  # line 11
+    return _inverse(P, x, x_desired, u_query, period, low, high, rates[4])  # line 11
 
 
 @njit(cache=True)

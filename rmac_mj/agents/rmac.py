@@ -30,6 +30,10 @@ from rmac_mj.agents.base import ActionSpace, Agent, Exploration, StateSpace
 from rmac_mj.approximators.llr import LLRMemory, wrap
 
 _BACKENDS = ("numba", "numpy")
+#: beta_u counts as zero (u = 0, section 5) below this fraction of the state gains: when every
+#: neighbour of the process model holds the same action, the truncated fit removes the u direction
+#: and rounding alone would otherwise decide a saturated action's sign.
+BETA_U_ZERO = 1e-9
 _INVERSE_QUERIES = ("previous", "zero")
 _GRADIENT_AT = ("next", "previous")
 _INITIAL_VALUES = ("critic", "zero")
@@ -219,11 +223,11 @@ class RMAC(Agent):
         The model is linearised at (x, u_query): x' = f(x, u_query) + beta_u (u - u_query), so
         u = u_query + pinv(beta_u) wrap(x_desired - f(x, u_query)), which is the paper's
         u = pinv(beta_u) (x_desired - beta_x x - beta_b) written around the query point. Returns
-        u = 0 when beta_u = 0 (section 5); saturated to the action bounds.
+        u = 0 when beta_u = 0 (numerically: see BETA_U_ZERO; section 5); saturated to the action bounds.
         """
         pred, beta, _ = self.process._query(np.concatenate([x, u_query]))
         beta_u = beta[:, self.n:self.n + self.m]
-        if not np.any(beta_u):
+        if np.abs(beta_u).max() <= BETA_U_ZERO * max(1.0, np.abs(beta[:, :self.n]).max()):
             return np.zeros(self.m)
         u = u_query + np.linalg.pinv(beta_u) @ wrap(x_desired - pred, self.period)
         return self.action_space.clip(u)

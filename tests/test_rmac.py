@@ -1,0 +1,167 @@
+"""RMAC (Algorithm 2): inverse model, reachable-set vertex, TD(lambda) on memory samples, learning."""
+
+import itertools
+
+import numpy as np
+import pytest
+
+from rmac_mj.agents.base import ActionSpace, Exploration, StateSpace
+from rmac_mj.agents.rmac import RMAC, RMACConfig
+
+BACKENDS = ("numba", "numpy")
+NO_EXPLORATION = Exploration(sigma=0.0)
+
+
+def _linear_system(n=2, m=1, seed=0):
+    rng = np.random.default_rng(seed)
+    A = np.eye(n) + 0.1 * rng.normal(size=(n, n))
+    B = rng.normal(size=(n, m))
+    c = 0.1 * rng.normal(size=n)
+    return A, B, c
+
+
+def _agent(n, m, backend, **config):
+    state_space = StateSpace(low=-10 * np.ones(n), high=10 * np.ones(n), periodic=np.zeros(n, bool))
+    action_space = ActionSpace(low=-3 * np.ones(m), high=3 * np.ones(m))
+    defaults = dict(critic_weights=(1.0,) * n, reference_weights=(1.0,) * n,
+                    process_weights=(1.0,) * (n + m), exploration=NO_EXPLORATION, backend=backend)
+    defaults.update(config)
+    return RMAC(state_space, action_space, RMACConfig(**defaults), seed=0)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("n, m", [(2, 1), (3, 2)])
+def test_inverse_process_model_returns_the_exact_input(backend, n, m):
+    A, B, c = _linear_system(n, m)
+    agent = _agent(n, m, backend)
+    rng = np.random.default_rng(1)
+    X, U = rng.uniform(-1, 1, (100, n)), rng.uniform(-3, 3, (100, m))
+    agent.process.fit(np.c_[X, U], X @ A.T + U @ B.T + c)
+    for _ in range(5):
+        x, u_true = rng.uniform(-1, 1, n), rng.uniform(-2, 2, m)
+        x_desired = A @ x + B @ u_true + c
+        agent.reference.fit(x[None], x_desired[None])  # R(x) = x_desired
+        np.testing.assert_allclose(agent.greedy_action(x), u_true, atol=1e-8)
+        np.testing.assert_allclose(agent.policy(x[None], rng.uniform(-1, 1, m))[0], u_true,
+                                   atol=1e-8)
+        # Unreachable desired states saturate at the bounds.
+        agent.reference.fit(x[None], (A @ x + B @ (10 * np.ones(m)) + c)[None])
+        assert np.all(np.abs(agent.greedy_action(x)) <= 3.0)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_zero_input_gain_gives_zero_action(backend):
+    agent = _agent(2, 1, backend)
+    assert agent.start(np.array([1.0, 2.0])).tolist() == [0.0]  # empty process memory: beta_u = 0
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("m", [1, 2])
+def test_reference_target_is_best_vertex_under_a_linear_critic(backend, m):
+    n = 2
+    A, B, c = _linear_system(n, m, seed=3)
+    g = np.array([-2.0, 0.7])
+    agent = _agent(n, m, backend, critic_clip=False)
+    rng = np.random.default_rng(2)
+    X, U = rng.uniform(-1, 1, (100, n)), rng.uniform(-3, 3, (100, m))
+    agent.process.fit(np.c_[X, U], X @ A.T + U @ B.T + c)
+    Xc = rng.uniform(-5, 5, (500, n))
+    agent.critic.fit(Xc, (Xc @ g + 3.0)[:, None])
+    x0, u0 = np.array([0.2, -0.4]), np.array([0.5] * m)
+    agent.start(x0)
+    agent._u_prev = u0
+    x1 = A @ x0 + B @ u0 + c
+    agent.step(-1.0, x1)
+    vertices = [A @ x0 + B @ np.array(v) + c for v in itertools.product((3.0, -3.0), repeat=m)]
+    best = vertices[int(np.argmax([g @ v for v in vertices]))]
+    slot = int(np.argmax(agent.reference.stamp_[:agent.reference.n_samples_]))
+    np.testing.assert_allclose(agent.reference.Y_[slot], best, atol=1e-8)
+    assert len(agent.vertices) == 2 ** m
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_traces_and_td_updates_on_a_hand_worked_example(backend):
+    gamma, lam, alpha = 0.9, 0.5, 0.2
+    agent = _agent(1, 1, backend, gamma=gamma, lam=lam, alpha_c=alpha, critic_neighbours=1,
+                   critic_capacity=10, critic_clip=True)
+    agent.start(np.array([0.0]))  # V_0 = V(x_0) = 0 on the empty critic
+    # k = 1: V_1 = V(1) = 0 (empty), insert [0 | 0] in slot 0, delta = -1, e = [1].
+    agent.step(-1.0, np.array([1.0]))
+    V = [-alpha]
+    np.testing.assert_allclose(agent.critic.Y_[:1, 0], V)
+    # k = 2: V_2 = V(2) = -alpha (one neighbour, clipped to its value); K(x_1) = {slot 0};
+    # insert [1 | V_1 = 0] in slot 1; delta = -2 + gamma V_2 - V_1; e = [1, 1].
+    delta = -2.0 + gamma * (-alpha) - 0.0
+    agent.step(-2.0, np.array([2.0]))
+    V = [V[0] + alpha * delta, 0.0 + alpha * delta]
+    np.testing.assert_allclose(agent.critic.Y_[:2, 0], V)
+    # k = 3: V_3 = V(10): nearest sample x = 1 (slot 1); K(x_2) = {slot 1};
+    # insert [2 | V_2 = -alpha] in slot 2; e = [lam gamma, 1, 1].
+    v3 = V[1]
+    delta = -0.5 + gamma * v3 - (-alpha)
+    agent.step(-0.5, np.array([10.0]))
+    V = [V[0] + alpha * delta * lam * gamma, V[1] + alpha * delta, -alpha + alpha * delta]
+    np.testing.assert_allclose(agent.critic.Y_[:3, 0], V)
+    np.testing.assert_allclose(agent.traces[:3], [lam * gamma, 1.0, 1.0])
+    # A new trial resets the traces (line 3).
+    agent.start(np.array([0.0]))
+    assert not agent.traces.any()
+
+
+def _pendulum():
+    from rmac_mj import tasks
+    from rmac_mj.experiments.episode import action_space_of, state_space_of
+    env = tasks.load("dc_pendulum", "swingup")
+    return env, state_space_of(env), action_space_of(env)
+
+
+def test_back_ends_follow_the_same_trajectory():
+    from rmac_mj.experiments.episode import run_trial
+    env, S, U = _pendulum()
+    returns = {}
+    for backend in BACKENDS:
+        agent = RMAC(S, U, RMACConfig(backend=backend), seed=5)
+        returns[backend] = [run_trial(env, agent) for _ in range(3)]
+    np.testing.assert_allclose(returns["numba"], returns["numpy"], rtol=1e-6)
+
+
+def test_same_seed_same_curve_and_state_dict_round_trip():
+    from rmac_mj.experiments.episode import run_trial
+    env, S, U = _pendulum()
+    a, b = RMAC(S, U, seed=7), RMAC(S, U, seed=7)
+    assert [run_trial(env, a) for _ in range(3)] == [run_trial(env, b) for _ in range(3)]
+    c = RMAC(S, U, seed=99)
+    state = a.state_dict()
+    assert all(isinstance(v, np.ndarray) and v.dtype != object for v in state.values())
+    c.load_state_dict(state)
+    assert run_trial(env, a) == run_trial(env, c)
+    assert a.greedy_action(np.array([np.pi, 0.0])) == c.greedy_action(np.array([np.pi, 0.0]))
+
+
+def test_rmac_improves_on_pendulum_swingup():
+    from rmac_mj.experiments.episode import run_trial
+    env, S, U = _pendulum()
+    for seed in np.random.SeedSequence(11).spawn(2):
+        agent = RMAC(S, U, seed=np.random.default_rng(seed))
+        returns = np.array([run_trial(env, agent) for _ in range(60)])
+        assert returns[-10:].mean() > returns[:10].mean() + 500, returns
+        assert np.all(agent.critic.Y_[:agent.critic.n_samples_] <= 0)  # all rewards are negative
+
+
+@pytest.mark.parametrize("kwargs, name", [
+    (dict(gamma=1.5), "gamma"), (dict(alpha_r=-0.1), "alpha_r"),
+    (dict(critic_capacity=0), "critic_capacity"), (dict(process_neighbours=200), "process"),
+    (dict(reference_weights=(1.0, -1.0)), "reference_weights"),
+    (dict(conditioning="qr"), "conditioning"), (dict(inverse_query="x"), "inverse_query"),
+    (dict(critic_replacement="lru"), "critic_replacement"), (dict(backend="jax"), "backend"),
+])
+def test_bad_configuration_names_the_parameter(kwargs, name):
+    with pytest.raises(ValueError, match=name):
+        RMACConfig(**kwargs)
+
+
+def test_weighting_must_match_the_task_dimensions():
+    S = StateSpace(low=-np.ones(3), high=np.ones(3), periodic=np.zeros(3, bool))
+    U = ActionSpace(low=-np.ones(1), high=np.ones(1))
+    with pytest.raises(ValueError, match="critic_weights"):
+        RMAC(S, U)  # the paper's weightings are for n = 2, m = 1
