@@ -8,9 +8,8 @@ the RMAC and S-AC learners (``rmac_mj.agents``) and the experiments that compare
 
 __version__ = "0.1.0"
 
-import os as _os
+from rmac_mj._gl import select_gl_backend as _select_gl_backend
 
-# dm-control chooses its GL back end when first imported; on a machine without a display, prefer the
-# off-screen EGL back end to the GLFW default (which only warns there). See rmac_mj.experiments.render.
-if "MUJOCO_GL" not in _os.environ and not _os.environ.get("DISPLAY"):
-    _os.environ["MUJOCO_GL"] = "egl"
+# MuJoCo and dm-control choose their GL back end when first imported: before anything imports them,
+# pick an off-screen one (EGL, then OSMesa) on a machine without a display. See rmac_mj._gl.
+_select_gl_backend()

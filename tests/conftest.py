@@ -1,6 +1,3 @@
-"""Test-wide set-up: off-screen rendering must be chosen before mujoco is first imported."""
+"""Test-wide set-up: the GL back end must be chosen before mujoco is first imported."""
 
-import os
-
-if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
-    os.environ["MUJOCO_GL"] = "egl"
+import rmac_mj  # noqa: F401  (rmac_mj/__init__.py selects the back end; see rmac_mj._gl)

@@ -1,0 +1,222 @@
+"""Off-screen rendering: frames show the pendulum where it is, videos read back, clear back-end errors."""
+
+from __future__ import annotations
+
+import imageio.v2 as imageio
+import mujoco
+import numpy as np
+import pytest
+
+from rmac_mj import _gl, tasks
+from rmac_mj.agents.base import Agent
+from rmac_mj.experiments import render
+from rmac_mj.experiments.episode import run_trial
+
+SHORT = {"time_limit": 0.3}  # 10 control steps: enough to see motion, quick to render
+
+
+class EnergyPumpAgent(Agent):
+    """A scripted swing-up: pump energy with +-3 V, then a PD balancer near the top (no learning)."""
+
+    name = "energy-pump"
+    _J, _MGL = 1.91e-4, 0.055 * 9.81 * 0.042  # inertia (kg m^2), M g l (N m) of Table 1
+
+    def greedy_action(self, x):
+        phi, omega = x
+        if abs(phi) < 0.8:
+            return np.array([np.clip(-8.0 * phi - 0.6 * omega, -3.0, 3.0)])
+        energy = 0.5 * self._J * omega ** 2 + self._MGL * (np.cos(phi) - 1.0)  # 0 upright at rest
+        return np.array([3.0 if (omega >= 0) == (energy < 0) else -3.0])
+
+    def start(self, x0):
+        return self.greedy_action(x0)
+
+    def step(self, reward, x):
+        return self.greedy_action(x)
+
+    def stop(self, reward, x):
+        pass
+
+    def value(self, x):
+        return 0.0
+
+    def state_dict(self):
+        return {}
+
+    def load_state_dict(self, state):
+        pass
+
+
+def _arm_rows(image: np.ndarray) -> np.ndarray:
+    """Row indices of the arm's and mass's pixels (red/brass: strong red, weak blue)."""
+    red, blue = image[..., 0].astype(int), image[..., 2].astype(int)
+    return np.nonzero((red > 120) & (blue < 0.6 * red))[0]
+
+
+def test_frames_have_the_requested_size_and_are_not_blank():
+    env = tasks.load("dc_pendulum", "swingup", task_kwargs=SHORT)
+    episode = render.render_episode(env, EnergyPumpAgent(), width=160, height=120, overlay=False)
+    assert episode.frames.shape == (11, 120, 160, 3) and episode.frames.dtype == np.uint8
+    for frame in episode.frames:
+        assert frame.std() > 10 and len(np.unique(frame.reshape(-1, 3), axis=0)) > 20
+    assert episode.fps == pytest.approx(1 / 0.03)
+    np.testing.assert_allclose(episode.times, 0.03 * np.arange(11), atol=1e-9)
+    assert not np.array_equal(episode.frames[0], episode.frames[-1])  # it swung
+
+
+def test_arm_pixels_are_above_the_axis_upright_and_below_it_hanging():
+    env = tasks.load("dc_pendulum", "swingup")
+    up = render.render_state(env, 0.0, width=160, height=120)
+    down = render.render_state(env, np.pi, width=160, height=120)
+    rows_up, rows_down = _arm_rows(up), _arm_rows(down)
+    assert len(rows_up) > 30 and len(rows_down) > 30
+    assert rows_up.mean() + 10 < rows_down.mean()  # image rows grow downwards
+    changed = np.any(up != down, axis=-1)
+    assert 0.01 < changed.mean() < 0.2  # the arm moved; the rest of the scene did not
+
+
+def test_substep_frames_follow_the_physics_and_the_episode_is_env_step():
+    env = tasks.load("dc_pendulum", "swingup", task_kwargs=SHORT)
+    agent = EnergyPumpAgent()
+    coarse = render.render_episode(env, agent, width=64, height=48, overlay=False)
+    fine = render.render_episode(env, policy=agent.greedy_action, width=64, height=48,
+                                 frames_per_step=3, overlay=False)
+    assert fine.frames.shape[0] == 31 and fine.fps == pytest.approx(100.0)
+    np.testing.assert_array_equal(fine.angles[::3], coarse.angles)
+    assert fine.total_return == coarse.total_return == run_trial(env, agent, learn=False)
+
+    # The intermediate frames are the physics substeps: replay them by hand with mj_step.
+    physics = env.physics
+    env.reset()
+    angles = [physics.angle()]
+    for k in range(10):
+        physics.set_control(agent.greedy_action(physics.state()))
+        for _ in range(3):
+            mujoco.mj_step(physics.model.ptr, physics.data.ptr)
+            angles.append(physics.angle())
+    np.testing.assert_allclose(fine.angles, angles, atol=1e-12)
+
+
+def test_overlay_and_labels_draw_text():
+    env = tasks.load("dc_pendulum", "swingup", task_kwargs={"time_limit": 0.03})
+    plain = render.render_episode(env, EnergyPumpAgent(), width=160, height=120, overlay=False)
+    text = render.render_episode(env, EnergyPumpAgent(), width=160, height=120, label="RMAC")
+    differs = np.any(plain.frames[0] != text.frames[0], axis=-1)
+    assert differs[:60, :40].any() and differs[:60, 100:].any()  # label top-left, numbers top-right
+    assert not differs[80:].any()                                 # the rig below is untouched
+
+
+def test_invalid_arguments_are_rejected_with_their_names():
+    env = tasks.load("dc_pendulum", "swingup", task_kwargs=SHORT)
+    agent = EnergyPumpAgent()
+    with pytest.raises(ValueError, match="frames_per_step"):
+        render.render_episode(env, agent, frames_per_step=2)
+    with pytest.raises(ValueError, match="width"):
+        render.render_episode(env, agent, width=1000)
+    with pytest.raises(ValueError, match="exactly one of agent"):
+        render.render_episode(env, agent, policy=agent.greedy_action)
+
+
+def _moving_square(frames: int, height: int, width: int) -> np.ndarray:
+    clip = np.full((frames, height, width, 3), 30, dtype=np.uint8)
+    for t in range(frames):
+        clip[t, 10:20, 2 * t:2 * t + 10] = (230, 80, 40)
+    return clip
+
+
+@pytest.mark.parametrize("suffix", [".mp4", ".gif"])
+def test_videos_are_written_and_read_back(tmp_path, suffix):
+    clip = _moving_square(12, 49, 65)  # odd size: MP4 pads to even
+    path = render.write_video(clip, tmp_path / f"clip{suffix}", fps=30)
+    frames = imageio.mimread(path)
+    assert len(frames) == 12
+    expected = (50, 66) if suffix == ".mp4" else (49, 65)
+    assert frames[0].shape[:2] == expected
+    assert np.abs(frames[5][:49, :65, :3].astype(int) - clip[5]).mean() < 8  # same picture
+
+
+def test_gif_can_be_made_smaller(tmp_path):
+    clip = _moving_square(12, 48, 64)
+    path = render.write_video(clip, tmp_path / "small.gif", fps=30, scale=0.5, frame_step=2)
+    frames = imageio.mimread(path)
+    assert len(frames) == 6 and frames[0].shape[:2] == (24, 32)
+
+
+def test_unknown_video_format_is_rejected(tmp_path):
+    with pytest.raises(ValueError, match=r"\.mp4"):
+        render.write_video(_moving_square(2, 8, 8), tmp_path / "clip.avi", fps=30)
+
+
+def test_side_by_side_and_sequence_compose_clips():
+    a, b = _moving_square(5, 40, 60), _moving_square(3, 40, 60)
+    both = render.side_by_side([a, b], labels=["S-AC", "RMAC"])
+    assert both.shape == (5, 40, 60 + 4 + 60, 3)
+    np.testing.assert_array_equal(both[4, 30:, 64:], b[2, 30:])  # the short clip holds its last frame
+    chain = render.sequence([a, b], hold=2)
+    assert chain.shape == (5 + 2 + 3 + 2, 40, 60, 3)
+    np.testing.assert_array_equal(chain[7], b[0])
+    with pytest.raises(ValueError, match="frame size"):
+        render.side_by_side([a, _moving_square(5, 40, 62)])
+
+
+def _fake_results(tmp_path, monkeypatch, trials=(1, 10)):
+    """A result directory of empty snapshot files that "load" as the scripted agent on a short task."""
+    from rmac_mj.experiments import snapshots
+
+    for algorithm in ("rmac", "s-ac"):
+        for trial in trials:
+            path = tmp_path / "snapshots" / algorithm / "exp_000" / f"trial_{trial:04d}.npz"
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_bytes(b"")
+
+    def load(path):
+        algorithm, trial = path.parent.parent.name, int(path.stem.split("_")[1])
+        return EnergyPumpAgent(), {"algorithm": algorithm, "domain": "dc_pendulum", "task": "swingup",
+                                   "task_kwargs": {"time_limit": 0.09}, "trial": trial}
+
+    monkeypatch.setattr(snapshots, "load_snapshot", load)
+    return tmp_path
+
+
+def test_progression_and_comparison_from_a_result_directory(tmp_path, monkeypatch):
+    results = _fake_results(tmp_path, monkeypatch)
+    options = {"width": 64, "height": 48, "overlay": False}
+    path = render.render_progression(results, tmp_path / "progression.mp4", **options)
+    assert len(imageio.mimread(path)) == 2 * (4 + 17)  # 4 frames each, last held 0.5 s at 33.3 fps
+    # (a GIF merges the held frames into one long frame, so its count would not tell)
+    path = render.render_comparison(results, tmp_path / "comparison.gif", **options)
+    assert imageio.mimread(path)[0].shape[:2] == (48, 64 + 4 + 64)
+    with pytest.raises(FileNotFoundError, match=r"available: \[1, 10\]"):
+        render.render_progression(results, tmp_path / "p.gif", trials=(1, 600), **options)
+
+
+def test_backend_selection_prefers_egl_then_osmesa(monkeypatch):
+    monkeypatch.setattr(_gl, "has_display", lambda environ=None: False)
+    monkeypatch.setattr(_gl, "can_load_library", lambda stem, sonames=(): True)
+    environ = {}
+    assert _gl.select_gl_backend(environ) == "egl"
+    assert environ == {"MUJOCO_GL": "egl", "PYOPENGL_PLATFORM": "egl"}
+    monkeypatch.setattr(_gl, "can_load_library", lambda stem, sonames=(): stem == "OSMesa")
+    environ = {}
+    assert _gl.select_gl_backend(environ) == "osmesa"
+    assert environ == {"MUJOCO_GL": "osmesa", "PYOPENGL_PLATFORM": "osmesa"}
+    monkeypatch.setattr(_gl, "can_load_library", lambda stem, sonames=(): True)
+    monkeypatch.setattr(_gl, "egl_device_count", lambda sonames=(): 0)  # libEGL without a vendor
+    assert _gl.select_gl_backend({}) == "osmesa"
+    environ = {"MUJOCO_GL": "glfw"}  # the user's choice is kept
+    assert _gl.select_gl_backend(environ) == "glfw" and environ == {"MUJOCO_GL": "glfw"}
+
+
+def test_missing_backend_gives_one_clear_message(monkeypatch):
+    monkeypatch.setattr(_gl, "has_display", lambda environ=None: False)
+    monkeypatch.setattr(_gl, "can_load_library", lambda stem, sonames=(): False)
+    environ = {}
+    assert _gl.select_gl_backend(environ) is None and environ == {"MUJOCO_GL": "disable"}
+    with pytest.raises(_gl.GLBackendError, match="apt-get install libegl1"):
+        _gl.require_gl_backend(environ)
+    with pytest.raises(_gl.GLBackendError, match="no display"):
+        _gl.require_gl_backend({})
+    # The renderers check before touching OpenGL (here MUJOCO_GL=egl, but libEGL "cannot load").
+    env = tasks.load("dc_pendulum", "swingup", task_kwargs=SHORT)
+    with pytest.raises(_gl.GLBackendError, match="libosmesa6"):
+        render.render_episode(env, EnergyPumpAgent())
