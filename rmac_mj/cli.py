@@ -113,6 +113,8 @@ def _parser() -> argparse.ArgumentParser:
     render.add_argument("--width", type=_positive_int, default=320)
     render.add_argument("--height", type=_positive_int, default=240)
     render.add_argument("--no-overlay", action="store_true", help="no text overlay")
+    render.add_argument("--frames-per-step", type=_positive_int, default=1,
+                        help="frames per 0.03 s control step, from physics substeps (1 or 3)")
 
     bench = commands.add_parser("bench", help="microseconds per step, against env.step")
     bench.add_argument("--json", type=pathlib.Path, default=None, help="also write the figures here")
@@ -189,7 +191,8 @@ def _render(args) -> int:
         raise UsageError("give exactly one of SNAPSHOT, --progression DIR or --compare DIR")
     from rmac_mj.experiments import render
 
-    options = {"width": args.width, "height": args.height, "overlay": not args.no_overlay}
+    options = {"width": args.width, "height": args.height, "overlay": not args.no_overlay,
+               "frames_per_step": args.frames_per_step}
     if args.snapshot is not None:
         path = render.render_snapshot(args.snapshot, args.out, **options)
     elif args.progression is not None:
@@ -230,6 +233,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (UsageError, ValueError, FileNotFoundError) as error:  # runner.ResumeRefused included
         print(f"{prog}: error: {error}", file=sys.stderr)
         return 2
+    except RuntimeError as error:
+        from rmac_mj._gl import GLBackendError
+        if isinstance(error, GLBackendError):  # no off-screen GL: the message names the packages
+            print(f"{prog}: error: {error}", file=sys.stderr)
+            return 2
+        raise
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -476,7 +476,9 @@ _TRIAL_FILE = re.compile(r"trial_(\d+)\.npz")
 def snapshot_trials(result_dir: str | os.PathLike, algorithm: str,
                     experiment: int = 0) -> dict[int, pathlib.Path]:
     """Trial number -> snapshot path, for one algorithm and experiment of a result directory."""
-    folder = pathlib.Path(result_dir) / "snapshots" / algorithm / f"exp_{experiment:03d}"
+    from rmac_mj.experiments.runner import snapshot_dir
+
+    folder = snapshot_dir(result_dir, algorithm, experiment)
     found = {int(match.group(1)): path for path in folder.glob("trial_*.npz")
              if (match := _TRIAL_FILE.fullmatch(path.name))}
     if not found:

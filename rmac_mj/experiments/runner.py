@@ -166,8 +166,12 @@ def curve_path(out: pathlib.Path, algorithm: str, index: int) -> pathlib.Path:
     return out / "curves" / algorithm / f"exp_{index:03d}.npz"
 
 
+def snapshot_dir(out: pathlib.Path, algorithm: str, index: int) -> pathlib.Path:
+    return pathlib.Path(out) / "snapshots" / algorithm / f"exp_{index:03d}"
+
+
 def snapshot_path(out: pathlib.Path, algorithm: str, index: int, trial: int) -> pathlib.Path:
-    return out / "snapshots" / algorithm / f"exp_{index:03d}" / f"trial_{trial:04d}.npz"
+    return snapshot_dir(out, algorithm, index) / f"trial_{trial:04d}.npz"
 
 
 def save_outcome(out: pathlib.Path, outcome: dict[str, Any]) -> None:
