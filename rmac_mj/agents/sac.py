@@ -115,6 +115,15 @@ def _policy_numba(actor, tiles, low, high, out):
 
 
 @numba.njit(cache=True)
+def _act_numba(actor, tiles, low, high, noise, u, du):
+    """Lines 6 and 8: u = clip(pi(x) + noise, low, high), du = u - pi(x), pi(x) saturated."""
+    _policy_numba(actor, tiles, low, high, du)
+    for i in range(u.shape[0]):
+        u[i] = min(max(du[i] + noise[i], low[i]), high[i])
+        du[i] = u[i] - du[i]
+
+
+@numba.njit(cache=True)
 def _learn_numba(critic, actor, traces, trace_idx, n_traces, prev_tiles, tiles, reward, gamma,
                  decay, cutoff, a_critic, a_actor, prev_du, a_low, a_high):
     """Lines 10-13 of Algorithm 1 in place; returns (delta_k, number of live traces)."""
@@ -291,11 +300,10 @@ class SAC(Agent):
 
     def _tiles_of(self, x: np.ndarray, out: np.ndarray) -> None:
         """Active tiles of a checked x, written into ``out``."""
-        x = self.coder.check_state(x)
         if self.config.backend == "numba":
-            self.coder._active_tiles_into(x, out)
+            self.coder.active_tiles_into(x, out)
         else:
-            out[:] = self.coder._active_tiles_numpy(x)
+            out[:] = self.coder._active_tiles_numpy(self.coder.check_state(x))
 
     def _policy(self, tiles: np.ndarray) -> np.ndarray:
         if self.config.backend == "numba":
@@ -305,9 +313,14 @@ class SAC(Agent):
 
     def _act(self, tiles: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
         """Lines 6 and 8: u_k = sat(pi(x_k) + Delta u_k) and the applied exploration u_k - pi(x_k)."""
+        noise = self.config.exploration.sample(k, self.action_space.dim, self.rng)
+        if self.config.backend == "numba":
+            m = self.action_space.dim
+            u, du = np.empty(m), np.empty(m)
+            _act_numba(self.actor_, tiles, self._a_low, self._a_high, noise, u, du)
+            return u, du
         pi = self._policy(tiles)
-        u = np.clip(pi + self.config.exploration.sample(k, self.action_space.dim, self.rng),
-                    self._a_low, self._a_high)
+        u = np.clip(pi + noise, self._a_low, self._a_high)
         return u, u - pi
 
     def _learn(self, reward: float) -> None:

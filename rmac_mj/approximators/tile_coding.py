@@ -93,8 +93,14 @@ def tiling_offsets(num_tilings: int, dim: int, kind: str = "uniform") -> np.ndar
 
 @numba.njit(cache=True)
 def _active_tiles_numba(x, low, high, periodic, scale, offsets, sizes, strides, tiling_size, out):
-    """Compiled twin of :meth:`TileCoder._active_tiles_numpy` (see it for the formula)."""
+    """Compiled twin of :meth:`TileCoder._active_tiles_numpy` (see it for the formula).
+
+    Returns False (and leaves ``out`` undefined) if ``x`` is not finite.
+    """
     num_tilings, dim = offsets.shape
+    for d in range(dim):
+        if not np.isfinite(x[d]):
+            return False
     for j in range(num_tilings):
         index = j * tiling_size
         for d in range(dim):
@@ -111,7 +117,7 @@ def _active_tiles_numba(x, low, high, periodic, scale, offsets, sizes, strides, 
                 c = sizes[d] - 1
             index += c * strides[d]
         out[j] = index
-    return out
+    return True
 
 
 class TileCoder:
@@ -147,6 +153,7 @@ class TileCoder:
         self.config = config
         self.backend = backend
         self.dim = self.low.shape[0]
+        self._shape = (self.dim,)
         self.num_tilings = int(config.num_tilings)
         self.tiles = config.tiles_for(self.dim)
         self.scale = self.tiles / (self.high - self.low)  # tiles per state unit
@@ -177,15 +184,22 @@ class TileCoder:
           ndarray of int64 of shape (num_tilings,); entry j lies in
           [j * tiling_size, (j + 1) * tiling_size).
         """
-        x = self.check_state(x)
         if self.backend == "numba":
-            return self._active_tiles_into(x, np.empty(self.num_tilings, dtype=np.int64))
-        return self._active_tiles_numpy(x)
+            return self.active_tiles_into(x, np.empty(self.num_tilings, dtype=np.int64))
+        return self._active_tiles_numpy(self.check_state(x))
 
-    def _active_tiles_into(self, x: np.ndarray, out: np.ndarray) -> np.ndarray:
-        """Unchecked compiled path for validated ``x``; writes into ``out`` of shape (num_tilings,)."""
-        return _active_tiles_numba(x, self.low, self.high, self.periodic, self.scale, self.offsets,
-                                   self.sizes, self.strides, self.tiling_size, out)
+    def active_tiles_into(self, x: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """Compiled :meth:`active_tiles` writing into ``out`` (int64, shape (num_tilings,)).
+
+        The fast path of a control loop: a float64 ndarray of shape (n,) is passed straight to the
+        kernel, which also checks finiteness; anything else goes through :meth:`check_state`.
+        """
+        if not (type(x) is np.ndarray and x.dtype == np.float64 and x.shape == self._shape):
+            x = self.check_state(x)
+        if not _active_tiles_numba(x, self.low, self.high, self.periodic, self.scale, self.offsets,
+                                   self.sizes, self.strides, self.tiling_size, out):
+            self.check_state(x)  # raises the ValueError naming the non-finite state
+        return out
 
     def _active_tiles_numpy(self, x: np.ndarray) -> np.ndarray:
         """Reference: tile coordinate c[j, d] = floor((x[d] - low[d]) / width[d] + offset[j, d])."""
