@@ -181,7 +181,7 @@ def _optimal(args) -> int:
     from rmac_mj.experiments import optimal
 
     result = optimal.optimal_return(refresh=args.refresh)
-    print(optimal.describe(result) if hasattr(optimal, "describe") else result)
+    print(result.describe())
     return 0
 
 

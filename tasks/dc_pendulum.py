@@ -25,13 +25,13 @@ from dm_control.utils import containers
 
 from rmac_mj.models import model_path
 
-_DEFAULT_TIME_LIMIT = 3.0        # s, one trial (section 6)
-_CONTROL_TIMESTEP = 0.03         # s; the paper leaves it open, its group's follow-up work uses 0.03 s
-_STATE_WEIGHTS = (5.0, 0.1)      # Q = diag(5, 0.1)
-_ACTION_WEIGHT = 1.0             # P
-_SWINGUP_START = (np.pi, 0.0)    # x_0 = [pi, 0]: hanging down, at rest
-_BALANCE_START = (0.0, 0.0)
-_BALANCE_START_NOISE = 0.1       # rad: half-width of the uniform perturbation of the balance start angle
+DEFAULT_TIME_LIMIT = 3.0        # s, one trial (section 6)
+CONTROL_TIMESTEP = 0.03         # s; the paper leaves it open, its group's follow-up work uses 0.03 s
+STATE_WEIGHTS = (5.0, 0.1)      # Q = diag(5, 0.1)
+ACTION_WEIGHT = 1.0             # P
+SWINGUP_START = (np.pi, 0.0)    # x_0 = [pi, 0]: hanging down, at rest
+BALANCE_START = (0.0, 0.0)
+BALANCE_START_NOISE = 0.1       # rad: half-width of the uniform perturbation of the balance start angle
 
 #: Highest angular speed the pendulum reaches under |u| <= 3 V (rad/s), measured on the model by
 #: spinning it with a constant 3 V from every start on a grid: 57.5 rad/s. The nominal velocity range
@@ -71,9 +71,9 @@ def _make_environment(task: "SwingUp", time_limit: float, control_timestep: floa
 
 
 @SUITE.add("benchmarking")
-def swingup(time_limit: float = _DEFAULT_TIME_LIMIT, control_timestep: float = _CONTROL_TIMESTEP,
-            state_weights=_STATE_WEIGHTS, action_weight: float = _ACTION_WEIGHT,
-            start_state=_SWINGUP_START, start_noise: float = 0.0, random=None,
+def swingup(time_limit: float = DEFAULT_TIME_LIMIT, control_timestep: float = CONTROL_TIMESTEP,
+            state_weights=STATE_WEIGHTS, action_weight: float = ACTION_WEIGHT,
+            start_state=SWINGUP_START, start_noise: float = 0.0, random=None,
             environment_kwargs: dict[str, Any] | None = None) -> control.Environment:
     """The paper's task: swing up from [pi, 0] and balance, 100 steps of 0.03 s."""
     task = SwingUp(state_weights=state_weights, action_weight=action_weight,
@@ -82,9 +82,9 @@ def swingup(time_limit: float = _DEFAULT_TIME_LIMIT, control_timestep: float = _
 
 
 @SUITE.add("benchmarking")
-def balance(time_limit: float = _DEFAULT_TIME_LIMIT, control_timestep: float = _CONTROL_TIMESTEP,
-            state_weights=_STATE_WEIGHTS, action_weight: float = _ACTION_WEIGHT,
-            start_state=_BALANCE_START, start_noise: float = _BALANCE_START_NOISE, random=None,
+def balance(time_limit: float = DEFAULT_TIME_LIMIT, control_timestep: float = CONTROL_TIMESTEP,
+            state_weights=STATE_WEIGHTS, action_weight: float = ACTION_WEIGHT,
+            start_state=BALANCE_START, start_noise: float = BALANCE_START_NOISE, random=None,
             environment_kwargs: dict[str, Any] | None = None) -> control.Environment:
     """Balance upright from a small random perturbation of the start angle; same reward."""
     task = SwingUp(state_weights=state_weights, action_weight=action_weight,
@@ -153,8 +153,8 @@ def _check_positive(name: str, value) -> None:
 class SwingUp(base.Task):
     """Swing-up and balance with the quadratic reward of section 6 (see the module docstring)."""
 
-    def __init__(self, state_weights=_STATE_WEIGHTS, action_weight: float = _ACTION_WEIGHT,
-                 start_state=_SWINGUP_START, start_noise: float = 0.0, random=None):
+    def __init__(self, state_weights=STATE_WEIGHTS, action_weight: float = ACTION_WEIGHT,
+                 start_state=SWINGUP_START, start_noise: float = 0.0, random=None):
         """
         Args:
           state_weights: Q, as its diagonal (2,) or a full symmetric positive semi-definite (2, 2).

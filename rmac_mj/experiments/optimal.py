@@ -79,15 +79,15 @@ class OptimalConfig:
     lookahead_actions: int = 121
     """Voltages (same range) the greedy policy chooses from when simulated: its one-step look-ahead is
     cheap, so it may search finer than the DP's backups (0.05 V apart; a superset of the DP's 25)."""
-    horizon: int = round(dc_pendulum._DEFAULT_TIME_LIMIT / dc_pendulum._CONTROL_TIMESTEP)
+    horizon: int = round(dc_pendulum.DEFAULT_TIME_LIMIT / dc_pendulum.CONTROL_TIMESTEP)
     """Control steps per trial (100: 3 s of 0.03 s)."""
-    control_timestep: float = dc_pendulum._CONTROL_TIMESTEP
+    control_timestep: float = dc_pendulum.CONTROL_TIMESTEP
     """Seconds per control step; a whole number of the model's physics timesteps."""
-    state_weights: tuple[float, float] = tuple(dc_pendulum._STATE_WEIGHTS)
+    state_weights: tuple[float, float] = tuple(dc_pendulum.STATE_WEIGHTS)
     """Diagonal of Q, for (phi, phi_dot)."""
-    action_weight: float = dc_pendulum._ACTION_WEIGHT
+    action_weight: float = dc_pendulum.ACTION_WEIGHT
     """P."""
-    start_state: tuple[float, float] = tuple(float(v) for v in dc_pendulum._SWINGUP_START)
+    start_state: tuple[float, float] = tuple(float(v) for v in dc_pendulum.SWINGUP_START)
     """x_0 = (phi, phi_dot) of the trial (rad, rad/s)."""
     check_convergence: bool = True
     """Also solve on a grid of half the resolution in each state dimension and with half as many action
