@@ -84,6 +84,9 @@ def _parser() -> argparse.ArgumentParser:
                            help="a greedy trial after every N learning trials (0: none)")
     reproduce.add_argument("--scheduler", default=None,
                            help="Dask scheduler address (tcp://host:8786) to run experiments on")
+    reproduce.add_argument("--set", action="append", default=[], metavar="ALGO.FIELD=VALUE",
+                           help="override a hyperparameter, e.g. s-ac.rate_split=actor or "
+                                "rmac.exploration.sigma=0.5 (JSON values; repeatable)")
     reproduce.add_argument("--no-optimal", action="store_true",
                            help="skip the near-optimal reference (dynamic programming)")
     reproduce.add_argument("--no-progress", action="store_true", help="no progress bars")
@@ -130,12 +133,32 @@ def _optimal_for(protocol) -> float | None:
     return float(optimal.optimal_return().simulated_return)
 
 
+def parse_overrides(assignments: Sequence[str]) -> dict[str, dict]:
+    """``["rmac.exploration.sigma=0.5", ...]`` -> ``{"rmac": {"exploration": {"sigma": 0.5}}}``."""
+    overrides: dict[str, dict] = {}
+    for assignment in assignments:
+        key, separator, text = assignment.partition("=")
+        path = key.strip().split(".")
+        if not separator or len(path) < 2 or not all(path):
+            raise UsageError(f"--set expects ALGO.FIELD=VALUE, got {assignment!r}")
+        try:
+            value = json.loads(text)
+        except json.JSONDecodeError:
+            value = text  # a bare word, e.g. rate_split=actor
+        node = overrides.setdefault(path[0], {})
+        for part in path[1:-1]:
+            node = node.setdefault(part, {})
+        node[path[-1]] = value
+    return overrides
+
+
 def _reproduce(args) -> int:
     from rmac_mj.experiments import runner
 
     protocol = runner.Protocol(algorithms=tuple(a.strip() for a in args.algorithms.split(",") if a),
                                experiments=args.experiments, trials=args.trials, seed=args.seed,
-                               evaluate_every=args.evaluate_every)
+                               evaluate_every=args.evaluate_every,
+                               agent_configs=parse_overrides(args.set))
     out = _writable_dir(args.out)
     if args.jobs is not None and args.scheduler:
         raise UsageError("--jobs and --scheduler exclude each other")

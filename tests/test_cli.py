@@ -42,3 +42,21 @@ def test_reproduce_and_compare_and_policy(tmp_path):
                      str(tmp_path / "policy"))
     assert result.returncode == 0, result.stderr
     assert (tmp_path / "policy.png").is_file()
+
+
+def test_set_overrides_parse_into_nested_agent_configs():
+    from rmac_mj.cli import UsageError, parse_overrides
+
+    assert parse_overrides(["rmac.exploration.sigma=0.5", "s-ac.rate_split=actor",
+                            "s-ac.tile_high=[null, 60]"]) == {
+        "rmac": {"exploration": {"sigma": 0.5}},
+        "s-ac": {"rate_split": "actor", "tile_high": [None, 60]}}
+    for bad in ("rmac", "rmac=1", "sigma=0.5", "rmac..x=1"):
+        with pytest.raises(UsageError, match="ALGO.FIELD=VALUE"):
+            parse_overrides([bad])
+
+
+def test_unknown_hyperparameter_is_one_line(tmp_path):
+    result = rmac_mj("reproduce", "--algorithms", "s-ac", "--out", str(tmp_path / "x"),
+                     "--set", "s-ac.bogus=1")
+    assert result.returncode == 2 and "unknown hyperparameters ['bogus']" in result.stderr
