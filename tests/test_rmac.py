@@ -146,8 +146,10 @@ def test_rmac_improves_on_pendulum_swingup():
     env, S, U = _pendulum()
     for seed in np.random.SeedSequence(11).spawn(2):
         agent = RMAC(S, U, seed=np.random.default_rng(seed))
-        returns = np.array([run_trial(env, agent) for _ in range(60)])
-        assert returns[-10:].mean() > returns[:10].mean() + 500, returns
+        returns = np.array([run_trial(env, agent) for _ in range(100)])
+        # Single experiments dip now and then; by trials 81-100 every one of 20 measured had gained
+        # more than 800 over trials 1-10 (docs/rmac.md), a learner that does not learn gains ~0.
+        assert returns[-20:].mean() > returns[:10].mean() + 500, returns
         assert np.all(agent.critic.Y_[:agent.critic.n_samples_] <= 0)  # all rewards are negative
 
 

@@ -31,6 +31,14 @@ def act(agent, x: np.ndarray, u_prev: np.ndarray) -> np.ndarray:
                 agent._params)
 
 
+def step(agent, reward: float, x: np.ndarray, du: np.ndarray) -> tuple[np.ndarray, float]:
+    """One control step in one compiled call: u_k = sat(f^-1(x_k, R(x_k)) + Delta u_k) with the
+    models as they are (lines 10-12), then lines 13-28; returns (u_k, V_k)."""
+    return _step(agent.process._pack_cached(), agent.reference._pack_cached(),
+                 agent.critic._pack_cached(), agent.traces, agent._x_prev, agent._u_prev,
+                 reward, x, agent._v_prev, du, agent._params)
+
+
 def update(agent, reward: float, x: np.ndarray) -> float:
     """Lines 13-28; returns V_k."""
     return _update(agent.process._pack_cached(), agent.reference._pack_cached(),
@@ -156,3 +164,13 @@ def _update(P, R, C, traces, x_prev, u_prev, reward, x, v_prev, params):
     for i in range(count):
         Y[i, 0] += step * traces[i]  # line 27
     return v_k
+
+
+@njit(cache=True)
+def _step(P, R, C, traces, x_prev, u_prev, reward, x, v_prev, du, params):
+    low, high = params[2], params[3]
+    u = _act(P, R, x, u_prev, params)
+    for i in range(u.shape[0]):
+        u[i] = min(max(u[i] + du[i], low[i]), high[i])
+    v_k = _update(P, R, C, traces, x_prev, u_prev, reward, x, v_prev, params)
+    return u, v_k

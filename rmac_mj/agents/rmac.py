@@ -27,6 +27,7 @@ import itertools
 import numpy as np
 
 from rmac_mj.agents.base import ActionSpace, Agent, Exploration, StateSpace
+from rmac_mj.approximators._llr_kernels import canonical as _canonical_kernel
 from rmac_mj.approximators.llr import LLRMemory, wrap
 
 _BACKENDS = ("numba", "numpy")
@@ -212,6 +213,7 @@ class RMAC(Agent):
         self._u_prev = np.zeros(m)
         self._v_prev = 0.0
         self._u_greedy = np.zeros(m)
+        self._periodic = bool(np.any(self.period > 0))
         if config.backend == "numba":
             from rmac_mj.agents import _rmac_kernels
             self._kernels = _rmac_kernels
@@ -263,10 +265,19 @@ class RMAC(Agent):
 
     # -- Agent interface --------------------------------------------------------------------------------
     def _check_state(self, x: np.ndarray) -> np.ndarray:
-        x = np.asarray(x, dtype=float).reshape(-1)
-        if x.shape != (self.n,) or not np.all(np.isfinite(x)):
+        """x as a float vector of shape (n,), periodic entries wrapped to [-period/2, period/2)."""
+        v = np.asarray(x, dtype=float)
+        if v.shape != (self.n,):
+            v = v.reshape(-1)
+        if v.shape != (self.n,) or not np.isfinite(v).all():
             raise ValueError(f"RMAC: state must be finite with shape ({self.n},), got {x!r}")
-        return self._canonical(x)
+        if not self._periodic:
+            return v.copy()
+        if self.config.backend == "numba":
+            out = np.empty(self.n)
+            _canonical_kernel(v, self.period, out)
+            return out
+        return self._canonical(v)
 
     def start(self, x0: np.ndarray) -> np.ndarray:
         """Lines 1-6: reset the traces, u_0 = f^-1(x_0, R(x_0)) + Delta u_0."""
@@ -282,16 +293,15 @@ class RMAC(Agent):
 
     def _explore(self, u_greedy: np.ndarray) -> np.ndarray:
         du = self.config.exploration.sample(self._k, self.m, self.rng)  # line 8
-        return self.action_space.clip(u_greedy + du)
+        return np.minimum(np.maximum(u_greedy + du, self.action_space.low), self.action_space.high)
 
     def step(self, reward: float, x: np.ndarray) -> np.ndarray:
         """Lines 8-29 for one control step: act with the current models, then learn."""
         x = self._check_state(x)
         self._k += 1
         if self.config.backend == "numba":
-            u_greedy = self._kernels.act(self, x, self._u_prev)
-            u = self._explore(u_greedy)
-            self._v_prev = self._kernels.update(self, float(reward), x)
+            du = self.config.exploration.sample(self._k, self.m, self.rng)  # line 8
+            u, self._v_prev = self._kernels.step(self, float(reward), x, du)
         else:
             u = self._explore(self._act(x, self._u_prev))  # lines 10-12
             self._v_prev = self._update(float(reward), x)   # lines 13-28

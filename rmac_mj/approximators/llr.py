@@ -193,13 +193,23 @@ class LLRMemory:
             raise ValueError(f"LLRMemory: {name} must be finite and >= 0, got {value!r}")
         return v
 
-    def _check(self, name: str, value: Any, size: int) -> np.ndarray:
-        v = np.asarray(value, dtype=float).reshape(-1)
+    def _check(self, name: str, value: Any, size: int, finite: bool = True) -> np.ndarray:
+        """value as a float vector of shape (size,); checked finite unless ``finite`` is False (the
+        numba kernels check that themselves, at no cost)."""
+        v = value if type(value) is np.ndarray and value.dtype == np.float64 else np.asarray(
+            value, dtype=float)
         if v.shape != (size,):
-            raise ValueError(f"LLRMemory: {name} must have shape ({size},), got {np.shape(value)}")
-        if not np.all(np.isfinite(v)):
-            raise ValueError(f"LLRMemory: {name} must be finite, got {value!r}")
+            v = v.reshape(-1)
+            if v.shape != (size,):
+                raise ValueError(f"LLRMemory: {name} must have shape ({size},), "
+                                 f"got {np.shape(value)}")
+        if finite and not np.all(np.isfinite(v)):
+            self._not_finite(name, value)
         return v
+
+    @staticmethod
+    def _not_finite(name: str, value: Any) -> None:
+        raise ValueError(f"LLRMemory: {name} must be finite, got {value!r}")
 
     def _pack(self) -> tuple:
         """The memory as the tuple the numba kernels take (see ``_llr_kernels``)."""
@@ -290,15 +300,18 @@ class LLRMemory:
             beta @ [x; 1] == prediction (for periodic inputs: valid for wrapped offsets from x).
           neighbours: int64 ndarray of shape (min(K, n_samples_),), nearest first.
         """
-        xq = self._check("x", x, self.input_dim)
+        fast = self.algorithm == "numba"
+        xq = self._check("x", x, self.input_dim, finite=not fast)
         pred, beta, idx = self._query(xq)
+        if fast and len(idx) == 0 and not np.all(np.isfinite(xq)):
+            self._not_finite("x", x)
         return pred.copy(), beta.copy(), idx.copy()
 
     def _query(self, xq: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Unvalidated query; returned arrays may be internal buffers (copy before keeping)."""
         if self.algorithm == "numba":
             nk = _k.query(self._pack_cached(), xq, self._idx, self._beta, self._pred)
-            return self._pred, self._beta, self._idx[:nk]
+            return self._pred, self._beta, self._idx[:max(nk, 0)]
         xq = self._canonical(xq)
         idx = self._neighbours(xq)
         pred, beta = fit_reference(self.X_[idx], self.Y_[idx], xq, self._w, self._pin, self._pout,
@@ -328,9 +341,13 @@ class LLRMemory:
         When the memory is full the replacement policy chooses the slot. ``nearest``, if given, is the
         slot of the stored input nearest to x (saves a search under 'nearest' replacement).
         """
-        xv = self._check("x", x, self.input_dim)
-        yv = self._check("y", y, self.output_dim)
-        return self._insert(xv, yv, -1 if nearest is None else int(nearest))
+        fast = self.algorithm == "numba"
+        xv = self._check("x", x, self.input_dim, finite=not fast)
+        yv = self._check("y", y, self.output_dim, finite=not fast)
+        slot = self._insert(xv, yv, -1 if nearest is None else int(nearest))
+        if slot < 0:
+            self._not_finite("x" if not np.all(np.isfinite(xv)) else "y", (x, y))
+        return slot
 
     def _insert(self, x: np.ndarray, y: np.ndarray, nearest: int = -1) -> int:
         if self.algorithm == "numba":
