@@ -82,8 +82,8 @@ class RMACConfig:
     """1- or 2-norm of the weighted input difference in all memories (section 4 allows both)."""
     conditioning: str = "ridge"
     """How the local least-squares fits are conditioned: 'ridge' (``ridge`` on the slopes, as GRL),
-    'svd' (truncated SVD, ``rcond``) or 'none' (plain pseudo-inverse). Measured (docs/rmac.md): with
-    the critic clipped all three learn; 'ridge' was the most reliable at the end."""
+    'svd' (truncated SVD, ``rcond``) or 'none' (pseudo-inverse). Measured (docs/rmac.md): the three
+    end within noise of each other; unclipped and unconditioned fits give outlier early trials."""
     rcond: float = 0.01
     """Relative singular value cutoff for conditioning='svd'."""
     ridge: float = 1e-3
@@ -93,8 +93,9 @@ class RMACConfig:
     """Clip critic predictions to the range of the neighbours' values (as GRL does); keeps the values
     sane when a fit extrapolates."""
     reference_clip: bool = True
-    """Clip reference predictions to the range of the neighbours' desired states: no desired state
-    beyond what was once reachable; measured to speed up early learning (docs/rmac.md)."""
+    """Clip reference predictions to the range of the neighbours' desired states, so that no desired
+    state lies beyond those once found reachable. Measured no different within noise; kept as a
+    safeguard (docs/rmac.md)."""
     process_clip: bool = False
     """Clip process model predictions to the neighbours' next states."""
     critic_replacement: str = "nearest"
@@ -315,6 +316,7 @@ class RMAC(Agent):
             self._kernels.update(self, float(reward), x)
         else:
             self._update(float(reward), x)
+        self._u_greedy = np.zeros(self.m)  # a greedy trial that follows starts from u_{-1} = 0
 
     def _update(self, reward: float, x: np.ndarray) -> float:
         """Lines 13-28 (reference implementation); returns V_k."""
@@ -354,8 +356,12 @@ class RMAC(Agent):
         return v_k
 
     def greedy_action(self, x: np.ndarray) -> np.ndarray:
-        """u = f^-1(x, R(x)) without exploration or learning. With inverse_query='previous' the
-        process model is linearised at the action greedy_action returned last (0 after start())."""
+        """u = f^-1(x, R(x)) without exploration or learning, as in a greedy trial.
+
+        With inverse_query='previous' the process model is linearised, as while learning, at the
+        previous action: the one greedy_action returned last (0 after start() and stop()). For a
+        stateless map over many states (policy plots) use :meth:`policy`.
+        """
         x = self._check_state(x)
         u = self._act(x, self._u_greedy)
         self._u_greedy = u
