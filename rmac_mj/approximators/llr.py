@@ -27,8 +27,9 @@ Where the paper is silent, the choice is a constructor parameter (defaults in br
 * A query on an empty memory predicts 0 with beta = 0 (Algorithm 2 line 2: V_0 = 0, beta^P = 0).
 
 Two back ends give the same results: ``algorithm='numba'`` (compiled kernels in ``_llr_kernels``) and
-``algorithm='numpy'`` (the readable reference below). Brute force beats a k-d tree at N <= 2000 and
-n <= 3 once compiled (a query costs a few microseconds), and needs no rebuild when samples change.
+``algorithm='numpy'`` (the readable reference below). Compiled brute force finds the 20 nearest of
+2000 samples in about 3 us and needs nothing rebuilt when samples change; scipy's cKDTree took 32 us
+per query and 720 us per rebuild here (measured; a memory changes every control step).
 """
 
 from __future__ import annotations
