@@ -12,7 +12,8 @@ Xt: (n, N) inputs, stored by dimension so that the distance loop runs over conti
 vectorises (5x faster than row-wise here); periodic inputs are kept in [-period/2, period/2). Y: (N, m)
 outputs; stamp: (N,) int64 insertion times; meta: int64 [count, clock];
 weights: (n,); in_period: (n,), 0 for a non-periodic input; out_period: (m,); iparams: int64
-[n_neighbours, norm, clip, replacement]; fparams: float64 [eig_cutoff, ridge]; dist: (N,) scratch space for distances.
+[n_neighbours, norm, clip, replacement]; fparams: float64 [eig_cutoff, ridge]; dist: (N,) scratch
+space for distances.
 Arrays are mutated in place, so a jitted learner can update a memory without leaving compiled code.
 """
 
@@ -244,8 +245,10 @@ def query(mem, x, idx_out, beta_out, pred_out):
 
 @njit(cache=True)
 def insert(mem, x, y, nearest):
-    """Store [x | y]; returns its slot (-1: x or y not finite, nothing stored). ``nearest`` is the slot of the stored input closest to x
-    (used by the 'nearest' replacement policy once the memory is full; -1 to search for it)."""
+    """Store [x | y]; returns its slot (-1: x or y not finite, nothing stored).
+
+    ``nearest`` is the slot of the stored input closest to x (used by the 'nearest' replacement
+    policy once the memory is full; -1 to search for it)."""
     Xt, Y, stamp, meta, w, in_period, out_period, ip, fp, d = mem
     if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
         return -1
