@@ -9,7 +9,8 @@ online protocol of the paper's Algorithms 1 and 2::
         u = agent.step(r_k, x_k)   # lines 6-14 (Alg. 1) / 8-29 (Alg. 2): learn, return u_k
     agent.stop(r_K, x_K)           # the last transition of a trial: learn, no action
 
-``greedy_action`` and ``value`` evaluate the current policy and critic without exploring or learning.
+``greedy_action`` and ``value`` evaluate the current policy and critic without exploring or learning;
+a greedy trial begins with ``begin_greedy_trial()``.
 ``state_dict``/``load_state_dict`` exchange the learned state as a flat dict of numpy arrays, so that
 snapshots are written with ``numpy.savez`` and read back with ``allow_pickle=False``.
 """
@@ -137,6 +138,9 @@ class Agent(abc.ABC):
     @abc.abstractmethod
     def greedy_action(self, x: np.ndarray) -> np.ndarray:
         """The policy's action in ``x`` without exploration and without learning."""
+
+    def begin_greedy_trial(self) -> None:
+        """Forget what a previous greedy trial carried over (e.g. RMAC's last action); no learning."""
 
     @abc.abstractmethod
     def value(self, x: np.ndarray) -> float:

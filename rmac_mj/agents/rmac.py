@@ -355,6 +355,10 @@ class RMAC(Agent):
         self.critic.Y_[:count, 0] += cfg.alpha_c * delta * self.traces[:count]  # line 27
         return v_k
 
+    def begin_greedy_trial(self) -> None:
+        """A greedy trial starts, like a learning one, from u_{-1} = 0."""
+        self._u_greedy = np.zeros(self.m)
+
     def greedy_action(self, x: np.ndarray) -> np.ndarray:
         """u = f^-1(x, R(x)) without exploration or learning, as in a greedy trial.
 

@@ -51,6 +51,8 @@ def run_trial(env: control.Environment, agent: Agent, learn: bool = True,
     """
     timestep = env.reset()
     x = state_of(timestep.observation)
+    if not learn:
+        agent.begin_greedy_trial()
     u = agent.start(x) if learn else agent.greedy_action(x)
     total = 0.0
     while True:

@@ -84,7 +84,11 @@ def plot_learning_curves(summaries: dict[str, dict[str, Any]], stem: str | os.Pa
 
 
 def policy_grid(agent, n_angle: int = 101, n_velocity: int = 101, max_speed: float = 30.0):
-    """Policy and critic of ``agent`` on a (phi, phi_dot) grid.
+    """Policy and critic of ``agent`` on a (phi, phi_dot) grid, each point evaluated on its own.
+
+    Agents with a batch ``policy(states)`` (RMAC: u = f^-1(x, R(x)) linearised at u = 0) use it;
+    for the others each point is a fresh greedy trial's first action, so the map does not depend on
+    the order in which the grid is scanned.
 
     Returns:
       (angles (n_angle,), velocities (n_velocity,), actions (n_velocity, n_angle),
@@ -92,14 +96,18 @@ def policy_grid(agent, n_angle: int = 101, n_velocity: int = 101, max_speed: flo
     """
     angles = np.linspace(-np.pi, np.pi, n_angle)
     velocities = np.linspace(-max_speed, max_speed, n_velocity)
-    actions = np.empty((n_velocity, n_angle))
-    values = np.empty((n_velocity, n_angle))
-    for i, velocity in enumerate(velocities):
-        for j, angle in enumerate(angles):
-            x = np.array([angle, velocity])
-            actions[i, j] = np.asarray(agent.greedy_action(x)).reshape(-1)[0]
-            values[i, j] = agent.value(x)
-    return angles, velocities, actions, values
+    grid_v, grid_a = np.meshgrid(velocities, angles, indexing="ij")
+    states = np.column_stack([grid_a.ravel(), grid_v.ravel()])
+    if hasattr(agent, "policy"):
+        actions = np.asarray(agent.policy(states))[:, 0]
+    else:
+        actions = np.empty(len(states))
+        for i, x in enumerate(states):
+            agent.begin_greedy_trial()
+            actions[i] = np.asarray(agent.greedy_action(x)).reshape(-1)[0]
+    values = np.array([agent.value(x) for x in states])
+    shape = (n_velocity, n_angle)
+    return angles, velocities, actions.reshape(shape), values.reshape(shape)
 
 
 def plot_policy(agent, meta: dict[str, Any], stem: str | os.PathLike, max_speed: float = 30.0,

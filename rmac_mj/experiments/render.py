@@ -182,6 +182,7 @@ def _acting_function(agent: Agent | None, policy: Policy | None) -> Policy:
     if agent is not None:
         if not isinstance(agent, Agent):
             raise TypeError(f"agent must be an rmac_mj Agent, got {type(agent).__name__}")
+        agent.begin_greedy_trial()
         return agent.greedy_action
     if not callable(policy):
         raise TypeError(f"policy must be a function x -> u, got {type(policy).__name__}")
