@@ -25,6 +25,8 @@ def test_greedy_trials_are_repeatable_and_learn_nothing(learned):
     assert first == second  # nothing carried over from one greedy trial to the next
     after = agent.state_dict()
     for key, value in before.items():
+        if key == "u_greedy":  # RMAC's last greedy action: what a greedy trial may change
+            continue
         np.testing.assert_array_equal(value, after[key], err_msg=key)
 
 
