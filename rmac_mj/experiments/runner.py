@@ -6,9 +6,10 @@ independent, so they run in worker processes (``jobs``) or on a Dask cluster (``
 worker returns its results and the driver writes them atomically as they arrive, so an interrupted run
 loses only the experiments in flight and ``resume`` finishes the rest with identical results.
 
-Seeding: experiment i of every algorithm draws from ``SeedSequence(seed, spawn_key=(i,))`` (equal to
-``SeedSequence(seed).spawn(n)[i]``): its agent from the child ``(i, 0)``, its task from ``(i, 1)``. The
-results therefore do not depend on ``jobs``, on the order of completion, or on resuming.
+Seeding: experiment i of every algorithm draws its agent's stream from
+``SeedSequence(seed, spawn_key=(i,))``, which equals ``SeedSequence(seed).spawn(n)[i]``, and its task's
+seed from that sequence's child ``(i, 0)``. The results therefore do not depend on ``jobs``, on the
+order of completion, or on resuming.
 """
 
 from __future__ import annotations
@@ -109,8 +110,8 @@ class ExperimentSpec:
 
 def experiment_seeds(seed: int, index: int) -> tuple[np.random.SeedSequence, int]:
     """The agent's seed sequence and the task's integer seed of experiment ``index``."""
-    agent_seq = np.random.SeedSequence(seed, spawn_key=(index, 0))
-    task_seed = int(np.random.SeedSequence(seed, spawn_key=(index, 1)).generate_state(1)[0])
+    agent_seq = np.random.SeedSequence(seed, spawn_key=(index,))
+    task_seed = int(np.random.SeedSequence(seed, spawn_key=(index, 0)).generate_state(1)[0])
     return agent_seq, task_seed
 
 
