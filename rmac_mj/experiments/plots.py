@@ -36,50 +36,62 @@ def _save(fig, stem: str | os.PathLike, formats=("png", "pdf")) -> list[pathlib.
 
 def plot_learning_curves(summaries: dict[str, dict[str, Any]], stem: str | os.PathLike,
                          optimal_return: float | None = None,
-                         ylim: tuple[float, float] | None = None) -> list[pathlib.Path]:
+                         detail_ylim: tuple[float, float] | None = None) -> list[pathlib.Path]:
     """Fig. 2: sum of rewards per trial against simulated minutes, mean and 95% confidence band.
+
+    Two panels: the whole range (the paper's view, with S-AC's early dip) and a detail of the levels
+    reached, where the learners' differences are a few percent.
 
     Args:
       summaries: label -> summary document (``summary.json``) holding one entry per algorithm.
         With one summary the legend names only the learners; with several, "label: learner".
       stem: output path without suffix; a .png and a .pdf are written.
       optimal_return: drawn as a horizontal line (the near-optimal reference).
+      detail_ylim: y range of the detail panel; default from the final levels and the optimum.
     """
-    fig, ax = plt.subplots(figsize=(7.5, 4.5))
+    fig, axes = plt.subplots(1, 2, figsize=(13, 4.6), constrained_layout=True)
     palette = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    colour_index = 0
-    for label, summary in summaries.items():
-        for algorithm in [k for k in summary if isinstance(summary[k], dict) and
-                          "mean_return_per_trial" in summary[k]]:
-            row = summary[algorithm]
-            mean = np.asarray(row["mean_return_per_trial"], dtype=float)
-            low = np.asarray([np.nan if v is None else v for v in row["ci95_low_per_trial"]])
-            high = np.asarray([np.nan if v is None else v for v in row["ci95_high_per_trial"]])
-            minutes = np.arange(1, mean.size + 1) * TRIAL_SECONDS / 60.0
-            name = _LABELS.get(algorithm, algorithm)
-            if len(summaries) == 1:
-                style = dict(_STYLES.get(algorithm, {}))
-            else:
-                name = f"{label}: {name}"
-                style = {"color": palette[colour_index % len(palette)]}
-                colour_index += 1
-            ax.plot(minutes, mean, label=f"{name} (mean of {row['experiments']})", linewidth=1.4,
-                    **style)
-            ax.fill_between(minutes, low, high, color=style["color"], alpha=0.25, linewidth=0)
-            if row.get("greedy_eval_trials"):
-                eval_minutes = np.asarray(row["greedy_eval_trials"]) * TRIAL_SECONDS / 60.0
-                ax.plot(eval_minutes, row["greedy_return_per_eval"], color=style["color"],
-                        linestyle=":", marker=".", linewidth=1.0, label=f"{name}, greedy trial")
-    if optimal_return is not None:
-        ax.axhline(optimal_return, color="black", linewidth=1.0, linestyle="-.",
-                   label=f"near-optimal ({optimal_return:.0f})")
-    ax.set_xlabel("time [min] (simulated; one trial = 3 s)")
-    ax.set_ylabel("sum of rewards per trial")
-    ax.set_title("Learning curves, mean and 95% confidence interval")
-    if ylim is not None:
-        ax.set_ylim(*ylim)
-    ax.grid(alpha=0.3)
-    ax.legend(loc="lower right", fontsize="small")
+    finals = []
+    for ax in axes:
+        colour_index = 0
+        for label, summary in summaries.items():
+            for algorithm in [k for k in summary if isinstance(summary[k], dict) and
+                              "mean_return_per_trial" in summary[k]]:
+                row = summary[algorithm]
+                mean = np.asarray(row["mean_return_per_trial"], dtype=float)
+                low = np.asarray([np.nan if v is None else v for v in row["ci95_low_per_trial"]])
+                high = np.asarray([np.nan if v is None else v for v in row["ci95_high_per_trial"]])
+                minutes = np.arange(1, mean.size + 1) * TRIAL_SECONDS / 60.0
+                name = _LABELS.get(algorithm, algorithm)
+                if len(summaries) == 1:
+                    style = dict(_STYLES.get(algorithm, {}))
+                else:
+                    name = f"{label}: {name}"
+                    style = {"color": palette[colour_index % len(palette)]}
+                    colour_index += 1
+                ax.plot(minutes, mean, label=f"{name} (mean of {row['experiments']})",
+                        linewidth=1.3, **style)
+                ax.fill_between(minutes, low, high, color=style["color"], alpha=0.25, linewidth=0)
+                if row.get("greedy_eval_trials"):
+                    eval_minutes = np.asarray(row["greedy_eval_trials"]) * TRIAL_SECONDS / 60.0
+                    ax.plot(eval_minutes, row["greedy_return_per_eval"], color=style["color"],
+                            linestyle=":", marker=".", linewidth=1.0, label=f"{name}, greedy trial")
+                finals.append(row["final_return_mean"])
+        if optimal_return is not None:
+            ax.axhline(optimal_return, color="black", linewidth=1.0, linestyle="-.",
+                       label=f"near-optimal ({optimal_return:.0f})")
+        ax.set_xlabel("time [min] (simulated; one trial = 3 s)")
+        ax.set_ylabel("sum of rewards per trial")
+        ax.grid(alpha=0.3)
+    axes[0].set_title("Learning curves, mean and 95% confidence interval")
+    axes[0].legend(loc="lower right", fontsize="small")
+    if detail_ylim is None:
+        top = max(finals + ([optimal_return] if optimal_return is not None else []))
+        bottom = min(finals)
+        margin = max(25.0, 0.1 * (top - bottom))
+        detail_ylim = (bottom - (top - bottom) - margin, top + margin)
+    axes[1].set_ylim(*detail_ylim)
+    axes[1].set_title("Detail: the levels reached")
     return _save(fig, stem)
 
 
