@@ -19,6 +19,9 @@ class EnergyPumpAgent(Agent):
     """A scripted swing-up: pump energy with +-3 V, then a PD balancer near the top (no learning)."""
 
     name = "energy-pump"
+
+    def __init__(self):  # scripted: no spaces, config or randomness to keep
+        pass
     _J, _MGL = 1.91e-4, 0.055 * 9.81 * 0.042  # inertia (kg m^2), M g l (N m) of Table 1
 
     def greedy_action(self, x):

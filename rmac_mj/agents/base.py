@@ -122,6 +122,25 @@ class Agent(abc.ABC):
 
     #: Short name used in results and on the command line, e.g. ``"rmac"``.
     name: str = ""
+    #: The frozen hyperparameter dataclass the agent takes.
+    config_class: type = object
+
+    def __init__(self, state_space: StateSpace, action_space: ActionSpace, config: Any,
+                 seed: int | np.random.Generator | None = None) -> None:
+        """Check and keep the spaces and the config; ``rng`` is the agent's only randomness."""
+        cls = type(self).__name__
+        if not isinstance(state_space, StateSpace):
+            raise TypeError(f"{cls}: state_space must be a StateSpace, got {type(state_space).__name__}")
+        if not isinstance(action_space, ActionSpace):
+            raise TypeError(f"{cls}: action_space must be an ActionSpace, got "
+                            f"{type(action_space).__name__}")
+        if not isinstance(config, self.config_class):
+            raise TypeError(f"{cls}: config must be a {self.config_class.__name__}, got "
+                            f"{type(config).__name__}")
+        self.state_space = state_space
+        self.action_space = action_space
+        self.config = config
+        self.rng = np.random.default_rng(seed)
 
     @abc.abstractmethod
     def start(self, x0: np.ndarray) -> np.ndarray:

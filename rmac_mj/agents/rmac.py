@@ -170,16 +170,12 @@ class RMAC(Agent):
     """
 
     name = "rmac"
+    config_class = RMACConfig
 
     def __init__(self, state_space: StateSpace, action_space: ActionSpace,
                  config: RMACConfig = RMACConfig(),
                  seed: int | np.random.Generator | None = None) -> None:
-        if not isinstance(config, RMACConfig):
-            raise TypeError(f"RMAC: config must be an RMACConfig, got {type(config).__name__}")
-        self.state_space = state_space
-        self.action_space = action_space
-        self.config = config
-        self.rng = np.random.default_rng(seed)
+        super().__init__(state_space, action_space, config, seed)
         n, m = state_space.dim, action_space.dim
         self.n, self.m = n, m
         for prefix, size in (("critic", n), ("reference", n), ("process", n + m)):

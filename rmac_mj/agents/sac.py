@@ -188,20 +188,12 @@ class SAC(Agent):
     """
 
     name = "s-ac"
+    config_class = SACConfig
 
     def __init__(self, state_space: StateSpace, action_space: ActionSpace,
                  config: SACConfig = SACConfig(),
                  seed: int | np.random.Generator | None = None) -> None:
-        if not isinstance(state_space, StateSpace):
-            raise TypeError(f"state_space must be a StateSpace, got {type(state_space).__name__}")
-        if not isinstance(action_space, ActionSpace):
-            raise TypeError(f"action_space must be an ActionSpace, got {type(action_space).__name__}")
-        if not isinstance(config, SACConfig):
-            raise TypeError(f"config must be an SACConfig, got {type(config).__name__}")
-        self.state_space = state_space
-        self.action_space = action_space
-        self.config = config
-        self.rng = np.random.default_rng(seed)
+        super().__init__(state_space, action_space, config, seed)
 
         low, high = state_space.low.copy(), state_space.high.copy()
         for name, bound in (("tile_low", low), ("tile_high", high)):
