@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import json
 import pathlib
+import signal
 import sys
 from typing import Sequence
 
@@ -241,9 +242,14 @@ _COMMANDS = {"reproduce": _reproduce, "compare": _compare, "policy": _policy, "o
              "render": _render, "bench": _bench}
 
 
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     prog = "rmac-mj"
+    signal.signal(signal.SIGTERM, _interrupt)  # a polite kill cleans up like Ctrl-C
     try:
         return _COMMANDS[args.command](args)
     except KeyboardInterrupt:

@@ -14,13 +14,14 @@ order of completion, or on resuming.
 
 from __future__ import annotations
 
-import concurrent.futures
+import contextlib
 import csv
 import dataclasses
 import json
 import multiprocessing
 import os
 import pathlib
+import signal
 import time
 from typing import Any, Callable, Iterable, Iterator
 
@@ -235,21 +236,27 @@ def _pending(out: pathlib.Path, protocol: Protocol) -> list[ExperimentSpec]:
             if not curve_path(out, algorithm, index).exists()]
 
 
+def _ignore_interrupts() -> None:
+    """Worker initialiser: Ctrl-C reaches the whole process group; only the driver handles it."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def _local_outcomes(specs: list[ExperimentSpec], jobs: int) -> Iterator[dict[str, Any]]:
     if jobs == 1 or len(specs) <= 1:
         for spec in specs:
             yield run_experiment(spec)
         return
     # "spawn": workers start clean (no inherited GL contexts or numba state); the numba cache makes
-    # their start-up cheap.
+    # their start-up cheap. On an interrupt the driver terminates the workers: only the experiments
+    # in flight are lost.
     context = multiprocessing.get_context("spawn")
-    executor = concurrent.futures.ProcessPoolExecutor(max_workers=jobs, mp_context=context)
+    pool = context.Pool(processes=min(jobs, len(specs)), initializer=_ignore_interrupts)
     try:
-        futures = [executor.submit(run_experiment, spec) for spec in specs]
-        for future in concurrent.futures.as_completed(futures):
-            yield future.result()
+        yield from pool.imap_unordered(run_experiment, specs, chunksize=1)
+        pool.close()
     finally:
-        executor.shutdown(wait=False, cancel_futures=True)
+        pool.terminate()
+        pool.join()
 
 
 def _dask_outcomes(specs: list[ExperimentSpec], scheduler: str) -> Iterator[dict[str, Any]]:
@@ -314,12 +321,12 @@ def run_protocol(protocol: Protocol, out: str | os.PathLike, jobs: int | None = 
     done = {a: protocol.experiments - sum(s.algorithm == a for s in pending) for a in protocol.algorithms}
     bars = _Progress(protocol, done, progress and bool(pending))
     started = time.perf_counter()
+    outcomes = _dask_outcomes(pending, scheduler) if scheduler else _local_outcomes(pending, jobs)
     try:
-        outcomes = (_dask_outcomes(pending, scheduler) if scheduler
-                    else _local_outcomes(pending, jobs))
-        for outcome in outcomes:
-            save_outcome(out, outcome)
-            bars.update(outcome["algorithm"])
+        with contextlib.closing(outcomes):  # on an interrupt, stop the workers at once
+            for outcome in outcomes:
+                save_outcome(out, outcome)
+                bars.update(outcome["algorithm"])
     finally:
         bars.close()
     wall = time.perf_counter() - started
