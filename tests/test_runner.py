@@ -127,3 +127,25 @@ def test_dask_scheduler_path_matches_local_run(tmp_path):
                             progress=False, figures=False)
     np.testing.assert_array_equal(returns_of(tmp_path / "local", protocol)["s-ac"],
                                   returns_of(tmp_path / "dask", protocol)["s-ac"])
+
+
+def test_ctrl_c_stops_workers_and_says_how_to_resume(tmp_path):
+    out = tmp_path / "run"
+    command = [sys.executable, "-m", "rmac_mj.cli", "reproduce", "--algorithms", "s-ac",
+               "--experiments", "8", "--trials", "60", "--jobs", "2", "--no-optimal",
+               "--no-progress", "--out", str(out)]
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               start_new_session=True,  # its own process group, like a terminal's
+                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    curves = out / "curves" / "s-ac"
+    deadline = time.time() + 120
+    while time.time() < deadline and not (curves.is_dir() and any(curves.glob("exp_*.npz"))):
+        time.sleep(0.005)
+    os.killpg(process.pid, signal.SIGINT)  # Ctrl-C reaches the driver and its workers
+    _, stderr = process.communicate(timeout=60)
+    assert process.returncode == 130
+    assert "run again with --resume" in stderr and "Traceback" not in stderr
+    assert 1 <= len(list(curves.glob("exp_*.npz"))) < 8
+    resumed = subprocess.run([*command, "--resume"], capture_output=True, text=True, timeout=300)
+    assert resumed.returncode == 0, resumed.stderr
+    assert len(list(curves.glob("exp_*.npz"))) == 8
