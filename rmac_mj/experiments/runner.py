@@ -274,26 +274,33 @@ def _dask_outcomes(specs: list[ExperimentSpec], scheduler: str) -> Iterator[dict
 
 
 class _Progress:
-    """A bar for the whole run and one per learner: trials done, trials per second, time left."""
+    """A bar for the whole run and one per learner: experiments and trials done, trials per second,
+    time left. Trials advance by whole experiments, as each one finishes."""
 
     def __init__(self, protocol: Protocol, done: dict[str, int], enabled: bool):
         self.trials = protocol.trials
+        self.experiments = {"all": protocol.experiments * len(protocol.algorithms),
+                            **{a: protocol.experiments for a in protocol.algorithms}}
+        self.done = {"all": sum(done.values()), **done}
         self.bars = {}
         if not enabled:
             return
         from tqdm.auto import tqdm
-        total = protocol.experiments * protocol.trials
-        initial = sum(done.values()) * protocol.trials
-        self.bars["all"] = tqdm(total=total * len(protocol.algorithms), initial=initial,
-                                desc="all learners", unit="trial", position=0, dynamic_ncols=True)
-        for position, algorithm in enumerate(protocol.algorithms, start=1):
-            self.bars[algorithm] = tqdm(total=total, initial=done[algorithm] * protocol.trials,
-                                        desc=f"{algorithm:>12}", unit="trial", position=position,
-                                        dynamic_ncols=True)
+        for position, key in enumerate(["all", *protocol.algorithms]):
+            self.bars[key] = tqdm(total=self.experiments[key] * self.trials,
+                                  initial=self.done[key] * self.trials,
+                                  desc="all learners" if key == "all" else f"{key:>12}",
+                                  unit="trial", position=position, dynamic_ncols=True)
+            self._postfix(key)
+
+    def _postfix(self, key: str) -> None:
+        self.bars[key].set_postfix_str(f"{self.done[key]}/{self.experiments[key]} experiments")
 
     def update(self, algorithm: str) -> None:
         for key in ("all", algorithm):
+            self.done[key] += 1
             if key in self.bars:
+                self._postfix(key)
                 self.bars[key].update(self.trials)
 
     def close(self) -> None:
