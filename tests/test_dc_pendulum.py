@@ -7,7 +7,6 @@ from absl.testing import absltest
 from dm_env import test_utils
 
 from rmac_mj import tasks
-from rmac_mj.tasks import dc_pendulum
 
 
 def test_registry_mirrors_dm_control_suite():
