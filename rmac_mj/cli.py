@@ -12,11 +12,14 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import pathlib
 import signal
 import sys
 from typing import Sequence
+
+from rmac_mj.errors import UserInputError
 
 
 class _Parser(argparse.ArgumentParser):
@@ -26,8 +29,21 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
-class UsageError(Exception):
+class UsageError(UserInputError):
     """A bad argument found after parsing: reported as one line, exit status 2."""
+
+
+@contextlib.contextmanager
+def _user_input(what: str = ""):
+    """Validation of what the user gave (a configuration, a file): its ValueError becomes a
+    :class:`UsageError`, reported as one line. Wrap only validation, never a computation, so that a
+    bug elsewhere keeps its traceback."""
+    try:
+        yield
+    except UserInputError:
+        raise
+    except (ValueError, TypeError) as error:
+        raise UsageError(f"{what}{error}") from None
 
 
 def _int_at_least(minimum: int, expected: str):
@@ -153,10 +169,11 @@ def parse_overrides(assignments: Sequence[str]) -> dict[str, dict]:
 def _reproduce(args) -> int:
     from rmac_mj.experiments import runner
 
-    protocol = runner.Protocol(algorithms=tuple(a.strip() for a in args.algorithms.split(",") if a),
-                               experiments=args.experiments, trials=args.trials, seed=args.seed,
-                               evaluate_every=args.evaluate_every,
-                               agent_configs=parse_overrides(args.set))
+    with _user_input():
+        protocol = runner.Protocol(
+            algorithms=tuple(a.strip() for a in args.algorithms.split(",") if a),
+            experiments=args.experiments, trials=args.trials, seed=args.seed,
+            evaluate_every=args.evaluate_every, agent_configs=parse_overrides(args.set))
     out = _writable_dir(args.out)
     if args.jobs is not None and args.scheduler:
         raise UsageError("--jobs and --scheduler exclude each other")
@@ -177,7 +194,8 @@ def _compare(args) -> int:
         path = directory / "summary.json"
         if not path.is_file():
             raise UsageError(f"{directory} has no summary.json (not a finished `reproduce` run)")
-        summaries[directory.name or str(directory)] = json.loads(path.read_text())
+        with _user_input(f"{path}: "):
+            summaries[directory.name or str(directory)] = json.loads(path.read_text())
     optimal = next((s["optimal_return"] for s in summaries.values() if s.get("optimal_return")), None)
     paths = plots.plot_learning_curves(summaries, args.out, optimal_return=optimal)
     for label, summary in summaries.items():
@@ -191,7 +209,8 @@ def _policy(args) -> int:
     from rmac_mj.experiments import plots
     from rmac_mj.experiments.snapshots import load_snapshot
 
-    agent, meta = load_snapshot(args.snapshot)
+    with _user_input(f"{args.snapshot}: "):
+        agent, meta = load_snapshot(args.snapshot)
     stem = args.out or args.snapshot.with_name(args.snapshot.stem + "_policy")
     paths = plots.plot_policy(agent, meta, stem, max_speed=args.max_speed)
     print("figure:", ", ".join(map(str, paths)))
@@ -256,7 +275,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"\n{prog}: interrupted; finished experiments are saved, run again with --resume",
               file=sys.stderr)
         return 130
-    except (UsageError, ValueError, FileNotFoundError) as error:  # runner.ResumeRefused included
+    except UserInputError as error:  # UsageError, runner.ResumeRefused, missing inputs
         print(f"{prog}: error: {error}", file=sys.stderr)
         return 2
     except RuntimeError as error:

@@ -48,3 +48,104 @@ def test_spaces_and_exploration_reject_bad_values():
     explore = Exploration()
     draws = [explore.sample(k, 1, rng)[0] for k in range(9)]
     assert [d != 0 for d in draws] == [True, False, False] * 3  # every third step, from step 0
+
+
+# -- the shared boundary and a whole state, for every registered learner ---------------------------
+
+def _pendulum_env():
+    from rmac_mj import tasks
+    return tasks.load("dc_pendulum", "swingup")
+
+
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+@pytest.mark.parametrize("reward", [float("nan"), float("inf"), -float("inf"), "ten", None])
+def test_bad_rewards_are_refused_by_name(algorithm, reward):
+    agent = make_agent(algorithm, STATES, ACTIONS, seed=0)
+    agent.start([np.pi, 0.0])
+    before = {k: v.copy() for k, v in agent.state_dict().items()}
+    for method in (agent.step, agent.stop):
+        with pytest.raises(ValueError, match="reward"):
+            method(reward, [np.pi, 0.0])
+    after = agent.state_dict()
+    for key in before:  # nothing was learned from the refused call
+        np.testing.assert_array_equal(before[key], after[key], err_msg=key)
+
+
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+def test_bad_states_are_refused_by_name(algorithm):
+    agent = make_agent(algorithm, STATES, ACTIONS, seed=0)
+    with pytest.raises(ValueError, match="x0 must be finite"):
+        agent.start([np.nan, 0.0])
+    with pytest.raises(ValueError, match=r"x0 must have shape \(2,\)"):
+        agent.start([0.0, 0.0, 0.0])
+    agent.start([np.pi, 0.0])
+    with pytest.raises(ValueError, match="x must be finite"):
+        agent.step(-1.0, [0.0, np.inf])
+    with pytest.raises(ValueError, match="x must be finite"):
+        agent.greedy_action([np.nan, 0.0])
+    with pytest.raises(ValueError, match="x must be finite"):
+        agent.value([np.nan, 0.0])
+
+
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+def test_step_or_stop_outside_a_trial_is_refused(algorithm):
+    agent = make_agent(algorithm, STATES, ACTIONS, seed=0)
+    for method in (agent.step, agent.stop):
+        with pytest.raises(RuntimeError, match="start"):
+            method(-1.0, [np.pi, 0.0])
+    agent.start([np.pi, 0.0])
+    agent.step(-1.0, [np.pi, 0.1])
+    agent.stop(-1.0, [np.pi, 0.2])
+    with pytest.raises(RuntimeError, match="start"):  # stop ended the trial
+        agent.step(-1.0, [np.pi, 0.0])
+
+
+def _state(timestep):
+    return np.r_[timestep.observation["angle"], timestep.observation["velocity"]]
+
+
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+def test_a_copy_restored_mid_trial_continues_exactly_like_the_original(algorithm):
+    """state_dict holds everything that decides what the agent does next: memories, weights, traces,
+    the trial's bookkeeping and the random generator."""
+    from rmac_mj.experiments.episode import action_space_of, run_trial, state_space_of
+
+    env = _pendulum_env()
+    S, U = state_space_of(env), action_space_of(env)
+    original = make_agent(algorithm, S, U, seed=np.random.default_rng(4))
+    for _ in range(3):
+        run_trial(env, original)
+    # Stop in the middle of a trial (step 37 of 100), after exploring steps have drawn from the rng.
+    timestep = env.reset()
+    u = original.start(_state(timestep))
+    for _ in range(37):
+        timestep = env.step(u)
+        u = original.step(timestep.reward, _state(timestep))
+    copy = make_agent(algorithm, S, U, seed=12345)  # another seed: the rng must come from the state
+    copy.load_state_dict(original.state_dict())
+    # The rest of the trial, fed the same observations, gives the same actions, bit for bit.
+    for _ in range(62):
+        timestep = env.step(u)
+        u = original.step(timestep.reward, _state(timestep))
+        assert np.array_equal(copy.step(timestep.reward, _state(timestep)), u)
+    timestep = env.step(u)
+    assert timestep.last()
+    original.stop(timestep.reward, _state(timestep))
+    copy.stop(timestep.reward, _state(timestep))
+    # Whole learning trials afterwards are identical too, and so is everything learned.
+    assert [run_trial(env, original) for _ in range(2)] == [run_trial(env, copy) for _ in range(2)]
+    a, b = original.state_dict(), copy.state_dict()
+    assert sorted(a) == sorted(b)
+    for key in a:
+        np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+
+
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+def test_state_dict_is_numeric_and_refuses_foreign_state(algorithm):
+    agent = make_agent(algorithm, STATES, ACTIONS, seed=0)
+    agent.start([np.pi, 0.0])
+    state = agent.state_dict()
+    assert all(isinstance(v, np.ndarray) and v.dtype.kind in "fiub" for v in state.values())
+    assert state["rng"].dtype == np.uint64 and state["in_trial"]
+    with pytest.raises(ValueError, match="rng"):
+        agent.load_state_dict({k: v for k, v in state.items() if k != "rng"})

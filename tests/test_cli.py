@@ -60,3 +60,26 @@ def test_unknown_hyperparameter_is_one_line(tmp_path):
     result = rmac_mj("reproduce", "--algorithms", "s-ac", "--out", str(tmp_path / "x"),
                      "--set", "s-ac.bogus=1")
     assert result.returncode == 2 and "unknown hyperparameters ['bogus']" in result.stderr
+
+
+def test_a_bug_keeps_its_traceback(tmp_path):
+    """Only bad user input is shortened to one line; a ValueError from inside the code is a bug."""
+    script = (
+        "import sys\n"
+        "from rmac_mj.experiments import runner\n"
+        "def broken(*args, **kwargs):\n"
+        "    raise ValueError('deep inside a learner')\n"
+        "runner.run_protocol = broken\n"
+        "from rmac_mj.cli import main\n"
+        f"sys.exit(main(['reproduce', '--out', {str(tmp_path / 'x')!r}, '--no-progress']))\n")
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                            timeout=120)
+    assert result.returncode == 1
+    assert "Traceback" in result.stderr and "deep inside a learner" in result.stderr
+
+
+def test_bad_hyperparameter_value_is_one_line(tmp_path):
+    result = rmac_mj("reproduce", "--algorithms", "rmac", "--out", str(tmp_path / "x"),
+                     "--set", "rmac.gamma=1.5")
+    assert result.returncode == 2 and "RMACConfig.gamma must be in [0, 1]" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1

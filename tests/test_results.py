@@ -60,3 +60,27 @@ def test_write_atomic_leaves_nothing_behind_on_failure(tmp_path):
         results.write_atomic(target, fail)
     assert json.loads(target.read_text()) == {"a": 1}
     assert [p.name for p in tmp_path.iterdir()] == ["file.json"]
+
+
+def test_result_files_honour_the_umask(tmp_path):
+    """Atomic writes must not leave results private (mkstemp's 0600) on a shared machine."""
+    import os
+    import stat
+
+    from rmac_mj.experiments import results
+
+    old = os.umask(0o022)
+    try:
+        paths = [results.write_json(tmp_path / "a.json", {"x": 1}),
+                 results.write_npz(tmp_path / "b.npz", x=np.zeros(2))]
+    finally:
+        os.umask(old)
+    for path in paths:
+        mode = stat.S_IMODE(path.stat().st_mode)
+        assert mode == 0o644, oct(mode)  # group- and other-readable, like open(path, "w")
+    old = os.umask(0o077)
+    try:
+        private = results.write_json(tmp_path / "c.json", {"x": 1})
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE(private.stat().st_mode) == 0o600

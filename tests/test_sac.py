@@ -147,7 +147,7 @@ def test_state_dict_round_trip():
     for k in range(30):
         agent.step(-5.0, [np.pi - 0.05 * k, 0.5 * k])
     state = agent.state_dict()
-    assert all(isinstance(v, np.ndarray) and v.dtype.kind == "f" for v in state.values())
+    assert all(isinstance(v, np.ndarray) and v.dtype.kind in "fiub" for v in state.values())
     clone = SAC(PENDULUM, VOLTS, seed=1)
     clone.load_state_dict(state)
     for x in ([np.pi, 0.0], [1.0, 5.0], [-0.5, -3.0]):
@@ -158,15 +158,27 @@ def test_state_dict_round_trip():
 
 
 def test_generic_dimensions():
+    """Three state dimensions (one periodic) and two actions: every dimension is coded and learned."""
     space = StateSpace(low=[-np.pi, -1.0, 0.0], high=[np.pi, 1.0, 2.0], periodic=[True, False, False])
     actions = ActionSpace(low=[-1.0, 0.0], high=[1.0, 5.0])
     config = SACConfig(tile_coding=TileCodingConfig(num_tilings=8, tiles=4))
     agent = SAC(space, actions, config, seed=0)
-    u = agent.start([0.0, 0.0, 1.0])
-    for _ in range(20):
-        u = agent.step(-1.0, np.random.default_rng(0).uniform(-2, 2, 3))
+    rng = np.random.default_rng(0)  # one stream: every step sees a new state
+    states = rng.uniform([-4, -1.5, -0.5], [4, 1.5, 2.5], size=(60, 3))
+    u = agent.start(states[0])
+    for x in states[1:]:
+        u = agent.step(float(rng.normal(0.0, 5.0)), x)  # TD errors of both signs
         assert u.shape == (2,) and np.all(u >= actions.low) and np.all(u <= actions.high)
     assert agent.actor_.shape == (agent.coder.num_features, 2)
+    assert np.any(agent.actor_[:, 0] != 0) and np.any(agent.actor_[:, 1] != 0)  # both actions learn
+    tiles = {tuple(agent.coder.active_tiles(x)) for x in states}
+    assert len(tiles) == len(states)  # distinct states, distinct features
+    # Each dimension matters: moving one coordinate alone changes the active tiles.
+    base = np.array([0.1, 0.1, 1.0])
+    for d, delta in enumerate((1.0, 0.6, 0.6)):
+        moved = base.copy()
+        moved[d] += delta
+        assert tuple(agent.coder.active_tiles(moved)) != tuple(agent.coder.active_tiles(base)), d
 
 
 @pytest.mark.parametrize("field, value", [
@@ -180,19 +192,16 @@ def test_config_validation(field, value):
         SACConfig(**{field: value})
 
 
-def test_boundary_errors():
-    agent = SAC(PENDULUM, VOLTS, seed=0)
-    with pytest.raises(RuntimeError, match="start"):
-        agent.step(-1.0, [0.0, 0.0])
-    agent.start([np.pi, 0.0])
-    with pytest.raises(ValueError, match="finite"):
-        agent.step(-1.0, [np.nan, 0.0])
-    with pytest.raises(ValueError, match="reward"):
-        agent.step(float("inf"), [0.0, 0.0])
+def test_boundary_errors_and_config_round_trip():
     with pytest.raises(ValueError, match="tile_high"):
         SAC(PENDULUM, VOLTS, SACConfig(tile_high=(1.0,)))
-    assert dataclasses.asdict(agent.config)["alpha_critic"] == 0.1
-    assert agent.config_dict()["exploration"]["period"] == 3
+    from rmac_mj.agents import config_from_dict
+    config = SACConfig(alpha_critic=0.2, rate_split="actor", tile_high=(None, 30.0),
+                       exploration=Exploration(sigma=0.5, period=2),
+                       tile_coding=TileCodingConfig(num_tilings=8, tiles=5))
+    agent = SAC(PENDULUM, VOLTS, config, seed=0)
+    # The JSON form of the config (what results and snapshots store) rebuilds the same config.
+    assert config_from_dict(SACConfig, agent.config_dict()) == config
 
 
 def test_improves_on_swingup():

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import abc
 import dataclasses
+import math
 from typing import Any
 
 import numpy as np
@@ -118,10 +119,19 @@ class Exploration:
 
 
 class Agent(abc.ABC):
-    """Interface of an online learner (see the module docstring for the protocol)."""
+    """Interface of an online learner (see the module docstring for the protocol).
+
+    The public methods are the boundary: they check their arguments once (a state of shape (n,) and
+    finite, a finite reward, ``step``/``stop`` only inside a trial) and then call the learner's
+    ``_start``/``_step``/``_stop``/``_greedy_action``/``_value`` with clean data, so every learner refuses
+    bad input the same way. ``state_dict`` holds everything that decides what the agent does next: the
+    learner's own arrays (``_state``), its random generator and whether a trial is running.
+    """
 
     #: Short name used in results and on the command line, e.g. ``"rmac"``.
     name: str = ""
+    #: Name shown in figures, tables and videos, e.g. ``"RMAC"``.
+    display_name: str = ""
     #: The frozen hyperparameter dataclass the agent takes.
     config_class: type = object
 
@@ -141,38 +151,142 @@ class Agent(abc.ABC):
         self.action_space = action_space
         self.config = config
         self.rng = np.random.default_rng(seed)
+        self._state_dim = state_space.dim
+        self._in_trial = False
 
-    @abc.abstractmethod
-    def start(self, x0: np.ndarray) -> np.ndarray:
+    # -- the boundary -------------------------------------------------------------------------------
+    def _checked_state(self, x: Any, name: str = "x") -> np.ndarray:
+        """x as a new float64 vector of shape (n,); ValueError naming ``name`` if not finite or wrong."""
+        v = np.array(x, dtype=float)
+        if v.shape != (self._state_dim,):
+            if v.size != self._state_dim:
+                raise ValueError(f"{self.name}: {name} must have shape ({self._state_dim},), got "
+                                 f"shape {np.shape(x)}")
+            v = v.reshape(self._state_dim)
+        if not np.isfinite(v).all():
+            raise ValueError(f"{self.name}: {name} must be finite, got {x!r}")
+        return v
+
+    def _checked_reward(self, reward: Any) -> float:
+        try:
+            r = float(reward)
+        except (TypeError, ValueError):
+            raise ValueError(f"{self.name}: reward must be a finite number, got {reward!r}") from None
+        if not math.isfinite(r):
+            raise ValueError(f"{self.name}: reward must be finite, got {reward!r}")
+        return r
+
+    def _check_in_trial(self, method: str) -> None:
+        if not self._in_trial:
+            raise RuntimeError(f"{self.name}: {method}() called outside a trial; call start(x0) first")
+
+    def start(self, x0: Any) -> np.ndarray:
         """Begin a trial in state ``x0`` (shape (n,)); reset traces; return u_0 (shape (m,))."""
+        x0 = self._checked_state(x0, "x0")
+        u = self._start(x0)
+        self._in_trial = True
+        return u
 
-    @abc.abstractmethod
-    def step(self, reward: float, x: np.ndarray) -> np.ndarray:
+    def step(self, reward: Any, x: Any) -> np.ndarray:
         """Observe r_k and x_k, learn from the transition, return u_k (shape (m,))."""
+        self._check_in_trial("step")
+        return self._step(self._checked_reward(reward), self._checked_state(x))
 
-    @abc.abstractmethod
-    def stop(self, reward: float, x: np.ndarray) -> None:
-        """Observe the trial's last r_k and x_k and learn from it; no action follows."""
+    def stop(self, reward: Any, x: Any) -> None:
+        """Observe the trial's last r_k and x_k and learn from it; no action follows. Ends the trial."""
+        self._check_in_trial("stop")
+        self._stop(self._checked_reward(reward), self._checked_state(x))
+        self._in_trial = False
 
-    @abc.abstractmethod
-    def greedy_action(self, x: np.ndarray) -> np.ndarray:
-        """The policy's action in ``x`` without exploration and without learning."""
+    def greedy_action(self, x: Any) -> np.ndarray:
+        """The policy's action in ``x`` (shape (m,)) without exploration and without learning."""
+        return self._greedy_action(self._checked_state(x))
+
+    def value(self, x: Any) -> float:
+        """The critic's estimate V(x)."""
+        return float(self._value(self._checked_state(x)))
 
     def begin_greedy_trial(self) -> None:
         """Forget what a previous greedy trial carried over (e.g. RMAC's last action); no learning."""
 
+    # -- what each learner implements (arguments already checked) ------------------------------------
     @abc.abstractmethod
-    def value(self, x: np.ndarray) -> float:
-        """The critic's estimate V(x)."""
+    def _start(self, x0: np.ndarray) -> np.ndarray:
+        """Lines that begin a trial in x0; return u_0."""
 
     @abc.abstractmethod
+    def _step(self, reward: float, x: np.ndarray) -> np.ndarray:
+        """One control step: learn from (x_{k-1}, u_{k-1}, r_k, x_k), return u_k."""
+
+    @abc.abstractmethod
+    def _stop(self, reward: float, x: np.ndarray) -> None:
+        """The last transition of a trial."""
+
+    @abc.abstractmethod
+    def _greedy_action(self, x: np.ndarray) -> np.ndarray:
+        """The greedy action in x."""
+
+    @abc.abstractmethod
+    def _value(self, x: np.ndarray) -> float:
+        """V(x)."""
+
+    @abc.abstractmethod
+    def _state(self) -> dict[str, np.ndarray]:
+        """The learner's own state (memories, weights, traces, trial bookkeeping) as numeric arrays."""
+
+    @abc.abstractmethod
+    def _load_state(self, state: dict[str, np.ndarray]) -> None:
+        """Restore what :meth:`_state` returned."""
+
+    # -- state ----------------------------------------------------------------------------------------
     def state_dict(self) -> dict[str, np.ndarray]:
-        """Everything learned, as a flat dict of numeric numpy arrays."""
+        """Everything that decides what the agent does next, as a flat dict of numeric numpy arrays:
+        the learner's state, its random generator (``rng``) and whether a trial runs (``in_trial``)."""
+        state = self._state()
+        for key in ("rng", "in_trial"):
+            if key in state:
+                raise KeyError(f"{type(self).__name__}._state() must not use the reserved key {key!r}")
+        state["rng"] = generator_state_array(self.rng)
+        state["in_trial"] = np.array(self._in_trial)
+        return state
 
-    @abc.abstractmethod
     def load_state_dict(self, state: dict[str, np.ndarray]) -> None:
-        """Restore what :meth:`state_dict` returned; the agent then acts exactly as it did."""
+        """Restore what :meth:`state_dict` returned; the agent then acts exactly as the original."""
+        missing = sorted({"rng", "in_trial"} - set(state))
+        if missing:
+            raise ValueError(f"{self.name}: state dict lacks {missing}; has {sorted(state)}")
+        self._load_state({k: v for k, v in state.items() if k not in ("rng", "in_trial")})
+        set_generator_state(self.rng, state["rng"])
+        self._in_trial = bool(state["in_trial"])
 
     def config_dict(self) -> dict[str, Any]:
         """The hyperparameters as JSON-ready data (a dataclass's fields)."""
         return dataclasses.asdict(self.config)  # type: ignore[attr-defined]
+
+
+_MASK64 = (1 << 64) - 1
+
+
+def generator_state_array(rng: np.random.Generator) -> np.ndarray:
+    """The state of a PCG64 generator as 6 uint64 words: state (hi, lo), inc (hi, lo), has_uint32,
+    uinteger. Numeric, so snapshots need no pickle and no ``eval``."""
+    st = rng.bit_generator.state
+    if st.get("bit_generator") != "PCG64":
+        raise ValueError(f"only PCG64 generators can be saved, got {st.get('bit_generator')!r}")
+    s, inc = int(st["state"]["state"]), int(st["state"]["inc"])
+    return np.array([s >> 64, s & _MASK64, inc >> 64, inc & _MASK64, int(st["has_uint32"]),
+                     int(st["uinteger"])], dtype=np.uint64)
+
+
+def set_generator_state(rng: np.random.Generator, words: Any) -> None:
+    """Restore a PCG64 generator from :func:`generator_state_array`'s words."""
+    w = np.asarray(words)
+    if w.shape != (6,) or w.dtype != np.uint64:
+        raise ValueError(f"rng state must be 6 uint64 words, got dtype {w.dtype} shape {w.shape}")
+    if rng.bit_generator.state.get("bit_generator") != "PCG64":
+        raise ValueError("only PCG64 generators can be restored")
+    hi_lo = [int(v) for v in w]
+    rng.bit_generator.state = {
+        "bit_generator": "PCG64",
+        "state": {"state": (hi_lo[0] << 64) | hi_lo[1], "inc": (hi_lo[2] << 64) | hi_lo[3]},
+        "has_uint32": hi_lo[4], "uinteger": hi_lo[5]}

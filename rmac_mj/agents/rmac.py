@@ -170,6 +170,7 @@ class RMAC(Agent):
     """
 
     name = "rmac"
+    display_name = "RMAC"
     config_class = RMACConfig
 
     def __init__(self, state_space: StateSpace, action_space: ActionSpace,
@@ -261,24 +262,19 @@ class RMAC(Agent):
         return out
 
     # -- Agent interface --------------------------------------------------------------------------------
-    def _check_state(self, x: np.ndarray) -> np.ndarray:
-        """x as a float vector of shape (n,), periodic entries wrapped to [-period/2, period/2)."""
-        v = np.asarray(x, dtype=float)
-        if v.shape != (self.n,):
-            v = v.reshape(-1)
-        if v.shape != (self.n,) or not np.isfinite(v).all():
-            raise ValueError(f"RMAC: state must be finite with shape ({self.n},), got {x!r}")
+    def _wrapped(self, x: np.ndarray) -> np.ndarray:
+        """A checked x (see :class:`Agent`) with periodic entries wrapped to [-period/2, period/2)."""
         if not self._periodic:
-            return v.copy()
+            return x
         if self.config.backend == "numba":
             out = np.empty(self.n)
-            _canonical_kernel(v, self.period, out)
+            _canonical_kernel(x, self.period, out)
             return out
-        return self._canonical(v)
+        return self._canonical(x)
 
-    def start(self, x0: np.ndarray) -> np.ndarray:
+    def _start(self, x0: np.ndarray) -> np.ndarray:
         """Lines 1-6: reset the traces, u_0 = f^-1(x_0, R(x_0)) + Delta u_0."""
-        x0 = self._check_state(x0)
+        x0 = self._wrapped(x0)
         self.traces[:] = 0.0  # line 3
         self._k = 0
         self._u_greedy = np.zeros(self.m)
@@ -292,9 +288,9 @@ class RMAC(Agent):
         du = self.config.exploration.sample(self._k, self.m, self.rng)  # line 8
         return np.minimum(np.maximum(u_greedy + du, self.action_space.low), self.action_space.high)
 
-    def step(self, reward: float, x: np.ndarray) -> np.ndarray:
+    def _step(self, reward: float, x: np.ndarray) -> np.ndarray:
         """Lines 8-29 for one control step: act with the current models, then learn."""
-        x = self._check_state(x)
+        x = self._wrapped(x)
         self._k += 1
         if self.config.backend == "numba":
             du = self.config.exploration.sample(self._k, self.m, self.rng)  # line 8
@@ -305,9 +301,9 @@ class RMAC(Agent):
         self._x_prev, self._u_prev = x, u
         return u.copy()
 
-    def stop(self, reward: float, x: np.ndarray) -> None:
+    def _stop(self, reward: float, x: np.ndarray) -> None:
         """The last transition of a trial: learn (lines 13-28), no action."""
-        x = self._check_state(x)
+        x = self._wrapped(x)
         if self.config.backend == "numba":
             self._kernels.update(self, float(reward), x)
         else:
@@ -355,30 +351,29 @@ class RMAC(Agent):
         """A greedy trial starts, like a learning one, from u_{-1} = 0."""
         self._u_greedy = np.zeros(self.m)
 
-    def greedy_action(self, x: np.ndarray) -> np.ndarray:
+    def _greedy_action(self, x: np.ndarray) -> np.ndarray:
         """u = f^-1(x, R(x)) without exploration or learning, as in a greedy trial.
 
         With inverse_query='previous' the process model is linearised, as while learning, at the
         previous action: the one greedy_action returned last (0 after start() and stop()). For a
         stateless map over many states (policy plots) use :meth:`policy`.
         """
-        x = self._check_state(x)
+        x = self._wrapped(x)
         u = self._act(x, self._u_greedy)
         self._u_greedy = u
         return u.copy()
 
-    def value(self, x: np.ndarray) -> float:
+    def _value(self, x: np.ndarray) -> float:
         """V(x), the critic's LLR estimate."""
-        return float(self.critic._query(self._check_state(x))[0][0])
+        return float(self.critic._query(self._wrapped(x))[0][0])
 
     # -- state ------------------------------------------------------------------------------------------
-    def state_dict(self) -> dict[str, np.ndarray]:
+    def _state(self) -> dict[str, np.ndarray]:
+        """The three memories, the critic's traces and the running trial's bookkeeping."""
         state: dict[str, np.ndarray] = {}
         for name in ("process", "reference", "critic"):
             state.update(getattr(self, name).state_dict(prefix=f"{name}."))
         state["traces"] = self.traces.copy()
-        state["rng_state"] = np.frombuffer(
-            repr(self.rng.bit_generator.state).encode(), dtype=np.uint8).copy()
         state["k"] = np.array(self._k)
         state["x_prev"] = self._x_prev.copy()
         state["u_prev"] = self._u_prev.copy()
@@ -386,12 +381,10 @@ class RMAC(Agent):
         state["u_greedy"] = self._u_greedy.copy()
         return state
 
-    def load_state_dict(self, state: dict[str, np.ndarray]) -> None:
-        import ast
+    def _load_state(self, state: dict[str, np.ndarray]) -> None:
         for name in ("process", "reference", "critic"):
             getattr(self, name).load_state_dict(state, prefix=f"{name}.")
         self.traces[:] = state["traces"]
-        self.rng.bit_generator.state = ast.literal_eval(bytes(state["rng_state"]).decode())
         self._k = int(state["k"])
         self._x_prev = np.array(state["x_prev"], dtype=float)
         self._u_prev = np.array(state["u_prev"], dtype=float)

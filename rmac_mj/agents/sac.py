@@ -188,6 +188,7 @@ class SAC(Agent):
     """
 
     name = "s-ac"
+    display_name = "S-AC"
     config_class = SACConfig
 
     def __init__(self, state_space: StateSpace, action_space: ActionSpace,
@@ -225,11 +226,11 @@ class SAC(Agent):
         self._prev_tiles = np.zeros(T, dtype=np.int64)
         self._tiles = np.zeros(T, dtype=np.int64)
         self._prev_du = np.zeros(m)
-        self._k = -1  # -1: no trial running
+        self._k = 0  # control step within the trial
         self.last_delta_ = 0.0
 
     # ----------------------------------------------------------------------------------- protocol
-    def start(self, x0: np.ndarray) -> np.ndarray:
+    def _start(self, x0: np.ndarray) -> np.ndarray:
         """Lines 1-4: reset the traces, apply u_0 = pi(x_0) + Delta u_0; returns shape (m,)."""
         self._traces[self._trace_idx[:self._n_traces]] = 0.0
         self._n_traces = 0
@@ -238,58 +239,66 @@ class SAC(Agent):
         u, self._prev_du = self._act(self._prev_tiles, 0)
         return u
 
-    def step(self, reward: float, x: np.ndarray) -> np.ndarray:
+    def _step(self, reward: float, x: np.ndarray) -> np.ndarray:
         """Lines 6-14 for r_k and x_k; returns u_k of shape (m,)."""
-        self._check_running()
         self._k += 1
         self._tiles_of(x, self._tiles)
         u, du = self._act(self._tiles, self._k)  # line 8 uses vartheta_{k-1}: act before learning
-        self._learn(self._check_reward(reward))
+        self._learn(reward)
         self._prev_tiles, self._tiles = self._tiles, self._prev_tiles
         self._prev_du = du
         return u
 
-    def stop(self, reward: float, x: np.ndarray) -> None:
-        """Learn from the trial's last transition (bootstrapping from V(x_K)); ends the trial."""
-        self._check_running()
+    def _stop(self, reward: float, x: np.ndarray) -> None:
+        """Learn from the trial's last transition (bootstrapping from V(x_K))."""
         self._tiles_of(x, self._tiles)
-        self._learn(self._check_reward(reward))
-        self._k = -1
+        self._learn(reward)
 
-    def greedy_action(self, x: np.ndarray) -> np.ndarray:
+    def _greedy_action(self, x: np.ndarray) -> np.ndarray:
         """pi(x) saturated to the action bounds, shape (m,); no exploration, no learning."""
         return self._policy(self.coder.active_tiles(x))
 
-    def value(self, x: np.ndarray) -> float:
+    def _value(self, x: np.ndarray) -> float:
         """V(x, theta)."""
         return float(self.critic_[self.coder.active_tiles(x)].sum())
 
-    def state_dict(self) -> dict[str, np.ndarray]:
-        """theta and vartheta (traces are per trial and the exploration stream is not included)."""
-        return {"critic": self.critic_.copy(), "actor": self.actor_.copy()}
+    # ------------------------------------------------------------------------------------- state
+    #: Keys of :meth:`_state`: theta, vartheta, and the trial's traces and bookkeeping.
+    _STATE_KEYS = ("critic", "actor", "traces", "trace_idx", "n_traces", "prev_tiles", "tiles",
+                   "prev_du", "k", "last_delta")
 
-    def load_state_dict(self, state: dict[str, np.ndarray]) -> None:
-        for key, ref in (("critic", self.critic_), ("actor", self.actor_)):
-            if key not in state:
-                raise ValueError(f"state dict lacks {key!r}; has {sorted(state)}")
-            value = np.asarray(state[key], dtype=float)
-            if value.shape != ref.shape or not np.all(np.isfinite(value)):
-                raise ValueError(f"state[{key!r}] must be finite of shape {ref.shape}, got {value.shape}")
-        self.critic_ = np.array(state["critic"], dtype=float)
-        self.actor_ = np.array(state["actor"], dtype=float)
+    def _state(self) -> dict[str, np.ndarray]:
+        """theta, vartheta, the eligibility traces and the running trial's bookkeeping."""
+        return {"critic": self.critic_.copy(), "actor": self.actor_.copy(),
+                "traces": self._traces.copy(), "trace_idx": self._trace_idx.copy(),
+                "n_traces": np.array(self._n_traces), "prev_tiles": self._prev_tiles.copy(),
+                "tiles": self._tiles.copy(), "prev_du": self._prev_du.copy(),
+                "k": np.array(self._k), "last_delta": np.array(self.last_delta_)}
+
+    def _load_state(self, state: dict[str, np.ndarray]) -> None:
+        missing = [key for key in self._STATE_KEYS if key not in state]
+        if missing:
+            raise ValueError(f"s-ac: state dict lacks {missing}; has {sorted(state)}")
+        arrays = {}
+        for key, ref, dtype in (("critic", self.critic_, float), ("actor", self.actor_, float),
+                                ("traces", self._traces, float),
+                                ("trace_idx", self._trace_idx, np.int64),
+                                ("prev_tiles", self._prev_tiles, np.int64),
+                                ("tiles", self._tiles, np.int64), ("prev_du", self._prev_du, float)):
+            value = np.array(state[key], dtype=dtype)
+            if value.shape != ref.shape or (dtype is float and not np.all(np.isfinite(value))):
+                raise ValueError(f"s-ac: state[{key!r}] must be finite of shape {ref.shape}, "
+                                 f"got shape {value.shape}")
+            arrays[key] = value
+        self.critic_, self.actor_ = arrays["critic"], arrays["actor"]
+        self._traces, self._trace_idx = arrays["traces"], arrays["trace_idx"]
+        self._prev_tiles, self._tiles = arrays["prev_tiles"], arrays["tiles"]
+        self._prev_du = arrays["prev_du"]
+        self._n_traces = int(state["n_traces"])
+        self._k = int(state["k"])
+        self.last_delta_ = float(state["last_delta"])
 
     # ---------------------------------------------------------------------------------- internals
-    def _check_running(self) -> None:
-        if self._k < 0:
-            raise RuntimeError("S-AC: call start(x0) before step/stop")
-
-    @staticmethod
-    def _check_reward(reward: float) -> float:
-        reward = float(reward)
-        if not math.isfinite(reward):
-            raise ValueError(f"reward must be finite, got {reward}")
-        return reward
-
     def _tiles_of(self, x: np.ndarray, out: np.ndarray) -> None:
         """Active tiles of a checked x, written into ``out``."""
         if self.config.backend == "numba":

@@ -39,7 +39,6 @@ import hashlib
 import json
 import os
 import pathlib
-import tempfile
 import time
 from typing import Any
 
@@ -505,19 +504,11 @@ def optimal_return(config: OptimalConfig = OptimalConfig(), cache_dir: str | os.
 
 
 def _write_json_atomic(path: pathlib.Path, payload: dict[str, Any]) -> None:
+    from rmac_mj.experiments.results import write_json
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
+        write_json(path, payload)
     except OSError as err:
-        raise ValueError(f"optimal_return: cannot create cache_dir {str(path.parent)!r}: {err}") from err
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".optimal-", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as f:
-            json.dump(payload, f, indent=1)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+        raise ValueError(f"optimal_return: cannot write the cache {str(path)!r}: {err}") from err
 
 
 def _versions() -> dict[str, str]:

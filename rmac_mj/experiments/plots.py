@@ -95,12 +95,25 @@ def plot_learning_curves(summaries: dict[str, dict[str, Any]], stem: str | os.Pa
     return _save(fig, stem)
 
 
-def policy_grid(agent, n_angle: int = 101, n_velocity: int = 101, max_speed: float = 30.0):
-    """Policy and critic of ``agent`` on a (phi, phi_dot) grid, each point evaluated on its own.
+def policy_actions(agent, states: np.ndarray) -> np.ndarray:
+    """The greedy action in each of ``states`` (shape (q, n)), each evaluated on its own: shape (q, m).
 
-    Agents with a batch ``policy(states)`` (RMAC: u = f^-1(x, R(x)) linearised at u = 0) use it;
-    for the others each point is a fresh greedy trial's first action, so the map does not depend on
-    the order in which the grid is scanned.
+    Agents with a batch ``policy(states)`` (RMAC: u = f^-1(x, R(x)) linearised at u = 0) use it; for
+    the others each state is a fresh greedy trial's first action. Either way an action does not depend
+    on which states were evaluated before it.
+    """
+    states = np.asarray(states, dtype=float)
+    if hasattr(agent, "policy"):
+        return np.asarray(agent.policy(states)).reshape(len(states), -1)
+    actions = []
+    for x in states:
+        agent.begin_greedy_trial()
+        actions.append(np.asarray(agent.greedy_action(x)).reshape(-1))
+    return np.array(actions)
+
+
+def policy_grid(agent, n_angle: int = 101, n_velocity: int = 101, max_speed: float = 30.0):
+    """Policy and critic of ``agent`` on a (phi, phi_dot) grid (see :func:`policy_actions`).
 
     Returns:
       (angles (n_angle,), velocities (n_velocity,), actions (n_velocity, n_angle),
@@ -110,13 +123,7 @@ def policy_grid(agent, n_angle: int = 101, n_velocity: int = 101, max_speed: flo
     velocities = np.linspace(-max_speed, max_speed, n_velocity)
     grid_v, grid_a = np.meshgrid(velocities, angles, indexing="ij")
     states = np.column_stack([grid_a.ravel(), grid_v.ravel()])
-    if hasattr(agent, "policy"):
-        actions = np.asarray(agent.policy(states))[:, 0]
-    else:
-        actions = np.empty(len(states))
-        for i, x in enumerate(states):
-            agent.begin_greedy_trial()
-            actions[i] = np.asarray(agent.greedy_action(x)).reshape(-1)[0]
+    actions = policy_actions(agent, states)[:, 0]
     values = np.array([agent.value(x) for x in states])
     shape = (n_velocity, n_angle)
     return angles, velocities, actions.reshape(shape), values.reshape(shape)

@@ -28,6 +28,7 @@ from dm_control.rl import control
 from PIL import Image, ImageDraw, ImageFont
 
 from rmac_mj import _gl
+from rmac_mj.errors import MissingInputError, UserInputError
 from rmac_mj.agents.base import Agent
 from rmac_mj.experiments.episode import state_of
 
@@ -381,7 +382,7 @@ def write_video(frames: np.ndarray, path: str | os.PathLike, fps: float, scale: 
     path = pathlib.Path(path)
     suffix = path.suffix.lower()
     if suffix not in VIDEO_SUFFIXES:
-        raise ValueError(f"path must end in one of {VIDEO_SUFFIXES}, got {str(path)!r}")
+        raise UserInputError(f"path must end in one of {VIDEO_SUFFIXES}, got {str(path)!r}")
     if not (np.isscalar(fps) and np.isfinite(fps) and fps > 0):
         raise ValueError(f"fps must be a positive number, got {fps!r}")
     if not (np.isscalar(scale) and 0 < scale <= 1):
@@ -468,7 +469,7 @@ def render_snapshot(snapshot_path: str | os.PathLike, out_path: str | os.PathLik
 
 def _check_video_path(out_path) -> None:
     if pathlib.Path(out_path).suffix.lower() not in VIDEO_SUFFIXES:  # fail before rendering
-        raise ValueError(f"out_path must end in one of {VIDEO_SUFFIXES}, got {str(out_path)!r}")
+        raise UserInputError(f"out_path must end in one of {VIDEO_SUFFIXES}, got {str(out_path)!r}")
 
 
 _TRIAL_FILE = re.compile(r"trial_(\d+)\.npz")
@@ -484,7 +485,7 @@ def snapshot_trials(result_dir: str | os.PathLike, algorithm: str,
              if (match := _TRIAL_FILE.fullmatch(path.name))}
     if not found:
         available = sorted(p.name for p in (pathlib.Path(result_dir) / "snapshots").glob("*"))
-        raise FileNotFoundError(f"no snapshots in {folder} (algorithms with snapshots in "
+        raise MissingInputError(f"no snapshots in {folder} (algorithms with snapshots in "
                                 f"{result_dir}: {available or 'none'})")
     return dict(sorted(found.items()))
 
@@ -492,7 +493,7 @@ def snapshot_trials(result_dir: str | os.PathLike, algorithm: str,
 def _pick_trials(available: dict[int, pathlib.Path], trials: Sequence[int], where: str) -> list[int]:
     missing = [t for t in trials if t not in available]
     if missing:
-        raise FileNotFoundError(f"no snapshot after trial(s) {missing} in {where}; "
+        raise MissingInputError(f"no snapshot after trial(s) {missing} in {where}; "
                                 f"available: {sorted(available)}")
     return list(trials)
 
@@ -512,14 +513,14 @@ def render_progression(result_dir: str | os.PathLike, out_path: str | os.PathLik
     """
     _check_video_path(out_path)
     if layout not in ("sequence", "side_by_side"):
-        raise ValueError(f"layout must be 'sequence' or 'side_by_side', got {layout!r}")
+        raise UserInputError(f"layout must be 'sequence' or 'side_by_side', got {layout!r}")
     if algorithm is None:
         algorithms = sorted(p.name for p in (pathlib.Path(result_dir) / "snapshots").glob("*") if p.is_dir())
         if not algorithms:
-            raise FileNotFoundError(f"no snapshots in {result_dir} (expected {result_dir}/snapshots/"
+            raise MissingInputError(f"no snapshots in {result_dir} (expected {result_dir}/snapshots/"
                                     "<algorithm>/exp_<iii>/trial_<tttt>.npz)")
         if "rmac" not in algorithms and len(algorithms) > 1:
-            raise ValueError(f"several algorithms have snapshots in {result_dir} ({algorithms}); "
+            raise UserInputError(f"several algorithms have snapshots in {result_dir} ({algorithms}); "
                              "choose one with algorithm=")
         algorithm = "rmac" if "rmac" in algorithms else algorithms[0]
     available = snapshot_trials(result_dir, algorithm, experiment)
@@ -545,7 +546,7 @@ def render_comparison(result_dir: str | os.PathLike, out_path: str | os.PathLike
     if trial is None:
         common = set.intersection(*(set(trials) for trials in available.values()))
         if not common:
-            raise FileNotFoundError(f"{list(algorithms)} share no snapshot trial in {result_dir} "
+            raise MissingInputError(f"{list(algorithms)} share no snapshot trial in {result_dir} "
                                     f"(experiment {experiment}): "
                                     f"{ {a: sorted(t) for a, t in available.items()} }")
         trial = max(common)

@@ -107,7 +107,9 @@ def summarise(returns: np.ndarray, greedy: np.ndarray | None = None,
 def write_atomic(path: str | os.PathLike, write) -> pathlib.Path:
     """Call ``write(file_handle)`` on a temporary file beside ``path``, then rename it into place.
 
-    A reader never sees a half-written ``path``: it is either absent or complete.
+    A reader never sees a half-written ``path``: it is either absent or complete. The file gets the
+    permissions a plain ``open(path, "w")`` would give (0666 less the umask), not the temporary file's
+    private 0600, so results on a shared machine or cluster stay readable by the group.
     """
     path = pathlib.Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -116,11 +118,19 @@ def write_atomic(path: str | os.PathLike, write) -> pathlib.Path:
     try:
         with handle:
             write(handle)
+        os.chmod(handle.name, 0o666 & ~_umask())
         os.replace(handle.name, path)
     except BaseException:
         pathlib.Path(handle.name).unlink(missing_ok=True)
         raise
     return path
+
+
+def _umask() -> int:
+    """The process's umask (read by setting it and putting it back)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
 
 def write_json(path: str | os.PathLike, document: Any) -> pathlib.Path:

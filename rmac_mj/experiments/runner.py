@@ -29,6 +29,7 @@ import numpy as np
 
 from rmac_mj import tasks
 from rmac_mj.agents import ALGORITHMS, config_class, config_from_dict, make_agent
+from rmac_mj.errors import UserInputError
 from rmac_mj.experiments import results
 from rmac_mj.experiments.episode import action_space_of, run_trial, state_space_of
 from rmac_mj.experiments.snapshots import snapshot_arrays
@@ -204,7 +205,7 @@ def load_curves(out: pathlib.Path, protocol: Protocol, algorithm: str):
 # ----------------------------------------------------------------------------------------------------
 # The driver.
 
-class ResumeRefused(ValueError):
+class ResumeRefused(UserInputError):
     """The result directory holds a different run; its results must not be mixed with this one's."""
 
 

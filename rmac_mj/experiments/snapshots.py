@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from rmac_mj.agents import Agent, make_agent
+from rmac_mj.errors import MissingInputError, UserInputError
 from rmac_mj.agents.base import ActionSpace, StateSpace
 from rmac_mj.experiments.results import write_npz
 
@@ -55,10 +56,10 @@ def load_snapshot(path: str | os.PathLike) -> tuple[Agent, dict[str, Any]]:
     """Rebuild the agent saved at ``path``; return it and the snapshot's meta document."""
     path = pathlib.Path(path)
     if not path.is_file():
-        raise FileNotFoundError(f"no snapshot at {path}")
+        raise MissingInputError(f"no snapshot at {path}")
     with np.load(path, allow_pickle=False) as data:
         if "meta" not in data.files:
-            raise ValueError(f"{path} is not an rmac-mj snapshot (no 'meta' entry)")
+            raise UserInputError(f"{path} is not an rmac-mj snapshot (no 'meta' entry)")
         meta = json.loads(str(data["meta"]))
         state = {key[len(_PREFIX):]: data[key] for key in data.files if key.startswith(_PREFIX)}
     state_space = StateSpace(**meta["state_space"])
