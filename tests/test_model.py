@@ -55,7 +55,7 @@ def test_each_control_step_matches_equation_of_motion_under_bang_bang(model):
 
     Over whole trajectories that hover near the unstable upright any difference grows like
     exp(sqrt(M g l / J) t) = exp(10.9 t), so the per-step error is the bound that holds for every
-    voltage sequence (see models/README.md).
+    voltage sequence (see models/dc_pendulum/README.md).
     """
     data = mujoco.MjData(model)
     data.qpos[0] = np.pi
