@@ -150,12 +150,16 @@ def _parser() -> argparse.ArgumentParser:
                         help="the state dimensions on the x and y axes (default 0,1); with more "
                              "than two, the maps slice through the start state (or --at)")
     policy.add_argument("--xlim", type=_floats(2, "LO,HI"), default=None, metavar="LO,HI",
-                        help="x axis range (default: the task's state box)")
+                        help="x axis range (default: the task's state box); write --xlim=-2,2 "
+                             "when LO is negative")
     policy.add_argument("--ylim", type=_floats(2, "LO,HI"), default=None, metavar="LO,HI",
-                        help="y axis range (default: the task's state box)")
+                        help="y axis range (default: the task's state box); --ylim=-2,2 when LO is "
+                             "negative")
     policy.add_argument("--at", type=_floats(None, "comma-separated numbers"), default=None,
                         metavar="X1,...,XN", help="the state the maps slice through (default: the "
                                                   "task's start state)")
+    policy.add_argument("--resolution", type=_positive_int, default=101,
+                        help="grid points along each axis (default 101)")
     _add_task_options(policy, False, "default: the snapshot's own")
 
     optimal = commands.add_parser("optimal", help="near-optimal return by dynamic programming")
@@ -278,7 +282,8 @@ def _policy(args) -> int:
         if lim is not None and not lim[0] < lim[1]:
             raise UsageError(f"{option} needs LO < HI, got {lim[0]:g},{lim[1]:g}")
     stem = args.out or args.snapshot.with_name(args.snapshot.stem + "_policy")
-    paths = plots.plot_policy(agent, meta, stem, learner_state, anchor, dims=(i, j), limits=limits)
+    paths = plots.plot_policy(agent, meta, stem, learner_state, anchor, dims=(i, j), limits=limits,
+                              resolution=args.resolution)
     print("figure:", ", ".join(map(str, paths)))
     return 0
 

@@ -29,9 +29,9 @@ MODEL = """
 <mujoco model="toy">
   <compiler angle="radian" autolimits="true"/>
   <option timestep="0.01" integrator="RK4" gravity="0 0 0"><flag contact="disable"/></option>
-  <visual><global offwidth="320" offheight="240"/></visual>
+  <visual><global offwidth="320" offheight="240"/><quality shadowsize="0"/></visual>
   <worldbody>
-    <light name="top" pos="0 0 2" dir="0 0 -1"/>
+    <light name="top" pos="0 0 2" dir="0 0 -1" castshadow="false"/>
     <geom name="floor" type="plane" size="1 1 0.01" rgba="0.3 0.3 0.35 1" contype="0" conaffinity="0"/>
     <camera name="above" pos="0 0.25 1.6" xyaxes="1 0 0 0 1 0"/>
     <body name="bar" pos="0 0 0.05">
@@ -65,11 +65,12 @@ class Physics(mujoco.Physics):
     def position(self) -> np.ndarray:
         """[theta (wrapped), s]."""
         q = self.named.data.qpos
-        return np.array([common.wrap_angle(q["spin"]), q["slide"]])
+        return np.array([common.wrap_angle(float(q["spin"][0])), float(q["slide"][0])])
 
     def velocity(self) -> np.ndarray:
         """[omega, v]."""
-        return np.array([self.named.data.qvel["spin"], self.named.data.qvel["slide"]])
+        v = self.named.data.qvel
+        return np.array([float(v["spin"][0]), float(v["slide"][0])])
 
 
 class Settle(base.Task):
