@@ -246,6 +246,8 @@ def _compare(args) -> int:
             raise UsageError(f"{directory} has no summary.json (not a finished `reproduce` run)")
         with _user_input(f"{path}: "):
             summaries[directory.name or str(directory)] = json.loads(path.read_text())
+        if "trial_seconds" not in summaries[directory.name or str(directory)]:
+            raise UsageError(f"{path} has no trial_seconds (the task's trial length)")
     optimal = next((s["optimal_return"] for s in summaries.values() if s.get("optimal_return")), None)
     paths = plots.plot_learning_curves(summaries, args.out, optimal_return=optimal)
     for label, summary in summaries.items():

@@ -30,8 +30,9 @@ def _lookup(name: str):
 
 
 def display_name(name: str) -> str:
-    """The name of algorithm ``name`` in figures, tables and videos (the agent's ``display_name``)."""
-    return _lookup(name)[0].display_name
+    """The name of algorithm ``name`` in figures, tables and videos (the agent's ``display_name``);
+    a key this version does not know (e.g. from an old result) is shown as it is."""
+    return _lookup(name)[0].display_name if name in _REGISTRY else name
 
 
 def config_class(name: str) -> type:

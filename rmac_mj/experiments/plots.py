@@ -17,15 +17,10 @@ matplotlib.use("Agg")  # files only; no display needed
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from rmac_mj.agents import ALGORITHMS, display_name  # noqa: E402
+from rmac_mj.agents import display_name  # noqa: E402
 
 _STYLES = {"rmac": {"color": "tab:blue", "linestyle": "-"},
            "s-ac": {"color": "tab:orange", "linestyle": "--"}}
-
-
-def _name(algorithm: str) -> str:
-    """The learner's display name; a key this version does not know (an old result) as it is."""
-    return display_name(algorithm) if algorithm in ALGORITHMS else algorithm
 
 
 def _trial_seconds(label: str, summary: dict[str, Any]) -> float:
@@ -78,7 +73,7 @@ def plot_learning_curves(summaries: dict[str, dict[str, Any]], stem: str | os.Pa
                 low = np.asarray([np.nan if v is None else v for v in row["ci95_low_per_trial"]])
                 high = np.asarray([np.nan if v is None else v for v in row["ci95_high_per_trial"]])
                 minutes = np.arange(1, mean.size + 1) * seconds[label] / 60.0
-                name = _name(algorithm)
+                name = display_name(algorithm)
                 if len(summaries) == 1:
                     style = dict(_STYLES.get(algorithm, {}))
                 else:
@@ -199,7 +194,7 @@ def plot_policy(agent, meta: dict[str, Any], stem: str | os.PathLike, learner_st
         low[d], high[d] = lo, hi
     xs, ys, actions, values = policy_slice(agent, low, high, anchor, (i, j), (resolution, resolution))
     algorithm = meta.get("algorithm", "")
-    name = _name(algorithm)
+    name = display_name(algorithm)
     policy_name = "u = f^-1(x, R(x))" if algorithm == "rmac" else "actor pi(x)"
     m = actions.shape[-1]
     a_low, a_high = agent.action_space.low, agent.action_space.high

@@ -30,7 +30,7 @@ from PIL import Image, ImageDraw, ImageFont
 
 from rmac_mj import _gl
 from rmac_mj.errors import MissingInputError, UserInputError
-from rmac_mj.agents import ALGORITHMS, display_name
+from rmac_mj.agents import display_name
 from rmac_mj.agents.base import Agent
 from rmac_mj.experiments.episode import learner_state_of, n_sub_steps, state_of
 
@@ -503,10 +503,6 @@ def _write_gif(frames: np.ndarray, path: pathlib.Path, fps: float) -> None:
 # --------------------------------------------------------------------------------------------------
 # Snapshots and result directories (what the ``rmac-mj render`` command calls)
 
-def _display_name(algorithm: str) -> str:
-    return display_name(algorithm) if algorithm in ALGORITHMS else algorithm
-
-
 def render_snapshot_episode(snapshot_path: str | os.PathLike, width: int = 320, height: int = 240,
                             camera: Camera = None, frames_per_step: int = 1,
                             overlay: bool = True, label: str | None = None,
@@ -522,7 +518,7 @@ def render_snapshot_episode(snapshot_path: str | os.PathLike, width: int = 320, 
     agent, meta = load_snapshot(snapshot_path)
     env = snapshot_environment(agent, meta, domain, task)
     if label is None:
-        label = _display_name(meta["algorithm"])
+        label = display_name(meta["algorithm"])
         if meta.get("trial") is not None:
             label += f", trial {meta['trial']}"
     return render_episode(env, agent, width=width, height=height, camera=camera,
@@ -629,7 +625,7 @@ def render_progression(result_dir: str | os.PathLike, out_path: str | os.PathLik
     chosen = _pick_trials(available, list(available) if trials is None else list(trials),
                           f"{result_dir} ({algorithm}, experiment {experiment})")
     episodes = [render_snapshot_episode(available[t], width, height, frames_per_step=frames_per_step,
-                                        overlay=overlay, label=f"{_display_name(algorithm)}, trial {t}")
+                                        overlay=overlay, label=f"{display_name(algorithm)}, trial {t}")
                 for t in chosen]
     clips = [episode.frames for episode in episodes]
     fps = episodes[0].fps
