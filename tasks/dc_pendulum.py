@@ -202,7 +202,7 @@ class Physics(mujoco.Physics):
     def orientation(self) -> np.ndarray:
         """[cos(phi), sin(phi)]; ndarray of shape (2,)."""
         # math.cos/sin are the C library's, which numpy's float64 cos/sin also call (numpy has no
-        # SIMD float64 sin/cos since 1.25.2); tests/test_trajectory_pin.py would catch a difference.
+        # SIMD float64 sin/cos, disabled in numpy#23925); tests/test_trajectory_pin.py catches a change.
         phi = self._qpos.item(self._qpos_adr)
         return np.array((math.cos(phi), math.sin(phi)))
 

@@ -20,7 +20,8 @@ STATE_KEYS: tuple[str, ...] = ("angle", "velocity")
 
 def state_of(observation, keys: Sequence[str] = STATE_KEYS) -> np.ndarray:
     """x: the named observation entries concatenated; ndarray of shape (n,)."""
-    return np.concatenate([np.asarray(observation[key], dtype=float).reshape(-1) for key in keys])
+    # One numpy call (axis=None flattens each entry, dtype=float converts): once per control step.
+    return np.concatenate([observation[key] for key in keys], axis=None, dtype=float)
 
 
 def state_space_of(env: control.Environment) -> StateSpace:
