@@ -17,7 +17,6 @@ import tempfile
 from typing import Any, Sequence
 
 import numpy as np
-from scipy import stats
 
 #: Seconds of simulated time per trial in the paper's protocol (3 s trials).
 TRIAL_SECONDS = 3.0
@@ -44,6 +43,10 @@ def confidence_interval(samples: np.ndarray, confidence: float = 0.95, axis: int
     if n < 2:
         nan = np.full_like(mean, np.nan)
         return mean, nan, nan.copy()
+    # Imported here, not at the top: every worker process imports this module, and scipy.stats
+    # alone takes about half a second of CPU to import.
+    from scipy import stats
+
     half = stats.t.ppf(0.5 + confidence / 2, n - 1) * samples.std(axis=axis, ddof=1) / np.sqrt(n)
     return mean, mean - half, mean + half
 
