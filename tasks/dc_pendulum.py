@@ -134,6 +134,7 @@ class Physics(mujoco.Physics):
         self._ctrl_low, self._ctrl_high = (float(v) for v in model.actuator_ctrlrange[motor])
         # Views into this MjData's memory: valid until the data is replaced, which calls this again.
         self._mj_model, self._mj_data = model.ptr, self.data.ptr
+        self._mj_option = model.ptr.opt  # a live view: reads see later changes of the integrator
         self._qpos, self._qvel, self._ctrl = self.data.qpos, self.data.qvel, self.data.ctrl
 
     def step(self, nstep: int = 1) -> None:
@@ -151,7 +152,7 @@ class Physics(mujoco.Physics):
         if not self.legacy_step:
             _mujoco.mj_step(model, data, nstep)
         else:
-            if model.opt.integrator == _RK4:
+            if self._mj_option.integrator == _RK4:
                 _mujoco.mj_step(model, data, nstep)
             else:
                 _mujoco.mj_step2(model, data)
@@ -242,6 +243,7 @@ class SwingUp(base.Task):
             raise ValueError(f"start_noise must be in [0, pi] rad, got {start_noise!r}")
         self._q = q
         self._p = float(action_weight)
+        self._x = np.empty(2)  # scratch for x in the reward
         self._start_state = x0
         self._start_noise = float(start_noise)
         self._reward = 0.0
@@ -277,7 +279,8 @@ class SwingUp(base.Task):
         fuse the last multiply-add (it does on AVX2/AVX-512 machines), which rounds differently from
         ``a*b + c*d`` in about one reward in seven; keeping the product keeps every reward bit for bit.
         """
-        x = np.array((phi, phi_dot))
+        x = self._x
+        x[0], x[1] = phi, phi_dot
         return float(x.dot(self._q).dot(x))
 
     def get_observation(self, physics: Physics) -> collections.OrderedDict:
