@@ -133,7 +133,7 @@ def _parser() -> argparse.ArgumentParser:
     render.add_argument("--frames-per-step", type=_positive_int, default=1,
                         help="frames per 0.03 s control step, from physics substeps (1 or 3)")
 
-    bench = commands.add_parser("bench", help="microseconds per step, against env.step")
+    bench = commands.add_parser("bench", help="microseconds per step, against the raw physics step")
     bench.add_argument("--json", type=pathlib.Path, default=None, help="also write the figures here")
     bench.add_argument("--quick", action="store_true", help="fewer repeats and a shorter experiment")
     return parser
