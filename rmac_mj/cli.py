@@ -6,7 +6,7 @@
     rmac-mj policy SNAPSHOT [--out STEM]
     rmac-mj optimal [--refresh]
     rmac-mj render SNAPSHOT --out swingup.mp4 | rmac-mj render --progression DIR --out progression.mp4
-    rmac-mj bench [--json FILE]
+    rmac-mj bench [--json FILE] [--quick] [--markdown]
 """
 
 from __future__ import annotations
@@ -136,6 +136,8 @@ def _parser() -> argparse.ArgumentParser:
     bench = commands.add_parser("bench", help="microseconds per step, against the raw physics step")
     bench.add_argument("--json", type=pathlib.Path, default=None, help="also write the figures here")
     bench.add_argument("--quick", action="store_true", help="fewer repeats and a shorter experiment")
+    bench.add_argument("--markdown", action="store_true",
+                       help="print the table as Markdown (the README's speed table)")
     return parser
 
 
@@ -249,7 +251,7 @@ def _bench(args) -> int:
     from rmac_mj.experiments import bench
 
     report = bench.run(quick=args.quick)
-    print(bench.format_table(report))
+    print(bench.format_markdown(report) if args.markdown else bench.format_table(report))
     if args.json:
         from rmac_mj.experiments.results import write_json
         write_json(args.json, report)

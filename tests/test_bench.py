@@ -33,3 +33,6 @@ def test_bench_runs_and_writes_the_documented_keys(tmp_path):
     assert run["x_physics"] == run["wall_s"] / run["physics_s"]
     assert run["cpu_s"] is None or run["cpu_x_physics"] == run["cpu_s"] / run["physics_s"]
     assert report["machine"]["cores"] >= 1 and report["machine"]["cpu"]
+    markdown = bench.format_markdown(report)  # the README's table, from the same report
+    assert report["machine"]["cpu"] in markdown
+    assert len([line for line in markdown.splitlines() if line.startswith("| ")]) == len(bench.ROWS) + 5
