@@ -163,9 +163,15 @@ class Physics(mujoco.Physics):
             self._report_new_warnings(np.frombuffer(before, dtype=warnings.dtype))
 
     def _report_new_warnings(self, before: np.ndarray) -> None:
-        """Raise ``PhysicsError`` naming the MuJoCo warnings whose counters grew (or log them)."""
+        """Raise ``PhysicsError`` naming the MuJoCo warnings whose counters grew (or log them).
+
+        Counters can also fall (MuJoCo's automatic reset after a bad state zeroes them before
+        counting the new warning); like dm-control, only growth counts.
+        """
         names = [name for name, grew in zip(_mujoco.mjtWarning.__members__, self._warnings > before)
                  if grew]
+        if not names:
+            return
         message = f"Physics state is invalid. Warning(s) raised: {', '.join(names)}"
         if self._warnings_cause_exception:
             raise control.PhysicsError(message)

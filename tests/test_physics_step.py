@@ -60,6 +60,26 @@ def test_an_exploding_state_raises_physics_error_or_logs_when_suppressed(step):
     do_step(3)  # no new warning: no error
 
 
+@pytest.mark.parametrize("counts", [(0, 0, 0, 0, 0, 0, 0), (0, 0, 0, 0, 5, 0, 0), (0, 0, 0, 0, 1, 0, 0),
+                                    (2, 0, 0, 0, 0, 0, 0)])
+def test_errors_exactly_when_dm_controls_step_does(counts):
+    # MuJoCo's automatic reset after a NaN velocity zeroes the warning counters, then counts
+    # BADQVEL once: with a higher count before, no counter grows and dm-control raises nothing.
+    outcomes = []
+    for step in ("fast", "dm-control"):
+        env = tasks.load("dc_pendulum", "swingup")
+        env.reset()
+        physics = env.physics
+        physics._warnings[:] = counts[:len(physics._warnings)]
+        physics.set_state_vector(0.0, np.nan)
+        try:
+            physics.step(3) if step == "fast" else engine.Physics.step(physics, 3)
+            outcomes.append("no error")
+        except control.PhysicsError as error:
+            outcomes.append(str(error))
+    assert outcomes[0] == outcomes[1]
+
+
 def test_env_step_raises_physics_error_through_dm_control():
     env = tasks.load("dc_pendulum", "swingup")
     env.reset()
