@@ -7,7 +7,7 @@
     rmac-mj policy SNAPSHOT [--out STEM] [--dims 0,1] [--xlim LO,HI] [--ylim LO,HI]
     rmac-mj optimal [--refresh]
     rmac-mj render SNAPSHOT --out episode.mp4 | rmac-mj render --progression DIR --out progression.mp4
-    rmac-mj bench [--domain dc_pendulum --task swingup] [--json FILE]
+    rmac-mj bench [--domain dc_pendulum --task swingup] [--json FILE] [--quick] [--markdown]
 """
 
 from __future__ import annotations
@@ -181,10 +181,12 @@ def _parser() -> argparse.ArgumentParser:
                              "number, e.g. 1 or 3 for dc_pendulum)")
     _add_task_options(render, False, "default: the one each snapshot learned on")
 
-    bench = commands.add_parser("bench", help="microseconds per step, against env.step")
+    bench = commands.add_parser("bench", help="microseconds per step, against the raw physics step")
     bench.add_argument("--json", type=pathlib.Path, default=None, help="also write the figures here")
     bench.add_argument("--quick", action="store_true", help="fewer repeats and a shorter experiment")
     _add_task_options(bench, True, "default: dc_pendulum/swingup")
+    bench.add_argument("--markdown", action="store_true",
+                       help="print the table as Markdown (the README's speed table)")
     return parser
 
 
@@ -327,7 +329,7 @@ def _bench(args) -> int:
     with _user_input():
         bench.check_task(args.domain, args.task)
     report = bench.run(quick=args.quick, domain=args.domain, task=args.task)
-    print(bench.format_table(report))
+    print(bench.format_markdown(report) if args.markdown else bench.format_table(report))
     if args.json:
         from rmac_mj.experiments.results import write_json
         write_json(args.json, report)

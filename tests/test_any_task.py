@@ -157,9 +157,15 @@ def test_bench_measures_the_tasks_own_control_step(toy):
                   bench.learner_step_us("rmac", 1, warmup_trials=2, **on),
                   bench.learner_step_us("s-ac", 1, warmup_trials=2, **on)):
         assert np.isfinite(value) and value > 0
-    report = {"env_step_us": 1.0, "physics_step_us": 0.5, "llr_query_insert_us": 0.1,
-              "sac_step_us": 0.1, "rmac_step_us": 0.1, "experiment_wall_s": {}, **on,
-              "protocol_projected_min": 1.0, "machine": {"cores": 1, "cpu": "x"},
+    costs = bench.step_costs(20, 1, **on)
+    assert costs["physics_step_us"] > 0 and costs["env_step_us"] > 0
+    report = {**costs, "llr_query_insert_us": 0.1, "sac_step_us": 0.1, "rmac_step_us": 0.1,
+              "env_overhead_us": 0.1, "outside_physics_learner_us": 0.2, **on,
+              "experiment_s": {}, "steps_per_trial": 10, "protocol_projected_min": 1.0,
+              "run": {"experiments_per_learner": 1, "trials": 1, "workers": 1, "steps": 20,
+                      "physics_s": 0.1, "wall_s": 1.0, "x_physics": 10.0, "cpu_s": None,
+                      "in_experiments_s": 0.5, "in_experiments_x_physics": 5.0},
+              "machine": {"cores": 1, "cpu": "x", "python": "3", "mujoco": "3"},
               "control_timestep_s": 0.02, "n_sub_steps": 2, "state_dim": 4}
     table = bench.format_table(report)
     assert "(2 x mj_step)" in table and "toy/settle: control step 0.02 s" in table and "n=4" in table

@@ -32,7 +32,8 @@ def state_of(observation, learner_state: LearnerState | Sequence[str]) -> np.nda
     """x: the observation entries of ``learner_state.keys`` (or of a sequence of keys) concatenated;
     ndarray of shape (n,)."""
     keys = learner_state.keys if isinstance(learner_state, LearnerState) else learner_state
-    return np.concatenate([np.asarray(observation[key], dtype=float).reshape(-1) for key in keys])
+    # One numpy call (axis=None flattens each entry, dtype=float converts): once per control step.
+    return np.concatenate([observation[key] for key in keys], axis=None, dtype=float)
 
 
 def state_space_of(env: control.Environment) -> StateSpace:

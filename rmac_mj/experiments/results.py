@@ -17,7 +17,6 @@ import tempfile
 from typing import Any, Sequence
 
 import numpy as np
-from scipy import stats
 
 #: Trials over which the final level is averaged.
 FINAL_WINDOW = 50
@@ -41,6 +40,10 @@ def confidence_interval(samples: np.ndarray, confidence: float = 0.95, axis: int
     if n < 2:
         nan = np.full_like(mean, np.nan)
         return mean, nan, nan.copy()
+    # Imported here, not at the top: every worker process imports this module, and scipy.stats
+    # alone takes about half a second of CPU to import.
+    from scipy import stats
+
     half = stats.t.ppf(0.5 + confidence / 2, n - 1) * samples.std(axis=axis, ddof=1) / np.sqrt(n)
     return mean, mean - half, mean + half
 
