@@ -124,8 +124,8 @@ def learning_curves_figure(summaries: dict[str, dict[str, Any]], optimal_return:
     for ax in axes:
         ax.legend(loc="lower right", fontsize="small", title=legend_title, title_fontsize="small")
     if fewest is not None and fewest < FEW_EXPERIMENTS:
-        fig.text(0.5, -0.01, f"{fewest} experiment{'s' if fewest != 1 else ''} per learner: 95% "
-                 f"intervals from fewer than {FEW_EXPERIMENTS} are too wide or unstable to mean much "
+        fig.text(0.5, -0.01, f"{fewest} experiment{'s' if fewest != 1 else ''} per learner: too few "
+                 f"to rank the learners; 95% intervals from fewer than {FEW_EXPERIMENTS} mean little "
                  "(bands clipped to the plot)", ha="center", va="top", fontsize="small",
                  color="firebrick")
     return fig

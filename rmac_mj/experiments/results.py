@@ -157,8 +157,9 @@ def describe_test(test: dict[str, Any]) -> str:
 
 def few_experiments_note(experiments: int) -> str:
     """The warning printed and drawn when ``experiments`` < :data:`FEW_EXPERIMENTS`."""
-    return (f"note: {experiments} experiment{'s' if experiments != 1 else ''} per learner: 95% intervals "
-            f"from fewer than {FEW_EXPERIMENTS} are too wide or unstable to mean much")
+    return (f"note: {experiments} experiment{'s' if experiments != 1 else ''} per learner: too few to rank "
+            f"the learners; the 95% intervals and the t-test assume normally distributed returns, which "
+            f"fewer than {FEW_EXPERIMENTS} experiments cannot show")
 
 
 def write_atomic(path: str | os.PathLike, write) -> pathlib.Path:
