@@ -385,6 +385,17 @@ _COMMANDS = {"reproduce": _reproduce, "compare": _compare, "policy": _policy, "o
              "render": _render, "bench": _bench}
 
 
+def _announcing_compilation(command: str):
+    """Say so when a command starts compiling kernels (the first time only: tens of seconds).
+    ``reproduce`` says it itself, as it compiles them before starting its workers."""
+    if command in ("reproduce", "compare", "optimal"):  # these compile nothing, or say it themselves
+        return contextlib.nullcontext()
+    from rmac_mj import _cache
+
+    return _cache.on_first_compile(lambda: _say(f"compiling kernels, first run only (cached in "
+                                                 f"{_cache.numba_cache_location()})"))
+
+
 def _interrupt(signum, frame):
     raise KeyboardInterrupt
 
@@ -398,7 +409,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     signal.signal(signal.SIGTERM, _interrupt)  # a polite kill cleans up like Ctrl-C
     try:
-        return _COMMANDS[args.command](args)
+        with _announcing_compilation(args.command):
+            return _COMMANDS[args.command](args)
     except KeyboardInterrupt as interrupt:
         detail = f"; {interrupt}" if str(interrupt) else ""
         print(f"\n{prog}: interrupted{detail}", file=sys.stderr)
