@@ -1,12 +1,13 @@
 """The rmac-mj command: reproduce the paper's comparison, draw its figures, render videos, benchmark.
 
-    rmac-mj reproduce [--experiments 40] [--trials 600] [--algorithms rmac,s-ac] [--seed 0]
-                      [--jobs N] [--out DIR] [--resume] [--evaluate-every N] [--scheduler ADDRESS]
+    rmac-mj reproduce [--domain dc_pendulum --task swingup] [--experiments 40] [--trials 600]
+                      [--algorithms rmac,s-ac] [--seed 0] [--jobs N] [--out DIR] [--resume]
+                      [--evaluate-every N] [--scheduler ADDRESS]
     rmac-mj compare DIR [DIR ...] [--out STEM]
-    rmac-mj policy SNAPSHOT [SNAPSHOT] [--out STEM]
+    rmac-mj policy SNAPSHOT [SNAPSHOT] [--out STEM] [--dims 0,1] [--xlim LO,HI] [--ylim LO,HI]
     rmac-mj optimal [--refresh]
-    rmac-mj render SNAPSHOT --out swingup.mp4 | rmac-mj render --progression DIR --out progression.mp4
-    rmac-mj bench [--json FILE]
+    rmac-mj render SNAPSHOT --out episode.mp4 | rmac-mj render --progression DIR --out progression.mp4
+    rmac-mj bench [--domain dc_pendulum --task swingup] [--json FILE]
 
 ``rmac-mj`` alone prints the commands; ``rmac-mj COMMAND --help`` their options and defaults.
 """
@@ -16,6 +17,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import math
 import pathlib
 import signal
 import sys
@@ -102,6 +104,35 @@ def _writable_dir(path: pathlib.Path) -> pathlib.Path:
     return path
 
 
+def _floats(count: int | None, expected: str):
+    """An argparse type: comma-separated finite numbers (``count`` of them, if given)."""
+    def parse(text: str) -> tuple[float, ...]:
+        try:
+            values = tuple(float(v) for v in text.split(","))
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}") from None
+        if (count is not None and len(values) != count) or not all(map(math.isfinite, values)):
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}")
+        return values
+    return parse
+
+
+def _dims(text: str) -> tuple[int, int]:
+    try:
+        i, j = (int(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected two state dimensions I,J, got {text!r}") from None
+    return i, j
+
+
+def _add_task_options(parser: argparse.ArgumentParser, default: bool, what: str) -> None:
+    """--domain and --task; with ``default`` the paper's dc_pendulum/swingup, else None (``what``)."""
+    parser.add_argument("--domain", default="dc_pendulum" if default else None,
+                        help=f"domain of the task suite ({what})")
+    parser.add_argument("--task", default="swingup" if default else None,
+                        help=f"task of the domain ({what})")
+
+
 def _parser() -> argparse.ArgumentParser:
     from rmac_mj.agents import ALGORITHMS
 
@@ -117,12 +148,13 @@ def _parser() -> argparse.ArgumentParser:
 
     reproduce = command("reproduce", "run the paper's comparison (section 6): learning curves, summary, "
                                      "Fig. 2, snapshots")
+    _add_task_options(reproduce, True, "default: the paper's dc_pendulum/swingup")
     reproduce.add_argument("--experiments", type=_positive_int, default=40,
                            metavar="N", help="learning experiments per learner (default: 40, the "
                                              "paper's)")
     reproduce.add_argument("--trials", type=_positive_int, default=600,
-                           metavar="N", help="consecutive 3 s trials per experiment (default: 600, "
-                                             "the paper's)")
+                           metavar="N", help="consecutive trials per experiment (default: 600, the "
+                                             "paper's, of 3 s)")
     reproduce.add_argument("--algorithms", default=None, metavar="ALGO[,ALGO]",
                            help=f"comma-separated learners, from {', '.join(ALGORITHMS)} (default: all; "
                                 "with --set, only the learners --set names)")
@@ -164,13 +196,28 @@ def _parser() -> argparse.ArgumentParser:
                         help="agent snapshot(s), e.g. RESULT_DIR/snapshots/rmac/exp_000/trial_0600.npz")
     policy.add_argument("--out", type=pathlib.Path, default=None,
                         help="figure path without suffix (default: beside the first snapshot)")
-    policy.add_argument("--max-speed", type=float, default=30.0, metavar="RAD_PER_S",
-                        help="velocity axis range: +-this many rad/s")
+    policy.add_argument("--dims", type=_dims, default=(0, 1), metavar="I,J",
+                        help="the state dimensions on the x and y axes (default 0,1); with more "
+                             "than two, the maps slice through the start state (or --at)")
+    policy.add_argument("--xlim", type=_floats(2, "LO,HI"), default=None, metavar="LO,HI",
+                        help="x axis range (default: the task's state box); write --xlim=-2,2 "
+                             "when LO is negative")
+    policy.add_argument("--ylim", type=_floats(2, "LO,HI"), default=None, metavar="LO,HI",
+                        help="y axis range (default: the task's state box); --ylim=-2,2 when LO is "
+                             "negative")
+    policy.add_argument("--at", type=_floats(None, "comma-separated numbers"), default=None,
+                        metavar="X1,...,XN", help="the state the maps slice through (default: the "
+                                                  "task's start state)")
+    policy.add_argument("--resolution", type=_positive_int, default=101, metavar="N",
+                        help="grid points along each axis (default 101)")
+    policy.add_argument("--no-trajectory", action="store_true",
+                        help="do not draw the greedy trial from the start state over the maps")
+    _add_task_options(policy, False, "default: the snapshot's own")
 
     optimal = command("optimal", "near-optimal return by dynamic programming (cached)")
     optimal.add_argument("--refresh", action="store_true", help="recompute, ignoring the cache")
 
-    render = command("render", "render greedy swingups off-screen to MP4 or GIF")
+    render = command("render", "render greedy episodes off-screen to MP4 or GIF")
     render.add_argument("snapshot", nargs="?", type=pathlib.Path, default=None,
                         help="agent snapshot to render (or give --progression or --compare)")
     render.add_argument("--progression", type=pathlib.Path, default=None, metavar="RESULT_DIR",
@@ -184,11 +231,14 @@ def _parser() -> argparse.ArgumentParser:
     render.add_argument("--height", type=_positive_int, default=240, help="frame height (px)")
     render.add_argument("--no-overlay", action="store_true", help="no text overlay")
     render.add_argument("--frames-per-step", type=_positive_int, default=1, metavar="N",
-                        help="frames per 0.03 s control step, from physics substeps (1 or 3)")
+                        help="frames per control step, from physics substeps (a divisor of their "
+                             "number, e.g. 1 or 3 for dc_pendulum)")
+    _add_task_options(render, False, "default: the one each snapshot learned on")
 
     bench = command("bench", "microseconds per step, against env.step")
     bench.add_argument("--json", type=pathlib.Path, default=None, help="also write the figures here")
     bench.add_argument("--quick", action="store_true", help="fewer repeats and a shorter experiment")
+    _add_task_options(bench, True, "default: dc_pendulum/swingup")
     return parser
 
 
@@ -241,6 +291,7 @@ def _reproduce(args) -> int:
     overrides = parse_overrides(args.set)
     with _user_input():
         protocol = runner.Protocol(
+            domain=args.domain, task=args.task,
             algorithms=_algorithms(args, overrides), experiments=args.experiments,
             trials=args.trials, seed=args.seed, evaluate_every=args.evaluate_every,
             agent_configs=overrides)
@@ -316,6 +367,8 @@ def _compare(args) -> int:
             raise UsageError(f"{directory} has no summary.json (not a finished `reproduce` run)")
         with _user_input(f"{path}: "):
             summaries[label] = json.loads(path.read_text())
+        if "trial_seconds" not in summaries[label]:
+            raise UsageError(f"{path} has no trial_seconds (the task's trial length)")
     optimal = next((s["optimal_return"] for s in summaries.values() if s.get("optimal_return")), None)
     paths = plots.plot_learning_curves(summaries, args.out, optimal_return=optimal, smooth=args.smooth)
     for label, summary in summaries.items():
@@ -327,16 +380,42 @@ def _compare(args) -> int:
 
 def _policy(args) -> int:
     from rmac_mj.experiments import plots
+    from rmac_mj.experiments.episode import learner_state_of, state_of
+    from rmac_mj.experiments.render import snapshot_environment
     from rmac_mj.experiments.snapshots import load_snapshot
 
-    loaded = []
-    for snapshot in args.snapshots:
-        with _user_input(f"{snapshot}: "):
-            loaded.append(load_snapshot(snapshot))
+    snapshots, envs = [], []
+    for path in args.snapshots:
+        with _user_input(f"{path}: "):
+            agent, meta = load_snapshot(path)
+        snapshots.append((agent, meta))
+        envs.append(snapshot_environment(agent, meta, args.domain, args.task))
+    learner_state = learner_state_of(envs[0])
+    for path, env in zip(args.snapshots[1:], envs[1:]):
+        if learner_state_of(env) != learner_state:
+            raise UsageError(f"{path} learned on another state ({learner_state_of(env).labels}) than "
+                             f"{args.snapshots[0]} ({learner_state.labels}); draw them one by one")
+    meta = snapshots[0][1]
+    n = len(learner_state.low)
+    if args.at is not None:
+        if len(args.at) != n:
+            raise UsageError(f"--at needs {n} numbers (the state's dimensions), got {len(args.at)}")
+        anchor = args.at
+    else:
+        anchor = state_of(envs[0].reset().observation, learner_state)
+    if n < 2:
+        raise UsageError(f"policy maps need at least two state dimensions; {meta['domain']} has {n}")
+    i, j = args.dims
+    if not (0 <= i < n and 0 <= j < n and i != j):
+        raise UsageError(f"--dims must name two different state dimensions in [0, {n}), got {i},{j}")
+    limits = {d: lim for d, lim in ((i, args.xlim), (j, args.ylim)) if lim is not None}
+    for option, lim in (("--xlim", args.xlim), ("--ylim", args.ylim)):
+        if lim is not None and not lim[0] < lim[1]:
+            raise UsageError(f"{option} needs LO < HI, got {lim[0]:g},{lim[1]:g}")
     first = args.snapshots[0]
-    suffix = "_policy" if len(loaded) == 1 else "_policies"
-    stem = args.out or first.with_name(first.stem + suffix)
-    paths = plots.plot_policies(loaded, stem, max_speed=args.max_speed)
+    stem = args.out or first.with_name(first.stem + ("_policy" if len(snapshots) == 1 else "_policies"))
+    paths = plots.plot_policies(snapshots, stem, learner_state, anchor, dims=(i, j), limits=limits,
+                                resolution=args.resolution, envs=None if args.no_trajectory else envs)
     print("figure:", ", ".join(map(str, paths)))
     return 0
 
@@ -358,7 +437,10 @@ def _render(args) -> int:
     options = {"width": args.width, "height": args.height, "overlay": not args.no_overlay,
                "frames_per_step": args.frames_per_step}
     if args.snapshot is not None:
-        path = render.render_snapshot(args.snapshot, args.out, **options)
+        path = render.render_snapshot(args.snapshot, args.out, domain=args.domain, task=args.task,
+                                      **options)
+    elif args.domain is not None or args.task is not None:
+        raise UsageError("--domain/--task apply to a single SNAPSHOT only")
     elif args.progression is not None:
         path = render.render_progression(args.progression, args.out, experiment=args.experiment,
                                          **options)
@@ -372,7 +454,9 @@ def _render(args) -> int:
 def _bench(args) -> int:
     from rmac_mj.experiments import bench
 
-    report = bench.run(quick=args.quick)
+    with _user_input():
+        bench.check_task(args.domain, args.task)
+    report = bench.run(quick=args.quick, domain=args.domain, task=args.task)
     print(bench.format_table(report))
     if args.json:
         from rmac_mj.experiments.results import write_json

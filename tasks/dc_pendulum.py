@@ -1,6 +1,6 @@
 """DC-motor pendulum domain: the swing-up task of Grondman et al., section 6.
 
-The physics is the MJCF model ``models/dc_pendulum.xml`` (Table 1; MuJoCo's ``<dcmotor>`` actuator
+The physics is the MJCF model ``models/dc_pendulum/`` (Table 1; MuJoCo's ``<dcmotor>`` actuator
 produces the input torque (K/R) u and the back-EMF damping K^2/R). The tasks add what the paper
 defines on top: a 0.03 s control step, 3 s trials (100 control steps), the start state and the
 quadratic reward
@@ -24,6 +24,7 @@ from dm_control.suite import base
 from dm_control.utils import containers
 
 from rmac_mj.models import model_path
+from rmac_mj.tasks import common
 
 DEFAULT_TIME_LIMIT = 3.0        # s, one trial (section 6)
 CONTROL_TIMESTEP = 0.03         # s; the paper leaves it open, its group's follow-up work uses 0.03 s
@@ -48,8 +49,9 @@ SUITE = containers.TaggedTasks()
 
 
 def get_model_and_assets() -> tuple[str, dict[str, Any]]:
-    """The model XML string and its (empty) asset dict."""
-    return model_path("dc_pendulum").read_text(), {}
+    """The scene XML string (the pendulum with floor, light and camera) and its assets (the model)."""
+    return (model_path("dc_pendulum", scene=True).read_text(),
+            {"dc_pendulum.xml": model_path("dc_pendulum").read_bytes()})
 
 
 def _make_environment(task: "SwingUp", time_limit: float, control_timestep: float,
@@ -223,7 +225,9 @@ class SwingUp(base.Task):
         return self._reward
 
     @property
-    def state_bounds(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Nominal box of x = [phi, phi_dot]: (low, high, periodic), each of shape (2,)."""
-        return (np.array([-np.pi, -NOMINAL_SPEED]), np.array([np.pi, NOMINAL_SPEED]),
-                np.array([True, False]))
+    def learner_state(self) -> common.LearnerState:
+        """x = [phi, phi_dot]; the box is one period in phi and +-NOMINAL_SPEED; Table 2's weights."""
+        return common.LearnerState(
+            keys=("angle", "velocity"), low=(-np.pi, -NOMINAL_SPEED), high=(np.pi, NOMINAL_SPEED),
+            periodic=(True, False), labels=("angle phi [rad]", "angular velocity phi_dot [rad/s]"),
+            weights=(1.0, 0.1), action_weights=(1.0,), action_labels=("u [V]",))

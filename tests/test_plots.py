@@ -1,13 +1,60 @@
-"""Figures: Fig. 2 readable for small runs (axes follow the curves, legends, smoothing, notes), policy
-maps on shared scales with the greedy trajectory."""
+"""Figures: Fig. 2's time axis is each summary's own trial length (old summaries still plot); Fig. 2 is
+readable for small runs (axes follow the curves, legends, smoothing, notes); policy maps on shared
+scales with the greedy trajectory."""
 
-import matplotlib
 import numpy as np
 import pytest
 
-from rmac_mj.experiments import plots, results
+from rmac_mj.experiments import plots, results, runner
 
-matplotlib.use("Agg")
+
+def old_summary(trial_seconds: float, trials: int = 4) -> dict:
+    """A summary.json as the first version wrote it (no first_10min_trials, no stuck_below)."""
+    curve = np.linspace(-3000.0, -1000.0, trials)
+    row = {"experiments": 2, "trials": trials, "mean_return_per_trial": curve.tolist(),
+           "ci95_low_per_trial": (curve - 50).tolist(), "ci95_high_per_trial": (curve + 50).tolist(),
+           "final_return_mean": -1000.0, "final_return_ci95": [-1050.0, -950.0],
+           "final_return_per_experiment": [-1000.0, -1000.0], "minutes_to_90pct": 0.2,
+           "mean_return_first_10min": -2000.0, "stuck_experiments": 0, "greedy_eval_trials": [2, 4],
+           "greedy_return_per_eval": [-1500.0, -900.0]}
+    return {"paper_protocol": False, "optimal_return": -748.1, "trial_seconds": trial_seconds,
+            "protocol": {}, "rmac": row}
+
+
+@pytest.fixture
+def drawn(monkeypatch):
+    """The figures plot_learning_curves draws, kept instead of written."""
+    figures = []
+    monkeypatch.setattr(plots, "_save", lambda fig, stem, formats=("png", "pdf"): figures.append(fig))
+    return figures
+
+
+def test_each_summary_uses_its_own_trial_length(drawn):
+    plots.plot_learning_curves({"pendulum": old_summary(3.0), "arm": old_summary(0.05 * 60 / 2)},
+                               "unused")
+    ax = drawn[0].axes[0]
+    curves = [line for line in ax.get_lines() if line.get_label().endswith("(mean of 2)")]
+    assert [line.get_label() for line in curves] == ["pendulum: RMAC (mean of 2)",
+                                                     "arm: RMAC (mean of 2)"]
+    np.testing.assert_allclose(curves[0].get_xdata(), np.arange(1, 5) * 3.0 / 60)
+    np.testing.assert_allclose(curves[1].get_xdata(), np.arange(1, 5) * 1.5 / 60)
+    assert ax.get_xlabel() == "time [min] (simulated)"  # two trial lengths: none is named
+
+
+def test_one_summary_names_its_trial_length_and_an_old_one_still_tabulates(drawn):
+    summary = old_summary(0.2)
+    plots.plot_learning_curves({"toy": summary}, "unused", optimal_return=summary["optimal_return"])
+    assert drawn[0].axes[0].get_xlabel() == "time [min] (simulated; one trial = 0.2 s)"
+    greedy = [line for line in drawn[0].axes[0].get_lines() if "greedy" in line.get_label()]
+    np.testing.assert_allclose(greedy[0].get_xdata(), np.array([2, 4]) * 0.2 / 60)
+    assert "one trial = 0.2 s" in runner.summary_table(summary)
+
+
+def test_a_summary_without_trial_length_is_refused_by_name(drawn):
+    summary = old_summary(3.0)
+    del summary["trial_seconds"]
+    with pytest.raises(ValueError, match="trial_seconds"):
+        plots.plot_learning_curves({"x": summary}, "unused")
 
 
 def _summary(n_experiments, seed=0, level=-1000.0, **protocol):
@@ -16,7 +63,8 @@ def _summary(n_experiments, seed=0, level=-1000.0, **protocol):
     curves = level - 3000.0 * np.exp(-trials / 20.0) + rng.normal(0, 40, (n_experiments, 100))
     curves[0] -= 20000.0 * (n_experiments < 5)  # one bad experiment: a huge interval when n is small
     return {"trial_seconds": 3.0, "protocol": protocol,
-            "rmac": results.summarise(curves), "s-ac": results.summarise(curves - 50.0)}
+            "rmac": results.summarise(curves, trial_seconds=3.0),
+            "s-ac": results.summarise(curves - 50.0, trial_seconds=3.0)}
 
 
 def test_axes_follow_the_curves_not_the_bands():
@@ -74,7 +122,10 @@ class _MapAgent:
     """A stand-in with a given value function: V(x) = scale * cos(phi), u = clip(phi)."""
 
     def __init__(self, scale):
+        from rmac_mj.agents.base import ActionSpace
+
         self.scale = scale
+        self.action_space = ActionSpace(low=[-3.0], high=[3.0])
 
     def policy(self, states):
         return np.clip(states[:, :1], -3, 3)
@@ -83,10 +134,19 @@ class _MapAgent:
         return self.scale * np.cos(x[0])
 
 
+def _pendulum():
+    from rmac_mj import tasks
+    from rmac_mj.experiments.episode import learner_state_of
+
+    env = tasks.load("dc_pendulum", "swingup", task_kwargs={"time_limit": 0.3})
+    return env, learner_state_of(env)
+
+
 def test_side_by_side_policies_share_their_colour_scales():
-    meta = {"algorithm": "rmac", "action_space": {"low": [-3.0], "high": [3.0]}}
-    fig = plots.policies_figure([(_MapAgent(10.0), meta), (_MapAgent(1000.0), {**meta, "algorithm": "s-ac"})],
-                                resolution=9, trajectory=False)
+    _, learner_state = _pendulum()
+    fig = plots.policies_figure([(_MapAgent(10.0), {"algorithm": "rmac"}),
+                                 (_MapAgent(1000.0), {"algorithm": "s-ac"})],
+                                learner_state, anchor=[np.pi, 0.0], resolution=9)
     images = [ax.images[0] for ax in fig.axes if ax.images]
     assert len(images) == 4
     policy_limits = {image.get_clim() for image in images if image.get_cmap().name == "RdBu_r"}
@@ -96,13 +156,17 @@ def test_side_by_side_policies_share_their_colour_scales():
     assert any("$V(x)$" in title for title in titles) and any(r"$\pi(x)$" in title for title in titles)
 
 
-def test_the_greedy_trajectory_starts_at_the_start_state():
+def test_the_greedy_trajectory_is_drawn_from_the_start_state():
     from test_render import EnergyPumpAgent  # (tests/ is on sys.path, as pytest imports it)
 
-    meta = {"domain": "dc_pendulum", "task": "swingup", "task_kwargs": {"time_limit": 0.3}}
-    states, total = plots.greedy_trajectory(EnergyPumpAgent(), meta)
+    env, learner_state = _pendulum()
+    states, total = plots.greedy_trajectory(env, EnergyPumpAgent())
     assert states.shape == (11, 2) and total < 0
     np.testing.assert_allclose(states[0], [-np.pi, 0.0])
-    fig = plots.policies_figure([(EnergyPumpAgent(), {**meta, "algorithm": "energy-pump"})],
-                                resolution=5)
-    assert any("greedy trial from $x_0$" in str(line.get_label()) for line in fig.axes[0].get_lines())
+    agent = _MapAgent(1.0)
+    agent.begin_greedy_trial = lambda: None
+    agent.greedy_action = lambda x: np.array([3.0])
+    fig = plots.policies_figure([(agent, {"algorithm": "rmac"})], learner_state, anchor=[np.pi, 0.0],
+                                resolution=5, envs=[env])
+    lines = [line for line in fig.axes[0].get_lines() if "greedy trial from $x_0$" in str(line.get_label())]
+    assert len(lines) == 1

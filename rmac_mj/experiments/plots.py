@@ -1,13 +1,15 @@
 """Figures of the paper: learning curves (Fig. 2) and learned policies and critics (Figs. 3, 4).
 
-Figures are drawn from saved results (``summary.json``, snapshots), never by retraining.
+Figures are drawn from saved results (``summary.json``, snapshots), never by retraining. Nothing here
+knows a particular task: the trial length comes from the summary, axis ranges and labels from the
+task's ``learner_state`` and the action bounds, learner names from the agents.
 """
 
 from __future__ import annotations
 
 import os
 import pathlib
-from typing import Any
+from typing import Any, Sequence
 
 import matplotlib
 
@@ -15,12 +17,20 @@ matplotlib.use("Agg")  # files only; no display needed
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from rmac_mj.experiments.results import FEW_EXPERIMENTS, FINAL_WINDOW, TRIAL_SECONDS  # noqa: E402
+from rmac_mj.agents import display_name  # noqa: E402
+from rmac_mj.experiments.results import FEW_EXPERIMENTS, FINAL_WINDOW  # noqa: E402
 
-_LABELS = {"rmac": "RMAC", "s-ac": "S-AC"}
 #: Colour per learner (in every figure); in a comparison of runs the line style tells the runs apart.
-_COLOURS = {"rmac": "tab:blue", "s-ac": "tab:orange"}
+_STYLES = {"rmac": {"color": "tab:blue"}, "s-ac": {"color": "tab:orange"}}
 _RUN_STYLES = ("-", "--", ":", "-.", (0, (5, 1, 1, 1)), (0, (1, 3)))
+
+
+def _trial_seconds(label: str, summary: dict[str, Any]) -> float:
+    seconds = summary.get("trial_seconds")
+    if not (isinstance(seconds, (int, float)) and np.isfinite(seconds) and seconds > 0):
+        raise ValueError(f"summary {label!r} has no valid trial_seconds (simulated seconds per "
+                         f"trial), got {seconds!r}")
+    return float(seconds)
 
 
 def _save(fig, stem: str | os.PathLike, formats=("png", "pdf")) -> list[pathlib.Path]:
@@ -61,23 +71,23 @@ def learning_curves_figure(summaries: dict[str, dict[str, Any]], optimal_return:
     """The figure of :func:`plot_learning_curves` (see it), not yet saved."""
     if not isinstance(smooth, (int, np.integer)) or smooth < 1:
         raise ValueError(f"smooth must be a positive integer (trials), got {smooth!r}")
+    seconds = {label: _trial_seconds(label, summary) for label, summary in summaries.items()}
     fig, axes = plt.subplots(1, 2, figsize=(13, 4.8), constrained_layout=True)
-    colours = dict(_COLOURS)
+    colours = {algorithm: style["color"] for algorithm, style in _STYLES.items()}
     palette = [c for c in plt.rcParams["axes.prop_cycle"].by_key()["color"]
                if c not in colours.values()]
     several = len(summaries) > 1
     drawn, ends, fewest = [], [], None
     for ax in axes:
         for run, (label, summary) in enumerate(summaries.items()):
-            trial_seconds = float(summary.get("trial_seconds", TRIAL_SECONDS))
             for algorithm in _learners(summary):
                 row = summary[algorithm]
                 mean = running_mean(row["mean_return_per_trial"], smooth)
                 low = running_mean([np.nan if v is None else v for v in row["ci95_low_per_trial"]], smooth)
                 high = running_mean([np.nan if v is None else v for v in row["ci95_high_per_trial"]],
                                     smooth)
-                minutes = np.arange(1, mean.size + 1) * trial_seconds / 60.0
-                name = _LABELS.get(algorithm, algorithm)
+                minutes = np.arange(1, mean.size + 1) * seconds[label] / 60.0
+                name = display_name(algorithm)
                 if algorithm not in colours:
                     colours[algorithm] = palette[len(colours) % len(palette)]
                 style = {"color": colours[algorithm], "linestyle": _RUN_STYLES[run % len(_RUN_STYLES)]}
@@ -90,7 +100,7 @@ def learning_curves_figure(summaries: dict[str, dict[str, Any]], optimal_return:
                 drawn.append(mean)
                 ends.append(mean[-FINAL_WINDOW:])
                 if row.get("greedy_eval_trials"):
-                    eval_minutes = np.asarray(row["greedy_eval_trials"]) * trial_seconds / 60.0
+                    eval_minutes = np.asarray(row["greedy_eval_trials"]) * seconds[label] / 60.0
                     ax.plot(eval_minutes, row["greedy_return_per_eval"], marker=".", linewidth=0.8,
                             alpha=0.8, label=f"{name}, greedy trial", **style)
                     drawn.append(np.asarray(row["greedy_return_per_eval"], dtype=float))
@@ -98,14 +108,16 @@ def learning_curves_figure(summaries: dict[str, dict[str, Any]], optimal_return:
         if optimal_return is not None:
             ax.axhline(optimal_return, color="black", linewidth=1.0, linestyle="-.",
                        label=f"near-optimal ({optimal_return:.0f})")
-        ax.set_xlabel("time [min] (simulated)")
+        lengths = sorted(set(seconds.values()))
+        ax.set_xlabel("time [min] (simulated" + (f"; one trial = {lengths[0]:g} s)" if len(lengths) == 1
+                                                 else ")"))
         ax.set_ylabel("sum of rewards per trial")
         ax.grid(alpha=0.3)
         ax.set_xlim(left=0)
-        seconds = float(next(iter(summaries.values())).get("trial_seconds", TRIAL_SECONDS))
-        trials_axis = ax.secondary_xaxis("top", functions=(lambda m, s=seconds: m * 60.0 / s,
-                                                           lambda t, s=seconds: t * s / 60.0))
-        trials_axis.set_xlabel(f"trial ({seconds:g} s each)")
+        if len(lengths) == 1:  # trials on the top axis (with several trial lengths it would be ambiguous)
+            trials_axis = ax.secondary_xaxis("top", functions=(lambda m, s=lengths[0]: m * 60.0 / s,
+                                                               lambda t, s=lengths[0]: t * s / 60.0))
+            trials_axis.set_xlabel("trial")
     # The axes follow the curves, not the bands: with few experiments a 95% band spans thousands.
     values = np.concatenate([d[np.isfinite(d)] for d in drawn] +
                             [np.array([optimal_return] if optimal_return is not None else [])])
@@ -144,9 +156,10 @@ def plot_learning_curves(summaries: dict[str, dict[str, Any]], stem: str | os.Pa
     ``FEW_EXPERIMENTS`` experiments make the bands meaningless.
 
     Args:
-      summaries: label -> summary document (``summary.json``) holding one entry per algorithm.
-        With one summary the legend names only the learners; with several, "label: learner", each
-        learner keeping its colour and each run its line style.
+      summaries: label -> summary document (``summary.json``) holding one entry per algorithm and
+        ``trial_seconds``, the task's trial length, which sets the time axis. With one summary the
+        legend names only the learners; with several, "label: learner", each learner keeping its
+        colour and each run its line style.
       stem: output path without suffix; a .png and a .pdf are written.
       optimal_return: drawn as a horizontal line (the near-optimal reference).
       detail_ylim: y range of the detail panel; default the range of the (smoothed) mean curves over
@@ -176,112 +189,179 @@ def policy_actions(agent, states: np.ndarray) -> np.ndarray:
     return np.array(actions)
 
 
-def policy_grid(agent, n_angle: int = 101, n_velocity: int = 101, max_speed: float = 30.0):
-    """Policy and critic of ``agent`` on a (phi, phi_dot) grid (see :func:`policy_actions`).
+def policy_slice(agent, low: Sequence[float], high: Sequence[float], anchor: Sequence[float],
+                 dims: tuple[int, int] = (0, 1), resolution: tuple[int, int] = (101, 101)):
+    """Policy and critic of ``agent`` on a grid over two state dimensions (see :func:`policy_actions`).
 
+    The grid spans ``[low[i], high[i]]`` along ``i, j = dims``; every other dimension is held at its
+    value in ``anchor`` (e.g. the start state), so for n > 2 the maps are a slice through it.
+
+    Args:
+      low, high, anchor: sequences of length n (the state's dimension).
+      dims: the two state dimensions on the horizontal and the vertical axis.
+      resolution: grid points along dims[0] and dims[1].
     Returns:
-      (angles (n_angle,), velocities (n_velocity,), actions (n_velocity, n_angle),
-      values (n_velocity, n_angle)).
+      (xs (r0,), ys (r1,), actions (r1, r0, m), values (r1, r0)).
     """
-    angles = np.linspace(-np.pi, np.pi, n_angle)
-    velocities = np.linspace(-max_speed, max_speed, n_velocity)
-    grid_v, grid_a = np.meshgrid(velocities, angles, indexing="ij")
-    states = np.column_stack([grid_a.ravel(), grid_v.ravel()])
-    actions = policy_actions(agent, states)[:, 0]
+    anchor = np.asarray(anchor, dtype=float).reshape(-1)
+    n = anchor.shape[0]
+    low, high = np.asarray(low, dtype=float), np.asarray(high, dtype=float)
+    if low.shape != (n,) or high.shape != (n,):
+        raise ValueError(f"low and high must have the anchor's {n} entries, got {low.shape} and "
+                         f"{high.shape}")
+    i, j = _check_dims(dims, n)
+    xs = np.linspace(low[i], high[i], resolution[0])
+    ys = np.linspace(low[j], high[j], resolution[1])
+    grid_y, grid_x = np.meshgrid(ys, xs, indexing="ij")
+    states = np.repeat(anchor[None, :], grid_x.size, axis=0)
+    states[:, i], states[:, j] = grid_x.ravel(), grid_y.ravel()
+    actions = policy_actions(agent, states)
     values = np.array([agent.value(x) for x in states])
-    shape = (n_velocity, n_angle)
-    return angles, velocities, actions.reshape(shape), values.reshape(shape)
+    shape = (len(ys), len(xs))
+    return xs, ys, actions.reshape(*shape, -1), values.reshape(shape)
 
 
-def greedy_trajectory(agent, meta: dict[str, Any]) -> tuple[np.ndarray, float]:
-    """A greedy trial (no exploration, no learning) of ``agent`` on the task of its snapshot ``meta``
-    from the task's start state: the states, ndarray of shape (T, n), and the trial's return."""
-    from rmac_mj import tasks
-    from rmac_mj.experiments.episode import state_of
+def _check_dims(dims, n: int) -> tuple[int, int]:
+    try:
+        i, j = (int(d) for d in dims)
+    except (TypeError, ValueError):
+        raise ValueError(f"dims must be two state dimensions, got {dims!r}") from None
+    if not (0 <= i < n and 0 <= j < n and i != j):
+        raise ValueError(f"dims must be two different state dimensions in [0, {n}), got {dims!r}")
+    return i, j
 
-    env = tasks.load(meta["domain"], meta["task"], task_kwargs=meta.get("task_kwargs") or None)
+
+def greedy_trajectory(env, agent) -> tuple[np.ndarray, float]:
+    """A greedy trial (no exploration, no learning) of ``agent`` on ``env`` from the task's start
+    state: the learner's states, ndarray of shape (T, n), and the trial's return."""
+    from rmac_mj.experiments.episode import learner_state_of, state_of
+
+    keys = learner_state_of(env).keys
     timestep = env.reset()
     agent.begin_greedy_trial()
-    states, total = [state_of(timestep.observation)], 0.0
+    states, total = [state_of(timestep.observation, keys)], 0.0
     while not timestep.last():
         timestep = env.step(agent.greedy_action(states[-1]))
         total += float(timestep.reward)
-        states.append(state_of(timestep.observation))
+        states.append(state_of(timestep.observation, keys))
     return np.array(states), total
 
 
-def _draw_trajectory(ax, states: np.ndarray, label: str | None) -> None:
-    """The (phi, phi_dot) path, broken where phi wraps from pi to -pi."""
-    phi, phi_dot = states[:, 0], states[:, 1]
-    breaks = np.nonzero(np.abs(np.diff(phi)) > np.pi)[0] + 1
-    for part, (p, v) in enumerate(zip(np.split(phi, breaks), np.split(phi_dot, breaks))):
-        ax.plot(p, v, color="white", linewidth=2.6, alpha=0.8)
-        ax.plot(p, v, color="black", linewidth=1.1, label=label if part == 0 else None)
-    ax.plot(phi[0], phi_dot[0], "o", color="black", markerfacecolor="white", markersize=6)
-    ax.plot(phi[-1], phi_dot[-1], "X", color="black", markerfacecolor="white", markersize=7)
+def _draw_trajectory(ax, states: np.ndarray, dims: tuple[int, int], learner_state,
+                     label: str | None) -> None:
+    """The path of ``states`` over the dims (i, j), broken where a periodic dimension wraps."""
+    i, j = dims
+    x, y = states[:, i], states[:, j]
+    jumps = np.zeros(len(states) - 1, dtype=bool)
+    for d in dims:
+        if learner_state.periodic[d]:
+            period = learner_state.high[d] - learner_state.low[d]
+            jumps |= np.abs(np.diff(states[:, d])) > period / 2
+    breaks = np.nonzero(jumps)[0] + 1
+    for part, (px, py) in enumerate(zip(np.split(x, breaks), np.split(y, breaks))):
+        ax.plot(px, py, color="white", linewidth=2.6, alpha=0.8)
+        ax.plot(px, py, color="black", linewidth=1.1, label=label if part == 0 else None)
+    ax.plot(x[0], y[0], "o", color="black", markerfacecolor="white", markersize=6)
+    ax.plot(x[-1], y[-1], "X", color="black", markerfacecolor="white", markersize=7)
 
 
-def plot_policies(snapshots: list[tuple[Any, dict[str, Any]]], stem: str | os.PathLike,
-                  max_speed: float = 30.0, resolution: int = 101,
-                  trajectory: bool = True) -> list[pathlib.Path]:
-    """Figs. 3 and 4 for one or more agents: the policy and the critic's value function as heat maps,
-    one row per agent, each column on one colour scale shared by all rows, so that learners compare.
-
-    For S-AC the policy is the actor pi(x); for RMAC it is the composition u = f^-1(x, R(x)) of the
-    inverse process model and the reference model, both evaluated greedily (no exploration). With
-    ``trajectory``, each map also shows the agent's greedy trial from the start state (circle) to its
-    end (cross).
-
-    Args:
-      snapshots: (agent, meta) pairs, as :func:`rmac_mj.experiments.snapshots.load_snapshot` returns.
-      stem: output path without suffix; a .png and a .pdf are written.
-    """
-    return _save(policies_figure(snapshots, max_speed, resolution, trajectory), stem)
-
-
-def policies_figure(snapshots: list[tuple[Any, dict[str, Any]]], max_speed: float = 30.0,
-                    resolution: int = 101, trajectory: bool = True):
+def policies_figure(snapshots: Sequence[tuple[Any, dict[str, Any]]], learner_state,
+                    anchor: Sequence[float], dims: tuple[int, int] = (0, 1),
+                    limits: dict[int, tuple[float, float]] | None = None, resolution: int = 101,
+                    envs: Sequence[Any] | None = None):
     """The figure of :func:`plot_policies` (see it), not yet saved."""
-    grids = [policy_grid(agent, resolution, resolution, max_speed) for agent, _ in snapshots]
-    values = np.concatenate([grid[3].ravel() for grid in grids])
-    value_range = (float(values.min()), float(values.max()))
+    n = len(learner_state.low)
+    i, j = _check_dims(dims, n)
+    low, high = np.array(learner_state.low), np.array(learner_state.high)
+    for d, (lo, hi) in (limits or {}).items():
+        if not (0 <= d < n and np.isfinite(lo) and np.isfinite(hi) and lo < hi):
+            raise ValueError(f"limits[{d}] must be a finite (low, high) with low < high for a state "
+                             f"dimension in [0, {n}), got {(lo, hi)!r}")
+        low[d], high[d] = lo, hi
+    if envs is not None and len(envs) != len(snapshots):
+        raise ValueError(f"envs must give one environment per snapshot ({len(snapshots)}), got {len(envs)}")
+    grids = [policy_slice(agent, low, high, anchor, (i, j), (resolution, resolution))
+             for agent, _ in snapshots]
+    every_value = np.concatenate([grid[3].ravel() for grid in grids])
+    value_range = (float(every_value.min()), float(every_value.max()))
+    m = grids[0][2].shape[-1]
+    action_labels = list(learner_state.action_labels) if len(learner_state.action_labels) == m else [
+        f"u{k + 1}" for k in range(m)]
     rows = len(snapshots)
-    fig, axes = plt.subplots(rows, 2, figsize=(11.5, 4.2 * rows), constrained_layout=True,
+    fig, axes = plt.subplots(rows, m + 1, figsize=(5.5 * (m + 1), 4.2 * rows), constrained_layout=True,
                              squeeze=False)
-    for (agent, meta), (angles, velocities, actions, critic), (ax_policy, ax_value) in zip(
-            snapshots, grids, axes):
+    images = [None] * (m + 1)
+    for row, ((agent, meta), (xs, ys, actions, values)) in enumerate(zip(snapshots, grids)):
         algorithm = meta.get("algorithm", "")
-        name = _LABELS.get(algorithm, algorithm)
-        bounds = meta.get("action_space", {"low": [-3.0], "high": [3.0]})
-        extent = (angles[0], angles[-1], velocities[0], velocities[-1])
-        policy_image = ax_policy.imshow(actions, origin="lower", extent=extent, aspect="auto",
-                                        cmap="RdBu_r", vmin=bounds["low"][0], vmax=bounds["high"][0])
-        value_image = ax_value.imshow(critic, origin="lower", extent=extent, aspect="auto",
-                                      cmap="viridis", vmin=value_range[0], vmax=value_range[1])
+        name = display_name(algorithm)
         policy_name = r"policy $u = f^{-1}(x, R(x))$" if algorithm == "rmac" else r"actor $\pi(x)$"
         after = f", after {meta['trial']} trials" if meta.get("trial") is not None else ""
-        ax_policy.set_title(f"{name} {policy_name}{after}")
-        ax_value.set_title(f"{name} critic $V(x)${after}")
-        if trajectory:
-            states, total = greedy_trajectory(agent, meta)
-            for ax in (ax_policy, ax_value):
-                _draw_trajectory(ax, states, f"greedy trial from $x_0$ (return {total:.0f})")
+        a_low, a_high = agent.action_space.low, agent.action_space.high
+        extent = (xs[0], xs[-1], ys[0], ys[-1])
+        for k in range(m):
+            images[k] = axes[row, k].imshow(actions[..., k], origin="lower", extent=extent,
+                                            aspect="auto", cmap="RdBu_r", vmin=a_low[k], vmax=a_high[k])
+            axes[row, k].set_title(f"{name} {policy_name}" + (f", {action_labels[k]}" if m > 1 else "")
+                                   + after)
+        images[m] = axes[row, m].imshow(values, origin="lower", extent=extent, aspect="auto",
+                                        cmap="viridis", vmin=value_range[0], vmax=value_range[1])
+        axes[row, m].set_title(f"{name} critic $V(x)${after}")
+        if envs is not None:
+            states, total = greedy_trajectory(envs[row], agent)
+            for ax in axes[row]:
+                _draw_trajectory(ax, states, (i, j), learner_state,
+                                 f"greedy trial from $x_0$ (return {total:.0f})")
                 ax.set_xlim(extent[0], extent[1])
                 ax.set_ylim(extent[2], extent[3])
-            ax_policy.legend(loc="lower left", fontsize="small")
-        for ax in (ax_policy, ax_value):
-            ax.set_xlabel(r"angle $\varphi$ [rad] (0 = upright)")
-            ax.set_ylabel(r"angular velocity $\dot\varphi$ [rad/s]")
-    fig.colorbar(policy_image, ax=axes[:, 0], label="$u$ [V]")
-    fig.colorbar(value_image, ax=axes[:, 1],
-                 label="$V(x)$" + (" (one scale for all rows)" if rows > 1 else ""))
+            axes[row, 0].legend(loc="lower left", fontsize="small")
+        for ax in axes[row]:
+            ax.set_xlabel(learner_state.labels[i])
+            ax.set_ylabel(learner_state.labels[j])
+    for k in range(m):
+        fig.colorbar(images[k], ax=axes[:, k], label=action_labels[k])
+    fig.colorbar(images[m], ax=axes[:, m], label="$V(x)$" + (" (one scale for all rows)" if rows > 1 else ""))
+    title = []
     experiments = {meta.get("experiment") for _, meta in snapshots}
     if len(experiments) == 1 and None not in experiments:
-        fig.suptitle(f"experiment {experiments.pop()}")
+        title.append(f"experiment {experiments.pop()}")
+    others = [d for d in range(n) if d not in (i, j)]
+    if others:
+        title.append("slice at " + ", ".join(f"{learner_state.labels[d]} = {anchor[d]:.3g}"
+                                              for d in others))
+    if title:
+        fig.suptitle("; ".join(title))
     return fig
 
 
-def plot_policy(agent, meta: dict[str, Any], stem: str | os.PathLike, max_speed: float = 30.0,
-                resolution: int = 101) -> list[pathlib.Path]:
-    """Figs. 3 and 4 for one agent (see :func:`plot_policies`)."""
-    return plot_policies([(agent, meta)], stem, max_speed=max_speed, resolution=resolution)
+def plot_policies(snapshots: Sequence[tuple[Any, dict[str, Any]]], stem: str | os.PathLike,
+                  learner_state, anchor: Sequence[float], dims: tuple[int, int] = (0, 1),
+                  limits: dict[int, tuple[float, float]] | None = None, resolution: int = 101,
+                  envs: Sequence[Any] | None = None) -> list[pathlib.Path]:
+    """Figs. 3 and 4 for one or more agents: the policy (one map per action dimension) and the critic
+    as heat maps, one row per agent, each column on one colour scale shared by all rows, so that
+    learners compare side by side.
+
+    For S-AC the policy is the actor pi(x); for RMAC it is the composition u = f^-1(x, R(x)) of the
+    inverse process model and the reference model, both evaluated greedily (no exploration).
+
+    Args:
+      snapshots: (agent, meta) pairs, as ``load_snapshot`` returns (meta: algorithm, trial, experiment).
+      stem: output path without suffix; a .png and a .pdf are written.
+      learner_state: the task's ``LearnerState``: the axes' ranges (its box) and labels, the actions'
+        labels.
+      anchor: a state of shape (n,) through which the maps slice when n > 2 (e.g. the start state).
+      dims: the state dimensions on the horizontal and vertical axes.
+      limits: per state dimension, a (low, high) range overriding the task's box.
+      envs: per snapshot, the environment of its greedy trial from the start state, drawn over its
+        maps (start: circle, end: cross); None draws none.
+    """
+    return _save(policies_figure(snapshots, learner_state, anchor, dims, limits, resolution, envs), stem)
+
+
+def plot_policy(agent, meta: dict[str, Any], stem: str | os.PathLike, learner_state,
+                anchor: Sequence[float], dims: tuple[int, int] = (0, 1),
+                limits: dict[int, tuple[float, float]] | None = None,
+                resolution: int = 101, env=None) -> list[pathlib.Path]:
+    """Figs. 3 and 4 for one agent (see :func:`plot_policies`); ``env``: draw its greedy trial."""
+    return plot_policies([(agent, meta)], stem, learner_state, anchor, dims, limits, resolution,
+                         envs=None if env is None else [env])
