@@ -1,13 +1,15 @@
-"""The ``rmac-mj`` command: reproduce the paper's comparison, draw its figures, render, benchmark.
+"""The rmac-mj command: reproduce the paper's comparison, draw its figures, render videos, benchmark.
 
     rmac-mj reproduce [--domain dc_pendulum --task swingup] [--experiments 40] [--trials 600]
                       [--algorithms rmac,s-ac] [--seed 0] [--jobs N] [--out DIR] [--resume]
                       [--evaluate-every N] [--scheduler ADDRESS]
     rmac-mj compare DIR [DIR ...] [--out STEM]
-    rmac-mj policy SNAPSHOT [--out STEM] [--dims 0,1] [--xlim LO,HI] [--ylim LO,HI]
+    rmac-mj policy SNAPSHOT [SNAPSHOT] [--out STEM] [--dims 0,1] [--xlim LO,HI] [--ylim LO,HI]
     rmac-mj optimal [--refresh]
     rmac-mj render SNAPSHOT --out episode.mp4 | rmac-mj render --progression DIR --out progression.mp4
     rmac-mj bench [--domain dc_pendulum --task swingup] [--json FILE] [--quick] [--markdown]
+
+``rmac-mj`` alone prints the commands; ``rmac-mj COMMAND --help`` their options and defaults.
 """
 
 from __future__ import annotations
@@ -19,9 +21,15 @@ import math
 import pathlib
 import signal
 import sys
+import time
 from typing import Sequence
 
+from rmac_mj import __version__
 from rmac_mj.errors import UserInputError
+
+#: When this process started (near enough: this module is imported first); wall times count from here.
+_STARTED = time.perf_counter()
+_PROG = "rmac-mj"
 
 
 class _Parser(argparse.ArgumentParser):
@@ -31,8 +39,28 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
+class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Options' help with "(default: X)", except where there is nothing to say (None, False, [])
+    or the help already says it."""
+
+    def _get_help_string(self, action):
+        if (action.default is None or action.default is False or action.default == []
+                or "default" in (action.help or "")):
+            return action.help
+        return super()._get_help_string(action)
+
+
 class UsageError(UserInputError):
     """A bad argument found after parsing: reported as one line, exit status 2."""
+
+
+class _Interrupted(KeyboardInterrupt):
+    """Ctrl-C or SIGTERM, with what the user needs to know (what was saved, how to resume)."""
+
+
+def _say(message: str) -> None:
+    """A status line on stderr, for anything slow that shows no progress of its own."""
+    print(f"{_PROG}: {message}", file=sys.stderr, flush=True)
 
 
 @contextlib.contextmanager
@@ -108,44 +136,66 @@ def _add_task_options(parser: argparse.ArgumentParser, default: bool, what: str)
 def _parser() -> argparse.ArgumentParser:
     from rmac_mj.agents import ALGORITHMS
 
-    parser = _Parser(prog="rmac-mj", description=__doc__.split("\n\n")[0])
-    commands = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    parser = _Parser(prog=_PROG, description=__doc__.split("\n\n")[0],
+                     epilog="Run 'rmac-mj COMMAND --help' for a command's options.",
+                     formatter_class=_HelpFormatter)
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    commands = parser.add_subparsers(dest="command", metavar="COMMAND", title="commands",
+                                     parser_class=_Parser)
 
-    reproduce = commands.add_parser("reproduce", help="run the paper's comparison (section 6)")
+    def command(name: str, help: str) -> argparse.ArgumentParser:
+        return commands.add_parser(name, help=help, description=help, formatter_class=_HelpFormatter)
+
+    reproduce = command("reproduce", "run the paper's comparison (section 6): learning curves, summary, "
+                                     "Fig. 2, snapshots")
     _add_task_options(reproduce, True, "default: the paper's dc_pendulum/swingup")
     reproduce.add_argument("--experiments", type=_positive_int, default=40,
-                           help="learning experiments per learner (paper: 40)")
+                           metavar="N", help="learning experiments per learner (default: 40, the "
+                                             "paper's)")
     reproduce.add_argument("--trials", type=_positive_int, default=600,
-                           help="consecutive trials per experiment (paper: 600 of 3 s)")
-    reproduce.add_argument("--algorithms", default=",".join(ALGORITHMS),
-                           help=f"comma-separated learners, from {', '.join(ALGORITHMS)}")
+                           metavar="N", help="consecutive trials per experiment (default: 600, the "
+                                             "paper's, of 3 s)")
+    reproduce.add_argument("--algorithms", default=None, metavar="ALGO[,ALGO]",
+                           help=f"comma-separated learners, from {', '.join(ALGORITHMS)} (default: all; "
+                                "with --set, only the learners --set names)")
     reproduce.add_argument("--seed", type=_non_negative_int, default=0, help="root random seed")
-    reproduce.add_argument("--jobs", type=_positive_int, default=None,
+    reproduce.add_argument("--jobs", type=_positive_int, default=None, metavar="N",
                            help="worker processes (default: all cores)")
     reproduce.add_argument("--out", type=pathlib.Path, default=pathlib.Path("results/reproduce"),
                            help="result directory")
     reproduce.add_argument("--resume", action="store_true",
-                           help="finish an interrupted run in --out")
-    reproduce.add_argument("--evaluate-every", type=_non_negative_int, default=0,
+                           help="finish an interrupted run in --out (same settings)")
+    reproduce.add_argument("--evaluate-every", type=_non_negative_int, default=0, metavar="N",
                            help="a greedy trial after every N learning trials (0: none)")
-    reproduce.add_argument("--scheduler", default=None,
+    reproduce.add_argument("--scheduler", default=None, metavar="ADDRESS",
                            help="Dask scheduler address (tcp://host:8786) to run experiments on")
     reproduce.add_argument("--set", action="append", default=[], metavar="ALGO.FIELD=VALUE",
                            help="override a hyperparameter, e.g. s-ac.rate_split=actor or "
-                                "rmac.exploration.sigma=0.5 (JSON values; repeatable)")
+                                "rmac.exploration.sigma=0.5 (JSON values; repeatable). Without "
+                                "--algorithms only the learners named here run: an ablation of "
+                                "rmac does not rerun s-ac")
+    reproduce.add_argument("--smooth", type=_positive_int, default=1, metavar="N",
+                           help="Fig. 2: running mean over N trials (1: none)")
     reproduce.add_argument("--no-optimal", action="store_true",
-                           help="skip the near-optimal reference (dynamic programming)")
-    reproduce.add_argument("--no-progress", action="store_true", help="no progress bars")
+                           help="skip the near-optimal reference (dynamic programming, about a "
+                                "minute the first time, then cached)")
+    reproduce.add_argument("--no-progress", action="store_true",
+                           help="no progress display (bars on a terminal, periodic lines otherwise)")
 
-    compare = commands.add_parser("compare", help="overlay the learning curves of result dirs")
-    compare.add_argument("dirs", nargs="+", type=pathlib.Path)
+    compare = command("compare", "overlay the learning curves of result directories and tabulate them")
+    compare.add_argument("dirs", nargs="+", type=pathlib.Path, metavar="DIR",
+                         help="result directories written by rmac-mj reproduce (with summary.json)")
     compare.add_argument("--out", type=pathlib.Path, default=pathlib.Path("compare"),
                          help="figure path without suffix (.png and .pdf are written)")
+    compare.add_argument("--smooth", type=_positive_int, default=1, metavar="N",
+                         help="running mean over N trials (1: none)")
 
-    policy = commands.add_parser("policy", help="draw a snapshot's policy and critic (Figs. 3, 4)")
-    policy.add_argument("snapshot", type=pathlib.Path)
+    policy = command("policy", "draw snapshots' policies and critics (Figs. 3, 4); two snapshots side "
+                               "by side on shared colour scales")
+    policy.add_argument("snapshots", nargs="+", type=pathlib.Path, metavar="SNAPSHOT",
+                        help="agent snapshot(s), e.g. RESULT_DIR/snapshots/rmac/exp_000/trial_0600.npz")
     policy.add_argument("--out", type=pathlib.Path, default=None,
-                        help="figure path without suffix (default: beside the snapshot)")
+                        help="figure path without suffix (default: beside the first snapshot)")
     policy.add_argument("--dims", type=_dims, default=(0, 1), metavar="I,J",
                         help="the state dimensions on the x and y axes (default 0,1); with more "
                              "than two, the maps slice through the start state (or --at)")
@@ -158,30 +208,34 @@ def _parser() -> argparse.ArgumentParser:
     policy.add_argument("--at", type=_floats(None, "comma-separated numbers"), default=None,
                         metavar="X1,...,XN", help="the state the maps slice through (default: the "
                                                   "task's start state)")
-    policy.add_argument("--resolution", type=_positive_int, default=101,
+    policy.add_argument("--resolution", type=_positive_int, default=101, metavar="N",
                         help="grid points along each axis (default 101)")
+    policy.add_argument("--no-trajectory", action="store_true",
+                        help="do not draw the greedy trial from the start state over the maps")
     _add_task_options(policy, False, "default: the snapshot's own")
 
-    optimal = commands.add_parser("optimal", help="near-optimal return by dynamic programming")
+    optimal = command("optimal", "near-optimal return by dynamic programming (cached)")
     optimal.add_argument("--refresh", action="store_true", help="recompute, ignoring the cache")
 
-    render = commands.add_parser("render", help="render greedy episodes off-screen to MP4 or GIF")
-    render.add_argument("snapshot", nargs="?", type=pathlib.Path, default=None)
+    render = command("render", "render greedy episodes off-screen to MP4 or GIF")
+    render.add_argument("snapshot", nargs="?", type=pathlib.Path, default=None,
+                        help="agent snapshot to render (or give --progression or --compare)")
     render.add_argument("--progression", type=pathlib.Path, default=None, metavar="RESULT_DIR",
                         help="one experiment after trials 1, 10, 50, 200 and the last, in sequence")
     render.add_argument("--compare", type=pathlib.Path, default=None, metavar="RESULT_DIR",
                         help="S-AC and RMAC side by side after the same trial")
-    render.add_argument("--experiment", type=_non_negative_int, default=0)
+    render.add_argument("--experiment", type=_non_negative_int, default=0, metavar="I",
+                        help="which experiment of RESULT_DIR (with --progression or --compare)")
     render.add_argument("--out", type=pathlib.Path, required=True, help=".mp4 or .gif")
-    render.add_argument("--width", type=_positive_int, default=320)
-    render.add_argument("--height", type=_positive_int, default=240)
+    render.add_argument("--width", type=_positive_int, default=320, help="frame width (px)")
+    render.add_argument("--height", type=_positive_int, default=240, help="frame height (px)")
     render.add_argument("--no-overlay", action="store_true", help="no text overlay")
-    render.add_argument("--frames-per-step", type=_positive_int, default=1,
+    render.add_argument("--frames-per-step", type=_positive_int, default=1, metavar="N",
                         help="frames per control step, from physics substeps (a divisor of their "
                              "number, e.g. 1 or 3 for dc_pendulum)")
     _add_task_options(render, False, "default: the one each snapshot learned on")
 
-    bench = commands.add_parser("bench", help="microseconds per step, against the raw physics step")
+    bench = command("bench", "microseconds per step, against the raw physics step")
     bench.add_argument("--json", type=pathlib.Path, default=None, help="also write the figures here")
     bench.add_argument("--quick", action="store_true", help="fewer repeats and a shorter experiment")
     _add_task_options(bench, True, "default: dc_pendulum/swingup")
@@ -195,7 +249,7 @@ def _optimal_for(protocol) -> float | None:
     if (protocol.domain, protocol.task, protocol.task_kwargs) != ("dc_pendulum", "swingup", {}):
         return None
     from rmac_mj.experiments import optimal
-    return float(optimal.optimal_return().simulated_return)
+    return float(optimal.optimal_return(announce=_say).simulated_return)
 
 
 def parse_overrides(assignments: Sequence[str]) -> dict[str, dict]:
@@ -217,43 +271,110 @@ def parse_overrides(assignments: Sequence[str]) -> dict[str, dict]:
     return overrides
 
 
+def _algorithms(args, overrides: dict[str, dict]) -> tuple[str, ...]:
+    """--algorithms if given; else the learners --set names (an ablation reruns only them); else all."""
+    from rmac_mj.agents import ALGORITHMS
+
+    if args.algorithms is not None:
+        return tuple(a.strip() for a in args.algorithms.split(",") if a.strip())
+    if overrides:
+        chosen = tuple(overrides)
+        others = [a for a in ALGORITHMS if a not in chosen]
+        if others:
+            _say(f"--set names only {', '.join(chosen)}: running {'it' if len(chosen) == 1 else 'them'} "
+                 f"alone (give --algorithms to run {', '.join(others)} too)")
+        return chosen
+    return ALGORITHMS
+
+
 def _reproduce(args) -> int:
     from rmac_mj.experiments import runner
 
+    overrides = parse_overrides(args.set)
     with _user_input():
         protocol = runner.Protocol(
             domain=args.domain, task=args.task,
-            algorithms=tuple(a.strip() for a in args.algorithms.split(",") if a),
-            experiments=args.experiments, trials=args.trials, seed=args.seed,
-            evaluate_every=args.evaluate_every, agent_configs=parse_overrides(args.set))
+            algorithms=_algorithms(args, overrides), experiments=args.experiments,
+            trials=args.trials, seed=args.seed, evaluate_every=args.evaluate_every,
+            agent_configs=overrides)
     out = _writable_dir(args.out)
     if args.jobs is not None and args.scheduler:
         raise UsageError("--jobs and --scheduler exclude each other")
-    summary = runner.run_protocol(protocol, out, jobs=args.jobs, resume=args.resume,
-                                  scheduler=args.scheduler, progress=not args.no_progress,
-                                  optimal=None if args.no_optimal else _optimal_for)
+    try:
+        summary = runner.run_protocol(protocol, out, jobs=args.jobs, resume=args.resume,
+                                      scheduler=args.scheduler, progress=not args.no_progress,
+                                      optimal=None if args.no_optimal else _optimal_for,
+                                      smooth=args.smooth, log=_say, started=_STARTED)
+    except KeyboardInterrupt:
+        saved = runner.finished_experiments(out, protocol)
+        if saved:
+            raise _Interrupted(f"{saved} finished experiment{' is' if saved == 1 else 's are'} saved "
+                               f"in {out}, run again with --resume") from None
+        raise _Interrupted(f"no experiment had finished, nothing is saved; run again with --resume "
+                           f"to start over in {out}") from None
     print(runner.summary_table(summary, protocol.algorithms))
-    print(f"wall time {summary['wall_time_s']:.1f} s; results in {out}/ "
-          f"(summary.json, returns.csv, fig2_learning_curves.png)")
+    parts = summary["wall_time_parts_s"]
+    total = summary["wall_time_s"]
+    detail = (f" over {len(parts)} parts ({' + '.join(f'{p:.1f}' for p in parts)} s)"
+              if len(parts) > 1 else "")
+    print(f"wall time {total:.1f} s{detail}, all included (start-up, compiling, experiments, "
+          f"reference, figures); results in {out}/ (summary.json, returns.csv, fig2_learning_curves.png)")
     return 0
+
+
+def shortest_distinct_suffixes(paths: Sequence[pathlib.Path]) -> list[str]:
+    """Each path's shortest trailing run of components that no other (different) path ends with:
+    ``a/run`` and ``b/run`` stay ``a/run`` and ``b/run``; ``x/ten`` and ``y/oldest`` become ``ten``
+    and ``oldest``."""
+    parts = [pathlib.Path(p).resolve().parts for p in paths]
+    labels = []
+    for mine in parts:
+        others = [theirs for theirs in parts if theirs != mine]
+        for k in range(1, len(mine) + 1):
+            if all(theirs[-k:] != mine[-k:] for theirs in others):
+                break
+        labels.append(str(pathlib.PurePath(*mine[-k:])))
+    return labels
+
+
+def _settings_line(summary: dict) -> str:
+    """How a run was made: its size, seed and --set overrides."""
+    protocol = summary.get("protocol", {})
+
+    def flatten(node, prefix):
+        for key, value in node.items():
+            if isinstance(value, dict):
+                yield from flatten(value, f"{prefix}{key}.")
+            else:
+                yield f"{prefix}{key}={json.dumps(value)}"
+    overrides = list(flatten(protocol.get("agent_configs") or {}, ""))
+    text = (f"{protocol.get('experiments', '?')} experiments of {protocol.get('trials', '?')} trials, "
+            f"seed {protocol.get('seed', '?')}")
+    return text + ("; --set " + " ".join(overrides) if overrides else "; default hyperparameters")
 
 
 def _compare(args) -> int:
     from rmac_mj.experiments import plots, runner
 
-    summaries = {}
+    directories = []
     for directory in args.dirs:
+        if any(directory.resolve() == seen.resolve() for seen in directories):
+            _say(f"{directory} is given twice; it is shown once")
+            continue
+        directories.append(directory)
+    summaries = {}
+    for directory, label in zip(directories, shortest_distinct_suffixes(directories)):
         path = directory / "summary.json"
         if not path.is_file():
             raise UsageError(f"{directory} has no summary.json (not a finished `reproduce` run)")
         with _user_input(f"{path}: "):
-            summaries[directory.name or str(directory)] = json.loads(path.read_text())
-        if "trial_seconds" not in summaries[directory.name or str(directory)]:
+            summaries[label] = json.loads(path.read_text())
+        if "trial_seconds" not in summaries[label]:
             raise UsageError(f"{path} has no trial_seconds (the task's trial length)")
     optimal = next((s["optimal_return"] for s in summaries.values() if s.get("optimal_return")), None)
-    paths = plots.plot_learning_curves(summaries, args.out, optimal_return=optimal)
+    paths = plots.plot_learning_curves(summaries, args.out, optimal_return=optimal, smooth=args.smooth)
     for label, summary in summaries.items():
-        print(f"== {label}")
+        print(f"== {label}: {_settings_line(summary)}")
         print(runner.summary_table(summary))
     print("figure:", ", ".join(map(str, paths)))
     return 0
@@ -265,17 +386,25 @@ def _policy(args) -> int:
     from rmac_mj.experiments.render import snapshot_environment
     from rmac_mj.experiments.snapshots import load_snapshot
 
-    with _user_input(f"{args.snapshot}: "):
-        agent, meta = load_snapshot(args.snapshot)
-    env = snapshot_environment(agent, meta, args.domain, args.task)
-    learner_state = learner_state_of(env)
+    snapshots, envs = [], []
+    for path in args.snapshots:
+        with _user_input(f"{path}: "):
+            agent, meta = load_snapshot(path)
+        snapshots.append((agent, meta))
+        envs.append(snapshot_environment(agent, meta, args.domain, args.task))
+    learner_state = learner_state_of(envs[0])
+    for path, env in zip(args.snapshots[1:], envs[1:]):
+        if learner_state_of(env) != learner_state:
+            raise UsageError(f"{path} learned on another state ({learner_state_of(env).labels}) than "
+                             f"{args.snapshots[0]} ({learner_state.labels}); draw them one by one")
+    meta = snapshots[0][1]
     n = len(learner_state.low)
     if args.at is not None:
         if len(args.at) != n:
             raise UsageError(f"--at needs {n} numbers (the state's dimensions), got {len(args.at)}")
         anchor = args.at
     else:
-        anchor = state_of(env.reset().observation, learner_state)
+        anchor = state_of(envs[0].reset().observation, learner_state)
     if n < 2:
         raise UsageError(f"policy maps need at least two state dimensions; {meta['domain']} has {n}")
     i, j = args.dims
@@ -285,9 +414,10 @@ def _policy(args) -> int:
     for option, lim in (("--xlim", args.xlim), ("--ylim", args.ylim)):
         if lim is not None and not lim[0] < lim[1]:
             raise UsageError(f"{option} needs LO < HI, got {lim[0]:g},{lim[1]:g}")
-    stem = args.out or args.snapshot.with_name(args.snapshot.stem + "_policy")
-    paths = plots.plot_policy(agent, meta, stem, learner_state, anchor, dims=(i, j), limits=limits,
-                              resolution=args.resolution)
+    first = args.snapshots[0]
+    stem = args.out or first.with_name(first.stem + ("_policy" if len(snapshots) == 1 else "_policies"))
+    paths = plots.plot_policies(snapshots, stem, learner_state, anchor, dims=(i, j), limits=limits,
+                                resolution=args.resolution, envs=None if args.no_trajectory else envs)
     print("figure:", ", ".join(map(str, paths)))
     return 0
 
@@ -295,7 +425,7 @@ def _policy(args) -> int:
 def _optimal(args) -> int:
     from rmac_mj.experiments import optimal
 
-    result = optimal.optimal_return(refresh=args.refresh)
+    result = optimal.optimal_return(refresh=args.refresh, announce=_say)
     print(result.describe())
     return 0
 
@@ -341,19 +471,35 @@ _COMMANDS = {"reproduce": _reproduce, "compare": _compare, "policy": _policy, "o
              "render": _render, "bench": _bench}
 
 
+def _announcing_compilation(command: str):
+    """Say so when a command starts compiling kernels (the first time only: tens of seconds).
+    ``reproduce`` says it itself, as it compiles them before starting its workers."""
+    if command in ("reproduce", "compare", "optimal"):  # these compile nothing, or say it themselves
+        return contextlib.nullcontext()
+    from rmac_mj import _cache
+
+    return _cache.on_first_compile(lambda: _say(f"compiling kernels, first run only (cached in "
+                                                 f"{_cache.numba_cache_location()})"))
+
+
 def _interrupt(signum, frame):
     raise KeyboardInterrupt
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
-    prog = "rmac-mj"
+    parser = _parser()
+    args = parser.parse_args(argv)
+    prog = _PROG
+    if args.command is None:  # `rmac-mj` alone: what it can do
+        parser.print_help()
+        return 2
     signal.signal(signal.SIGTERM, _interrupt)  # a polite kill cleans up like Ctrl-C
     try:
-        return _COMMANDS[args.command](args)
-    except KeyboardInterrupt:
-        print(f"\n{prog}: interrupted; finished experiments are saved, run again with --resume",
-              file=sys.stderr)
+        with _announcing_compilation(args.command):
+            return _COMMANDS[args.command](args)
+    except KeyboardInterrupt as interrupt:
+        detail = f"; {interrupt}" if str(interrupt) else ""
+        print(f"\n{prog}: interrupted{detail}", file=sys.stderr)
         return 130
     except UserInputError as error:  # UsageError, runner.ResumeRefused, missing inputs
         print(f"{prog}: error: {error}", file=sys.stderr)

@@ -89,3 +89,99 @@ def test_bad_hyperparameter_value_is_one_line(tmp_path):
                      "--set", "rmac.gamma=1.5")
     assert result.returncode == 2 and "RMACConfig.gamma must be in [0, 1]" in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1
+
+
+def test_version_and_python_dash_m():
+    from rmac_mj import __version__
+
+    result = rmac_mj("--version")
+    assert result.returncode == 0 and result.stdout.strip() == f"rmac-mj {__version__}"
+    result = subprocess.run([sys.executable, "-m", "rmac_mj", "--help"], capture_output=True, text=True,
+                            timeout=120)
+    assert result.returncode == 0 and "usage: rmac-mj" in result.stdout
+    assert "``" not in result.stdout  # no raw reST markup
+
+
+def test_no_arguments_prints_the_usage_and_the_commands():
+    result = rmac_mj()
+    assert result.returncode == 2 and result.stdout.startswith("usage: rmac-mj")
+    for command in ("reproduce", "compare", "policy", "optimal", "render", "bench"):
+        assert f"\n    {command} " in result.stdout or f"\n    {command}\n" in result.stdout, command
+
+
+def test_every_option_has_help_and_the_help_shows_defaults():
+    import argparse
+
+    from rmac_mj.cli import _parser
+
+    parser = _parser()
+    subparsers = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    for name, command in subparsers.choices.items():
+        for action in command._actions:
+            assert action.help, f"{name} {action.option_strings or action.dest} has no help"
+        text = command.format_help()
+        assert "``" not in text
+    reproduce = subparsers.choices["reproduce"].format_help()
+    assert "(default: results/reproduce)" in " ".join(reproduce.split())
+    assert "(default: 0)" in reproduce  # --seed: a default of 0 is still shown
+
+
+def test_set_without_algorithms_runs_only_the_learners_it_names(capsys):
+    import argparse
+
+    from rmac_mj.cli import _algorithms
+
+    assert _algorithms(argparse.Namespace(algorithms=None), {"rmac": {"gamma": 0.9}}) == ("rmac",)
+    assert "running it alone" in capsys.readouterr().err
+    assert _algorithms(argparse.Namespace(algorithms="rmac,s-ac"), {"rmac": {}}) == ("rmac", "s-ac")
+    assert _algorithms(argparse.Namespace(algorithms=None), {}) == ("rmac", "s-ac")
+
+
+def _fake_run(directory, seed, agent_configs=None):
+    import json
+
+    import numpy as np
+
+    from rmac_mj.experiments import results
+
+    rng = np.random.default_rng(seed)
+    directory.mkdir(parents=True)
+    summary = {"trial_seconds": 3.0, "optimal_return": None,
+               "protocol": {"experiments": 3, "trials": 60, "seed": seed,
+                            "agent_configs": agent_configs or {}},
+               "rmac": results.summarise(-1000 + rng.normal(0, 50, (3, 60)), trial_seconds=3.0)}
+    (directory / "summary.json").write_text(json.dumps(summary))
+
+
+def test_compare_shows_same_named_directories_apart(tmp_path):
+    _fake_run(tmp_path / "a" / "run", 0)
+    _fake_run(tmp_path / "b" / "run", 1, {"rmac": {"exploration": {"sigma": 0.5}}})
+    result = rmac_mj("compare", "a/run", "b/run", "--out", "cmp", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert "== a/run: 3 experiments of 60 trials, seed 0; default hyperparameters" in result.stdout
+    assert "== b/run: 3 experiments of 60 trials, seed 1; --set rmac.exploration.sigma=0.5" in result.stdout
+    assert (tmp_path / "cmp.png").is_file()
+
+
+def test_shortest_distinct_suffixes():
+    import pathlib
+
+    from rmac_mj.cli import shortest_distinct_suffixes
+
+    assert shortest_distinct_suffixes([pathlib.Path("/r/a/run"), pathlib.Path("/r/b/run")]) == ["a/run", "b/run"]
+    assert shortest_distinct_suffixes([pathlib.Path("/r/ten"), pathlib.Path("/s/oldest")]) == ["ten", "oldest"]
+    assert shortest_distinct_suffixes([pathlib.Path("/x/run"), pathlib.Path("/y/x/run")]) == ["/x/run", "y/x/run"]
+
+
+def test_an_interrupt_before_any_result_says_nothing_is_saved(tmp_path):
+    script = (
+        "import sys\n"
+        "from rmac_mj.experiments import runner\n"
+        "def interrupted(*args, **kwargs):\n"
+        "    raise KeyboardInterrupt\n"
+        "runner.run_protocol = interrupted\n"
+        "from rmac_mj.cli import main\n"
+        f"sys.exit(main(['reproduce', '--out', {str(tmp_path / 'x')!r}, '--no-progress']))\n")
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 130
+    assert "nothing is saved" in result.stderr and "are saved" not in result.stderr

@@ -1,9 +1,11 @@
-"""Fig. 2 from summaries: the time axis is each summary's own trial length; old summaries still plot."""
+"""Figures: Fig. 2's time axis is each summary's own trial length (old summaries still plot); Fig. 2 is
+readable for small runs (axes follow the curves, legends, smoothing, notes); policy maps on shared
+scales with the greedy trajectory."""
 
 import numpy as np
 import pytest
 
-from rmac_mj.experiments import plots, runner
+from rmac_mj.experiments import plots, results, runner
 
 
 def old_summary(trial_seconds: float, trials: int = 4) -> dict:
@@ -53,3 +55,118 @@ def test_a_summary_without_trial_length_is_refused_by_name(drawn):
     del summary["trial_seconds"]
     with pytest.raises(ValueError, match="trial_seconds"):
         plots.plot_learning_curves({"x": summary}, "unused")
+
+
+def _summary(n_experiments, seed=0, level=-1000.0, **protocol):
+    rng = np.random.default_rng(seed)
+    trials = np.arange(1, 101)
+    curves = level - 3000.0 * np.exp(-trials / 20.0) + rng.normal(0, 40, (n_experiments, 100))
+    curves[0] -= 20000.0 * (n_experiments < 5)  # one bad experiment: a huge interval when n is small
+    return {"trial_seconds": 3.0, "protocol": protocol,
+            "rmac": results.summarise(curves, trial_seconds=3.0),
+            "s-ac": results.summarise(curves - 50.0, trial_seconds=3.0)}
+
+
+def test_axes_follow_the_curves_not_the_bands():
+    summary = _summary(2)
+    fig = plots.learning_curves_figure({"run": summary})
+    means = np.concatenate([summary[a]["mean_return_per_trial"] for a in ("rmac", "s-ac")])
+    low, high = fig.axes[0].get_ylim()
+    span = means.max() - means.min()
+    assert means.min() - 0.1 * span <= low < means.min() and means.max() < high <= means.max() + 0.1 * span
+    assert high < 0  # the band reaches far above 0; every reward is negative
+    assert summary["rmac"]["ci95_high_per_trial"][50] > 0
+
+
+def test_every_panel_has_a_legend_and_a_trial_axis():
+    fig = plots.learning_curves_figure({"run": _summary(6)}, optimal_return=-748.0)
+    panels = [ax for ax in fig.axes if ax.get_label() != "<colorbar>" and ax.get_legend() is not None]
+    assert len(panels) == 2
+    secondary = [child for ax in panels for child in ax.child_axes]
+    assert len(secondary) == 2 and all(s.get_xlabel().startswith("trial") for s in secondary)
+    # minute 1 is trial 20 (3 s trials)
+    assert secondary[0]._functions[0](np.array([1.0]))[0] == pytest.approx(20.0)
+
+
+def test_smoothing_is_a_running_mean_stated_in_the_legend():
+    np.testing.assert_allclose(plots.running_mean([1, 2, 3, 4, 5], 3), [1.5, 2, 3, 4, 4.5])
+    np.testing.assert_allclose(plots.running_mean([1, 2, 3], 1), [1, 2, 3])
+    fig = plots.learning_curves_figure({"run": _summary(6)}, smooth=5)
+    for ax in fig.axes[:2]:
+        assert ax.get_legend().get_title().get_text() == "running mean over 5 trials"
+    line = fig.axes[0].get_lines()[0]
+    np.testing.assert_allclose(line.get_ydata(),
+                               plots.running_mean(_summary(6)["rmac"]["mean_return_per_trial"], 5))
+    with pytest.raises(ValueError, match="smooth"):
+        plots.learning_curves_figure({"run": _summary(6)}, smooth=0)
+
+
+def test_few_experiments_are_flagged_in_the_figure():
+    def notes(n):
+        fig = plots.learning_curves_figure({"run": _summary(n)})
+        return [t.get_text() for t in fig.texts]
+    assert any("4 experiments per learner" in text for text in notes(4))
+    assert notes(5) == []
+
+
+def test_compare_keeps_a_colour_per_learner_and_a_line_style_per_run():
+    fig = plots.learning_curves_figure({"a/run": _summary(6), "b/run": _summary(6, seed=1)})
+    lines = {line.get_label(): line for line in fig.axes[0].get_lines()}
+    a, b = lines["a/run: RMAC (mean of 6)"], lines["b/run: RMAC (mean of 6)"]
+    assert a.get_color() == b.get_color() and a.get_linestyle() != b.get_linestyle()
+    assert lines["a/run: S-AC (mean of 6)"].get_color() != a.get_color()
+    assert lines["a/run: S-AC (mean of 6)"].get_linestyle() == a.get_linestyle()
+
+
+class _MapAgent:
+    """A stand-in with a given value function: V(x) = scale * cos(phi), u = clip(phi)."""
+
+    def __init__(self, scale):
+        from rmac_mj.agents.base import ActionSpace
+
+        self.scale = scale
+        self.action_space = ActionSpace(low=[-3.0], high=[3.0])
+
+    def policy(self, states):
+        return np.clip(states[:, :1], -3, 3)
+
+    def value(self, x):
+        return self.scale * np.cos(x[0])
+
+
+def _pendulum():
+    from rmac_mj import tasks
+    from rmac_mj.experiments.episode import learner_state_of
+
+    env = tasks.load("dc_pendulum", "swingup", task_kwargs={"time_limit": 0.3})
+    return env, learner_state_of(env)
+
+
+def test_side_by_side_policies_share_their_colour_scales():
+    _, learner_state = _pendulum()
+    fig = plots.policies_figure([(_MapAgent(10.0), {"algorithm": "rmac"}),
+                                 (_MapAgent(1000.0), {"algorithm": "s-ac"})],
+                                learner_state, anchor=[np.pi, 0.0], resolution=9)
+    images = [ax.images[0] for ax in fig.axes if ax.images]
+    assert len(images) == 4
+    policy_limits = {image.get_clim() for image in images if image.get_cmap().name == "RdBu_r"}
+    value_limits = {image.get_clim() for image in images if image.get_cmap().name == "viridis"}
+    assert policy_limits == {(-3.0, 3.0)} and value_limits == {(-1000.0, 1000.0)}
+    titles = [ax.get_title() for ax in fig.axes]
+    assert any("$V(x)$" in title for title in titles) and any(r"$\pi(x)$" in title for title in titles)
+
+
+def test_the_greedy_trajectory_is_drawn_from_the_start_state():
+    from test_render import EnergyPumpAgent  # (tests/ is on sys.path, as pytest imports it)
+
+    env, learner_state = _pendulum()
+    states, total = plots.greedy_trajectory(env, EnergyPumpAgent())
+    assert states.shape == (11, 2) and total < 0
+    np.testing.assert_allclose(states[0], [-np.pi, 0.0])
+    agent = _MapAgent(1.0)
+    agent.begin_greedy_trial = lambda: None
+    agent.greedy_action = lambda x: np.array([3.0])
+    fig = plots.policies_figure([(agent, {"algorithm": "rmac"})], learner_state, anchor=[np.pi, 0.0],
+                                resolution=5, envs=[env])
+    lines = [line for line in fig.axes[0].get_lines() if "greedy trial from $x_0$" in str(line.get_label())]
+    assert len(lines) == 1

@@ -225,3 +225,38 @@ def test_missing_backend_gives_one_clear_message(monkeypatch):
     env = tasks.load("dc_pendulum", "swingup", task_kwargs=SHORT)
     with pytest.raises(_gl.GLBackendError, match="libosmesa6"):
         render.render_episode(env, EnergyPumpAgent())
+
+
+@pytest.mark.parametrize("frames_per_step", [1, 3])
+def test_a_3_s_episode_plays_3_s_as_a_gif(tmp_path, frames_per_step):
+    """GIF delays are whole centiseconds: 1000/fps ms truncated played 1.5x too fast, and delays under
+    2 cs (which browsers show as 10 cs) played 10x too slow."""
+    from PIL import Image
+
+    env = tasks.load("dc_pendulum", "swingup")  # the paper's 3 s trial
+    episode = render.render_episode(env, EnergyPumpAgent(), width=32, height=24, overlay=False,
+                                    frames_per_step=frames_per_step)
+    path = render.write_video(episode.frames, tmp_path / "swingup.gif", fps=episode.fps)
+    delays = []
+    with Image.open(path) as gif:
+        for index in range(gif.n_frames):
+            gif.seek(index)
+            delays.append(gif.info["duration"])
+    assert sum(delays) / 1000 == pytest.approx(3.0, abs=0.15)
+    assert min(delays) >= 20
+
+
+@pytest.mark.parametrize("fps", [100 / 3, 30.0, 60.0, 100.0])
+def test_gif_delays_add_up_to_real_time(fps):
+    step, delays = render.gif_timing(301, fps)
+    assert delays.min() >= render.GIF_MIN_DELAY_CS
+    assert delays.sum() / 100 == pytest.approx(len(range(0, 301, step)) * step / fps, abs=0.005)
+
+
+def test_the_camera_frames_the_pendulum():
+    """Upright and hanging, the pendulum spans most of the frame's height, centred on the axis."""
+    env = tasks.load("dc_pendulum", "swingup")
+    rows = np.concatenate([_arm_rows(render.render_state(env, phi, width=160, height=120))
+                           for phi in (0.0, np.pi)])
+    assert rows.max() - rows.min() > 0.6 * 120
+    assert 0.35 * 120 < (rows.max() + rows.min()) / 2 < 0.65 * 120

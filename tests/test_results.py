@@ -102,3 +102,40 @@ def test_result_files_honour_the_umask(tmp_path):
     finally:
         os.umask(old)
     assert stat.S_IMODE(private.stat().st_mode) == 0o600
+
+
+def _welch_p_by_hand(x, y):
+    from scipy import stats
+
+    vx, vy = np.var(x, ddof=1) / len(x), np.var(y, ddof=1) / len(y)
+    t = (np.mean(x) - np.mean(y)) / np.sqrt(vx + vy)
+    dof = (vx + vy) ** 2 / (vx ** 2 / (len(x) - 1) + vy ** 2 / (len(y) - 1))
+    return 2 * stats.t.sf(abs(t), dof)
+
+
+def test_final_returns_are_compared_with_welchs_t_test():
+    rng = np.random.default_rng(1)
+    rmac, sac = -950 + rng.normal(0, 10, 8), -990 + rng.normal(0, 60, 12)  # unequal spreads and sizes
+    (test,) = results.compare_final_returns({"rmac": rmac, "s-ac": sac})
+    assert test["p_value"] == pytest.approx(_welch_p_by_hand(rmac, sac), rel=1e-9)
+    assert test["p_value"] < 0.05 and test["better"] == "rmac"
+    assert "rmac better than s-ac" in results.describe_test(test)
+    close = results.compare_final_returns({"rmac": [-943.0, -990.0, -1010.0, -960.0],
+                                           "s-ac": [-950.0, -930.0, -1000.0, -940.0]})[0]
+    assert close["p_value"] > 0.05 and close["better"] is None
+    assert "not significant (p = " in results.describe_test(close)
+    single = results.compare_final_returns({"rmac": [-900.0], "s-ac": [-950.0, -940.0]})[0]
+    assert single["p_value"] is None and "no test possible" in results.describe_test(single)
+    assert results.compare_final_returns({"rmac": rmac}) == []
+
+
+def test_summary_table_states_significance_and_warns_of_few_experiments():
+    from rmac_mj.experiments.runner import summary_table
+
+    rng = np.random.default_rng(2)
+    def summary(n):
+        return {"rmac": results.summarise(-950 + rng.normal(0, 30, (n, 60)), trial_seconds=3.0),
+                "s-ac": results.summarise(-990 + rng.normal(0, 30, (n, 60)), trial_seconds=3.0)}
+    small, large = summary_table(summary(4)), summary_table(summary(5))
+    assert "final returns" in small and "Welch" in small
+    assert "4 experiments per learner" in small and "per learner" not in large

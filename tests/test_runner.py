@@ -40,6 +40,7 @@ def test_tiny_protocol_end_to_end(tmp_path):
     assert row == summary["s-ac"]
     config = json.loads((tmp_path / "config.json").read_text())
     assert config["protocol"]["trials"] == 4 and "numpy" in config["provenance"]["packages"]
+    assert config["protocol"]["snapshot_trials"] == [1, 2, 4]  # the final trial's snapshot is listed
     snapshots = sorted(p.name for p in (tmp_path / "snapshots/s-ac/exp_001").iterdir())
     assert snapshots == ["trial_0001.npz", "trial_0002.npz", "trial_0004.npz"]
     with np.load(tmp_path / "curves/s-ac/exp_000.npz", allow_pickle=False) as data:
@@ -62,8 +63,10 @@ def test_resume_with_a_changed_config_is_refused(tmp_path):
     with pytest.raises(runner.ResumeRefused, match="already holds a run"):
         runner.run_protocol(runner.Protocol(**TINY), tmp_path, jobs=1, progress=False)
     changed = runner.Protocol(**{**TINY, "trials": 5})
-    with pytest.raises(runner.ResumeRefused, match="different config"):
+    with pytest.raises(runner.ResumeRefused, match="different config") as refusal:
         runner.run_protocol(changed, tmp_path, jobs=1, resume=True, progress=False)
+    assert "trials: 4 in the directory, 5 now" in str(refusal.value)  # names what differs
+    assert "snapshot_trials: [1, 2, 4] in the directory, [1, 2, 5] now" in str(refusal.value)
 
 
 def _hooked_cli(marker: pathlib.Path) -> list[str]:
@@ -191,3 +194,81 @@ def test_every_result_file_is_readable_by_others(tmp_path):
         assert any(f"snapshots/{algorithm}/" in str(p) for p in files), algorithm
     for path in files:
         assert stat.S_IMODE(path.stat().st_mode) == 0o644, (path, oct(path.stat().st_mode))
+
+
+def test_a_non_terminal_run_prints_plain_progress_lines(tmp_path):
+    """Under nohup or Slurm (output not a terminal): periodic plain lines, no carriage returns or
+    escape codes; the mean return of the last trials per learner is in them."""
+    result = subprocess.run([sys.executable, "-m", "rmac_mj", "reproduce", "--algorithms", "s-ac",
+                             "--experiments", "2", "--trials", "3", "--jobs", "1", "--no-optimal",
+                             "--out", str(tmp_path / "run")], capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    for text in (result.stdout, result.stderr):
+        assert "\x1b" not in text and "\r" not in text
+    assert "6/6 trials (2/2 experiments)" in result.stderr
+    assert "s-ac 6/6 trials, last 6 trials -" in result.stderr
+    assert "wall time" in result.stdout
+
+
+def test_trials_are_streamed_to_disk_as_they_happen(tmp_path):
+    protocol = runner.Protocol(**{**TINY, "experiments": 1})
+    log = runner.progress_path(tmp_path, "s-ac", 0)
+    seen = []
+
+    def on_trial(algorithm, index, trial, value):  # the log already holds this trial
+        seen.append(log.read_text().splitlines()[-1].split(",")[0])
+
+    streamed = runner.run_experiment(runner.ExperimentSpec(protocol, "s-ac", 0, stream_to=str(tmp_path)),
+                                     on_trial=on_trial)
+    assert seen == ["1", "2", "3", "4"]
+    lines = log.read_text().splitlines()
+    assert lines[0] == "trial,return,greedy_return"
+    np.testing.assert_array_equal([float(line.split(",")[1]) for line in lines[1:]], streamed["returns"])
+    assert [line.split(",")[2] != "" for line in lines[1:]] == [False, True, False, True]
+    silent = runner.run_experiment(runner.ExperimentSpec(protocol, "s-ac", 0))
+    np.testing.assert_array_equal(silent["returns"], streamed["returns"])  # streaming changes nothing
+
+
+def test_the_driver_reads_only_complete_lines_of_the_live_logs(tmp_path):
+    protocol = runner.Protocol(**TINY)
+    display = runner._Progress(protocol, {"s-ac": 0}, enabled=False)
+    feed = runner._TrialFeed(tmp_path, runner._pending(tmp_path, protocol), display)
+    log = runner.progress_path(tmp_path, "s-ac", 1)
+    log.parent.mkdir(parents=True)
+    log.write_text("trial,return,greedy_return\n1,-4000.5,\n2,-39")  # trial 2 half written
+    feed.poll()
+    assert display.trials_done == {"all": 1, "s-ac": 1} and list(display.recent["s-ac"]) == [-4000.5]
+    with open(log, "a") as handle:
+        handle.write("00.25,-3800.0\n")
+    feed.poll()
+    assert display.trials_done["s-ac"] == 2 and list(display.recent["s-ac"]) == [-4000.5, -3900.25]
+    display.experiment("s-ac", 1)  # the rest of the experiment, once it is saved
+    assert display.trials_done["s-ac"] == 4 and display.done["s-ac"] == 1
+
+
+def test_progress_bars_show_the_mean_of_the_last_trials():
+    import io
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    stream = Terminal()
+    display = runner._Progress(runner.Protocol(**TINY), {"s-ac": 0}, enabled=True, stream=stream)
+    for trial, value in enumerate([-3000.0, -2000.0, -1000.0], start=1):
+        display.trial("s-ac", 0, trial, value)
+    display.close()
+    assert "last 3 trials -2000" in stream.getvalue() and not display.plain
+
+
+def test_a_resumed_run_reports_the_wall_time_of_all_its_parts(tmp_path):
+    protocol = runner.Protocol(**TINY)
+    first = runner.run_protocol(protocol, tmp_path, jobs=1, progress=False, figures=False)
+    assert first["wall_time_parts_s"] == [first["wall_time_s"]] and first["wall_time_s"] > 0
+    runner.curve_path(tmp_path, "s-ac", 1).unlink()  # as if killed before the last experiment
+    resumed = runner.run_protocol(protocol, tmp_path, jobs=1, resume=True, progress=False, figures=False)
+    parts = resumed["wall_time_parts_s"]
+    assert len(parts) == 2 and parts[0] == pytest.approx(first["wall_time_s"], abs=0.5)
+    assert resumed["wall_time_s"] == pytest.approx(sum(parts))
+    stored = json.loads(runner.wall_times_path(tmp_path).read_text())["parts"]
+    assert [part["experiments"] for part in stored] == [2, 1]

@@ -40,20 +40,19 @@ import json
 import os
 import pathlib
 import time
-from typing import Any
+from typing import Any, Callable
 
 import mujoco
 import numpy as np
 import scipy.sparse
 from mujoco import rollout
 
+from rmac_mj._cache import user_cache_dir
 from rmac_mj.models import model_path
 from rmac_mj.tasks import dc_pendulum
 
 #: Bumped whenever a change to this module changes the numbers it computes: old cache entries are ignored.
 SOLVER_VERSION = 1
-
-_CACHE_ENV = "RMAC_MJ_CACHE_DIR"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -461,10 +460,7 @@ def solve(config: OptimalConfig = OptimalConfig(), model_xml: str | None = None)
 
 def default_cache_dir() -> pathlib.Path:
     """``$RMAC_MJ_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/rmac-mj``, else ``~/.cache/rmac-mj``."""
-    if os.environ.get(_CACHE_ENV):
-        return pathlib.Path(os.environ[_CACHE_ENV]).expanduser()
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return pathlib.Path(base) / "rmac-mj"
+    return user_cache_dir()
 
 
 def cache_key(config: OptimalConfig, model_xml: str) -> str:
@@ -477,7 +473,8 @@ def cache_key(config: OptimalConfig, model_xml: str) -> str:
 
 
 def optimal_return(config: OptimalConfig = OptimalConfig(), cache_dir: str | os.PathLike | None = None,
-                   refresh: bool = False, model_xml: str | None = None) -> OptimalResult:
+                   refresh: bool = False, model_xml: str | None = None,
+                   announce: Callable[[str], None] | None = None) -> OptimalResult:
     """The near-optimal return per trial, from the cache if there, else solved and cached.
 
     Args:
@@ -485,6 +482,7 @@ def optimal_return(config: OptimalConfig = OptimalConfig(), cache_dir: str | os.
       cache_dir: directory of ``optimal-<key>.json`` files; default ``default_cache_dir()``.
       refresh: solve again even if cached (and overwrite the entry).
       model_xml: MJCF text to solve on; default the package's ``dc_pendulum.xml``.
+      announce: called with a one-line message before a solve (about a minute), e.g. ``print``.
     """
     if not isinstance(config, OptimalConfig):
         raise TypeError(f"optimal_return: config must be an OptimalConfig, got {type(config).__name__}")
@@ -498,6 +496,9 @@ def optimal_return(config: OptimalConfig = OptimalConfig(), cache_dir: str | os.
                 return OptimalResult.from_json_dict(json.load(f), from_cache=True)
         except (OSError, ValueError, KeyError, TypeError):
             pass  # an unreadable or foreign entry is recomputed and overwritten
+    if announce is not None:
+        announce(f"computing the near-optimal reference by dynamic programming (about a minute on 2 "
+                 f"cores; cached after, in {directory})")
     result = solve(config, model_xml)
     _write_json_atomic(path, result.to_json_dict())
     return result

@@ -18,9 +18,11 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from rmac_mj.agents import display_name  # noqa: E402
+from rmac_mj.experiments.results import FEW_EXPERIMENTS, FINAL_WINDOW  # noqa: E402
 
-_STYLES = {"rmac": {"color": "tab:blue", "linestyle": "-"},
-           "s-ac": {"color": "tab:orange", "linestyle": "--"}}
+#: Colour per learner (in every figure); in a comparison of runs the line style tells the runs apart.
+_STYLES = {"rmac": {"color": "tab:blue"}, "s-ac": {"color": "tab:orange"}}
+_RUN_STYLES = ("-", "--", ":", "-.", (0, (5, 1, 1, 1)), (0, (1, 3)))
 
 
 def _trial_seconds(label: str, summary: dict[str, Any]) -> float:
@@ -43,51 +45,66 @@ def _save(fig, stem: str | os.PathLike, formats=("png", "pdf")) -> list[pathlib.
     return paths
 
 
-def plot_learning_curves(summaries: dict[str, dict[str, Any]], stem: str | os.PathLike,
-                         optimal_return: float | None = None,
-                         detail_ylim: tuple[float, float] | None = None) -> list[pathlib.Path]:
-    """Fig. 2: sum of rewards per trial against simulated minutes, mean and 95% confidence band.
+def running_mean(values, window: int) -> np.ndarray:
+    """Centred running mean over ``window`` trials (fewer at the ends); shape kept. NaN stays NaN."""
+    values = np.asarray(values, dtype=float)
+    if window <= 1 or values.size == 0:
+        return values
+    sums = np.concatenate([[0.0], np.cumsum(values)])
+    index = np.arange(values.size)
+    low = np.maximum(index - (window - 1) // 2, 0)
+    high = np.minimum(index + window // 2 + 1, values.size)
+    return (sums[high] - sums[low]) / (high - low)
 
-    Two panels: the whole range (the paper's view, with S-AC's early dip) and a detail of the levels
-    reached, where the learners' differences are a few percent.
 
-    Args:
-      summaries: label -> summary document (``summary.json``) holding one entry per algorithm and
-        ``trial_seconds``, the task's trial length, which sets the time axis. With one summary the
-        legend names only the learners; with several, "label: learner".
-      stem: output path without suffix; a .png and a .pdf are written.
-      optimal_return: drawn as a horizontal line (the near-optimal reference).
-      detail_ylim: y range of the detail panel; default from the final levels and the optimum.
-    """
+def _learners(summary: dict[str, Any]) -> list[str]:
+    return [k for k in summary if isinstance(summary[k], dict) and "mean_return_per_trial" in summary[k]]
+
+
+def _padded(low: float, high: float, fraction: float = 0.05, minimum: float = 10.0):
+    margin = max(minimum, fraction * (high - low))
+    return low - margin, high + margin
+
+
+def learning_curves_figure(summaries: dict[str, dict[str, Any]], optimal_return: float | None = None,
+                           detail_ylim: tuple[float, float] | None = None, smooth: int = 1):
+    """The figure of :func:`plot_learning_curves` (see it), not yet saved."""
+    if not isinstance(smooth, (int, np.integer)) or smooth < 1:
+        raise ValueError(f"smooth must be a positive integer (trials), got {smooth!r}")
     seconds = {label: _trial_seconds(label, summary) for label, summary in summaries.items()}
-    fig, axes = plt.subplots(1, 2, figsize=(13, 4.6), constrained_layout=True)
-    palette = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    finals = []
+    fig, axes = plt.subplots(1, 2, figsize=(13, 4.8), constrained_layout=True)
+    colours = {algorithm: style["color"] for algorithm, style in _STYLES.items()}
+    palette = [c for c in plt.rcParams["axes.prop_cycle"].by_key()["color"]
+               if c not in colours.values()]
+    several = len(summaries) > 1
+    drawn, ends, fewest = [], [], None
     for ax in axes:
-        colour_index = 0
-        for label, summary in summaries.items():
-            for algorithm in [k for k in summary if isinstance(summary[k], dict) and
-                              "mean_return_per_trial" in summary[k]]:
+        for run, (label, summary) in enumerate(summaries.items()):
+            for algorithm in _learners(summary):
                 row = summary[algorithm]
-                mean = np.asarray(row["mean_return_per_trial"], dtype=float)
-                low = np.asarray([np.nan if v is None else v for v in row["ci95_low_per_trial"]])
-                high = np.asarray([np.nan if v is None else v for v in row["ci95_high_per_trial"]])
+                mean = running_mean(row["mean_return_per_trial"], smooth)
+                low = running_mean([np.nan if v is None else v for v in row["ci95_low_per_trial"]], smooth)
+                high = running_mean([np.nan if v is None else v for v in row["ci95_high_per_trial"]],
+                                    smooth)
                 minutes = np.arange(1, mean.size + 1) * seconds[label] / 60.0
                 name = display_name(algorithm)
-                if len(summaries) == 1:
-                    style = dict(_STYLES.get(algorithm, {}))
-                else:
+                if algorithm not in colours:
+                    colours[algorithm] = palette[len(colours) % len(palette)]
+                style = {"color": colours[algorithm], "linestyle": _RUN_STYLES[run % len(_RUN_STYLES)]}
+                if several:
                     name = f"{label}: {name}"
-                    style = {"color": palette[colour_index % len(palette)]}
-                    colour_index += 1
                 ax.plot(minutes, mean, label=f"{name} (mean of {row['experiments']})",
                         linewidth=1.3, **style)
-                ax.fill_between(minutes, low, high, color=style["color"], alpha=0.25, linewidth=0)
+                ax.fill_between(minutes, low, high, color=style["color"],
+                                alpha=0.15 if several else 0.25, linewidth=0)
+                drawn.append(mean)
+                ends.append(mean[-FINAL_WINDOW:])
                 if row.get("greedy_eval_trials"):
                     eval_minutes = np.asarray(row["greedy_eval_trials"]) * seconds[label] / 60.0
-                    ax.plot(eval_minutes, row["greedy_return_per_eval"], color=style["color"],
-                            linestyle=":", marker=".", linewidth=1.0, label=f"{name}, greedy trial")
-                finals.append(row["final_return_mean"])
+                    ax.plot(eval_minutes, row["greedy_return_per_eval"], marker=".", linewidth=0.8,
+                            alpha=0.8, label=f"{name}, greedy trial", **style)
+                    drawn.append(np.asarray(row["greedy_return_per_eval"], dtype=float))
+                fewest = row["experiments"] if fewest is None else min(fewest, row["experiments"])
         if optimal_return is not None:
             ax.axhline(optimal_return, color="black", linewidth=1.0, linestyle="-.",
                        label=f"near-optimal ({optimal_return:.0f})")
@@ -96,15 +113,62 @@ def plot_learning_curves(summaries: dict[str, dict[str, Any]], stem: str | os.Pa
                                                  else ")"))
         ax.set_ylabel("sum of rewards per trial")
         ax.grid(alpha=0.3)
+        ax.set_xlim(left=0)
+        if len(lengths) == 1:  # trials on the top axis (with several trial lengths it would be ambiguous)
+            trials_axis = ax.secondary_xaxis("top", functions=(lambda m, s=lengths[0]: m * 60.0 / s,
+                                                               lambda t, s=lengths[0]: t * s / 60.0))
+            trials_axis.set_xlabel("trial")
+    # The axes follow the curves, not the bands: with few experiments a 95% band spans thousands.
+    values = np.concatenate([d[np.isfinite(d)] for d in drawn] +
+                            [np.array([optimal_return] if optimal_return is not None else [])])
+    if values.size:
+        axes[0].set_ylim(*_padded(values.min(), values.max()))
     axes[0].set_title("Learning curves, mean and 95% confidence interval")
-    axes[0].legend(loc="lower right", fontsize="small")
-    if detail_ylim is None:
-        top = max(finals + ([optimal_return] if optimal_return is not None else []))
-        bottom = min(finals)
-        margin = max(25.0, 0.1 * (top - bottom))
-        detail_ylim = (bottom - (top - bottom) - margin, top + margin)
-    axes[1].set_ylim(*detail_ylim)
+    if detail_ylim is None:  # the range of the curves' last trials, and the optimum
+        last = np.concatenate(ends + [np.array([optimal_return] if optimal_return is not None else [])])
+        last = last[np.isfinite(last)]
+        if last.size:
+            detail_ylim = _padded(last.min(), last.max(), fraction=0.1, minimum=25.0)
+    if detail_ylim is not None:
+        axes[1].set_ylim(*detail_ylim)
     axes[1].set_title("Detail: the levels reached")
+    legend_title = f"running mean over {smooth} trials" if smooth > 1 else None
+    for ax in axes:
+        ax.legend(loc="lower right", fontsize="small", title=legend_title, title_fontsize="small")
+    if fewest is not None and fewest < FEW_EXPERIMENTS:
+        fig.text(0.5, -0.01, f"{fewest} experiment{'s' if fewest != 1 else ''} per learner: too few "
+                 f"to rank the learners; 95% intervals from fewer than {FEW_EXPERIMENTS} mean little "
+                 "(bands clipped to the plot)", ha="center", va="top", fontsize="small",
+                 color="firebrick")
+    return fig
+
+
+def plot_learning_curves(summaries: dict[str, dict[str, Any]], stem: str | os.PathLike,
+                         optimal_return: float | None = None,
+                         detail_ylim: tuple[float, float] | None = None,
+                         smooth: int = 1) -> list[pathlib.Path]:
+    """Fig. 2: sum of rewards per trial against simulated minutes (trials on the top axis), mean and
+    95% confidence band.
+
+    Two panels: the whole range (the paper's view, with S-AC's early dip) and a detail of the levels
+    reached, where the learners' differences are a few percent. The y axes follow the mean curves (the
+    bands are clipped to them), each panel has a legend, and a note says when fewer than
+    ``FEW_EXPERIMENTS`` experiments make the bands meaningless.
+
+    Args:
+      summaries: label -> summary document (``summary.json``) holding one entry per algorithm and
+        ``trial_seconds``, the task's trial length, which sets the time axis. With one summary the
+        legend names only the learners; with several, "label: learner", each learner keeping its
+        colour and each run its line style.
+      stem: output path without suffix; a .png and a .pdf are written.
+      optimal_return: drawn as a horizontal line (the near-optimal reference).
+      detail_ylim: y range of the detail panel; default the range of the (smoothed) mean curves over
+        their last ``FINAL_WINDOW`` trials, and the optimum.
+      smooth: running mean over this many trials (centred) of the mean and of the band's bounds (the
+        smoothed bounds are conservative: the interval of a mean over trials is narrower); stated in
+        the legends. 1 draws the raw per-trial values.
+    """
+    fig = learning_curves_figure(summaries, optimal_return, detail_ylim, smooth)
     return _save(fig, stem)
 
 
@@ -167,23 +231,45 @@ def _check_dims(dims, n: int) -> tuple[int, int]:
     return i, j
 
 
-def plot_policy(agent, meta: dict[str, Any], stem: str | os.PathLike, learner_state,
-                anchor: Sequence[float], dims: tuple[int, int] = (0, 1),
-                limits: dict[int, tuple[float, float]] | None = None,
-                resolution: int = 101) -> list[pathlib.Path]:
-    """Figs. 3 and 4: the policy (one map per action dimension) and the critic as heat maps.
+def greedy_trajectory(env, agent) -> tuple[np.ndarray, float]:
+    """A greedy trial (no exploration, no learning) of ``agent`` on ``env`` from the task's start
+    state: the learner's states, ndarray of shape (T, n), and the trial's return."""
+    from rmac_mj.experiments.episode import learner_state_of, state_of
 
-    For S-AC the policy is the actor pi(x); for RMAC it is the composition u = f^-1(x, R(x)) of the
-    inverse process model and the reference model, both evaluated greedily (no exploration).
+    keys = learner_state_of(env).keys
+    timestep = env.reset()
+    agent.begin_greedy_trial()
+    states, total = [state_of(timestep.observation, keys)], 0.0
+    while not timestep.last():
+        timestep = env.step(agent.greedy_action(states[-1]))
+        total += float(timestep.reward)
+        states.append(state_of(timestep.observation, keys))
+    return np.array(states), total
 
-    Args:
-      meta: the snapshot's meta document (algorithm, trial, experiment).
-      learner_state: the task's ``LearnerState``: the axes' ranges (its box) and labels, the actions'
-        labels.
-      anchor: a state of shape (n,) through which the maps slice when n > 2 (e.g. the start state).
-      dims: the state dimensions on the horizontal and vertical axes.
-      limits: per state dimension, a (low, high) range overriding the task's box.
-    """
+
+def _draw_trajectory(ax, states: np.ndarray, dims: tuple[int, int], learner_state,
+                     label: str | None) -> None:
+    """The path of ``states`` over the dims (i, j), broken where a periodic dimension wraps."""
+    i, j = dims
+    x, y = states[:, i], states[:, j]
+    jumps = np.zeros(len(states) - 1, dtype=bool)
+    for d in dims:
+        if learner_state.periodic[d]:
+            period = learner_state.high[d] - learner_state.low[d]
+            jumps |= np.abs(np.diff(states[:, d])) > period / 2
+    breaks = np.nonzero(jumps)[0] + 1
+    for part, (px, py) in enumerate(zip(np.split(x, breaks), np.split(y, breaks))):
+        ax.plot(px, py, color="white", linewidth=2.6, alpha=0.8)
+        ax.plot(px, py, color="black", linewidth=1.1, label=label if part == 0 else None)
+    ax.plot(x[0], y[0], "o", color="black", markerfacecolor="white", markersize=6)
+    ax.plot(x[-1], y[-1], "X", color="black", markerfacecolor="white", markersize=7)
+
+
+def policies_figure(snapshots: Sequence[tuple[Any, dict[str, Any]]], learner_state,
+                    anchor: Sequence[float], dims: tuple[int, int] = (0, 1),
+                    limits: dict[int, tuple[float, float]] | None = None, resolution: int = 101,
+                    envs: Sequence[Any] | None = None):
+    """The figure of :func:`plot_policies` (see it), not yet saved."""
     n = len(learner_state.low)
     i, j = _check_dims(dims, n)
     low, high = np.array(learner_state.low), np.array(learner_state.high)
@@ -192,35 +278,90 @@ def plot_policy(agent, meta: dict[str, Any], stem: str | os.PathLike, learner_st
             raise ValueError(f"limits[{d}] must be a finite (low, high) with low < high for a state "
                              f"dimension in [0, {n}), got {(lo, hi)!r}")
         low[d], high[d] = lo, hi
-    xs, ys, actions, values = policy_slice(agent, low, high, anchor, (i, j), (resolution, resolution))
-    algorithm = meta.get("algorithm", "")
-    name = display_name(algorithm)
-    policy_name = "u = f^-1(x, R(x))" if algorithm == "rmac" else "actor pi(x)"
-    m = actions.shape[-1]
-    a_low, a_high = agent.action_space.low, agent.action_space.high
+    if envs is not None and len(envs) != len(snapshots):
+        raise ValueError(f"envs must give one environment per snapshot ({len(snapshots)}), got {len(envs)}")
+    grids = [policy_slice(agent, low, high, anchor, (i, j), (resolution, resolution))
+             for agent, _ in snapshots]
+    every_value = np.concatenate([grid[3].ravel() for grid in grids])
+    value_range = (float(every_value.min()), float(every_value.max()))
+    m = grids[0][2].shape[-1]
     action_labels = list(learner_state.action_labels) if len(learner_state.action_labels) == m else [
         f"u{k + 1}" for k in range(m)]
-    fig, axes = plt.subplots(1, m + 1, figsize=(5.5 * (m + 1), 4.2), constrained_layout=True)
-    extent = (xs[0], xs[-1], ys[0], ys[-1])
+    rows = len(snapshots)
+    fig, axes = plt.subplots(rows, m + 1, figsize=(5.5 * (m + 1), 4.2 * rows), constrained_layout=True,
+                             squeeze=False)
+    images = [None] * (m + 1)
+    for row, ((agent, meta), (xs, ys, actions, values)) in enumerate(zip(snapshots, grids)):
+        algorithm = meta.get("algorithm", "")
+        name = display_name(algorithm)
+        policy_name = r"policy $u = f^{-1}(x, R(x))$" if algorithm == "rmac" else r"actor $\pi(x)$"
+        after = f", after {meta['trial']} trials" if meta.get("trial") is not None else ""
+        a_low, a_high = agent.action_space.low, agent.action_space.high
+        extent = (xs[0], xs[-1], ys[0], ys[-1])
+        for k in range(m):
+            images[k] = axes[row, k].imshow(actions[..., k], origin="lower", extent=extent,
+                                            aspect="auto", cmap="RdBu_r", vmin=a_low[k], vmax=a_high[k])
+            axes[row, k].set_title(f"{name} {policy_name}" + (f", {action_labels[k]}" if m > 1 else "")
+                                   + after)
+        images[m] = axes[row, m].imshow(values, origin="lower", extent=extent, aspect="auto",
+                                        cmap="viridis", vmin=value_range[0], vmax=value_range[1])
+        axes[row, m].set_title(f"{name} critic $V(x)${after}")
+        if envs is not None:
+            states, total = greedy_trajectory(envs[row], agent)
+            for ax in axes[row]:
+                _draw_trajectory(ax, states, (i, j), learner_state,
+                                 f"greedy trial from $x_0$ (return {total:.0f})")
+                ax.set_xlim(extent[0], extent[1])
+                ax.set_ylim(extent[2], extent[3])
+            axes[row, 0].legend(loc="lower left", fontsize="small")
+        for ax in axes[row]:
+            ax.set_xlabel(learner_state.labels[i])
+            ax.set_ylabel(learner_state.labels[j])
     for k in range(m):
-        image = axes[k].imshow(actions[..., k], origin="lower", extent=extent, aspect="auto",
-                               cmap="RdBu_r", vmin=a_low[k], vmax=a_high[k])
-        fig.colorbar(image, ax=axes[k], label=action_labels[k])
-        axes[k].set_title(f"{name} policy {policy_name}" + (f", {action_labels[k]}" if m > 1 else ""))
-    image = axes[m].imshow(values, origin="lower", extent=extent, aspect="auto", cmap="viridis")
-    fig.colorbar(image, ax=axes[m], label="V(x)")
-    axes[m].set_title(f"{name} critic V(x)")
-    for ax in axes:
-        ax.set_xlabel(learner_state.labels[i])
-        ax.set_ylabel(learner_state.labels[j])
+        fig.colorbar(images[k], ax=axes[:, k], label=action_labels[k])
+    fig.colorbar(images[m], ax=axes[:, m], label="$V(x)$" + (" (one scale for all rows)" if rows > 1 else ""))
     title = []
-    trial = meta.get("trial")
-    if trial is not None:
-        title.append(f"after {trial} trials (experiment {meta.get('experiment', '?')})")
+    experiments = {meta.get("experiment") for _, meta in snapshots}
+    if len(experiments) == 1 and None not in experiments:
+        title.append(f"experiment {experiments.pop()}")
     others = [d for d in range(n) if d not in (i, j)]
     if others:
         title.append("slice at " + ", ".join(f"{learner_state.labels[d]} = {anchor[d]:.3g}"
                                               for d in others))
     if title:
         fig.suptitle("; ".join(title))
-    return _save(fig, stem)
+    return fig
+
+
+def plot_policies(snapshots: Sequence[tuple[Any, dict[str, Any]]], stem: str | os.PathLike,
+                  learner_state, anchor: Sequence[float], dims: tuple[int, int] = (0, 1),
+                  limits: dict[int, tuple[float, float]] | None = None, resolution: int = 101,
+                  envs: Sequence[Any] | None = None) -> list[pathlib.Path]:
+    """Figs. 3 and 4 for one or more agents: the policy (one map per action dimension) and the critic
+    as heat maps, one row per agent, each column on one colour scale shared by all rows, so that
+    learners compare side by side.
+
+    For S-AC the policy is the actor pi(x); for RMAC it is the composition u = f^-1(x, R(x)) of the
+    inverse process model and the reference model, both evaluated greedily (no exploration).
+
+    Args:
+      snapshots: (agent, meta) pairs, as ``load_snapshot`` returns (meta: algorithm, trial, experiment).
+      stem: output path without suffix; a .png and a .pdf are written.
+      learner_state: the task's ``LearnerState``: the axes' ranges (its box) and labels, the actions'
+        labels.
+      anchor: a state of shape (n,) through which the maps slice when n > 2 (e.g. the start state).
+      dims: the state dimensions on the horizontal and vertical axes.
+      limits: per state dimension, a (low, high) range overriding the task's box.
+      envs: per snapshot, the environment of its greedy trial from the start state, drawn over its
+        maps (start: circle, end: cross); None draws none.
+    """
+    return _save(policies_figure(snapshots, learner_state, anchor, dims, limits, resolution, envs), stem)
+
+
+def plot_policy(agent, meta: dict[str, Any], stem: str | os.PathLike, learner_state,
+                anchor: Sequence[float], dims: tuple[int, int] = (0, 1),
+                limits: dict[int, tuple[float, float]] | None = None,
+                resolution: int = 101, env=None) -> list[pathlib.Path]:
+    """Figs. 3 and 4 for one agent (see :func:`plot_policies`); ``env``: draw its greedy trial."""
+    return plot_policies([(agent, meta)], stem, learner_state, anchor, dims, limits, resolution,
+                         envs=None if env is None else [env])

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
 import os
 import pathlib
 import re
@@ -448,7 +449,9 @@ def write_video(frames: np.ndarray, path: str | os.PathLike, fps: float, scale: 
         keeps its duration).
 
     MP4 goes through imageio-ffmpeg's bundled ffmpeg (libx264, yuv420p; odd sizes are padded to even),
-    GIF through Pillow (identical consecutive frames are merged into one longer frame).
+    GIF through Pillow (identical consecutive frames are merged into one longer frame) with delays in
+    whole centiseconds that add up to real time (:func:`gif_timing`; above 50 fps every other frame
+    is dropped, since browsers slow down shorter delays).
     """
     frames = _check_frames(frames, "frames")
     path = pathlib.Path(path)
@@ -493,11 +496,31 @@ def _write_mp4(frames: np.ndarray, path: pathlib.Path, fps: float) -> None:
         writer.close()
 
 
+#: Browsers play a GIF frame delay below 2 cs as 10 cs: no frame is ever shorter.
+GIF_MIN_DELAY_CS = 2
+
+
+def gif_timing(count: int, fps: float) -> tuple[int, np.ndarray]:
+    """How to play ``count`` frames at ``fps`` in real time as a GIF, whose delays are whole
+    centiseconds of at least :data:`GIF_MIN_DELAY_CS`.
+
+    Returns (step, delays): keep every ``step``-th frame (1 unless ``fps`` > 50) and show kept frame
+    i for ``delays[i]`` cs. Frame i ends at ``round((i + 1) * 100 / fps')`` cs (fps' = fps / step), so
+    the delays are the frame period rounded up or down in turn and the clip's length is right to
+    within half a centisecond, not off by the truncation of every frame (1000/fps ms at 33.3 fps is
+    29.99 ms, which Pillow would store as 2 cs, 1.5x too fast).
+    """
+    step = max(1, math.ceil(GIF_MIN_DELAY_CS * fps / 100.0 - 1e-9))
+    kept = -(-count // step)
+    ends = np.round(np.arange(1, kept + 1) * 100.0 * step / fps).astype(int)
+    return step, np.diff(ends, prepend=0)
+
+
 def _write_gif(frames: np.ndarray, path: pathlib.Path, fps: float) -> None:
-    images = [Image.fromarray(frame) for frame in frames]
-    # GIF stores delays in centiseconds; Pillow rounds the millisecond duration to them.
-    images[0].save(path, save_all=True, append_images=images[1:], duration=1000.0 / fps, loop=0,
-                   optimize=True, disposal=1)
+    step, delays = gif_timing(len(frames), fps)
+    images = [Image.fromarray(frame) for frame in frames[::step]]
+    images[0].save(path, save_all=True, append_images=images[1:], loop=0, optimize=True, disposal=1,
+                   duration=[int(10 * d) for d in delays])  # ms, whole centiseconds
 
 
 # --------------------------------------------------------------------------------------------------

@@ -23,6 +23,11 @@ FINAL_WINDOW = 50
 #: The "first minutes" over which the early return is averaged (simulated time; the paper's Fig. 2
 #: compares the learners over their first 10 minutes).
 EARLY_MINUTES = 10.0
+#: Significance level of the end-of-run comparison of learners (two-sided).
+SIGNIFICANCE_LEVEL = 0.05
+#: With fewer experiments than this per learner, 95% intervals are too wide to read (the Student t
+#: factor exceeds 2.7, and the standard deviation itself is a rough guess).
+FEW_EXPERIMENTS = 5
 
 
 def confidence_interval(samples: np.ndarray, confidence: float = 0.95, axis: int = 0):
@@ -134,6 +139,60 @@ def summarise(returns: np.ndarray, greedy: np.ndarray | None = None,
         summary["greedy_eval_trials"] = [int(t) for t in greedy_trials]
         summary["greedy_return_per_eval"] = greedy.mean(axis=0).tolist()
     return summary
+
+
+def compare_final_returns(finals: dict[str, Sequence[float]],
+                          level: float = SIGNIFICANCE_LEVEL) -> list[dict[str, Any]]:
+    """Welch's t-test (unequal variances, two-sided) of every pair of learners' final returns.
+
+    Args:
+      finals: learner -> its experiments' final returns (``final_return_per_experiment``).
+    Returns:
+      One dict per pair: ``learners`` [a, b], ``experiments`` [n_a, n_b], ``difference`` (mean a - mean
+      b), ``p_value`` (None when a learner has fewer than 2 experiments or neither varies), ``better``
+      (the learner with the higher mean when p < ``level``, else None) and ``level``.
+    """
+    names = list(finals)
+    tests = []
+    for i, a in enumerate(names):
+        for b in names[i + 1:]:
+            x, y = np.asarray(finals[a], dtype=float), np.asarray(finals[b], dtype=float)
+            p_value = None
+            if len(x) >= 2 and len(y) >= 2:
+                from scipy import stats  # lazily, as in confidence_interval
+                p = float(stats.ttest_ind(x, y, equal_var=False).pvalue)
+                p_value = p if np.isfinite(p) else None
+            difference = float(x.mean() - y.mean()) if len(x) and len(y) else None
+            better = None
+            if p_value is not None and p_value < level and difference:
+                better = a if difference > 0 else b
+            tests.append({"test": "Welch t-test, two-sided", "learners": [a, b],
+                          "experiments": [len(x), len(y)], "difference": difference,
+                          "p_value": p_value, "better": better, "level": level})
+    return tests
+
+
+def describe_test(test: dict[str, Any]) -> str:
+    """One line for a result of :func:`compare_final_returns`."""
+    a, b = test["learners"]
+    if test["p_value"] is None:
+        return (f"final returns, {a} vs {b}: no test possible ({test['experiments'][0]} and "
+                f"{test['experiments'][1]} experiments; Welch's t-test needs 2 or more, with spread)")
+    p = test["p_value"]
+    p_text = f"p = {p:.2g}" if p >= 1e-4 else "p < 0.0001"
+    if test["better"] is None:
+        return (f"final returns, {a} vs {b}: difference {test['difference']:+.1f}, not significant "
+                f"({p_text}, Welch's t-test; a difference this size needs more experiments to rank them)")
+    worse = b if test["better"] == a else a
+    return (f"final returns: {test['better']} better than {worse} by {abs(test['difference']):.1f}, "
+            f"{p_text} (Welch's t-test, significant at {test['level']:g})")
+
+
+def few_experiments_note(experiments: int) -> str:
+    """The warning printed and drawn when ``experiments`` < :data:`FEW_EXPERIMENTS`."""
+    return (f"note: {experiments} experiment{'s' if experiments != 1 else ''} per learner: too few to rank "
+            f"the learners; the 95% intervals and the t-test assume normally distributed returns, which "
+            f"fewer than {FEW_EXPERIMENTS} experiments cannot show")
 
 
 def write_atomic(path: str | os.PathLike, write) -> pathlib.Path:

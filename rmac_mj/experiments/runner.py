@@ -5,7 +5,9 @@ A *learning experiment* is one agent learning for ``trials`` consecutive trials 
 trial length read from the environment); the protocol repeats it ``experiments`` times per algorithm with independent seeds. Experiments are
 independent, so they run in worker processes (``jobs``) or on a Dask cluster (``scheduler``); each
 worker returns its results and the driver writes them atomically as they arrive, so an interrupted run
-loses only the experiments in flight and ``resume`` finishes the rest with identical results.
+loses only the experiments in flight and ``resume`` finishes the rest with identical results. While an
+experiment runs, its worker streams every trial's return to ``progress/<algorithm>/exp_<iii>.csv``
+(flushed after each trial, for watching a run live); the ``curves/`` files stay the results of record.
 
 Seeding: experiment i of every algorithm draws its agent's stream from
 ``SeedSequence(seed, spawn_key=(i,))``, which equals ``SeedSequence(seed).spawn(n)[i]``, and its task's
@@ -15,16 +17,20 @@ order of completion, or on resuming.
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import csv
 import dataclasses
+import datetime
 import json
+import math
 import multiprocessing
 import os
 import pathlib
 import signal
+import sys
 import time
-from typing import Any, Callable, Iterable, Iterator
+from typing import Any, Callable, Iterable, Iterator, TextIO
 
 import numpy as np
 
@@ -49,7 +55,8 @@ class Protocol:
       seed: root of every experiment's random stream.
       evaluate_every: after every this many learning trials, one greedy trial (no exploration, no
         learning) is recorded; 0 disables it.
-      snapshot_trials: after which trials the agent is saved (the final one always is).
+      snapshot_trials: after which trials the agent is saved; stored sorted, without trials beyond
+        ``trials``, and with the final trial, which is always saved.
       agent_configs: per algorithm, overrides of its hyperparameters (e.g. for ablations).
     """
 
@@ -66,7 +73,6 @@ class Protocol:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "algorithms", tuple(self.algorithms))
-        object.__setattr__(self, "snapshot_trials", tuple(int(t) for t in self.snapshot_trials))
         if not self.algorithms:
             raise ValueError("algorithms must name at least one algorithm")
         for name in self.algorithms:
@@ -82,6 +88,11 @@ class Protocol:
             raise ValueError(f"seed must be a non-negative integer, got {self.seed!r}")
         if not isinstance(self.evaluate_every, (int, np.integer)) or self.evaluate_every < 0:
             raise ValueError(f"evaluate_every must be an integer >= 0, got {self.evaluate_every!r}")
+        snapshot_trials = {int(t) for t in self.snapshot_trials}
+        if any(t < 1 for t in snapshot_trials):
+            raise ValueError(f"snapshot_trials must be positive trial numbers, got {self.snapshot_trials!r}")
+        object.__setattr__(self, "snapshot_trials",
+                           tuple(sorted({t for t in snapshot_trials if t <= self.trials} | {self.trials})))
         if self.domain not in tasks.TASKS_BY_DOMAIN:
             raise ValueError(f"unknown domain {self.domain!r}; available: "
                              f"{', '.join(sorted(tasks.TASKS_BY_DOMAIN))}")
@@ -110,11 +121,16 @@ class Protocol:
 
 @dataclasses.dataclass(frozen=True)
 class ExperimentSpec:
-    """One learning experiment: ``algorithm`` number ``index`` of ``protocol``."""
+    """One learning experiment: ``algorithm`` number ``index`` of ``protocol``.
+
+    ``stream_to``: the result directory whose ``progress/<algorithm>/exp_<iii>.csv`` receives every trial
+    as it ends (:func:`progress_path`); None streams nothing.
+    """
 
     protocol: Protocol
     algorithm: str
     index: int
+    stream_to: str | None = None
 
 
 def experiment_seeds(seed: int, index: int) -> tuple[np.random.SeedSequence, int]:
@@ -131,11 +147,13 @@ def make_environment(protocol: Protocol, task_seed: int | None = None):
     return tasks.load(protocol.domain, protocol.task, task_kwargs=kwargs)
 
 
-def run_experiment(spec: ExperimentSpec) -> dict[str, Any]:
+def run_experiment(spec: ExperimentSpec,
+                   on_trial: Callable[[str, int, int, float], None] | None = None) -> dict[str, Any]:
     """Run one learning experiment; return its curve, greedy evaluations and snapshots.
 
-    Pure apart from the CPU: nothing is written, so it runs unchanged in a local worker process or on
-    a remote Dask worker, and the caller decides where the results go.
+    Nothing is written but the live trial log in ``spec.stream_to`` (if any), so it runs unchanged in
+    a local worker process or on a remote Dask worker, and the caller decides where the results go.
+    ``on_trial(algorithm, index, trial, return)`` is called after every learning trial.
     """
     protocol = spec.protocol
     agent_seq, task_seed = experiment_seeds(protocol.seed, spec.index)
@@ -150,13 +168,21 @@ def run_experiment(spec: ExperimentSpec) -> dict[str, Any]:
     greedy_trials, greedy_returns, snapshots = [], [], {}
     snapshot_trials = set(protocol.snapshot_trials) | {protocol.trials}
     start = time.perf_counter()
-    for trial in range(1, protocol.trials + 1):
-        returns[trial - 1] = run_trial(env, agent, learn=True)
-        if protocol.evaluate_every and trial % protocol.evaluate_every == 0:
-            greedy_trials.append(trial)
-            greedy_returns.append(run_trial(env, agent, learn=False))
-        if trial in snapshot_trials:
-            snapshots[trial] = snapshot_arrays(agent, state_space, action_space, trial=trial, **meta)
+    log_path = (progress_path(spec.stream_to, spec.algorithm, spec.index)
+                if spec.stream_to is not None else None)
+    with _TrialLog(log_path) as log:
+        for trial in range(1, protocol.trials + 1):
+            returns[trial - 1] = run_trial(env, agent, learn=True)
+            greedy = None
+            if protocol.evaluate_every and trial % protocol.evaluate_every == 0:
+                greedy = run_trial(env, agent, learn=False)
+                greedy_trials.append(trial)
+                greedy_returns.append(greedy)
+            if trial in snapshot_trials:
+                snapshots[trial] = snapshot_arrays(agent, state_space, action_space, trial=trial, **meta)
+            log.write(trial, returns[trial - 1], greedy)
+            if on_trial is not None:
+                on_trial(spec.algorithm, spec.index, trial, float(returns[trial - 1]))
     return {
         "algorithm": spec.algorithm,
         "index": spec.index,
@@ -174,6 +200,45 @@ def run_experiment(spec: ExperimentSpec) -> dict[str, Any]:
 
 def curve_path(out: pathlib.Path, algorithm: str, index: int) -> pathlib.Path:
     return out / "curves" / algorithm / f"exp_{index:03d}.npz"
+
+
+def progress_path(out: str | os.PathLike, algorithm: str, index: int) -> pathlib.Path:
+    """The live trial log of an experiment (see :class:`_TrialLog`)."""
+    return pathlib.Path(out) / "progress" / algorithm / f"exp_{index:03d}.csv"
+
+
+def wall_times_path(out: pathlib.Path) -> pathlib.Path:
+    """The wall time of every part of a run (the first and each ``--resume``): ``{"parts": [...]}``."""
+    return out / "wall_times.json"
+
+
+class _TrialLog:
+    """The live log of one experiment: a CSV (``trial,return,greedy_return``) flushed after every trial,
+    so ``tail -f`` or pandas can follow a run. Not atomic and rewritten when a resumed run repeats the
+    experiment: it is a view of a run in progress, not a result."""
+
+    HEADER = "trial,return,greedy_return\n"
+
+    def __init__(self, path: pathlib.Path | None):
+        self.path, self.handle = path, None
+
+    def __enter__(self) -> "_TrialLog":
+        if self.path is not None:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self.handle = open(self.path, "w", encoding="utf-8")
+            self.handle.write(self.HEADER)
+            self.handle.flush()
+        return self
+
+    def write(self, trial: int, value: float, greedy: float | None) -> None:
+        if self.handle is not None:
+            text = "" if greedy is None else repr(float(greedy))
+            self.handle.write(f"{trial},{float(value)!r},{text}\n")
+            self.handle.flush()
+
+    def __exit__(self, *exc) -> None:
+        if self.handle is not None:
+            self.handle.close()
 
 
 def snapshot_dir(out: pathlib.Path, algorithm: str, index: int) -> pathlib.Path:
@@ -216,6 +281,18 @@ class ResumeRefused(UserInputError):
     """The result directory holds a different run; its results must not be mixed with this one's."""
 
 
+def _differences(old: Any, new: Any, path: str = "") -> list[str]:
+    """``"field: A in the directory, B now"`` for every setting that differs (nested fields dotted)."""
+    if isinstance(old, dict) and isinstance(new, dict):
+        found = []
+        for key in [*old, *(k for k in new if k not in old)]:
+            found += _differences(old.get(key), new.get(key), f"{path}{key}.")
+        return found
+    if old == new:
+        return []
+    return [f"{path.rstrip('.')}: {json.dumps(old)} in the directory, {json.dumps(new)} now"]
+
+
 def _prepare(out: pathlib.Path, protocol: Protocol, resume: bool) -> None:
     config_file = out / "config.json"
     document = {"protocol": protocol.as_dict(), "code": results.code_version()}
@@ -225,8 +302,9 @@ def _prepare(out: pathlib.Path, protocol: Protocol, resume: bool) -> None:
                                 "another --out")
         existing = json.loads(config_file.read_text())
         if existing.get("protocol") != document["protocol"]:
-            raise ResumeRefused(f"{out} was written with a different config; refusing to mix results "
-                                "(use another --out)")
+            differences = _differences(existing.get("protocol", {}), document["protocol"])
+            raise ResumeRefused(f"{out} was written with a different config ({'; '.join(differences)}); "
+                                "refusing to mix results (give the same settings, or another --out)")
         old, new = existing.get("code", {}), document["code"]
         if (old.get("package"), old.get("commit")) != (new.get("package"), new.get("commit")):
             raise ResumeRefused(f"{out} was written by another code version ({old.get('commit')}, "
@@ -244,23 +322,60 @@ def _pending(out: pathlib.Path, protocol: Protocol) -> list[ExperimentSpec]:
             if not curve_path(out, algorithm, index).exists()]
 
 
+def finished_experiments(out: str | os.PathLike, protocol: Protocol) -> int:
+    """How many of ``protocol``'s experiments have their results in ``out``."""
+    return protocol.experiments * len(protocol.algorithms) - len(_pending(pathlib.Path(out), protocol))
+
+
+def warm_up(protocol: Protocol) -> None:
+    """Compile the kernels ``protocol``'s learners use, or load them from numba's disk cache: one
+    learning and one greedy trial of a throw-away agent of each learner, in this process.
+
+    Run before the worker processes start, so that they load the compiled kernels from the cache
+    instead of each compiling them at once (tens of seconds the first time, about a second after).
+    """
+    env = make_environment(protocol, task_seed=0)
+    for algorithm in protocol.algorithms:
+        agent = make_agent(algorithm, state_space_of(env), action_space_of(env),
+                           config=protocol.agent_configs.get(algorithm), seed=0)
+        run_trial(env, agent, learn=True)
+        run_trial(env, agent, learn=False)
+
+
 def _ignore_interrupts() -> None:
     """Worker initialiser: Ctrl-C reaches the whole process group; only the driver handles it."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
-def _local_outcomes(specs: list[ExperimentSpec], jobs: int) -> Iterator[dict[str, Any]]:
+#: Seconds between two looks at the live trial logs of the experiments in flight.
+_POLL_SECONDS = 0.5
+
+
+def _local_outcomes(specs: list[ExperimentSpec], jobs: int,
+                    on_trial: Callable[[str, int, int, float], None] | None = None,
+                    poll: Callable[[], None] | None = None) -> Iterator[dict[str, Any]]:
+    """Outcomes of ``specs`` in the order they finish. Serially (``jobs == 1``) ``on_trial`` sees every
+    trial; in worker processes the driver calls ``poll()`` while it waits."""
     if jobs == 1 or len(specs) <= 1:
         for spec in specs:
-            yield run_experiment(spec)
+            yield run_experiment(spec, on_trial)
         return
-    # "spawn": workers start clean (no inherited GL contexts or numba state); the numba cache makes
-    # their start-up cheap. On an interrupt the driver terminates the workers: only the experiments
-    # in flight are lost.
+    # "spawn": workers start clean (no inherited GL contexts or numba state); the numba cache (filled
+    # by warm_up) makes their start-up cheap. On an interrupt the driver terminates the workers: only
+    # the experiments in flight are lost.
     context = multiprocessing.get_context("spawn")
     pool = context.Pool(processes=min(jobs, len(specs)), initializer=_ignore_interrupts)
     try:
-        yield from pool.imap_unordered(run_experiment, specs, chunksize=1)
+        outcomes = pool.imap_unordered(run_experiment, specs, chunksize=1)
+        for _ in specs:
+            while True:
+                try:
+                    outcome = outcomes.next(timeout=_POLL_SECONDS)
+                    break
+                except multiprocessing.TimeoutError:
+                    if poll is not None:
+                        poll()
+            yield outcome
         pool.close()
     finally:
         pool.terminate()
@@ -281,77 +396,250 @@ def _dask_outcomes(specs: list[ExperimentSpec], scheduler: str) -> Iterator[dict
             client.cancel(futures)
 
 
-class _Progress:
-    """A bar for the whole run and one per learner: experiments and trials done, trials per second,
-    time left. Trials advance by whole experiments, as each one finishes."""
+def _is_terminal(stream: TextIO) -> bool:
+    isatty = getattr(stream, "isatty", None)
+    try:
+        return bool(isatty and isatty())
+    except ValueError:  # a closed stream
+        return False
 
-    def __init__(self, protocol: Protocol, done: dict[str, int], enabled: bool):
+
+class _Progress:
+    """Trials done, overall and per learner, with the mean return of each learner's last trials.
+
+    On a terminal: tqdm bars (trials per second, time left). Otherwise (nohup, a Slurm log, a pipe):
+    a plain line every ``interval`` seconds and at the end, without carriage returns or escape codes.
+    Trials advance as the experiments report them (:meth:`trial`), and by the rest of an experiment
+    when it finishes (:meth:`experiment`).
+    """
+
+    #: Trials over which the live mean return is taken, per learner.
+    RECENT = 10
+
+    def __init__(self, protocol: Protocol, done: dict[str, int], enabled: bool,
+                 stream: TextIO | None = None, interval: float = 10.0):
         self.trials = protocol.trials
+        self.algorithms = protocol.algorithms
         self.experiments = {"all": protocol.experiments * len(protocol.algorithms),
                             **{a: protocol.experiments for a in protocol.algorithms}}
         self.done = {"all": sum(done.values()), **done}
+        self.trials_done = {key: count * self.trials for key, count in self.done.items()}
+        self.credited: dict[tuple[str, int], int] = {}  # trials counted of experiments in flight
+        self.recent = {a: collections.deque(maxlen=self.RECENT) for a in protocol.algorithms}
+        self.stream = sys.stderr if stream is None else stream
+        self.enabled = enabled
+        # tqdm.auto draws widgets in a notebook, whose stderr is no terminal either
+        self.plain = enabled and not (_is_terminal(self.stream) or "ipykernel" in sys.modules)
+        self.interval = interval
+        self.started = time.monotonic()
+        self.first_trials = self.trials_done["all"]
+        self.last_line = -math.inf
         self.bars = {}
         if not enabled:
+            return
+        if self.plain:
+            self._line()
             return
         from tqdm.auto import tqdm
         for position, key in enumerate(["all", *protocol.algorithms]):
             self.bars[key] = tqdm(total=self.experiments[key] * self.trials,
-                                  initial=self.done[key] * self.trials,
+                                  initial=self.trials_done[key], file=self.stream,
                                   desc="all learners" if key == "all" else f"{key:>12}",
                                   unit="trial", position=position, dynamic_ncols=True)
-            self._postfix(key)
+            self.bars[key].set_postfix_str(self._postfix(key))
 
-    def _postfix(self, key: str) -> None:
-        self.bars[key].set_postfix_str(f"{self.done[key]}/{self.experiments[key]} experiments")
+    def _recent_mean(self, algorithm: str) -> str:
+        recent = self.recent[algorithm]
+        return f"last {len(recent)} trials {np.mean(recent):.0f}" if recent else "no trial yet"
 
-    def update(self, algorithm: str) -> None:
+    def _postfix(self, key: str) -> str:
+        text = f"{self.done[key]}/{self.experiments[key]} experiments"
+        return text if key == "all" else f"{text}, {self._recent_mean(key)}"
+
+    def trial(self, algorithm: str, index: int, trial: int, value: float) -> None:
+        """Experiment ``index`` of ``algorithm`` finished learning trial ``trial`` with return ``value``."""
+        previous = self.credited.get((algorithm, index), 0)
+        if trial <= previous:
+            return
+        self.credited[(algorithm, index)] = trial
+        self.recent[algorithm].append(value)
+        self._advance(algorithm, trial - previous)
+
+    def experiment(self, algorithm: str, index: int) -> None:
+        """Experiment ``index`` of ``algorithm`` finished (and is saved)."""
+        previous = self.credited.pop((algorithm, index), 0)
+        self.done["all"] += 1
+        self.done[algorithm] += 1
+        self._advance(algorithm, self.trials - previous)
+
+    def _advance(self, algorithm: str, trials: int) -> None:
         for key in ("all", algorithm):
-            self.done[key] += 1
+            self.trials_done[key] += trials
             if key in self.bars:
-                self._postfix(key)
-                self.bars[key].update(self.trials)
+                self.bars[key].set_postfix_str(self._postfix(key), refresh=False)
+                self.bars[key].update(trials)
+        self.tick()
+
+    def tick(self) -> None:
+        """In plain mode, print a line if ``interval`` seconds passed since the last one."""
+        if self.plain and time.monotonic() - self.last_line >= self.interval:
+            self._line()
+
+    def _line(self) -> None:
+        elapsed = time.monotonic() - self.started
+        total = self.experiments["all"] * self.trials
+        done = self.trials_done["all"]
+        rate = (done - self.first_trials) / elapsed if elapsed > 0 else 0.0
+        eta = f", about {_duration((total - done) / rate)} left" if rate > 0 and done < total else ""
+        parts = [f"[{_duration(elapsed)}] {done}/{total} trials ({self.done['all']}/"
+                 f"{self.experiments['all']} experiments), {rate:.0f} trials/s{eta}"]
+        for algorithm in self.algorithms:
+            parts.append(f"{algorithm} {self.trials_done[algorithm]}/"
+                         f"{self.experiments[algorithm] * self.trials} trials, "
+                         f"{self._recent_mean(algorithm)}")
+        print(" | ".join(parts), file=self.stream, flush=True)
+        self.last_line = time.monotonic()
 
     def close(self) -> None:
+        if self.plain:  # the final state
+            self._line()
         for bar in self.bars.values():
             bar.close()
+
+
+def _duration(seconds: float) -> str:
+    seconds = int(round(seconds))
+    if seconds < 60:
+        return f"{seconds} s"
+    minutes, seconds = divmod(seconds, 60)
+    if minutes < 60:
+        return f"{minutes} min {seconds:02d} s"
+    return f"{minutes // 60} h {minutes % 60:02d} min"
+
+
+class _TrialFeed:
+    """Follows the live trial logs that worker processes write (``progress/``) for the progress display."""
+
+    def __init__(self, out: pathlib.Path, specs: list[ExperimentSpec], progress: _Progress):
+        self.files = {(s.algorithm, s.index): progress_path(out, s.algorithm, s.index) for s in specs}
+        self.offsets: dict[tuple[str, int], int] = {}
+        self.progress = progress
+
+    def poll(self) -> None:
+        for key, path in self.files.items():
+            try:
+                with open(path, "rb") as handle:
+                    handle.seek(self.offsets.get(key, 0))
+                    chunk = handle.read()
+            except FileNotFoundError:
+                continue
+            end = chunk.rfind(b"\n") + 1  # complete lines only; the rest is still being written
+            if not end:
+                continue
+            self.offsets[key] = self.offsets.get(key, 0) + end
+            for line in chunk[:end].decode("utf-8").splitlines():
+                trial, value, _ = line.split(",")
+                if trial != "trial":
+                    self.progress.trial(key[0], key[1], int(trial), float(value))
+        self.progress.tick()
+
+    def finished(self, algorithm: str, index: int) -> None:
+        self.files.pop((algorithm, index), None)
+
+
+class _WallClock:
+    """The wall time of this part of a run, counted from ``started`` (the process's start: compilation,
+    the near-optimal reference and the figures included), kept in ``wall_times.json`` beside the earlier
+    parts, so that a resumed run reports the total over all of them. It is written after every saved
+    experiment; a killed part loses only the time since its last one."""
+
+    def __init__(self, out: pathlib.Path, started: float, resume: bool):
+        self.path = wall_times_path(out)
+        self.started = started
+        self.earlier: list[dict[str, Any]] = []
+        if resume and self.path.is_file():
+            with contextlib.suppress(ValueError, KeyError, TypeError):
+                self.earlier = [dict(part) for part in json.loads(self.path.read_text())["parts"]]
+        self.part = {"started": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+                     "wall_s": 0.0, "experiments": 0}
+
+    def record(self, experiments: int = 0) -> None:
+        self.part["wall_s"] = time.perf_counter() - self.started
+        self.part["experiments"] += experiments
+        results.write_json(self.path, {"parts": [*self.earlier, self.part]})
+
+    @property
+    def parts(self) -> list[float]:
+        return [float(part.get("wall_s", 0.0)) for part in [*self.earlier, self.part]]
 
 
 def run_protocol(protocol: Protocol, out: str | os.PathLike, jobs: int | None = None,
                  resume: bool = False, scheduler: str | None = None, progress: bool = True,
                  optimal: Callable[[Protocol], float | None] | None = None,
-                 figures: bool = True) -> dict[str, Any]:
+                 figures: bool = True, log: Callable[[str], None] | None = None,
+                 started: float | None = None, smooth: int = 1) -> dict[str, Any]:
     """Run (or finish, with ``resume``) ``protocol`` into ``out``; return the summary document.
 
     Args:
       jobs: local worker processes (default: the machine's cores); ignored with ``scheduler``.
       scheduler: address of a Dask distributed scheduler to run the experiments on instead.
+      progress: show progress (bars on a terminal, periodic plain lines otherwise) on stderr.
       optimal: returns the near-optimal return for the summary and Fig. 2, or None.
+      log: called with a one-line message before anything slow that shows no progress (compiling the
+        kernels the first time); None says nothing.
+      started: ``time.perf_counter()`` when the caller started (default: now); the wall time in the
+        summary counts from there, summed over every part of a resumed run.
+      smooth: Fig. 2's running mean, in trials (1: none).
     """
+    started = time.perf_counter() if started is None else started
     out = pathlib.Path(out)
     jobs = (os.cpu_count() or 1) if jobs is None else jobs
     if jobs < 1:
         raise ValueError(f"jobs must be a positive integer, got {jobs!r}")
     _prepare(out, protocol, resume)
+    clock = _WallClock(out, started, resume)
     pending = _pending(out, protocol)
+    if pending and not scheduler:
+        from rmac_mj import _cache
+
+        def compiling() -> None:
+            if log is not None:
+                log(f"compiling kernels, first run only (cached in {_cache.numba_cache_location()})")
+        compile_started = time.perf_counter()
+        with _cache.on_first_compile(compiling):
+            warm_up(protocol)
+        if log is not None and _cache.kernel_stats()["compiled"]:
+            log(f"kernels compiled in {time.perf_counter() - compile_started:.0f} s")
+    if not scheduler:  # the workers stream their trials to progress/; a Dask worker may see no `out`
+        pending = [dataclasses.replace(spec, stream_to=str(out)) for spec in pending]
+        for spec in pending:  # a trial log left by an interrupted run is rewritten from the start
+            progress_path(out, spec.algorithm, spec.index).unlink(missing_ok=True)
     done = {a: protocol.experiments - sum(s.algorithm == a for s in pending) for a in protocol.algorithms}
-    bars = _Progress(protocol, done, progress and bool(pending))
-    started = time.perf_counter()
-    outcomes = _dask_outcomes(pending, scheduler) if scheduler else _local_outcomes(pending, jobs)
+    display = _Progress(protocol, done, progress and bool(pending))
+    feed = _TrialFeed(out, pending, display)
+    outcomes = (_dask_outcomes(pending, scheduler) if scheduler else
+                _local_outcomes(pending, jobs, on_trial=display.trial,
+                                poll=feed.poll if display.enabled else None))
     try:
         with contextlib.closing(outcomes):  # on an interrupt, stop the workers at once
             for outcome in outcomes:
                 save_outcome(out, outcome)
-                bars.update(outcome["algorithm"])
+                feed.finished(outcome["algorithm"], outcome["index"])
+                display.experiment(outcome["algorithm"], outcome["index"])
+                clock.record(experiments=1)
     finally:
-        bars.close()
-    wall = time.perf_counter() - started
-    return finalise(out, protocol, wall_time_s=wall, optimal=optimal, figures=figures)
+        display.close()
+    return finalise(out, protocol, optimal=optimal, figures=figures, clock=clock, smooth=smooth)
 
 
 def finalise(out: pathlib.Path, protocol: Protocol, wall_time_s: float | None = None,
              optimal: Callable[[Protocol], float | None] | None = None,
-             figures: bool = True) -> dict[str, Any]:
-    """Summarise the finished curves in ``out``: summary.json, returns.csv and Fig. 2."""
+             figures: bool = True, clock: _WallClock | None = None, smooth: int = 1) -> dict[str, Any]:
+    """Summarise the finished curves in ``out``: returns.csv, Fig. 2, then summary.json.
+
+    The wall time in the summary is ``wall_time_s``, or with ``clock`` the total over every part of
+    the run up to the end of the figures (``wall_time_parts_s`` lists the parts).
+    """
     optimal_return = optimal(protocol) if optimal is not None else None
     seconds = trial_seconds(make_environment(protocol))
     summary: dict[str, Any] = {"paper_protocol": protocol.is_paper_protocol,
@@ -366,9 +654,8 @@ def finalise(out: pathlib.Path, protocol: Protocol, wall_time_s: float | None = 
         summary[algorithm]["experiment_wall_s_mean"] = float(wall.mean())
         rows.extend((algorithm, i, t + 1, float(r)) for i, curve in enumerate(returns)
                     for t, r in enumerate(curve))
-    if wall_time_s is not None:
-        summary["wall_time_s"] = wall_time_s
-    results.write_json(out / "summary.json", summary)
+    summary["final_return_tests"] = results.compare_final_returns(
+        {a: summary[a]["final_return_per_experiment"] for a in protocol.algorithms})
 
     def write_csv(handle):
         import io
@@ -382,12 +669,20 @@ def finalise(out: pathlib.Path, protocol: Protocol, wall_time_s: float | None = 
     if figures:
         from rmac_mj.experiments import plots
         plots.plot_learning_curves({out.name or str(out): summary}, out / "fig2_learning_curves",
-                                   optimal_return=optimal_return)
+                                   optimal_return=optimal_return, smooth=smooth)
+    if clock is not None:
+        clock.record()
+        summary["wall_time_s"] = sum(clock.parts)
+        summary["wall_time_parts_s"] = clock.parts
+    elif wall_time_s is not None:
+        summary["wall_time_s"] = wall_time_s
+    results.write_json(out / "summary.json", summary)
     return summary
 
 
 def summary_table(summary: dict[str, Any], algorithms: Iterable[str] | None = None) -> str:
-    """The end-of-run table: one row per learner."""
+    """The end-of-run table: one row per learner, then whether their final returns differ
+    significantly, and a warning when too few experiments make the intervals meaningless."""
     algorithms = [a for a in (algorithms or ALGORITHMS) if a in summary]
     header = (f"{'learner':>8} {'experiments':>11} {'final return':>13} {'95% CI':>19} "
               f"{'min to 90%':>10} {'first 10 min':>12} {'stuck':>5}")
@@ -404,5 +699,11 @@ def summary_table(summary: dict[str, Any], algorithms: Iterable[str] | None = No
         lines.append(f"near-optimal return: {summary['optimal_return']:.1f}")
     if summary.get("trial_seconds") is not None:
         lines.append(f"one trial = {summary['trial_seconds']:g} s of simulated time")
+    tests = results.compare_final_returns(
+        {a: summary[a]["final_return_per_experiment"] for a in algorithms
+         if "final_return_per_experiment" in summary[a]})
+    lines.extend(results.describe_test(test) for test in tests)
+    fewest = min((summary[a]["experiments"] for a in algorithms), default=None)
+    if fewest is not None and fewest < results.FEW_EXPERIMENTS:
+        lines.append(results.few_experiments_note(fewest))
     return "\n".join(lines)
-

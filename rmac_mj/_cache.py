@@ -1,0 +1,111 @@
+"""Where rmac-mj caches what is expensive to compute: compiled kernels and the near-optimal reference.
+
+- The near-optimal reference (``rmac_mj.experiments.optimal``) is cached in :func:`user_cache_dir`:
+  ``$RMAC_MJ_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/rmac-mj``, else ``~/.cache/rmac-mj``.
+- The numba kernels (``@njit(cache=True)``) are compiled once (tens of seconds) and reused by every later
+  process and worker. numba writes them to ``__pycache__`` beside the package's modules; when the package
+  directory is not writable (a system or shared install), :func:`configure_numba_cache` points
+  ``NUMBA_CACHE_DIR`` at ``user_cache_dir() / "numba"`` instead, so that the cache still works and its
+  place is known. A ``NUMBA_CACHE_DIR`` set by the user is always kept.
+
+numba reads ``NUMBA_CACHE_DIR`` when it is first imported, and a kernel's cache locator is chosen when the
+kernel is defined, so :func:`configure_numba_cache` runs from ``rmac_mj/__init__.py`` before anything
+imports numba. This module itself never imports numba at import time.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import pathlib
+import sys
+from typing import Callable, Iterator, MutableMapping
+
+_CACHE_ENV = "RMAC_MJ_CACHE_DIR"
+_NUMBA_ENV = "NUMBA_CACHE_DIR"
+_PACKAGE_DIR = pathlib.Path(__file__).resolve().parent
+#: Package folders that hold ``@njit(cache=True)`` kernels (numba's in-tree cache is their __pycache__).
+_KERNEL_DIRS = ("agents", "approximators")
+
+
+def user_cache_dir(environ: MutableMapping[str, str] | None = None) -> pathlib.Path:
+    """``$RMAC_MJ_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/rmac-mj``, else ``~/.cache/rmac-mj``."""
+    environ = os.environ if environ is None else environ
+    if environ.get(_CACHE_ENV):
+        return pathlib.Path(environ[_CACHE_ENV]).expanduser()
+    base = environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return pathlib.Path(base) / "rmac-mj"
+
+
+def _writable(path: pathlib.Path) -> bool:
+    """True when files can be created in ``path`` (or in the folder that would create it)."""
+    while not path.exists():
+        path = path.parent
+    return os.access(path, os.W_OK | os.X_OK)
+
+
+def _package_is_writable(package_dir: pathlib.Path = _PACKAGE_DIR) -> bool:
+    folders = [package_dir / name for name in _KERNEL_DIRS]
+    return all(_writable(folder / "__pycache__") for folder in folders)
+
+
+def configure_numba_cache(environ: MutableMapping[str, str] | None = None,
+                          package_dir: pathlib.Path = _PACKAGE_DIR) -> str | None:
+    """Point ``NUMBA_CACHE_DIR`` at the user cache when the package directory is not writable.
+
+    Returns the value set, or None when nothing was changed (the user set it, or numba's in-tree
+    ``__pycache__`` works).
+    """
+    environ = os.environ if environ is None else environ
+    if environ.get(_NUMBA_ENV) or _package_is_writable(package_dir):
+        return None
+    environ[_NUMBA_ENV] = str(user_cache_dir(environ) / "numba")
+    if "numba" in sys.modules and environ is os.environ:  # imported before rmac_mj: too late for
+        sys.modules["numba"].config.CACHE_DIR = environ[_NUMBA_ENV]  # its import, not for our kernels
+    return environ[_NUMBA_ENV]
+
+
+def numba_cache_location(environ: MutableMapping[str, str] | None = None) -> str:
+    """Where the compiled kernels are (or will be) cached, for messages and the README."""
+    environ = os.environ if environ is None else environ
+    if environ.get(_NUMBA_ENV):
+        return environ[_NUMBA_ENV]
+    return f"__pycache__ folders under {_PACKAGE_DIR}"
+
+
+def kernel_stats() -> dict[str, int]:
+    """How many of the package's kernel signatures were loaded from the disk cache (``loaded``) and how
+    many were compiled (``compiled``) in this process so far (numba's per-dispatcher statistics)."""
+    from numba.core.registry import CPUDispatcher
+
+    loaded = compiled = 0
+    for name, module in list(sys.modules.items()):
+        if not name.startswith("rmac_mj") or module is None:
+            continue
+        for value in list(vars(module).values()):
+            if isinstance(value, CPUDispatcher):
+                stats = value.stats
+                loaded += sum(stats.cache_hits.values())
+                compiled += sum(stats.cache_misses.values())
+    return {"loaded": loaded, "compiled": compiled}
+
+
+@contextlib.contextmanager
+def on_first_compile(callback: Callable[[], None]) -> Iterator[None]:
+    """Call ``callback()`` once, when numba starts its first real compilation (not a load from the disk
+    cache) inside the ``with`` block: the moment to tell the user why nothing else is happening."""
+    from numba.core import event
+
+    class _Listener(event.Listener):
+        called = False
+
+        def on_start(self, ev):
+            if not self.called:
+                self.called = True
+                callback()
+
+        def on_end(self, ev):
+            pass
+
+    with event.install_listener("numba:compile", _Listener()):
+        yield
