@@ -4,7 +4,7 @@
                       [--jobs N] [--out DIR] [--resume] [--evaluate-every N] [--scheduler ADDRESS]
     rmac-mj compare DIR [DIR ...] [--out STEM]
     rmac-mj policy SNAPSHOT [--out STEM]
-    rmac-mj optimal [--refresh]
+    rmac-mj optimal [--domain D --task T] [--refresh]
     rmac-mj render SNAPSHOT --out swingup.mp4 | rmac-mj render --progression DIR --out progression.mp4
     rmac-mj bench [--json FILE]
 """
@@ -100,7 +100,9 @@ def _parser() -> argparse.ArgumentParser:
                         help="figure path without suffix (default: beside the snapshot)")
     policy.add_argument("--max-speed", type=float, default=30.0, help="velocity axis range (rad/s)")
 
-    optimal = commands.add_parser("optimal", help="near-optimal return by dynamic programming")
+    optimal = commands.add_parser("optimal", help="near-optimal return of a task (cached)")
+    optimal.add_argument("--domain", default="dc_pendulum", help="domain (default dc_pendulum)")
+    optimal.add_argument("--task", default="swingup", help="task (default swingup)")
     optimal.add_argument("--refresh", action="store_true", help="recompute, ignoring the cache")
 
     render = commands.add_parser("render", help="render greedy swingups off-screen to MP4 or GIF")
@@ -124,11 +126,12 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _optimal_for(protocol) -> float | None:
-    """The near-optimal return of the protocol's task, when it is the paper's swing-up."""
-    if (protocol.domain, protocol.task, protocol.task_kwargs) != ("dc_pendulum", "swingup", {}):
+    """The near-optimal return of the protocol's task, when it has one (default task_kwargs only)."""
+    from rmac_mj.experiments import reference
+
+    if protocol.task_kwargs or not reference.has_reference(protocol.domain, protocol.task):
         return None
-    from rmac_mj.experiments import optimal
-    return float(optimal.optimal_return().simulated_return)
+    return reference.reference_return(protocol.domain, protocol.task)
 
 
 def parse_overrides(assignments: Sequence[str]) -> dict[str, dict]:
@@ -199,9 +202,9 @@ def _policy(args) -> int:
 
 
 def _optimal(args) -> int:
-    from rmac_mj.experiments import optimal
+    from rmac_mj.experiments import reference
 
-    result = optimal.optimal_return(refresh=args.refresh)
+    result = reference.reference(args.domain, args.task, refresh=args.refresh)
     print(result.describe())
     return 0
 
