@@ -42,15 +42,16 @@ REACH_START = (-np.pi / 2, 0.0, np.pi / 2, 0.0)   # x_0: link 1 along -y, link 2
 DISCOUNT = 0.98                               # the benchmark's gamma
 
 #: Highest joint speed (rad/s) the arm reaches within one 3 s trial from x_0 under the torque limits,
-#: measured on the model: 47.7 rad/s (the elbow, with both torques held at opposite extremes; the
-#: elbow's speed limit under 1 N m against its 0.02 N m s damping is 50 rad/s). 40 random bang-bang
-#: torque sequences peak at 4-14 rad/s, the near-optimal reach at 5.2 rad/s (docs/optimal.md).
-MAX_SPEED = 47.7
+#: measured on the model: 47.8 rad/s (the elbow, with both torques held at opposite extremes for the
+#: whole trial; the elbow alone tends to 1 N m / 0.02 N m s = 50 rad/s). Random torque sequences peak
+#: far lower: 40 uniform ones at 1.7-8.3 rad/s, 40 bang-bang ones at 2.6-17.4 rad/s; the near-optimal
+#: reach at 2.2 (shoulder) and 5.0 rad/s (elbow) (models/two_link_arm/README.md, docs/optimal.md).
+MAX_SPEED = 47.8
 
-#: Velocity half-range of the nominal state box (rad/s): 4 pi. It covers every speed of random and
-#: bang-bang exploration measured above (up to 14 rad/s) and the near-optimal reach with a margin; as
-#: for the pendulum (8 pi against 57.5 rad/s reachable), only torques held at opposite extremes for
-#: seconds go faster. The benchmark itself clips speeds to +-2 pi (see models/two_link_arm/README.md).
+#: Velocity half-range of the nominal state box (rad/s): 4 pi = 12.6. It covers the near-optimal reach
+#: 2.5 times over and every uniform random torque sequence measured; as with the pendulum (8 pi against
+#: 57.5 rad/s reachable), only spinning, bang-bang policies go beyond it. The benchmark itself clips
+#: speeds to +-2 pi (see models/two_link_arm/README.md).
 NOMINAL_SPEED = 4 * np.pi
 
 SUITE = containers.TaggedTasks()
@@ -204,10 +205,10 @@ class Reach(base.Task):
     def learner_state(self) -> common.LearnerState:
         """x = [theta1, omega1, theta2, omega2] (``shoulder`` then ``elbow``).
 
-        The box is one period in each angle and +-NOMINAL_SPEED in each speed. The weights follow the
-        pendulum's Table 2 choice (1 per angle, 0.1 per speed: the weighted spans of angle and speed
-        about equal, 2 pi against 0.1 * 8 pi = 2.5 for the arm's box); the action weights give each
-        torque the weighted span of the pendulum's voltage (1 * 6 V): 2 * 3 N m and 3 * 2 N m.
+        The box is one period in each angle and +-NOMINAL_SPEED in each speed. The weights give every
+        dimension the weighted span it has for the pendulum under Table 2's weights (1 per angle, 0.1
+        per speed, 1 per voltage): angles 1 * 2 pi; speeds 0.2 * 8 pi = 5.0, as 0.1 * 16 pi for the
+        pendulum's +-8 pi; torques 2 * 3 N m = 3 * 2 N m = 6, as 1 * 6 V.
         """
         return common.LearnerState(
             keys=("shoulder", "elbow"),
@@ -216,5 +217,5 @@ class Reach(base.Task):
             periodic=(True, False, True, False),
             labels=("shoulder angle theta1 [rad]", "shoulder speed omega1 [rad/s]",
                     "elbow angle theta2 [rad]", "elbow speed omega2 [rad/s]"),
-            weights=(1.0, 0.1, 1.0, 0.1), action_weights=(2.0, 3.0),
+            weights=(1.0, 0.2, 1.0, 0.2), action_weights=(2.0, 3.0),
             action_labels=("tau1 [N m]", "tau2 [N m]"))

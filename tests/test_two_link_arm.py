@@ -225,3 +225,17 @@ def test_full_weight_matrices_are_accepted():
     env = tasks.load("two_link_arm", "reach", task_kwargs={"state_weights": q, "action_weights": np.eye(2)})
     env.reset()
     assert env.step([1.0, 0.0]).reward == pytest.approx(-(np.pi**2 / 2) - 1.0)
+
+
+def test_model_path_finds_folder_models_and_single_files():
+    from rmac_mj.models import available_models
+    assert model_path("two_link_arm").name == "two_link_arm.xml"
+    assert model_path("two_link_arm").parent.name == "two_link_arm"
+    assert model_path("two_link_arm", scene=True).name == "scene.xml"
+    assert model_path("dc_pendulum").is_file()
+    assert {"dc_pendulum", "two_link_arm"} <= set(available_models())
+    with pytest.raises(ValueError, match="no model named 'cartpole'"):
+        model_path("cartpole")
+    if not (model_path("dc_pendulum").parent / "scene.xml").is_file():
+        with pytest.raises(ValueError, match="no scene.xml"):
+            model_path("dc_pendulum", scene=True)
