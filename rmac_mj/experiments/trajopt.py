@@ -72,7 +72,6 @@ SOLVER_VERSION = 1
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 #: Largest action dimension: the per-step box QP enumerates the 3^m faces of the box.
 MAX_ACTION_DIM = 4
-MU0 = 1.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -82,7 +81,8 @@ class TrajoptConfig:
     max_iterations: int = 300
     """iLQR iterations per start and phase (each: derivatives, a backward pass, a line search)."""
     tolerance: float = 1e-9
-    """A start stops when an accepted iteration improves the return by less than this fraction."""
+    """A phase stops when the gain its quadratic model predicts for a full step is below this fraction
+    of (1 + |return|)."""
     random_starts: int = 2
     """Random starts (uniform in the action box) in addition to the zero, corner and switched starts."""
     corner_starts: bool = True
@@ -290,8 +290,7 @@ class Problem:
 
     def _rollout(self, initial: np.ndarray, control: np.ndarray) -> np.ndarray:
         datas = self._datas if len(self._datas) > 1 else self._datas[0]
-        states, _ = rollout.rollout(self.model, datas, initial, control,
-                                    persistent_pool=len(self._datas) > 1)
+        states, _ = rollout.rollout(self.model, datas, initial, control)
         return states
 
     def trajectories(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -467,7 +466,9 @@ def ilqr(problem: Problem, actions: np.ndarray, config: TrajoptConfig, wrap: boo
     charges the rewards of unwrapped states (``Problem.state_of``).
     """
     alphas = 10.0 ** np.linspace(0, -3, 11)
-    mu, mu_factor, mu_min, mu_max = MU0, 1.0, 1e-6, 1e10
+    # Levenberg-Marquardt regularisation of V_zz, adapted as in Tassa, Erez and Todorov (2012): it grows
+    # by factors 1.6, 1.6^2, ... after a failed step and shrinks likewise after a successful one.
+    mu, mu_factor, mu_min, mu_max = 1.0, 1.0, 1e-6, 1e10
     u = np.clip(actions, problem.low, problem.high)
     zero_gains = np.zeros((u.shape[0], problem.low.size, problem.nz))
     z, full, u = problem.simulate_policy(np.zeros((u.shape[0] + 1, problem.nz)), u,
