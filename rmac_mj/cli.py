@@ -5,7 +5,7 @@
                       [--evaluate-every N] [--scheduler ADDRESS]
     rmac-mj compare DIR [DIR ...] [--out STEM]
     rmac-mj policy SNAPSHOT [SNAPSHOT] [--out STEM] [--dims 0,1] [--xlim LO,HI] [--ylim LO,HI]
-    rmac-mj optimal [--refresh]
+    rmac-mj optimal [--domain D --task T] [--refresh]
     rmac-mj render SNAPSHOT --out episode.mp4 | rmac-mj render --progression DIR --out progression.mp4
     rmac-mj bench [--domain dc_pendulum --task swingup] [--json FILE] [--quick] [--markdown]
 
@@ -214,7 +214,10 @@ def _parser() -> argparse.ArgumentParser:
                         help="do not draw the greedy trial from the start state over the maps")
     _add_task_options(policy, False, "default: the snapshot's own")
 
-    optimal = command("optimal", "near-optimal return by dynamic programming (cached)")
+    optimal = command("optimal", "near-optimal return of a task (cached): dynamic programming "
+                               "for dc_pendulum/swingup, trajectory optimisation for two_link_arm/reach")
+    optimal.add_argument("--domain", default="dc_pendulum", help="domain")
+    optimal.add_argument("--task", default="swingup", help="task")
     optimal.add_argument("--refresh", action="store_true", help="recompute, ignoring the cache")
 
     render = command("render", "render greedy episodes off-screen to MP4 or GIF")
@@ -245,11 +248,12 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _optimal_for(protocol) -> float | None:
-    """The near-optimal return of the protocol's task, when it is the paper's swing-up."""
-    if (protocol.domain, protocol.task, protocol.task_kwargs) != ("dc_pendulum", "swingup", {}):
+    """The near-optimal return of the protocol's task, when it has one (default task_kwargs only)."""
+    from rmac_mj.experiments import reference
+
+    if protocol.task_kwargs or not reference.has_reference(protocol.domain, protocol.task):
         return None
-    from rmac_mj.experiments import optimal
-    return float(optimal.optimal_return(announce=_say).simulated_return)
+    return reference.reference_return(protocol.domain, protocol.task, announce=_say)
 
 
 def parse_overrides(assignments: Sequence[str]) -> dict[str, dict]:
@@ -423,9 +427,12 @@ def _policy(args) -> int:
 
 
 def _optimal(args) -> int:
-    from rmac_mj.experiments import optimal
+    from rmac_mj.experiments import reference
 
-    result = optimal.optimal_return(refresh=args.refresh, announce=_say)
+    with _user_input():
+        if not reference.has_reference(args.domain, args.task):
+            reference.reference(args.domain, args.task)  # raises, naming the tasks that have one
+    result = reference.reference(args.domain, args.task, refresh=args.refresh, announce=_say)
     print(result.describe())
     return 0
 

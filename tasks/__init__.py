@@ -11,9 +11,10 @@ from typing import Any
 
 from dm_control.rl import control
 
-from rmac_mj.tasks import dc_pendulum
+from rmac_mj.tasks import dc_pendulum, two_link_arm
 
-_DOMAINS = {name: module for name, module in [("dc_pendulum", dc_pendulum)]}
+_DOMAINS = {name: module for name, module in [("dc_pendulum", dc_pendulum),
+                                              ("two_link_arm", two_link_arm)]}
 
 #: Every (domain_name, task_name) pair in the suite.
 ALL_TASKS = tuple(sorted((domain, task) for domain, module in _DOMAINS.items()
@@ -31,10 +32,11 @@ def load(domain_name: str, task_name: str, task_kwargs: dict[str, Any] | None = 
     """Return the environment of ``domain_name``/``task_name``, mirroring ``dm_control.suite.load``.
 
     Args:
-      domain_name: e.g. ``"dc_pendulum"``.
-      task_name: e.g. ``"swingup"`` or ``"balance"``.
+      domain_name: e.g. ``"dc_pendulum"`` or ``"two_link_arm"``.
+      task_name: e.g. ``"swingup"``, ``"balance"`` or ``"reach"``.
       task_kwargs: keyword arguments of the task factory (``time_limit``, ``control_timestep``,
-        ``state_weights``, ``action_weight``, ``start_state``, ``start_noise``, ``random``).
+        ``state_weights``, ``action_weight`` or ``action_weights``, ``start_state``, ``start_noise``,
+        ``random``).
       environment_kwargs: keyword arguments of ``dm_control.rl.control.Environment``.
     """
     return build_environment(domain_name, task_name, task_kwargs, environment_kwargs)

@@ -62,26 +62,8 @@ def get_model_and_assets() -> tuple[str, dict[str, Any]]:
 
 def _make_environment(task: "SwingUp", time_limit: float, control_timestep: float,
                       environment_kwargs: dict[str, Any] | None) -> control.Environment:
-    environment_kwargs = dict(environment_kwargs or {})
-    for clash in ("control_timestep", "n_sub_steps", "time_limit"):
-        if clash in environment_kwargs:
-            raise ValueError(
-                f"environment_kwargs[{clash!r}] is set by the task; pass it as a task_kwarg instead")
     physics = Physics.from_xml_string(*get_model_and_assets())
-    _check_positive("time_limit", time_limit)
-    _check_positive("control_timestep", control_timestep)
-    n_sub_steps = control_timestep / physics.timestep()
-    if abs(n_sub_steps - round(n_sub_steps)) > 1e-8 or round(n_sub_steps) < 1:
-        raise ValueError(f"control_timestep must be a positive multiple of the physics timestep "
-                         f"{physics.timestep()} s, got {control_timestep!r}")
-    n_steps = time_limit / control_timestep
-    if abs(n_steps - round(n_steps)) > 1e-8:
-        raise ValueError(f"time_limit must be a whole number of control steps of {control_timestep} s, "
-                         f"got {time_limit!r}")
-    # dm-control ends an episode once step_count >= time_limit / control_timestep; 3.0 / 0.03 is
-    # 100.00000000000001 in floating point, which would give 101 steps. Half a step less is exact.
-    return control.Environment(physics, task, time_limit=(round(n_steps) - 0.5) * control_timestep,
-                               control_timestep=control_timestep, **environment_kwargs)
+    return common.make_environment(physics, task, time_limit, control_timestep, environment_kwargs)
 
 
 @SUITE.add("benchmarking")
@@ -106,9 +88,7 @@ def balance(time_limit: float = DEFAULT_TIME_LIMIT, control_timestep: float = CO
     return _make_environment(task, time_limit, control_timestep, environment_kwargs)
 
 
-def wrap_angle(phi):
-    """Wrap an angle (rad, scalar or array) to [-pi, pi)."""
-    return (phi + np.pi) % (2.0 * np.pi) - np.pi
+wrap_angle = common.wrap_angle  # phi (rad, scalar or array) wrapped to [-pi, pi)
 
 
 def wrap_angle_float(phi: float) -> float:
@@ -191,6 +171,16 @@ class Physics(mujoco.Physics):
         """x = [phi, phi_dot], phi wrapped; ndarray of shape (2,)."""
         return np.array((self.angle(), self.angular_velocity()))
 
+    def state_of(self, qpos: np.ndarray, qvel: np.ndarray) -> np.ndarray:
+        """x = [phi, phi_dot] (phi wrapped) of many physics states at once.
+
+        Args:
+          qpos, qvel: ndarrays of shape (..., nq) and (..., nv), e.g. from ``mujoco.rollout``.
+        Returns:
+          ndarray of shape (..., 2).
+        """
+        return np.stack([wrap_angle(qpos[..., self._qpos_adr]), qvel[..., self._qvel_adr]], axis=-1)
+
     def set_state_vector(self, phi: float, phi_dot: float) -> None:
         """Put the pendulum at angle ``phi`` (rad) with speed ``phi_dot`` (rad/s), at rest otherwise."""
         self._qpos[self._qpos_adr] = phi
@@ -216,11 +206,6 @@ class Physics(mujoco.Physics):
         return np.array((math.cos(phi), math.sin(phi)))
 
 
-def _check_positive(name: str, value) -> None:
-    if not (np.isscalar(value) and np.isfinite(value) and value > 0):
-        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
-
-
 class SwingUp(base.Task):
     """Swing-up and balance with the quadratic reward of section 6 (see the module docstring)."""
 
@@ -235,13 +220,7 @@ class SwingUp(base.Task):
             task's random state; 0 makes every episode start exactly at ``start_state``.
           random: int seed, ``numpy.random.RandomState`` or None (dm-control's convention).
         """
-        q = np.asarray(state_weights, dtype=float)
-        if q.shape == (2,):
-            q = np.diag(q)
-        if (q.shape != (2, 2) or not np.all(np.isfinite(q)) or not np.allclose(q, q.T)
-                or np.min(np.linalg.eigvalsh(q)) < 0):
-            raise ValueError("state_weights must be a diagonal of shape (2,) or a symmetric positive "
-                             f"semi-definite (2, 2) matrix, got {state_weights!r}")
+        q = common.quadratic_weights("state_weights", state_weights, 2)
         if not (np.isscalar(action_weight) and np.isfinite(action_weight) and action_weight >= 0):
             raise ValueError(f"action_weight must be a finite number >= 0, got {action_weight!r}")
         x0 = np.asarray(start_state, dtype=float)
@@ -290,6 +269,17 @@ class SwingUp(base.Task):
         x = self._x
         x[0], x[1] = phi, phi_dot
         return float(x.dot(self._q).dot(x))
+
+    def reward_of(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """rho(x, u) = -x^T Q x - P u^2 for many states and applied voltages at once.
+
+        Args:
+          x: ndarray of shape (..., 2), [phi, phi_dot] with phi wrapped (``Physics.state_of``).
+          u: ndarray of shape (..., 1), the applied (saturated) voltage.
+        Returns:
+          ndarray of shape (...,).
+        """
+        return -np.einsum("...i,ij,...j->...", x, self._q, x) - self._p * u[..., 0] ** 2
 
     def get_observation(self, physics: Physics) -> collections.OrderedDict:
         obs = collections.OrderedDict()
