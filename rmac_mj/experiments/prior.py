@@ -131,6 +131,9 @@ def load_demonstration(path: str | os.PathLike, state_space: StateSpace | None =
     path = pathlib.Path(path)
     if not path.is_file():
         raise MissingInputError(f"{path}: no such demonstration file")
+    if not zipfile.is_zipfile(path):
+        raise UserInputError(f"{path}: not an .npz file (numpy.savez writes one; see "
+                             "docs/prior-knowledge.md for the keys)")
     try:
         with np.load(path, allow_pickle=False) as data:
             keys = set(data.files)
