@@ -1,8 +1,6 @@
 """Prior knowledge (section 7): seeding learners, the demonstrator, the file format, the runner."""
 
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -247,17 +245,13 @@ def test_protocol_refuses_learners_and_parts_that_take_no_prior():
     assert runner.Protocol(prior=None).is_paper_protocol
 
 
-def rmac_mj(*args):
-    return subprocess.run([sys.executable, "-m", "rmac_mj.cli", *args], capture_output=True,
-                          text=True, timeout=120)
+def test_reproduce_with_prior_end_to_end(env, tmp_path, capsys):
+    from rmac_mj.cli import main
 
-
-def test_reproduce_with_prior_end_to_end(env, tmp_path):
-    common = ["--algorithms", "rmac", "--experiments", "1", "--trials", "2", "--jobs", "1",
-              "--no-optimal", "--no-progress"]
+    common = ["reproduce", "--algorithms", "rmac", "--experiments", "1", "--trials", "2",
+              "--jobs", "1", "--no-optimal", "--no-progress"]
     out = tmp_path / "demo"
-    result = rmac_mj("reproduce", *common, "--prior", "demo", "--prior-trials", "2", "--out", str(out))
-    assert result.returncode == 0, result.stderr
+    assert main([*common, "--prior", "demo", "--prior-trials", "2", "--out", str(out)]) == 0
     config = json.loads((out / "config.json").read_text())["protocol"]
     assert (config["prior"], config["prior_trials"]) == ("demo", 2)
     with np.load(out / "curves/rmac/exp_000.npz") as curve:
@@ -267,22 +261,30 @@ def test_reproduce_with_prior_end_to_end(env, tmp_path):
                                prior_trials=2)
     np.testing.assert_allclose(demonstration_returns,
                                runner.demonstration_for(protocol, 0).trial_returns())
+    # The run is the seeded agent's: its first trial is the one a seeded agent makes.
+    agent = make_agent("rmac", *spaces(env), seed=np.random.default_rng(
+        runner.experiment_seeds(0, 0)[0]))
+    agent.seed_from(**runner.demonstration_for(protocol, 0).arrays())
+    assert run_trial(env, agent) == pytest.approx(returns[0], abs=1e-9)
 
     # A user's own recording.
     path = prior.save_demonstration(tmp_path / "logs.npz", runner.demonstration_for(protocol, 0))
     out = tmp_path / "file"
-    result = rmac_mj("reproduce", *common, "--prior", str(path), "--prior-parts", "process,critic",
-                     "--out", str(out))
-    assert result.returncode == 0, result.stderr
+    from_file = runner.Protocol(algorithms=("rmac",), experiments=1, trials=1, prior=str(path),
+                                prior_parts=("process", "critic"))
+    runner.run_protocol(from_file, out, jobs=1, progress=False, figures=False)
     document = json.loads((out / "config.json").read_text())
     assert document["protocol"]["prior_parts"] == ["process", "critic"]
     assert len(document["prior_sha256"]) == 64
+    capsys.readouterr()
 
     for args, message in (
             (["--prior", "demo", "--algorithms", "rmac,s-ac"], "s-ac does not take prior knowledge"),
             (["--prior", str(tmp_path / "missing.npz")], "no such demonstration file"),
             (["--prior", str(path), "--prior-trials", "3"], "a recorded file is used whole"),
+            (["--prior", "expert"], "no demonstrator 'expert'"),
+            (["--prior", "demo", "--prior-parts", "actor"], "rmac takes no actor prior"),
             (["--prior-trials", "3"], "need --prior")):
-        result = rmac_mj("reproduce", *common, "--out", str(tmp_path / "refused"), *args)
-        assert result.returncode == 2 and message in result.stderr, result.stderr
-        assert len(result.stderr.strip().splitlines()) == 1
+        assert main([*common, "--out", str(tmp_path / "refused"), *args]) == 2
+        stderr = capsys.readouterr().err
+        assert message in stderr and len(stderr.strip().splitlines()) == 1, stderr
