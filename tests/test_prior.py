@@ -276,6 +276,10 @@ def test_reproduce_with_prior_end_to_end(env, tmp_path, capsys):
     document = json.loads((out / "config.json").read_text())
     assert document["protocol"]["prior_parts"] == ["process", "critic"]
     assert len(document["prior_sha256"]) == 64
+    runner.run_protocol(from_file, out, jobs=1, resume=True, progress=False, figures=False)
+    prior.save_demonstration(path, runner.demonstration_for(protocol, 1))  # the file changes
+    with pytest.raises(runner.ResumeRefused, match="different config"):
+        runner.run_protocol(from_file, out, jobs=1, resume=True, progress=False, figures=False)
     capsys.readouterr()
 
     for args, message in (

@@ -6,8 +6,8 @@ samples, closed-loop behaviour for the reference model, value estimates for the 
 into a learner::
 
     from rmac_mj.experiments import demonstrators, prior
-    demo = prior.record(env, demonstrators.controller(env, "demo"), trials=5, seed=0,
-                        action_noise=0.5)
+    controller = demonstrators.get("dc_pendulum", "swingup", "demo").controller(env)  # x -> u
+    demo = prior.record(env, controller, trials=5, seed=0, action_noise=0.5)
     prior.save_demonstration("demo.npz", demo)            # or a user's own logs in the same format
     agent.seed_from(**prior.load_demonstration("demo.npz").arrays())
 
