@@ -1,13 +1,14 @@
 """The ``rmac-mj`` command: reproduce the paper's comparison, draw its figures, render, benchmark.
 
-    rmac-mj reproduce [--experiments 40] [--trials 600] [--algorithms rmac,s-ac] [--seed 0]
-                      [--jobs N] [--out DIR] [--resume] [--evaluate-every N] [--scheduler ADDRESS]
+    rmac-mj reproduce [--domain dc_pendulum --task swingup] [--experiments 40] [--trials 600]
+                      [--algorithms rmac,s-ac] [--seed 0] [--jobs N] [--out DIR] [--resume]
+                      [--evaluate-every N] [--scheduler ADDRESS]
                       [--prior demo|FILE.npz] [--prior-trials N] [--prior-parts process,...]
     rmac-mj compare DIR [DIR ...] [--out STEM]
-    rmac-mj policy SNAPSHOT [--out STEM]
+    rmac-mj policy SNAPSHOT [--out STEM] [--dims 0,1] [--xlim LO,HI] [--ylim LO,HI]
     rmac-mj optimal [--refresh]
-    rmac-mj render SNAPSHOT --out swingup.mp4 | rmac-mj render --progression DIR --out progression.mp4
-    rmac-mj bench [--json FILE]
+    rmac-mj render SNAPSHOT --out episode.mp4 | rmac-mj render --progression DIR --out progression.mp4
+    rmac-mj bench [--domain dc_pendulum --task swingup] [--json FILE] [--quick] [--markdown]
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import math
 import pathlib
 import signal
 import sys
@@ -75,6 +77,35 @@ def _writable_dir(path: pathlib.Path) -> pathlib.Path:
     return path
 
 
+def _floats(count: int | None, expected: str):
+    """An argparse type: comma-separated finite numbers (``count`` of them, if given)."""
+    def parse(text: str) -> tuple[float, ...]:
+        try:
+            values = tuple(float(v) for v in text.split(","))
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}") from None
+        if (count is not None and len(values) != count) or not all(map(math.isfinite, values)):
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}")
+        return values
+    return parse
+
+
+def _dims(text: str) -> tuple[int, int]:
+    try:
+        i, j = (int(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected two state dimensions I,J, got {text!r}") from None
+    return i, j
+
+
+def _add_task_options(parser: argparse.ArgumentParser, default: bool, what: str) -> None:
+    """--domain and --task; with ``default`` the paper's dc_pendulum/swingup, else None (``what``)."""
+    parser.add_argument("--domain", default="dc_pendulum" if default else None,
+                        help=f"domain of the task suite ({what})")
+    parser.add_argument("--task", default="swingup" if default else None,
+                        help=f"task of the domain ({what})")
+
+
 def _parser() -> argparse.ArgumentParser:
     from rmac_mj.agents import ALGORITHMS
 
@@ -82,10 +113,11 @@ def _parser() -> argparse.ArgumentParser:
     commands = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     reproduce = commands.add_parser("reproduce", help="run the paper's comparison (section 6)")
+    _add_task_options(reproduce, True, "default: the paper's dc_pendulum/swingup")
     reproduce.add_argument("--experiments", type=_positive_int, default=40,
                            help="learning experiments per learner (paper: 40)")
     reproduce.add_argument("--trials", type=_positive_int, default=600,
-                           help="consecutive 3 s trials per experiment (paper: 600)")
+                           help="consecutive trials per experiment (paper: 600 of 3 s)")
     reproduce.add_argument("--algorithms", default=",".join(ALGORITHMS),
                            help=f"comma-separated learners, from {', '.join(ALGORITHMS)}")
     reproduce.add_argument("--seed", type=_non_negative_int, default=0, help="root random seed")
@@ -124,12 +156,26 @@ def _parser() -> argparse.ArgumentParser:
     policy.add_argument("snapshot", type=pathlib.Path)
     policy.add_argument("--out", type=pathlib.Path, default=None,
                         help="figure path without suffix (default: beside the snapshot)")
-    policy.add_argument("--max-speed", type=float, default=30.0, help="velocity axis range (rad/s)")
+    policy.add_argument("--dims", type=_dims, default=(0, 1), metavar="I,J",
+                        help="the state dimensions on the x and y axes (default 0,1); with more "
+                             "than two, the maps slice through the start state (or --at)")
+    policy.add_argument("--xlim", type=_floats(2, "LO,HI"), default=None, metavar="LO,HI",
+                        help="x axis range (default: the task's state box); write --xlim=-2,2 "
+                             "when LO is negative")
+    policy.add_argument("--ylim", type=_floats(2, "LO,HI"), default=None, metavar="LO,HI",
+                        help="y axis range (default: the task's state box); --ylim=-2,2 when LO is "
+                             "negative")
+    policy.add_argument("--at", type=_floats(None, "comma-separated numbers"), default=None,
+                        metavar="X1,...,XN", help="the state the maps slice through (default: the "
+                                                  "task's start state)")
+    policy.add_argument("--resolution", type=_positive_int, default=101,
+                        help="grid points along each axis (default 101)")
+    _add_task_options(policy, False, "default: the snapshot's own")
 
     optimal = commands.add_parser("optimal", help="near-optimal return by dynamic programming")
     optimal.add_argument("--refresh", action="store_true", help="recompute, ignoring the cache")
 
-    render = commands.add_parser("render", help="render greedy swingups off-screen to MP4 or GIF")
+    render = commands.add_parser("render", help="render greedy episodes off-screen to MP4 or GIF")
     render.add_argument("snapshot", nargs="?", type=pathlib.Path, default=None)
     render.add_argument("--progression", type=pathlib.Path, default=None, metavar="RESULT_DIR",
                         help="one experiment after trials 1, 10, 50, 200 and the last, in sequence")
@@ -141,11 +187,16 @@ def _parser() -> argparse.ArgumentParser:
     render.add_argument("--height", type=_positive_int, default=240)
     render.add_argument("--no-overlay", action="store_true", help="no text overlay")
     render.add_argument("--frames-per-step", type=_positive_int, default=1,
-                        help="frames per 0.03 s control step, from physics substeps (1 or 3)")
+                        help="frames per control step, from physics substeps (a divisor of their "
+                             "number, e.g. 1 or 3 for dc_pendulum)")
+    _add_task_options(render, False, "default: the one each snapshot learned on")
 
-    bench = commands.add_parser("bench", help="microseconds per step, against env.step")
+    bench = commands.add_parser("bench", help="microseconds per step, against the raw physics step")
     bench.add_argument("--json", type=pathlib.Path, default=None, help="also write the figures here")
     bench.add_argument("--quick", action="store_true", help="fewer repeats and a shorter experiment")
+    _add_task_options(bench, True, "default: dc_pendulum/swingup")
+    bench.add_argument("--markdown", action="store_true",
+                       help="print the table as Markdown (the README's speed table)")
     return parser
 
 
@@ -194,6 +245,7 @@ def _reproduce(args) -> int:
                 raise UsageError("--prior-parts must name at least one part")
     with _user_input():
         protocol = runner.Protocol(
+            domain=args.domain, task=args.task,
             algorithms=tuple(a.strip() for a in args.algorithms.split(",") if a),
             experiments=args.experiments, trials=args.trials, seed=args.seed,
             evaluate_every=args.evaluate_every, agent_configs=parse_overrides(args.set), **prior)
@@ -219,6 +271,8 @@ def _compare(args) -> int:
             raise UsageError(f"{directory} has no summary.json (not a finished `reproduce` run)")
         with _user_input(f"{path}: "):
             summaries[directory.name or str(directory)] = json.loads(path.read_text())
+        if "trial_seconds" not in summaries[directory.name or str(directory)]:
+            raise UsageError(f"{path} has no trial_seconds (the task's trial length)")
     optimal = next((s["optimal_return"] for s in summaries.values() if s.get("optimal_return")), None)
     paths = plots.plot_learning_curves(summaries, args.out, optimal_return=optimal)
     for label, summary in summaries.items():
@@ -230,12 +284,33 @@ def _compare(args) -> int:
 
 def _policy(args) -> int:
     from rmac_mj.experiments import plots
+    from rmac_mj.experiments.episode import learner_state_of, state_of
+    from rmac_mj.experiments.render import snapshot_environment
     from rmac_mj.experiments.snapshots import load_snapshot
 
     with _user_input(f"{args.snapshot}: "):
         agent, meta = load_snapshot(args.snapshot)
+    env = snapshot_environment(agent, meta, args.domain, args.task)
+    learner_state = learner_state_of(env)
+    n = len(learner_state.low)
+    if args.at is not None:
+        if len(args.at) != n:
+            raise UsageError(f"--at needs {n} numbers (the state's dimensions), got {len(args.at)}")
+        anchor = args.at
+    else:
+        anchor = state_of(env.reset().observation, learner_state)
+    if n < 2:
+        raise UsageError(f"policy maps need at least two state dimensions; {meta['domain']} has {n}")
+    i, j = args.dims
+    if not (0 <= i < n and 0 <= j < n and i != j):
+        raise UsageError(f"--dims must name two different state dimensions in [0, {n}), got {i},{j}")
+    limits = {d: lim for d, lim in ((i, args.xlim), (j, args.ylim)) if lim is not None}
+    for option, lim in (("--xlim", args.xlim), ("--ylim", args.ylim)):
+        if lim is not None and not lim[0] < lim[1]:
+            raise UsageError(f"{option} needs LO < HI, got {lim[0]:g},{lim[1]:g}")
     stem = args.out or args.snapshot.with_name(args.snapshot.stem + "_policy")
-    paths = plots.plot_policy(agent, meta, stem, max_speed=args.max_speed)
+    paths = plots.plot_policy(agent, meta, stem, learner_state, anchor, dims=(i, j), limits=limits,
+                              resolution=args.resolution)
     print("figure:", ", ".join(map(str, paths)))
     return 0
 
@@ -257,7 +332,10 @@ def _render(args) -> int:
     options = {"width": args.width, "height": args.height, "overlay": not args.no_overlay,
                "frames_per_step": args.frames_per_step}
     if args.snapshot is not None:
-        path = render.render_snapshot(args.snapshot, args.out, **options)
+        path = render.render_snapshot(args.snapshot, args.out, domain=args.domain, task=args.task,
+                                      **options)
+    elif args.domain is not None or args.task is not None:
+        raise UsageError("--domain/--task apply to a single SNAPSHOT only")
     elif args.progression is not None:
         path = render.render_progression(args.progression, args.out, experiment=args.experiment,
                                          **options)
@@ -271,8 +349,10 @@ def _render(args) -> int:
 def _bench(args) -> int:
     from rmac_mj.experiments import bench
 
-    report = bench.run(quick=args.quick)
-    print(bench.format_table(report))
+    with _user_input():
+        bench.check_task(args.domain, args.task)
+    report = bench.run(quick=args.quick, domain=args.domain, task=args.task)
+    print(bench.format_markdown(report) if args.markdown else bench.format_table(report))
     if args.json:
         from rmac_mj.experiments.results import write_json
         write_json(args.json, report)

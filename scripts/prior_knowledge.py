@@ -21,7 +21,7 @@ from scipy import stats
 from rmac_mj.agents import make_agent
 from rmac_mj.experiments import runner
 from rmac_mj.experiments.episode import action_space_of, run_trial, state_space_of
-from rmac_mj.experiments.results import STUCK_BELOW, confidence_interval
+from rmac_mj.experiments.results import confidence_interval, stuck_threshold
 
 #: A learning trial counts as "worse than the demonstrator" below its mean return minus this.
 MARGIN = 500.0
@@ -95,6 +95,8 @@ def analyse(out: pathlib.Path, replay_trials: int) -> dict:
         demo = np.array([runner.demonstration_for(seeded, i).trial_returns().mean()
                          for i in range(protocol.experiments)])
     finals = returns[:, -50:].mean(axis=1)
+    optimal = json.loads((out / "summary.json").read_text()).get("optimal_return")
+    stuck_below = stuck_threshold(optimal) if optimal is not None else -1500.0
     row = {"name": out.name, "experiments": protocol.experiments, "prior": protocol.prior,
            "parts": protocol.prior_parts,
            "trial": {t: float(returns[:, t - 1].mean()) for t in (1, 2, 3, 5, 10, 50, 100, 600)
@@ -102,7 +104,7 @@ def analyse(out: pathlib.Path, replay_trials: int) -> dict:
            "last50": confidence_interval(finals), "finals": finals,
            "first5": confidence_interval(returns[:, :100].mean(axis=1)),
            "first10": confidence_interval(returns[:, :200].mean(axis=1)),
-           "stuck": int((finals < STUCK_BELOW).sum()),
+           "stuck": int((finals < stuck_below).sum()), "worst_final": float(finals.min()),
            "greedy_end": float(greedy[:, -1].mean()) if greedy.size else None,
            "demo_mean": float(np.nanmean(demo)) if np.isfinite(demo).any() else None,
            "worst_trial_mean": float(returns.min(axis=1).mean()),

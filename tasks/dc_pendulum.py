@@ -1,6 +1,6 @@
 """DC-motor pendulum domain: the swing-up task of Grondman et al., section 6.
 
-The physics is the MJCF model ``models/dc_pendulum.xml`` (Table 1; MuJoCo's ``<dcmotor>`` actuator
+The physics is the MJCF model ``models/dc_pendulum/`` (Table 1; MuJoCo's ``<dcmotor>`` actuator
 produces the input torque (K/R) u and the back-EMF damping K^2/R). The tasks add what the paper
 defines on top: a 0.03 s control step, 3 s trials (100 control steps), the start state and the
 quadratic reward
@@ -15,15 +15,19 @@ reward is charged for the saturated (applied) voltage.
 from __future__ import annotations
 
 import collections
+import math
 from typing import Any
 
+import mujoco as _mujoco
 import numpy as np
+from absl import logging
 from dm_control import mujoco
 from dm_control.rl import control
 from dm_control.suite import base
 from dm_control.utils import containers
 
 from rmac_mj.models import model_path
+from rmac_mj.tasks import common
 
 DEFAULT_TIME_LIMIT = 3.0        # s, one trial (section 6)
 CONTROL_TIMESTEP = 0.03         # s; the paper leaves it open, its group's follow-up work uses 0.03 s
@@ -46,10 +50,14 @@ NOMINAL_SPEED = 8 * np.pi
 
 SUITE = containers.TaggedTasks()
 
+_TWO_PI = 2.0 * math.pi
+_RK4 = int(_mujoco.mjtIntegrator.mjINT_RK4)
+
 
 def get_model_and_assets() -> tuple[str, dict[str, Any]]:
-    """The model XML string and its (empty) asset dict."""
-    return model_path("dc_pendulum").read_text(), {}
+    """The scene XML string (the pendulum with floor, light and camera) and its assets (the model)."""
+    return (model_path("dc_pendulum", scene=True).read_text(),
+            {"dc_pendulum.xml": model_path("dc_pendulum").read_bytes()})
 
 
 def _make_environment(task: "SwingUp", time_limit: float, control_timestep: float,
@@ -103,11 +111,18 @@ def wrap_angle(phi):
     return (phi + np.pi) % (2.0 * np.pi) - np.pi
 
 
+def wrap_angle_float(phi: float) -> float:
+    """:func:`wrap_angle` of one Python float, in float arithmetic (the same IEEE operations, so the
+    same bits as the numpy version: Python's and numpy's ``%`` both take the sign of the divisor)."""
+    return (phi + math.pi) % _TWO_PI - math.pi
+
+
 class Physics(mujoco.Physics):
     """The DC-motor pendulum with its physical quantities by name.
 
-    The addresses of the named joint and actuator are resolved by name once per model (dm-control's
-    string indexing costs microseconds per access, a third of an ``env.step``).
+    The addresses of the named joint and actuator are resolved by name once per model, and the raw
+    MuJoCo structs and the arrays the task reads are kept with them (dm-control's string indexing
+    and its wrapper's attribute look-ups cost microseconds per access; see docs/performance.md).
     """
 
     def _reload_from_data(self, data) -> None:
@@ -119,27 +134,75 @@ class Physics(mujoco.Physics):
         self._qvel_adr = int(model.jnt_dofadr[hinge])
         self._motor = motor
         self._ctrl_low, self._ctrl_high = (float(v) for v in model.actuator_ctrlrange[motor])
+        # Views into this MjData's memory: valid until the data is replaced, which calls this again.
+        self._mj_model, self._mj_data = model.ptr, self.data.ptr
+        self._mj_option = model.ptr.opt  # a live view: reads see later changes of the integrator
+        self._qpos, self._qvel, self._ctrl = self.data.qpos, self.data.qvel, self.data.ctrl
+
+    def step(self, nstep: int = 1) -> None:
+        """Advance ``nstep`` physics steps: dm-control's ``Physics.step``, in fewer Python calls.
+
+        The same MuJoCo calls as dm-control 1.0.50 (with ``legacy_step``, the default: RK4 takes
+        ``mj_step(nstep)`` then ``mj_step1`` so that position- and velocity-dependent fields match the
+        new state; other integrators finish the pending step with ``mj_step2`` first), and the same
+        check once per call: a MuJoCo warning raised during the step raises ``PhysicsError``, or is
+        logged inside ``suppress_physics_errors()``. Only the bookkeeping is cheaper: the warning
+        counters are compared as bytes instead of through a context manager and three numpy calls.
+        """
+        model, data, warnings = self._mj_model, self._mj_data, self._warnings
+        before = warnings.tobytes()
+        if not self.legacy_step:
+            _mujoco.mj_step(model, data, nstep)
+        else:
+            if self._mj_option.integrator == _RK4:
+                _mujoco.mj_step(model, data, nstep)
+            else:
+                _mujoco.mj_step2(model, data)
+                if nstep > 1:
+                    _mujoco.mj_step(model, data, nstep - 1)
+            _mujoco.mj_step1(model, data)
+        if warnings.tobytes() != before:
+            self._report_new_warnings(np.frombuffer(before, dtype=warnings.dtype))
+
+    def _report_new_warnings(self, before: np.ndarray) -> None:
+        """Raise ``PhysicsError`` naming the MuJoCo warnings whose counters grew (or log them).
+
+        Counters can also fall (MuJoCo's automatic reset after a bad state zeroes them before
+        counting the new warning); like dm-control, only growth counts.
+        """
+        names = [name for name, grew in zip(_mujoco.mjtWarning.__members__, self._warnings > before)
+                 if grew]
+        if not names:
+            return
+        message = f"Physics state is invalid. Warning(s) raised: {', '.join(names)}"
+        if self._warnings_cause_exception:
+            raise control.PhysicsError(message)
+        logging.warning(message)
 
     def angle(self) -> float:
         """phi in [-pi, pi) (rad): 0 upright, -pi hanging down."""
-        return float(wrap_angle(self.data.qpos[self._qpos_adr]))
+        return wrap_angle_float(self._qpos.item(self._qpos_adr))
 
     def angular_velocity(self) -> float:
         """phi_dot (rad/s)."""
-        return float(self.data.qvel[self._qvel_adr])
+        return self._qvel.item(self._qvel_adr)
 
     def state(self) -> np.ndarray:
         """x = [phi, phi_dot], phi wrapped; ndarray of shape (2,)."""
-        return np.array([self.angle(), self.angular_velocity()])
+        return np.array((self.angle(), self.angular_velocity()))
 
     def set_state_vector(self, phi: float, phi_dot: float) -> None:
         """Put the pendulum at angle ``phi`` (rad) with speed ``phi_dot`` (rad/s), at rest otherwise."""
-        self.data.qpos[self._qpos_adr] = phi
-        self.data.qvel[self._qvel_adr] = phi_dot
+        self._qpos[self._qpos_adr] = phi
+        self._qvel[self._qvel_adr] = phi_dot
+
+    def set_voltage(self, u: float) -> None:
+        """Command the motor voltage ``u`` (V); the actuator saturates it to its control range."""
+        self._ctrl[self._motor] = u
 
     def voltage(self) -> float:
         """The motor voltage applied now (V), after saturation to the control range."""
-        return min(max(float(self.data.ctrl[self._motor]), self._ctrl_low), self._ctrl_high)
+        return min(max(self._ctrl.item(self._motor), self._ctrl_low), self._ctrl_high)
 
     def motor_torque(self) -> float:
         """Shaft torque of the motor (N m): (K/R) u - (K^2/R) phi_dot."""
@@ -147,8 +210,10 @@ class Physics(mujoco.Physics):
 
     def orientation(self) -> np.ndarray:
         """[cos(phi), sin(phi)]; ndarray of shape (2,)."""
-        phi = self.data.qpos[self._qpos_adr]
-        return np.array([np.cos(phi), np.sin(phi)])
+        # math.cos/sin are the C library's, which numpy's float64 cos/sin also call (numpy has no
+        # SIMD float64 sin/cos, disabled in numpy#23925); tests/test_trajectory_pin.py catches a change.
+        phi = self._qpos.item(self._qpos_adr)
+        return np.array((math.cos(phi), math.sin(phi)))
 
 
 def _check_positive(name: str, value) -> None:
@@ -186,6 +251,7 @@ class SwingUp(base.Task):
             raise ValueError(f"start_noise must be in [0, pi] rad, got {start_noise!r}")
         self._q = q
         self._p = float(action_weight)
+        self._x = np.empty(2)  # scratch for x in the reward
         self._start_state = x0
         self._start_noise = float(start_noise)
         self._reward = 0.0
@@ -200,21 +266,35 @@ class SwingUp(base.Task):
         super().initialize_episode(physics)
 
     def before_step(self, action, physics: Physics) -> None:
-        """Check the action, apply it, and charge r_k for the state before the step and the action."""
+        """Check the action, apply it, and charge r_k for the state before the step and the action.
+
+        A wrong shape or a NaN/inf voltage raises ``ValueError`` before anything is applied.
+        """
         action = np.asarray(action, dtype=float)
-        if action.shape not in ((1,), ()):
+        if action.shape != (1,) and action.shape != ():
             raise ValueError(f"action must have shape (1,) (one voltage), got shape {action.shape}")
-        if not np.all(np.isfinite(action)):
+        u = action.item()
+        if not math.isfinite(u):
             raise ValueError(f"action must be finite, got {action!r}")
-        physics.set_control(action.reshape(1))
-        x = physics.state()
+        physics.set_voltage(u)
         u = physics.voltage()
-        self._reward = -float(x @ self._q @ x) - self._p * u * u
+        self._reward = -self._state_cost(physics.angle(), physics.angular_velocity()) - self._p * u * u
+
+    def _state_cost(self, phi: float, phi_dot: float) -> float:
+        """x^T Q x for x = [phi, phi_dot].
+
+        Deliberately numpy's product (BLAS ``gemv`` then ``ddot``), not float arithmetic: BLAS may
+        fuse the last multiply-add (it does on AVX2/AVX-512 machines), which rounds differently from
+        ``a*b + c*d`` in about one reward in seven; keeping the product keeps every reward bit for bit.
+        """
+        x = self._x
+        x[0], x[1] = phi, phi_dot
+        return float(x.dot(self._q).dot(x))
 
     def get_observation(self, physics: Physics) -> collections.OrderedDict:
         obs = collections.OrderedDict()
-        obs["angle"] = np.array([physics.angle()])
-        obs["velocity"] = np.array([physics.angular_velocity()])
+        obs["angle"] = np.array((physics.angle(),))
+        obs["velocity"] = np.array((physics.angular_velocity(),))
         obs["orientation"] = physics.orientation()
         return obs
 
@@ -223,7 +303,9 @@ class SwingUp(base.Task):
         return self._reward
 
     @property
-    def state_bounds(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Nominal box of x = [phi, phi_dot]: (low, high, periodic), each of shape (2,)."""
-        return (np.array([-np.pi, -NOMINAL_SPEED]), np.array([np.pi, NOMINAL_SPEED]),
-                np.array([True, False]))
+    def learner_state(self) -> common.LearnerState:
+        """x = [phi, phi_dot]; the box is one period in phi and +-NOMINAL_SPEED; Table 2's weights."""
+        return common.LearnerState(
+            keys=("angle", "velocity"), low=(-np.pi, -NOMINAL_SPEED), high=(np.pi, NOMINAL_SPEED),
+            periodic=(True, False), labels=("angle phi [rad]", "angular velocity phi_dot [rad/s]"),
+            weights=(1.0, 0.1), action_weights=(1.0,), action_labels=("u [V]",))

@@ -1,3 +1,15 @@
 """Test-wide set-up: the GL back end must be chosen before mujoco is first imported."""
 
 import rmac_mj  # noqa: F401  (rmac_mj/__init__.py selects the back end; see rmac_mj._gl)
+
+import pytest  # noqa: E402
+
+
+@pytest.fixture
+def toy(monkeypatch):
+    """The test-only domain ``toy``/``settle`` (n = 4, m = 2, 0.2 s trials), registered in
+    ``rmac_mj.tasks`` for one test (see tests/toy_domain.py)."""
+    import toy_domain
+
+    toy_domain.register(monkeypatch)
+    return toy_domain

@@ -19,6 +19,12 @@ def rmac_mj(*args, cwd=None):
     (["policy", "{tmp}/missing.npz"], "no snapshot"),
     (["compare", "{tmp}"], "no summary.json"),
     (["render", "--out", "{tmp}/x.mp4"], "exactly one of"),
+    (["reproduce", "--domain", "cartpole", "--out", "{tmp}/x"], "unknown domain 'cartpole'"),
+    (["reproduce", "--task", "spin", "--out", "{tmp}/x"], "unknown task 'spin'"),
+    (["bench", "--domain", "cartpole"], "unknown domain_name 'cartpole'"),
+    (["policy", "{tmp}/missing.npz", "--dims", "1"], "two state dimensions"),
+    (["render", "--progression", "{tmp}", "--task", "swingup", "--out", "{tmp}/x.mp4"],
+     "single SNAPSHOT"),
 ])
 def test_bad_arguments_give_one_line(tmp_path, args, message):
     (tmp_path / "file").write_text("not a directory")

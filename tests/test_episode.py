@@ -5,8 +5,9 @@ import pytest
 
 from rmac_mj import tasks
 from rmac_mj.agents import ALGORITHMS, make_agent
-from rmac_mj.experiments.episode import action_space_of, run_trial, state_of, state_space_of
-from rmac_mj.experiments.plots import policy_actions, policy_grid
+from rmac_mj.experiments.episode import (action_space_of, run_trial, state_of, state_space_of,
+                                         steps_per_trial, trial_seconds)
+from rmac_mj.experiments.plots import policy_actions, policy_slice
 
 
 @pytest.fixture(scope="module", params=ALGORITHMS)
@@ -32,8 +33,11 @@ def test_greedy_trials_are_repeatable_and_learn_nothing(learned):
 
 def test_policy_map_does_not_depend_on_scan_order(learned):
     _, agent = learned
-    _, _, actions, values = policy_grid(agent, n_angle=7, n_velocity=5)
-    assert actions.shape == values.shape == (5, 7)
+    xs, ys, actions, values = policy_slice(agent, [-np.pi, -25.0], [np.pi, 25.0], [0.0, 0.0],
+                                           resolution=(7, 5))
+    assert actions.shape == (5, 7, 1) and values.shape == (5, 7)
+    np.testing.assert_allclose(xs, np.linspace(-np.pi, np.pi, 7))
+    np.testing.assert_allclose(ys, np.linspace(-25.0, 25.0, 5))
     assert np.all(np.abs(actions) <= 3.0)
     assert np.ptp(actions) > 0  # a learned map, not a constant one
     # The same states scanned in a shuffled order (and in reverse) give the same action per state.
@@ -49,7 +53,21 @@ def test_policy_map_does_not_depend_on_scan_order(learned):
 
 def test_state_is_angle_then_velocity():
     env = tasks.load("dc_pendulum", "swingup")
-    x = state_of(env.reset().observation)
+    x = state_of(env.reset().observation, env.task.learner_state)
     np.testing.assert_allclose(x, [-np.pi, 0.0])
     space = state_space_of(env)
     assert list(space.periodic) == [True, False] and space.period[0] == pytest.approx(2 * np.pi)
+    np.testing.assert_array_equal(space.weights, [1.0, 0.1])  # Table 2's input weighting
+    np.testing.assert_array_equal(action_space_of(env).weights, [1.0])
+    assert steps_per_trial(env) == 100 and trial_seconds(env) == pytest.approx(3.0)
+
+
+def test_rmac_weightings_default_to_table_2_from_the_task_and_explicit_ones_win():
+    env = tasks.load("dc_pendulum", "swingup")
+    agent = make_agent("rmac", state_space_of(env), action_space_of(env), seed=0)
+    assert agent.config.critic_weights == agent.config.reference_weights == (1.0, 0.1)
+    assert agent.config.process_weights == (1.0, 0.1, 1.0)
+    np.testing.assert_array_equal(agent.process.input_weights, [1.0, 0.1, 1.0])
+    agent = make_agent("rmac", state_space_of(env), action_space_of(env), seed=0,
+                       config={"critic_weights": (1.0, 0.3)})
+    assert agent.config.critic_weights == (1.0, 0.3) and agent.config.reference_weights == (1.0, 0.1)

@@ -55,7 +55,7 @@ def test_each_control_step_matches_equation_of_motion_under_bang_bang(model):
 
     Over whole trajectories that hover near the unstable upright any difference grows like
     exp(sqrt(M g l / J) t) = exp(10.9 t), so the per-step error is the bound that holds for every
-    voltage sequence (see models/README.md).
+    voltage sequence (see models/dc_pendulum/README.md).
     """
     data = mujoco.MjData(model)
     data.qpos[0] = np.pi
@@ -118,3 +118,22 @@ def test_model_simulates_without_warnings(model):
         data.ctrl[0] = rng.uniform(-3, 3)
         mujoco.mj_step(model, data)
     assert np.all(data.warning.number == 0)
+
+
+def test_scene_adds_floor_light_and_camera_but_not_dynamics(model):
+    """scene.xml (what the tasks simulate) steps bit for bit like the bare model."""
+    scene = mujoco.MjModel.from_xml_path(str(model_path("dc_pendulum", scene=True)))
+    assert scene.camera("front").id >= 0 and scene.geom("floor").id >= 0
+    assert scene.vis.global_.offwidth == 640 and scene.vis.global_.offheight == 480
+    with pytest.raises(KeyError):
+        model.camera("front")  # the camera belongs to the scene
+    datas = [mujoco.MjData(model), mujoco.MjData(scene)]
+    rng = np.random.default_rng(1)
+    for data in datas:
+        data.qpos[0] = np.pi
+    for u in rng.uniform(-3, 3, 300):
+        for m, data in zip((model, scene), datas):
+            data.ctrl[0] = u
+            mujoco.mj_step(m, data)
+        assert datas[0].qpos[0] == datas[1].qpos[0] and datas[0].qvel[0] == datas[1].qvel[0]
+    assert np.all(datas[1].warning.number == 0)

@@ -86,7 +86,8 @@ def test_substep_frames_follow_the_physics_and_the_episode_is_env_step():
     fine = render.render_episode(env, policy=agent.greedy_action, width=64, height=48,
                                  frames_per_step=3, overlay=False)
     assert fine.frames.shape[0] == 31 and fine.fps == pytest.approx(100.0)
-    np.testing.assert_array_equal(fine.angles[::3], coarse.angles)
+    np.testing.assert_array_equal(fine.states[::3], coarse.states)
+    np.testing.assert_array_equal(fine.actions[::3], coarse.actions)
     assert fine.total_return == coarse.total_return == run_trial(env, agent, learn=False)
 
     # The intermediate frames are the physics substeps: replay them by hand with mj_step.
@@ -98,7 +99,7 @@ def test_substep_frames_follow_the_physics_and_the_episode_is_env_step():
         for _ in range(3):
             mujoco.mj_step(physics.model.ptr, physics.data.ptr)
             angles.append(physics.angle())
-    np.testing.assert_allclose(fine.angles, angles, atol=1e-12)
+    np.testing.assert_allclose(fine.states[:, 0], angles, atol=1e-12)
 
 
 def test_overlay_and_labels_draw_text():

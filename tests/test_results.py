@@ -27,7 +27,11 @@ def test_confidence_interval_of_one_sample_is_undefined():
 def test_minutes_to_within_ten_percent_of_final_level():
     curve = np.concatenate([np.full(20, -3000.0), np.full(10, -1150.0), np.full(70, -1000.0)])
     # final level -1000; -1150 is 15% away, so the first trial within 10% is trial 31 (1.55 min)
-    assert results.minutes_to_within(curve) == pytest.approx(31 * 3 / 60)
+    assert results.minutes_to_within(curve, trial_seconds=3.0) == pytest.approx(31 * 3 / 60)
+    # The trial length is the task's: trials of 0.2 s put trial 31 at 6.2 s.
+    assert results.minutes_to_within(curve, trial_seconds=0.2) == pytest.approx(31 * 0.2 / 60)
+    with pytest.raises(ValueError, match="trial_seconds"):
+        results.minutes_to_within(curve, trial_seconds=0.0)
 
 
 def test_summary_keys_shapes_and_stuck_count():
@@ -35,17 +39,31 @@ def test_summary_keys_shapes_and_stuck_count():
     returns = np.vstack([np.linspace(-3000, -1000, 300), np.linspace(-3000, -1800, 300)])
     returns = returns + rng.normal(0, 1, returns.shape)
     greedy = np.array([[-2000.0, -900.0], [-2500.0, -1700.0]])
-    summary = results.summarise(returns, greedy, [100, 200], optimal_return=-800.0)
+    summary = results.summarise(returns, greedy, [100, 200], optimal_return=-800.0, trial_seconds=3.0)
     assert summary["experiments"] == 2 and summary["trials"] == 300
     for key in ("mean_return_per_trial", "ci95_low_per_trial", "ci95_high_per_trial"):
         assert len(summary[key]) == 300
-    assert summary["stuck_experiments"] == 1
+    assert summary["stuck_below"] == -1600.0 and summary["stuck_experiments"] == 1
     finals = returns[:, -50:].mean(axis=1)
     assert summary["final_return_mean"] == pytest.approx(finals.mean())
     assert summary["gap_to_optimal"] == pytest.approx(-800.0 - finals.mean())
     assert summary["mean_return_first_10min"] == pytest.approx(returns[:, :200].mean())
+    assert summary["first_10min_trials"] == 200
     assert summary["greedy_return_per_eval"] == pytest.approx([-2250.0, -1300.0])
     json.dumps(summary, allow_nan=False)  # valid JSON, no NaN
+
+
+def test_first_minutes_and_stuck_follow_the_task_and_the_reference():
+    returns = np.tile(np.arange(1.0, 401.0), (2, 1)) * -1.0
+    # 6 s trials: the first 10 minutes are 100 trials; 0.05 s x 60 = 3 s trials: 200.
+    six = results.summarise(returns, trial_seconds=6.0)
+    assert six["first_10min_trials"] == 100
+    assert six["mean_return_first_10min"] == pytest.approx(-50.5)
+    assert results.trials_in(10, 0.05 * 60) == 200 and results.trials_in(10, 0.03 * 100) == 200
+    assert six["minutes_to_90pct"] == pytest.approx(
+        results.minutes_to_within(returns[0], window=50, trial_seconds=6.0))
+    assert six["stuck_below"] is None and six["stuck_experiments"] is None  # no reference
+    assert results.stuck_threshold(-748.0) == -1496.0 and results.stuck_threshold(10.0) == 0.0
 
 
 def test_write_atomic_leaves_nothing_behind_on_failure(tmp_path):

@@ -177,4 +177,4 @@ def test_weighting_must_match_the_task_dimensions():
     S = StateSpace(low=-np.ones(3), high=np.ones(3), periodic=np.zeros(3, bool))
     U = ActionSpace(low=-np.ones(1), high=np.ones(1))
     with pytest.raises(ValueError, match="critic_weights"):
-        RMAC(S, U)  # the paper's weightings are for n = 2, m = 1
+        RMAC(S, U, RMACConfig(critic_weights=(1.0, 0.1)))  # Table 2's weighting is for n = 2

@@ -29,6 +29,12 @@ def _lookup(name: str):
     return getattr(module, agent_name), getattr(module, config_name)
 
 
+def display_name(name: str) -> str:
+    """The name of algorithm ``name`` in figures, tables and videos (the agent's ``display_name``);
+    a key this version does not know (e.g. from an old result) is shown as it is."""
+    return _lookup(name)[0].display_name if name in _REGISTRY else name
+
+
 def config_class(name: str) -> type:
     """The hyperparameter dataclass of algorithm ``name``."""
     return _lookup(name)[1]
@@ -77,4 +83,4 @@ def make_agent(name: str, state_space: StateSpace, action_space: ActionSpace,
 
 
 __all__ = ["ALGORITHMS", "ActionSpace", "Agent", "Exploration", "StateSpace", "agent_class",
-           "config_class", "config_from_dict", "make_agent"]
+           "config_class", "config_from_dict", "display_name", "make_agent"]

@@ -28,19 +28,33 @@ from typing import Any
 import numpy as np
 
 
+def _weights(owner: str, weights, n: int) -> np.ndarray:
+    """``weights`` as a float vector of shape (n,), ones for None; ValueError unless finite and >= 0."""
+    if weights is None:
+        return np.ones(n)
+    w = np.asarray(weights, dtype=float).reshape(-1)
+    if w.shape != (n,) or not np.all(np.isfinite(w) & (w >= 0)):
+        raise ValueError(f"{owner}: weights must be {n} finite numbers >= 0 (one per dimension), "
+                         f"got {weights!r}")
+    return w
+
+
 @dataclasses.dataclass(frozen=True)
 class StateSpace:
-    """The box a flat state lives in.
+    """The box a flat state lives in, and how its dimensions compare.
 
     Attributes:
       low, high: ndarray of shape (n,), the nominal range of each state dimension (for a periodic
         dimension, one period: ``high - low`` is the period).
       periodic: ndarray of bool of shape (n,), True where a dimension wraps around (an angle).
+      weights: ndarray of shape (n,), the task's default weighting of each dimension in a learner's
+        input distances (RMAC's LLR memories; dc_pendulum: Table 2's (1, 0.1)). None: ones.
     """
 
     low: np.ndarray
     high: np.ndarray
     periodic: np.ndarray
+    weights: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         low = np.asarray(self.low, dtype=float).reshape(-1)
@@ -55,6 +69,7 @@ class StateSpace:
         object.__setattr__(self, "low", low)
         object.__setattr__(self, "high", high)
         object.__setattr__(self, "periodic", periodic)
+        object.__setattr__(self, "weights", _weights("StateSpace", self.weights, low.shape[0]))
 
     @property
     def dim(self) -> int:
@@ -68,10 +83,15 @@ class StateSpace:
 
 @dataclasses.dataclass(frozen=True)
 class ActionSpace:
-    """A bounded continuous action: ndarrays ``low`` and ``high`` of shape (m,)."""
+    """A bounded continuous action: ndarrays ``low`` and ``high`` of shape (m,).
+
+    ``weights`` (shape (m,)) is the task's default weighting of each action dimension in a learner's
+    input distances (RMAC's process model; dc_pendulum: Table 2's 1). None: ones.
+    """
 
     low: np.ndarray
     high: np.ndarray
+    weights: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         low = np.asarray(self.low, dtype=float).reshape(-1)
@@ -80,6 +100,7 @@ class ActionSpace:
             raise ValueError(f"ActionSpace: need finite low < high of one shape, got {low}, {high}")
         object.__setattr__(self, "low", low)
         object.__setattr__(self, "high", high)
+        object.__setattr__(self, "weights", _weights("ActionSpace", self.weights, low.shape[0]))
 
     @property
     def dim(self) -> int:
@@ -169,7 +190,9 @@ class Agent(abc.ABC):
                 raise ValueError(f"{self.name}: {name} must have shape ({self._state_dim},), got "
                                  f"shape {np.shape(x)}")
             v = v.reshape(self._state_dim)
-        if not np.isfinite(v).all():
+        # Called once per control step on a few numbers: Python's isfinite over a list is several
+        # times cheaper than numpy's isfinite + all on a short vector.
+        if not all(map(math.isfinite, v.tolist())):
             raise ValueError(f"{self.name}: {name} must be finite, got {x!r}")
         return v
 

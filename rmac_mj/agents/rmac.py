@@ -60,20 +60,23 @@ class RMACConfig:
     """Critic memory size (Table 2)."""
     critic_neighbours: int = 20
     """Critic nearest neighbours K (Table 2)."""
-    critic_weights: tuple[float, ...] = (1.0, 0.1)
-    """Critic input weighting over x (Table 2)."""
+    critic_weights: tuple[float, ...] | None = None
+    """Critic input weighting over x; None: the task's (``StateSpace.weights``; dc_pendulum: Table 2's
+    (1, 0.1))."""
     process_capacity: int = 100
     """Process memory size (Table 2)."""
     process_neighbours: int = 9
     """Process nearest neighbours K (Table 2)."""
-    process_weights: tuple[float, ...] = (1.0, 0.1, 1.0)
-    """Process input weighting over [x, u] (Table 2)."""
+    process_weights: tuple[float, ...] | None = None
+    """Process input weighting over [x, u]; None: the task's (``StateSpace.weights`` then
+    ``ActionSpace.weights``; dc_pendulum: Table 2's (1, 0.1, 1))."""
     reference_capacity: int = 2000
     """Reference memory size (Table 2)."""
     reference_neighbours: int = 20
     """Reference nearest neighbours K (Table 2)."""
-    reference_weights: tuple[float, ...] = (1.0, 0.1)
-    """Reference input weighting over x (Table 2)."""
+    reference_weights: tuple[float, ...] | None = None
+    """Reference input weighting over x; None: the task's (``StateSpace.weights``; dc_pendulum: Table
+    2's (1, 0.1))."""
 
     exploration: Exploration = Exploration()
     """Exploration Delta u_k. The paper says RMAC still needs it but not how; the default is the S-AC
@@ -133,11 +136,12 @@ class RMACConfig:
             if neighbours > capacity:
                 raise ValueError(f"RMACConfig.{prefix}_neighbours={neighbours} exceeds "
                                  f"{prefix}_capacity={capacity}")
-            weights = tuple(float(w) for w in getattr(self, f"{prefix}_weights"))
-            if not weights or not all(np.isfinite(w) and w >= 0 for w in weights):
-                raise ValueError(f"RMACConfig.{prefix}_weights must be finite and >= 0, "
-                                 f"got {weights!r}")
-            object.__setattr__(self, f"{prefix}_weights", weights)
+            if getattr(self, f"{prefix}_weights") is not None:
+                weights = tuple(float(w) for w in getattr(self, f"{prefix}_weights"))
+                if not weights or not all(np.isfinite(w) and w >= 0 for w in weights):
+                    raise ValueError(f"RMACConfig.{prefix}_weights must be None or finite and >= 0, "
+                                     f"got {weights!r}")
+                object.__setattr__(self, f"{prefix}_weights", weights)
             replacement = getattr(self, f"{prefix}_replacement")
             if replacement not in _REPLACEMENTS:
                 raise ValueError(f"RMACConfig.{prefix}_replacement must be one of {_REPLACEMENTS}, "
@@ -166,7 +170,8 @@ class RMAC(Agent):
       state_space: the n-dimensional state (periodic dimensions are wrapped in every memory).
       action_space: the m-dimensional action box; its 2^m vertices span the reachable set.
       config: hyperparameters; the weightings must have n (critic, reference) and n + m (process)
-        entries.
+        entries, and those left None are taken from the spaces' ``weights`` (``self.config`` holds
+        the resolved values).
       seed: seed or Generator of the exploration noise, the only randomness.
     """
 
@@ -180,6 +185,11 @@ class RMAC(Agent):
                  seed: int | np.random.Generator | None = None) -> None:
         super().__init__(state_space, action_space, config, seed)
         n, m = state_space.dim, action_space.dim
+        task_weights = {"critic": state_space.weights, "reference": state_space.weights,
+                        "process": np.r_[state_space.weights, action_space.weights]}
+        self.config = config = dataclasses.replace(config, **{
+            f"{prefix}_weights": tuple(float(w) for w in weights)
+            for prefix, weights in task_weights.items() if getattr(config, f"{prefix}_weights") is None})
         self.n, self.m = n, m
         for prefix, size in (("critic", n), ("reference", n), ("process", n + m)):
             weights = getattr(config, f"{prefix}_weights")

@@ -1,43 +1,80 @@
 """One trial of an agent on a dm-control environment: the glue between tasks and agents.
 
-Agents see a flat state ``x``; tasks give an observation dict. The state is the concatenation of the
-observation entries named in ``STATE_KEYS`` (for ``dc_pendulum``: x = [phi, phi_dot], phi wrapped),
-and its box comes from the task's ``state_bounds`` when it has them.
+Agents see a flat state ``x``; tasks give an observation dict. Every task of the suite says what x is
+through its ``learner_state`` (:class:`rmac_mj.tasks.common.LearnerState`): x is the concatenation of
+the observation entries ``learner_state.keys``, in order, and the state box, the periodic dimensions
+and the learners' default input weightings come with it. The trial length comes from the environment:
+its number of control steps times its control timestep.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Callable, Sequence
 
 import numpy as np
 from dm_control.rl import control
 
 from rmac_mj.agents.base import ActionSpace, Agent, StateSpace
-
-#: Observation entries that make up the learners' state, in order.
-STATE_KEYS: tuple[str, ...] = ("angle", "velocity")
+from rmac_mj.tasks.common import LearnerState
 
 
-def state_of(observation, keys: Sequence[str] = STATE_KEYS) -> np.ndarray:
-    """x: the named observation entries concatenated; ndarray of shape (n,)."""
-    return np.concatenate([np.asarray(observation[key], dtype=float).reshape(-1) for key in keys])
+def learner_state_of(env: control.Environment) -> LearnerState:
+    """The task's description of the learners' state (``env.task.learner_state``)."""
+    learner_state = getattr(env.task, "learner_state", None)
+    if not isinstance(learner_state, LearnerState):
+        raise ValueError(f"task {type(env.task).__name__} declares no learner_state (a "
+                         f"rmac_mj.tasks.common.LearnerState), got {learner_state!r}")
+    return learner_state
+
+
+def state_of(observation, learner_state: LearnerState | Sequence[str]) -> np.ndarray:
+    """x: the observation entries of ``learner_state.keys`` (or of a sequence of keys) concatenated;
+    ndarray of shape (n,)."""
+    keys = learner_state.keys if isinstance(learner_state, LearnerState) else learner_state
+    # One numpy call (axis=None flattens each entry, dtype=float converts): once per control step.
+    return np.concatenate([observation[key] for key in keys], axis=None, dtype=float)
 
 
 def state_space_of(env: control.Environment) -> StateSpace:
-    """The task's nominal state box (``task.state_bounds``)."""
-    bounds = getattr(env.task, "state_bounds", None)
-    if bounds is None:
-        raise ValueError(f"task {type(env.task).__name__} declares no state_bounds; "
-                         "give the agent a StateSpace explicitly")
-    low, high, periodic = bounds
-    return StateSpace(low=low, high=high, periodic=periodic)
+    """The task's nominal state box, periodic dimensions and state weightings as a StateSpace."""
+    learner_state = learner_state_of(env)
+    return StateSpace(low=learner_state.low, high=learner_state.high, periodic=learner_state.periodic,
+                      weights=learner_state.weights)
 
 
 def action_space_of(env: control.Environment) -> ActionSpace:
-    """The bounded action spec as an :class:`ActionSpace`."""
+    """The bounded action spec, with the task's action weightings, as an :class:`ActionSpace`."""
     spec = env.action_spec()
-    return ActionSpace(low=np.broadcast_to(spec.minimum, spec.shape),
-                       high=np.broadcast_to(spec.maximum, spec.shape))
+    low = np.broadcast_to(spec.minimum, spec.shape)
+    weights = learner_state_of(env).action_weights
+    if len(weights) != low.size:
+        raise ValueError(f"task {type(env.task).__name__}: learner_state.action_weights has "
+                         f"{len(weights)} entries, the action spec {low.size}")
+    return ActionSpace(low=low, high=np.broadcast_to(spec.maximum, spec.shape), weights=weights)
+
+
+def steps_per_trial(env: control.Environment) -> int:
+    """Control steps of one episode of ``env`` (dm-control ends it once ``step_count >= limit``).
+
+    dm-control keeps the step limit (time limit / control timestep) private; it is read here, the one
+    place that does, rather than running an episode, which would draw from the task's random state.
+    """
+    limit = getattr(env, "_step_limit", None)
+    if limit is None or not math.isfinite(limit) or limit <= 0:
+        raise ValueError(f"the environment must have a finite time limit (trials end on it), got a "
+                         f"step limit of {limit!r}")
+    return int(math.ceil(limit))
+
+
+def trial_seconds(env: control.Environment) -> float:
+    """Simulated seconds of one trial: steps per trial times the control timestep."""
+    return steps_per_trial(env) * env.control_timestep()
+
+
+def n_sub_steps(env: control.Environment) -> int:
+    """Physics steps per control step."""
+    return int(round(env.control_timestep() / env.physics.timestep()))
 
 
 def run_trial(env: control.Environment, agent: Agent, learn: bool = True,
@@ -49,8 +86,9 @@ def run_trial(env: control.Environment, agent: Agent, learn: bool = True,
     learned, which is how a learned policy is evaluated. ``on_step(env, u, r)`` is called after every
     step (e.g. to record frames).
     """
+    keys = learner_state_of(env).keys
     timestep = env.reset()
-    x = state_of(timestep.observation)
+    x = state_of(timestep.observation, keys)
     if not learn:
         agent.begin_greedy_trial()
     u = agent.start(x) if learn else agent.greedy_action(x)
@@ -61,7 +99,7 @@ def run_trial(env: control.Environment, agent: Agent, learn: bool = True,
         total += reward
         if on_step is not None:
             on_step(env, u, reward)
-        x = state_of(timestep.observation)
+        x = state_of(timestep.observation, keys)
         if timestep.last():
             if learn:
                 agent.stop(reward, x)

@@ -23,10 +23,11 @@ key             shape, dtype     meaning
 ``trial``       (T,) integer     which recorded trial transition t belongs to, non-decreasing
 =============== ================ ==============================================================
 
-The state is what the agents see (``episode.state_of``: for ``dc_pendulum`` x = [phi, phi_dot] in rad
-and rad/s, phi = 0 upright; angles may be unwrapped), the action is in the task's units (V). Within a
-trial the transitions are consecutive in time, so ``next_states[t] == states[t + 1]`` there; the
-learners use only the pairs, so logs with gaps between trials are fine.
+The state is what the agents see (the task's ``learner_state``, ``episode.state_of``: for
+``dc_pendulum`` x = [phi, phi_dot] in rad and rad/s, phi = 0 upright; angles may be unwrapped), the
+action is in the task's units (V). Within a trial the transitions are consecutive in time, so
+``next_states[t] == states[t + 1]`` there; the learners use each transition on its own (only the
+returns-to-go run along a trial), so logs with gaps between trials are fine.
 """
 
 from __future__ import annotations
@@ -43,7 +44,7 @@ from dm_control.rl import control
 from rmac_mj.agents.base import ActionSpace, StateSpace, check_transitions
 from rmac_mj.errors import MissingInputError, UserInputError
 from rmac_mj.experiments import results
-from rmac_mj.experiments.episode import action_space_of, state_of
+from rmac_mj.experiments.episode import action_space_of, learner_state_of, state_of
 
 #: The keys of a demonstration file, in order.
 FIELDS = ("states", "actions", "rewards", "next_states", "trial")
@@ -182,17 +183,18 @@ def record(env: control.Environment, controller: Callable[[np.ndarray], Any], tr
         raise ValueError(f"action_noise must be finite and >= 0, got {action_noise!r}")
     rng = np.random.default_rng(seed)
     action_space = action_space_of(env)
+    learner_state = learner_state_of(env)
     rows: dict[str, list] = {field: [] for field in FIELDS}
     for index in range(int(trials)):
         timestep = env.reset()
-        x = state_of(timestep.observation)
+        x = state_of(timestep.observation, learner_state)
         while not timestep.last():
             u = np.asarray(controller(x.copy()), dtype=float).reshape(action_space.dim)
             if action_noise > 0:
                 u = u + rng.normal(0.0, action_noise, size=action_space.dim)
             u = action_space.clip(u)
             timestep = env.step(u)
-            x_next = state_of(timestep.observation)
+            x_next = state_of(timestep.observation, learner_state)
             for field, value in zip(FIELDS, (x, u, float(timestep.reward), x_next, index)):
                 rows[field].append(value)
             x = x_next

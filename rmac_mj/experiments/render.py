@@ -1,7 +1,8 @@
-"""Off-screen rendered swingups: frames of greedy episodes, labelled clips, MP4 and GIF files.
+"""Off-screen rendered episodes: frames of greedy episodes, labelled clips, MP4 and GIF files.
 
 The renderer is ``mujoco.Renderer`` on the back end chosen by ``rmac_mj._gl`` (EGL, then OSMesa, on a
-machine without a display); it is closed after every episode so nothing is left to tear down at exit.
+machine without a display); it is closed after every episode so nothing is left to tear down at exit. Any task of the suite
+renders: the overlay reads the state and action labels from the task's ``learner_state``.
 
     from rmac_mj import tasks
     from rmac_mj.experiments import render
@@ -21,7 +22,7 @@ import os
 import pathlib
 import re
 import time
-from typing import Callable, Sequence
+from typing import Callable, Sequence, Union
 
 import numpy as np
 from dm_control.rl import control
@@ -29,14 +30,19 @@ from PIL import Image, ImageDraw, ImageFont
 
 from rmac_mj import _gl
 from rmac_mj.errors import MissingInputError, UserInputError
+from rmac_mj.agents import display_name
 from rmac_mj.agents.base import Agent
-from rmac_mj.experiments.episode import state_of
+from rmac_mj.experiments.episode import learner_state_of, n_sub_steps, state_of
 
 #: Video formats :func:`write_video` writes, by file suffix.
 VIDEO_SUFFIXES: tuple[str, ...] = (".mp4", ".gif")
 
 #: A policy as a plain function: state x (shape (n,)) -> action u (shape (m,)).
 Policy = Callable[[np.ndarray], np.ndarray]
+
+#: A camera: a name or id of the model's cameras, a ``mujoco.MjvCamera``, or None for the model's first
+#: camera (the free camera if it has none).
+Camera = Union[str, int, None, "mujoco.MjvCamera"]
 
 _PANEL_GAP = 4                       # px of background between side-by-side panels
 _BACKGROUND = (24, 24, 28)           # RGB of gaps and padding
@@ -52,18 +58,23 @@ class RenderedEpisode:
       frames: uint8 ndarray of shape (T, H, W, 3), T = 1 + steps * frames_per_step (the first frame
         is the start state).
       times: ndarray of shape (T,), simulated time of each frame (s).
-      angles: ndarray of shape (T,), phi wrapped to [-pi, pi) (rad; 0 upright).
-      voltages: ndarray of shape (T,), the voltage being applied (V; 0 in the start frame).
+      states: ndarray of shape (T, n), the learners' state x in each frame (the task's
+        ``learner_state``).
+      actions: ndarray of shape (T, m), the action being applied, saturated to the action bounds (0 in
+        the start frame).
       returns: ndarray of shape (T,), running sum of rewards of the steps completed so far.
       fps: frames per second of simulated time (real-time playback rate).
+      state_labels, action_labels: the task's labels of x and u, e.g. "angle phi [rad]".
     """
 
     frames: np.ndarray
     times: np.ndarray
-    angles: np.ndarray
-    voltages: np.ndarray
+    states: np.ndarray
+    actions: np.ndarray
     returns: np.ndarray
     fps: float
+    state_labels: tuple[str, ...] = ()
+    action_labels: tuple[str, ...] = ()
 
     @property
     def total_return(self) -> float:
@@ -110,70 +121,85 @@ def _check_size(model, width: int, height: int) -> None:
 
 
 def render_episode(env: control.Environment, agent: Agent | None = None, policy: Policy | None = None,
-                   width: int = 320, height: int = 240, camera: str | int = "front",
+                   width: int = 320, height: int = 240, camera: Camera = None,
                    frames_per_step: int = 1, overlay: bool = True,
                    label: str | None = None) -> RenderedEpisode:
     """Run one greedy episode of ``env`` and render it.
 
     Args:
-      env: a ``dc_pendulum`` environment (its physics has ``angle()`` and ``voltage()``).
+      env: an environment of the suite (its task has a ``learner_state``).
       agent: acts with ``agent.greedy_action(x)`` (no exploration, no learning); or give ``policy``.
       policy: a function x -> u, shapes (n,) -> (m,); exactly one of ``agent`` and ``policy``.
-      width, height: frame size in pixels (at most the model's off-screen buffer, 640 x 480).
-      camera: a camera of the model, by name or id.
-      frames_per_step: frames per control step; it must divide the physics substeps per step (3 for
-        0.03 s steps of 0.01 s): 1 gives the control rate (33.3 fps), 3 every physics step (100 fps).
-      overlay: draw time, angle, voltage and the running sum of rewards on every frame.
+      width, height: frame size in pixels (at most the model's off-screen buffer).
+      camera: see :data:`Camera`; by default the model's first camera.
+      frames_per_step: frames per control step; it must divide the physics substeps per control
+        step: 1 gives the control rate, the number of substeps every physics step.
+      overlay: draw time, the state, the action and the running sum of rewards on every frame.
       label: text drawn in the top-left corner (e.g. "RMAC, trial 600"), when ``overlay``.
 
-    Intermediate frames come from a scratch copy of the physics stepped with the same voltage, so the
+    Intermediate frames come from a scratch copy of the physics stepped with the same control, so the
     episode itself is exactly ``env.step``'s (the same return as ``run_trial(env, agent, learn=False)``).
     """
     act = _acting_function(agent, policy)
     physics = env.physics
-    n_sub = int(round(env.control_timestep() / physics.timestep()))
+    learner_state = learner_state_of(env)
+    n_sub = n_sub_steps(env)
     if (not isinstance(frames_per_step, (int, np.integer)) or isinstance(frames_per_step, bool)
             or frames_per_step < 1 or n_sub % frames_per_step):
         raise ValueError(f"frames_per_step must be a positive divisor of the {n_sub} physics substeps "
                          f"per control step, got {frames_per_step!r}")
     import mujoco
 
+    spec = env.action_spec()
+    a_low, a_high = np.broadcast_to(spec.minimum, spec.shape), np.broadcast_to(spec.maximum, spec.shape)
     substeps_per_frame = n_sub // frames_per_step
-    frames, times, angles, voltages, returns = [], [], [], [], []
+    frames, times, states, actions, returns = [], [], [], [], []
     total = 0.0
     with open_renderer(physics.model.ptr, width, height) as renderer:
-        def record(source, voltage: float) -> None:
+        camera = _camera(physics.model.ptr, camera)
+
+        def record(source, x: np.ndarray, u: np.ndarray) -> None:
             renderer.update_scene(source.data.ptr, camera=camera)
             frames.append(renderer.render())
             times.append(float(source.data.time))
-            angles.append(source.angle())
-            voltages.append(voltage)
+            states.append(x)
+            actions.append(u)
             returns.append(total)
 
         timestep = env.reset()
-        record(physics, 0.0)
+        record(physics, state_of(timestep.observation, learner_state), np.zeros(spec.shape))
         scratch = physics.copy(share_model=True) if frames_per_step > 1 else None
         while not timestep.last():
-            u = act(state_of(timestep.observation))
+            u = act(state_of(timestep.observation, learner_state))
             if scratch is not None:
                 mujoco.mj_copyData(scratch.data.ptr, physics.model.ptr, physics.data.ptr)
             timestep = env.step(u)
-            voltage = physics.voltage()
+            applied = np.clip(np.asarray(u, dtype=float).reshape(spec.shape), a_low, a_high)
             if scratch is not None:
                 scratch.data.ctrl[:] = physics.data.ctrl
                 for substep in range(1, n_sub):
                     mujoco.mj_step(scratch.model.ptr, scratch.data.ptr)
                     if substep % substeps_per_frame == 0:
                         mujoco.mj_forward(scratch.model.ptr, scratch.data.ptr)  # positions for drawing
-                        record(scratch, voltage)
+                        record(scratch, state_of(env.task.get_observation(scratch), learner_state),
+                               applied)
             total += float(timestep.reward)
-            record(physics, voltage)
-    episode = RenderedEpisode(frames=np.stack(frames), times=np.array(times), angles=np.array(angles),
-                              voltages=np.array(voltages), returns=np.array(returns),
-                              fps=frames_per_step / env.control_timestep())
+            record(physics, state_of(timestep.observation, learner_state), applied)
+    episode = RenderedEpisode(frames=np.stack(frames), times=np.array(times), states=np.array(states),
+                              actions=np.array(actions).reshape(len(frames), -1),
+                              returns=np.array(returns), fps=frames_per_step / env.control_timestep(),
+                              state_labels=learner_state.labels,
+                              action_labels=learner_state.action_labels)
     if overlay:
         episode = dataclasses.replace(episode, frames=draw_overlay(episode, label=label))
     return episode
+
+
+def _camera(model, camera):
+    """``camera`` as ``mujoco.Renderer.update_scene`` takes it; None: the first camera, else free."""
+    if camera is None:
+        return 0 if model.ncam > 0 else -1
+    return camera
 
 
 def _acting_function(agent: Agent | None, policy: Policy | None) -> Policy:
@@ -190,54 +216,74 @@ def _acting_function(agent: Agent | None, policy: Policy | None) -> Policy:
     return policy
 
 
-def render_state(env: control.Environment, phi: float, width: int = 480, height: int = 360,
-                 camera: str | int | None = "front") -> np.ndarray:
-    """One picture of the pendulum at rest at angle ``phi`` (rad, 0 upright); uint8 (H, W, 3).
-
-    ``camera=None`` uses a free camera looking at the motor from the front and slightly to the side.
-    """
+def render_state(env: control.Environment, qpos, width: int = 480, height: int = 360,
+                 camera: Camera = None) -> np.ndarray:
+    """One picture of ``env``'s model at rest at joint positions ``qpos`` (shape (nq,), or a scalar
+    for a one-joint model); uint8 (H, W, 3)."""
     import mujoco
 
     physics = env.physics.copy(share_model=True)
-    physics.set_state_vector(phi, 0.0)
-    mujoco.mj_forward(physics.model.ptr, physics.data.ptr)
-    if camera is None:
-        camera = mujoco.MjvCamera()
-        camera.type = mujoco.mjtCamera.mjCAMERA_FREE
-        camera.lookat[:] = (0.0, 0.02, 0.085)
-        camera.distance, camera.azimuth, camera.elevation = 0.3, 65.0, -12.0
-    with open_renderer(physics.model.ptr, width, height) as renderer:
-        renderer.update_scene(physics.data.ptr, camera=camera)
+    model, data = physics.model.ptr, physics.data.ptr
+    data.qpos[:] = np.broadcast_to(np.asarray(qpos, dtype=float), (model.nq,))
+    data.qvel[:] = 0.0
+    mujoco.mj_forward(model, data)
+    with open_renderer(model, width, height) as renderer:
+        renderer.update_scene(data, camera=_camera(model, camera))
         return renderer.render()
 
 
-def model_picture(out_path: str | os.PathLike = "models/dc_pendulum.png", phi: float = 2.3,
-                  width: int = 480, height: int = 360) -> pathlib.Path:
-    """Write the picture of the model shown in models/README.md (pendulum at ``phi`` rad)."""
+def free_camera(model, azimuth: float = 65.0, elevation: float = -12.0, zoom: float = 1.0):
+    """A free ``mujoco.MjvCamera`` on the model's centre, from ``azimuth``/``elevation`` (degrees);
+    ``zoom`` > 1 comes closer than MuJoCo's default distance."""
+    import mujoco
+
+    camera = mujoco.MjvCamera()
+    mujoco.mjv_defaultFreeCamera(model, camera)
+    camera.azimuth, camera.elevation = azimuth, elevation
+    camera.distance /= zoom
+    return camera
+
+
+def model_picture(domain: str, task: str, out_path: str | os.PathLike, qpos=None,
+                  camera: Camera = None, width: int = 480, height: int = 360) -> pathlib.Path:
+    """Write a picture of a domain's model (e.g. the one in its ``models/<name>/README.md``).
+
+    ``qpos`` (default: the task's start) poses the model; ``camera`` as in :func:`render_state`.
+    Example: ``model_picture("dc_pendulum", "swingup", "pendulum.png", qpos=2.3,
+    camera=free_camera(model, zoom=3))``.
+    """
     from rmac_mj import tasks
 
-    image = render_state(tasks.load("dc_pendulum", "swingup"), phi, width, height, camera=None)
+    env = tasks.load(domain, task)
+    if qpos is None:
+        env.reset()
+        qpos = env.physics.data.qpos.copy()
+    image = render_state(env, qpos, width, height, camera=camera)
     out_path = pathlib.Path(out_path)
     out_path.parent.mkdir(parents=True, exist_ok=True)
     Image.fromarray(image).save(out_path, optimize=True)
     return out_path
 
 
-def measure_fps(width: int = 320, height: int = 240, frames: int = 200) -> float:
+def measure_fps(domain: str = "dc_pendulum", task: str = "swingup", width: int = 320,
+                height: int = 240, frames: int = 200) -> float:
     """Frames per second of the off-screen renderer here (scene update + render + read-back)."""
     from rmac_mj import tasks
 
-    physics = tasks.load("dc_pendulum", "swingup").physics
+    physics = tasks.load(domain, task).physics
     import mujoco
 
-    with open_renderer(physics.model.ptr, width, height) as renderer:
-        renderer.update_scene(physics.data.ptr, camera="front")
+    model, data = physics.model.ptr, physics.data.ptr
+    rng = np.random.default_rng(0)
+    with open_renderer(model, width, height) as renderer:
+        camera = _camera(model, None)
+        renderer.update_scene(data, camera=camera)
         renderer.render()  # warm-up: first-frame compilation of shaders
         start = time.perf_counter()
-        for i in range(frames):
-            physics.set_state_vector(2 * np.pi * i / frames, 0.0)
-            mujoco.mj_kinematics(physics.model.ptr, physics.data.ptr)
-            renderer.update_scene(physics.data.ptr, camera="front")
+        for _ in range(frames):
+            data.qpos[:] = rng.uniform(-np.pi, np.pi, model.nq)  # a new pose every frame
+            mujoco.mj_kinematics(model, data)
+            renderer.update_scene(data, camera=camera)
             renderer.render()
         return frames / (time.perf_counter() - start)
 
@@ -275,14 +321,40 @@ def _draw_text(frame: np.ndarray, lines: Sequence[str], corner: str = "top-left"
     return np.asarray(image)
 
 
+_LABEL = re.compile(r"^(?P<name>.*?)\s*\[(?P<unit>[^\]]*)\]\s*$")
+
+
+def short_label(label: str) -> tuple[str, str]:
+    """(symbol, unit) of a task's axis label "description symbol [unit]": its last word and its unit,
+    e.g. "angle phi [rad]" -> ("phi", "rad"), "u [V]" -> ("u", "V")."""
+    match = _LABEL.match(label)
+    name, unit = (match.group("name"), match.group("unit")) if match else (label, "")
+    words = name.split()
+    return (words[-1] if words else label), unit
+
+
+def _value_line(label: str, value: float) -> str:
+    symbol, unit = short_label(label)
+    return f"{symbol} = {value:+5.2f}" + (f" {unit}" if unit else "")
+
+
 def draw_overlay(episode: RenderedEpisode, label: str | None = None) -> np.ndarray:
-    """The episode's frames with time, angle, voltage and running sum of rewards; (T, H, W, 3)."""
+    """The episode's frames with time, state, action and running sum of rewards; (T, H, W, 3).
+
+    Each state and action dimension is shown by its label's symbol and unit (see :func:`short_label`);
+    without labels, as x1, x2, ... and u1, ....
+    """
+    n, m = episode.states.shape[1], episode.actions.shape[1]
+    state_labels = episode.state_labels if len(episode.state_labels) == n else [
+        f"x{k + 1}" for k in range(n)]
+    action_labels = episode.action_labels if len(episode.action_labels) == m else [
+        f"u{k + 1}" for k in range(m)]
     out = np.empty_like(episode.frames)
     for i, frame in enumerate(episode.frames):
-        lines = [f"t = {episode.times[i]:4.2f} s",
-                 f"phi = {episode.angles[i]:+5.2f} rad",
-                 f"u = {episode.voltages[i]:+5.2f} V",
-                 f"sum r = {episode.returns[i]:.1f}"]
+        lines = [f"t = {episode.times[i]:4.2f} s"]
+        lines += [_value_line(text, v) for text, v in zip(state_labels, episode.states[i])]
+        lines += [_value_line(text, v) for text, v in zip(action_labels, episode.actions[i])]
+        lines.append(f"sum r = {episode.returns[i]:.1f}")
         framed = _draw_text(frame, lines, corner="top-right")
         out[i] = _draw_text(framed, [label], corner="top-left") if label else framed
     return out
@@ -431,39 +503,65 @@ def _write_gif(frames: np.ndarray, path: pathlib.Path, fps: float) -> None:
 # --------------------------------------------------------------------------------------------------
 # Snapshots and result directories (what the ``rmac-mj render`` command calls)
 
-_DISPLAY_NAMES = {"rmac": "RMAC", "s-ac": "S-AC"}
-
-
-def _display_name(algorithm: str) -> str:
-    return _DISPLAY_NAMES.get(algorithm, algorithm)
-
-
 def render_snapshot_episode(snapshot_path: str | os.PathLike, width: int = 320, height: int = 240,
-                            camera: str | int = "front", frames_per_step: int = 1,
-                            overlay: bool = True, label: str | None = None) -> RenderedEpisode:
-    """Render the greedy episode of the agent saved at ``snapshot_path`` on the task it learned.
+                            camera: Camera = None, frames_per_step: int = 1,
+                            overlay: bool = True, label: str | None = None,
+                            domain: str | None = None, task: str | None = None) -> RenderedEpisode:
+    """Render the greedy episode of the agent saved at ``snapshot_path``.
 
+    The episode runs on the task the agent learned on, or on ``domain``/``task`` when given (with
+    their default task_kwargs; the learner's state and action must have the same dimensions there).
     ``label`` defaults to e.g. "RMAC, trial 600" from the snapshot's meta data.
     """
-    from rmac_mj import tasks
     from rmac_mj.experiments.snapshots import load_snapshot
 
     agent, meta = load_snapshot(snapshot_path)
-    env = tasks.load(meta["domain"], meta["task"], task_kwargs=meta.get("task_kwargs"))
+    env = snapshot_environment(agent, meta, domain, task)
     if label is None:
-        label = _display_name(meta["algorithm"])
+        label = display_name(meta["algorithm"])
         if meta.get("trial") is not None:
             label += f", trial {meta['trial']}"
     return render_episode(env, agent, width=width, height=height, camera=camera,
                           frames_per_step=frames_per_step, overlay=overlay, label=label)
 
 
+def snapshot_environment(agent: Agent, meta: dict, domain: str | None = None,
+                         task: str | None = None) -> control.Environment:
+    """The environment a snapshot's agent acts in: the one it learned on (its domain, task and
+    task_kwargs), or ``domain``/``task`` with their defaults; UserInputError if its state or action
+    dimensions differ from the agent's."""
+    from rmac_mj import tasks
+    from rmac_mj.experiments.episode import action_space_of, state_space_of
+
+    domain = domain or meta["domain"]
+    task = task or (meta["task"] if domain == meta["domain"] else None)
+    if task is None:
+        raise UserInputError(f"give the task of domain {domain!r} too (the snapshot learned "
+                             f"{meta['domain']}/{meta['task']})")
+    own = (domain, task) == (meta["domain"], meta["task"])
+    try:
+        env = tasks.load(domain, task, task_kwargs=meta.get("task_kwargs") if own else None)
+    except ValueError as error:
+        raise UserInputError(str(error)) from None
+    if own:
+        return env
+    n, m = state_space_of(env).dim, action_space_of(env).dim
+    if (n, m) != (agent.state_space.dim, agent.action_space.dim):
+        raise UserInputError(f"{domain}/{task} has {n} state and {m} action dimensions, the agent "
+                             f"(learned on {meta['domain']}/{meta['task']}) "
+                             f"{agent.state_space.dim} and {agent.action_space.dim}")
+    return env
+
+
 def render_snapshot(snapshot_path: str | os.PathLike, out_path: str | os.PathLike, width: int = 320,
-                    height: int = 240, camera: str | int = "front", frames_per_step: int = 1,
-                    overlay: bool = True, scale: float = 1.0, frame_step: int = 1) -> pathlib.Path:
-    """Render a snapshot's greedy swingup to ``out_path`` (.mp4 or .gif) at real-time speed."""
+                    height: int = 240, camera: Camera = None, frames_per_step: int = 1,
+                    overlay: bool = True, scale: float = 1.0, frame_step: int = 1,
+                    domain: str | None = None, task: str | None = None) -> pathlib.Path:
+    """Render a snapshot's greedy episode to ``out_path`` (.mp4 or .gif) at real-time speed (on
+    ``domain``/``task`` when given, see :func:`render_snapshot_episode`)."""
     _check_video_path(out_path)
-    episode = render_snapshot_episode(snapshot_path, width, height, camera, frames_per_step, overlay)
+    episode = render_snapshot_episode(snapshot_path, width, height, camera, frames_per_step, overlay,
+                                      domain=domain, task=task)
     return write_video(episode.frames, out_path, episode.fps, scale=scale, frame_step=frame_step)
 
 
@@ -503,7 +601,7 @@ def render_progression(result_dir: str | os.PathLike, out_path: str | os.PathLik
                        layout: str = "sequence", width: int = 320, height: int = 240,
                        frames_per_step: int = 1, overlay: bool = True, scale: float = 1.0,
                        frame_step: int = 1) -> pathlib.Path:
-    """One experiment's greedy swingup after several trials, labelled, to ``out_path``.
+    """One experiment's greedy episode after several trials, labelled, to ``out_path``.
 
     Args:
       algorithm: "rmac", "s-ac", ...; None picks "rmac" when it has snapshots, else the only one.
@@ -527,7 +625,7 @@ def render_progression(result_dir: str | os.PathLike, out_path: str | os.PathLik
     chosen = _pick_trials(available, list(available) if trials is None else list(trials),
                           f"{result_dir} ({algorithm}, experiment {experiment})")
     episodes = [render_snapshot_episode(available[t], width, height, frames_per_step=frames_per_step,
-                                        overlay=overlay, label=f"{_display_name(algorithm)}, trial {t}")
+                                        overlay=overlay, label=f"{display_name(algorithm)}, trial {t}")
                 for t in chosen]
     clips = [episode.frames for episode in episodes]
     fps = episodes[0].fps

@@ -17,16 +17,12 @@ import tempfile
 from typing import Any, Sequence
 
 import numpy as np
-from scipy import stats
 
-#: Seconds of simulated time per trial in the paper's protocol (3 s trials).
-TRIAL_SECONDS = 3.0
 #: Trials over which the final level is averaged.
 FINAL_WINDOW = 50
-#: An experiment whose final level is below this return is counted as stuck.
-STUCK_BELOW = -1500.0
-#: "First 10 minutes" of simulated time, in trials of 3 s.
-FIRST_10_MIN_TRIALS = 200
+#: The "first minutes" over which the early return is averaged (simulated time; the paper's Fig. 2
+#: compares the learners over their first 10 minutes).
+EARLY_MINUTES = 10.0
 
 
 def confidence_interval(samples: np.ndarray, confidence: float = 0.95, axis: int = 0):
@@ -44,22 +40,51 @@ def confidence_interval(samples: np.ndarray, confidence: float = 0.95, axis: int
     if n < 2:
         nan = np.full_like(mean, np.nan)
         return mean, nan, nan.copy()
+    # Imported here, not at the top: every worker process imports this module, and scipy.stats
+    # alone takes about half a second of CPU to import.
+    from scipy import stats
+
     half = stats.t.ppf(0.5 + confidence / 2, n - 1) * samples.std(axis=axis, ddof=1) / np.sqrt(n)
     return mean, mean - half, mean + half
 
 
-def minutes_to_within(curve: np.ndarray, fraction: float = 0.1, window: int = FINAL_WINDOW,
-                      trial_seconds: float = TRIAL_SECONDS) -> float:
+def _check_trial_seconds(trial_seconds) -> float:
+    if not (isinstance(trial_seconds, (int, float, np.floating, np.integer))
+            and np.isfinite(trial_seconds) and trial_seconds > 0):
+        raise ValueError(f"trial_seconds must be a positive number (simulated seconds per trial), "
+                         f"got {trial_seconds!r}")
+    return float(trial_seconds)
+
+
+def minutes_to_within(curve: np.ndarray, fraction: float = 0.1, window: int = FINAL_WINDOW, *,
+                      trial_seconds: float) -> float:
     """Simulated minutes until ``curve`` first comes within ``fraction`` of its final level.
 
     The final level is the mean of the last ``window`` trials; trial t (1-based) ends at
     t * trial_seconds.
     """
+    trial_seconds = _check_trial_seconds(trial_seconds)
     curve = np.asarray(curve, dtype=float)
     final = curve[-window:].mean()
     close = np.abs(curve - final) <= fraction * abs(final)
     first = int(np.argmax(close)) + 1  # close[-1] may be False, but the window mean lies inside it
     return first * trial_seconds / 60.0
+
+
+def trials_in(minutes: float, trial_seconds: float) -> int:
+    """The number of whole trials of ``trial_seconds`` that end within ``minutes`` (at least 1)."""
+    trial_seconds = _check_trial_seconds(trial_seconds)
+    # The small tolerance keeps e.g. 10 min / 3 s at 200 trials despite rounding.
+    return max(1, int(np.floor(minutes * 60.0 / trial_seconds + 1e-9)))
+
+
+def stuck_threshold(reference_return: float | None) -> float | None:
+    """The final level below which an experiment counts as stuck: worse than the near-optimal
+    reference by more than the reference's own magnitude (for a negative, cost-like return: more than
+    twice its cost; dc_pendulum/swingup: 2 x -748 = -1496). None without a reference."""
+    if reference_return is None:
+        return None
+    return float(reference_return - abs(reference_return))
 
 
 def _nan_to_none(values) -> Any:
@@ -70,18 +95,23 @@ def _nan_to_none(values) -> Any:
 
 
 def summarise(returns: np.ndarray, greedy: np.ndarray | None = None,
-              greedy_trials: Sequence[int] = (), optimal_return: float | None = None) -> dict:
+              greedy_trials: Sequence[int] = (), optimal_return: float | None = None, *,
+              trial_seconds: float) -> dict:
     """The summary of one learner: returns is an ndarray of shape (experiments, trials).
 
     ``greedy`` (experiments, evaluations) holds the greedy-trial returns after the trials listed in
-    ``greedy_trials``.
+    ``greedy_trials``; ``trial_seconds`` is the task's trial length (simulated s), which turns trials
+    into minutes. Stuck experiments are counted only against a reference (``optimal_return``; see
+    :func:`stuck_threshold`), else ``stuck_experiments`` is None.
     """
     returns = np.asarray(returns, dtype=float)
     n_experiments, n_trials = returns.shape
     window = min(FINAL_WINDOW, n_trials)
+    early = trials_in(EARLY_MINUTES, trial_seconds)
     mean, low, high = confidence_interval(returns)
     finals = returns[:, -window:].mean(axis=1)
     final_mean, final_low, final_high = confidence_interval(finals)
+    stuck_below = stuck_threshold(optimal_return)
     summary = {
         "experiments": n_experiments,
         "trials": n_trials,
@@ -91,9 +121,11 @@ def summarise(returns: np.ndarray, greedy: np.ndarray | None = None,
         "final_return_mean": float(final_mean),
         "final_return_ci95": [_nan_to_none(final_low), _nan_to_none(final_high)],
         "final_return_per_experiment": finals.tolist(),
-        "minutes_to_90pct": minutes_to_within(mean, window=window),
-        "mean_return_first_10min": float(returns[:, :FIRST_10_MIN_TRIALS].mean()),
-        "stuck_experiments": int(np.sum(finals < STUCK_BELOW)),
+        "minutes_to_90pct": minutes_to_within(mean, window=window, trial_seconds=trial_seconds),
+        "mean_return_first_10min": float(returns[:, :early].mean()),
+        "first_10min_trials": min(early, n_trials),
+        "stuck_below": stuck_below,
+        "stuck_experiments": None if stuck_below is None else int(np.sum(finals < stuck_below)),
     }
     if optimal_return is not None:
         summary["gap_to_optimal"] = float(optimal_return - final_mean)

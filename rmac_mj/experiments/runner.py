@@ -1,7 +1,8 @@
 """The paper's comparison (section 6): learning experiments of consecutive trials, run in parallel.
 
-A *learning experiment* is one agent learning for ``trials`` consecutive 3 s trials from [pi, 0]; the
-protocol repeats it ``experiments`` times per algorithm with independent seeds. Experiments are
+A *learning experiment* is one agent learning for ``trials`` consecutive trials of a task (the paper's:
+3 s swing-ups of ``dc_pendulum`` from [pi, 0]; any registered ``domain``/``task`` runs the same way, its
+trial length read from the environment); the protocol repeats it ``experiments`` times per algorithm with independent seeds. Experiments are
 independent, so they run in worker processes (``jobs``) or on a Dask cluster (``scheduler``); each
 worker returns its results and the driver writes them atomically as they arrive, so an interrupted run
 loses only the experiments in flight and ``resume`` finishes the rest with identical results.
@@ -39,7 +40,7 @@ from rmac_mj.agents import ALGORITHMS, agent_class, config_class, config_from_di
 from rmac_mj.agents.base import PRIOR_PARTS
 from rmac_mj.errors import UserInputError
 from rmac_mj.experiments import demonstrators, prior as prior_data, results
-from rmac_mj.experiments.episode import action_space_of, run_trial, state_space_of
+from rmac_mj.experiments.episode import action_space_of, run_trial, state_space_of, trial_seconds
 from rmac_mj.experiments.snapshots import snapshot_arrays
 
 
@@ -99,6 +100,12 @@ class Protocol:
             raise ValueError(f"seed must be a non-negative integer, got {self.seed!r}")
         if not isinstance(self.evaluate_every, (int, np.integer)) or self.evaluate_every < 0:
             raise ValueError(f"evaluate_every must be an integer >= 0, got {self.evaluate_every!r}")
+        if self.domain not in tasks.TASKS_BY_DOMAIN:
+            raise ValueError(f"unknown domain {self.domain!r}; available: "
+                             f"{', '.join(sorted(tasks.TASKS_BY_DOMAIN))}")
+        if self.task not in tasks.TASKS_BY_DOMAIN[self.domain]:
+            raise ValueError(f"unknown task {self.task!r} of domain {self.domain!r}; available: "
+                             f"{', '.join(tasks.TASKS_BY_DOMAIN[self.domain])}")
         if "random" in self.task_kwargs:
             raise ValueError("task_kwargs must not set 'random': the task's seed comes from `seed`")
         for name, overrides in self.agent_configs.items():
@@ -440,14 +447,16 @@ def finalise(out: pathlib.Path, protocol: Protocol, wall_time_s: float | None = 
              figures: bool = True) -> dict[str, Any]:
     """Summarise the finished curves in ``out``: summary.json, returns.csv and Fig. 2."""
     optimal_return = optimal(protocol) if optimal is not None else None
+    seconds = trial_seconds(make_environment(protocol))
     summary: dict[str, Any] = {"paper_protocol": protocol.is_paper_protocol,
                                "optimal_return": optimal_return,
-                               "trial_seconds": results.TRIAL_SECONDS,
+                               "trial_seconds": seconds,
                                "protocol": protocol.as_dict()}
     rows = []
     for algorithm in protocol.algorithms:
         returns, greedy, greedy_trials, wall = load_curves(out, protocol, algorithm)
-        summary[algorithm] = results.summarise(returns, greedy, greedy_trials, optimal_return)
+        summary[algorithm] = results.summarise(returns, greedy, greedy_trials, optimal_return,
+                                               trial_seconds=seconds)
         summary[algorithm]["experiment_wall_s_mean"] = float(wall.mean())
         rows.extend((algorithm, i, t + 1, float(r)) for i, curve in enumerate(returns)
                     for t, r in enumerate(curve))
@@ -481,10 +490,13 @@ def summary_table(summary: dict[str, Any], algorithms: Iterable[str] | None = No
         row = summary[algorithm]
         low, high = row["final_return_ci95"]
         ci = f"[{low:.0f}, {high:.0f}]" if low is not None else "n/a"
+        stuck = "n/a" if row.get("stuck_experiments") is None else str(row["stuck_experiments"])
         lines.append(f"{algorithm:>8} {row['experiments']:>11d} {row['final_return_mean']:>13.1f} "
                      f"{ci:>19} {row['minutes_to_90pct']:>10.1f} "
-                     f"{row['mean_return_first_10min']:>12.1f} {row['stuck_experiments']:>5d}")
+                     f"{row['mean_return_first_10min']:>12.1f} {stuck:>5}")
     if summary.get("optimal_return") is not None:
-        lines.append(f"near-optimal return (dynamic programming): {summary['optimal_return']:.1f}")
+        lines.append(f"near-optimal return: {summary['optimal_return']:.1f}")
+    if summary.get("trial_seconds") is not None:
+        lines.append(f"one trial = {summary['trial_seconds']:g} s of simulated time")
     return "\n".join(lines)
 

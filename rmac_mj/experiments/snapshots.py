@@ -34,8 +34,10 @@ def snapshot_arrays(agent: Agent, state_space: StateSpace, action_space: ActionS
         "algorithm": agent.name,
         "config": agent.config_dict(),
         "state_space": {"low": state_space.low.tolist(), "high": state_space.high.tolist(),
-                        "periodic": state_space.periodic.tolist()},
-        "action_space": {"low": action_space.low.tolist(), "high": action_space.high.tolist()},
+                        "periodic": state_space.periodic.tolist(),
+                        "weights": state_space.weights.tolist()},
+        "action_space": {"low": action_space.low.tolist(), "high": action_space.high.tolist(),
+                         "weights": action_space.weights.tolist()},
         **meta,
     }
     arrays = {_PREFIX + key: np.asarray(value) for key, value in agent.state_dict().items()}
@@ -62,6 +64,7 @@ def load_snapshot(path: str | os.PathLike) -> tuple[Agent, dict[str, Any]]:
             raise UserInputError(f"{path} is not an rmac-mj snapshot (no 'meta' entry)")
         meta = json.loads(str(data["meta"]))
         state = {key[len(_PREFIX):]: data[key] for key in data.files if key.startswith(_PREFIX)}
+    # Snapshots written before the spaces had weights lack them (their configs hold explicit ones).
     state_space = StateSpace(**meta["state_space"])
     action_space = ActionSpace(**meta["action_space"])
     agent = make_agent(meta["algorithm"], state_space, action_space, config=meta["config"], seed=0)

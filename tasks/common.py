@@ -1,0 +1,128 @@
+"""What every task of the suite shares: the learner's view of a task, checks, environment assembly."""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+from dm_control.rl import control
+
+
+@dataclasses.dataclass(frozen=True)
+class LearnerState:
+    """What a learner sees of a task: its flat state x and per-dimension hints.
+
+    x = concatenation of observation[key] for key in ``keys`` (in order).
+    """
+
+    keys: tuple[str, ...]
+    """Observation entries making up x, in order."""
+    low: tuple[float, ...]
+    """Nominal box of x (periodic dims: one period)."""
+    high: tuple[float, ...]
+    periodic: tuple[bool, ...]
+    labels: tuple[str, ...]
+    """Axis label with unit per state dim, e.g. "angle phi [rad]"."""
+    weights: tuple[float, ...]
+    """Default input weighting of each state dim in LLR distances (dc_pendulum: Table 2's (1, 0.1))."""
+    action_weights: tuple[float, ...]
+    """Default weighting of each action dim in the process model input (dc_pendulum: Table 2's 1)."""
+    action_labels: tuple[str, ...]
+    """Per action dim, e.g. "u [V]" or "tau1 [N m]"."""
+
+    def __post_init__(self) -> None:
+        if not self.keys or not all(isinstance(k, str) and k for k in self.keys):
+            raise ValueError(f"LearnerState.keys must be non-empty strings, got {self.keys!r}")
+        n = len(self.low)
+        for name in ("high", "periodic", "labels", "weights"):
+            if len(getattr(self, name)) != n:
+                raise ValueError(f"LearnerState.{name} must have one entry per state dim ({n}, as low), "
+                                 f"got {len(getattr(self, name))}")
+        if len(self.action_weights) != len(self.action_labels) or not self.action_weights:
+            raise ValueError(f"LearnerState.action_weights and action_labels must have one entry per "
+                             f"action dim, got {len(self.action_weights)} and {len(self.action_labels)}")
+        low, high = np.asarray(self.low, dtype=float), np.asarray(self.high, dtype=float)
+        if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high)) and np.all(low < high)):
+            raise ValueError(f"LearnerState.low and high must be finite with low < high, "
+                             f"got {self.low!r} and {self.high!r}")
+        for name in ("weights", "action_weights"):
+            w = np.asarray(getattr(self, name), dtype=float)
+            if not (np.all(np.isfinite(w)) and np.all(w >= 0)):
+                raise ValueError(f"LearnerState.{name} must be finite and >= 0, got {getattr(self, name)!r}")
+        # Canonical Python types, so that the hints compare, hash and serialise the same however given.
+        object.__setattr__(self, "keys", tuple(str(k) for k in self.keys))
+        object.__setattr__(self, "low", tuple(float(v) for v in low))
+        object.__setattr__(self, "high", tuple(float(v) for v in high))
+        object.__setattr__(self, "periodic", tuple(bool(v) for v in self.periodic))
+        object.__setattr__(self, "labels", tuple(str(v) for v in self.labels))
+        object.__setattr__(self, "weights", tuple(float(v) for v in self.weights))
+        object.__setattr__(self, "action_weights", tuple(float(v) for v in self.action_weights))
+        object.__setattr__(self, "action_labels", tuple(str(v) for v in self.action_labels))
+
+
+def wrap_angle(angle):
+    """Wrap an angle (rad, scalar or array) to [-pi, pi)."""
+    return (angle + np.pi) % (2.0 * np.pi) - np.pi
+
+
+def check_positive(name: str, value) -> None:
+    """Raise ValueError naming ``name`` unless ``value`` is a positive finite number."""
+    if not (np.isscalar(value) and np.isfinite(value) and value > 0):
+        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+
+
+def quadratic_weights(name: str, value, n: int) -> np.ndarray:
+    """A weight matrix of shape (n, n) from its diagonal (n,) or itself (n, n), symmetric PSD.
+
+    Raises ValueError naming ``name`` otherwise.
+    """
+    w = np.asarray(value, dtype=float)
+    if w.shape == (n,):
+        w = np.diag(w)
+    if (w.shape != (n, n) or not np.all(np.isfinite(w)) or not np.allclose(w, w.T)
+            or np.min(np.linalg.eigvalsh(w)) < 0):
+        raise ValueError(f"{name} must be a diagonal of shape ({n},) or a symmetric positive "
+                         f"semi-definite ({n}, {n}) matrix, got {value!r}")
+    return w
+
+
+def make_environment(physics, task, time_limit: float, control_timestep: float,
+                     environment_kwargs: dict[str, Any] | None) -> control.Environment:
+    """A ``control.Environment`` of exactly ``time_limit / control_timestep`` control steps.
+
+    Both must be positive, ``control_timestep`` a whole number of physics timesteps and ``time_limit`` a
+    whole number of control steps; ``environment_kwargs`` must not set what the task sets.
+    """
+    environment_kwargs = dict(environment_kwargs or {})
+    for clash in ("control_timestep", "n_sub_steps", "time_limit"):
+        if clash in environment_kwargs:
+            raise ValueError(
+                f"environment_kwargs[{clash!r}] is set by the task; pass it as a task_kwarg instead")
+    check_positive("time_limit", time_limit)
+    check_positive("control_timestep", control_timestep)
+    n_sub_steps = control_timestep / physics.timestep()
+    if abs(n_sub_steps - round(n_sub_steps)) > 1e-8 or round(n_sub_steps) < 1:
+        raise ValueError(f"control_timestep must be a positive multiple of the physics timestep "
+                         f"{physics.timestep()} s, got {control_timestep!r}")
+    n_steps = time_limit / control_timestep
+    if abs(n_steps - round(n_steps)) > 1e-8:
+        raise ValueError(f"time_limit must be a whole number of control steps of {control_timestep} s, "
+                         f"got {time_limit!r}")
+    # dm-control ends an episode once step_count >= time_limit / control_timestep; 3.0 / 0.03 is
+    # 100.00000000000001 in floating point, which would give 101 steps. Half a step less is exact.
+    return control.Environment(physics, task, time_limit=(round(n_steps) - 0.5) * control_timestep,
+                               control_timestep=control_timestep, **environment_kwargs)
+
+
+def check_action(action, n: int) -> np.ndarray:
+    """The action as a float ndarray of shape (n,); ValueError on another shape or a non-finite value.
+
+    A scalar is accepted when ``n == 1``.
+    """
+    action = np.asarray(action, dtype=float)
+    if action.shape != (n,) and not (n == 1 and action.shape == ()):
+        raise ValueError(f"action must have shape ({n},), got shape {action.shape}")
+    if not np.all(np.isfinite(action)):
+        raise ValueError(f"action must be finite, got {action!r}")
+    return action.reshape(n)

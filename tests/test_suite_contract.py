@@ -1,0 +1,133 @@
+"""Every task of the suite against one contract (dm_control's suite_test style): dm_env conformance,
+specs and observations, the learner's state, the trial length, seeding, and bad actions.
+
+The cases loop over ``rmac_mj.tasks.ALL_TASKS``, so a new task is held to the contract without a new
+test; the test-only ``toy`` domain (tests/toy_domain.py) runs through the same checks.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from absl.testing import absltest
+from dm_env import test_utils
+
+import toy_domain
+from rmac_mj import tasks
+from rmac_mj.experiments.episode import state_of, steps_per_trial, trial_seconds
+from rmac_mj.tasks.common import LearnerState
+
+TOY = (toy_domain.DOMAIN, toy_domain.TASK)
+CASES = [*tasks.ALL_TASKS, TOY]
+
+
+def load(domain: str, task: str, **task_kwargs):
+    if (domain, task) == TOY:
+        return toy_domain.settle(**task_kwargs)
+    return tasks.load(domain, task, task_kwargs=task_kwargs)
+
+
+def random_actions(env, count: int, seed: int = 0, margin: float = 1.0) -> np.ndarray:
+    """``count`` actions uniform over the action bounds widened by ``margin``; (count, m)."""
+    spec = env.action_spec()
+    low, high = np.broadcast_to(spec.minimum, spec.shape), np.broadcast_to(spec.maximum, spec.shape)
+    centre, half = (low + high) / 2, (high - low) / 2 * margin
+    return np.random.default_rng(seed).uniform(centre - half, centre + half, (count, *spec.shape))
+
+
+def rollout(env, actions):
+    timesteps = [env.reset()]
+    for u in actions:
+        timesteps.append(env.step(u))
+        if timesteps[-1].last():
+            break
+    return timesteps
+
+
+def test_the_toy_case_is_not_a_suite_task():
+    assert TOY not in tasks.ALL_TASKS and ("dc_pendulum", "swingup") in tasks.ALL_TASKS
+
+
+@pytest.mark.parametrize("domain, task", CASES)
+def test_specs_observations_and_learner_state(domain, task):
+    env = load(domain, task, random=0)
+    spec = env.action_spec()
+    assert np.all(np.isfinite(spec.minimum)) and np.all(np.asarray(spec.minimum) < spec.maximum)
+    learner_state = env.task.learner_state
+    assert isinstance(learner_state, LearnerState)
+    n, m = len(learner_state.low), int(np.prod(spec.shape))
+    assert len(learner_state.action_labels) == len(learner_state.action_weights) == m
+    observation_spec = env.observation_spec()
+    assert set(learner_state.keys) <= set(observation_spec)
+    for timestep in rollout(env, random_actions(env, 5 * steps_per_trial(env), margin=1.2)):
+        for key, value in timestep.observation.items():
+            observation_spec[key].validate(value)
+            assert np.all(np.isfinite(value)), key
+        x = state_of(timestep.observation, learner_state)
+        assert x.shape == (n,)
+        periodic = np.array(learner_state.periodic)
+        low, high = np.array(learner_state.low), np.array(learner_state.high)
+        # Periodic dimensions are observed within their one period (wrapped).
+        assert np.all((x[periodic] >= low[periodic]) & (x[periodic] < high[periodic]))
+
+
+@pytest.mark.parametrize("domain, task", CASES)
+def test_a_trial_is_the_declared_number_of_control_steps(domain, task):
+    env = load(domain, task)
+    timesteps = rollout(env, random_actions(env, 10_000))
+    steps = len(timesteps) - 1
+    assert timesteps[-1].last() and steps == steps_per_trial(env)
+    assert env.physics.data.time == pytest.approx(trial_seconds(env), abs=1e-9)
+    assert all(t.mid() for t in timesteps[1:-1]) and timesteps[0].first()
+    assert all(math.isfinite(t.reward) for t in timesteps[1:])
+
+
+@pytest.mark.parametrize("domain, task", CASES)
+def test_same_seed_same_trajectory_and_observations_share_no_memory(domain, task):
+    def run(seed):
+        env = load(domain, task, random=seed)
+        actions = random_actions(env, 2 * steps_per_trial(env), seed=1)
+        return rollout(env, actions) + rollout(env, actions)  # two episodes: the task's stream moves on
+
+    first, second = run(3), run(3)
+    for a, b in zip(first, second):
+        assert a.reward == b.reward
+        for key in a.observation:
+            np.testing.assert_array_equal(a.observation[key], b.observation[key])
+    for key in first[-1].observation:
+        assert not np.shares_memory(first[-1].observation[key], first[-2].observation[key])
+
+
+@pytest.mark.parametrize("domain, task", CASES)
+def test_bad_actions_raise_before_anything_is_stepped(domain, task):
+    env = load(domain, task)
+    env.reset()
+    good = random_actions(env, 1)[0]
+    time = env.physics.data.time
+    bad = [np.full_like(good, np.nan), np.full_like(good, np.inf), np.zeros(good.size + 1),
+           np.zeros((2, good.size))]
+    for action in bad:
+        with pytest.raises(ValueError, match="action"):
+            env.step(action)
+        assert env.physics.data.time == time
+    env.step(good)
+    assert env.physics.data.time > time
+
+
+def _conformance_case(domain: str, task: str):
+    class Case(test_utils.EnvironmentTestMixin, absltest.TestCase):
+        def make_object_under_test(self):
+            return load(domain, task, random=0)
+
+        def make_action_sequence(self):  # long enough to cross an episode boundary
+            env = self.make_object_under_test()
+            yield from random_actions(env, 2 * steps_per_trial(env) + 50)
+
+    Case.__name__ = Case.__qualname__ = f"TestDmEnvConformance_{domain}_{task}"
+    return Case
+
+
+for _domain, _task in CASES:
+    globals()[f"TestDmEnvConformance_{_domain}_{_task}"] = _conformance_case(_domain, _task)
