@@ -3,6 +3,7 @@
     rmac-mj reproduce [--domain dc_pendulum --task swingup] [--experiments 40] [--trials 600]
                       [--algorithms rmac,s-ac] [--seed 0] [--jobs N] [--out DIR] [--resume]
                       [--evaluate-every N] [--scheduler ADDRESS]
+                      [--prior demo|FILE.npz] [--prior-trials N] [--prior-parts process,...]
     rmac-mj compare DIR [DIR ...] [--out STEM]
     rmac-mj policy SNAPSHOT [SNAPSHOT] [--out STEM] [--dims 0,1] [--xlim LO,HI] [--ylim LO,HI]
     rmac-mj optimal [--domain D --task T] [--refresh]
@@ -176,6 +177,15 @@ def _parser() -> argparse.ArgumentParser:
                                 "rmac does not rerun s-ac")
     reproduce.add_argument("--smooth", type=_positive_int, default=1, metavar="N",
                            help="Fig. 2: running mean over N trials (1: none)")
+    reproduce.add_argument("--prior", default=None, metavar="DEMONSTRATOR|FILE.npz",
+                           help="seed every learner before its first trial with prior knowledge: "
+                                "trials of a demonstrator of the task ('demo', 'poor-demo') or "
+                                "recorded transitions (docs/prior-knowledge.md gives the format)")
+    reproduce.add_argument("--prior-trials", type=_positive_int, default=None,
+                           help="demonstrator trials recorded per experiment (default 5)")
+    reproduce.add_argument("--prior-parts", default=None, metavar="PART,...",
+                           help="seed only these kinds of knowledge: process, reference, critic, "
+                                "actor (default: all a learner takes)")
     reproduce.add_argument("--no-optimal", action="store_true",
                            help="skip the near-optimal reference (dynamic programming, about a "
                                 "minute the first time, then cached)")
@@ -294,13 +304,26 @@ def _algorithms(args, overrides: dict[str, dict]) -> tuple[str, ...]:
 def _reproduce(args) -> int:
     from rmac_mj.experiments import runner
 
+    if args.prior is None and (args.prior_trials is not None or args.prior_parts is not None):
+        raise UsageError("--prior-trials and --prior-parts need --prior")
+    if args.prior is not None and args.prior.endswith(".npz") and args.prior_trials is not None:
+        raise UsageError("--prior-trials counts demonstrator trials; a recorded file is used whole")
+    prior = {}
+    if args.prior is not None:
+        prior["prior"] = args.prior
+        if args.prior_trials is not None:
+            prior["prior_trials"] = args.prior_trials
+        if args.prior_parts is not None:
+            prior["prior_parts"] = tuple(p.strip() for p in args.prior_parts.split(",") if p.strip())
+            if not prior["prior_parts"]:
+                raise UsageError("--prior-parts must name at least one part")
     overrides = parse_overrides(args.set)
     with _user_input():
         protocol = runner.Protocol(
             domain=args.domain, task=args.task,
             algorithms=_algorithms(args, overrides), experiments=args.experiments,
             trials=args.trials, seed=args.seed, evaluate_every=args.evaluate_every,
-            agent_configs=overrides)
+            agent_configs=overrides, **prior)
     out = _writable_dir(args.out)
     if args.jobs is not None and args.scheduler:
         raise UsageError("--jobs and --scheduler exclude each other")

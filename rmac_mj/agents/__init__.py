@@ -40,6 +40,11 @@ def config_class(name: str) -> type:
     return _lookup(name)[1]
 
 
+def agent_class(name: str) -> type:
+    """The learner class of algorithm ``name`` (e.g. to read its ``prior_parts``)."""
+    return _lookup(name)[0]
+
+
 def config_from_dict(cls: type, values: dict[str, Any]):
     """Rebuild a (possibly nested) frozen config dataclass from ``dataclasses.asdict`` output."""
     hints = typing.get_type_hints(cls)
@@ -77,5 +82,5 @@ def make_agent(name: str, state_space: StateSpace, action_space: ActionSpace,
     return agent_cls(state_space, action_space, config=config, seed=seed)
 
 
-__all__ = ["ALGORITHMS", "ActionSpace", "Agent", "Exploration", "StateSpace", "config_class",
-           "config_from_dict", "display_name", "make_agent"]
+__all__ = ["ALGORITHMS", "ActionSpace", "Agent", "Exploration", "StateSpace", "agent_class",
+           "config_class", "config_from_dict", "display_name", "make_agent"]

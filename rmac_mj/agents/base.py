@@ -13,6 +13,9 @@ online protocol of the paper's Algorithms 1 and 2::
 a greedy trial begins with ``begin_greedy_trial()``.
 ``state_dict``/``load_state_dict`` exchange the learned state as a flat dict of numpy arrays, so that
 snapshots are written with ``numpy.savez`` and read back with ``allow_pickle=False``.
+
+``seed_from`` initialises a learner's memories from recorded transitions before it learns (prior
+knowledge, section 7); learners that take none refuse it.
 """
 
 from __future__ import annotations
@@ -155,6 +158,9 @@ class Agent(abc.ABC):
     display_name: str = ""
     #: The frozen hyperparameter dataclass the agent takes.
     config_class: type = object
+    #: The kinds of prior knowledge :meth:`seed_from` puts into this learner, from
+    #: :data:`PRIOR_PARTS`; empty for a learner that takes none.
+    prior_parts: tuple[str, ...] = ()
 
     def __init__(self, state_space: StateSpace, action_space: ActionSpace, config: Any,
                  seed: int | np.random.Generator | None = None) -> None:
@@ -231,6 +237,42 @@ class Agent(abc.ABC):
 
     def begin_greedy_trial(self) -> None:
         """Forget what a previous greedy trial carried over (e.g. RMAC's last action); no learning."""
+
+    def seed_from(self, states: Any, actions: Any, rewards: Any, next_states: Any, trial: Any,
+                  parts: Any = None) -> None:
+        """Initialise the learner from recorded transitions (prior knowledge, section 7).
+
+        Transition t went from ``states[t]`` under ``actions[t]`` to ``next_states[t]`` and earned
+        ``rewards[t]``; ``trial[t]`` says which recorded trial it belongs to, and the transitions of a
+        trial are in time order. What each kind of knowledge becomes is the learner's choice (see its
+        ``_seed_from``); ``parts`` (names from :attr:`prior_parts`, default all of them) selects some.
+        Seeding replaces what the selected memories held; call it before the first trial.
+
+        Args:
+          states, next_states: arrays of shape (T, n); actions: (T, m); rewards: (T,); trial: (T,) of
+            integers, non-decreasing. All finite; periodic state entries may be unwrapped.
+          parts: iterable of names from :attr:`prior_parts`, or None for all.
+        Raises:
+          NotImplementedError: the learner takes no prior knowledge.
+          ValueError: naming the argument that is malformed.
+        """
+        if not self.prior_parts:
+            raise NotImplementedError(f"{self.name} does not take prior knowledge")
+        if self._in_trial:
+            raise RuntimeError(f"{self.name}: seed_from() called inside a trial; seed before start()")
+        chosen = tuple(self.prior_parts) if parts is None else tuple(parts)
+        unknown = sorted(set(chosen) - set(self.prior_parts))
+        if not chosen or unknown:
+            raise ValueError(f"{self.name}: parts must name some of {self.prior_parts}, got "
+                             f"{parts!r}")
+        arrays = check_transitions(states, actions, rewards, next_states, trial,
+                                   self._state_dim, self.action_space.dim, owner=self.name)
+        self._seed_from(*arrays, parts=tuple(p for p in self.prior_parts if p in chosen))
+
+    def _seed_from(self, states: np.ndarray, actions: np.ndarray, rewards: np.ndarray,
+                   next_states: np.ndarray, trial: np.ndarray, parts: tuple[str, ...]) -> None:
+        """Put the checked transitions into the ``parts`` they seed (learners with prior_parts)."""
+        raise NotImplementedError(f"{self.name} does not take prior knowledge")
 
     # -- what each learner implements (arguments already checked) ------------------------------------
     @abc.abstractmethod
@@ -313,3 +355,100 @@ def set_generator_state(rng: np.random.Generator, words: Any) -> None:
         "bit_generator": "PCG64",
         "state": {"state": (hi_lo[0] << 64) | hi_lo[1], "inc": (hi_lo[2] << 64) | hi_lo[3]},
         "has_uint32": hi_lo[4], "uinteger": hi_lo[5]}
+
+
+# ----------------------------------------------------------------------------------------------------
+# Prior knowledge (section 7): what every learner that takes it shares.
+
+#: The kinds of prior knowledge a learner may take from recorded transitions:
+#: 'process' (x, u) -> x' samples of the dynamics; 'reference' x_k -> x_{k+1} along the demonstrated
+#: closed loop (the desired behaviour); 'critic' the demonstration's discounted returns-to-go;
+#: 'actor' the demonstrated (x, u) pairs.
+PRIOR_PARTS = ("process", "reference", "critic", "actor")
+
+
+def check_transitions(states: Any, actions: Any, rewards: Any, next_states: Any, trial: Any,
+                      state_dim: int | None = None, action_dim: int | None = None,
+                      owner: str = "transitions") -> tuple[np.ndarray, ...]:
+    """Recorded transitions as float arrays (and int64 trial ids), checked once.
+
+    Shapes: states and next_states (T, n), actions (T, m), rewards (T,), trial (T,) with T >= 1;
+    everything finite; trial integer and non-decreasing (each trial's transitions contiguous and in
+    time order). ``state_dim``/``action_dim``, when given, are the n and m required. ValueError names
+    the field that is wrong.
+    """
+    def matrix(name, value, width):
+        a = np.asarray(value)
+        if a.dtype.kind not in "biuf":
+            raise ValueError(f"{owner}: {name} must be numeric, got dtype {a.dtype}")
+        a = a.astype(float)
+        if a.ndim != 2 or a.shape[0] < 1 or (width is not None and a.shape[1] != width):
+            want = f"(T, {width})" if width is not None else "(T, d)"
+            raise ValueError(f"{owner}: {name} must have shape {want} with T >= 1, got {a.shape}")
+        return a
+
+    states = matrix("states", states, state_dim)
+    n, T = states.shape[1], states.shape[0]
+    actions = matrix("actions", actions, action_dim)
+    next_states = matrix("next_states", next_states, n)
+    rewards = np.asarray(rewards)
+    if rewards.dtype.kind not in "biuf":
+        raise ValueError(f"{owner}: rewards must be numeric, got dtype {rewards.dtype}")
+    rewards = rewards.astype(float)
+    trial_ids = np.asarray(trial)
+    if trial_ids.dtype.kind not in "biu":
+        raise ValueError(f"{owner}: trial must hold integers, got dtype {trial_ids.dtype}")
+    trial_ids = trial_ids.astype(np.int64)
+    for name, a, shape in (("actions", actions, (T, actions.shape[1])),
+                           ("next_states", next_states, (T, n)), ("rewards", rewards, (T,)),
+                           ("trial", trial_ids, (T,))):
+        if a.shape != shape:
+            raise ValueError(f"{owner}: {name} must have shape {shape} to match states "
+                             f"{states.shape}, got {a.shape}")
+    for name, a in (("states", states), ("actions", actions), ("rewards", rewards),
+                    ("next_states", next_states)):
+        bad_rows = ~np.isfinite(a.reshape(T, -1)).all(axis=1)
+        if bad_rows.any():
+            raise ValueError(f"{owner}: {name} must be finite; {int(bad_rows.sum())} of {T} rows are "
+                             f"not (first: row {int(np.argmax(bad_rows))})")
+    if T > 1 and np.any(np.diff(trial_ids) < 0):
+        row = int(np.argmax(np.diff(trial_ids) < 0)) + 1
+        raise ValueError(f"{owner}: trial must be non-decreasing (each trial's transitions together, "
+                         f"in time order); row {row} goes back from {trial_ids[row - 1]} to "
+                         f"{trial_ids[row]}")
+    return states, actions, rewards, next_states, trial_ids
+
+
+def discounted_returns(rewards: np.ndarray, trial: np.ndarray, gamma: float) -> np.ndarray:
+    """Discounted returns-to-go G_t = r_t + gamma G_{t+1} within each trial; shape (T,).
+
+    The return after a trial's last transition is taken as 0 (no bootstrapping past the recording):
+    the demonstrator ends balanced upright, where every reward is about 0, and a value estimate of
+    unknown states is what the learner is there to find. A state gamma^j steps before the end loses
+    gamma^j V(x_end) of its value; with gamma = 0.97 that is under 5% after 100 steps.
+    """
+    rewards = np.asarray(rewards, dtype=float)
+    trial = np.asarray(trial)
+    out = np.empty_like(rewards)
+    running = 0.0
+    for t in range(len(rewards) - 1, -1, -1):
+        if t == len(rewards) - 1 or trial[t + 1] != trial[t]:
+            running = 0.0
+        running = rewards[t] + gamma * running
+        out[t] = running
+    return out
+
+
+def seed_memory(memory: Any, X: np.ndarray, Y: np.ndarray) -> None:
+    """Fill an LLR memory with samples X (s, n) -> Y (s, m), replacing what it held.
+
+    With s <= capacity the memory holds exactly these samples. With more, the first ``capacity``
+    fill it and the rest are inserted in time order through the memory's replacement rule, as if
+    they had arrived online (under 'nearest' each later sample replaces its most redundant
+    predecessor, so the memory keeps samples spread over the recording; under 'oldest' it keeps the
+    last ``capacity``).
+    """
+    s = min(len(X), int(memory.capacity))
+    memory.fit(X[:s], Y[:s])
+    for x, y in zip(X[s:], Y[s:]):
+        memory.insert(x, y)

@@ -26,7 +26,8 @@ import itertools
 
 import numpy as np
 
-from rmac_mj.agents.base import ActionSpace, Agent, Exploration, StateSpace
+from rmac_mj.agents.base import (ActionSpace, Agent, Exploration, StateSpace, discounted_returns,
+                                 seed_memory)
 from rmac_mj.approximators._llr_kernels import canonical as _canonical_kernel
 from rmac_mj.approximators.llr import LLRMemory, wrap
 
@@ -177,6 +178,7 @@ class RMAC(Agent):
     name = "rmac"
     display_name = "RMAC"
     config_class = RMACConfig
+    prior_parts = ("process", "reference", "critic")
 
     def __init__(self, state_space: StateSpace, action_space: ActionSpace,
                  config: RMACConfig = RMACConfig(),
@@ -376,6 +378,31 @@ class RMAC(Agent):
     def _value(self, x: np.ndarray) -> float:
         """V(x), the critic's LLR estimate."""
         return float(self.critic._query(self._wrapped(x))[0][0])
+
+    # -- prior knowledge (section 7) --------------------------------------------------------------------
+    def _seed_from(self, states: np.ndarray, actions: np.ndarray, rewards: np.ndarray,
+                   next_states: np.ndarray, trial: np.ndarray, parts: tuple[str, ...]) -> None:
+        """Initialise the memories from recorded transitions instead of empty (section 7).
+
+        * 'process': M^P <- [x_t, u_t | x_{t+1}], the recorded dynamics;
+        * 'reference': M^R <- [x_t | x_{t+1}], the demonstrated closed loop as the desired behaviour
+          (every desired state was reached, so it is reachable);
+        * 'critic': M^C <- [x_t | G_t], the discounted returns-to-go within each recorded trial with
+          this agent's gamma, 0 after a trial's last transition (see ``base.discounted_returns``).
+
+        Each memory holds exactly the samples when they fit, otherwise they pass through its
+        replacement rule in time order (``base.seed_memory``). Angles are wrapped as when learning.
+        """
+        period = self.state_space.period
+        x = np.where(period > 0, wrap(states, period), states)
+        x_next = np.where(period > 0, wrap(next_states, period), next_states)
+        if "process" in parts:
+            seed_memory(self.process, np.hstack([x, actions]), x_next)
+        if "reference" in parts:
+            seed_memory(self.reference, x, x_next)
+        if "critic" in parts:
+            returns = discounted_returns(rewards, trial, self.config.gamma)
+            seed_memory(self.critic, x, returns[:, None])
 
     # -- state ------------------------------------------------------------------------------------------
     def _state(self) -> dict[str, np.ndarray]:

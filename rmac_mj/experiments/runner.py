@@ -13,6 +13,12 @@ Seeding: experiment i of every algorithm draws its agent's stream from
 ``SeedSequence(seed, spawn_key=(i,))``, which equals ``SeedSequence(seed).spawn(n)[i]``, and its task's
 seed from that sequence's child ``(i, 0)``. The results therefore do not depend on ``jobs``, on the
 order of completion, or on resuming.
+
+Prior knowledge (``Protocol.prior``): each experiment's fresh agent is seeded before its first trial,
+either from ``prior_trials`` trials of a named demonstrator (``experiments.demonstrators``) recorded
+for that experiment from the sequence ``(i, 1)`` (the same demonstration for every learner of
+experiment i), or from one recorded file (``experiments.prior``) that the driver reads and checks
+once.
 """
 
 from __future__ import annotations
@@ -22,6 +28,7 @@ import contextlib
 import csv
 import dataclasses
 import datetime
+import hashlib
 import json
 import math
 import multiprocessing
@@ -35,9 +42,10 @@ from typing import Any, Callable, Iterable, Iterator, TextIO
 import numpy as np
 
 from rmac_mj import tasks
-from rmac_mj.agents import ALGORITHMS, config_class, config_from_dict, make_agent
+from rmac_mj.agents import ALGORITHMS, agent_class, config_class, config_from_dict, make_agent
+from rmac_mj.agents.base import PRIOR_PARTS
 from rmac_mj.errors import UserInputError
-from rmac_mj.experiments import results
+from rmac_mj.experiments import demonstrators, prior as prior_data, results
 from rmac_mj.experiments.episode import action_space_of, run_trial, state_space_of, trial_seconds
 from rmac_mj.experiments.snapshots import snapshot_arrays
 
@@ -58,6 +66,13 @@ class Protocol:
       snapshot_trials: after which trials the agent is saved; stored sorted, without trials beyond
         ``trials``, and with the final trial, which is always saved.
       agent_configs: per algorithm, overrides of its hyperparameters (e.g. for ablations).
+      prior: prior knowledge seeded into every fresh agent before its first trial: None (none, the
+        paper's protocol), the name of a demonstrator of the task (``'demo'``, see
+        ``experiments.demonstrators``), or the path of a recorded ``.npz`` file
+        (``experiments.prior``). Every learner must take prior knowledge.
+      prior_trials: trials of the demonstrator recorded per experiment (demonstrators only).
+      prior_parts: which kinds of knowledge to seed (``base.PRIOR_PARTS``, e.g. ``('process',)`` for
+        the recorded dynamics alone); empty: everything each learner takes.
     """
 
     domain: str = "dc_pendulum"
@@ -70,6 +85,9 @@ class Protocol:
     evaluate_every: int = 0
     snapshot_trials: tuple[int, ...] = (1, 10, 50, 200)
     agent_configs: dict[str, dict[str, Any]] = dataclasses.field(default_factory=dict)
+    prior: str | None = None
+    prior_trials: int = 5
+    prior_parts: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "algorithms", tuple(self.algorithms))
@@ -105,15 +123,50 @@ class Protocol:
             if name not in ALGORITHMS:
                 raise ValueError(f"agent_configs names unknown algorithm {name!r}")
             config_from_dict(config_class(name), overrides)  # raises on unknown or bad values
+        self._check_prior()
+
+    def _check_prior(self) -> None:
+        object.__setattr__(self, "prior_parts", tuple(self.prior_parts))
+        trials = self.prior_trials
+        if isinstance(trials, bool) or not isinstance(trials, (int, np.integer)) or trials < 1:
+            raise ValueError(f"prior_trials must be a positive integer, got {self.prior_trials!r}")
+        unknown = sorted(set(self.prior_parts) - set(PRIOR_PARTS))
+        if unknown:
+            raise ValueError(f"prior_parts {unknown} unknown; choose from {', '.join(PRIOR_PARTS)}")
+        if self.prior is None:
+            if self.prior_parts:
+                raise ValueError("prior_parts needs prior knowledge: set prior too")
+            return
+        if not isinstance(self.prior, str) or not self.prior:
+            raise ValueError(f"prior must be a demonstrator name or a .npz path, got {self.prior!r}")
+        if not self.prior.endswith(".npz"):
+            demonstrators.get(self.domain, self.task, self.prior)  # raises, naming what exists
+        refusing = [a for a in self.algorithms if not agent_class(a).prior_parts]
+        if refusing:
+            taking = [a for a in ALGORITHMS if agent_class(a).prior_parts]
+            verb = "does" if len(refusing) == 1 else "do"
+            raise ValueError(f"{', '.join(refusing)} {verb} not take prior knowledge: run only "
+                             f"learners that do ({', '.join(taking)}), e.g. --algorithms "
+                             f"{','.join(taking)}")
+        for name in self.algorithms:
+            lacking = sorted(set(self.prior_parts) - set(agent_class(name).prior_parts))
+            if lacking:
+                raise ValueError(f"{name} takes no {', '.join(lacking)} prior (it takes "
+                                 f"{', '.join(agent_class(name).prior_parts)})")
+
+    @property
+    def prior_file(self) -> pathlib.Path | None:
+        """The recorded prior knowledge file, when ``prior`` names one."""
+        return pathlib.Path(self.prior) if self.prior and self.prior.endswith(".npz") else None
 
     @property
     def is_paper_protocol(self) -> bool:
         """True when the paper's protocol is run unchanged (both learners, default settings)."""
         default = Protocol()
         return (self.domain, self.task, self.task_kwargs, set(self.algorithms), self.experiments,
-                self.trials, self.agent_configs) == (
+                self.trials, self.agent_configs, self.prior) == (
             default.domain, default.task, default.task_kwargs, set(default.algorithms),
-            default.experiments, default.trials, default.agent_configs)
+            default.experiments, default.trials, default.agent_configs, default.prior)
 
     def as_dict(self) -> dict[str, Any]:
         return results.as_jsonable(self)
@@ -124,13 +177,15 @@ class ExperimentSpec:
     """One learning experiment: ``algorithm`` number ``index`` of ``protocol``.
 
     ``stream_to``: the result directory whose ``progress/<algorithm>/exp_<iii>.csv`` receives every trial
-    as it ends (:func:`progress_path`); None streams nothing.
+    as it ends (:func:`progress_path`); None streams nothing. ``demonstration``: the recorded prior
+    knowledge when ``protocol.prior`` is a file (read once by the driver).
     """
 
     protocol: Protocol
     algorithm: str
     index: int
     stream_to: str | None = None
+    demonstration: prior_data.Demonstration | None = None
 
 
 def experiment_seeds(seed: int, index: int) -> tuple[np.random.SeedSequence, int]:
@@ -145,6 +200,20 @@ def make_environment(protocol: Protocol, task_seed: int | None = None):
     if task_seed is not None:
         kwargs["random"] = task_seed
     return tasks.load(protocol.domain, protocol.task, task_kwargs=kwargs)
+
+
+def demonstration_for(protocol: Protocol, index: int) -> prior_data.Demonstration:
+    """``prior_trials`` trials of demonstrator ``protocol.prior`` for experiment ``index``, recorded
+    deterministically from the sequence ``(index, 1)``: its child 0 seeds the recording's task, the
+    sequence itself the demonstrator's action noise."""
+    demonstrator = demonstrators.get(protocol.domain, protocol.task, protocol.prior)
+    sequence = np.random.SeedSequence(protocol.seed, spawn_key=(index, 1))
+    task_seed = int(np.random.SeedSequence(protocol.seed, spawn_key=(index, 1, 0))
+                    .generate_state(1)[0])
+    env = make_environment(protocol, task_seed)
+    return prior_data.record(env, demonstrator.controller(env), protocol.prior_trials,
+                             seed=np.random.default_rng(sequence),
+                             action_noise=demonstrator.action_noise)
 
 
 def run_experiment(spec: ExperimentSpec,
@@ -162,6 +231,11 @@ def run_experiment(spec: ExperimentSpec,
     agent = make_agent(spec.algorithm, state_space, action_space,
                        config=protocol.agent_configs.get(spec.algorithm),
                        seed=np.random.default_rng(agent_seq))
+    demonstration = spec.demonstration
+    if protocol.prior is not None:
+        if demonstration is None:
+            demonstration = demonstration_for(protocol, spec.index)
+        agent.seed_from(**demonstration.arrays(), parts=protocol.prior_parts or None)
     meta = {"domain": protocol.domain, "task": protocol.task, "task_kwargs": protocol.task_kwargs,
             "experiment": spec.index, "seed": protocol.seed}
     returns = np.empty(protocol.trials)
@@ -192,6 +266,8 @@ def run_experiment(spec: ExperimentSpec,
         "snapshots": snapshots,
         "wall_time_s": time.perf_counter() - start,
         "task_seed": task_seed,
+        "demonstration_returns": (demonstration.trial_returns() if demonstration is not None
+                                  else np.zeros(0)),
     }
 
 
@@ -258,7 +334,8 @@ def save_outcome(out: pathlib.Path, outcome: dict[str, Any]) -> None:
                       greedy_trials=outcome["greedy_trials"],
                       greedy_returns=outcome["greedy_returns"],
                       wall_time_s=np.float64(outcome["wall_time_s"]),
-                      task_seed=np.int64(outcome["task_seed"]))
+                      task_seed=np.int64(outcome["task_seed"]),
+                      demonstration_returns=outcome.get("demonstration_returns", np.zeros(0)))
 
 
 def load_curves(out: pathlib.Path, protocol: Protocol, algorithm: str):
@@ -293,16 +370,22 @@ def _differences(old: Any, new: Any, path: str = "") -> list[str]:
     return [f"{path.rstrip('.')}: {json.dumps(old)} in the directory, {json.dumps(new)} now"]
 
 
-def _prepare(out: pathlib.Path, protocol: Protocol, resume: bool) -> None:
+def _prepare(out: pathlib.Path, protocol: Protocol, resume: bool,
+             prior_sha256: str | None = None) -> None:
     config_file = out / "config.json"
     document = {"protocol": protocol.as_dict(), "code": results.code_version()}
+    if prior_sha256 is not None:
+        document["prior_sha256"] = prior_sha256
     if config_file.exists():
         if not resume:
             raise ResumeRefused(f"{out} already holds a run; pass --resume to finish it, or choose "
                                 "another --out")
         existing = json.loads(config_file.read_text())
-        if existing.get("protocol") != document["protocol"]:
+        if (existing.get("protocol"), existing.get("prior_sha256")) != (
+                document["protocol"], document.get("prior_sha256")):
             differences = _differences(existing.get("protocol", {}), document["protocol"])
+            if existing.get("prior_sha256") != document.get("prior_sha256"):
+                differences.append("the prior knowledge file's contents (sha256)")
             raise ResumeRefused(f"{out} was written with a different config ({'; '.join(differences)}); "
                                 "refusing to mix results (give the same settings, or another --out)")
         old, new = existing.get("code", {}), document["code"]
@@ -316,8 +399,9 @@ def _prepare(out: pathlib.Path, protocol: Protocol, resume: bool) -> None:
     results.write_json(config_file, {**document, "provenance": results.provenance()})
 
 
-def _pending(out: pathlib.Path, protocol: Protocol) -> list[ExperimentSpec]:
-    return [ExperimentSpec(protocol, algorithm, index)
+def _pending(out: pathlib.Path, protocol: Protocol,
+             demonstration: prior_data.Demonstration | None = None) -> list[ExperimentSpec]:
+    return [ExperimentSpec(protocol, algorithm, index, demonstration=demonstration)
             for index in range(protocol.experiments) for algorithm in protocol.algorithms
             if not curve_path(out, algorithm, index).exists()]
 
@@ -596,9 +680,10 @@ def run_protocol(protocol: Protocol, out: str | os.PathLike, jobs: int | None = 
     jobs = (os.cpu_count() or 1) if jobs is None else jobs
     if jobs < 1:
         raise ValueError(f"jobs must be a positive integer, got {jobs!r}")
-    _prepare(out, protocol, resume)
+    demonstration, prior_sha256 = _read_prior_file(protocol)
+    _prepare(out, protocol, resume, prior_sha256)
     clock = _WallClock(out, started, resume)
-    pending = _pending(out, protocol)
+    pending = _pending(out, protocol, demonstration)
     if pending and not scheduler:
         from rmac_mj import _cache
 
@@ -630,6 +715,17 @@ def run_protocol(protocol: Protocol, out: str | os.PathLike, jobs: int | None = 
     finally:
         display.close()
     return finalise(out, protocol, optimal=optimal, figures=figures, clock=clock, smooth=smooth)
+
+
+def _read_prior_file(protocol: Protocol) -> tuple[prior_data.Demonstration | None, str | None]:
+    """The protocol's recorded prior knowledge, checked against its task, and the file's SHA-256
+    (stored in config.json, so that ``resume`` refuses a file that changed); (None, None) without."""
+    path = protocol.prior_file
+    if path is None:
+        return None, None
+    env = make_environment(protocol)
+    demonstration = prior_data.load_demonstration(path, state_space_of(env), action_space_of(env))
+    return demonstration, hashlib.sha256(path.read_bytes()).hexdigest()
 
 
 def finalise(out: pathlib.Path, protocol: Protocol, wall_time_s: float | None = None,

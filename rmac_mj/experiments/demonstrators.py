@@ -1,0 +1,142 @@
+"""Scripted demonstrators: controllers whose closed loop is recorded as prior knowledge.
+
+Task-specific by design (the learners are not): each entry of :data:`DEMONSTRATORS` is keyed by
+(domain, task) and names the demonstrators available for it. ``rmac-mj reproduce --prior NAME``
+records ``--prior-trials`` trials of demonstrator NAME for each experiment and seeds its learners.
+
+For ``dc_pendulum``: :class:`EnergySwingUp`, the textbook swing-up of an underactuated pendulum
+(Astrom and Furuta, "Swinging up a pendulum by energy control", Automatica 36, 2000): pump energy
+with the largest allowed voltage in the direction of motion until the pendulum has the energy of
+the upright rest state, coast, and hand over to a linear balance controller near upright. It is
+tuned on the model, not on the learners' reward: the energy uses the model's mass, centre of mass and
+inertia, and the balance gains are the discrete LQR of the model linearised about upright. It is
+deliberately not optimal: it pumps at full voltage until the energy suffices instead of planning
+the swing, so it needs one more swing than the near-optimal policy (docs/prior-knowledge.md).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Callable
+
+import mujoco
+import numpy as np
+import scipy.linalg
+from dm_control.rl import control
+
+from rmac_mj.tasks import dc_pendulum
+
+
+@dataclasses.dataclass(frozen=True)
+class EnergySwingUp:
+    """Energy-pumping swing-up with an LQR balancer for ``dc_pendulum`` (see the module docstring).
+
+    Attributes:
+      pump_voltage: voltage (V) applied in the direction of motion while the pendulum has less
+        energy than at rest upright; 0 once it has enough (coasting).
+      balance_scale: factor on the LQR gains of the balancer (1: the LQR; below 1: a sluggish one).
+      capture_angle: |phi| (rad) under which the balancer takes over.
+      action_noise: standard deviation (V) of the Gaussian noise added to every recorded action, so
+        that the recording excites the input (see ``prior.record``).
+    """
+
+    pump_voltage: float = 3.0
+    balance_scale: float = 1.0
+    capture_angle: float = 0.6
+    action_noise: float = 0.5
+
+    def __post_init__(self) -> None:
+        for name in ("pump_voltage", "balance_scale", "capture_angle", "action_noise"):
+            value = getattr(self, name)
+            if not (np.isscalar(value) and np.isfinite(value) and value >= 0):
+                raise ValueError(f"EnergySwingUp.{name} must be a finite number >= 0, got {value!r}")
+        if not 0 < self.capture_angle < np.pi:
+            raise ValueError(f"EnergySwingUp.capture_angle must be in (0, pi), "
+                             f"got {self.capture_angle!r}")
+
+    def controller(self, env: control.Environment) -> Callable[[np.ndarray], np.ndarray]:
+        """The controller x = [phi, phi_dot] -> u (shape (1,)), built from ``env``'s model."""
+        physics = env.physics
+        mass = float(physics.named.model.body_mass["pendulum"])
+        com = np.asarray(physics.named.model.body_ipos["pendulum"], dtype=float)
+        axis = np.asarray(physics.named.model.jnt_axis["hinge"], dtype=float)
+        arm = float(np.linalg.norm(com - (com @ axis) * axis))  # CoM's distance from the axis (m)
+        gravity = float(np.linalg.norm(physics.model.opt.gravity))
+        inertia = _hinge_inertia(physics)
+        gains = self.balance_scale * lqr_gains(env)
+        low, high = (float(v) for v in physics.named.model.actuator_ctrlrange["motor"])
+        pump, capture = float(self.pump_voltage), float(self.capture_angle)
+
+        def control_law(x: np.ndarray) -> np.ndarray:
+            phi, phi_dot = float(dc_pendulum.wrap_angle(x[0])), float(x[1])
+            if abs(phi) < capture:
+                u = -(gains[0] * phi + gains[1] * phi_dot)
+            else:
+                # Energy relative to rest upright: 0 there, -2 M g l hanging down at rest.
+                energy = 0.5 * inertia * phi_dot ** 2 + mass * gravity * arm * (np.cos(phi) - 1.0)
+                u = (pump if phi_dot >= 0 else -pump) if energy < 0 else 0.0
+            return np.array([min(max(u, low), high)])
+
+        return control_law
+
+
+def _hinge_inertia(physics) -> float:
+    """The pendulum's inertia about its hinge (kg m^2), from MuJoCo's joint-space inertia matrix."""
+    model, data = physics.model.ptr, physics.data.ptr
+    mujoco.mj_forward(model, data)
+    full = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, full)
+    dof = int(physics.named.model.jnt_dofadr["hinge"])
+    return float(full[dof, dof])
+
+
+def lqr_gains(env: control.Environment, epsilon: float = 1e-5) -> np.ndarray:
+    """Discrete LQR gains K (shape (2,), u = -K x) of ``dc_pendulum`` about upright at rest.
+
+    The model is linearised by central differences of one control step of the environment's own
+    physics (a copy; ``env`` is not touched), with the task's default Q = diag(5, 0.1) and P = 1.
+    """
+    physics = env.physics.copy(share_model=True)
+    n_sub_steps = int(round(env.control_timestep() / physics.timestep()))
+
+    def step(x: np.ndarray, u: float) -> np.ndarray:
+        with physics.reset_context():
+            physics.set_state_vector(float(x[0]), float(x[1]))
+        physics.set_control(np.array([u]))
+        for _ in range(n_sub_steps):
+            physics.step()
+        return np.array([physics.angle(), physics.angular_velocity()])
+
+    A = np.empty((2, 2))
+    for i in range(2):
+        e = np.zeros(2)
+        e[i] = epsilon
+        A[:, i] = (step(e, 0.0) - step(-e, 0.0)) / (2 * epsilon)
+    B = ((step(np.zeros(2), epsilon) - step(np.zeros(2), -epsilon)) / (2 * epsilon))[:, None]
+    Q = np.diag(dc_pendulum.STATE_WEIGHTS)
+    R = np.array([[dc_pendulum.ACTION_WEIGHT]])
+    S = scipy.linalg.solve_discrete_are(A, B, Q, R)
+    return np.linalg.solve(R + B.T @ S @ B, B.T @ S @ A).reshape(2)
+
+
+#: (domain, task) -> {demonstrator name: demonstrator}. 'demo' is the one ``--prior demo`` records;
+#: 'poor-demo' pumps with half the voltage and balances with half the LQR gains (still swings up).
+DEMONSTRATORS: dict[tuple[str, str], dict[str, EnergySwingUp]] = {
+    ("dc_pendulum", task): {"demo": EnergySwingUp(),
+                            "poor-demo": EnergySwingUp(pump_voltage=1.5, balance_scale=0.5)}
+    for task in ("swingup", "balance")
+}
+
+
+def names(domain: str, task: str) -> tuple[str, ...]:
+    """The demonstrators available for ``domain``/``task`` (possibly none)."""
+    return tuple(DEMONSTRATORS.get((domain, task), {}))
+
+
+def get(domain: str, task: str, name: str = "demo") -> EnergySwingUp:
+    """Demonstrator ``name`` of ``domain``/``task``; ValueError listing the available ones."""
+    available = DEMONSTRATORS.get((domain, task), {})
+    if name not in available:
+        raise ValueError(f"no demonstrator {name!r} for {domain}/{task}; available: "
+                         f"{', '.join(available) or 'none'} (or give recorded data, FILE.npz)")
+    return available[name]
