@@ -159,6 +159,48 @@ def test_back_ends_agree_on_a_random_history():
         np.testing.assert_array_equal(fast.X_, slow.X_)
 
 
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+def test_move_outputs_takes_the_short_way_round_and_wraps(algorithm):
+    memory = LLRMemory(1, 2, 5, 1, output_period=[TWO_PI, 0.0], algorithm=algorithm)
+    for y in ([np.pi - 0.1, 1.0], [0.0, 2.0], [1.0, 3.0]):
+        memory.insert([0.0], y)
+    memory.move_outputs([0, 1], [-np.pi + 0.1, 5.0], 0.75)
+    # Sample 0: 0.2 across the seam, three quarters of the way: pi - 0.1 + 0.15, wrapped.
+    np.testing.assert_allclose(memory.Y_[0], [-np.pi + 0.05, 1.0 + 0.75 * 4.0], atol=1e-12)
+    np.testing.assert_allclose(memory.Y_[1], [0.75 * (-np.pi + 0.1), 2.0 + 0.75 * 3.0], atol=1e-12)
+    np.testing.assert_array_equal(memory.Y_[2], [1.0, 3.0])  # not moved
+    with pytest.raises(ValueError, match="indices"):
+        memory.move_outputs([3], [0.0, 0.0], 0.5)  # only 3 samples stored
+
+
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+def test_add_weighted_adds_delta_times_weight_to_stored_samples(algorithm):
+    memory = LLRMemory(1, 1, 4, 1, algorithm=algorithm)
+    for v in (1.0, 2.0, 3.0):
+        memory.insert([v], [v])
+    traces = np.array([1.0, 0.5, 0.0, 7.0])  # the 4th slot holds no sample: ignored
+    memory.add_weighted(traces, [-2.0])
+    np.testing.assert_array_equal(memory.Y_[:, 0], [-1.0, 1.0, 3.0, 0.0])
+    memory.add_weighted(traces[:3], [1.0])
+    np.testing.assert_array_equal(memory.outputs([0, 1, 2])[:, 0], [0.0, 1.5, 3.0])
+    with pytest.raises(ValueError, match="weights"):
+        memory.add_weighted(np.ones(2), [1.0])
+
+
+def test_kernel_state_is_the_memory_itself():
+    from rmac_mj.approximators.llr import llr_insert, llr_query
+    memory = LLRMemory(2, 1, 10, 3, input_period=[TWO_PI, 0.0])
+    slot = llr_insert(memory.kernel_state, np.array([4.0, 1.0]), np.array([5.0]), -1)
+    assert slot == 0 and memory.n_samples_ == 1
+    np.testing.assert_allclose(memory.X_[0], [4.0 - TWO_PI, 1.0])  # stored wrapped
+    idx, beta, pred = np.empty(3, np.int64), np.empty((1, 3)), np.empty(1)
+    assert llr_query(memory.kernel_state, np.array([4.0, 1.0]), idx, beta, pred) == 1
+    assert pred[0] == 5.0 and idx[0] == 0
+    memory.Y_[0] = -1.0  # Python's writes are seen by compiled code
+    llr_query(memory.kernel_state, np.array([4.0, 1.0]), idx, beta, pred)
+    assert pred[0] == -1.0
+
+
 def test_initialise_from_samples_and_state_dict_round_trip():
     rng = np.random.default_rng(4)
     X, Y = rng.normal(size=(30, 2)), rng.normal(size=(30, 1))

@@ -1,6 +1,7 @@
 """RMAC (Algorithm 2): inverse model, reachable-set vertex, TD(lambda) on memory samples, learning."""
 
 import itertools
+import math
 
 import numpy as np
 import pytest
@@ -127,6 +128,71 @@ def test_back_ends_follow_the_same_trajectory():
     # Rounding differences (1e-13 after a few steps) grow through the closed learning loop, so the
     # comparison covers the first 200 steps, where any difference in logic would show.
     np.testing.assert_allclose(returns["numba"], returns["numpy"], rtol=1e-6)
+
+
+def _plain_pendulum_returns(agent, trials, steps=100):
+    """Trials of the paper's DC-motor pendulum integrated with plain Python floats (Euler, 3 x 0.01 s
+    per control step), so that a pin of the learner's results depends on no simulator."""
+    J, mass, g, length, b, K, R = 1.91e-4, 0.055, 9.81, 0.042, 3e-6, 0.0536, 9.5
+    returns = []
+    for _ in range(trials):
+        phi, w = -math.pi, 0.0
+        u = float(agent.start(np.array([phi, w]))[0])
+        total = 0.0
+        for k in range(1, steps + 1):
+            for _ in range(3):
+                w += 0.01 * (mass * g * length * math.sin(phi) - (b + K * K / R) * w + K / R * u) / J
+                phi = (phi + 0.01 * w + math.pi) % (2 * math.pi) - math.pi
+            reward = -(5.0 * phi * phi + 0.1 * w * w + u * u)
+            total += reward
+            x = np.array([phi, w])
+            if k == steps:
+                agent.stop(reward, x)
+            else:
+                u = float(agent.step(reward, x)[0])
+        returns.append(total)
+    return returns
+
+
+#: Every option away from its default, with memories small enough to fill up within a trial.
+_SMALL_OPTIONS = dict(critic_capacity=150, reference_capacity=120, process_capacity=30,
+                      critic_neighbours=7, reference_neighbours=6, process_neighbours=5,
+                      critic_replacement="oldest", conditioning="svd", norm=2,
+                      critic_gradient_at="previous", inverse_query="zero", initial_value="zero",
+                      process_clip=True, reference_clip=False)
+
+#: (config, backend, trials) -> first return, last return, sum of returns, and the sums of the
+#: critic's values, the reference's and the process model's outputs and the critic's inputs after
+#: the run. Recorded before the LLR memory got its named interface (issue 10) and unchanged by it
+#: and by the faster kernels since: any change in what the learner computes, down to the last bit,
+#: shows here. The default run fills the 2000-sample memories (replacement happens).
+_PINNED = {
+    ("default", "numba", 25): (-3852.3085695860086, -2459.9124911226695, -87413.68888802434,
+                               -1010144.3458538813, -3256.5431207134206, 3.558575869944409,
+                               -3018.76421288006),
+    ("default", "numpy", 2): (-3934.3550661947766, -4470.676122866277, -8405.031189061054,
+                              -52997.66079334065, 325.1571957834704, -100.18020268219087,
+                              502.7296286710607),
+    ("small", "numba", 6): (-3897.65121712942, -3793.5328728836425, -24178.158577071645,
+                            -36760.53678396075, 111.75487047688269, 19.941037979490368,
+                            253.55920392095513),
+    ("small", "numpy", 6): (-3897.6512146646514, -3673.3351405158123, -23659.13444060682,
+                            -39885.017264207825, 438.03327572644224, 48.70063768872285,
+                            217.6430345686441),
+}
+
+
+@pytest.mark.parametrize("config, backend, trials", list(_PINNED))
+def test_seeded_run_is_pinned_bit_for_bit(config, backend, trials):
+    S = StateSpace(low=[-np.pi, -8 * np.pi], high=[np.pi, 8 * np.pi], periodic=[True, False])
+    U = ActionSpace(low=[-3.0], high=[3.0])
+    options = _SMALL_OPTIONS if config == "small" else {}
+    agent = RMAC(S, U, RMACConfig(backend=backend, **options), seed=2024)
+    returns = _plain_pendulum_returns(agent, trials)
+    got = (returns[0], returns[-1], sum(returns), float(agent.critic.Y_.sum()),
+           float(agent.reference.Y_.sum()), float(agent.process.Y_.sum()),
+           float(agent.critic.X_.sum()))
+    assert got == _PINNED[(config, backend, trials)]
 
 
 def test_same_seed_same_curve_and_state_dict_round_trip():

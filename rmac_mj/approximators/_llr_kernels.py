@@ -4,27 +4,92 @@ Every function here mirrors one of the plain numpy reference functions in ``llr.
 (same distance, same tie-breaking, same normal-equation fit), so the two back ends give the same
 neighbours and, up to rounding, the same local models; ``tests/test_llr.py`` cross-checks them.
 
-A memory is passed as the tuple returned by ``LLRMemory._pack()``::
+A memory is passed to compiled code as an :class:`LLRState`, a numba structref whose named fields are
+the memory's own arrays (shared with :class:`~rmac_mj.approximators.llr.LLRMemory`, so compiled
+updates change the memory) and its settings:
 
-    (Xt, Y, stamp, meta, weights, in_period, out_period, iparams, fparams, dist)
+======================  ============================================================================
+``Xt``                  (n, N) inputs, stored by dimension so that the distance loop runs over
+                        contiguous memory and vectorises (5x faster than row-wise here); periodic
+                        inputs are kept in [-period/2, period/2)
+``Y``                   (N, m) outputs
+``stamp``               (N,) int64 insertion times
+``meta``                int64 [count, clock]: the number of stored samples and the next stamp
+``weights``             (n,) input weights of the distance and of the regression
+``in_period``           (n,) period of each periodic input, 0 elsewhere
+``out_period``          (m,) period of each periodic output, 0 elsewhere
+``dist``                (N,) scratch space for distances
+``n_neighbours``        K
+``norm``                1 or 2
+``clip``                clip predictions to the neighbours' output range
+``replacement``         ``REPLACE_OLDEST`` or ``REPLACE_NEAREST``
+``eig_cutoff``          relative eigenvalue cutoff of the normal matrix (see ``fit``)
+``ridge``               ridge added to the slopes' diagonal
+======================  ============================================================================
 
-Xt: (n, N) inputs, stored by dimension so that the distance loop runs over contiguous memory and
-vectorises (5x faster than row-wise here); periodic inputs are kept in [-period/2, period/2). Y: (N, m)
-outputs; stamp: (N,) int64 insertion times; meta: int64 [count, clock];
-weights: (n,); in_period: (n,), 0 for a non-periodic input; out_period: (m,); iparams: int64
-[n_neighbours, norm, clip, replacement]; fparams: float64 [eig_cutoff, ridge]; dist: (N,) scratch
-space for distances.
-Arrays are mutated in place, so a jitted learner can update a memory without leaving compiled code.
+A learner whose own step is compiled (RMAC) calls the state-level functions at the end of this module
+(``query``, ``neighbours``, ``insert``, ``move_outputs``, ``add_weighted``) through the names
+``llr.py`` exports; a structref crosses the Python/numba boundary much faster than a tuple of arrays.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.experimental import structref
 
 # Codes shared with llr.py.
 REPLACE_OLDEST = 0
 REPLACE_NEAREST = 1
+
+
+@structref.register
+class LLRStateType(types.StructRef):
+    """The numba type of :class:`LLRState`."""
+
+    def preprocess_fields(self, fields):
+        return tuple((name, types.unliteral(typ)) for name, typ in fields)
+
+
+class LLRState(structref.StructRefProxy):
+    """A memory's arrays and settings, named, for compiled code (fields: see the module docstring).
+
+    Made by :func:`new_state`; opaque to Python (read the arrays through the owning ``LLRMemory``).
+    """
+
+
+structref.define_boxing(LLRStateType, LLRState)
+
+#: The one concrete type of every LLRState (C-contiguous float64/int64 arrays).
+LLR_STATE_TYPE = LLRStateType([
+    ("Xt", types.float64[:, ::1]), ("Y", types.float64[:, ::1]), ("stamp", types.int64[::1]),
+    ("meta", types.int64[::1]), ("weights", types.float64[::1]),
+    ("in_period", types.float64[::1]), ("out_period", types.float64[::1]),
+    ("dist", types.float64[::1]), ("n_neighbours", types.int64), ("norm", types.int64),
+    ("clip", types.boolean), ("replacement", types.int64), ("eig_cutoff", types.float64),
+    ("ridge", types.float64)])
+
+
+@njit(cache=True)
+def new_state(Xt, Y, stamp, meta, weights, in_period, out_period, dist, n_neighbours, norm, clip,
+              replacement, eig_cutoff, ridge):
+    """An :class:`LLRState` over the given arrays (not copied)."""
+    state = structref.new(LLR_STATE_TYPE)
+    state.Xt = Xt
+    state.Y = Y
+    state.stamp = stamp
+    state.meta = meta
+    state.weights = weights
+    state.in_period = in_period
+    state.out_period = out_period
+    state.dist = dist
+    state.n_neighbours = n_neighbours
+    state.norm = norm
+    state.clip = clip
+    state.replacement = replacement
+    state.eig_cutoff = eig_cutoff
+    state.ridge = ridge
+    return state
 
 
 @njit(cache=True)
@@ -228,47 +293,80 @@ def fit(Xt, Y, idx, nk, xq, w, in_period, out_period, eig_cutoff, ridge, clip, b
         pred_out[o] = pred
 
 
+# -- state-level operations ---------------------------------------------------------------------
+
 @njit(cache=True)
-def query(mem, x, idx_out, beta_out, pred_out):
-    """Neighbour search and fit at ``x``; returns the number of neighbours found (-1: x not
-    finite)."""
-    Xt, Y, stamp, meta, w, in_period, out_period, ip, fp, d = mem
+def query(state, x, idx_out, beta_out, pred_out):
+    """Neighbour search and fit at ``x`` (shape (n,)); writes the neighbours (nearest first) to
+    ``idx_out`` (K,), the local model to ``beta_out`` (m, n+1) and the prediction to ``pred_out``
+    (m,); returns the number of neighbours found (-1: x not finite)."""
     if not np.all(np.isfinite(x)):
         return -1
     xq = np.empty(x.shape[0])
-    canonical(x, in_period, xq)
-    nk = search(Xt, meta[0], xq, w, in_period, ip[1], ip[0], idx_out, d)
-    fit(Xt, Y, idx_out, nk, xq, w, in_period, out_period, fp[0], fp[1], ip[2] != 0, beta_out,
-        pred_out)
+    canonical(x, state.in_period, xq)
+    nk = search(state.Xt, state.meta[0], xq, state.weights, state.in_period, state.norm,
+                state.n_neighbours, idx_out, state.dist)
+    fit(state.Xt, state.Y, idx_out, nk, xq, state.weights, state.in_period, state.out_period,
+        state.eig_cutoff, state.ridge, state.clip, beta_out, pred_out)
     return nk
 
 
 @njit(cache=True)
-def insert(mem, x, y, nearest):
+def neighbours(state, xq, idx_out):
+    """K(xq) for a canonical xq (periodic entries in [-period/2, period/2)): the nearest samples,
+    nearest first, written to ``idx_out`` (K,); returns how many."""
+    return search(state.Xt, state.meta[0], xq, state.weights, state.in_period, state.norm,
+                  state.n_neighbours, idx_out, state.dist)
+
+
+@njit(cache=True)
+def insert(state, x, y, nearest):
     """Store [x | y]; returns its slot (-1: x or y not finite, nothing stored).
 
     ``nearest`` is the slot of the stored input closest to x (used by the 'nearest' replacement
     policy once the memory is full; -1 to search for it)."""
-    Xt, Y, stamp, meta, w, in_period, out_period, ip, fp, d = mem
     if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
         return -1
+    Xt, meta = state.Xt, state.meta
     count = meta[0]
-    if count < Y.shape[0]:
+    if count < state.Y.shape[0]:
         slot = count
         meta[0] = count + 1
-    elif ip[3] == REPLACE_NEAREST:
+    elif state.replacement == REPLACE_NEAREST:
         if nearest < 0:
             xq = np.empty(x.shape[0])
-            canonical(x, in_period, xq)
+            canonical(x, state.in_period, xq)
             one = np.empty(1, dtype=np.int64)
-            search(Xt, count, xq, w, in_period, ip[1], 1, one, d)
+            search(Xt, count, xq, state.weights, state.in_period, state.norm, 1, one, state.dist)
             nearest = one[0]
         slot = nearest
     else:  # oldest
-        slot = int(np.argmin(stamp))
+        slot = int(np.argmin(state.stamp))
     for j in range(Xt.shape[0]):
-        Xt[j, slot] = wrap(x[j], in_period[j])
-    Y[slot, :] = y
-    stamp[slot] = meta[1]
+        Xt[j, slot] = wrap(x[j], state.in_period[j])
+    state.Y[slot, :] = y
+    state.stamp[slot] = meta[1]
     meta[1] += 1
     return slot
+
+
+@njit(cache=True)
+def move_outputs(state, idx, nk, target, rate):
+    """y_i += rate * wrap(target - y_i) for the samples ``idx[:nk]``, then periodic outputs are
+    wrapped to one period (RMAC's reference update, Algorithm 2 line 20)."""
+    Y, period = state.Y, state.out_period
+    for a in range(nk):
+        i = idx[a]
+        for j in range(Y.shape[1]):
+            y = Y[i, j] + rate * wrap(target[j] - Y[i, j], period[j])
+            Y[i, j] = wrap(y, period[j])
+
+
+@njit(cache=True)
+def add_weighted(state, weights, delta):
+    """y_i += delta * weights_i for every stored sample i (a TD(lambda) update with eligibility
+    traces ``weights``, Algorithm 2 line 27); weights has at least ``meta[0]`` entries."""
+    Y = state.Y
+    for i in range(state.meta[0]):
+        for o in range(Y.shape[1]):
+            Y[i, o] += delta[o] * weights[i]
