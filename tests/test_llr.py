@@ -201,6 +201,56 @@ def test_kernel_state_is_the_memory_itself():
     assert pred[0] == -1.0
 
 
+@pytest.mark.parametrize("replacement", ["nearest", "oldest"])
+@pytest.mark.parametrize("norm", [1, 2])
+def test_a_neighbour_list_carried_across_an_insertion_equals_a_new_search(replacement, norm):
+    # What lets RMAC search a point once where Algorithm 2 searches it before and after an
+    # insertion: candidates (K+1 neighbours) + refresh == a search after the insertion, ties and
+    # replaced neighbours included. Inputs on a coarse grid make many distances equal.
+    from rmac_mj.approximators.llr import llr_candidates, llr_insert, llr_refresh
+    rng = np.random.default_rng(5)
+    K = 4
+    memory = LLRMemory(2, 1, 25, K, input_weights=[1.0, 0.5], input_period=[TWO_PI, 0.0],
+                       norm=norm, replacement=replacement)
+    state = memory.kernel_state
+    idx, dist = np.empty(K + 1, np.int64), np.empty(K + 1)
+    fresh, fresh_dist = np.empty(K + 1, np.int64), np.empty(K + 1)
+    replaced_a_neighbour = 0
+    for step in range(300):
+        xq = np.r_[rng.integers(-6, 6) * 0.5, rng.integers(-4, 4) * 0.5]
+        n = llr_candidates(state, xq, idx, dist)
+        before = idx[:n].copy()
+        x_new = xq + np.r_[rng.integers(-2, 3), rng.integers(-2, 3)] * 0.5
+        slot = llr_insert(state, x_new, np.zeros(1), idx[0] if step % 2 and n else -1)
+        replaced_a_neighbour += slot in before
+        n = llr_refresh(state, xq, idx, dist, n, slot)
+        nk = min(K, memory.n_samples_)
+        assert n >= nk
+        assert llr_candidates(state, xq, fresh, fresh_dist) >= n
+        np.testing.assert_array_equal(idx[:n], fresh[:n])
+        np.testing.assert_array_equal(dist[:n], fresh_dist[:n])
+    assert memory.n_samples_ == 25 and replaced_a_neighbour > 20
+
+
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+def test_insert_after_a_query_at_the_same_point_replaces_the_same_sample(algorithm):
+    # insert() may take the nearest sample from a query just made at the same point; it must be
+    # the sample a search would find, and a change in between must not go unnoticed.
+    rng = np.random.default_rng(6)
+    kwargs = dict(input_weights=[1.0, 0.1], input_period=[TWO_PI, 0.0], algorithm=algorithm)
+    a, b = LLRMemory(2, 1, 40, 5, **kwargs), LLRMemory(2, 1, 40, 5, **kwargs)
+    for _ in range(300):
+        x = np.r_[rng.uniform(-4, 4), rng.normal(0, 5)]
+        a.query(x)
+        if rng.random() < 0.3:  # the memory changes between the query and the insertion,
+            other = x + rng.normal(0, 1e-3, 2)  # and its new nearest sample is this one
+            assert a.insert(other, [1.0]) == b.insert(other, [1.0])
+            other = np.r_[rng.uniform(-4, 4), rng.normal(0, 5)]
+            assert a.insert(other, [1.0]) == b.insert(other, [1.0])
+        assert a.insert(x, [0.0]) == b.insert(x, [0.0])
+    np.testing.assert_array_equal(a.X_, b.X_)
+
+
 def test_initialise_from_samples_and_state_dict_round_trip():
     rng = np.random.default_rng(4)
     X, Y = rng.normal(size=(30, 2)), rng.normal(size=(30, 1))

@@ -215,6 +215,9 @@ class RMAC(Agent):
         self._u_greedy = np.zeros(m)
         self._periodic = bool(np.any(self.period > 0))
         self._kernel_state = None
+        # The compiled step's neighbour lists (reference, critic) x (two buffers) x [length,
+        # version]; a length of -1 drops a list (see _rmac_kernels).
+        self._list_info = np.full((2, 2, 2), -1, dtype=np.int64)
         if config.backend == "numba":
             self._kernel_state = _rmac_kernels.new_state(
                 self.process.kernel_state, self.reference.kernel_state, self.critic.kernel_state,
@@ -222,7 +225,8 @@ class RMAC(Agent):
                 np.ascontiguousarray(self.vertices), np.ascontiguousarray(self.period, dtype=float),
                 action_space.low.copy(), action_space.high.copy(), float(config.gamma),
                 float(config.lam), float(config.alpha_c), float(config.alpha_r), BETA_U_ZERO,
-                config.inverse_query == "previous", config.critic_gradient_at == "next")
+                config.inverse_query == "previous", config.critic_gradient_at == "next",
+                self._list_info[0], self._list_info[1])
 
     # -- the policy: u = f^-1(x, R(x)) ------------------------------------------------------------------
     def _canonical(self, x: np.ndarray) -> np.ndarray:
@@ -278,6 +282,7 @@ class RMAC(Agent):
     def _start(self, x0: np.ndarray) -> np.ndarray:
         """Lines 1-6: reset the traces, u_0 = f^-1(x_0, R(x_0)) + Delta u_0."""
         x0 = self._wrapped(x0)
+        self._list_info[:, :, 0] = -1
         self.traces[:] = 0.0  # line 3
         self._k = 0
         self._u_greedy = np.zeros(self.m)
@@ -294,12 +299,13 @@ class RMAC(Agent):
 
     def _step(self, reward: float, x: np.ndarray) -> np.ndarray:
         """Lines 8-29 for one control step: act with the current models, then learn."""
-        x = self._wrapped(x)
         self._k += 1
         if self._kernel_state is not None:
             du = self.config.exploration.sample(self._k, self.m, self.rng)  # line 8
-            # Lines 10-28 in one compiled call, which also advances x_prev, u_prev and v_prev.
-            return _rmac_kernels.step(self._kernel_state, float(reward), x, du).copy()
+            # Lines 10-28 in one compiled call (x wrapped there), which also advances x_prev,
+            # u_prev and v_prev; it returns a new array.
+            return _rmac_kernels.step(self._kernel_state, reward, x, du)
+        x = self._wrapped(x)
         u = self._explore(self._act(x, self._u_prev))  # lines 10-12
         self._v_prev[0] = self._update(float(reward), x)   # lines 13-28
         self._x_prev[:] = x
@@ -308,11 +314,10 @@ class RMAC(Agent):
 
     def _stop(self, reward: float, x: np.ndarray) -> None:
         """The last transition of a trial: learn (lines 13-28), no action."""
-        x = self._wrapped(x)
         if self._kernel_state is not None:
-            _rmac_kernels.update(self._kernel_state, float(reward), x)
+            _rmac_kernels.stop(self._kernel_state, reward, x)
         else:
-            self._update(float(reward), x)
+            self._update(reward, self._wrapped(x))
         self._u_greedy = np.zeros(self.m)  # a greedy trial that follows starts from u_{-1} = 0
 
     def _update(self, reward: float, x: np.ndarray) -> float:
@@ -390,4 +395,5 @@ class RMAC(Agent):
         self._x_prev[:] = state["x_prev"]
         self._u_prev[:] = state["u_prev"]
         self._v_prev[0] = float(state["v_prev"])
+        self._list_info[:, :, 0] = -1
         self._u_greedy = np.array(state["u_greedy"], dtype=float)

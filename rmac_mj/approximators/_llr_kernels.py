@@ -14,11 +14,16 @@ updates change the memory) and its settings:
                         inputs are kept in [-period/2, period/2)
 ``Y``                   (N, m) outputs
 ``stamp``               (N,) int64 insertion times
-``meta``                int64 [count, clock]: the number of stored samples and the next stamp
+``meta``                int64 [count, clock, version]: the number of stored samples, the next
+                        stamp, and a counter of changes to the inputs (any insert, fit, reset or
+                        load), so that a neighbour list can tell whether it is still current
 ``weights``             (n,) input weights of the distance and of the regression
 ``in_period``           (n,) period of each periodic input, 0 elsewhere
 ``out_period``          (m,) period of each periodic output, 0 elsewhere
 ``dist``                (N,) scratch space for distances
+``best``                (K+1,) scratch space for the distances of a neighbour list
+``last_point``          (n,) where the last search was made, ``last_nearest`` the nearest sample
+                        it found (-1: none) and ``last_version`` the memory's version then
 ``n_neighbours``        K
 ``norm``                1 or 2
 ``clip``                clip predictions to the neighbours' output range
@@ -28,8 +33,16 @@ updates change the memory) and its settings:
 ======================  ============================================================================
 
 A learner whose own step is compiled (RMAC) calls the state-level functions at the end of this module
-(``query``, ``neighbours``, ``insert``, ``move_outputs``, ``add_weighted``) through the names
-``llr.py`` exports; a structref crosses the Python/numba boundary much faster than a tuple of arrays.
+(``query``, ``neighbours``, ``candidates``, ``refresh``, ``fit_at``, ``insert``, ``move_outputs``,
+``add_weighted``) through the names ``llr.py`` exports; a structref crosses the Python/numba
+boundary much faster than a tuple of arrays.
+
+Searching a point once where the algorithm searches it twice does not change what is found
+(docs/performance.md): a neighbour list of K+1 candidates stays exact across one insertion
+(``refresh``: the replaced sample leaves, the new one is placed by its distance, every other
+sample keeps its distance), so a caller that searched a point before inserting need not search it
+again; and ``insert`` takes the nearest sample from the last search when that was made at the
+same point on the memory as it is.
 """
 
 from __future__ import annotations
@@ -67,7 +80,8 @@ LLR_STATE_TYPE = LLRStateType([
     ("in_period", types.float64[::1]), ("out_period", types.float64[::1]),
     ("dist", types.float64[::1]), ("n_neighbours", types.int64), ("norm", types.int64),
     ("clip", types.boolean), ("replacement", types.int64), ("eig_cutoff", types.float64),
-    ("ridge", types.float64)])
+    ("ridge", types.float64), ("best", types.float64[::1]), ("last_nearest", types.int64),
+    ("last_point", types.float64[::1]), ("last_version", types.int64)])
 
 
 @njit(cache=True)
@@ -89,6 +103,10 @@ def new_state(Xt, Y, stamp, meta, weights, in_period, out_period, dist, n_neighb
     state.replacement = replacement
     state.eig_cutoff = eig_cutoff
     state.ridge = ridge
+    state.best = np.empty(n_neighbours + 1)
+    state.last_nearest = -1
+    state.last_point = np.empty(Xt.shape[0])
+    state.last_version = -1
     return state
 
 
@@ -108,14 +126,15 @@ def canonical(x, period, out):
 
 
 @njit(cache=True, fastmath=True)
-def distances(Xt, count, xq, w, period, norm, d):
+def distances(Xt, start, count, xq, w, period, norm, d):
     """d[i] = sum_j |w_j wrap(x_ij - xq_j)| (norm 1) or sum_j (w_j wrap(x_ij - xq_j))^2 (norm 2,
-    the squared 2-norm, which orders identically) for the first ``count`` samples.
+    the squared 2-norm, which orders identically) for the samples start <= i < count.
 
     Stored and query inputs lie in [-period/2, period/2), so a difference needs at most one shift
-    by a period; the branch-free loops over contiguous rows vectorise.
+    by a period; the branch-free loops over contiguous rows vectorise. One sample's distance is
+    computed by the same code as all of them (``start = count - 1``), so it is the same number.
     """
-    d[:count] = 0.0
+    d[start:count] = 0.0
     for j in range(Xt.shape[0]):
         p = period[j]
         half = 0.5 * p
@@ -123,35 +142,58 @@ def distances(Xt, count, xq, w, period, norm, d):
         q = xq[j]
         row = Xt[j]
         if p > 0.0 and norm == 1:
-            for i in range(count):
+            for i in range(start, count):
                 e = row[i] - q
                 d[i] += abs(wj * (e - p * (e >= half) + p * (e < -half)))
         elif p > 0.0:
-            for i in range(count):
+            for i in range(start, count):
                 e = row[i] - q
                 e = wj * (e - p * (e >= half) + p * (e < -half))
                 d[i] += e * e
         elif norm == 1:
-            for i in range(count):
+            for i in range(start, count):
                 d[i] += abs(wj * (row[i] - q))
         else:
-            for i in range(count):
+            for i in range(start, count):
                 e = wj * (row[i] - q)
                 d[i] += e * e
 
 
 @njit(cache=True)
-def smallest(d, count, k, idx_out):
-    """Indices of the min(k, count) smallest d[:count], smallest first, ties to the lower index (as
-    a stable sort); returns how many."""
+def place(best, idx, found, k, di, i):
+    """Insert the pair (di, i) into the ``found`` smallest pairs so far, ``best``/``idx`` ordered by
+    (distance, index), keeping at most k; returns the new count."""
+    if found < k:
+        pos = found
+        found += 1
+    elif di < best[k - 1] or (di == best[k - 1] and i < idx[k - 1]):
+        pos = k - 1
+    else:
+        return found
+    while pos > 0 and (best[pos - 1] > di or (best[pos - 1] == di and idx[pos - 1] > i)):
+        best[pos] = best[pos - 1]
+        idx[pos] = idx[pos - 1]
+        pos -= 1
+    best[pos] = di
+    idx[pos] = i
+    return found
+
+
+@njit(cache=True)
+def smallest(d, count, k, idx_out, best):
+    """The min(k, count) smallest of d[:count], ordered by (value, index): ties go to the lower
+    index, as in a stable sort. Indices go to ``idx_out``, values to ``best``; returns how many.
+
+    One pass keeps the k smallest so far and skips blocks of values that cannot enter (the common
+    case once the list is full); values are visited in index order, so a strict comparison keeps
+    ties in index order.
+    """
     nk = min(k, count)
-    best = np.empty(nk)
     found = 0
     block = 16
     i = 0
     while i < count:
         if found == nk and i + block <= count:
-            # Skip a block that cannot contain a new neighbour (the common case once full).
             lo = d[i]
             for b in range(1, block):
                 lo = min(lo, d[i + b])
@@ -177,13 +219,6 @@ def smallest(d, count, k, idx_out):
             idx_out[pos] = i
             i += 1
     return nk
-
-
-@njit(cache=True)
-def search(Xt, count, xq, w, period, norm, k, idx_out, d):
-    """Indices of the min(k, count) nearest stored inputs to xq, nearest first; returns how many."""
-    distances(Xt, count, xq, w, period, norm, d)
-    return smallest(d, count, k, idx_out)
 
 
 @njit(cache=True)
@@ -296,6 +331,26 @@ def fit(Xt, Y, idx, nk, xq, w, in_period, out_period, eig_cutoff, ridge, clip, b
 # -- state-level operations ---------------------------------------------------------------------
 
 @njit(cache=True)
+def _search(state, xq, k, idx_out, best):
+    """The min(k, count) nearest samples to a canonical xq, by (distance, index), with their
+    distances; remembers where it searched and the nearest sample (see ``insert``)."""
+    count = state.meta[0]
+    distances(state.Xt, 0, count, xq, state.weights, state.in_period, state.norm, state.dist)
+    nk = smallest(state.dist, count, k, idx_out, best)
+    state.last_nearest = idx_out[0] if nk > 0 else -1
+    state.last_point[:] = xq
+    state.last_version = state.meta[2]
+    return nk
+
+
+@njit(cache=True)
+def fit_at(state, xq, idx, nk, beta_out, pred_out):
+    """The local model at a canonical xq from the neighbours ``idx[:nk]`` (see ``fit``)."""
+    fit(state.Xt, state.Y, idx, nk, xq, state.weights, state.in_period, state.out_period,
+        state.eig_cutoff, state.ridge, state.clip, beta_out, pred_out)
+
+
+@njit(cache=True)
 def query(state, x, idx_out, beta_out, pred_out):
     """Neighbour search and fit at ``x`` (shape (n,)); writes the neighbours (nearest first) to
     ``idx_out`` (K,), the local model to ``beta_out`` (m, n+1) and the prediction to ``pred_out``
@@ -304,10 +359,8 @@ def query(state, x, idx_out, beta_out, pred_out):
         return -1
     xq = np.empty(x.shape[0])
     canonical(x, state.in_period, xq)
-    nk = search(state.Xt, state.meta[0], xq, state.weights, state.in_period, state.norm,
-                state.n_neighbours, idx_out, state.dist)
-    fit(state.Xt, state.Y, idx_out, nk, xq, state.weights, state.in_period, state.out_period,
-        state.eig_cutoff, state.ridge, state.clip, beta_out, pred_out)
+    nk = _search(state, xq, state.n_neighbours, idx_out, state.best)
+    fit_at(state, xq, idx_out, nk, beta_out, pred_out)
     return nk
 
 
@@ -315,8 +368,43 @@ def query(state, x, idx_out, beta_out, pred_out):
 def neighbours(state, xq, idx_out):
     """K(xq) for a canonical xq (periodic entries in [-period/2, period/2)): the nearest samples,
     nearest first, written to ``idx_out`` (K,); returns how many."""
-    return search(state.Xt, state.meta[0], xq, state.weights, state.in_period, state.norm,
-                  state.n_neighbours, idx_out, state.dist)
+    return _search(state, xq, state.n_neighbours, idx_out, state.best)
+
+
+@njit(cache=True)
+def candidates(state, xq, idx_out, dist_out):
+    """The min(K+1, count) nearest samples to a canonical xq, nearest first, with their distances
+    (``idx_out``, ``dist_out``: shape (K+1,)); returns how many. The first min(K, count) are K(xq),
+    and the list can be carried across one insertion with ``refresh``."""
+    return _search(state, xq, state.n_neighbours + 1, idx_out, dist_out)
+
+
+@njit(cache=True)
+def refresh(state, xq, idx, dist, n, slot):
+    """Carry the neighbour list ``idx[:n]`` of a canonical xq (from ``candidates``, or from an
+    earlier ``refresh``), with distances ``dist[:n]``, across one insertion into ``slot``; returns
+    how many of its entries are now exact (at least min(K, count)).
+
+    Every other sample kept its distance and every sample outside the list lies beyond all of it.
+    So the replaced sample leaves the list and the new one is placed by its distance; the list is
+    then exact except, when the replaced sample was in it, for a new sample that ranks last (a
+    sample outside the list may lie before it), which is dropped.
+    """
+    capacity = idx.shape[0]
+    distances(state.Xt, slot, slot + 1, xq, state.weights, state.in_period, state.norm,
+              state.dist)
+    kept = 0
+    for a in range(n):
+        if idx[a] != slot:
+            idx[kept] = idx[a]
+            dist[kept] = dist[a]
+            kept += 1
+    removed = kept < n
+    outsiders = state.meta[0] > n  # samples that were not in the list
+    n = place(dist, idx, kept, capacity, state.dist[slot], slot)
+    if removed and outsiders and n == kept + 1 and idx[kept] == slot:
+        n = kept
+    return n
 
 
 @njit(cache=True)
@@ -324,7 +412,8 @@ def insert(state, x, y, nearest):
     """Store [x | y]; returns its slot (-1: x or y not finite, nothing stored).
 
     ``nearest`` is the slot of the stored input closest to x (used by the 'nearest' replacement
-    policy once the memory is full; -1 to search for it)."""
+    policy once the memory is full; -1 to find it: from the last search if that was made at x on
+    the memory as it is, else by a search)."""
     if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
         return -1
     Xt, meta = state.Xt, state.meta
@@ -336,9 +425,16 @@ def insert(state, x, y, nearest):
         if nearest < 0:
             xq = np.empty(x.shape[0])
             canonical(x, state.in_period, xq)
-            one = np.empty(1, dtype=np.int64)
-            search(Xt, count, xq, state.weights, state.in_period, state.norm, 1, one, state.dist)
-            nearest = one[0]
+            if (state.last_version == meta[2] and state.last_nearest >= 0
+                    and np.all(state.last_point == xq)):
+                nearest = state.last_nearest
+            else:
+                one = np.empty(1, dtype=np.int64)
+                one_d = np.empty(1)
+                distances(Xt, 0, count, xq, state.weights, state.in_period, state.norm,
+                          state.dist)
+                smallest(state.dist, count, 1, one, one_d)
+                nearest = one[0]
         slot = nearest
     else:  # oldest
         slot = int(np.argmin(state.stamp))
@@ -347,6 +443,7 @@ def insert(state, x, y, nearest):
     state.Y[slot, :] = y
     state.stamp[slot] = meta[1]
     meta[1] += 1
+    meta[2] += 1
     return slot
 
 

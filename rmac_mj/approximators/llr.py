@@ -35,8 +35,11 @@ Compiled interface. A learner whose own step is compiled with numba (RMAC) works
 ``LLRMemory.kernel_state``, an :class:`LLRState` (a numba structref naming the memory's arrays and
 settings), and the compiled functions exported here: ``llr_query``, ``llr_neighbours``,
 ``llr_insert``, ``llr_move_outputs`` and ``llr_add_weighted``, the compiled counterparts of
-``query``, ``neighbours``, ``insert``, ``move_outputs`` and ``add_weighted`` (``LLR_STATE_TYPE`` is
-its numba type, for a learner's own structref fields).
+``query``, ``neighbours``, ``insert``, ``move_outputs`` and ``add_weighted``; ``llr_candidates``
+(K+1 neighbours with their distances), ``llr_refresh`` (carry such a list across one insertion) and
+``llr_fit_at`` (the local model from given neighbours) let a caller that queries a point before
+inserting there search only once. ``LLR_STATE_TYPE`` is the numba type of the state, for a
+learner's own structref fields.
 """
 
 from __future__ import annotations
@@ -55,11 +58,14 @@ llr_neighbours = _k.neighbours
 llr_insert = _k.insert
 llr_move_outputs = _k.move_outputs
 llr_add_weighted = _k.add_weighted
+llr_candidates = _k.candidates
+llr_refresh = _k.refresh
+llr_fit_at = _k.fit_at
 wrap_scalar = _k.wrap
 
-__all__ = ["LLRMemory", "LLRState", "LLR_STATE_TYPE", "fit_reference", "llr_add_weighted", "llr_insert",
-           "llr_move_outputs", "llr_neighbours", "llr_query", "search_reference", "wrap",
-           "wrap_scalar"]
+__all__ = ["LLRMemory", "LLRState", "LLR_STATE_TYPE", "fit_reference", "llr_add_weighted",
+           "llr_candidates", "llr_fit_at", "llr_insert", "llr_move_outputs", "llr_neighbours",
+           "llr_query", "llr_refresh", "search_reference", "wrap", "wrap_scalar"]
 
 _CONDITIONINGS = ("svd", "ridge", "none")
 _REPLACEMENTS = {"oldest": _k.REPLACE_OLDEST, "nearest": _k.REPLACE_NEAREST}
@@ -165,7 +171,8 @@ class LLRMemory:
         self._dist = np.empty(N)
         self.Y_ = np.zeros((N, m))
         self.stamp_ = np.zeros(N, dtype=np.int64)
-        self._meta = np.zeros(2, dtype=np.int64)  # [count, clock]
+        # [count, clock, version]: version counts changes to the inputs (see _llr_kernels).
+        self._meta = np.zeros(3, dtype=np.int64)
         self._idx = np.empty(self.n_neighbours, dtype=np.int64)
         self._beta = np.empty((m, n + 1))
         self._pred = np.empty(m)
@@ -259,7 +266,8 @@ class LLRMemory:
 
     def reset(self) -> None:
         """Forget every sample."""
-        self._meta[:] = 0
+        self._meta[:2] = 0
+        self._meta[2] += 1
         self.stamp_[:] = 0
 
     def fit(self, X: Any, Y: Any) -> "LLRMemory":
@@ -283,22 +291,24 @@ class LLRMemory:
         self.X_[:s] = self._canonical(X)
         self.Y_[:s] = Y
         self.stamp_[:s] = np.arange(s)
-        self._meta[:] = (s, s)
+        self._meta[:2] = (s, s)
+        self._meta[2] += 1
         return self
 
     def state_dict(self, prefix: str = "") -> dict[str, np.ndarray]:
         """Samples and bookkeeping as numeric arrays, keys prefixed with ``prefix``."""
         return {prefix + "X": self.X_.copy(), prefix + "Y": self.Y_.copy(),
-                prefix + "stamp": self.stamp_.copy(), prefix + "meta": self._meta.copy()}
+                prefix + "stamp": self.stamp_.copy(), prefix + "meta": self._meta[:2].copy()}
 
     def load_state_dict(self, state: dict[str, np.ndarray], prefix: str = "") -> None:
         for key, arr in (("X", self.X_), ("Y", self.Y_), ("stamp", self.stamp_),
-                         ("meta", self._meta)):
+                         ("meta", self._meta[:2])):
             value = np.asarray(state[prefix + key])
             if value.shape != arr.shape:
                 raise ValueError(f"LLRMemory.load_state_dict: {prefix + key} has shape "
                                  f"{value.shape}, expected {arr.shape}")
             arr[...] = value
+        self._meta[2] += 1
 
     # -- queries ------------------------------------------------------------------------------------
     def neighbours(self, x: Any) -> np.ndarray:
@@ -383,6 +393,7 @@ class LLRMemory:
         self.Y_[slot] = y
         self.stamp_[slot] = self._meta[1]
         self._meta[1] += 1
+        self._meta[2] += 1
         return slot
 
     def adjust(self, indices: Any, delta: Any) -> None:
