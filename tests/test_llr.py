@@ -207,6 +207,7 @@ def test_a_neighbour_list_carried_across_an_insertion_equals_a_new_search(replac
     # What lets RMAC search a point once where Algorithm 2 searches it before and after an
     # insertion: candidates (K+1 neighbours) + refresh == a search after the insertion, ties and
     # replaced neighbours included. Inputs on a coarse grid make many distances equal.
+    # The first search is seeded (as RMAC seeds with the list of the previous state).
     from rmac_mj.approximators.llr import llr_candidates, llr_insert, llr_refresh
     rng = np.random.default_rng(5)
     K = 4
@@ -215,10 +216,11 @@ def test_a_neighbour_list_carried_across_an_insertion_equals_a_new_search(replac
     state = memory.kernel_state
     idx, dist = np.empty(K + 1, np.int64), np.empty(K + 1)
     fresh, fresh_dist = np.empty(K + 1, np.int64), np.empty(K + 1)
-    replaced_a_neighbour = 0
+    replaced_a_neighbour, n_fresh = 0, 0
     for step in range(300):
         xq = np.r_[rng.integers(-6, 6) * 0.5, rng.integers(-4, 4) * 0.5]
-        n = llr_candidates(state, xq, idx, dist)
+        # Seeded with the last list (of another point): a seed speeds a search up, nothing else.
+        n = llr_candidates(state, xq, idx, dist, fresh.copy(), n_fresh)
         before = idx[:n].copy()
         x_new = xq + np.r_[rng.integers(-2, 3), rng.integers(-2, 3)] * 0.5
         slot = llr_insert(state, x_new, np.zeros(1), idx[0] if step % 2 and n else -1)
@@ -226,7 +228,8 @@ def test_a_neighbour_list_carried_across_an_insertion_equals_a_new_search(replac
         n = llr_refresh(state, xq, idx, dist, n, slot)
         nk = min(K, memory.n_samples_)
         assert n >= nk
-        assert llr_candidates(state, xq, fresh, fresh_dist) >= n
+        n_fresh = llr_candidates(state, xq, fresh, fresh_dist, fresh, 0)
+        assert n_fresh >= n
         np.testing.assert_array_equal(idx[:n], fresh[:n])
         np.testing.assert_array_equal(dist[:n], fresh_dist[:n])
     assert memory.n_samples_ == 25 and replaced_a_neighbour > 20

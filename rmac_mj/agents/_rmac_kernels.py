@@ -137,8 +137,10 @@ def _canonical(x, period):
 
 @njit(cache=True)
 def _search_list(memory, x, idx, dist, info, point, b):
-    """Search a canonical x for K+1 neighbours into list buffer b; returns K(x)'s length."""
-    n = llr_candidates(memory, x, idx[b], dist[b])
+    """Search a canonical x for K+1 neighbours into list buffer b, seeded with the other buffer's
+    list (a point one step away); returns K(x)'s length."""
+    other = 1 - b
+    n = llr_candidates(memory, x, idx[b], dist[b], idx[other], max(info[other, 0], 0))
     info[b, 0] = n
     info[b, 1] = memory.meta[2]
     point[b, :] = x
@@ -231,7 +233,7 @@ def _update(s, reward, x):
     z[:n] = x_prev
     z[n:] = u_prev
     zq = _canonical(z, P.in_period)
-    nc = llr_candidates(P, zq, s.proc_idx, s.proc_dist)
+    nc = llr_candidates(P, zq, s.proc_idx, s.proc_dist, s.proc_idx, 0)
     slot = llr_insert(P, z, x, s.proc_idx[0] if nc > 0 else -1)
     nc = llr_refresh(P, zq, s.proc_idx, s.proc_dist, nc, slot)
     # Line 16: best reachable state, X_R = beta^P U_R linearised at (x_{k-1}, u_{k-1}).

@@ -22,6 +22,7 @@ updates change the memory) and its settings:
 ``out_period``          (m,) period of each periodic output, 0 elsewhere
 ``dist``                (N,) scratch space for distances
 ``best``                (K+1,) scratch space for the distances of a neighbour list
+``seen``                (N,) scratch flags of the neighbour search, all False between searches
 ``last_point``          (n,) where the last search was made, ``last_nearest`` the nearest sample
                         it found (-1: none) and ``last_version`` the memory's version then
 ``n_neighbours``        K
@@ -81,7 +82,8 @@ LLR_STATE_TYPE = LLRStateType([
     ("dist", types.float64[::1]), ("n_neighbours", types.int64), ("norm", types.int64),
     ("clip", types.boolean), ("replacement", types.int64), ("eig_cutoff", types.float64),
     ("ridge", types.float64), ("best", types.float64[::1]), ("last_nearest", types.int64),
-    ("last_point", types.float64[::1]), ("last_version", types.int64)])
+    ("last_point", types.float64[::1]), ("last_version", types.int64),
+    ("seen", types.boolean[::1])])
 
 
 @njit(cache=True)
@@ -107,6 +109,7 @@ def new_state(Xt, Y, stamp, meta, weights, in_period, out_period, dist, n_neighb
     state.last_nearest = -1
     state.last_point = np.empty(Xt.shape[0])
     state.last_version = -1
+    state.seen = np.zeros(Y.shape[0], dtype=np.bool_)
     return state
 
 
@@ -180,15 +183,46 @@ def place(best, idx, found, k, di, i):
 
 
 @njit(cache=True)
-def smallest(d, count, k, idx_out, best):
+def smallest(d, count, k, idx_out, best, seed, n_seed, seen):
     """The min(k, count) smallest of d[:count], ordered by (value, index): ties go to the lower
     index, as in a stable sort. Indices go to ``idx_out``, values to ``best``; returns how many.
 
-    One pass keeps the k smallest so far and skips blocks of values that cannot enter (the common
-    case once the list is full); values are visited in index order, so a strict comparison keeps
-    ties in index order.
+    ``seed[:n_seed]``: distinct indices of values expected to be small (the neighbours of a nearby
+    point searched before); ``seen``: (count,) all False, returned so. The seeds fill the list
+    first, so that one pass can skip every block of 16 values above its current last from the
+    start; each value is considered once (a seed is not placed again). Without seeds, the list
+    fills from the first values. The result does not depend on the seeds.
     """
     nk = min(k, count)
+    found = 0
+    for h in range(n_seed):
+        i = seed[h]
+        if 0 <= i < count and not seen[i]:
+            seen[i] = True
+            found = place(best, idx_out, found, nk, d[i], i)
+    if found == nk:
+        block = 16
+        stop = count - count % block
+        for start in range(0, count, block):
+            if start < stop:
+                lo = d[start]
+                for b in range(start + 1, start + block):
+                    lo = min(lo, d[b])
+                if lo > best[nk - 1]:
+                    continue
+            for i in range(start, min(start + block, count)):
+                di = d[i]
+                if ((di < best[nk - 1] or (di == best[nk - 1] and i < idx_out[nk - 1]))
+                        and not seen[i]):
+                    place(best, idx_out, nk, nk, di, i)
+    for h in range(n_seed):
+        i = seed[h]
+        if 0 <= i < count:
+            seen[i] = False
+    if found == nk:
+        return nk
+    # Not enough seeds: visit the values in index order, so a strict comparison keeps ties in
+    # index order.
     found = 0
     block = 16
     i = 0
@@ -331,12 +365,12 @@ def fit(Xt, Y, idx, nk, xq, w, in_period, out_period, eig_cutoff, ridge, clip, b
 # -- state-level operations ---------------------------------------------------------------------
 
 @njit(cache=True)
-def _search(state, xq, k, idx_out, best):
+def _search(state, xq, k, idx_out, best, seed, n_seed):
     """The min(k, count) nearest samples to a canonical xq, by (distance, index), with their
     distances; remembers where it searched and the nearest sample (see ``insert``)."""
     count = state.meta[0]
     distances(state.Xt, 0, count, xq, state.weights, state.in_period, state.norm, state.dist)
-    nk = smallest(state.dist, count, k, idx_out, best)
+    nk = smallest(state.dist, count, k, idx_out, best, seed, n_seed, state.seen)
     state.last_nearest = idx_out[0] if nk > 0 else -1
     state.last_point[:] = xq
     state.last_version = state.meta[2]
@@ -359,7 +393,7 @@ def query(state, x, idx_out, beta_out, pred_out):
         return -1
     xq = np.empty(x.shape[0])
     canonical(x, state.in_period, xq)
-    nk = _search(state, xq, state.n_neighbours, idx_out, state.best)
+    nk = _search(state, xq, state.n_neighbours, idx_out, state.best, idx_out, 0)
     fit_at(state, xq, idx_out, nk, beta_out, pred_out)
     return nk
 
@@ -368,15 +402,17 @@ def query(state, x, idx_out, beta_out, pred_out):
 def neighbours(state, xq, idx_out):
     """K(xq) for a canonical xq (periodic entries in [-period/2, period/2)): the nearest samples,
     nearest first, written to ``idx_out`` (K,); returns how many."""
-    return _search(state, xq, state.n_neighbours, idx_out, state.best)
+    return _search(state, xq, state.n_neighbours, idx_out, state.best, idx_out, 0)
 
 
 @njit(cache=True)
-def candidates(state, xq, idx_out, dist_out):
+def candidates(state, xq, idx_out, dist_out, seed, n_seed):
     """The min(K+1, count) nearest samples to a canonical xq, nearest first, with their distances
     (``idx_out``, ``dist_out``: shape (K+1,)); returns how many. The first min(K, count) are K(xq),
-    and the list can be carried across one insertion with ``refresh``."""
-    return _search(state, xq, state.n_neighbours + 1, idx_out, dist_out)
+    and the list can be carried across one insertion with ``refresh``. ``seed[:n_seed]``: distinct
+    samples likely near xq (e.g. such a list of a point close by), to search faster; n_seed = 0
+    for none. The result does not depend on them."""
+    return _search(state, xq, state.n_neighbours + 1, idx_out, dist_out, seed, n_seed)
 
 
 @njit(cache=True)
@@ -433,7 +469,7 @@ def insert(state, x, y, nearest):
                 one_d = np.empty(1)
                 distances(Xt, 0, count, xq, state.weights, state.in_period, state.norm,
                           state.dist)
-                smallest(state.dist, count, 1, one, one_d)
+                smallest(state.dist, count, 1, one, one_d, one, 0, state.seen)
                 nearest = one[0]
         slot = nearest
     else:  # oldest
