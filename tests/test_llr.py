@@ -76,6 +76,27 @@ def test_neighbours_match_brute_force_with_weights_and_periodic_input(algorithm,
         np.testing.assert_array_equal(memory.neighbours(xq), expected)
 
 
+@pytest.mark.parametrize("norm", [1, 2])
+def test_compiled_search_orders_ties_like_a_stable_sort(norm):
+    # Inputs on a coarse grid: many equal distances. The compiled search (bounded by lane minima
+    # when unseeded, by the seeds when seeded) must return what a stable argsort returns.
+    from rmac_mj.approximators.llr import llr_candidates, search_reference
+    rng = np.random.default_rng(7)
+    X = np.c_[rng.integers(-6, 6, 700) * 0.5, rng.integers(-10, 10, 700) * 2.0]
+    memory = LLRMemory(2, 1, 700, 20, input_weights=[1.0, 0.25], input_period=[TWO_PI, 0.0],
+                       norm=norm).fit(X, np.zeros((700, 1)))
+    idx, dist = np.empty(21, np.int64), np.empty(21)
+    seed, n_seed = np.empty(21, np.int64), 0
+    for xq in np.c_[rng.integers(-6, 6, 40) * 0.5, rng.integers(-10, 10, 40) * 2.0]:
+        # (queries inside one period, so already wrapped, as llr_candidates wants them)
+        expected = search_reference(memory.X_, xq, np.array([1.0, 0.25]), np.array([TWO_PI, 0.0]),
+                                    norm, 21)
+        np.testing.assert_array_equal(memory.neighbours(xq), expected[:20])
+        n = llr_candidates(memory.kernel_state, xq, idx, dist, seed, n_seed)
+        np.testing.assert_array_equal(idx[:n], expected)
+        seed[:], n_seed = idx, n  # the next search is seeded with this list
+
+
 def test_angles_near_plus_and_minus_pi_are_neighbours():
     X = np.array([[-np.pi + 0.01, 0.0], [0.5, 0.0], [np.pi - 0.3, 0.0]])
     memory = LLRMemory(2, 1, 10, 1, input_period=[TWO_PI, 0]).fit(X, np.zeros((3, 1)))

@@ -23,6 +23,7 @@ updates change the memory) and its settings:
 ``dist``                (N,) scratch space for distances
 ``best``                (K+1,) scratch space for the distances of a neighbour list
 ``seen``                (N,) scratch flags of the neighbour search, all False between searches
+``lanes``               (L,) scratch space of the neighbour search (L >= 64, >= 2 (K+1))
 ``last_point``          (n,) where the last search was made, ``last_nearest`` the nearest sample
                         it found (-1: none) and ``last_version`` the memory's version then
 ``n_neighbours``        K
@@ -83,7 +84,7 @@ LLR_STATE_TYPE = LLRStateType([
     ("clip", types.boolean), ("replacement", types.int64), ("eig_cutoff", types.float64),
     ("ridge", types.float64), ("best", types.float64[::1]), ("last_nearest", types.int64),
     ("last_point", types.float64[::1]), ("last_version", types.int64),
-    ("seen", types.boolean[::1])])
+    ("seen", types.boolean[::1]), ("lanes", types.float64[::1])])
 
 
 @njit(cache=True)
@@ -110,6 +111,10 @@ def new_state(Xt, Y, stamp, meta, weights, in_period, out_period, dist, n_neighb
     state.last_point = np.empty(Xt.shape[0])
     state.last_version = -1
     state.seen = np.zeros(Y.shape[0], dtype=np.bool_)
+    n_lanes = 64
+    while n_lanes < 2 * (n_neighbours + 1):
+        n_lanes *= 2
+    state.lanes = np.empty(n_lanes)
     return state
 
 
@@ -182,18 +187,132 @@ def place(best, idx, found, k, di, i):
     return found
 
 
+@njit(cache=True, fastmath=True)
+def lane_minima(d, count, n_lanes, lanes):
+    """lanes[l] = min of d[i] over i < count with i = l modulo n_lanes (n_lanes <= count): vertical
+    minima, which vectorise (with n_lanes an argument: read from lanes.shape, LLVM did not); each
+    is one of the values."""
+    for lane in range(n_lanes):
+        lanes[lane] = d[lane]
+    stop = count - count % n_lanes
+    for start in range(n_lanes, stop, n_lanes):
+        for lane in range(n_lanes):
+            v = d[start + lane]
+            lanes[lane] = v if v < lanes[lane] else lanes[lane]
+    for i in range(stop, count):
+        v = d[i]
+        lane = i - stop
+        lanes[lane] = v if v < lanes[lane] else lanes[lane]
+
+
 @njit(cache=True)
-def smallest(d, count, k, idx_out, best, seed, n_seed, seen):
+def _block_min(d, i):
+    """min(d[i:i+16]) as a tree (independent comparisons)."""
+    a0 = min(d[i], d[i + 1])
+    a1 = min(d[i + 2], d[i + 3])
+    a2 = min(d[i + 4], d[i + 5])
+    a3 = min(d[i + 6], d[i + 7])
+    a4 = min(d[i + 8], d[i + 9])
+    a5 = min(d[i + 10], d[i + 11])
+    a6 = min(d[i + 12], d[i + 13])
+    a7 = min(d[i + 14], d[i + 15])
+    return min(min(min(a0, a1), min(a2, a3)), min(min(a4, a5), min(a6, a7)))
+
+
+@njit(cache=True)
+def _scan_in_order(d, count, nk, idx_out, best, bound):
+    """The nk smallest of d[:count] among the values <= bound (there must be nk), visiting values in
+    index order, so that a strict comparison keeps ties in index order; blocks of 16 values that
+    cannot enter are skipped."""
+    found = 0
+    last = bound  # what a value must not exceed to enter (then: be below, once the list is full)
+    full = False
+    i = 0
+    while i < count:
+        if i + 16 <= count:
+            lo = _block_min(d, i)
+            if lo > last or (full and lo >= last):
+                i += 16
+                continue
+        stop = min(i + 16, count)
+        while i < stop:
+            di = d[i]
+            if di > last or (full and di >= last):
+                i += 1
+                continue
+            if found < nk:
+                pos = found
+                found += 1
+            else:
+                pos = nk - 1
+            while pos > 0 and best[pos - 1] > di:
+                best[pos] = best[pos - 1]
+                idx_out[pos] = idx_out[pos - 1]
+                pos -= 1
+            best[pos] = di
+            idx_out[pos] = i
+            if found == nk:
+                full = True
+                last = best[nk - 1]
+            i += 1
+
+
+@njit(cache=True)
+def _scan_from_seeds(d, count, nk, idx_out, best, seen):
+    """Complete a full list of nk seeds (placed, marked in ``seen``) to the nk smallest of d[:count]:
+    each value not seen is placed if it ranks before the list's last by (value, index)."""
+    i = 0
+    while i < count:
+        if i + 16 <= count:
+            if _block_min(d, i) > best[nk - 1]:
+                i += 16
+                continue
+        stop = min(i + 16, count)
+        while i < stop:
+            di = d[i]
+            if (di < best[nk - 1] or (di == best[nk - 1] and i < idx_out[nk - 1])) and not seen[i]:
+                place(best, idx_out, nk, nk, di, i)
+            i += 1
+
+
+@njit(cache=True)
+def kth_smallest(values, n, k):
+    """The k-th smallest of values[:n] (k <= n), by keeping the k smallest in order."""
+    top = np.empty(k)
+    found = 0
+    for i in range(n):
+        v = values[i]
+        if found < k:
+            pos = found
+            found += 1
+        elif v < top[k - 1]:
+            pos = k - 1
+        else:
+            continue
+        while pos > 0 and top[pos - 1] > v:
+            top[pos] = top[pos - 1]
+            pos -= 1
+        top[pos] = v
+    return top[k - 1]
+
+
+@njit(cache=True)
+def smallest(d, count, k, idx_out, best, seed, n_seed, seen, lanes):
     """The min(k, count) smallest of d[:count], ordered by (value, index): ties go to the lower
     index, as in a stable sort. Indices go to ``idx_out``, values to ``best``; returns how many.
 
-    ``seed[:n_seed]``: distinct indices of values expected to be small (the neighbours of a nearby
-    point searched before); ``seen``: (count,) all False, returned so. The seeds fill the list
-    first, so that one pass can skip every block of 16 values above its current last from the
-    start; each value is considered once (a seed is not placed again). Without seeds, the list
-    fills from the first values. The result does not depend on the seeds.
+    A bound on the k-th smallest value first, then one pass that skips every block of 16 values
+    above it (cheap) and places the rest. The bound comes from ``seed[:n_seed]``, distinct indices
+    of values expected to be small (the neighbours of a nearby point searched before): they fill
+    the list, and each other value is placed if it ranks before the list's last; ``seen`` (count,)
+    marks the seeds (all False before and after). Without enough seeds, from the minima of L
+    interleaved lanes (L = len(lanes), at least 2k): L distinct values, so the k-th smallest of them
+    is at least the k-th smallest overall (a few dozen of 2000 values lie below it). Small arrays
+    are scanned without a bound. The result never depends on the seeds.
     """
     nk = min(k, count)
+    if nk <= 0:
+        return 0
     found = 0
     for h in range(n_seed):
         i = seed[h]
@@ -201,57 +320,19 @@ def smallest(d, count, k, idx_out, best, seed, n_seed, seen):
             seen[i] = True
             found = place(best, idx_out, found, nk, d[i], i)
     if found == nk:
-        block = 16
-        stop = count - count % block
-        for start in range(0, count, block):
-            if start < stop:
-                lo = d[start]
-                for b in range(start + 1, start + block):
-                    lo = min(lo, d[b])
-                if lo > best[nk - 1]:
-                    continue
-            for i in range(start, min(start + block, count)):
-                di = d[i]
-                if ((di < best[nk - 1] or (di == best[nk - 1] and i < idx_out[nk - 1]))
-                        and not seen[i]):
-                    place(best, idx_out, nk, nk, di, i)
+        _scan_from_seeds(d, count, nk, idx_out, best, seen)
     for h in range(n_seed):
         i = seed[h]
         if 0 <= i < count:
             seen[i] = False
     if found == nk:
         return nk
-    # Not enough seeds: visit the values in index order, so a strict comparison keeps ties in
-    # index order.
-    found = 0
-    block = 16
-    i = 0
-    while i < count:
-        if found == nk and i + block <= count:
-            lo = d[i]
-            for b in range(1, block):
-                lo = min(lo, d[i + b])
-            if lo >= best[nk - 1]:
-                i += block
-                continue
-        stop = min(i + block, count)
-        while i < stop:
-            di = d[i]
-            if found < nk:
-                pos = found
-                found += 1
-            elif di < best[nk - 1]:
-                pos = nk - 1
-            else:
-                i += 1
-                continue
-            while pos > 0 and best[pos - 1] > di:
-                best[pos] = best[pos - 1]
-                idx_out[pos] = idx_out[pos - 1]
-                pos -= 1
-            best[pos] = di
-            idx_out[pos] = i
-            i += 1
+    bound = np.inf
+    n_lanes = lanes.shape[0]
+    if count >= 4 * n_lanes and n_lanes >= nk:
+        lane_minima(d, count, n_lanes, lanes)
+        bound = kth_smallest(lanes, n_lanes, nk)
+    _scan_in_order(d, count, nk, idx_out, best, bound)
     return nk
 
 
@@ -370,7 +451,7 @@ def _search(state, xq, k, idx_out, best, seed, n_seed):
     distances; remembers where it searched and the nearest sample (see ``insert``)."""
     count = state.meta[0]
     distances(state.Xt, 0, count, xq, state.weights, state.in_period, state.norm, state.dist)
-    nk = smallest(state.dist, count, k, idx_out, best, seed, n_seed, state.seen)
+    nk = smallest(state.dist, count, k, idx_out, best, seed, n_seed, state.seen, state.lanes)
     state.last_nearest = idx_out[0] if nk > 0 else -1
     state.last_point[:] = xq
     state.last_version = state.meta[2]
@@ -469,7 +550,7 @@ def insert(state, x, y, nearest):
                 one_d = np.empty(1)
                 distances(Xt, 0, count, xq, state.weights, state.in_period, state.norm,
                           state.dist)
-                smallest(state.dist, count, 1, one, one_d, one, 0, state.seen)
+                smallest(state.dist, count, 1, one, one_d, one, 0, state.seen, state.lanes)
                 nearest = one[0]
         slot = nearest
     else:  # oldest
