@@ -276,6 +276,22 @@ def test_back_ends_take_the_same_steps_for_every_option(options):
         np.testing.assert_allclose(fast.greedy_action(x), slow.greedy_action(x), atol=tol)
 
 
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_pickled_copy_continues_like_the_original(backend):
+    # The compiled back end's structrefs are views of the agent's arrays; a copy (pickle, deepcopy)
+    # must get views of its own arrays, not share or lose the original's.
+    import copy
+    import pickle
+    S = StateSpace(low=[-np.pi, -8 * np.pi], high=[np.pi, 8 * np.pi], periodic=[True, False])
+    U = ActionSpace(low=[-3.0], high=[3.0])
+    agent = RMAC(S, U, RMACConfig(backend=backend, **_SMALL_MEMORIES), seed=1)
+    _plain_pendulum_returns(agent, 2, steps=30)
+    clone, twin = pickle.loads(pickle.dumps(agent)), copy.deepcopy(agent)
+    expected = _plain_pendulum_returns(agent, 2, steps=30)
+    assert _plain_pendulum_returns(clone, 2, steps=30) == expected
+    assert _plain_pendulum_returns(twin, 2, steps=30) == expected
+
+
 @pytest.mark.parametrize("config, backend, trials", list(_PINNED))
 def test_seeded_run_is_pinned_bit_for_bit(config, backend, trials):
     S = StateSpace(low=[-np.pi, -8 * np.pi], high=[np.pi, 8 * np.pi], periodic=[True, False])

@@ -214,19 +214,33 @@ class RMAC(Agent):
         self._v_prev = np.zeros(1)
         self._u_greedy = np.zeros(m)
         self._periodic = bool(np.any(self.period > 0))
-        self._kernel_state = None
         # The compiled step's neighbour lists (reference, critic) x (two buffers) x [length,
         # version]; a length of -1 drops a list (see _rmac_kernels).
         self._list_info = np.full((2, 2, 2), -1, dtype=np.int64)
-        if config.backend == "numba":
-            self._kernel_state = _rmac_kernels.new_state(
-                self.process.kernel_state, self.reference.kernel_state, self.critic.kernel_state,
-                self.traces, self._x_prev, self._u_prev, self._v_prev,
-                np.ascontiguousarray(self.vertices), np.ascontiguousarray(self.period, dtype=float),
-                action_space.low.copy(), action_space.high.copy(), float(config.gamma),
-                float(config.lam), float(config.alpha_c), float(config.alpha_r), BETA_U_ZERO,
-                config.inverse_query == "previous", config.critic_gradient_at == "next",
-                self._list_info[0], self._list_info[1])
+        self._kernel_state = self._new_kernel_state()
+
+    def _new_kernel_state(self) -> _rmac_kernels.RMACState | None:
+        """The compiled step's view of this agent's arrays (numba back end), else None."""
+        if self.config.backend != "numba":
+            return None
+        cfg = self.config
+        return _rmac_kernels.new_state(
+            self.process.kernel_state, self.reference.kernel_state, self.critic.kernel_state,
+            self.traces, self._x_prev, self._u_prev, self._v_prev,
+            np.ascontiguousarray(self.vertices), np.ascontiguousarray(self.period, dtype=float),
+            self.action_space.low.copy(), self.action_space.high.copy(), float(cfg.gamma),
+            float(cfg.lam), float(cfg.alpha_c), float(cfg.alpha_r), BETA_U_ZERO,
+            cfg.inverse_query == "previous", cfg.critic_gradient_at == "next",
+            self._list_info[0], self._list_info[1])
+
+    def __getstate__(self) -> dict:
+        # The structref is a view of arrays pickled here; it is made anew when unpickled.
+        return {k: v for k, v in self.__dict__.items() if k != "_kernel_state"}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._list_info[:, :, 0] = -1
+        self._kernel_state = self._new_kernel_state()
 
     # -- the policy: u = f^-1(x, R(x)) ------------------------------------------------------------------
     def _canonical(self, x: np.ndarray) -> np.ndarray:

@@ -176,10 +176,21 @@ class LLRMemory:
         self._idx = np.empty(self.n_neighbours, dtype=np.int64)
         self._beta = np.empty((m, n + 1))
         self._pred = np.empty(m)
-        self._state = _k.new_state(
+        self._state = self._new_kernel_state()
+
+    def _new_kernel_state(self) -> LLRState:
+        return _k.new_state(
             self._Xt, self.Y_, self.stamp_, self._meta, self._w, self._pin, self._pout, self._dist,
             int(self.n_neighbours), int(self.norm), bool(self.clip), _REPLACEMENTS[self.replacement],
             self._eig_cutoff, self._ridge)
+
+    def __getstate__(self) -> dict[str, Any]:
+        # The structref is a view of the arrays pickled here; it is made anew when unpickled.
+        return {k: v for k, v in self.__dict__.items() if k != "_state"}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._state = self._new_kernel_state()
 
     # -- configuration ------------------------------------------------------------------------------
     def _validate(self) -> None:
