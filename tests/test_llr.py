@@ -76,6 +76,27 @@ def test_neighbours_match_brute_force_with_weights_and_periodic_input(algorithm,
         np.testing.assert_array_equal(memory.neighbours(xq), expected)
 
 
+@pytest.mark.parametrize("norm", [1, 2])
+def test_compiled_search_orders_ties_like_a_stable_sort(norm):
+    # Inputs on a coarse grid: many equal distances. The compiled search (bounded by lane minima
+    # when unseeded, by the seeds when seeded) must return what a stable argsort returns.
+    from rmac_mj.approximators.llr import llr_candidates, search_reference
+    rng = np.random.default_rng(7)
+    X = np.c_[rng.integers(-6, 6, 700) * 0.5, rng.integers(-10, 10, 700) * 2.0]
+    memory = LLRMemory(2, 1, 700, 20, input_weights=[1.0, 0.25], input_period=[TWO_PI, 0.0],
+                       norm=norm).fit(X, np.zeros((700, 1)))
+    idx, dist = np.empty(21, np.int64), np.empty(21)
+    seed, n_seed = np.empty(21, np.int64), 0
+    for xq in np.c_[rng.integers(-6, 6, 40) * 0.5, rng.integers(-10, 10, 40) * 2.0]:
+        # (queries inside one period, so already wrapped, as llr_candidates wants them)
+        expected = search_reference(memory.X_, xq, np.array([1.0, 0.25]), np.array([TWO_PI, 0.0]),
+                                    norm, 21)
+        np.testing.assert_array_equal(memory.neighbours(xq), expected[:20])
+        n = llr_candidates(memory.kernel_state, xq, idx, dist, seed, n_seed)
+        np.testing.assert_array_equal(idx[:n], expected)
+        seed[:], n_seed = idx, n  # the next search is seeded with this list
+
+
 def test_angles_near_plus_and_minus_pi_are_neighbours():
     X = np.array([[-np.pi + 0.01, 0.0], [0.5, 0.0], [np.pi - 0.3, 0.0]])
     memory = LLRMemory(2, 1, 10, 1, input_period=[TWO_PI, 0]).fit(X, np.zeros((3, 1)))
@@ -157,6 +178,101 @@ def test_back_ends_agree_on_a_random_history():
                 fast.adjust(a[2], 0.1)
                 slow.adjust(b[2], 0.1)
         np.testing.assert_array_equal(fast.X_, slow.X_)
+
+
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+def test_move_outputs_takes_the_short_way_round_and_wraps(algorithm):
+    memory = LLRMemory(1, 2, 5, 1, output_period=[TWO_PI, 0.0], algorithm=algorithm)
+    for y in ([np.pi - 0.1, 1.0], [0.0, 2.0], [1.0, 3.0]):
+        memory.insert([0.0], y)
+    memory.move_outputs([0, 1], [-np.pi + 0.1, 5.0], 0.75)
+    # Sample 0: 0.2 across the seam, three quarters of the way: pi - 0.1 + 0.15, wrapped.
+    np.testing.assert_allclose(memory.Y_[0], [-np.pi + 0.05, 1.0 + 0.75 * 4.0], atol=1e-12)
+    np.testing.assert_allclose(memory.Y_[1], [0.75 * (-np.pi + 0.1), 2.0 + 0.75 * 3.0], atol=1e-12)
+    np.testing.assert_array_equal(memory.Y_[2], [1.0, 3.0])  # not moved
+    with pytest.raises(ValueError, match="indices"):
+        memory.move_outputs([3], [0.0, 0.0], 0.5)  # only 3 samples stored
+
+
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+def test_add_weighted_adds_delta_times_weight_to_stored_samples(algorithm):
+    memory = LLRMemory(1, 1, 4, 1, algorithm=algorithm)
+    for v in (1.0, 2.0, 3.0):
+        memory.insert([v], [v])
+    traces = np.array([1.0, 0.5, 0.0, 7.0])  # the 4th slot holds no sample: ignored
+    memory.add_weighted(traces, [-2.0])
+    np.testing.assert_array_equal(memory.Y_[:, 0], [-1.0, 1.0, 3.0, 0.0])
+    memory.add_weighted(traces[:3], [1.0])
+    np.testing.assert_array_equal(memory.outputs([0, 1, 2])[:, 0], [0.0, 1.5, 3.0])
+    with pytest.raises(ValueError, match="weights"):
+        memory.add_weighted(np.ones(2), [1.0])
+
+
+def test_kernel_state_is_the_memory_itself():
+    from rmac_mj.approximators.llr import llr_insert, llr_query
+    memory = LLRMemory(2, 1, 10, 3, input_period=[TWO_PI, 0.0])
+    slot = llr_insert(memory.kernel_state, np.array([4.0, 1.0]), np.array([5.0]), -1)
+    assert slot == 0 and memory.n_samples_ == 1
+    np.testing.assert_allclose(memory.X_[0], [4.0 - TWO_PI, 1.0])  # stored wrapped
+    idx, beta, pred = np.empty(3, np.int64), np.empty((1, 3)), np.empty(1)
+    assert llr_query(memory.kernel_state, np.array([4.0, 1.0]), idx, beta, pred) == 1
+    assert pred[0] == 5.0 and idx[0] == 0
+    memory.Y_[0] = -1.0  # Python's writes are seen by compiled code
+    llr_query(memory.kernel_state, np.array([4.0, 1.0]), idx, beta, pred)
+    assert pred[0] == -1.0
+
+
+@pytest.mark.parametrize("replacement", ["nearest", "oldest"])
+@pytest.mark.parametrize("norm", [1, 2])
+def test_a_neighbour_list_carried_across_an_insertion_equals_a_new_search(replacement, norm):
+    # What lets RMAC search a point once where Algorithm 2 searches it before and after an
+    # insertion: candidates (K+1 neighbours) + refresh == a search after the insertion, ties and
+    # replaced neighbours included. Inputs on a coarse grid make many distances equal.
+    # The first search is seeded (as RMAC seeds with the list of the previous state).
+    from rmac_mj.approximators.llr import llr_candidates, llr_insert, llr_refresh
+    rng = np.random.default_rng(5)
+    K = 4
+    memory = LLRMemory(2, 1, 25, K, input_weights=[1.0, 0.5], input_period=[TWO_PI, 0.0],
+                       norm=norm, replacement=replacement)
+    state = memory.kernel_state
+    idx, dist = np.empty(K + 1, np.int64), np.empty(K + 1)
+    fresh, fresh_dist = np.empty(K + 1, np.int64), np.empty(K + 1)
+    replaced_a_neighbour, n_fresh = 0, 0
+    for step in range(300):
+        xq = np.r_[rng.integers(-6, 6) * 0.5, rng.integers(-4, 4) * 0.5]
+        # Seeded with the last list (of another point): a seed speeds a search up, nothing else.
+        n = llr_candidates(state, xq, idx, dist, fresh.copy(), n_fresh)
+        before = idx[:n].copy()
+        x_new = xq + np.r_[rng.integers(-2, 3), rng.integers(-2, 3)] * 0.5
+        slot = llr_insert(state, x_new, np.zeros(1), idx[0] if step % 2 and n else -1)
+        replaced_a_neighbour += slot in before
+        n = llr_refresh(state, xq, idx, dist, n, slot)
+        nk = min(K, memory.n_samples_)
+        assert n >= nk
+        n_fresh = llr_candidates(state, xq, fresh, fresh_dist, fresh, 0)
+        assert n_fresh >= n
+        np.testing.assert_array_equal(idx[:n], fresh[:n])
+        np.testing.assert_array_equal(dist[:n], fresh_dist[:n])
+    assert memory.n_samples_ == 25 and replaced_a_neighbour > 20
+
+
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+def test_insert_after_a_query_at_the_same_point_replaces_the_same_sample(algorithm):
+    # insert() may take the nearest sample from a query just made at the same point; it must be
+    # the sample a search would find, and a change in between must not go unnoticed.
+    rng = np.random.default_rng(6)
+    kwargs = dict(input_weights=[1.0, 0.1], input_period=[TWO_PI, 0.0], algorithm=algorithm)
+    a, b = LLRMemory(2, 1, 40, 5, **kwargs), LLRMemory(2, 1, 40, 5, **kwargs)
+    for _ in range(300):
+        x = np.r_[rng.uniform(-4, 4), rng.normal(0, 5)]
+        a.query(x)
+        if rng.random() < 0.3:  # the memory changes between the query and the insertion,
+            other = x + rng.normal(0, 1e-3, 2)  # and its new nearest sample is this one
+            assert a.insert(other, [1.0]) == b.insert(other, [1.0])
+            other = np.r_[rng.uniform(-4, 4), rng.normal(0, 5)]
+            assert a.insert(other, [1.0]) == b.insert(other, [1.0])
+        assert a.insert(x, [0.0]) == b.insert(x, [0.0])
+    np.testing.assert_array_equal(a.X_, b.X_)
 
 
 def test_initialise_from_samples_and_state_dict_round_trip():

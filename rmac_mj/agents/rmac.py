@@ -16,7 +16,8 @@ Every choice the paper leaves open is a field of :class:`RMACConfig`; docs/rmac.
 what was measured for each. Two back ends compute the same thing: ``backend='numpy'`` is the readable
 reference below, written line by line after Algorithm 2; ``backend='numba'`` runs the same steps in
 the compiled kernels of :mod:`rmac_mj.agents._rmac_kernels` (the learner must cost at most about two
-``env.step`` calls).
+``env.step`` calls). The memories are used only through their public interface: ``LLRMemory``'s
+methods here, its compiled counterparts (``llr_query``, ...) on ``LLRMemory.kernel_state`` there.
 """
 
 from __future__ import annotations
@@ -26,9 +27,9 @@ import itertools
 
 import numpy as np
 
+from rmac_mj.agents import _rmac_kernels
 from rmac_mj.agents.base import (ActionSpace, Agent, Exploration, StateSpace, discounted_returns,
                                  seed_memory)
-from rmac_mj.approximators._llr_kernels import canonical as _canonical_kernel
 from rmac_mj.approximators.llr import LLRMemory, wrap
 
 _BACKENDS = ("numba", "numpy")
@@ -219,15 +220,39 @@ class RMAC(Agent):
         self.vertices = np.array(list(itertools.product(
             *[(hi, lo) for lo, hi in zip(action_space.low, action_space.high)])), dtype=float)
         self._k = 0
+        # x_{k-1}, u_{k-1} and V_{k-1}, updated in place: the compiled step shares these arrays.
         self._x_prev = np.zeros(n)
         self._u_prev = np.zeros(m)
-        self._v_prev = 0.0
+        self._v_prev = np.zeros(1)
         self._u_greedy = np.zeros(m)
         self._periodic = bool(np.any(self.period > 0))
-        if config.backend == "numba":
-            from rmac_mj.agents import _rmac_kernels
-            self._kernels = _rmac_kernels
-            self._params = _rmac_kernels.pack_params(self)
+        # The compiled step's neighbour lists (reference, critic) x (two buffers) x [length,
+        # version]; a length of -1 drops a list (see _rmac_kernels).
+        self._list_info = np.full((2, 2, 2), -1, dtype=np.int64)
+        self._kernel_state = self._new_kernel_state()
+
+    def _new_kernel_state(self) -> _rmac_kernels.RMACState | None:
+        """The compiled step's view of this agent's arrays (numba back end), else None."""
+        if self.config.backend != "numba":
+            return None
+        cfg = self.config
+        return _rmac_kernels.new_state(
+            self.process.kernel_state, self.reference.kernel_state, self.critic.kernel_state,
+            self.traces, self._x_prev, self._u_prev, self._v_prev,
+            np.ascontiguousarray(self.vertices), np.ascontiguousarray(self.period, dtype=float),
+            self.action_space.low.copy(), self.action_space.high.copy(), float(cfg.gamma),
+            float(cfg.lam), float(cfg.alpha_c), float(cfg.alpha_r), BETA_U_ZERO,
+            cfg.inverse_query == "previous", cfg.critic_gradient_at == "next",
+            self._list_info[0], self._list_info[1])
+
+    def __getstate__(self) -> dict:
+        # The structref is a view of arrays pickled here; it is made anew when unpickled.
+        return {k: v for k, v in self.__dict__.items() if k != "_kernel_state"}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._list_info[:, :, 0] = -1
+        self._kernel_state = self._new_kernel_state()
 
     # -- the policy: u = f^-1(x, R(x)) ------------------------------------------------------------------
     def _canonical(self, x: np.ndarray) -> np.ndarray:
@@ -241,7 +266,7 @@ class RMAC(Agent):
         u = pinv(beta_u) (x_desired - beta_x x - beta_b) written around the query point. Returns
         u = 0 when beta_u = 0 (numerically: see BETA_U_ZERO; section 5); saturated to the action bounds.
         """
-        pred, beta, _ = self.process._query(np.concatenate([x, u_query]))
+        pred, beta, _ = self.process.query(np.concatenate([x, u_query]))
         beta_u = beta[:, self.n:self.n + self.m]
         if np.abs(beta_u).max() <= BETA_U_ZERO * max(1.0, np.abs(beta[:, :self.n]).max()):
             return np.zeros(self.m)
@@ -253,7 +278,7 @@ class RMAC(Agent):
 
     def _act(self, x: np.ndarray, u_prev: np.ndarray) -> np.ndarray:
         """The greedy action in x: lines 10-11 without Delta u_k."""
-        x_desired = self.reference._query(x)[0].copy()  # line 10: x_hat_{k+1} = R(x_k)
+        x_desired = self.reference.query(x)[0]  # line 10: x_hat_{k+1} = R(x_k)
         return self._inverse(x, x_desired, self._u_query(u_prev))
 
     def policy(self, states: np.ndarray, u_query: np.ndarray | None = None) -> np.ndarray:
@@ -270,7 +295,7 @@ class RMAC(Agent):
         out = np.empty((len(states), self.m))
         for i, x in enumerate(states):
             x = self._canonical(x)
-            out[i] = self._inverse(x, self.reference._query(x)[0].copy(), uq[i])
+            out[i] = self._inverse(x, self.reference.query(x)[0], uq[i])
         return out
 
     # -- Agent interface --------------------------------------------------------------------------------
@@ -278,22 +303,20 @@ class RMAC(Agent):
         """A checked x (see :class:`Agent`) with periodic entries wrapped to [-period/2, period/2)."""
         if not self._periodic:
             return x
-        if self.config.backend == "numba":
-            out = np.empty(self.n)
-            _canonical_kernel(x, self.period, out)
-            return out
         return self._canonical(x)
 
     def _start(self, x0: np.ndarray) -> np.ndarray:
         """Lines 1-6: reset the traces, u_0 = f^-1(x_0, R(x_0)) + Delta u_0."""
         x0 = self._wrapped(x0)
+        self._list_info[:, :, 0] = -1
         self.traces[:] = 0.0  # line 3
         self._k = 0
         self._u_greedy = np.zeros(self.m)
-        self._v_prev = (self.critic._query(x0)[0][0] if self.config.initial_value == "critic"
-                        else 0.0)  # line 2
+        self._v_prev[0] = (self.critic.query(x0)[0][0] if self.config.initial_value == "critic"
+                           else 0.0)  # line 2
         u = self._explore(self._act(x0, np.zeros(self.m)))
-        self._x_prev, self._u_prev = x0, u
+        self._x_prev[:] = x0
+        self._u_prev[:] = u
         return u.copy()
 
     def _explore(self, u_greedy: np.ndarray) -> np.ndarray:
@@ -302,61 +325,58 @@ class RMAC(Agent):
 
     def _step(self, reward: float, x: np.ndarray) -> np.ndarray:
         """Lines 8-29 for one control step: act with the current models, then learn."""
-        x = self._wrapped(x)
         self._k += 1
-        if self.config.backend == "numba":
+        if self._kernel_state is not None:
             du = self.config.exploration.sample(self._k, self.m, self.rng)  # line 8
-            u, self._v_prev = self._kernels.step(self, float(reward), x, du)
-        else:
-            u = self._explore(self._act(x, self._u_prev))  # lines 10-12
-            self._v_prev = self._update(float(reward), x)   # lines 13-28
-        self._x_prev, self._u_prev = x, u
+            # Lines 10-28 in one compiled call (x wrapped there), which also advances x_prev,
+            # u_prev and v_prev; it returns a new array.
+            return _rmac_kernels.step(self._kernel_state, reward, x, du)
+        x = self._wrapped(x)
+        u = self._explore(self._act(x, self._u_prev))  # lines 10-12
+        self._v_prev[0] = self._update(float(reward), x)   # lines 13-28
+        self._x_prev[:] = x
+        self._u_prev[:] = u
         return u.copy()
 
     def _stop(self, reward: float, x: np.ndarray) -> None:
         """The last transition of a trial: learn (lines 13-28), no action."""
-        x = self._wrapped(x)
-        if self.config.backend == "numba":
-            self._kernels.update(self, float(reward), x)
+        if self._kernel_state is not None:
+            _rmac_kernels.stop(self._kernel_state, reward, x)
         else:
-            self._update(float(reward), x)
+            self._update(reward, self._wrapped(x))
         self._u_greedy = np.zeros(self.m)  # a greedy trial that follows starts from u_{-1} = 0
 
     def _update(self, reward: float, x: np.ndarray) -> float:
         """Lines 13-28 (reference implementation); returns V_k."""
         cfg, n = self.config, self.n
-        x_prev, u_prev = self._x_prev, self._u_prev
+        x_prev, u_prev, v_prev = self._x_prev, self._u_prev, float(self._v_prev[0])
         # Line 14: insert [x_{k-1}, u_{k-1} | x_k] in M^P.
-        self.process._insert(np.concatenate([x_prev, u_prev]), x)
+        self.process.insert(np.concatenate([x_prev, u_prev]), x)
         # Line 16: the best reachable state. X_R = beta^P U_R, linearised at (x_{k-1}, u_{k-1}).
-        pred, beta, _ = self.process._query(np.concatenate([x_prev, u_prev]))
+        pred, beta, _ = self.process.query(np.concatenate([x_prev, u_prev]))
         beta_u = beta[:, n:n + self.m]
         reachable = pred + (self.vertices - u_prev) @ beta_u.T  # (2^m, n)
         # The critic's local linear model, V(x) = V(x_c) + beta^C_x wrap(x - x_c).
-        v_k, beta_c, _ = self.critic._query(x)
+        v_k, beta_c, _ = self.critic.query(x)
         v_k = float(v_k[0])
         if cfg.critic_gradient_at == "next":
-            x_c, slope = x, beta_c[0, :n].copy()
+            x_c, slope = x, beta_c[0, :n]
         else:
-            x_c, slope = x_prev, self.critic._query(x_prev)[1][0, :n].copy()
+            x_c, slope = x_prev, self.critic.query(x_prev)[1][0, :n]
         values = wrap(reachable - x_c, self.period) @ slope
         x_r = self._canonical(reachable[int(np.argmax(values))])
         # Lines 17-20: insert [x_{k-1} | x_r] in M^R and move K(x_{k-1}) towards x_r.
-        near = self.reference._neighbours(x_prev).copy()
-        self.reference._insert(x_prev, x_r, int(near[0]) if len(near) else -1)
-        Y = self.reference.Y_
-        Y[near] += cfg.alpha_r * wrap(x_r - Y[near], self.period)
-        Y[near] = np.where(self.period > 0, wrap(Y[near], self.period), Y[near])
+        near = self.reference.neighbours(x_prev)
+        self.reference.insert(x_prev, x_r, int(near[0]) if len(near) else None)
+        self.reference.move_outputs(near, x_r, cfg.alpha_r)
         # Lines 22-28: TD(lambda) on the critic's samples. V_k was computed above (line 22).
-        near = self.critic._neighbours(x_prev).copy()
-        slot = self.critic._insert(x_prev, np.array([self._v_prev]),
-                                   int(near[0]) if len(near) else -1)  # line 23
-        delta = reward + cfg.gamma * v_k - self._v_prev  # line 24
+        near = self.critic.neighbours(x_prev)
+        slot = self.critic.insert(x_prev, [v_prev], int(near[0]) if len(near) else None)  # line 23
+        delta = reward + cfg.gamma * v_k - v_prev  # line 24
         self.traces *= cfg.lam * cfg.gamma  # line 26
         self.traces[near] = 1.0
         self.traces[slot] = 1.0
-        count = self.critic.n_samples_
-        self.critic.Y_[:count, 0] += cfg.alpha_c * delta * self.traces[:count]  # line 27
+        self.critic.add_weighted(self.traces, [cfg.alpha_c * delta])  # line 27
         return v_k
 
     def begin_greedy_trial(self) -> None:
@@ -377,7 +397,7 @@ class RMAC(Agent):
 
     def _value(self, x: np.ndarray) -> float:
         """V(x), the critic's LLR estimate."""
-        return float(self.critic._query(self._wrapped(x))[0][0])
+        return float(self.critic.query(self._wrapped(x))[0][0])
 
     # -- prior knowledge (section 7) --------------------------------------------------------------------
     def _seed_from(self, states: np.ndarray, actions: np.ndarray, rewards: np.ndarray,
@@ -414,7 +434,7 @@ class RMAC(Agent):
         state["k"] = np.array(self._k)
         state["x_prev"] = self._x_prev.copy()
         state["u_prev"] = self._u_prev.copy()
-        state["v_prev"] = np.array(self._v_prev)
+        state["v_prev"] = np.array(self._v_prev[0])
         state["u_greedy"] = self._u_greedy.copy()
         return state
 
@@ -423,7 +443,8 @@ class RMAC(Agent):
             getattr(self, name).load_state_dict(state, prefix=f"{name}.")
         self.traces[:] = state["traces"]
         self._k = int(state["k"])
-        self._x_prev = np.array(state["x_prev"], dtype=float)
-        self._u_prev = np.array(state["u_prev"], dtype=float)
-        self._v_prev = float(state["v_prev"])
+        self._x_prev[:] = state["x_prev"]
+        self._u_prev[:] = state["u_prev"]
+        self._v_prev[0] = float(state["v_prev"])
+        self._list_info[:, :, 0] = -1
         self._u_greedy = np.array(state["u_greedy"], dtype=float)

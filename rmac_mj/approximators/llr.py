@@ -30,6 +30,16 @@ Two back ends give the same results: ``algorithm='numba'`` (compiled kernels in 
 ``algorithm='numpy'`` (the readable reference below). Compiled brute force finds the 20 nearest of
 2000 samples in about 3 us and needs nothing rebuilt when samples change; scipy's cKDTree took 32 us
 per query and 720 us per rebuild here (measured; a memory changes every control step).
+
+Compiled interface. A learner whose own step is compiled with numba (RMAC) works on a memory through
+``LLRMemory.kernel_state``, an :class:`LLRState` (a numba structref naming the memory's arrays and
+settings), and the compiled functions exported here: ``llr_query``, ``llr_neighbours``,
+``llr_insert``, ``llr_move_outputs`` and ``llr_add_weighted``, the compiled counterparts of
+``query``, ``neighbours``, ``insert``, ``move_outputs`` and ``add_weighted``; ``llr_candidates``
+(K+1 neighbours with their distances), ``llr_refresh`` (carry such a list across one insertion) and
+``llr_fit_at`` (the local model from given neighbours) let a caller that queries a point before
+inserting there search only once. ``LLR_STATE_TYPE`` is the numba type of the state, for a
+learner's own structref fields.
 """
 
 from __future__ import annotations
@@ -39,6 +49,23 @@ from typing import Any
 import numpy as np
 
 from rmac_mj.approximators import _llr_kernels as _k
+from rmac_mj.approximators._llr_kernels import LLR_STATE_TYPE, LLRState
+
+#: The compiled interface (see the module docstring): the functions take an LLRState first;
+#: ``wrap_scalar(d, period)`` is ``wrap`` for one number, for compiled callers.
+llr_query = _k.query
+llr_neighbours = _k.neighbours
+llr_insert = _k.insert
+llr_move_outputs = _k.move_outputs
+llr_add_weighted = _k.add_weighted
+llr_candidates = _k.candidates
+llr_refresh = _k.refresh
+llr_fit_at = _k.fit_at
+wrap_scalar = _k.wrap
+
+__all__ = ["LLRMemory", "LLRState", "LLR_STATE_TYPE", "fit_reference", "llr_add_weighted",
+           "llr_candidates", "llr_fit_at", "llr_insert", "llr_move_outputs", "llr_neighbours",
+           "llr_query", "llr_refresh", "search_reference", "wrap", "wrap_scalar"]
 
 _CONDITIONINGS = ("svd", "ridge", "none")
 _REPLACEMENTS = {"oldest": _k.REPLACE_OLDEST, "nearest": _k.REPLACE_NEAREST}
@@ -115,7 +142,8 @@ class LLRMemory:
       algorithm: 'numba' or 'numpy'.
 
     Learned state: ``X_`` (N, n), ``Y_`` (N, m) (the first ``n_samples_`` rows are valid) and
-    ``stamp_`` (N,), the insertion time of each sample.
+    ``stamp_`` (N,), the insertion time of each sample. ``kernel_state`` names the same arrays for
+    compiled code.
     """
 
     def __init__(self, input_dim: int, output_dim: int, capacity: int, n_neighbours: int,
@@ -143,10 +171,26 @@ class LLRMemory:
         self._dist = np.empty(N)
         self.Y_ = np.zeros((N, m))
         self.stamp_ = np.zeros(N, dtype=np.int64)
-        self._meta = np.zeros(2, dtype=np.int64)  # [count, clock]
+        # [count, clock, version]: version counts changes to the inputs (see _llr_kernels).
+        self._meta = np.zeros(3, dtype=np.int64)
         self._idx = np.empty(self.n_neighbours, dtype=np.int64)
         self._beta = np.empty((m, n + 1))
         self._pred = np.empty(m)
+        self._state = self._new_kernel_state()
+
+    def _new_kernel_state(self) -> LLRState:
+        return _k.new_state(
+            self._Xt, self.Y_, self.stamp_, self._meta, self._w, self._pin, self._pout, self._dist,
+            int(self.n_neighbours), int(self.norm), bool(self.clip), _REPLACEMENTS[self.replacement],
+            self._eig_cutoff, self._ridge)
+
+    def __getstate__(self) -> dict[str, Any]:
+        # The structref is a view of the arrays pickled here; it is made anew when unpickled.
+        return {k: v for k, v in self.__dict__.items() if k != "_state"}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._state = self._new_kernel_state()
 
     # -- configuration ------------------------------------------------------------------------------
     def _validate(self) -> None:
@@ -186,7 +230,7 @@ class LLRMemory:
     def _vector(name: str, value: Any, size: int, default: float) -> np.ndarray:
         if value is None:
             return np.full(size, default)
-        v = np.asarray(value, dtype=float).reshape(-1)
+        v = np.ascontiguousarray(np.asarray(value, dtype=float).reshape(-1))
         if v.shape != (size,):
             raise ValueError(f"LLRMemory: {name} must have length {size}, got shape {v.shape} "
                              f"({value!r})")
@@ -212,13 +256,11 @@ class LLRMemory:
     def _not_finite(name: str, value: Any) -> None:
         raise ValueError(f"LLRMemory: {name} must be finite, got {value!r}")
 
-    def _pack(self) -> tuple:
-        """The memory as the tuple the numba kernels take (see ``_llr_kernels``)."""
-        ip = np.array([self.n_neighbours, self.norm, int(bool(self.clip)),
-                       _REPLACEMENTS[self.replacement]], dtype=np.int64)
-        fp = np.array([self._eig_cutoff, self._ridge])
-        return (self._Xt, self.Y_, self.stamp_, self._meta, self._w, self._pin, self._pout, ip, fp,
-                self._dist)
+    @property
+    def kernel_state(self) -> LLRState:
+        """The memory as compiled code takes it: its own arrays and settings, named (see
+        ``_llr_kernels``). Compiled updates through it change this memory."""
+        return self._state
 
     @property
     def X_(self) -> np.ndarray:
@@ -235,7 +277,8 @@ class LLRMemory:
 
     def reset(self) -> None:
         """Forget every sample."""
-        self._meta[:] = 0
+        self._meta[:2] = 0
+        self._meta[2] += 1
         self.stamp_[:] = 0
 
     def fit(self, X: Any, Y: Any) -> "LLRMemory":
@@ -259,22 +302,24 @@ class LLRMemory:
         self.X_[:s] = self._canonical(X)
         self.Y_[:s] = Y
         self.stamp_[:s] = np.arange(s)
-        self._meta[:] = (s, s)
+        self._meta[:2] = (s, s)
+        self._meta[2] += 1
         return self
 
     def state_dict(self, prefix: str = "") -> dict[str, np.ndarray]:
         """Samples and bookkeeping as numeric arrays, keys prefixed with ``prefix``."""
         return {prefix + "X": self.X_.copy(), prefix + "Y": self.Y_.copy(),
-                prefix + "stamp": self.stamp_.copy(), prefix + "meta": self._meta.copy()}
+                prefix + "stamp": self.stamp_.copy(), prefix + "meta": self._meta[:2].copy()}
 
     def load_state_dict(self, state: dict[str, np.ndarray], prefix: str = "") -> None:
         for key, arr in (("X", self.X_), ("Y", self.Y_), ("stamp", self.stamp_),
-                         ("meta", self._meta)):
+                         ("meta", self._meta[:2])):
             value = np.asarray(state[prefix + key])
             if value.shape != arr.shape:
                 raise ValueError(f"LLRMemory.load_state_dict: {prefix + key} has shape "
                                  f"{value.shape}, expected {arr.shape}")
             arr[...] = value
+        self._meta[2] += 1
 
     # -- queries ------------------------------------------------------------------------------------
     def neighbours(self, x: Any) -> np.ndarray:
@@ -286,9 +331,7 @@ class LLRMemory:
         """Unvalidated K(xq) for a canonical xq (periodic entries in [-period/2, period/2))."""
         count = int(self._meta[0])
         if self.algorithm == "numba":
-            nk = _k.search(self._Xt, count, xq, self._w, self._pin, self.norm, self.n_neighbours,
-                           self._idx, self._dist)
-            return self._idx[:nk]
+            return self._idx[:_k.neighbours(self._state, xq, self._idx)]
         return search_reference(self.X_[:count], xq, self._w, self._pin, self.norm,
                                 self.n_neighbours)
 
@@ -311,19 +354,13 @@ class LLRMemory:
     def _query(self, xq: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Unvalidated query; returned arrays may be internal buffers (copy before keeping)."""
         if self.algorithm == "numba":
-            nk = _k.query(self._pack_cached(), xq, self._idx, self._beta, self._pred)
+            nk = _k.query(self._state, xq, self._idx, self._beta, self._pred)
             return self._pred, self._beta, self._idx[:max(nk, 0)]
         xq = self._canonical(xq)
         idx = self._neighbours(xq)
         pred, beta = fit_reference(self.X_[idx], self.Y_[idx], xq, self._w, self._pin, self._pout,
                                    self._eig_cutoff, self._ridge, bool(self.clip))
         return pred, beta, idx
-
-    def _pack_cached(self) -> tuple:
-        packed = getattr(self, "_packed", None)
-        if packed is None:
-            packed = self._packed = self._pack()
-        return packed
 
     def predict(self, X: Any) -> np.ndarray:
         """Predictions for a batch of queries X of shape (q, n); returns shape (q, m)."""
@@ -352,7 +389,7 @@ class LLRMemory:
 
     def _insert(self, x: np.ndarray, y: np.ndarray, nearest: int = -1) -> int:
         if self.algorithm == "numba":
-            return int(_k.insert(self._pack_cached(), x, y, nearest))
+            return int(_k.insert(self._state, x, y, nearest))
         count = int(self._meta[0])
         x = self._canonical(x)
         if count < self.capacity:
@@ -367,18 +404,58 @@ class LLRMemory:
         self.Y_[slot] = y
         self.stamp_[slot] = self._meta[1]
         self._meta[1] += 1
+        self._meta[2] += 1
         return slot
 
     def adjust(self, indices: Any, delta: Any) -> None:
         """Add ``delta`` (shape (m,) or (len(indices), m)) to the outputs of the given samples."""
-        idx = np.asarray(indices, dtype=np.int64).reshape(-1)
-        if np.any((idx < 0) | (idx >= self._meta[0])):
-            raise ValueError(f"LLRMemory.adjust: indices must be in [0, {self.n_samples_}), "
-                             f"got {indices!r}")
+        idx = self._indices("adjust", indices)
         delta = np.asarray(delta, dtype=float)
         if not np.all(np.isfinite(delta)):
             raise ValueError("LLRMemory.adjust: delta must be finite")
         self.Y_[idx] += delta
+
+    def move_outputs(self, indices: Any, target: Any, rate: float) -> None:
+        """Move the outputs of the given (distinct) samples towards ``target`` (shape (m,)) by ``rate``:
+        y_i += rate * wrap(target - y_i), then periodic outputs are wrapped to one period (RMAC's
+        reference update, Algorithm 2 line 20)."""
+        idx = self._indices("move_outputs", indices)
+        target = self._check("target", target, self.output_dim)
+        if not np.isfinite(rate):
+            raise ValueError(f"LLRMemory.move_outputs: rate must be finite, got {rate!r}")
+        if self.algorithm == "numba":
+            _k.move_outputs(self._state, idx, len(idx), target, float(rate))
+            return
+        Y, period = self.Y_, self._pout
+        Y[idx] += rate * wrap(target - Y[idx], period)
+        Y[idx] = np.where(period > 0, wrap(Y[idx], period), Y[idx])
+
+    def add_weighted(self, weights: Any, delta: Any) -> None:
+        """y_i += delta * weights_i for every stored sample i (a TD(lambda) update with eligibility
+        traces ``weights``, Algorithm 2 line 27).
+
+        weights: shape (capacity,) or (n_samples_,); entries past ``n_samples_`` are ignored.
+        delta: shape (m,).
+        """
+        count = self.n_samples_
+        w = np.asarray(weights, dtype=float).reshape(-1)
+        if w.shape not in ((self.capacity,), (count,)):
+            raise ValueError(f"LLRMemory.add_weighted: weights must have shape ({self.capacity},) "
+                             f"or ({count},), got {np.shape(weights)}")
+        delta = self._check("delta", delta, self.output_dim)
+        if not np.all(np.isfinite(w[:count])):
+            raise ValueError("LLRMemory.add_weighted: weights must be finite")
+        if self.algorithm == "numba":
+            _k.add_weighted(self._state, np.ascontiguousarray(w), delta)
+            return
+        self.Y_[:count] += w[:count, None] * delta
+
+    def _indices(self, method: str, indices: Any) -> np.ndarray:
+        idx = np.asarray(indices, dtype=np.int64).reshape(-1)
+        if np.any((idx < 0) | (idx >= self._meta[0])):
+            raise ValueError(f"LLRMemory.{method}: indices must be in [0, {self.n_samples_}), "
+                             f"got {indices!r}")
+        return idx
 
     def outputs(self, indices: Any) -> np.ndarray:
         """The stored outputs of the given samples, shape (len(indices), m)."""
