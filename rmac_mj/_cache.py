@@ -3,10 +3,11 @@
 - The near-optimal reference (``rmac_mj.experiments.optimal``) is cached in :func:`user_cache_dir`:
   ``$RMAC_MJ_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/rmac-mj``, else ``~/.cache/rmac-mj``.
 - The numba kernels (``@njit(cache=True)``) are compiled once (tens of seconds) and reused by every later
-  process and worker. numba writes them to ``__pycache__`` beside the package's modules; when the package
-  directory is not writable (a system or shared install), :func:`configure_numba_cache` points
-  ``NUMBA_CACHE_DIR`` at ``user_cache_dir() / "numba"`` instead, so that the cache still works and its
-  place is known. A ``NUMBA_CACHE_DIR`` set by the user is always kept.
+  process and worker, from ``user_cache_dir() / "numba" / <hash of the kernel sources>``
+  (:func:`configure_numba_cache`). numba's own cache checks only the timestamp of the file that defines a
+  kernel, not of the kernels it calls: after an edit of ``_llr_kernels.py`` it would load RMAC's step
+  compiled with the *old* LLR kernels. A folder per version of the kernel sources makes that
+  impossible (old folders can be deleted at any time). A ``NUMBA_CACHE_DIR`` set by the user is kept.
 
 numba reads ``NUMBA_CACHE_DIR`` when it is first imported, and a kernel's cache locator is chosen when the
 kernel is defined, so :func:`configure_numba_cache` runs from ``rmac_mj/__init__.py`` before anything
@@ -16,6 +17,7 @@ imports numba. This module itself never imports numba at import time.
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import os
 import pathlib
 import sys
@@ -37,29 +39,27 @@ def user_cache_dir(environ: MutableMapping[str, str] | None = None) -> pathlib.P
     return pathlib.Path(base) / "rmac-mj"
 
 
-def _writable(path: pathlib.Path) -> bool:
-    """True when files can be created in ``path`` (or in the folder that would create it)."""
-    while not path.exists():
-        path = path.parent
-    return os.access(path, os.W_OK | os.X_OK)
-
-
-def _package_is_writable(package_dir: pathlib.Path = _PACKAGE_DIR) -> bool:
-    folders = [package_dir / name for name in _KERNEL_DIRS]
-    return all(_writable(folder / "__pycache__") for folder in folders)
+def kernel_source_hash(package_dir: pathlib.Path = _PACKAGE_DIR) -> str:
+    """A short hash of every module in the package folders that hold compiled kernels (their sources
+    decide what numba compiles, callees included)."""
+    digest = hashlib.sha256()
+    for folder in _KERNEL_DIRS:
+        for path in sorted((package_dir / folder).glob("*.py")):
+            digest.update(path.name.encode())
+            digest.update(path.read_bytes())
+    return digest.hexdigest()[:16]
 
 
 def configure_numba_cache(environ: MutableMapping[str, str] | None = None,
                           package_dir: pathlib.Path = _PACKAGE_DIR) -> str | None:
-    """Point ``NUMBA_CACHE_DIR`` at the user cache when the package directory is not writable.
+    """Point ``NUMBA_CACHE_DIR`` at ``user_cache_dir() / "numba" / kernel_source_hash()``.
 
-    Returns the value set, or None when nothing was changed (the user set it, or numba's in-tree
-    ``__pycache__`` works).
+    Returns the value set, or None when the user set ``NUMBA_CACHE_DIR`` (kept as it is).
     """
     environ = os.environ if environ is None else environ
-    if environ.get(_NUMBA_ENV) or _package_is_writable(package_dir):
+    if environ.get(_NUMBA_ENV):
         return None
-    environ[_NUMBA_ENV] = str(user_cache_dir(environ) / "numba")
+    environ[_NUMBA_ENV] = str(user_cache_dir(environ) / "numba" / kernel_source_hash(package_dir))
     if "numba" in sys.modules and environ is os.environ:  # imported before rmac_mj: too late for
         sys.modules["numba"].config.CACHE_DIR = environ[_NUMBA_ENV]  # its import, not for our kernels
     return environ[_NUMBA_ENV]

@@ -37,16 +37,24 @@ def test_a_second_process_loads_the_kernels_instead_of_compiling_them(tmp_path):
     assert second["compiled"] == 0 and second["loaded"] >= 1  # (a callee is loaded with its caller)
 
 
-def test_kernels_go_to_the_user_cache_when_the_package_is_read_only(tmp_path, monkeypatch):
+def test_kernels_are_cached_per_version_of_their_sources(tmp_path):
+    """numba checks only the timestamp of a kernel's own file; an edit of a kernel it calls must not
+    load stale code, so the cache folder changes with any kernel source."""
+    package = tmp_path / "package"
+    for folder in _cache._KERNEL_DIRS:
+        (package / folder).mkdir(parents=True)
+        (package / folder / "kernels.py").write_text("def f():\n    return 1\n")
     environ = {"RMAC_MJ_CACHE_DIR": str(tmp_path / "cache")}
-    monkeypatch.setattr(_cache, "_writable", lambda path: True)
-    assert _cache.configure_numba_cache(environ) is None and "NUMBA_CACHE_DIR" not in environ
-    monkeypatch.setattr(_cache, "_writable", lambda path: False)
-    assert _cache.configure_numba_cache(environ) == str(tmp_path / "cache" / "numba")
-    assert environ["NUMBA_CACHE_DIR"] == str(tmp_path / "cache" / "numba")
-    assert _cache.numba_cache_location(environ) == environ["NUMBA_CACHE_DIR"]
+    first = _cache.configure_numba_cache(environ, package)
+    assert first.startswith(str(tmp_path / "cache" / "numba"))
+    assert environ["NUMBA_CACHE_DIR"] == first == _cache.numba_cache_location(environ)
+    assert _cache.configure_numba_cache({"RMAC_MJ_CACHE_DIR": str(tmp_path / "cache")}, package) == first
+    (package / _cache._KERNEL_DIRS[-1] / "kernels.py").write_text("def f():\n    return 2\n")
+    second = _cache.configure_numba_cache({"RMAC_MJ_CACHE_DIR": str(tmp_path / "cache")}, package)
+    assert second != first and second.startswith(str(tmp_path / "cache" / "numba"))
     chosen = {"NUMBA_CACHE_DIR": "/somewhere/else"}  # the user's choice is kept
-    assert _cache.configure_numba_cache(chosen) is None and chosen["NUMBA_CACHE_DIR"] == "/somewhere/else"
+    assert _cache.configure_numba_cache(chosen, package) is None
+    assert chosen["NUMBA_CACHE_DIR"] == "/somewhere/else"
 
 
 def test_user_cache_dir_follows_the_environment(tmp_path):
@@ -66,10 +74,3 @@ def test_the_first_compilation_is_announced_once():
     with _cache.on_first_compile(lambda: calls.append(2)):
         twice(3)  # already compiled for int: nothing to say
     assert calls == [1]
-
-
-def test_writable_asks_about_the_nearest_existing_folder(tmp_path, monkeypatch):
-    asked = []
-    monkeypatch.setattr(os, "access", lambda path, mode: asked.append(path) or False)
-    assert _cache._writable(tmp_path / "not" / "yet") is False
-    assert asked == [tmp_path]
