@@ -8,47 +8,29 @@ import numpy as np
 import pytest
 
 from rmac_mj import _gl, tasks
-from rmac_mj.agents.base import Agent
+from rmac_mj.agents.base import ActionSpace, PolicyAgent, StateSpace
 from rmac_mj.experiments import render
 from rmac_mj.experiments.episode import run_trial
 
 SHORT = {"time_limit": 0.3}  # 10 control steps: enough to see motion, quick to render
 
 
-class EnergyPumpAgent(Agent):
-    """A scripted swing-up: pump energy with +-3 V, then a PD balancer near the top (no learning)."""
+_J, _MGL = 1.91e-4, 0.055 * 9.81 * 0.042  # inertia (kg m^2), M g l (N m) of Table 1
 
-    name = "energy-pump"
-    _J, _MGL = 1.91e-4, 0.055 * 9.81 * 0.042  # inertia (kg m^2), M g l (N m) of Table 1
 
-    def __init__(self):  # scripted: the shared boundary checks need only the state's size
-        self._state_dim = 2
-        self._in_trial = False
+def _energy_pump(x):
+    """A scripted swing-up: pump energy with +-3 V, then a PD balancer near the top."""
+    phi, omega = x
+    if abs(phi) < 0.8:
+        return np.array([np.clip(-8.0 * phi - 0.6 * omega, -3.0, 3.0)])
+    energy = 0.5 * _J * omega ** 2 + _MGL * (np.cos(phi) - 1.0)  # 0 upright at rest
+    return np.array([3.0 if (omega >= 0) == (energy < 0) else -3.0])
 
-    def _greedy_action(self, x):
-        phi, omega = x
-        if abs(phi) < 0.8:
-            return np.array([np.clip(-8.0 * phi - 0.6 * omega, -3.0, 3.0)])
-        energy = 0.5 * self._J * omega ** 2 + self._MGL * (np.cos(phi) - 1.0)  # 0 upright at rest
-        return np.array([3.0 if (omega >= 0) == (energy < 0) else -3.0])
 
-    def _start(self, x0):
-        return self._greedy_action(x0)
-
-    def _step(self, reward, x):
-        return self._greedy_action(x)
-
-    def _stop(self, reward, x):
-        pass
-
-    def _value(self, x):
-        return 0.0
-
-    def _state(self):
-        return {}
-
-    def _load_state(self, state):
-        pass
+def energy_pump_agent():
+    """The scripted swing-up as an agent (no learning)."""
+    return PolicyAgent(StateSpace(low=[-np.pi, -30.0], high=[np.pi, 30.0], periodic=[True, False]),
+                       ActionSpace(low=[-3.0], high=[3.0]), _energy_pump)
 
 
 def _arm_rows(image: np.ndarray) -> np.ndarray:
@@ -59,7 +41,7 @@ def _arm_rows(image: np.ndarray) -> np.ndarray:
 
 def test_frames_have_the_requested_size_and_are_not_blank():
     env = tasks.load("dc_pendulum", "swingup", task_kwargs=SHORT)
-    episode = render.render_episode(env, EnergyPumpAgent(), width=160, height=120, overlay=False)
+    episode = render.render_episode(env, energy_pump_agent(), width=160, height=120, overlay=False)
     assert episode.frames.shape == (11, 120, 160, 3) and episode.frames.dtype == np.uint8
     for frame in episode.frames:
         assert frame.std() > 10 and len(np.unique(frame.reshape(-1, 3), axis=0)) > 20
@@ -81,7 +63,7 @@ def test_arm_pixels_are_above_the_axis_upright_and_below_it_hanging():
 
 def test_substep_frames_follow_the_physics_and_the_episode_is_env_step():
     env = tasks.load("dc_pendulum", "swingup", task_kwargs=SHORT)
-    agent = EnergyPumpAgent()
+    agent = energy_pump_agent()
     coarse = render.render_episode(env, agent, width=64, height=48, overlay=False)
     fine = render.render_episode(env, policy=agent.greedy_action, width=64, height=48,
                                  frames_per_step=3, overlay=False)
@@ -104,8 +86,8 @@ def test_substep_frames_follow_the_physics_and_the_episode_is_env_step():
 
 def test_overlay_and_labels_draw_text():
     env = tasks.load("dc_pendulum", "swingup", task_kwargs={"time_limit": 0.03})
-    plain = render.render_episode(env, EnergyPumpAgent(), width=160, height=120, overlay=False)
-    text = render.render_episode(env, EnergyPumpAgent(), width=160, height=120, label="RMAC")
+    plain = render.render_episode(env, energy_pump_agent(), width=160, height=120, overlay=False)
+    text = render.render_episode(env, energy_pump_agent(), width=160, height=120, label="RMAC")
     differs = np.any(plain.frames[0] != text.frames[0], axis=-1)
     assert differs[:60, :40].any() and differs[:60, 100:].any()  # label top-left, numbers top-right
     assert not differs[80:].any()                                 # the rig below is untouched
@@ -113,7 +95,7 @@ def test_overlay_and_labels_draw_text():
 
 def test_invalid_arguments_are_rejected_with_their_names():
     env = tasks.load("dc_pendulum", "swingup", task_kwargs=SHORT)
-    agent = EnergyPumpAgent()
+    agent = energy_pump_agent()
     with pytest.raises(ValueError, match="frames_per_step"):
         render.render_episode(env, agent, frames_per_step=2)
     with pytest.raises(ValueError, match="width"):
@@ -176,7 +158,7 @@ def _fake_results(tmp_path, monkeypatch, trials=(1, 10)):
 
     def load(path):
         algorithm, trial = path.parent.parent.name, int(path.stem.split("_")[1])
-        return EnergyPumpAgent(), {"algorithm": algorithm, "domain": "dc_pendulum", "task": "swingup",
+        return energy_pump_agent(), {"algorithm": algorithm, "domain": "dc_pendulum", "task": "swingup",
                                    "task_kwargs": {"time_limit": 0.09}, "trial": trial}
 
     monkeypatch.setattr(snapshots, "load_snapshot", load)
@@ -224,7 +206,7 @@ def test_missing_backend_gives_one_clear_message(monkeypatch):
     # The renderers check before touching OpenGL (here MUJOCO_GL=egl, but libEGL "cannot load").
     env = tasks.load("dc_pendulum", "swingup", task_kwargs=SHORT)
     with pytest.raises(_gl.GLBackendError, match="libosmesa6"):
-        render.render_episode(env, EnergyPumpAgent())
+        render.render_episode(env, energy_pump_agent())
 
 
 @pytest.mark.parametrize("frames_per_step", [1, 3])
@@ -234,7 +216,7 @@ def test_a_3_s_episode_plays_3_s_as_a_gif(tmp_path, frames_per_step):
     from PIL import Image
 
     env = tasks.load("dc_pendulum", "swingup")  # the paper's 3 s trial
-    episode = render.render_episode(env, EnergyPumpAgent(), width=32, height=24, overlay=False,
+    episode = render.render_episode(env, energy_pump_agent(), width=32, height=24, overlay=False,
                                     frames_per_step=frames_per_step)
     path = render.write_video(episode.frames, tmp_path / "swingup.gif", fps=episode.fps)
     delays = []

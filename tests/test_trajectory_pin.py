@@ -16,7 +16,7 @@ import pathlib
 import numpy as np
 
 from rmac_mj import tasks
-from rmac_mj.agents.base import Agent
+from rmac_mj.agents.base import PolicyAgent
 from rmac_mj.experiments.episode import action_space_of, run_trial, state_space_of
 
 PINNED = pathlib.Path(__file__).parent / "data" / "dc_pendulum_trajectories.json"
@@ -62,42 +62,31 @@ def _rollout(task: str, task_kwargs: dict, actions: str) -> dict[str, list]:
     return record
 
 
-class _ScriptedAgent(Agent):
+class _ScriptedAgent(PolicyAgent):
     """A seeded random-voltage 'learner' that writes down every state and reward it is shown."""
 
-    name = "scripted"
-    config_class = dict
-
     def __init__(self, state_space, action_space, seed):
-        super().__init__(state_space, action_space, config={}, seed=seed)
+        super().__init__(state_space, action_space, policy=lambda x: np.array([np.tanh(x[0])]),
+                         seed=seed)
         self.seen: list[list[float]] = []
 
-    def _act(self) -> np.ndarray:
+    def _act_randomly(self) -> np.ndarray:
         return self.rng.uniform(-3.5, 3.5, size=1)
 
     def _start(self, x0):
         self.seen.append([float("nan"), *x0.tolist()])
-        return self._act()
+        return self._act_randomly()
 
     def _step(self, reward, x):
         self.seen.append([reward, *x.tolist()])
-        return self._act()
+        return self._act_randomly()
 
     def _stop(self, reward, x):
         self.seen.append([reward, *x.tolist()])
 
     def _greedy_action(self, x):
         self.seen.append([float("inf"), *x.tolist()])
-        return np.array([np.tanh(x[0])])
-
-    def _value(self, x):
-        return 0.0
-
-    def _state(self):
-        return {}
-
-    def _load_state(self, state):
-        pass
+        return super()._greedy_action(x)
 
 
 def _run_trials() -> dict[str, list]:

@@ -38,7 +38,7 @@ import numpy as np
 
 from rmac_mj import tasks
 from rmac_mj.agents import make_agent
-from rmac_mj.agents.base import Agent
+from rmac_mj.agents.base import PolicyAgent
 from rmac_mj.approximators.llr import LLRMemory
 from rmac_mj.experiments.episode import (action_space_of, learner_state_of, n_sub_steps, run_trial,
                                          state_of, state_space_of, steps_per_trial)
@@ -65,39 +65,6 @@ def _median_us(call: Callable[[int], None], calls: int, repeats: int) -> float:
             call(i)
         samples.append((_clock_ns() - start) / calls / 1e3)
     return float(np.median(samples))
-
-
-class _ConstantAgent(Agent):
-    """A learner that learns nothing and always applies ``u``: what ``run_trial`` costs around a
-    learner, with every call still going through the agents' checked boundary."""
-
-    name = display_name = "constant"
-    config_class = dict
-
-    def __init__(self, env, u: float = 0.5):
-        super().__init__(state_space_of(env), action_space_of(env), config={}, seed=0)
-        self._u = np.full(self.action_space.dim, u)
-
-    def _start(self, x0):
-        return self._u
-
-    def _step(self, reward, x):
-        return self._u
-
-    def _stop(self, reward, x):
-        pass
-
-    def _greedy_action(self, x):
-        return self._u
-
-    def _value(self, x):
-        return 0.0
-
-    def _state(self):
-        return {}
-
-    def _load_state(self, state):
-        pass
 
 
 def check_task(domain: str, task: str) -> None:
@@ -153,8 +120,10 @@ def step_costs(calls: int, repeats: int, domain: str = "dc_pendulum",
             elapsed += _clock_ns() - start
         return elapsed / (episodes * per_trial) / 1e3
 
-    agent = _ConstantAgent(env)
-    constant = agent._u
+    constant = np.full(action_space_of(env).dim, 0.5)
+    # What run_trial costs around a learner: an agent that learns nothing and always applies the same
+    # action, every call still going through the agents' checked boundary.
+    agent = PolicyAgent(state_space_of(env), action_space_of(env), lambda x: constant)
 
     def trial_batch() -> float:
         start = _clock_ns()

@@ -490,26 +490,12 @@ def optimal_return(config: OptimalConfig = OptimalConfig(), cache_dir: str | os.
         model_xml = model_path("dc_pendulum").read_text()
     directory = pathlib.Path(cache_dir).expanduser() if cache_dir is not None else default_cache_dir()
     path = directory / f"optimal-{cache_key(config, model_xml)}.json"
-    if not refresh and path.is_file():
-        try:
-            with open(path) as f:
-                return OptimalResult.from_json_dict(json.load(f), from_cache=True)
-        except (OSError, ValueError, KeyError, TypeError):
-            pass  # an unreadable or foreign entry is recomputed and overwritten
-    if announce is not None:
-        announce(f"computing the near-optimal reference by dynamic programming (about a minute on 2 "
-                 f"cores; cached after, in {directory})")
-    result = solve(config, model_xml)
-    _write_json_atomic(path, result.to_json_dict())
-    return result
-
-
-def _write_json_atomic(path: pathlib.Path, payload: dict[str, Any]) -> None:
-    from rmac_mj.experiments.results import write_json
-    try:
-        write_json(path, payload)
-    except OSError as err:
-        raise ValueError(f"optimal_return: cannot write the cache {str(path)!r}: {err}") from err
+    from rmac_mj.experiments.results import cached_json
+    return cached_json(
+        path, lambda document: OptimalResult.from_json_dict(document, from_cache=True),
+        lambda: solve(config, model_xml), refresh=refresh, announce=announce,
+        message=(f"computing the near-optimal reference by dynamic programming (about a minute on 2 "
+                 f"cores; cached after, in {directory})"))
 
 
 def _versions() -> dict[str, str]:

@@ -229,6 +229,28 @@ def write_json(path: str | os.PathLike, document: Any) -> pathlib.Path:
     return write_atomic(path, lambda handle: handle.write(text.encode() + b"\n"))
 
 
+def cached_json(path: str | os.PathLike, decode, compute, refresh: bool = False,
+                announce=None, message: str = ""):
+    """A result cached as JSON at ``path``: ``decode(document)`` of the file when it is there and
+    readable (an unreadable or foreign entry is recomputed and overwritten), else ``compute()``,
+    written with ``.to_json_dict()``. ``announce(message)`` is called before a computation."""
+    path = pathlib.Path(path)
+    if not refresh and path.is_file():
+        try:
+            with open(path) as handle:
+                return decode(json.load(handle))
+        except (OSError, ValueError, KeyError, TypeError):
+            pass
+    if announce is not None and message:
+        announce(message)
+    result = compute()
+    try:
+        write_json(path, result.to_json_dict())
+    except OSError as err:
+        raise ValueError(f"cannot write the cache entry {str(path)!r}: {err}") from err
+    return result
+
+
 def write_npz(path: str | os.PathLike, **arrays: np.ndarray) -> pathlib.Path:
     return write_atomic(path, lambda handle: np.savez(handle, **arrays))
 

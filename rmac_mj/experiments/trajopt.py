@@ -610,22 +610,15 @@ def cached_optimise(domain: str, task: str, config: TrajoptConfig = TrajoptConfi
     env = tasks.load(domain, task)
     directory = pathlib.Path(cache_dir).expanduser() if cache_dir is not None else optimal.default_cache_dir()
     path = directory / f"trajopt-{cache_key(env, domain, task, config)}.json"
-    if not refresh and path.is_file():
-        try:
-            with open(path) as f:
-                return TrajoptResult.from_json_dict(json.load(f), from_cache=True)
-        except (OSError, ValueError, KeyError, TypeError):
-            pass  # an unreadable or foreign entry is recomputed and overwritten
-    if announce is not None:
-        announce(f"computing the near-optimal reference of {domain}/{task} by trajectory optimisation "
-                 f"(iLQR, under a minute on 2 cores), cached in {directory}")
-    result = optimise(env, config)
-    result = dataclasses.replace(result, problem={"domain": domain, "task": task, **result.problem})
-    try:
-        results.write_json(path, result.to_json_dict())
-    except OSError as err:
-        raise ValueError(f"cached_optimise: cannot write the cache entry {str(path)!r}: {err}") from err
-    return result
+
+    def compute() -> TrajoptResult:
+        result = optimise(env, config)
+        return dataclasses.replace(result, problem={"domain": domain, "task": task, **result.problem})
+    return results.cached_json(
+        path, lambda document: TrajoptResult.from_json_dict(document, from_cache=True), compute,
+        refresh=refresh, announce=announce,
+        message=(f"computing the near-optimal reference of {domain}/{task} by trajectory optimisation "
+                 f"(iLQR, under a minute on 2 cores), cached in {directory}"))
 
 
 def _versions() -> dict[str, str]:
