@@ -97,6 +97,18 @@ def test_saturation_rule_drops_the_model_term_beyond_092_of_the_bound(u_pi, satu
                                np.clip(u_pi + 0.05 * expected, -3, 3), rtol=1e-9)
 
 
+@pytest.mark.parametrize("u_pi, dropped", [(2.9, False), (-2.9, True), (2.7, False)])
+def test_outward_saturation_rule_only_drops_a_push_further_out(u_pi, dropped):
+    # The model term gamma g^T B = -0.147 lowers u: at +2.9 it pulls back in and is kept; at -2.9 it
+    # pushes further out and is dropped; inside the threshold it is always kept.
+    agent = _agent(gamma=0.97, action_cost=1.0, saturation_rule="outward")
+    _seed_linear_world(agent, u_pi, np.random.default_rng(2))
+    model_term = 0.97 * G @ B[:, 0]
+    expected = -2.0 * u_pi + (0.0 if dropped else model_term)
+    np.testing.assert_allclose(agent.action_gradient(np.array([0.1, 0.1]), np.array([u_pi])),
+                               [expected], rtol=1e-9)
+
+
 def test_saturation_is_measured_from_the_middle_of_an_asymmetric_box():
     agent = _agent(low=0.0, high=4.0)  # middle 2, half-range 2: saturated beyond 2 +- 1.84
     assert agent.saturated(np.array([3.83])).tolist() == [False]
@@ -184,6 +196,7 @@ def test_mlac_improves_on_pendulum_swingup():
     (dict(actor_weights=(1.0, -1.0)), "actor_weights"), (dict(process_weights="ab"), "process_weights"),
     (dict(action_cost=-1.0), "action_cost"), (dict(saturation_threshold=0.0), "saturation_threshold"),
     (dict(saturation_threshold=1.5), "saturation_threshold"), (dict(model_action="x"), "model_action"),
+    (dict(saturation_rule="clip"), "saturation_rule"),
     (dict(initial_value="one"), "initial_value"), (dict(norm=3), "norm"),
     (dict(conditioning="qr"), "conditioning"), (dict(actor_replacement="lru"), "actor_replacement"),
     (dict(critic_clip="yes"), "critic_clip"), (dict(exploration=1.0), "exploration"),

@@ -50,6 +50,7 @@ _CONDITIONINGS = ("svd", "ridge", "none")
 _REPLACEMENTS = ("nearest", "oldest")
 _INITIAL_VALUES = ("critic", "zero")
 _MODEL_ACTIONS = ("policy", "applied")
+_SATURATION_RULES = ("zero", "outward")
 _MEMORIES = ("actor", "critic", "process")
 
 
@@ -97,6 +98,11 @@ class MLACConfig:
     """df/du of an action dimension is set to 0 when the policy's action there lies beyond this
     fraction of the half-range from the middle of the action box (the model's input gain means
     nothing in saturation). 1 disables the rule."""
+    saturation_rule: str = "zero"
+    """What the saturation rule drops: df/du entirely ('zero', the authors' group's rule), or only
+    where the model term would push the action further out ('outward'; it may still pull it back).
+    With 'zero' and action_cost 0 a saturated action gets no gradient at all and stays saturated
+    (docs/mlac.md)."""
     model_action: str = "policy"
     """Where the process model is linearised and x_hat predicted: at (x_{k-1}, pi(x_{k-1})), the
     policy's action ('policy', the gradient of the policy's own return), or at (x_{k-1}, u_{k-1}),
@@ -169,6 +175,8 @@ class MLACConfig:
               "a finite number >= 0")
         check("saturation_threshold",
               number(self.saturation_threshold) and 0 < self.saturation_threshold <= 1, "in (0, 1]")
+        check("saturation_rule", self.saturation_rule in _SATURATION_RULES,
+              f"one of {_SATURATION_RULES}")
         check("model_action", self.model_action in _MODEL_ACTIONS, f"one of {_MODEL_ACTIONS}")
         check("initial_value", self.initial_value in _INITIAL_VALUES, f"one of {_INITIAL_VALUES}")
         check("norm", self.norm in (1, 2) and not isinstance(self.norm, bool), "1 or 2")
@@ -277,7 +285,7 @@ class MLAC(Agent):
     # -- the model-based actor gradient ---------------------------------------------------------------
     def saturated(self, u: np.ndarray) -> np.ndarray:
         """Bool (m,): where u lies beyond ``saturation_threshold`` of the half-range from the middle
-        of the action box, the dimensions whose df/du the actor update sets to 0."""
+        of the action box: the dimensions the saturation rule applies to."""
         return np.abs(u - self._u_mid) > self.config.saturation_threshold * self._u_half
 
     def action_gradient(self, x: np.ndarray, u_pi: np.ndarray,
@@ -291,13 +299,19 @@ class MLAC(Agent):
         u_model = u_pi if u_model is None else u_model
         # The process model's local fit at (x, u_model): x_hat and beta^P = [df/dx df/du df_b].
         x_hat, beta_p, _ = self.process.query(np.concatenate([x, u_model]))
-        df_du = beta_p[:, n:n + self.m].copy()              # (n, m)
-        df_du[:, self.saturated(u_pi)] = 0.0                # the saturation rule
+        df_du = beta_p[:, n:n + self.m]                      # (n, m)
         # The critic's local fit at the predicted next state: its slope is dV/dx (x_hat is wrapped
         # by the query; the slope holds for wrapped offsets).
         dv_dx = self.critic.query(x_hat)[1][0, :n]           # (n,)
+        model_term = cfg.gamma * dv_dx @ df_du               # (m,), column j is df/du_j's share
+        # The saturation rule: df/du_j = 0 where the policy's action is saturated ('zero'), or only
+        # where the model term would push it further out ('outward').
+        ignored = self.saturated(u_pi)
+        if cfg.saturation_rule == "outward":
+            ignored &= model_term * (u_pi - self._u_mid) > 0
+        model_term[ignored] = 0.0
         dr_du = -2.0 * cfg.action_cost * u_pi                # reward term -P |u|^2
-        return cfg.gamma * dv_dx @ df_du + dr_du
+        return model_term + dr_du
 
     def _improve_actor(self, x_prev: np.ndarray, u_prev: np.ndarray) -> None:
         """Step 3: insert [x_{k-1} | pi(x_{k-1})], move it and K(x_{k-1}) along alpha_actor dQ/du."""
