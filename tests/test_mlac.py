@@ -83,7 +83,7 @@ def test_each_term_of_the_gradient_and_two_actions():
 
 @pytest.mark.parametrize("u_pi, saturated", [(2.7, False), (2.77, True), (-2.9, True), (0.0, False)])
 def test_saturation_rule_drops_the_model_term_beyond_092_of_the_bound(u_pi, saturated):
-    agent = _agent(gamma=0.97, action_cost=1.0)
+    agent = _agent(gamma=0.97, action_cost=1.0, saturation_rule="zero")
     _seed_linear_world(agent, u_pi, np.random.default_rng(2))
     model_term = 0.97 * G @ B[:, 0]
     expected = -2.0 * u_pi + (0.0 if saturated else model_term)
@@ -101,7 +101,7 @@ def test_saturation_rule_drops_the_model_term_beyond_092_of_the_bound(u_pi, satu
 def test_outward_saturation_rule_only_drops_a_push_further_out(u_pi, dropped):
     # The model term gamma g^T B = -0.147 lowers u: at +2.9 it pulls back in and is kept; at -2.9 it
     # pushes further out and is dropped; inside the threshold it is always kept.
-    agent = _agent(gamma=0.97, action_cost=1.0, saturation_rule="outward")
+    agent = _agent(gamma=0.97, action_cost=1.0)  # the default rule
     _seed_linear_world(agent, u_pi, np.random.default_rng(2))
     model_term = 0.97 * G @ B[:, 0]
     expected = -2.0 * u_pi + (0.0 if dropped else model_term)

@@ -17,7 +17,9 @@ respect to u, evaluated at the policy's action u_pi = pi(x_{k-1}):
     x_hat = f(x_{k-1}, u_pi)                                    (the process model's prediction),
 
 so that learning does not rely on exploration alone. df/du is beta^P's u block from the same local fit
-that predicts x_hat; dV/dx is the slope of the critic's local fit at x_hat. Per control step k (the
+that predicts x_hat; dV/dx is the slope of the critic's local fit at x_hat. Where the policy's action
+is saturated (beyond 0.92 of the half-range), the model's input gain means little: the model term is
+dropped there when it would push the action further out (``saturation_rule``). Per control step k (the
 order of the MLAC algorithm: model, critic, actor, then act):
 
 1. insert [x_{k-1}, u_{k-1} | x_k] in M^P;
@@ -95,14 +97,14 @@ class MLACConfig:
     """P in dr/du = -2 P u, the reward's action gradient; the one piece of task knowledge MLAC uses
     (``dc_pendulum``: r = -x^T Q x - P u^2, P = 1). 0 ignores the reward's dependence on u."""
     saturation_threshold: float = 0.92
-    """df/du of an action dimension is set to 0 when the policy's action there lies beyond this
-    fraction of the half-range from the middle of the action box (the model's input gain means
-    nothing in saturation). 1 disables the rule."""
-    saturation_rule: str = "zero"
-    """What the saturation rule drops: df/du entirely ('zero', the authors' group's rule), or only
-    where the model term would push the action further out ('outward'; it may still pull it back).
-    With 'zero' and action_cost 0 a saturated action gets no gradient at all and stays saturated
-    (docs/mlac.md)."""
+    """The saturation rule (see ``saturation_rule``) applies to an action dimension where the
+    policy's action lies beyond this fraction of the half-range from the middle of the action box
+    (the model's input gain means little in saturation; the authors' group's value). 1 disables it."""
+    saturation_rule: str = "outward"
+    """What the saturation rule drops: only the model term that would push a saturated action
+    further out ('outward'; it may still pull the action back in), or df/du entirely ('zero', the
+    authors' group's rule). Measured (docs/mlac.md): the same with action_cost 1; with action_cost 0,
+    'zero' leaves a saturated action no gradient at all, and every experiment stayed saturated."""
     model_action: str = "policy"
     """Where the process model is linearised and x_hat predicted: at (x_{k-1}, pi(x_{k-1})), the
     policy's action ('policy', the gradient of the policy's own return), or at (x_{k-1}, u_{k-1}),
