@@ -212,5 +212,11 @@ def test_weightings_must_match_the_task_or_come_from_its_hints():
     U = ActionSpace(low=-np.ones(1), high=np.ones(1))
     with pytest.raises(ValueError, match="actor_weights has 2 entries, this task needs 3"):
         MLAC(S3, U)  # the pendulum's weightings are for n = 2, m = 1
-    with pytest.raises(ValueError, match="critic_weights is None but the StateSpace gives no"):
-        MLAC(S3, U, MLACConfig(actor_weights=(1, 1, 1), critic_weights=None))
+    if getattr(S3, "weights", None) is None:  # spaces without weights (before issue 13)
+        with pytest.raises(ValueError, match="critic_weights is None but the state and action"):
+            MLAC(S3, U, MLACConfig(actor_weights=(1, 1, 1), critic_weights=None))
+    else:  # the task's weights fill in what the config leaves None, and the config records them
+        agent = MLAC(S3, U, MLACConfig(actor_weights=(1, 1, 1), critic_weights=None,
+                                       process_weights=None))
+        assert agent.config.critic_weights == tuple(S3.weights)
+        assert agent.config.process_weights == tuple(np.r_[S3.weights, U.weights])

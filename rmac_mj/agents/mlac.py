@@ -76,20 +76,20 @@ class MLACConfig:
     actor_neighbours: int = 25
     """Actor nearest neighbours K: the samples that define pi(x) and move in an update."""
     actor_weights: tuple[float, ...] | None = (1.0, 0.1)
-    """Actor input weighting over x (n entries). None: the StateSpace's ``weights`` hint."""
+    """Actor input weighting over x (n entries). None: the task's, ``StateSpace.weights``."""
     critic_capacity: int = 2000
     """Critic memory size."""
     critic_neighbours: int = 15
     """Critic nearest neighbours K."""
     critic_weights: tuple[float, ...] | None = (1.0, 0.1)
-    """Critic input weighting over x (n entries). None: the StateSpace's ``weights`` hint."""
+    """Critic input weighting over x (n entries). None: the task's, ``StateSpace.weights``."""
     process_capacity: int = 100
     """Process memory size."""
     process_neighbours: int = 10
     """Process nearest neighbours K."""
     process_weights: tuple[float, ...] | None = (1.0, 0.1, 1.0)
-    """Process input weighting over [x, u] (n + m entries). None: the StateSpace's ``weights`` and
-    ``action_weights`` hints."""
+    """Process input weighting over [x, u] (n + m entries). None: the task's, ``StateSpace.weights``
+    then ``ActionSpace.weights``."""
 
     exploration: Exploration = Exploration()
     """Exploration Delta u_k: N(0, 1) every third step, the S-AC schedule of the RMAC paper (6.1)."""
@@ -215,6 +215,9 @@ class MLAC(Agent):
         self._periodic = self.period > 0
         weights = {prefix: self._weights(prefix, n if prefix != "process" else n + m)
                    for prefix in _MEMORIES}
+        # self.config holds the weightings actually used (results record them).
+        self.config = config = dataclasses.replace(
+            config, **{f"{prefix}_weights": w for prefix, w in weights.items()})
         common = dict(norm=config.norm, conditioning=config.conditioning, rcond=config.rcond,
                       ridge=config.ridge, algorithm=config.backend)
         self.actor = LLRMemory(
@@ -249,10 +252,10 @@ class MLAC(Agent):
         if weights is None:
             hints = [getattr(self.state_space, "weights", None)]
             if prefix == "process":
-                hints.append(getattr(self.state_space, "action_weights", None))
+                hints.append(getattr(self.action_space, "weights", None))
             if any(h is None for h in hints):
-                raise ValueError(f"MLAC: config.{prefix}_weights is None but the StateSpace gives "
-                                 "no weighting hints; give the weighting explicitly")
+                raise ValueError(f"MLAC: config.{prefix}_weights is None but the state and action "
+                                 "spaces give no weights; give the weighting explicitly")
             weights = tuple(float(w) for h in hints for w in np.ravel(h))
         if len(weights) != size:
             raise ValueError(f"MLAC: config.{prefix}_weights has {len(weights)} entries, this task "
