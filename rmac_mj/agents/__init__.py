@@ -1,4 +1,5 @@
-"""The learners: RMAC (Algorithm 2) and the S-AC baseline (Algorithm 1), behind one interface."""
+"""The learners: RMAC (Algorithm 2), the S-AC baseline (Algorithm 1) and MLAC (Grondman et al.,
+2012), behind one interface."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ from rmac_mj.agents.base import ActionSpace, Agent, Exploration, StateSpace
 _REGISTRY = {
     "rmac": ("rmac_mj.agents.rmac", "RMAC", "RMACConfig"),
     "s-ac": ("rmac_mj.agents.sac", "SAC", "SACConfig"),
+    "mlac": ("rmac_mj.agents.mlac", "MLAC", "MLACConfig"),
 }
 
 #: The algorithm keys, as used on the command line and in results.
@@ -67,7 +69,7 @@ def config_from_dict(cls: type, values: dict[str, Any]):
 
 def make_agent(name: str, state_space: StateSpace, action_space: ActionSpace,
                config: Any = None, seed: int | np.random.Generator | None = None) -> Agent:
-    """Build the learner ``name`` (``"rmac"`` or ``"s-ac"``).
+    """Build the learner ``name`` (one of :data:`ALGORITHMS`: ``"rmac"``, ``"s-ac"``, ``"mlac"``).
 
     ``config`` is its config dataclass, a dict of overrides of the paper's defaults, or None.
     """

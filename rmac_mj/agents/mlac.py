@@ -1,0 +1,467 @@
+"""Model Learning Actor-Critic (MLAC) of Grondman et al., "Efficient Model Learning Methods for
+Actor-Critic Control", IEEE Trans. SMC-B 42(3), 2012.
+
+MLAC learns three LLR memories (section 4 of the RMAC paper describes the memory):
+
+* the actor M^A, samples [x | u], an explicit policy u = pi(x);
+* the critic M^C, samples [x | V], learned by TD(lambda) with eligibility traces on its samples exactly
+  as RMAC's critic (RMAC paper, Algorithm 2 lines 22-28);
+* the process model M^P, samples [x, u | x'], the local model x' = f(x, u) = beta^P [x; u; 1].
+
+What sets MLAC apart from S-AC is the actor update: instead of moving the policy along the
+exploration Delta u weighted by the TD error (S-AC, eq. 4 of the RMAC paper), the actor's samples near
+x_{k-1} move along the gradient of the one-step return Q(x, u) = r(x, u) + gamma V(f(x, u)) with
+respect to u, evaluated at the policy's action u_pi = pi(x_{k-1}):
+
+    dQ/du = gamma (dV/dx at x_hat)^T (df/du at (x_{k-1}, u_pi)) + dr/du(u_pi),
+    x_hat = f(x_{k-1}, u_pi)                                    (the process model's prediction),
+
+so that learning does not rely on exploration alone. df/du is beta^P's u block from the same local fit
+that predicts x_hat; dV/dx is the slope of the critic's local fit at x_hat. Where the policy's action
+is saturated (beyond 0.92 of the half-range), the model's input gain means little: the model term is
+dropped there when it would push the action further out (``saturation_rule``). Per control step k (the
+order of the MLAC algorithm: model, critic, actor, then act):
+
+1. insert [x_{k-1}, u_{k-1} | x_k] in M^P;
+2. V_k = V(x_k); insert [x_{k-1} | V_{k-1}] in M^C; delta_k = r_k + gamma V_k - V_{k-1}; traces 1 on
+   K(x_{k-1}) and the inserted slot, lambda gamma e elsewhere; V_i += alpha_critic delta_k e_i;
+3. u_pi = pi(x_{k-1}); insert [x_{k-1} | u_pi] in M^A; the samples K(x_{k-1}) and the inserted one
+   move by alpha_actor dQ/du (each kept inside the action bounds);
+4. u_k = pi(x_k) + Delta u_k, saturated.
+
+The reward's action gradient is the one piece of task knowledge MLAC uses: ``action_cost`` P gives
+dr/du = -2 P u, right for a reward with the term -P |u|^2 (``dc_pendulum``: P = 1). 0 drops the term
+(a task whose reward does not depend on u, or when the learner should not be told). Every other
+choice is a field of :class:`MLACConfig`; docs/mlac.md lists them with what was measured.
+
+Memories can be seeded from data (prior knowledge) with :meth:`MLAC.seed_memories`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+
+from rmac_mj.agents.base import ActionSpace, Agent, Exploration, StateSpace
+from rmac_mj.approximators.llr import LLRMemory, wrap
+
+_BACKENDS = ("numba", "numpy")
+_CONDITIONINGS = ("svd", "ridge", "none")
+_REPLACEMENTS = ("nearest", "oldest")
+_INITIAL_VALUES = ("critic", "zero")
+_MODEL_ACTIONS = ("policy", "applied")
+_SATURATION_RULES = ("zero", "outward")
+_MEMORIES = ("actor", "critic", "process")
+
+
+@dataclasses.dataclass(frozen=True)
+class MLACConfig:
+    """Hyperparameters of MLAC. Defaults: the RMAC paper's gamma and lambda (section 6.2), the
+    authors' group's MLAC settings for this swing-up (memory sizes, K, learning rates, weightings),
+    then the documented choices (docs/mlac.md)."""
+
+    gamma: float = 0.97
+    """Discount factor (RMAC paper, section 6.2)."""
+    lam: float = 0.65
+    """Trace decay lambda of the critic."""
+    alpha_actor: float = 0.05
+    """Actor learning rate: the actor's samples move by alpha_actor dQ/du per step."""
+    alpha_critic: float = 0.3
+    """Critic learning rate alpha_c of the TD(lambda) update on the critic's samples."""
+
+    actor_capacity: int = 2000
+    """Actor memory size."""
+    actor_neighbours: int = 25
+    """Actor nearest neighbours K: the samples that define pi(x) and move in an update."""
+    actor_weights: tuple[float, ...] | None = (1.0, 0.1)
+    """Actor input weighting over x (n entries). None: the task's, ``StateSpace.weights``."""
+    critic_capacity: int = 2000
+    """Critic memory size."""
+    critic_neighbours: int = 15
+    """Critic nearest neighbours K."""
+    critic_weights: tuple[float, ...] | None = (1.0, 0.1)
+    """Critic input weighting over x (n entries). None: the task's, ``StateSpace.weights``."""
+    process_capacity: int = 100
+    """Process memory size."""
+    process_neighbours: int = 10
+    """Process nearest neighbours K."""
+    process_weights: tuple[float, ...] | None = (1.0, 0.1, 1.0)
+    """Process input weighting over [x, u] (n + m entries). None: the task's, ``StateSpace.weights``
+    then ``ActionSpace.weights``."""
+
+    exploration: Exploration = Exploration()
+    """Exploration Delta u_k: N(0, 1) every third step, the S-AC schedule of the RMAC paper (6.1)."""
+    action_cost: float = 1.0
+    """P in dr/du = -2 P u, the reward's action gradient; the one piece of task knowledge MLAC uses
+    (``dc_pendulum``: r = -x^T Q x - P u^2, P = 1). 0 ignores the reward's dependence on u."""
+    saturation_threshold: float = 0.92
+    """The saturation rule (see ``saturation_rule``) applies to an action dimension where the
+    policy's action lies beyond this fraction of the half-range from the middle of the action box
+    (the model's input gain means little in saturation; the authors' group's value). 1 disables it."""
+    saturation_rule: str = "outward"
+    """What the saturation rule drops: only the model term that would push a saturated action
+    further out ('outward'; it may still pull the action back in), or df/du entirely ('zero', the
+    authors' group's rule). Measured (docs/mlac.md): the same with action_cost 1; with action_cost 0,
+    'zero' leaves a saturated action no gradient at all, and every experiment stayed saturated."""
+    model_action: str = "policy"
+    """Where the process model is linearised and x_hat predicted: at (x_{k-1}, pi(x_{k-1})), the
+    policy's action ('policy', the gradient of the policy's own return), or at (x_{k-1}, u_{k-1}),
+    the action applied, exploration included ('applied')."""
+    initial_value: str = "critic"
+    """V_0 of a trial: the critic's estimate V(x_0) ('critic'; 0 on an empty memory) or 0 ('zero'),
+    as RMACConfig.initial_value."""
+
+    norm: int = 1
+    """1- or 2-norm of the weighted input difference in all memories."""
+    conditioning: str = "ridge"
+    """How the local least-squares fits are conditioned: 'ridge', 'svd' or 'none' (see LLRMemory)."""
+    rcond: float = 0.01
+    """Relative singular value cutoff for conditioning='svd'."""
+    ridge: float = 1e-3
+    """Ridge term for conditioning='ridge', in weighted input units squared."""
+    actor_clip: bool = False
+    """Clip the actor's prediction to its neighbours' range (it is always saturated to the action
+    bounds, and the actor's samples always stay inside them)."""
+    critic_clip: bool = True
+    """Clip critic predictions to the range of the neighbours' values (as RMACConfig)."""
+    process_clip: bool = False
+    """Clip process model predictions to the neighbours' next states."""
+    actor_replacement: str = "nearest"
+    """Actor memory management when full: 'nearest' (the most redundant sample) or 'oldest'."""
+    critic_replacement: str = "nearest"
+    """Critic memory management when full."""
+    process_replacement: str = "nearest"
+    """Process memory management when full."""
+    backend: str = "numba"
+    """Back end of the LLR memories: 'numba' (compiled) or 'numpy' (reference); same results."""
+
+    def __post_init__(self) -> None:
+        def check(name: str, ok: bool, expected: str) -> None:
+            if not ok:
+                raise ValueError(f"MLACConfig.{name} must be {expected}, got {getattr(self, name)!r}")
+
+        def number(value: Any) -> bool:
+            return (isinstance(value, (int, float, np.integer, np.floating))
+                    and not isinstance(value, bool) and bool(np.isfinite(value)))
+
+        def integer(value: Any) -> bool:
+            return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+
+        for name in ("gamma", "lam", "alpha_actor", "alpha_critic"):
+            value = getattr(self, name)
+            check(name, number(value) and 0.0 <= value <= 1.0, "in [0, 1]")
+        for prefix in _MEMORIES:
+            capacity, neighbours = (getattr(self, f"{prefix}_capacity"),
+                                    getattr(self, f"{prefix}_neighbours"))
+            check(f"{prefix}_capacity", integer(capacity) and capacity >= 1, "a positive integer")
+            check(f"{prefix}_neighbours", integer(neighbours) and 1 <= neighbours <= capacity,
+                  f"an integer in [1, {prefix}_capacity={capacity}]")
+            weights = getattr(self, f"{prefix}_weights")
+            if weights is not None:
+                try:
+                    weights = tuple(float(w) for w in weights)
+                except (TypeError, ValueError):
+                    check(f"{prefix}_weights", False, "None or a tuple of finite numbers >= 0")
+                check(f"{prefix}_weights",
+                      len(weights) > 0 and all(np.isfinite(w) and w >= 0 for w in weights),
+                      "None or a tuple of finite numbers >= 0")
+                object.__setattr__(self, f"{prefix}_weights", weights)
+            check(f"{prefix}_replacement", getattr(self, f"{prefix}_replacement") in _REPLACEMENTS,
+                  f"one of {_REPLACEMENTS}")
+            check(f"{prefix}_clip", isinstance(getattr(self, f"{prefix}_clip"), (bool, np.bool_)),
+                  "True or False")
+        check("exploration", isinstance(self.exploration, Exploration), "an Exploration")
+        check("action_cost", number(self.action_cost) and self.action_cost >= 0,
+              "a finite number >= 0")
+        check("saturation_threshold",
+              number(self.saturation_threshold) and 0 < self.saturation_threshold <= 1, "in (0, 1]")
+        check("saturation_rule", self.saturation_rule in _SATURATION_RULES,
+              f"one of {_SATURATION_RULES}")
+        check("model_action", self.model_action in _MODEL_ACTIONS, f"one of {_MODEL_ACTIONS}")
+        check("initial_value", self.initial_value in _INITIAL_VALUES, f"one of {_INITIAL_VALUES}")
+        check("norm", self.norm in (1, 2) and not isinstance(self.norm, bool), "1 or 2")
+        check("conditioning", self.conditioning in _CONDITIONINGS, f"one of {_CONDITIONINGS}")
+        check("rcond", number(self.rcond) and 0 <= self.rcond < 1, "in [0, 1)")
+        check("ridge", number(self.ridge) and self.ridge >= 0, "a finite number >= 0")
+        check("backend", self.backend in _BACKENDS, f"one of {_BACKENDS}")
+
+
+class MLAC(Agent):
+    """The MLAC learner over a flat state box and a bounded action (see the module docstring).
+
+    Args:
+      state_space: the n-dimensional state (periodic dimensions are wrapped in every memory).
+      action_space: the m-dimensional action box; the actor's samples stay inside it.
+      config: hyperparameters; the weightings must have n (actor, critic) and n + m (process) entries.
+      seed: seed or Generator of the exploration noise, the only randomness.
+
+    Learned state: ``actor``, ``critic`` and ``process`` (:class:`LLRMemory`) and ``traces``
+    (shape (critic_capacity,), one eligibility trace per critic sample).
+    """
+
+    name = "mlac"
+    display_name = "MLAC"
+    config_class = MLACConfig
+
+    def __init__(self, state_space: StateSpace, action_space: ActionSpace,
+                 config: MLACConfig = MLACConfig(),
+                 seed: int | np.random.Generator | None = None) -> None:
+        super().__init__(state_space, action_space, config, seed)
+        n, m = state_space.dim, action_space.dim
+        self.n, self.m = n, m
+        self.period = state_space.period  # (n,), 0 for non-periodic dimensions
+        self._periodic = self.period > 0
+        weights = {prefix: self._weights(prefix, n if prefix != "process" else n + m)
+                   for prefix in _MEMORIES}
+        # self.config holds the weightings actually used (results record them).
+        self.config = config = dataclasses.replace(
+            config, **{f"{prefix}_weights": w for prefix, w in weights.items()})
+        common = dict(norm=config.norm, conditioning=config.conditioning, rcond=config.rcond,
+                      ridge=config.ridge, algorithm=config.backend)
+        self.actor = LLRMemory(
+            n, m, config.actor_capacity, config.actor_neighbours, input_weights=weights["actor"],
+            input_period=self.period, clip=config.actor_clip,
+            replacement=config.actor_replacement, **common)
+        self.critic = LLRMemory(
+            n, 1, config.critic_capacity, config.critic_neighbours, input_weights=weights["critic"],
+            input_period=self.period, clip=config.critic_clip,
+            replacement=config.critic_replacement, **common)
+        self.process = LLRMemory(
+            n + m, n, config.process_capacity, config.process_neighbours,
+            input_weights=weights["process"], input_period=np.r_[self.period, np.zeros(m)],
+            output_period=self.period, clip=config.process_clip,
+            replacement=config.process_replacement, **common)
+        #: e(s_i): one eligibility trace per critic memory slot (RMAC paper, Alg. 2 line 26).
+        self.traces = np.zeros(config.critic_capacity)
+        #: The middle and half-width of the action box, for the saturation rule.
+        self._u_mid = 0.5 * (action_space.low + action_space.high)
+        self._u_half = 0.5 * (action_space.high - action_space.low)
+        self._k = 0
+        self._x_prev = np.zeros(n)
+        self._u_prev = np.zeros(m)
+        self._v_prev = 0.0
+        #: (pi(x_{k-1}), K(x_{k-1})) found when acting in x_{k-1}: saves one actor query per step.
+        #: Derived state (None: recompute), so it is not part of the state dict.
+        self._pi_prev: tuple[np.ndarray, np.ndarray] | None = None
+
+    def _weights(self, prefix: str, size: int) -> tuple[float, ...]:
+        """config.<prefix>_weights, or the StateSpace's hints when None; checked against the task."""
+        weights = getattr(self.config, f"{prefix}_weights")
+        if weights is None:
+            hints = [getattr(self.state_space, "weights", None)]
+            if prefix == "process":
+                hints.append(getattr(self.action_space, "weights", None))
+            if any(h is None for h in hints):
+                raise ValueError(f"MLAC: config.{prefix}_weights is None but the state and action "
+                                 "spaces give no weights; give the weighting explicitly")
+            weights = tuple(float(w) for h in hints for w in np.ravel(h))
+        if len(weights) != size:
+            raise ValueError(f"MLAC: config.{prefix}_weights has {len(weights)} entries, this task "
+                             f"needs {size} ({'[x, u]' if prefix == 'process' else 'x'})")
+        return weights
+
+    # -- the policy -----------------------------------------------------------------------------------
+    def _canonical(self, x: np.ndarray) -> np.ndarray:
+        """x with periodic entries wrapped to [-period/2, period/2)."""
+        if not self._periodic.any():
+            return x
+        out = x.copy()
+        out[self._periodic] = wrap(x[self._periodic], self.period[self._periodic])
+        return out
+
+    def _clip(self, u: np.ndarray) -> np.ndarray:
+        """u saturated to the action bounds (np.clip's dispatch costs more than the work here)."""
+        return np.minimum(np.maximum(u, self.action_space.low), self.action_space.high)
+
+    def _pi(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """pi(x), saturated to the action bounds, and the actor's neighbours K(x) (nearest first)."""
+        u, _, near = self.actor.query(x)
+        return self._clip(u), near
+
+    def policy(self, states: Any) -> np.ndarray:
+        """pi(x) for a batch of states (shape (q, n)) without exploration; returns shape (q, m)."""
+        states = np.asarray(states, dtype=float).reshape(-1, self.n)
+        if not np.all(np.isfinite(states)):
+            raise ValueError("MLAC.policy: states must be finite")
+        return self.action_space.clip(self.actor.predict(states))
+
+    # -- the model-based actor gradient ---------------------------------------------------------------
+    def saturated(self, u: np.ndarray) -> np.ndarray:
+        """Bool (m,): where u lies beyond ``saturation_threshold`` of the half-range from the middle
+        of the action box: the dimensions the saturation rule applies to."""
+        return np.abs(u - self._u_mid) > self.config.saturation_threshold * self._u_half
+
+    def action_gradient(self, x: np.ndarray, u_pi: np.ndarray,
+                        u_model: np.ndarray | None = None) -> np.ndarray:
+        """dQ/du = gamma (dV/dx at x_hat)^T df/du + dr/du at (x, u_pi); shape (m,).
+
+        x: the state (shape (n,), canonical); u_pi: the policy's action there (shape (m,)); u_model:
+        where the process model is linearised (default u_pi, see MLACConfig.model_action).
+        """
+        cfg, n = self.config, self.n
+        u_model = u_pi if u_model is None else u_model
+        # The process model's local fit at (x, u_model): x_hat and beta^P = [df/dx df/du df_b].
+        x_hat, beta_p, _ = self.process.query(np.concatenate([x, u_model]))
+        df_du = beta_p[:, n:n + self.m]                      # (n, m)
+        # The critic's local fit at the predicted next state: its slope is dV/dx (x_hat is wrapped
+        # by the query; the slope holds for wrapped offsets).
+        dv_dx = self.critic.query(x_hat)[1][0, :n]           # (n,)
+        model_term = cfg.gamma * dv_dx @ df_du               # (m,), column j is df/du_j's share
+        # The saturation rule: df/du_j = 0 where the policy's action is saturated ('zero'), or only
+        # where the model term would push it further out ('outward').
+        ignored = self.saturated(u_pi)
+        if cfg.saturation_rule == "outward":
+            ignored &= model_term * (u_pi - self._u_mid) > 0
+        model_term[ignored] = 0.0
+        dr_du = -2.0 * cfg.action_cost * u_pi                # reward term -P |u|^2
+        return model_term + dr_du
+
+    def _improve_actor(self, x_prev: np.ndarray, u_prev: np.ndarray) -> None:
+        """Step 3: insert [x_{k-1} | pi(x_{k-1})], move it and K(x_{k-1}) along alpha_actor dQ/du."""
+        # pi(x_{k-1}) and K(x_{k-1}) as found when u_{k-1} was chosen: the actor has not changed since.
+        u_pi, near = self._pi_prev if self._pi_prev is not None else self._pi(x_prev)
+        u_model = u_pi if self.config.model_action == "policy" else u_prev
+        step = self.config.alpha_actor * self.action_gradient(x_prev, u_pi, u_model)
+        slot = self.actor.insert(x_prev, u_pi, nearest=int(near[0]) if len(near) else None)
+        # When the memory is full the new sample may take a neighbour's slot: move each sample once.
+        moved = near if slot in near else np.append(near, slot)
+        before = self.actor.outputs(moved)
+        self.actor.adjust(moved, self._clip(before + step) - before)
+
+    # -- Agent interface ------------------------------------------------------------------------------
+    def _act(self, x: np.ndarray) -> np.ndarray:
+        """Step 4: u = pi(x) + Delta u_k, saturated."""
+        du = self.config.exploration.sample(self._k, self.m, self.rng)
+        self._pi_prev = self._pi(x)  # kept for the next actor update (x becomes x_{k-1})
+        return self._clip(self._pi_prev[0] + du)
+
+    def _start(self, x0: np.ndarray) -> np.ndarray:
+        """A trial begins: traces reset, V_0, u_0 = pi(x_0) + Delta u_0."""
+        x0 = self._canonical(x0)
+        self.traces[:] = 0.0
+        self._k = 0
+        self._v_prev = (float(self.critic.query(x0)[0][0]) if self.config.initial_value == "critic"
+                        else 0.0)
+        u = self._act(x0)
+        self._x_prev, self._u_prev = x0, u
+        return u.copy()
+
+    def _step(self, reward: float, x: np.ndarray) -> np.ndarray:
+        """Learn from (x_{k-1}, u_{k-1}, r_k, x_k) (steps 1-3), then act in x_k (step 4)."""
+        x = self._canonical(x)
+        self._k += 1
+        self._v_prev = self._update(reward, x)
+        u = self._act(x)
+        self._x_prev, self._u_prev = x, u
+        return u.copy()
+
+    def _stop(self, reward: float, x: np.ndarray) -> None:
+        """The trial's last transition is learned like any other (the trial ends on a time limit)."""
+        self._update(reward, self._canonical(x))
+
+    def _update(self, reward: float, x: np.ndarray) -> float:
+        """Steps 1-3 of the module docstring; returns V_k."""
+        cfg = self.config
+        x_prev, u_prev = self._x_prev, self._u_prev
+        # 1. The process model learns the transition.
+        self.process.insert(np.concatenate([x_prev, u_prev]), x)
+        # 2. TD(lambda) on the critic's samples (RMAC paper, Algorithm 2 lines 22-28).
+        v_k = float(self.critic.query(x)[0][0])                                  # line 22
+        near = self.critic.neighbours(x_prev)
+        slot = self.critic.insert(x_prev, [self._v_prev],
+                                  nearest=int(near[0]) if len(near) else None)   # line 23
+        delta = reward + cfg.gamma * v_k - self._v_prev                          # line 24
+        self.traces *= cfg.lam * cfg.gamma                                       # line 26
+        self.traces[near] = 1.0
+        self.traces[slot] = 1.0
+        live = np.flatnonzero(self.traces)  # the samples visited in this trial (others add 0)
+        self.critic.adjust(live, (cfg.alpha_critic * delta * self.traces[live])[:, None])  # line 27
+        # 3. The actor moves along the model-based gradient of the return.
+        self._improve_actor(x_prev, u_prev)
+        return v_k
+
+    def _greedy_action(self, x: np.ndarray) -> np.ndarray:
+        """pi(x), saturated; no exploration, no learning, nothing carried between calls."""
+        return self._pi(self._canonical(x))[0]
+
+    def _value(self, x: np.ndarray) -> float:
+        """V(x), the critic's LLR estimate."""
+        return float(self.critic.query(self._canonical(x))[0][0])
+
+    # -- prior knowledge ------------------------------------------------------------------------------
+    def seed_memories(self, *, actor: tuple[Any, Any] | None = None,
+                      critic: tuple[Any, Any] | None = None,
+                      process: tuple[Any, Any] | None = None) -> None:
+        """Initialise memories from data (prior knowledge, RMAC paper section 7); between trials.
+
+        Each argument given replaces all samples of that memory (``LLRMemory.fit``); None leaves it.
+
+        Args:
+          actor: (X, U), shapes (s, n) and (s, m): states and the actions to take there (e.g. a
+            demonstration's (x_k, u_k)); the actions must lie inside the action bounds.
+          critic: (X, V), shapes (s, n) and (s,) or (s, 1): states and value estimates (e.g. the
+            demonstration's discounted returns-to-go). The critic's traces are reset.
+          process: (XU, X_next), shapes (s, n + m) and (s, n): recorded transitions [x_k, u_k] ->
+            x_{k+1}.
+        s may not exceed the memory's capacity. Raises ValueError naming the argument.
+        """
+        if self._in_trial:
+            raise RuntimeError("MLAC.seed_memories: called inside a trial; seed between trials")
+        given = {"actor": actor, "critic": critic, "process": process}
+        checked = {}
+        for name, data in given.items():
+            if data is None:
+                continue
+            if not (isinstance(data, (tuple, list)) and len(data) == 2):
+                raise ValueError(f"MLAC.seed_memories: {name} must be a pair (inputs, outputs)")
+            X, Y = (np.asarray(a, dtype=float) for a in data)
+            memory = getattr(self, name)
+            if name == "critic" and Y.ndim == 1:
+                Y = Y[:, None]
+            for label, arr, width in (("inputs", X, memory.input_dim),
+                                      ("outputs", Y, memory.output_dim)):
+                if arr.ndim != 2 or arr.shape[1] != width:
+                    raise ValueError(f"MLAC.seed_memories: {name} {label} must have shape "
+                                     f"(s, {width}), got {arr.shape}")
+                if not np.all(np.isfinite(arr)):
+                    raise ValueError(f"MLAC.seed_memories: {name} {label} must be finite")
+            if len(X) != len(Y):
+                raise ValueError(f"MLAC.seed_memories: {name} has {len(X)} inputs but {len(Y)} "
+                                 "outputs")
+            if len(X) > memory.capacity:
+                raise ValueError(f"MLAC.seed_memories: {name} has {len(X)} samples, more than its "
+                                 f"capacity {memory.capacity}")
+            if name == "actor" and np.any((Y < self.action_space.low) | (Y > self.action_space.high)):
+                raise ValueError("MLAC.seed_memories: actor outputs must lie inside the action "
+                                 f"bounds [{self.action_space.low}, {self.action_space.high}]")
+            checked[name] = (X, Y)
+        for name, (X, Y) in checked.items():  # all checked before any memory changes
+            getattr(self, name).fit(X, Y)
+        self._pi_prev = None
+        if "critic" in checked:
+            self.traces[:] = 0.0
+
+    # -- state ----------------------------------------------------------------------------------------
+    def _state(self) -> dict[str, np.ndarray]:
+        """The three memories, the critic's traces and the running trial's bookkeeping."""
+        state: dict[str, np.ndarray] = {}
+        for name in _MEMORIES:
+            state.update(getattr(self, name).state_dict(prefix=f"{name}."))
+        state["traces"] = self.traces.copy()
+        state["k"] = np.array(self._k)
+        state["x_prev"] = self._x_prev.copy()
+        state["u_prev"] = self._u_prev.copy()
+        state["v_prev"] = np.array(self._v_prev)
+        return state
+
+    def _load_state(self, state: dict[str, np.ndarray]) -> None:
+        for name in _MEMORIES:
+            getattr(self, name).load_state_dict(state, prefix=f"{name}.")
+        self.traces[:] = state["traces"]
+        self._k = int(state["k"])
+        self._x_prev = np.array(state["x_prev"], dtype=float)
+        self._u_prev = np.array(state["u_prev"], dtype=float)
+        self._v_prev = float(state["v_prev"])
+        self._pi_prev = None
