@@ -63,6 +63,22 @@ def test_seeded_memories_hold_exactly_the_given_samples(env, backend):
     assert agent.reference.neighbours(x[7])[0] == 7
 
 
+def test_mlac_memories_hold_exactly_the_given_samples(env):
+    data = synthetic(T=30)
+    agent = make_agent("mlac", *spaces(env), seed=0)
+    agent.seed_from(**data)
+    x, x_next = wrapped(data["states"]), wrapped(data["next_states"])
+    gamma = agent.config.gamma
+    for memory, X, Y in (
+            (agent.actor, x, data["actions"]),
+            (agent.process, np.c_[x, data["actions"]], x_next),
+            (agent.critic, x, discounted_returns(data["rewards"], data["trial"], gamma)[:, None])):
+        assert memory.n_samples_ == 30
+        np.testing.assert_allclose(memory.X_[:30], X, atol=1e-12)
+        np.testing.assert_allclose(memory.Y_[:30], Y, atol=1e-12)
+    assert set(agent.prior_parts) == {"actor", "critic", "process"}
+
+
 def test_more_samples_than_capacity_pass_through_the_replacement_rule(env):
     data = synthetic(T=150)
     cfg = RMACConfig(process_replacement="oldest", critic_capacity=40, critic_neighbours=10)

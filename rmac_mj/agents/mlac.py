@@ -44,7 +44,8 @@ from typing import Any
 
 import numpy as np
 
-from rmac_mj.agents.base import ActionSpace, Agent, Exploration, StateSpace
+from rmac_mj.agents.base import (ActionSpace, Agent, Exploration, StateSpace,
+                                 discounted_returns)
 from rmac_mj.approximators.llr import LLRMemory, wrap
 
 _BACKENDS = ("numba", "numpy")
@@ -391,6 +392,32 @@ class MLAC(Agent):
         return float(self.critic.query(self._canonical(x))[0][0])
 
     # -- prior knowledge ------------------------------------------------------------------------------
+    #: What :meth:`Agent.seed_from` can initialise from recorded transitions.
+    prior_parts = ("process", "critic", "actor")
+
+    def _seed_from(self, states: np.ndarray, actions: np.ndarray, rewards: np.ndarray,
+                   next_states: np.ndarray, trial: np.ndarray, parts: tuple[str, ...]) -> None:
+        """Initialise the memories from a demonstration (section 7 of the RMAC paper): the actor with
+        its (x_t, u_t), the critic with its discounted returns-to-go (this agent's gamma, 0 after a
+        trial's last transition), the process model with its transitions [x_t, u_t] -> x_{t+1}.
+
+        Up to each memory's capacity the memory holds exactly these samples
+        (:meth:`seed_memories`); the rest are inserted in time order through its replacement rule.
+        """
+        period = self.period
+        x = np.where(period > 0, wrap(states, period), states)
+        x_next = np.where(period > 0, wrap(next_states, period), next_states)
+        data = {"actor": (x, actions),
+                "critic": (x, discounted_returns(rewards, trial, self.config.gamma)[:, None]),
+                "process": (np.hstack([x, actions]), x_next)}
+        capacity = {name: getattr(self, name).capacity for name in parts}
+        self.seed_memories(**{name: (data[name][0][:capacity[name]], data[name][1][:capacity[name]])
+                              for name in parts})
+        for name in parts:
+            X, Y = data[name]
+            for row in range(capacity[name], len(X)):
+                getattr(self, name).insert(X[row], Y[row])
+
     def seed_memories(self, *, actor: tuple[Any, Any] | None = None,
                       critic: tuple[Any, Any] | None = None,
                       process: tuple[Any, Any] | None = None) -> None:
