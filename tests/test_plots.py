@@ -157,10 +157,10 @@ def test_side_by_side_policies_share_their_colour_scales():
 
 
 def test_the_greedy_trajectory_is_drawn_from_the_start_state():
-    from test_render import EnergyPumpAgent  # (tests/ is on sys.path, as pytest imports it)
+    from test_render import energy_pump_agent  # (tests/ is on sys.path, as pytest imports it)
 
     env, learner_state = _pendulum()
-    states, total = plots.greedy_trajectory(env, EnergyPumpAgent())
+    states, total = plots.greedy_trajectory(env, energy_pump_agent())
     assert states.shape == (11, 2) and total < 0
     np.testing.assert_allclose(states[0], [-np.pi, 0.0])
     agent = _MapAgent(1.0)
