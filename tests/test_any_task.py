@@ -160,6 +160,7 @@ def test_bench_measures_the_tasks_own_control_step(toy):
     costs = bench.step_costs(20, 1, **on)
     assert costs["physics_step_us"] > 0 and costs["env_step_us"] > 0
     report = {**costs, "llr_query_insert_us": 0.1, "sac_step_us": 0.1, "rmac_step_us": 0.1,
+              "mlac_step_us": 0.1,
               "env_overhead_us": 0.1, "outside_physics_learner_us": 0.2, **on,
               "experiment_s": {}, "steps_per_trial": 10, "protocol_projected_min": 1.0,
               "run": {"experiments_per_learner": 1, "trials": 1, "workers": 1, "steps": 20,

@@ -16,7 +16,7 @@ def test_bench_runs_and_writes_the_documented_keys(tmp_path):
     assert "real run, measured" in result.stdout
     report = json.loads(path.read_text())
     for key in ("physics_step_us", "env_step_us", "llr_query_insert_us", "sac_step_us",
-                "rmac_step_us", "protocol_projected_min"):
+                "rmac_step_us", "mlac_step_us", "protocol_projected_min"):
         assert isinstance(report[key], float) and report[key] > 0, key
     for key in ("env_overhead_us", "glue_step_us", "outside_physics_learner_us"):
         assert isinstance(report[key], float), key  # differences of timings: may be tiny or noisy

@@ -208,15 +208,14 @@ def test_bad_configuration_names_the_field(kwargs, name):
 
 
 def test_weightings_must_match_the_task_or_come_from_its_hints():
-    S3 = StateSpace(low=-np.ones(3), high=np.ones(3), periodic=np.zeros(3, bool))
+    S3 = StateSpace(low=-np.ones(3), high=np.ones(3), periodic=np.zeros(3, bool),
+                    weights=[1.0, 0.5, 0.2])
     U = ActionSpace(low=-np.ones(1), high=np.ones(1))
     with pytest.raises(ValueError, match="actor_weights has 2 entries, this task needs 3"):
-        MLAC(S3, U)  # the pendulum's weightings are for n = 2, m = 1
-    if getattr(S3, "weights", None) is None:  # spaces without weights (before issue 13)
-        with pytest.raises(ValueError, match="critic_weights is None but the state and action"):
-            MLAC(S3, U, MLACConfig(actor_weights=(1, 1, 1), critic_weights=None))
-    else:  # the task's weights fill in what the config leaves None, and the config records them
-        agent = MLAC(S3, U, MLACConfig(actor_weights=(1, 1, 1), critic_weights=None,
-                                       process_weights=None))
-        assert agent.config.critic_weights == tuple(S3.weights)
-        assert agent.config.process_weights == tuple(np.r_[S3.weights, U.weights])
+        MLAC(S3, U, MLACConfig(actor_weights=(1.0, 0.1)))  # an explicit weighting for n = 2
+    # By default the task's weights fill in every weighting, and the config records them.
+    agent = MLAC(S3, U)
+    assert agent.config.actor_weights == agent.config.critic_weights == (1.0, 0.5, 0.2)
+    assert agent.config.process_weights == (1.0, 0.5, 0.2, 1.0)
+    agent = MLAC(S3, U, MLACConfig(actor_weights=(1, 1, 1)))  # explicit values win
+    assert agent.config.actor_weights == (1.0, 1.0, 1.0)

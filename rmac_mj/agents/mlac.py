@@ -76,21 +76,23 @@ class MLACConfig:
     """Actor memory size."""
     actor_neighbours: int = 25
     """Actor nearest neighbours K: the samples that define pi(x) and move in an update."""
-    actor_weights: tuple[float, ...] | None = (1.0, 0.1)
-    """Actor input weighting over x (n entries). None: the task's, ``StateSpace.weights``."""
+    actor_weights: tuple[float, ...] | None = None
+    """Actor input weighting over x (n entries). None: the task's, ``StateSpace.weights``: (1, 0.1)
+    for dc_pendulum, as the authors' group's code uses."""
     critic_capacity: int = 2000
     """Critic memory size."""
     critic_neighbours: int = 15
     """Critic nearest neighbours K."""
-    critic_weights: tuple[float, ...] | None = (1.0, 0.1)
-    """Critic input weighting over x (n entries). None: the task's, ``StateSpace.weights``."""
+    critic_weights: tuple[float, ...] | None = None
+    """Critic input weighting over x (n entries). None: the task's, ``StateSpace.weights`` ((1, 0.1)
+    for dc_pendulum)."""
     process_capacity: int = 100
     """Process memory size."""
     process_neighbours: int = 10
     """Process nearest neighbours K."""
-    process_weights: tuple[float, ...] | None = (1.0, 0.1, 1.0)
+    process_weights: tuple[float, ...] | None = None
     """Process input weighting over [x, u] (n + m entries). None: the task's, ``StateSpace.weights``
-    then ``ActionSpace.weights``."""
+    then ``ActionSpace.weights`` ((1, 0.1, 1) for dc_pendulum, as the authors' group's code)."""
 
     exploration: Exploration = Exploration()
     """Exploration Delta u_k: N(0, 1) every third step, the S-AC schedule of the RMAC paper (6.1)."""

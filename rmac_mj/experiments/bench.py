@@ -293,7 +293,8 @@ ROWS = (("physics_step_us", "raw MuJoCo control step ({n_sub} x mj_step)"),
         ("outside_physics_learner_us", "overhead outside physics and learner"),
         ("llr_query_insert_us", "LLR query + insert (N=2000, K=20)"),
         ("sac_step_us", "S-AC learner step (act + update)"),
-        ("rmac_step_us", "RMAC learner step (act + update)"))
+        ("rmac_step_us", "RMAC learner step (act + update)"),
+        ("mlac_step_us", "MLAC learner step (act + update)"))
 
 
 def run(quick: bool = False, algorithms: tuple[str, ...] = ("s-ac", "rmac"), jobs: int = 2,
@@ -310,6 +311,7 @@ def run(quick: bool = False, algorithms: tuple[str, ...] = ("s-ac", "rmac"), job
         "llr_query_insert_us": llr_query_insert_us(calls, repeats, **on),
         "sac_step_us": learner_step_us("s-ac", repeats, **on),
         "rmac_step_us": learner_step_us("rmac", repeats, **on),
+        "mlac_step_us": learner_step_us("mlac", repeats, **on),
     })
     physics = report["physics_step_us"]
     report["env_overhead_us"] = report["env_step_us"] - physics
