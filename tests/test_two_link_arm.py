@@ -239,3 +239,25 @@ def test_model_path_finds_folder_models_and_single_files():
     if not (model_path("dc_pendulum").parent / "scene.xml").is_file():
         with pytest.raises(ValueError, match="no scene.xml"):
             model_path("dc_pendulum", scene=True)
+
+
+def test_a_tiny_reproduce_on_the_arm_end_to_end(tmp_path):
+    """Both learners learn the arm through the same runner and command as the pendulum: RMAC with the
+    2^2 vertices of its reachable set, S-AC with tile coding over four dimensions."""
+    import json
+
+    from rmac_mj.cli import main
+    from rmac_mj.experiments.snapshots import load_snapshot
+
+    out = tmp_path / "arm"
+    assert main(["reproduce", "--domain", "two_link_arm", "--task", "reach", "--algorithms",
+                 "rmac,s-ac", "--experiments", "1", "--trials", "2", "--jobs", "1", "--no-optimal",
+                 "--no-progress", "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["trial_seconds"] == pytest.approx(3.0)
+    for algorithm in ("rmac", "s-ac"):
+        assert len(summary[algorithm]["mean_return_per_trial"]) == 2
+    rmac, meta = load_snapshot(out / "snapshots/rmac/exp_000/trial_0002.npz")
+    assert meta["domain"] == "two_link_arm" and rmac.vertices.shape == (4, 2)
+    sac, _ = load_snapshot(out / "snapshots/s-ac/exp_000/trial_0002.npz")
+    assert sac.coder.dim == 4
