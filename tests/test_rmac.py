@@ -241,7 +241,8 @@ _SMALL_MEMORIES = dict(critic_capacity=30, reference_capacity=25, process_capaci
 
 #: One entry per value of every option of RMACConfig and of the LLR memories (replacement,
 #: conditioning incl. its parameters, clipping, norm, critic_gradient_at, inverse_query,
-#: initial_value, reachable_rule with action_cost and reachable_grid); defaults elsewhere. The "defaults" entry covers each option's default value.
+#: initial_value, reachable_rule with action_cost and reachable_grid); defaults elsewhere. The
+#: "defaults" entry covers each option's default value.
 _OPTION_VALUES = {
     "defaults": {},
     "replacement oldest everywhere": dict(critic_replacement="oldest", process_replacement="oldest",

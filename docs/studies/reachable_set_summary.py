@@ -1,8 +1,8 @@
 """Summarise the reachable-set study (docs/studies/reachable-set.md) from its result directories.
 
 Usage: python docs/studies/reachable_set_summary.py ROOT [RULE ...] [--plot FILE.png]
-ROOT/RULE is the `rmac-mj reproduce --out` directory of one rule (any name: a directory). Prints one markdown row per rule
-and Welch's t-test of every pair of rules' final returns.
+ROOT/RULE is the `rmac-mj reproduce --out` directory of one rule (any name: a directory).
+Prints one markdown row per rule and Welch's t-test of every pair of rules' final returns.
 """
 
 import pathlib
