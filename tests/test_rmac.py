@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from rmac_mj.agents.base import ActionSpace, Exploration, StateSpace
-from rmac_mj.agents.rmac import RMAC, RMACConfig
+from rmac_mj.agents.rmac import EXACT_TOLERANCE, RMAC, RMACConfig
 
 BACKENDS = ("numba", "numpy")
 NO_EXPLORATION = Exploration(sigma=0.0)
@@ -80,6 +80,70 @@ def test_reference_target_is_best_vertex_under_a_linear_critic(backend, m):
     slot = int(np.argmax(agent.reference.stamp_[:agent.reference.n_samples_]))
     np.testing.assert_allclose(agent.reference.Y_[slot], best, atol=1e-8)
     assert len(agent.vertices) == 2 ** m
+
+
+def _lq_reachable_case(rule, backend, action_cost):
+    """A hand-worked linear-quadratic case for the reachable rules (n = m = 1).
+
+    Process x' = a x + b u (a = 0.9, b = 0.5), fitted exactly. Critic V(x) = -(x - 0.5)^2 stored on
+    a grid of spacing 0.005 (a multiple of every grid candidate's x'), read with K = 2 neighbours, so
+    the LLR critic is the piecewise-linear interpolant of V, exact at its samples. From x_0 = 1 the
+    reference asks for u_0 = -2, so x_1 = -0.1; x_r is then chosen for x_0 with z = a x_0 = 0.9:
+    x'(u) = 0.9 + 0.5 u.
+    """
+    a, b, xs = 0.9, 0.5, 0.5
+    # conditioning 'none': a truncated SVD would drop the slope of two samples 0.005 apart.
+    agent = _agent(1, 1, backend, critic_neighbours=2, critic_capacity=1000, critic_clip=False,
+                   conditioning="none", reachable_rule=rule, action_cost=action_cost)
+    rng = np.random.default_rng(0)
+    X, U = rng.uniform(-2, 2, (100, 1)), rng.uniform(-3, 3, (100, 1))
+    agent.process.fit(np.c_[X, U], a * X + b * U)
+    Xc = (0.9 + 0.005 * np.arange(-400, 401))[:, None]
+    agent.critic.fit(Xc, -(Xc - xs) ** 2)
+    x0 = np.array([1.0])
+    agent.reference.fit(x0[None], (a * x0 + b * -2.0)[None])
+    np.testing.assert_allclose(agent.start(x0), [-2.0], atol=1e-9)
+    agent.step(-1.0, a * x0 + b * np.array([-2.0]))
+    slot = int(np.argmax(agent.reference.stamp_[:agent.reference.n_samples_]))
+    return float(agent.reference.Y_[slot, 0])
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("action_cost", [1.0, 0.2])
+def test_each_reachable_rule_picks_the_hand_worked_state(backend, action_cost):
+    gamma, P = 0.97, action_cost
+    score = lambda u: -P * u * u - gamma * (0.9 + 0.5 * u - 0.5) ** 2  # noqa: E731
+    # 'vertices': the critic's local slope at x_1 = -0.1 is +1.2 (secant of two samples), so the
+    # larger x', u = +3: x_r = 0.9 + 1.5, whatever P.
+    assert _lq_reachable_case("vertices", backend, P) == pytest.approx(2.4, abs=1e-9)
+    # 'vertices_value': both vertices cost 9 P; V(-0.6) = -1.21 beats V(2.4) = -3.61.
+    assert _lq_reachable_case("vertices_value", backend, P) == pytest.approx(-0.6, abs=1e-9)
+    # 'grid': the best of 21 actions (step 0.3) by the exact score (the critic is exact there);
+    # P = 1: u* = gamma b (0.5 - 0.9) / (P + gamma b^2) = -0.156, grid u = -0.3, x_r = 0.75;
+    # P = 0.2: u* = -0.437, grid u = -0.3 again; vertices and grid differ from exact below.
+    grid = np.linspace(-3, 3, 21)
+    u_grid = grid[int(np.argmax([score(u) for u in grid]))]
+    assert u_grid == pytest.approx(-0.3)
+    assert _lq_reachable_case("grid", backend, P) == pytest.approx(0.9 + 0.5 * u_grid, abs=1e-9)
+    # 'exact': the continuous maximiser, up to the interpolation of V (slopes of chords 0.005 wide).
+    u_star = gamma * 0.5 * (0.5 - 0.9) / (P + gamma * 0.25)
+    x_exact = _lq_reachable_case("exact", backend, P)
+    assert x_exact == pytest.approx(0.9 + 0.5 * u_star, abs=2e-3)
+    assert abs(x_exact - (0.9 + 0.5 * u_grid)) > 0.03  # refined beyond the grid
+
+
+def test_reachable_rule_is_validated_by_name():
+    with pytest.raises(ValueError, match="reachable_rule"):
+        RMACConfig(reachable_rule="best")
+    with pytest.raises(ValueError, match="reachable_grid"):
+        RMACConfig(reachable_grid=1)
+    with pytest.raises(ValueError, match="action_cost"):
+        RMACConfig(action_cost=-1.0)
+    for backend in BACKENDS:
+        with pytest.raises(ValueError, match="reachable_rule='exact'"):
+            _agent(2, 2, backend, reachable_rule="exact")
+        _agent(2, 1, backend, reachable_rule="exact")  # m = 1 is fine
+        _agent(2, 2, backend, reachable_rule="grid")
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
@@ -177,7 +241,8 @@ _SMALL_MEMORIES = dict(critic_capacity=30, reference_capacity=25, process_capaci
 
 #: One entry per value of every option of RMACConfig and of the LLR memories (replacement,
 #: conditioning incl. its parameters, clipping, norm, critic_gradient_at, inverse_query,
-#: initial_value); defaults elsewhere. The "defaults" entry covers each option's default value.
+#: initial_value, reachable_rule with action_cost and reachable_grid); defaults elsewhere. The
+#: "defaults" entry covers each option's default value.
 _OPTION_VALUES = {
     "defaults": {},
     "replacement oldest everywhere": dict(critic_replacement="oldest", process_replacement="oldest",
@@ -199,6 +264,14 @@ _OPTION_VALUES = {
     "inverse query zero": dict(inverse_query="zero"),
     "initial value zero": dict(initial_value="zero"),
     "two actions": dict(process_weights=(1.0, 0.1, 1.0, 0.5)),
+    "reachable vertices_value": dict(reachable_rule="vertices_value"),
+    "reachable vertices_value, two actions": dict(reachable_rule="vertices_value",
+                                                  process_weights=(1.0, 0.1, 1.0, 0.5)),
+    "reachable grid, action cost 0.3": dict(reachable_rule="grid", action_cost=0.3),
+    "reachable grid 5, two actions": dict(reachable_rule="grid", reachable_grid=5,
+                                          process_weights=(1.0, 0.1, 1.0, 0.5)),
+    "reachable exact": dict(reachable_rule="exact"),
+    "reachable exact, grid 4": dict(reachable_rule="exact", reachable_grid=4),
 }
 
 
@@ -240,10 +313,14 @@ def test_back_ends_take_the_same_steps_for_every_option(options):
     the step, and the actions and every array of their state (memories, traces, bookkeeping) must
     agree; the numba agent runs undisturbed, so whatever it carries from step to step is exercised.
     """
-    m = 2 if options == "two actions" else 1
+    m = 2 if "two actions" in options else 1
     # Rounding differs between the back ends (a Jacobi eigen-solver against LAPACK's); unconditioned
     # fits of nearly collinear neighbours amplify it (a relative 5e-10 was seen in an action).
     tol = 1e-7 if options == "nothing clipped, no conditioning" else 1e-9
+    if "exact" in options:
+        # Near its maximum the golden-section search compares two scores equal up to rounding, so
+        # the back ends may keep different points of the final bracket (EXACT_TOLERANCE wide).
+        tol = 10 * EXACT_TOLERANCE
     S = StateSpace(low=[-np.pi, -8 * np.pi], high=[np.pi, 8 * np.pi], periodic=[True, False],
                    weights=[1.0, 0.1])  # Table 2's weighting, as the dc_pendulum task gives
     U = ActionSpace(low=-3.0 * np.ones(m), high=3.0 * np.ones(m))

@@ -22,6 +22,11 @@ The kernels take an :class:`RMACState`, a numba structref that names what a step
 ``beta_u_zero``         beta_u counts as zero below this fraction of the state gains
 ``inverse_previous``    linearise the inverse at u_{k-1} (else at 0)
 ``gradient_at_next``    fit the critic's ranking model at x_k (else at x_{k-1})
+``rule``                index of ``RMACConfig.reachable_rule`` in ('vertices', 'vertices_value',
+                        'grid', 'exact')
+``action_cost``         P of the score -P |u|^2 + gamma V(x') (rules other than 'vertices')
+``candidates``          (c, m) candidate actions of those rules (vertices or grid)
+``refine_steps``        golden-section steps of rule 'exact' (0: none)
 ``ref_idx``, ...        neighbour lists of the reference memory (``ref_*``) and of the critic
                         (``crit_*``): two buffers each, one for x_k and one for x_{k-1}
                         (``cur`` says which is x_k's): ``*_idx`` (2, K+1) samples, ``*_dist``
@@ -79,7 +84,8 @@ RMAC_STATE_TYPE = RMACStateType([
     ("vertices", _MATRIX), ("period", _VECTOR), ("low", _VECTOR), ("high", _VECTOR),
     ("gamma", types.float64), ("lam", types.float64), ("alpha_c", types.float64),
     ("alpha_r", types.float64), ("beta_u_zero", types.float64), ("inverse_previous", types.boolean),
-    ("gradient_at_next", types.boolean),
+    ("gradient_at_next", types.boolean), ("rule", types.int64), ("action_cost", types.float64),
+    ("candidates", _MATRIX), ("refine_steps", types.int64),
     ("ref_idx", _INDICES), ("ref_dist", _MATRIX), ("ref_info", _INDICES), ("ref_point", _MATRIX),
     ("crit_idx", _INDICES), ("crit_dist", _MATRIX), ("crit_info", _INDICES),
     ("crit_point", _MATRIX), ("cur", types.int64), ("proc_idx", types.int64[::1]),
@@ -89,7 +95,7 @@ RMAC_STATE_TYPE = RMACStateType([
 @njit(cache=True)
 def new_state(process, reference, critic, traces, x_prev, u_prev, v_prev, vertices, period, low,
               high, gamma, lam, alpha_c, alpha_r, beta_u_zero, inverse_previous, gradient_at_next,
-              ref_info, crit_info):
+              ref_info, crit_info, rule, action_cost, candidates, refine_steps):
     """An :class:`RMACState` over the given memory states and arrays (not copied). ``ref_info`` and
     ``crit_info`` (2, 2) int64 mark the neighbour lists; set their [:, 0] to -1 to drop the lists
     (at the start of a trial, after loading a state)."""
@@ -112,6 +118,10 @@ def new_state(process, reference, critic, traces, x_prev, u_prev, v_prev, vertic
     state.beta_u_zero = beta_u_zero
     state.inverse_previous = inverse_previous
     state.gradient_at_next = gradient_at_next
+    state.rule = rule
+    state.action_cost = action_cost
+    state.candidates = candidates
+    state.refine_steps = refine_steps
     n = x_prev.shape[0]
     state.ref_idx = np.zeros((2, reference.n_neighbours + 1), dtype=np.int64)
     state.ref_dist = np.zeros((2, reference.n_neighbours + 1))
@@ -218,6 +228,86 @@ def _act(s, x):
     return _inverse(s, x, x_desired, u_query)  # line 11
 
 
+_RULE_VERTICES = 0
+_RULE_EXACT = 3
+_INV_PHI = (5.0 ** 0.5 - 1.0) / 2.0
+
+
+@njit(cache=True)
+def _reachable_score(s, u, pred, beta_p, x_next):
+    """-P |u|^2 + gamma V(x'(u)), writing the canonical x'(u) to x_next; see
+    RMAC._reachable_score."""
+    n = pred.shape[0]
+    m = u.shape[0]
+    u_prev = s.u_prev
+    for j in range(n):
+        r = pred[j]
+        for i in range(m):
+            r += beta_p[j, n + i] * (u[i] - u_prev[i])
+        x_next[j] = wrap_scalar(r, s.period[j])
+    C = s.critic
+    idx = np.empty(C.n_neighbours, dtype=np.int64)
+    beta = np.empty((1, n + 1))
+    v = np.empty(1)
+    llr_query(C, x_next, idx, beta, v)
+    uu = 0.0
+    for i in range(m):
+        uu += u[i] * u[i]
+    return -s.action_cost * uu + s.gamma * v[0]
+
+
+@njit(cache=True)
+def _best_reachable(s, pred, beta_p):
+    """x_r for the rules other than 'vertices'; see RMAC._best_reachable."""
+    n = pred.shape[0]
+    cands = s.candidates
+    m = cands.shape[1]
+    x_r = np.empty(n)
+    x_next = np.empty(n)
+    best_score = -np.inf
+    best = 0
+    for c in range(cands.shape[0]):
+        score = _reachable_score(s, cands[c], pred, beta_p, x_next)
+        if score > best_score:
+            best_score = score
+            best = c
+            x_r[:] = x_next
+    if s.rule == _RULE_EXACT and s.refine_steps > 0:
+        low, high = s.low[0], s.high[0]
+        h = (high - low) / (cands.shape[0] - 1)
+        a = max(low, cands[best, 0] - h)
+        b = min(high, cands[best, 0] + h)
+        uc = np.empty(m)
+        ud = np.empty(m)
+        xc = np.empty(n)
+        xd = np.empty(n)
+        uc[0] = b - _INV_PHI * (b - a)
+        ud[0] = a + _INV_PHI * (b - a)
+        fc = _reachable_score(s, uc, pred, beta_p, xc)
+        fd = _reachable_score(s, ud, pred, beta_p, xd)
+        for _ in range(s.refine_steps):
+            if fc >= fd:  # the maximum lies in [a, d]
+                b = ud[0]
+                ud[0] = uc[0]
+                fd = fc
+                xd[:] = xc
+                uc[0] = b - _INV_PHI * (b - a)
+                fc = _reachable_score(s, uc, pred, beta_p, xc)
+            else:         # in [c, b]
+                a = uc[0]
+                uc[0] = ud[0]
+                fc = fd
+                xc[:] = xd
+                ud[0] = a + _INV_PHI * (b - a)
+                fd = _reachable_score(s, ud, pred, beta_p, xd)
+        if fc >= fd:
+            if fc > best_score:
+                x_r[:] = xc
+        elif fd > best_score:
+            x_r[:] = xd
+    return x_r
+
+
 @njit(cache=True)
 def _update(s, reward, x):
     """Lines 13-28 for the transition (x_prev, u_prev, reward, x); returns V_k."""
@@ -240,44 +330,48 @@ def _update(s, reward, x):
     beta_p = np.empty((n, n + m + 1))
     pred = np.empty(n)
     llr_fit_at(P, zq, s.proc_idx, min(P.n_neighbours, P.meta[0]), beta_p, pred)
-    vertices = s.vertices
-    nv = vertices.shape[0]
-    reachable = np.empty((nv, n))
-    for v in range(nv):
-        for j in range(n):
-            r = pred[j]
-            for i in range(m):
-                r += beta_p[j, n + i] * (vertices[v, i] - u_prev[i])
-            reachable[v, j] = r
     beta_c = np.empty((1, n + 1))
     v_pred = np.empty(1)
     xc = _canonical(x, period)  # (as LLRMemory.query does)
     nk = _search_list(C, xc, s.crit_idx, s.crit_dist, s.crit_info, s.crit_point, cur)
     llr_fit_at(C, xc, s.crit_idx[cur], nk, beta_c, v_pred)
     v_k = v_pred[0]
-    slope = beta_c[0, :n].copy()
-    x_c = x
-    if not s.gradient_at_next:
-        xp = _canonical(x_prev, period)
-        if _list_at(C, xp, s.crit_info, s.crit_point, prev):
-            llr_fit_at(C, xp, s.crit_idx[prev], min(C.n_neighbours, C.meta[0]), beta_c, v_pred)
-        else:
-            idx = np.empty(C.n_neighbours, dtype=np.int64)
-            llr_query(C, x_prev, idx, beta_c, v_pred)
+    if s.rule != _RULE_VERTICES:  # r + gamma V(x') with the full critic
+        x_r = _best_reachable(s, pred, beta_p)
+    else:
+        vertices = s.vertices
+        nv = vertices.shape[0]
+        reachable = np.empty((nv, n))
+        for v in range(nv):
+            for j in range(n):
+                r = pred[j]
+                for i in range(m):
+                    r += beta_p[j, n + i] * (vertices[v, i] - u_prev[i])
+                reachable[v, j] = r
         slope = beta_c[0, :n].copy()
-        x_c = x_prev
-    best = 0
-    best_value = -np.inf
-    for v in range(nv):
-        value = 0.0
+        x_c = x
+        if not s.gradient_at_next:
+            xp = _canonical(x_prev, period)
+            if _list_at(C, xp, s.crit_info, s.crit_point, prev):
+                llr_fit_at(C, xp, s.crit_idx[prev], min(C.n_neighbours, C.meta[0]), beta_c,
+                           v_pred)
+            else:
+                idx = np.empty(C.n_neighbours, dtype=np.int64)
+                llr_query(C, x_prev, idx, beta_c, v_pred)
+            slope = beta_c[0, :n].copy()
+            x_c = x_prev
+        best = 0
+        best_value = -np.inf
+        for v in range(nv):
+            value = 0.0
+            for j in range(n):
+                value += slope[j] * wrap_scalar(reachable[v, j] - x_c[j], period[j])
+            if value > best_value:
+                best_value = value
+                best = v
+        x_r = np.empty(n)
         for j in range(n):
-            value += slope[j] * wrap_scalar(reachable[v, j] - x_c[j], period[j])
-        if value > best_value:
-            best_value = value
-            best = v
-    x_r = np.empty(n)
-    for j in range(n):
-        x_r[j] = wrap_scalar(reachable[best, j], period[j])
+            x_r[j] = wrap_scalar(reachable[best, j], period[j])
     # Lines 17-20: insert [x_{k-1} | x_r] in M^R, move K(x_{k-1}) towards x_r.
     if _list_at(R, x_prev, s.ref_info, s.ref_point, prev):
         nk = min(R.n_neighbours, R.meta[0])

@@ -42,6 +42,11 @@ _GRADIENT_AT = ("next", "previous")
 _INITIAL_VALUES = ("critic", "zero")
 _CONDITIONINGS = ("svd", "ridge", "none")
 _REPLACEMENTS = ("nearest", "oldest")
+_REACHABLE_RULES = ("vertices", "vertices_value", "grid", "exact")
+#: Absolute tolerance, in action units, of the golden-section refinement of reachable_rule='exact'.
+EXACT_TOLERANCE = 1e-6
+#: 1 / golden ratio, the shrink factor of one golden-section step.
+INV_PHI = (5.0 ** 0.5 - 1.0) / 2.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -116,6 +121,29 @@ class RMACConfig:
     critic_gradient_at: str = "next"
     """Where the critic's local model that ranks the reachable states (line 16) is fitted: at x_k
     ('next', the reached state, which lies among the vertices) or at x_{k-1} ('previous')."""
+    reachable_rule: str = "vertices"
+    """How x_r, the best reachable state of line 16, is chosen. Every rule predicts the next state of
+    a candidate action u with the process model's local linear fit at (x_{k-1}, u_{k-1}),
+    x'(u) = f(x_{k-1}, u_{k-1}) + beta_u (u - u_{k-1}), and x_r is the chosen candidate's x'(u):
+
+    * 'vertices' (the paper's): the 2^m combinations of action extremes, ranked by the critic's
+      *local linear* model (see ``critic_gradient_at``); the action cost is ignored;
+    * 'vertices_value': the same 2^m vertices ranked by r + gamma V(x'(u)) with the full LLR critic V;
+    * 'grid': ``reachable_grid`` actions per action dimension (their product), same score;
+    * 'exact' (m = 1 only): the maximum of r + gamma V(x'(u)) over u in the bounds, found on the
+      grid and refined by golden-section search (to ``EXACT_TOLERANCE``) between the grid point's
+      neighbours. "Exact" up to that tolerance and to the LLR critic itself, which is affine only
+      within one neighbour set, so the maximised function is piecewise affine (plus -P u^2): the
+      refinement finds the best point of the bracket when it is unimodal there.
+
+    The reward r(x_{k-1}, u) = -x^T Q x - P |u|^2 has the same state part for every candidate, so the
+    score is -P |u|^2 + gamma V(x'(u)) with P = ``action_cost``."""
+    action_cost: float = 1.0
+    """P, the reward's action cost -P |u|^2 (dc_pendulum: 1), used only by the reachable rules other
+    than 'vertices'. It is the one piece of task knowledge those rules use (MLAC uses the same)."""
+    reachable_grid: int = 21
+    """Actions per action dimension for reachable_rule 'grid' and 'exact' (evenly spaced over the
+    bounds, both bounds included)."""
     initial_value: str = "critic"
     """V_0 of a trial (line 2): the critic's estimate V(x_0) ('critic'; 0 on the empty memory) or the
     literal 0 every trial ('zero')."""
@@ -152,10 +180,18 @@ class RMACConfig:
                              f"got {self.exploration!r}")
         for name, allowed in (("conditioning", _CONDITIONINGS), ("inverse_query", _INVERSE_QUERIES),
                               ("critic_gradient_at", _GRADIENT_AT),
+                              ("reachable_rule", _REACHABLE_RULES),
                               ("initial_value", _INITIAL_VALUES), ("backend", _BACKENDS)):
             if getattr(self, name) not in allowed:
                 raise ValueError(f"RMACConfig.{name} must be one of {allowed}, "
                                  f"got {getattr(self, name)!r}")
+        if not (np.isfinite(self.action_cost) and self.action_cost >= 0):
+            raise ValueError(f"RMACConfig.action_cost must be finite and >= 0, "
+                             f"got {self.action_cost!r}")
+        if (isinstance(self.reachable_grid, bool)
+                or not isinstance(self.reachable_grid, (int, np.integer)) or self.reachable_grid < 2):
+            raise ValueError(f"RMACConfig.reachable_grid must be an integer >= 2, "
+                             f"got {self.reachable_grid!r}")
         if self.norm not in (1, 2):
             raise ValueError(f"RMACConfig.norm must be 1 or 2, got {self.norm!r}")
         if not (np.isfinite(self.rcond) and 0 <= self.rcond < 1):
@@ -192,6 +228,9 @@ class RMAC(Agent):
             f"{prefix}_weights": tuple(float(w) for w in weights)
             for prefix, weights in task_weights.items() if getattr(config, f"{prefix}_weights") is None})
         self.n, self.m = n, m
+        if config.reachable_rule == "exact" and m != 1:
+            raise ValueError(f"RMAC: config.reachable_rule='exact' needs a one-dimensional action, "
+                             f"this task has {m}; use 'grid'")
         for prefix, size in (("critic", n), ("reference", n), ("process", n + m)):
             weights = getattr(config, f"{prefix}_weights")
             if len(weights) != size:
@@ -219,6 +258,19 @@ class RMAC(Agent):
         #: U_R without the state rows: the 2^m combinations of action extremes, (2^m, m), max first.
         self.vertices = np.array(list(itertools.product(
             *[(hi, lo) for lo, hi in zip(action_space.low, action_space.high)])), dtype=float)
+        #: The candidate actions of the reachable rule, (c, m): the vertices, or for 'grid' and
+        #: 'exact' the product of ``reachable_grid`` evenly spaced values per action dimension.
+        if config.reachable_rule in ("grid", "exact"):
+            self.candidates = np.array(list(itertools.product(*[
+                np.linspace(lo, hi, config.reachable_grid)
+                for lo, hi in zip(action_space.low, action_space.high)])), dtype=float)
+        else:
+            self.candidates = self.vertices.copy()
+        #: Golden-section steps of reachable_rule='exact': a bracket of two grid spacings shrinks
+        #: to EXACT_TOLERANCE.
+        span = 2.0 * float(np.max(action_space.high - action_space.low)) / (config.reachable_grid - 1)
+        self._refine_steps = (int(np.ceil(np.log(EXACT_TOLERANCE / span) / np.log(INV_PHI)))
+                              if config.reachable_rule == "exact" and span > EXACT_TOLERANCE else 0)
         self._k = 0
         # x_{k-1}, u_{k-1} and V_{k-1}, updated in place: the compiled step shares these arrays.
         self._x_prev = np.zeros(n)
@@ -243,7 +295,8 @@ class RMAC(Agent):
             self.action_space.low.copy(), self.action_space.high.copy(), float(cfg.gamma),
             float(cfg.lam), float(cfg.alpha_c), float(cfg.alpha_r), BETA_U_ZERO,
             cfg.inverse_query == "previous", cfg.critic_gradient_at == "next",
-            self._list_info[0], self._list_info[1])
+            self._list_info[0], self._list_info[1], _REACHABLE_RULES.index(cfg.reachable_rule),
+            float(cfg.action_cost), np.ascontiguousarray(self.candidates), self._refine_steps)
 
     def __getstate__(self) -> dict:
         # The structref is a view of arrays pickled here; it is made anew when unpickled.
@@ -355,16 +408,19 @@ class RMAC(Agent):
         # Line 16: the best reachable state. X_R = beta^P U_R, linearised at (x_{k-1}, u_{k-1}).
         pred, beta, _ = self.process.query(np.concatenate([x_prev, u_prev]))
         beta_u = beta[:, n:n + self.m]
-        reachable = pred + (self.vertices - u_prev) @ beta_u.T  # (2^m, n)
-        # The critic's local linear model, V(x) = V(x_c) + beta^C_x wrap(x - x_c).
         v_k, beta_c, _ = self.critic.query(x)
         v_k = float(v_k[0])
-        if cfg.critic_gradient_at == "next":
-            x_c, slope = x, beta_c[0, :n]
-        else:
-            x_c, slope = x_prev, self.critic.query(x_prev)[1][0, :n]
-        values = wrap(reachable - x_c, self.period) @ slope
-        x_r = self._canonical(reachable[int(np.argmax(values))])
+        if cfg.reachable_rule == "vertices":
+            reachable = pred + (self.vertices - u_prev) @ beta_u.T  # (2^m, n)
+            # The critic's local linear model, V(x) = V(x_c) + beta^C_x wrap(x - x_c).
+            if cfg.critic_gradient_at == "next":
+                x_c, slope = x, beta_c[0, :n]
+            else:
+                x_c, slope = x_prev, self.critic.query(x_prev)[1][0, :n]
+            values = wrap(reachable - x_c, self.period) @ slope
+            x_r = self._canonical(reachable[int(np.argmax(values))])
+        else:  # the other rules: r + gamma V(x') with the full critic (RMACConfig.reachable_rule)
+            x_r = self._best_reachable(pred, beta_u, u_prev)
         # Lines 17-20: insert [x_{k-1} | x_r] in M^R and move K(x_{k-1}) towards x_r.
         near = self.reference.neighbours(x_prev)
         self.reference.insert(x_prev, x_r, int(near[0]) if len(near) else None)
@@ -378,6 +434,45 @@ class RMAC(Agent):
         self.traces[slot] = 1.0
         self.critic.add_weighted(self.traces, [cfg.alpha_c * delta])  # line 27
         return v_k
+
+    def _reachable_score(self, u: np.ndarray, pred: np.ndarray, beta_u: np.ndarray,
+                         u_prev: np.ndarray) -> tuple[float, np.ndarray]:
+        """-P |u|^2 + gamma V(x'(u)) and x'(u) (canonical), x'(u) = pred + beta_u (u - u_{k-1})."""
+        x_next = self._canonical(pred + beta_u @ (u - u_prev))
+        value = float(self.critic.query(x_next)[0][0])
+        return -self.config.action_cost * float(u @ u) + self.config.gamma * value, x_next
+
+    def _best_reachable(self, pred: np.ndarray, beta_u: np.ndarray,
+                        u_prev: np.ndarray) -> np.ndarray:
+        """x_r for the reachable rules other than 'vertices' (see ``RMACConfig.reachable_rule``):
+        the candidate action with the highest -P |u|^2 + gamma V(x'(u)) under the full LLR critic
+        (first of equals), refined for 'exact' by golden-section search between the best grid
+        point's neighbours; returns its predicted next state."""
+        best_score, x_r, u_best = -np.inf, None, None
+        for u in self.candidates:
+            score, x_next = self._reachable_score(u, pred, beta_u, u_prev)
+            if score > best_score:
+                best_score, x_r, u_best = score, x_next, u
+        if self._refine_steps:
+            low, high = float(self.action_space.low[0]), float(self.action_space.high[0])
+            h = (high - low) / (self.config.reachable_grid - 1)
+            a, b = max(low, float(u_best[0]) - h), min(high, float(u_best[0]) + h)
+            f = lambda v: self._reachable_score(np.array([v]), pred, beta_u, u_prev)  # noqa: E731
+            c, d = b - INV_PHI * (b - a), a + INV_PHI * (b - a)
+            (fc, xc), (fd, xd) = f(c), f(d)
+            for _ in range(self._refine_steps):
+                if fc >= fd:  # the maximum lies in [a, d]
+                    b, d, fd, xd = d, c, fc, xc
+                    c = b - INV_PHI * (b - a)
+                    fc, xc = f(c)
+                else:         # in [c, b]
+                    a, c, fc, xc = c, d, fd, xd
+                    d = a + INV_PHI * (b - a)
+                    fd, xd = f(d)
+            score, x_next = (fc, xc) if fc >= fd else (fd, xd)
+            if score > best_score:
+                x_r = x_next
+        return x_r
 
     def begin_greedy_trial(self) -> None:
         """A greedy trial starts, like a learning one, from u_{-1} = 0."""
