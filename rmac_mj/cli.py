@@ -2,6 +2,8 @@
 
     rmac-mj reproduce [--experiments 40] [--trials 600] [--algorithms rmac,s-ac] [--seed 0]
                       [--jobs N] [--out DIR] [--resume] [--evaluate-every N] [--scheduler ADDRESS]
+                      [--config FILE.toml]
+    rmac-mj sweep SWEEP.toml --out DIR [--jobs N | --scheduler ADDRESS] [--resume]
     rmac-mj compare DIR [DIR ...] [--out STEM]
     rmac-mj policy SNAPSHOT [--out STEM]
     rmac-mj optimal [--refresh]
@@ -104,6 +106,24 @@ def _parser() -> argparse.ArgumentParser:
     reproduce.add_argument("--no-optimal", action="store_true",
                            help="skip the near-optimal reference (dynamic programming)")
     reproduce.add_argument("--no-progress", action="store_true", help="no progress bars")
+    reproduce.add_argument("--config", type=pathlib.Path, default=None, metavar="FILE.toml",
+                           help="protocol and hyperparameters from a sweep-style file with single "
+                                "values (docs/studies/README.md); options given here override it")
+    parser.reproduce_parser = reproduce  # main() re-reads reproduce's defaults from --config
+
+    sweep = commands.add_parser("sweep", help="run every configuration of a sweep file")
+    sweep.add_argument("file", type=pathlib.Path, metavar="SWEEP.toml",
+                       help="[protocol], [grid] and [[variant]] tables (docs/studies/README.md)")
+    sweep.add_argument("--out", type=pathlib.Path, required=True,
+                       help="directory of the sweep: one result directory per configuration")
+    sweep.add_argument("--jobs", type=_positive_int, default=None,
+                       help="worker processes shared by all configurations (default: all cores)")
+    sweep.add_argument("--scheduler", default=None,
+                       help="Dask scheduler address (tcp://host:8786) to run experiments on")
+    sweep.add_argument("--resume", action="store_true", help="finish an interrupted sweep in --out")
+    sweep.add_argument("--no-optimal", action="store_true",
+                       help="skip the near-optimal reference and exploration floor")
+    sweep.add_argument("--no-progress", action="store_true", help="no progress bar")
 
     compare = commands.add_parser("compare", help="overlay the learning curves of result dirs")
     compare.add_argument("dirs", nargs="+", type=pathlib.Path)
@@ -147,6 +167,20 @@ def _optimal_for(protocol) -> float | None:
     return float(optimal.optimal_return().simulated_return)
 
 
+def _exploration_floor_for(protocol, algorithm: str) -> float | None:
+    """The exploration floor of ``algorithm``'s exploration on the paper's swing-up, else None."""
+    if (protocol.domain, protocol.task, protocol.task_kwargs) != ("dc_pendulum", "swingup", {}):
+        return None
+    from rmac_mj.agents import config_class, config_from_dict
+    from rmac_mj.experiments import optimal
+    config = config_from_dict(config_class(algorithm), protocol.agent_configs.get(algorithm, {}))
+    exploration = getattr(config, "exploration", None)
+    if exploration is None:
+        return None
+    return float(optimal.exploration_floor(exploration.sigma, exploration.period,
+                                           exploration.phase).mean)
+
+
 def parse_overrides(assignments: Sequence[str]) -> dict[str, dict]:
     """``["rmac.exploration.sigma=0.5", ...]`` -> ``{"rmac": {"exploration": {"sigma": 0.5}}}``."""
     overrides: dict[str, dict] = {}
@@ -166,23 +200,66 @@ def parse_overrides(assignments: Sequence[str]) -> dict[str, dict]:
     return overrides
 
 
-def _reproduce(args) -> int:
-    from rmac_mj.experiments import runner
+def _with_config(parser: argparse.ArgumentParser, argv: Sequence[str] | None, path: pathlib.Path):
+    """Parse ``argv`` again with the --config file's values as reproduce's defaults: the file gives
+    the protocol, options on the command line override it, and --set is applied on top of its
+    hyperparameters. File options reproduce has no flag for travel in ``args.config_protocol``."""
+    from rmac_mj.experiments import sweep
 
+    config = sweep.load_configuration(path)
+    reproduce = parser.reproduce_parser
+    flags = {action.dest for action in reproduce._actions}
+    defaults, extra = {}, {}
+    for key, value in config.options.items():
+        if key in flags:
+            defaults[key] = ",".join(value) if key == "algorithms" else value
+        else:
+            extra[key] = value
+    reproduce.set_defaults(**defaults, config_protocol=extra, config_agent_configs=config.agent_configs)
+    return parser.parse_args(argv)
+
+
+def _reproduce(args) -> int:
+    from rmac_mj.experiments import runner, sweep
+
+    agent_configs = sweep.merge(getattr(args, "config_agent_configs", {}), parse_overrides(args.set))
     with _user_input():
         protocol = runner.Protocol(
             algorithms=tuple(a.strip() for a in args.algorithms.split(",") if a),
             experiments=args.experiments, trials=args.trials, seed=args.seed,
-            evaluate_every=args.evaluate_every, agent_configs=parse_overrides(args.set))
+            evaluate_every=args.evaluate_every, agent_configs=agent_configs,
+            **getattr(args, "config_protocol", {}))
     out = _writable_dir(args.out)
     if args.jobs is not None and args.scheduler:
         raise UsageError("--jobs and --scheduler exclude each other")
     summary = runner.run_protocol(protocol, out, jobs=args.jobs, resume=args.resume,
                                   scheduler=args.scheduler, progress=not args.no_progress,
-                                  optimal=None if args.no_optimal else _optimal_for)
+                                  optimal=None if args.no_optimal else _optimal_for,
+                                  floor=None if args.no_optimal else _exploration_floor_for)
     print(runner.summary_table(summary, protocol.algorithms))
     print(f"wall time {summary['wall_time_s']:.1f} s; results in {out}/ "
           f"(summary.json, returns.csv, fig2_learning_curves.png)")
+    return 0
+
+
+def _sweep(args) -> int:
+    from rmac_mj.experiments import sweep
+
+    plan = sweep.load_sweep(args.file)  # the whole file is validated before anything runs
+    if args.jobs is not None and args.scheduler:
+        raise UsageError("--jobs and --scheduler exclude each other")
+    out = _writable_dir(args.out)
+    runs = len(plan.configurations)
+    experiments = sum(c.protocol.experiments * len(c.protocol.algorithms) for c in plan.configurations)
+    print(f"{args.file}: {runs} configuration{'s' * (runs != 1)}, {experiments} experiments, into {out}/",
+          flush=True)
+    rows = sweep.run_sweep(plan, out, jobs=args.jobs, scheduler=args.scheduler, resume=args.resume,
+                           progress=not args.no_progress,
+                           optimal=None if args.no_optimal else _optimal_for,
+                           floor=None if args.no_optimal else _exploration_floor_for)
+    print(sweep.format_table(plan, rows))
+    print(f"results in {out}/ (sweep.csv, sweep_<metric>.png, sweep.json, one directory per "
+          "configuration)")
     return 0
 
 
@@ -197,7 +274,9 @@ def _compare(args) -> int:
         with _user_input(f"{path}: "):
             summaries[directory.name or str(directory)] = json.loads(path.read_text())
     optimal = next((s["optimal_return"] for s in summaries.values() if s.get("optimal_return")), None)
-    paths = plots.plot_learning_curves(summaries, args.out, optimal_return=optimal)
+    floors = {s.get("exploration_floor") for s in summaries.values()}
+    paths = plots.plot_learning_curves(summaries, args.out, optimal_return=optimal,
+                                       exploration_floor=floors.pop() if len(floors) == 1 else None)
     for label, summary in summaries.items():
         print(f"== {label}")
         print(runner.summary_table(summary))
@@ -222,6 +301,7 @@ def _optimal(args) -> int:
 
     result = optimal.optimal_return(refresh=args.refresh)
     print(result.describe())
+    print(optimal.exploration_floor(refresh=args.refresh).describe())
     return 0
 
 
@@ -257,7 +337,7 @@ def _bench(args) -> int:
     return 0
 
 
-_COMMANDS = {"reproduce": _reproduce, "compare": _compare, "policy": _policy, "optimal": _optimal,
+_COMMANDS = {"reproduce": _reproduce, "sweep": _sweep, "compare": _compare, "policy": _policy, "optimal": _optimal,
              "render": _render, "bench": _bench}
 
 
@@ -266,10 +346,13 @@ def _interrupt(signum, frame):
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
+    parser = _parser()
+    args = parser.parse_args(argv)
     prog = "rmac-mj"
     signal.signal(signal.SIGTERM, _interrupt)  # a polite kill cleans up like Ctrl-C
     try:
+        if getattr(args, "config", None) is not None:
+            args = _with_config(parser, argv, args.config)
         return _COMMANDS[args.command](args)
     except KeyboardInterrupt:
         print(f"\n{prog}: interrupted; finished experiments are saved, run again with --resume",

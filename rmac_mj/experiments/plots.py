@@ -36,7 +36,8 @@ def _save(fig, stem: str | os.PathLike, formats=("png", "pdf")) -> list[pathlib.
 
 def plot_learning_curves(summaries: dict[str, dict[str, Any]], stem: str | os.PathLike,
                          optimal_return: float | None = None,
-                         detail_ylim: tuple[float, float] | None = None) -> list[pathlib.Path]:
+                         detail_ylim: tuple[float, float] | None = None,
+                         exploration_floor: float | None = None) -> list[pathlib.Path]:
     """Fig. 2: sum of rewards per trial against simulated minutes, mean and 95% confidence band.
 
     Two panels: the whole range (the paper's view, with S-AC's early dip) and a detail of the levels
@@ -47,6 +48,8 @@ def plot_learning_curves(summaries: dict[str, dict[str, Any]], stem: str | os.Pa
         With one summary the legend names only the learners; with several, "label: learner".
       stem: output path without suffix; a .png and a .pdf are written.
       optimal_return: drawn as a horizontal line (the near-optimal reference).
+      exploration_floor: drawn as a second line: the near-optimal policy's return while exploring
+        as the learners do, the level an exploring learning curve is judged against.
       detail_ylim: y range of the detail panel; default from the final levels and the optimum.
     """
     fig, axes = plt.subplots(1, 2, figsize=(13, 4.6), constrained_layout=True)
@@ -80,6 +83,9 @@ def plot_learning_curves(summaries: dict[str, dict[str, Any]], stem: str | os.Pa
         if optimal_return is not None:
             ax.axhline(optimal_return, color="black", linewidth=1.0, linestyle="-.",
                        label=f"near-optimal ({optimal_return:.0f})")
+        if exploration_floor is not None:
+            ax.axhline(exploration_floor, color="grey", linewidth=1.0, linestyle=":",
+                       label=f"near-optimal, exploring ({exploration_floor:.0f})")
         ax.set_xlabel("time [min] (simulated; one trial = 3 s)")
         ax.set_ylabel("sum of rewards per trial")
         ax.grid(alpha=0.3)
@@ -87,7 +93,7 @@ def plot_learning_curves(summaries: dict[str, dict[str, Any]], stem: str | os.Pa
     axes[0].legend(loc="lower right", fontsize="small")
     if detail_ylim is None:
         top = max(finals + ([optimal_return] if optimal_return is not None else []))
-        bottom = min(finals)
+        bottom = min(finals + ([exploration_floor] if exploration_floor is not None else []))
         margin = max(25.0, 0.1 * (top - bottom))
         detail_ylim = (bottom - (top - bottom) - margin, top + margin)
     axes[1].set_ylim(*detail_ylim)

@@ -242,10 +242,10 @@ def _ignore_interrupts() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
-def _local_outcomes(specs: list[ExperimentSpec], jobs: int) -> Iterator[dict[str, Any]]:
+def _local_outcomes(specs: list, jobs: int, run: Callable = run_experiment) -> Iterator:
     if jobs == 1 or len(specs) <= 1:
         for spec in specs:
-            yield run_experiment(spec)
+            yield run(spec)
         return
     # "spawn": workers start clean (no inherited GL contexts or numba state); the numba cache makes
     # their start-up cheap. On an interrupt the driver terminates the workers: only the experiments
@@ -253,20 +253,20 @@ def _local_outcomes(specs: list[ExperimentSpec], jobs: int) -> Iterator[dict[str
     context = multiprocessing.get_context("spawn")
     pool = context.Pool(processes=min(jobs, len(specs)), initializer=_ignore_interrupts)
     try:
-        yield from pool.imap_unordered(run_experiment, specs, chunksize=1)
+        yield from pool.imap_unordered(run, specs, chunksize=1)
         pool.close()
     finally:
         pool.terminate()
         pool.join()
 
 
-def _dask_outcomes(specs: list[ExperimentSpec], scheduler: str) -> Iterator[dict[str, Any]]:
+def _dask_outcomes(specs: list, scheduler: str, run: Callable = run_experiment) -> Iterator:
     try:
         from distributed import Client, as_completed
     except ImportError as error:  # pragma: no cover - depends on the optional extra
         raise RuntimeError("--scheduler needs Dask: pip install 'rmac-mj[distributed]'") from error
     with Client(scheduler) as client:
-        futures = [client.submit(run_experiment, spec, pure=False) for spec in specs]
+        futures = [client.submit(run, spec, pure=False) for spec in specs]
         try:
             for future in as_completed(futures):
                 yield future.result()
@@ -312,13 +312,16 @@ class _Progress:
 def run_protocol(protocol: Protocol, out: str | os.PathLike, jobs: int | None = None,
                  resume: bool = False, scheduler: str | None = None, progress: bool = True,
                  optimal: Callable[[Protocol], float | None] | None = None,
-                 figures: bool = True) -> dict[str, Any]:
+                 figures: bool = True,
+                 floor: Callable[[Protocol, str], float | None] | None = None) -> dict[str, Any]:
     """Run (or finish, with ``resume``) ``protocol`` into ``out``; return the summary document.
 
     Args:
       jobs: local worker processes (default: the machine's cores); ignored with ``scheduler``.
       scheduler: address of a Dask distributed scheduler to run the experiments on instead.
       optimal: returns the near-optimal return for the summary and Fig. 2, or None.
+      floor: returns a learner's exploration floor (the near-optimal policy's return under that
+        learner's exploration) for the summary and Fig. 2, or None.
     """
     out = pathlib.Path(out)
     jobs = (os.cpu_count() or 1) if jobs is None else jobs
@@ -338,16 +341,78 @@ def run_protocol(protocol: Protocol, out: str | os.PathLike, jobs: int | None = 
     finally:
         bars.close()
     wall = time.perf_counter() - started
-    return finalise(out, protocol, wall_time_s=wall, optimal=optimal, figures=figures)
+    return finalise(out, protocol, wall_time_s=wall, optimal=optimal, figures=figures, floor=floor)
+
+
+def run_tagged(item: tuple[Any, ExperimentSpec]) -> tuple[Any, dict[str, Any]]:
+    """``(tag, run_experiment(spec))`` for ``item = (tag, spec)``: lets one pool serve several runs."""
+    tag, spec = item
+    return tag, run_experiment(spec)
+
+
+def run_protocols(runs: Iterable[tuple[Protocol, str | os.PathLike]], jobs: int | None = None,
+                  resume: bool = False, scheduler: str | None = None, progress: bool = True,
+                  optimal: Callable[[Protocol], float | None] | None = None,
+                  floor: Callable[[Protocol, str], float | None] | None = None,
+                  figures: bool = True) -> list[dict[str, Any]]:
+    """Run several ``(protocol, out)`` pairs through ONE worker pool (or one Dask cluster).
+
+    Each ``out`` becomes exactly what :func:`run_protocol` writes (config.json, curves, snapshots,
+    summary.json, returns.csv, Fig. 2) and is resumable the same way; all pending experiments of all
+    runs are queued together, and a run is summarised as soon as its last experiment is saved. The
+    arguments mean what they mean for :func:`run_protocol`. Returns each run's summary, in order.
+    """
+    runs = [(protocol, pathlib.Path(out)) for protocol, out in runs]
+    jobs = (os.cpu_count() or 1) if jobs is None else jobs
+    if jobs < 1:
+        raise ValueError(f"jobs must be a positive integer, got {jobs!r}")
+    for protocol, out in runs:
+        _prepare(out, protocol, resume)
+    pending = [(k, spec) for k, (protocol, out) in enumerate(runs) for spec in _pending(out, protocol)]
+    left = {k: 0 for k in range(len(runs))}
+    for k, _ in pending:
+        left[k] += 1
+    total = sum(p.experiments * len(p.algorithms) for p, _ in runs)
+    bar = None
+    if progress and pending:
+        from tqdm.auto import tqdm
+        bar = tqdm(total=total, initial=total - len(pending), unit="experiment", dynamic_ncols=True,
+                   desc=f"{len(runs)} runs")
+    summaries: list[dict[str, Any] | None] = [None] * len(runs)
+    outcomes = (_dask_outcomes(pending, scheduler, run_tagged) if scheduler
+                else _local_outcomes(pending, jobs, run_tagged))
+    try:
+        with contextlib.closing(outcomes):  # on an interrupt, stop the workers at once
+            for k, outcome in outcomes:
+                protocol, out = runs[k]
+                save_outcome(out, outcome)
+                left[k] -= 1
+                if bar is not None:
+                    bar.update(1)
+                    bar.set_postfix_str(f"{sum(n == 0 for n in left.values())}/{len(runs)} runs done")
+                if left[k] == 0:
+                    summaries[k] = finalise(out, protocol, optimal=optimal, figures=figures,
+                                            floor=floor)
+    finally:
+        if bar is not None:
+            bar.close()
+    return [summary if summary is not None else
+            finalise(out, protocol, optimal=optimal, figures=figures, floor=floor)
+            for summary, (protocol, out) in zip(summaries, runs)]
 
 
 def finalise(out: pathlib.Path, protocol: Protocol, wall_time_s: float | None = None,
              optimal: Callable[[Protocol], float | None] | None = None,
-             figures: bool = True) -> dict[str, Any]:
+             figures: bool = True,
+             floor: Callable[[Protocol, str], float | None] | None = None) -> dict[str, Any]:
     """Summarise the finished curves in ``out``: summary.json, returns.csv and Fig. 2."""
     optimal_return = optimal(protocol) if optimal is not None else None
+    floors = {a: floor(protocol, a) for a in protocol.algorithms} if floor is not None else {}
+    shared_floor = set(floors.values())  # one line in Fig. 2 when every learner explores alike
     summary: dict[str, Any] = {"paper_protocol": protocol.is_paper_protocol,
                                "optimal_return": optimal_return,
+                               "exploration_floor": shared_floor.pop() if len(shared_floor) == 1
+                               else None,
                                "trial_seconds": results.TRIAL_SECONDS,
                                "protocol": protocol.as_dict()}
     rows = []
@@ -355,6 +420,7 @@ def finalise(out: pathlib.Path, protocol: Protocol, wall_time_s: float | None = 
         returns, greedy, greedy_trials, wall = load_curves(out, protocol, algorithm)
         summary[algorithm] = results.summarise(returns, greedy, greedy_trials, optimal_return)
         summary[algorithm]["experiment_wall_s_mean"] = float(wall.mean())
+        summary[algorithm]["exploration_floor"] = floors.get(algorithm)
         rows.extend((algorithm, i, t + 1, float(r)) for i, curve in enumerate(returns)
                     for t, r in enumerate(curve))
     if wall_time_s is not None:
@@ -373,7 +439,8 @@ def finalise(out: pathlib.Path, protocol: Protocol, wall_time_s: float | None = 
     if figures:
         from rmac_mj.experiments import plots
         plots.plot_learning_curves({out.name or str(out): summary}, out / "fig2_learning_curves",
-                                   optimal_return=optimal_return)
+                                   optimal_return=optimal_return,
+                                   exploration_floor=summary["exploration_floor"])
     return summary
 
 
