@@ -14,7 +14,7 @@ import pytest
 
 from rmac_mj import cli
 from rmac_mj.errors import UserInputError
-from rmac_mj.experiments import runner, sweep
+from rmac_mj.experiments import sweep
 
 TINY = """
 [protocol]
