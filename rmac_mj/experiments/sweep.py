@@ -717,7 +717,8 @@ def plot_sweep(sweep: Sweep, rows: list[dict], out: pathlib.Path) -> list[pathli
     """``out/sweep_<metric>.png``: each metric against each swept parameter, one panel per parameter.
 
     In a parameter's panel each line joins the configurations that share every other swept value
-    (and the learner); error bars are 95% confidence intervals where the metric has one.
+    (and the learner), drawn slightly apart; error bars are 95% confidence intervals where the
+    metric has one.
     """
     import matplotlib
 
@@ -746,9 +747,15 @@ def plot_sweep(sweep: Sweep, rows: list[dict], out: pathlib.Path) -> list[pathli
                                  else []))
                 x = positions[[json.dumps(c) for c in choices].index(json.dumps(row.get(parameter)))]
                 series.setdefault(key, []).append((x, row))
-            for key, points in series.items():
+            logarithmic = ticks is None and all(p > 0 for p in positions) and \
+                max(positions) >= 10 * min(positions)
+            span = (np.log10(max(positions) / min(positions)) if logarithmic
+                    else max(positions) - min(positions)) or 1.0
+            for number, (key, points) in enumerate(series.items()):
                 points.sort(key=lambda p: p[0])
-                xs = [x for x, _ in points]
+                # Lines side by side, a little apart, so that their error bars do not hide each other.
+                dodge = 0.012 * span * (number - (len(series) - 1) / 2)
+                xs = [x * 10 ** dodge if logarithmic else x + dodge for x, _ in points]
                 ys = [np.nan if r.get(column) is None else r[column] for _, r in points]
                 if low_column is not None:
                     low = [np.nan if r.get(low_column) is None else r[low_column] for _, r in points]
@@ -761,8 +768,9 @@ def plot_sweep(sweep: Sweep, rows: list[dict], out: pathlib.Path) -> list[pathli
                     ax.plot(xs, ys, marker="o", linewidth=1.2, label=key or None)
             if ticks is not None:
                 ax.set_xticks(positions, ticks, rotation=30 if max(map(len, ticks)) > 6 else 0)
-            elif all(p > 0 for p in positions) and max(positions) >= 10 * min(positions):
+            elif logarithmic:
                 ax.set_xscale("log")
+                ax.set_xticks(positions, [_label(c) for c in choices])
             ax.set_xlabel(parameter)
             ax.set_ylabel(label)
             ax.grid(alpha=0.3)
