@@ -4,6 +4,8 @@
                       [--algorithms rmac,s-ac] [--seed 0] [--jobs N] [--out DIR] [--resume]
                       [--evaluate-every N] [--scheduler ADDRESS]
                       [--prior demo|FILE.npz] [--prior-trials N] [--prior-parts process,...]
+                      [--config FILE.toml]
+    rmac-mj sweep SWEEP.toml --out DIR [--jobs N | --scheduler ADDRESS] [--resume]
     rmac-mj compare DIR [DIR ...] [--out STEM]
     rmac-mj policy SNAPSHOT [SNAPSHOT] [--out STEM] [--dims 0,1] [--xlim LO,HI] [--ylim LO,HI]
     rmac-mj optimal [--domain D --task T] [--refresh]
@@ -157,8 +159,8 @@ def _parser() -> argparse.ArgumentParser:
                            metavar="N", help="consecutive trials per experiment (default: 600, the "
                                              "paper's, of 3 s)")
     reproduce.add_argument("--algorithms", default=None, metavar="ALGO[,ALGO]",
-                           help=f"comma-separated learners, from {', '.join(ALGORITHMS)} (default: the "
-                                "paper's rmac,s-ac; with --set, only the learners --set names)")
+                           help=f"comma-separated learners, from {', '.join(ALGORITHMS)} (default: "
+                                "rmac,s-ac, the paper's; with --set, only the learners --set names)")
     reproduce.add_argument("--seed", type=_non_negative_int, default=0, help="root random seed")
     reproduce.add_argument("--jobs", type=_positive_int, default=None, metavar="N",
                            help="worker processes (default: all cores)")
@@ -191,6 +193,24 @@ def _parser() -> argparse.ArgumentParser:
                                 "minute the first time, then cached)")
     reproduce.add_argument("--no-progress", action="store_true",
                            help="no progress display (bars on a terminal, periodic lines otherwise)")
+    reproduce.add_argument("--config", type=pathlib.Path, default=None, metavar="FILE.toml",
+                           help="protocol and hyperparameters from a sweep-style file with single "
+                                "values (docs/studies/README.md); options given here override it")
+    parser.reproduce_parser = reproduce  # main() re-reads reproduce's defaults from --config
+
+    sweep = commands.add_parser("sweep", help="run every configuration of a sweep file")
+    sweep.add_argument("file", type=pathlib.Path, metavar="SWEEP.toml",
+                       help="[protocol], [grid] and [[variant]] tables (docs/studies/README.md)")
+    sweep.add_argument("--out", type=pathlib.Path, required=True,
+                       help="directory of the sweep: one result directory per configuration")
+    sweep.add_argument("--jobs", type=_positive_int, default=None,
+                       help="worker processes shared by all configurations (default: all cores)")
+    sweep.add_argument("--scheduler", default=None,
+                       help="Dask scheduler address (tcp://host:8786) to run experiments on")
+    sweep.add_argument("--resume", action="store_true", help="finish an interrupted sweep in --out")
+    sweep.add_argument("--no-optimal", action="store_true",
+                       help="skip the near-optimal reference and exploration floor")
+    sweep.add_argument("--no-progress", action="store_true", help="no progress bar")
 
     compare = command("compare", "overlay the learning curves of result directories and tabulate them")
     compare.add_argument("dirs", nargs="+", type=pathlib.Path, metavar="DIR",
@@ -266,6 +286,20 @@ def _optimal_for(protocol) -> float | None:
     return reference.reference_return(protocol.domain, protocol.task, announce=_say)
 
 
+def _exploration_floor_for(protocol, algorithm: str) -> float | None:
+    """The exploration floor of ``algorithm``'s exploration on the paper's swing-up, else None."""
+    if (protocol.domain, protocol.task, protocol.task_kwargs) != ("dc_pendulum", "swingup", {}):
+        return None
+    from rmac_mj.agents import config_class, config_from_dict
+    from rmac_mj.experiments import optimal
+    config = config_from_dict(config_class(algorithm), protocol.agent_configs.get(algorithm, {}))
+    exploration = getattr(config, "exploration", None)
+    if exploration is None:
+        return None
+    return float(optimal.exploration_floor(exploration.sigma, exploration.period,
+                                           exploration.phase).mean)
+
+
 def parse_overrides(assignments: Sequence[str]) -> dict[str, dict]:
     """``["rmac.exploration.sigma=0.5", ...]`` -> ``{"rmac": {"exploration": {"sigma": 0.5}}}``."""
     overrides: dict[str, dict] = {}
@@ -286,25 +320,43 @@ def parse_overrides(assignments: Sequence[str]) -> dict[str, dict]:
 
 
 def _algorithms(args, overrides: dict[str, dict]) -> tuple[str, ...]:
-    """--algorithms if given; else the learners --set names (an ablation reruns only them); else the
-    paper's two."""
-    from rmac_mj.agents import ALGORITHMS
+    """--algorithms if given (by --config too); else the learners --set names (an ablation reruns only
+    them); else the paper's learners (``Protocol``'s default)."""
+    from rmac_mj.experiments.runner import Protocol
 
     if args.algorithms is not None:
         return tuple(a.strip() for a in args.algorithms.split(",") if a.strip())
     if overrides:
         chosen = tuple(overrides)
-        others = [a for a in ALGORITHMS if a not in chosen]
+        others = [a for a in Protocol().algorithms if a not in chosen]
         if others:
             _say(f"--set names only {', '.join(chosen)}: running {'it' if len(chosen) == 1 else 'them'} "
                  f"alone (give --algorithms to run {', '.join(others)} too)")
         return chosen
-    from rmac_mj.experiments.runner import Protocol
     return Protocol().algorithms  # the paper's comparison: RMAC and S-AC
 
 
+def _with_config(parser: argparse.ArgumentParser, argv: Sequence[str] | None, path: pathlib.Path):
+    """Parse ``argv`` again with the --config file's values as reproduce's defaults: the file gives
+    the protocol, options on the command line override it, and --set is applied on top of its
+    hyperparameters. File options reproduce has no flag for travel in ``args.config_protocol``."""
+    from rmac_mj.experiments import sweep
+
+    config = sweep.load_configuration(path)
+    reproduce = parser.reproduce_parser
+    flags = {action.dest for action in reproduce._actions}
+    defaults, extra = {}, {}
+    for key, value in config.options.items():
+        if key in flags:
+            defaults[key] = ",".join(value) if key == "algorithms" else value
+        else:
+            extra[key] = value
+    reproduce.set_defaults(**defaults, config_protocol=extra, config_agent_configs=config.agent_configs)
+    return parser.parse_args(argv)
+
+
 def _reproduce(args) -> int:
-    from rmac_mj.experiments import runner
+    from rmac_mj.experiments import runner, sweep
 
     if args.prior is None and (args.prior_trials is not None or args.prior_parts is not None):
         raise UsageError("--prior-trials and --prior-parts need --prior")
@@ -320,12 +372,13 @@ def _reproduce(args) -> int:
             if not prior["prior_parts"]:
                 raise UsageError("--prior-parts must name at least one part")
     overrides = parse_overrides(args.set)
+    agent_configs = sweep.merge(getattr(args, "config_agent_configs", {}), overrides)
     with _user_input():
         protocol = runner.Protocol(
             domain=args.domain, task=args.task,
             algorithms=_algorithms(args, overrides), experiments=args.experiments,
             trials=args.trials, seed=args.seed, evaluate_every=args.evaluate_every,
-            agent_configs=overrides, **prior)
+            agent_configs=agent_configs, **{**getattr(args, "config_protocol", {}), **prior})
     out = _writable_dir(args.out)
     if args.jobs is not None and args.scheduler:
         raise UsageError("--jobs and --scheduler exclude each other")
@@ -333,6 +386,7 @@ def _reproduce(args) -> int:
         summary = runner.run_protocol(protocol, out, jobs=args.jobs, resume=args.resume,
                                       scheduler=args.scheduler, progress=not args.no_progress,
                                       optimal=None if args.no_optimal else _optimal_for,
+                                      floor=None if args.no_optimal else _exploration_floor_for,
                                       smooth=args.smooth, log=_say, started=_STARTED)
     except KeyboardInterrupt:
         saved = runner.finished_experiments(out, protocol)
@@ -380,6 +434,29 @@ def _settings_line(summary: dict) -> str:
     text = (f"{protocol.get('experiments', '?')} experiments of {protocol.get('trials', '?')} trials, "
             f"seed {protocol.get('seed', '?')}")
     return text + ("; --set " + " ".join(overrides) if overrides else "; default hyperparameters")
+def _sweep(args) -> int:
+    from rmac_mj.experiments import sweep
+
+    plan = sweep.load_sweep(args.file)  # the whole file is validated before anything runs
+    if args.jobs is not None and args.scheduler:
+        raise UsageError("--jobs and --scheduler exclude each other")
+    out = _writable_dir(args.out)
+    runs = len(plan.configurations)
+    experiments = sum(c.protocol.experiments * len(c.protocol.algorithms) for c in plan.configurations)
+    print(f"{args.file}: {runs} configuration{'s' * (runs != 1)}, {experiments} experiments, into {out}/",
+          flush=True)
+    try:
+        rows = sweep.run_sweep(plan, out, jobs=args.jobs, scheduler=args.scheduler, resume=args.resume,
+                               progress=not args.no_progress,
+                               optimal=None if args.no_optimal else _optimal_for,
+                               floor=None if args.no_optimal else _exploration_floor_for,
+                               log=_say, started=_STARTED)
+    except KeyboardInterrupt:
+        raise _Interrupted(f"finished experiments are saved in {out}, run again with --resume") from None
+    print(sweep.format_table(plan, rows))
+    print(f"results in {out}/ (sweep.csv, sweep_<metric>.png, sweep.json, one directory per "
+          "configuration)")
+    return 0
 
 
 def _compare(args) -> int:
@@ -401,7 +478,9 @@ def _compare(args) -> int:
         if "trial_seconds" not in summaries[label]:
             raise UsageError(f"{path} has no trial_seconds (the task's trial length)")
     optimal = next((s["optimal_return"] for s in summaries.values() if s.get("optimal_return")), None)
-    paths = plots.plot_learning_curves(summaries, args.out, optimal_return=optimal, smooth=args.smooth)
+    floors = {s.get("exploration_floor") for s in summaries.values()}
+    paths = plots.plot_learning_curves(summaries, args.out, optimal_return=optimal, smooth=args.smooth,
+                                       exploration_floor=floors.pop() if len(floors) == 1 else None)
     for label, summary in summaries.items():
         print(f"== {label}: {_settings_line(summary)}")
         print(runner.summary_table(summary))
@@ -459,6 +538,9 @@ def _optimal(args) -> int:
             reference.reference(args.domain, args.task)  # raises, naming the tasks that have one
     result = reference.reference(args.domain, args.task, refresh=args.refresh, announce=_say)
     print(result.describe())
+    if (args.domain, args.task) == ("dc_pendulum", "swingup"):  # the floor is of the pendulum's DP
+        from rmac_mj.experiments import optimal
+        print(optimal.exploration_floor(refresh=args.refresh).describe())
     return 0
 
 
@@ -499,14 +581,14 @@ def _bench(args) -> int:
     return 0
 
 
-_COMMANDS = {"reproduce": _reproduce, "compare": _compare, "policy": _policy, "optimal": _optimal,
-             "render": _render, "bench": _bench}
+_COMMANDS = {"reproduce": _reproduce, "sweep": _sweep, "compare": _compare, "policy": _policy,
+             "optimal": _optimal, "render": _render, "bench": _bench}
 
 
 def _announcing_compilation(command: str):
     """Say so when a command starts compiling kernels (the first time only: tens of seconds).
-    ``reproduce`` says it itself, as it compiles them before starting its workers."""
-    if command in ("reproduce", "compare", "optimal"):  # these compile nothing, or say it themselves
+    ``reproduce`` and ``sweep`` say it themselves, as they compile them before starting their workers."""
+    if command in ("reproduce", "sweep", "compare", "optimal"):  # these compile nothing, or say it themselves
         return contextlib.nullcontext()
     from rmac_mj import _cache
 
@@ -527,6 +609,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     signal.signal(signal.SIGTERM, _interrupt)  # a polite kill cleans up like Ctrl-C
     try:
+        if getattr(args, "config", None) is not None:
+            args = _with_config(parser, argv, args.config)
         with _announcing_compilation(args.command):
             return _COMMANDS[args.command](args)
     except KeyboardInterrupt as interrupt:

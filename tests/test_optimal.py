@@ -159,3 +159,35 @@ def test_control_timestep_must_be_a_whole_number_of_physics_steps():
 def test_non_int_grid_size_raises_type_error():
     with pytest.raises(TypeError, match="n_phi"):
         OptimalConfig(n_phi=100.0)
+
+
+_SMALL = OptimalConfig(n_phi=61, n_phi_dot=41, n_actions=5, lookahead_actions=9, horizon=40,
+                       check_convergence=False)
+
+
+def test_noisy_rollouts_without_noise_are_the_greedy_rollout():
+    model = optimal._load_model(optimal.model_path("dc_pendulum").read_text())
+    values = optimal.solve_values(_SMALL, model)
+    _, _, rewards = optimal.greedy_rollout(_SMALL, model, values)
+    quiet = optimal.noisy_rollouts(_SMALL, model, values, 0.0, 3, 0, 3, np.random.default_rng(0))
+    np.testing.assert_allclose(quiet, np.sum(rewards), rtol=0, atol=1e-9)
+    noisy = optimal.noisy_rollouts(_SMALL, model, values, 1.0, 3, 0, 20, np.random.default_rng(0))
+    # Noise on a third of the steps makes every trial differ and costs reward on average.
+    assert len(set(noisy.round(6))) == 20 and noisy.mean() < np.sum(rewards)
+    every_step = optimal.noisy_rollouts(_SMALL, model, values, 1.0, 1, 0, 20, np.random.default_rng(0))
+    assert every_step.mean() < noisy.mean()
+
+
+def test_exploration_floor_is_cached_per_schedule(tmp_path):
+    first = optimal.exploration_floor(sigma=1.0, period=3, rollouts=8, config=_SMALL, cache_dir=tmp_path)
+    again = optimal.exploration_floor(sigma=1.0, period=3, rollouts=8, config=_SMALL, cache_dir=tmp_path)
+    assert not first.from_cache and again.from_cache
+    assert again.mean == first.mean and np.array_equal(again.returns, first.returns)
+    assert first.std == pytest.approx(np.std(first.returns, ddof=1))
+    assert first.ci95[0] < first.mean < first.ci95[1]
+    other = optimal.exploration_floor(sigma=2.0, period=3, rollouts=8, config=_SMALL, cache_dir=tmp_path)
+    assert not other.from_cache and other.mean != first.mean
+    assert "every 3rd step" in first.describe() and "8 noisy trials" in first.describe()
+    for bad in ({"sigma": -1.0}, {"period": 0}, {"phase": 3}, {"rollouts": 1}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            optimal.exploration_floor(**bad, config=_SMALL, cache_dir=tmp_path)

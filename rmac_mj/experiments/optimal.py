@@ -35,6 +35,7 @@ solver version, so ``rmac-mj optimal`` and Fig. 2 reuse them.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import hashlib
 import json
 import os
@@ -503,3 +504,172 @@ def _versions() -> dict[str, str]:
     import rmac_mj
     return {"rmac_mj": rmac_mj.__version__, "mujoco": mujoco.__version__, "numpy": np.__version__,
             "scipy": scipy.__version__}
+
+
+# --------------------------------------------------------------------------------------------------
+# The exploration floor: the near-optimal policy under the protocol's exploration
+
+
+@dataclasses.dataclass(frozen=True)
+class ExplorationFloor:
+    """What the near-optimal policy scores per trial while exploring as the learners do.
+
+    During learning every ``period``-th step (``k % period == phase``) gets N(0, sigma^2) noise added
+    to the action, saturated to the actuator range (section 6.1: sigma = 1 V every third step). No
+    learner's exploring trial can average much better than this policy's, so an exploring learning
+    curve is judged against ``mean`` and a greedy trial against the near-optimal return.
+
+    Attributes:
+      mean, std: of the sum of rewards over ``rollouts`` noisy trials from x_0.
+      ci95: Student-t 95% confidence interval of ``mean``.
+      returns: ndarray of shape (rollouts,): each noisy trial's return.
+      sigma, period, phase: the exploration schedule (V, steps, step).
+      rollouts, seed: how many noisy trials, and the seed of their noise.
+      config: the ``OptimalConfig`` of the DP whose greedy policy explores.
+      runtime_s, from_cache: as in :class:`OptimalResult`.
+    """
+
+    mean: float
+    std: float
+    ci95: tuple[float, float]
+    returns: np.ndarray
+    sigma: float
+    period: int
+    phase: int
+    rollouts: int
+    seed: int
+    config: OptimalConfig
+    runtime_s: float
+    from_cache: bool = False
+
+    def describe(self) -> str:
+        low, high = self.ci95
+        cached = ", read from the cache" if self.from_cache else f", computed in {self.runtime_s:.1f} s"
+        return (f"exploration floor (the same policy with N(0, {self.sigma:g}^2) V added every "
+                f"{_ordinal(self.period)} step, saturated): {self.mean:.1f} per trial, std "
+                f"{self.std:.1f}, 95% CI [{low:.1f}, {high:.1f}] over {self.rollouts} noisy trials "
+                f"(seed {self.seed}{cached})")
+
+    def to_json_dict(self) -> dict[str, Any]:
+        return {"mean": self.mean, "std": self.std, "ci95": list(self.ci95),
+                "returns": self.returns.tolist(), "sigma": self.sigma, "period": self.period,
+                "phase": self.phase, "rollouts": self.rollouts, "seed": self.seed,
+                "config": dataclasses.asdict(self.config), "runtime_s": self.runtime_s,
+                "solver_version": SOLVER_VERSION}
+
+    @classmethod
+    def from_json_dict(cls, d: dict[str, Any], from_cache: bool = True) -> "ExplorationFloor":
+        config = d["config"]
+        config = OptimalConfig(**{**config, "state_weights": tuple(config["state_weights"]),
+                                  "start_state": tuple(config["start_state"])})
+        return cls(mean=float(d["mean"]), std=float(d["std"]),
+                   ci95=(float(d["ci95"][0]), float(d["ci95"][1])),
+                   returns=np.asarray(d["returns"], dtype=float), sigma=float(d["sigma"]),
+                   period=int(d["period"]), phase=int(d["phase"]), rollouts=int(d["rollouts"]),
+                   seed=int(d["seed"]), config=config, runtime_s=float(d["runtime_s"]),
+                   from_cache=from_cache)
+
+
+def _ordinal(n: int) -> str:
+    if n == 1:
+        return ""
+    suffix = "th" if 10 <= n % 100 <= 20 else {1: "st", 2: "nd", 3: "rd"}.get(n % 10, "th")
+    return f"{n}{suffix}"
+
+
+def noisy_rollouts(config: OptimalConfig, model: mujoco.MjModel, values: np.ndarray, sigma: float,
+                   period: int, phase: int, rollouts: int, rng: np.random.Generator) -> np.ndarray:
+    """Returns of ``rollouts`` trials of the DP's greedy policy with exploration noise.
+
+    Every trial starts in ``config.start_state``; at step k the greedy voltage is chosen exactly as in
+    :func:`greedy_rollout` (one-step look-ahead on V_{k+1} over ``config.lookahead_actions``), then on
+    exploring steps (``k % period == phase``) N(0, sigma^2) is added and the sum clipped to the
+    actuator's range; the reward is paid for the applied voltage. The trials run in lockstep, one
+    batched ``mujoco.rollout`` per step.
+
+    Returns:
+      ndarray of shape (rollouts,): the sum of the H rewards of each trial.
+    """
+    n_sub = _n_substeps(model, config.control_timestep)
+    actions = action_set(model, config.lookahead_actions)
+    low, high = model.actuator_ctrlrange[0]
+    threads = config.n_threads or os.cpu_count() or 1
+    phi = np.full(rollouts, config.start_state[0])
+    phi_dot = np.full(rollouts, config.start_state[1])
+    total = np.zeros(rollouts)
+    n_act = len(actions)
+    for k in range(config.horizon):
+        candidates = simulate_transitions(model, np.repeat(phi, n_act), np.repeat(phi_dot, n_act),
+                                          np.tile(actions, rollouts), n_sub, threads)
+        scores = (reward(config, phi[:, None], phi_dot[:, None], actions[None, :])
+                  + interpolate_value(config, values[k + 1], candidates).reshape(rollouts, n_act))
+        u = actions[np.argmax(scores, axis=1)]  # ties: the lowest voltage, as greedy_rollout
+        if sigma > 0 and k % period == phase:
+            u = np.clip(u + rng.normal(0.0, sigma, size=rollouts), low, high)
+        total += reward(config, phi, phi_dot, u)
+        next_states = simulate_transitions(model, phi, phi_dot, u, n_sub, threads)
+        phi, phi_dot = next_states[:, 0], next_states[:, 1]
+    return total
+
+
+@functools.lru_cache(maxsize=1)
+def _solved(config: OptimalConfig, model_xml: str) -> tuple[mujoco.MjModel, np.ndarray]:
+    """The model and the DP's values (35 MB at the default grid), kept for the next floor: a sweep
+    over exploration settings asks for several floors of one DP."""
+    model = _load_model(model_xml)
+    return model, solve_values(config, model)
+
+
+def exploration_floor(sigma: float = 1.0, period: int = 3, phase: int = 0, rollouts: int = 100,
+                      seed: int = 0, config: OptimalConfig = OptimalConfig(),
+                      cache_dir: str | os.PathLike | None = None, refresh: bool = False,
+                      model_xml: str | None = None) -> ExplorationFloor:
+    """The near-optimal policy's return under exploration, from the cache if there, else computed.
+
+    The DP of :func:`optimal_return` is solved again (its values are not cached, only its answer),
+    then ``rollouts`` noisy trials are simulated (:func:`noisy_rollouts`). Defaults: the paper's
+    exploration (section 6.1), 100 trials.
+
+    Args:
+      sigma: exploration noise std (V), >= 0.
+      period, phase: explore at steps k with ``k % period == phase``.
+      rollouts: noisy trials to average, >= 2.
+      seed: seed of the noise.
+      config, cache_dir, refresh, model_xml: as in :func:`optimal_return`.
+    """
+    if not isinstance(config, OptimalConfig):
+        raise TypeError(f"exploration_floor: config must be an OptimalConfig, got {type(config).__name__}")
+    if isinstance(sigma, bool) or not (np.isscalar(sigma) and np.isfinite(sigma) and sigma >= 0):
+        raise ValueError(f"exploration_floor: sigma must be a finite number >= 0, got {sigma!r}")
+    for name, value, minimum in (("period", period, 1), ("phase", phase, 0), ("rollouts", rollouts, 2),
+                                 ("seed", seed, 0)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+            raise ValueError(f"exploration_floor: {name} must be an integer >= {minimum}, got {value!r}")
+    if phase >= period:
+        raise ValueError(f"exploration_floor: phase must be in [0, period={period}), got {phase}")
+    if model_xml is None:
+        model_xml = model_path("dc_pendulum").read_text()
+    sigma, period, phase, rollouts, seed = float(sigma), int(period), int(phase), int(rollouts), int(seed)
+    key = hashlib.sha256(json.dumps([cache_key(config, model_xml), sigma, period, phase, rollouts, seed])
+                         .encode()).hexdigest()[:20]
+    directory = pathlib.Path(cache_dir).expanduser() if cache_dir is not None else default_cache_dir()
+    path = directory / f"exploration-floor-{key}.json"
+    if not refresh and path.is_file():
+        try:
+            with open(path) as f:
+                return ExplorationFloor.from_json_dict(json.load(f), from_cache=True)
+        except (OSError, ValueError, KeyError, TypeError):
+            pass  # an unreadable or foreign entry is recomputed and overwritten
+    start = time.perf_counter()
+    model, values = _solved(config, model_xml)
+    returns = noisy_rollouts(config, model, values, sigma, period, phase, rollouts,
+                             np.random.default_rng(seed))
+    from rmac_mj.experiments.results import confidence_interval
+    mean, low, high = confidence_interval(returns)
+    result = ExplorationFloor(mean=float(mean), std=float(returns.std(ddof=1)),
+                              ci95=(float(low), float(high)), returns=returns, sigma=sigma,
+                              period=period, phase=phase, rollouts=rollouts, seed=seed, config=config,
+                              runtime_s=time.perf_counter() - start)
+    from rmac_mj.experiments.results import write_json
+    write_json(path, result.to_json_dict())
+    return result

@@ -67,7 +67,8 @@ def _padded(low: float, high: float, fraction: float = 0.05, minimum: float = 10
 
 
 def learning_curves_figure(summaries: dict[str, dict[str, Any]], optimal_return: float | None = None,
-                           detail_ylim: tuple[float, float] | None = None, smooth: int = 1):
+                           detail_ylim: tuple[float, float] | None = None, smooth: int = 1,
+                           exploration_floor: float | None = None):
     """The figure of :func:`plot_learning_curves` (see it), not yet saved."""
     if not isinstance(smooth, (int, np.integer)) or smooth < 1:
         raise ValueError(f"smooth must be a positive integer (trials), got {smooth!r}")
@@ -108,6 +109,9 @@ def learning_curves_figure(summaries: dict[str, dict[str, Any]], optimal_return:
         if optimal_return is not None:
             ax.axhline(optimal_return, color="black", linewidth=1.0, linestyle="-.",
                        label=f"near-optimal ({optimal_return:.0f})")
+        if exploration_floor is not None:
+            ax.axhline(exploration_floor, color="grey", linewidth=1.0, linestyle=":",
+                       label=f"near-optimal, exploring ({exploration_floor:.0f})")
         lengths = sorted(set(seconds.values()))
         ax.set_xlabel("time [min] (simulated" + (f"; one trial = {lengths[0]:g} s)" if len(lengths) == 1
                                                  else ")"))
@@ -119,13 +123,13 @@ def learning_curves_figure(summaries: dict[str, dict[str, Any]], optimal_return:
                                                                lambda t, s=lengths[0]: t * s / 60.0))
             trials_axis.set_xlabel("trial")
     # The axes follow the curves, not the bands: with few experiments a 95% band spans thousands.
-    values = np.concatenate([d[np.isfinite(d)] for d in drawn] +
-                            [np.array([optimal_return] if optimal_return is not None else [])])
+    references = [r for r in (optimal_return, exploration_floor) if r is not None]
+    values = np.concatenate([d[np.isfinite(d)] for d in drawn] + [np.array(references)])
     if values.size:
         axes[0].set_ylim(*_padded(values.min(), values.max()))
     axes[0].set_title("Learning curves, mean and 95% confidence interval")
-    if detail_ylim is None:  # the range of the curves' last trials, and the optimum
-        last = np.concatenate(ends + [np.array([optimal_return] if optimal_return is not None else [])])
+    if detail_ylim is None:  # the range of the curves' last trials, the optimum and the floor
+        last = np.concatenate(ends + [np.array(references)])
         last = last[np.isfinite(last)]
         if last.size:
             detail_ylim = _padded(last.min(), last.max(), fraction=0.1, minimum=25.0)
@@ -146,7 +150,8 @@ def learning_curves_figure(summaries: dict[str, dict[str, Any]], optimal_return:
 def plot_learning_curves(summaries: dict[str, dict[str, Any]], stem: str | os.PathLike,
                          optimal_return: float | None = None,
                          detail_ylim: tuple[float, float] | None = None,
-                         smooth: int = 1) -> list[pathlib.Path]:
+                         smooth: int = 1,
+                         exploration_floor: float | None = None) -> list[pathlib.Path]:
     """Fig. 2: sum of rewards per trial against simulated minutes (trials on the top axis), mean and
     95% confidence band.
 
@@ -163,12 +168,14 @@ def plot_learning_curves(summaries: dict[str, dict[str, Any]], stem: str | os.Pa
       stem: output path without suffix; a .png and a .pdf are written.
       optimal_return: drawn as a horizontal line (the near-optimal reference).
       detail_ylim: y range of the detail panel; default the range of the (smoothed) mean curves over
-        their last ``FINAL_WINDOW`` trials, and the optimum.
+        their last ``FINAL_WINDOW`` trials, the optimum and the exploration floor.
       smooth: running mean over this many trials (centred) of the mean and of the band's bounds (the
         smoothed bounds are conservative: the interval of a mean over trials is narrower); stated in
         the legends. 1 draws the raw per-trial values.
+      exploration_floor: drawn as a second line: the near-optimal policy's return while exploring
+        as the learners do, the level an exploring learning curve is judged against.
     """
-    fig = learning_curves_figure(summaries, optimal_return, detail_ylim, smooth)
+    fig = learning_curves_figure(summaries, optimal_return, detail_ylim, smooth, exploration_floor)
     return _save(fig, stem)
 
 

@@ -435,14 +435,16 @@ def _ignore_interrupts() -> None:
 _POLL_SECONDS = 0.5
 
 
-def _local_outcomes(specs: list[ExperimentSpec], jobs: int,
+def _local_outcomes(specs: list, jobs: int,
                     on_trial: Callable[[str, int, int, float], None] | None = None,
-                    poll: Callable[[], None] | None = None) -> Iterator[dict[str, Any]]:
-    """Outcomes of ``specs`` in the order they finish. Serially (``jobs == 1``) ``on_trial`` sees every
-    trial; in worker processes the driver calls ``poll()`` while it waits."""
+                    poll: Callable[[], None] | None = None,
+                    run: Callable = run_experiment) -> Iterator:
+    """Outcomes ``run(spec)`` of ``specs`` in the order they finish. Serially (``jobs == 1``) ``run``
+    is called as ``run(spec, on_trial)`` and ``on_trial`` sees every trial; in worker processes the
+    driver calls ``poll()`` while it waits."""
     if jobs == 1 or len(specs) <= 1:
         for spec in specs:
-            yield run_experiment(spec, on_trial)
+            yield run(spec, on_trial)
         return
     # "spawn": workers start clean (no inherited GL contexts or numba state); the numba cache (filled
     # by warm_up) makes their start-up cheap. On an interrupt the driver terminates the workers: only
@@ -450,7 +452,7 @@ def _local_outcomes(specs: list[ExperimentSpec], jobs: int,
     context = multiprocessing.get_context("spawn")
     pool = context.Pool(processes=min(jobs, len(specs)), initializer=_ignore_interrupts)
     try:
-        outcomes = pool.imap_unordered(run_experiment, specs, chunksize=1)
+        outcomes = pool.imap_unordered(run, specs, chunksize=1)
         for _ in specs:
             while True:
                 try:
@@ -466,13 +468,13 @@ def _local_outcomes(specs: list[ExperimentSpec], jobs: int,
         pool.join()
 
 
-def _dask_outcomes(specs: list[ExperimentSpec], scheduler: str) -> Iterator[dict[str, Any]]:
+def _dask_outcomes(specs: list, scheduler: str, run: Callable = run_experiment) -> Iterator:
     try:
         from distributed import Client, as_completed
     except ImportError as error:  # pragma: no cover - depends on the optional extra
         raise RuntimeError("--scheduler needs Dask: pip install 'rmac-mj[distributed]'") from error
     with Client(scheduler) as client:
-        futures = [client.submit(run_experiment, spec, pure=False) for spec in specs]
+        futures = [client.submit(run, spec, pure=False) for spec in specs]
         try:
             for future in as_completed(futures):
                 yield future.result()
@@ -661,7 +663,8 @@ def run_protocol(protocol: Protocol, out: str | os.PathLike, jobs: int | None = 
                  resume: bool = False, scheduler: str | None = None, progress: bool = True,
                  optimal: Callable[[Protocol], float | None] | None = None,
                  figures: bool = True, log: Callable[[str], None] | None = None,
-                 started: float | None = None, smooth: int = 1) -> dict[str, Any]:
+                 started: float | None = None, smooth: int = 1,
+                 floor: Callable[[Protocol, str], float | None] | None = None) -> dict[str, Any]:
     """Run (or finish, with ``resume``) ``protocol`` into ``out``; return the summary document.
 
     Args:
@@ -674,6 +677,8 @@ def run_protocol(protocol: Protocol, out: str | os.PathLike, jobs: int | None = 
       started: ``time.perf_counter()`` when the caller started (default: now); the wall time in the
         summary counts from there, summed over every part of a resumed run.
       smooth: Fig. 2's running mean, in trials (1: none).
+      floor: returns a learner's exploration floor (the near-optimal policy's return under that
+        learner's exploration) for the summary and Fig. 2, or None.
     """
     started = time.perf_counter() if started is None else started
     out = pathlib.Path(out)
@@ -714,7 +719,8 @@ def run_protocol(protocol: Protocol, out: str | os.PathLike, jobs: int | None = 
                 clock.record(experiments=1)
     finally:
         display.close()
-    return finalise(out, protocol, optimal=optimal, figures=figures, clock=clock, smooth=smooth)
+    return finalise(out, protocol, optimal=optimal, figures=figures, clock=clock, smooth=smooth,
+                    floor=floor)
 
 
 def _read_prior_file(protocol: Protocol) -> tuple[prior_data.Demonstration | None, str | None]:
@@ -728,18 +734,103 @@ def _read_prior_file(protocol: Protocol) -> tuple[prior_data.Demonstration | Non
     return demonstration, hashlib.sha256(path.read_bytes()).hexdigest()
 
 
+def run_tagged(item: tuple[Any, ExperimentSpec],
+               on_trial: Callable[[str, int, int, float], None] | None = None
+               ) -> tuple[Any, dict[str, Any]]:
+    """``(tag, run_experiment(spec))`` for ``item = (tag, spec)``: lets one pool serve several runs."""
+    tag, spec = item
+    return tag, run_experiment(spec, on_trial)
+
+
+def run_protocols(runs: Iterable[tuple[Protocol, str | os.PathLike]], jobs: int | None = None,
+                  resume: bool = False, scheduler: str | None = None, progress: bool = True,
+                  optimal: Callable[[Protocol], float | None] | None = None,
+                  floor: Callable[[Protocol, str], float | None] | None = None,
+                  figures: bool = True, log: Callable[[str], None] | None = None,
+                  started: float | None = None, smooth: int = 1) -> list[dict[str, Any]]:
+    """Run several ``(protocol, out)`` pairs through ONE worker pool (or one Dask cluster).
+
+    Each ``out`` becomes exactly what :func:`run_protocol` writes (config.json, curves, snapshots,
+    summary.json, returns.csv, Fig. 2, wall_times.json) and is resumable the same way; all pending
+    experiments of all runs are queued together, and a run is summarised as soon as its last
+    experiment is saved. The arguments mean what they mean for :func:`run_protocol`. Returns each
+    run's summary, in order.
+    """
+    started = time.perf_counter() if started is None else started
+    runs = [(protocol, pathlib.Path(out)) for protocol, out in runs]
+    jobs = (os.cpu_count() or 1) if jobs is None else jobs
+    if jobs < 1:
+        raise ValueError(f"jobs must be a positive integer, got {jobs!r}")
+    pending, clocks = [], []
+    for k, (protocol, out) in enumerate(runs):
+        demonstration, prior_sha256 = _read_prior_file(protocol)
+        _prepare(out, protocol, resume, prior_sha256)
+        clocks.append(_WallClock(out, started, resume))
+        pending.extend((k, spec) for spec in _pending(out, protocol, demonstration))
+    if pending and not scheduler:
+        from rmac_mj import _cache
+
+        def compiling() -> None:
+            if log is not None:
+                log(f"compiling kernels, first run only (cached in {_cache.numba_cache_location()})")
+        compile_started = time.perf_counter()
+        with _cache.on_first_compile(compiling):
+            for k in sorted({k for k, _ in pending}):
+                warm_up(runs[k][0])
+        if log is not None and _cache.kernel_stats()["compiled"]:
+            log(f"kernels compiled in {time.perf_counter() - compile_started:.0f} s")
+    left = {k: 0 for k in range(len(runs))}
+    for k, _ in pending:
+        left[k] += 1
+    total = sum(p.experiments * len(p.algorithms) for p, _ in runs)
+    bar = None
+    if progress and pending:
+        from tqdm.auto import tqdm
+        bar = tqdm(total=total, initial=total - len(pending), unit="experiment", dynamic_ncols=True,
+                   desc=f"{len(runs)} runs")
+    summaries: list[dict[str, Any] | None] = [None] * len(runs)
+    outcomes = (_dask_outcomes(pending, scheduler, run_tagged) if scheduler
+                else _local_outcomes(pending, jobs, run=run_tagged))
+    try:
+        with contextlib.closing(outcomes):  # on an interrupt, stop the workers at once
+            for k, outcome in outcomes:
+                protocol, out = runs[k]
+                save_outcome(out, outcome)
+                clocks[k].record(experiments=1)
+                left[k] -= 1
+                if bar is not None:
+                    bar.update(1)
+                    bar.set_postfix_str(f"{sum(n == 0 for n in left.values())}/{len(runs)} runs done")
+                if left[k] == 0:
+                    summaries[k] = finalise(out, protocol, optimal=optimal, figures=figures,
+                                            floor=floor, clock=clocks[k], smooth=smooth)
+    finally:
+        if bar is not None:
+            bar.close()
+    return [summary if summary is not None else
+            finalise(out, protocol, optimal=optimal, figures=figures, floor=floor, clock=clock,
+                     smooth=smooth)
+            for summary, (protocol, out), clock in zip(summaries, runs, clocks)]
+
+
 def finalise(out: pathlib.Path, protocol: Protocol, wall_time_s: float | None = None,
              optimal: Callable[[Protocol], float | None] | None = None,
-             figures: bool = True, clock: _WallClock | None = None, smooth: int = 1) -> dict[str, Any]:
+             figures: bool = True, clock: _WallClock | None = None, smooth: int = 1,
+             floor: Callable[[Protocol, str], float | None] | None = None) -> dict[str, Any]:
     """Summarise the finished curves in ``out``: returns.csv, Fig. 2, then summary.json.
 
     The wall time in the summary is ``wall_time_s``, or with ``clock`` the total over every part of
-    the run up to the end of the figures (``wall_time_parts_s`` lists the parts).
+    the run up to the end of the figures (``wall_time_parts_s`` lists the parts). ``floor`` gives
+    each learner's exploration floor (or None).
     """
     optimal_return = optimal(protocol) if optimal is not None else None
+    floors = {a: floor(protocol, a) for a in protocol.algorithms} if floor is not None else {}
+    shared_floor = set(floors.values())  # one line in Fig. 2 when every learner explores alike
     seconds = trial_seconds(make_environment(protocol))
     summary: dict[str, Any] = {"paper_protocol": protocol.is_paper_protocol,
                                "optimal_return": optimal_return,
+                               "exploration_floor": shared_floor.pop() if len(shared_floor) == 1
+                               else None,
                                "trial_seconds": seconds,
                                "protocol": protocol.as_dict()}
     rows = []
@@ -748,6 +839,7 @@ def finalise(out: pathlib.Path, protocol: Protocol, wall_time_s: float | None = 
         summary[algorithm] = results.summarise(returns, greedy, greedy_trials, optimal_return,
                                                trial_seconds=seconds)
         summary[algorithm]["experiment_wall_s_mean"] = float(wall.mean())
+        summary[algorithm]["exploration_floor"] = floors.get(algorithm)
         rows.extend((algorithm, i, t + 1, float(r)) for i, curve in enumerate(returns)
                     for t, r in enumerate(curve))
     summary["final_return_tests"] = results.compare_final_returns(
@@ -765,7 +857,8 @@ def finalise(out: pathlib.Path, protocol: Protocol, wall_time_s: float | None = 
     if figures:
         from rmac_mj.experiments import plots
         plots.plot_learning_curves({out.name or str(out): summary}, out / "fig2_learning_curves",
-                                   optimal_return=optimal_return, smooth=smooth)
+                                   optimal_return=optimal_return, smooth=smooth,
+                                   exploration_floor=summary["exploration_floor"])
     if clock is not None:
         clock.record()
         summary["wall_time_s"] = sum(clock.parts)

@@ -1,0 +1,244 @@
+"""Sweeps: the file format and its validation, a tiny sweep end to end (killed and resumed), and
+``reproduce --config`` against the same ``--set`` overrides."""
+
+import csv
+import json
+import pathlib
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from rmac_mj import cli
+from rmac_mj.errors import UserInputError
+from rmac_mj.experiments import sweep
+
+TINY = """
+[protocol]
+algorithms = ["s-ac"]
+experiments = 2
+trials = 3
+evaluate_every = 3
+snapshot_trials = [1]
+[grid]
+"s-ac.alpha_actor" = [0.005, 0.02]
+"""
+
+
+def write(tmp_path, text, name="sweep.toml"):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def curves(out):
+    return {p.relative_to(out).as_posix(): np.load(p, allow_pickle=False)["returns"]
+            for p in sorted(pathlib.Path(out).glob("*/curves/*/exp_*.npz"))}
+
+
+# ----------------------------------------------------------------------------------------------------
+# The file format.
+
+def test_grid_and_variants_cross_into_named_configurations(tmp_path):
+    path = write(tmp_path, """
+[protocol]
+algorithms = ["rmac", "s-ac"]
+experiments = 3
+"s-ac.rate_split" = "actor"
+[grid]
+rmac.exploration.sigma = [0.5, 2]              # a bare dotted key means the same as a quoted one
+"s-ac.exploration.sigma" = [1.0]
+"rmac.critic_weights" = [[1, 0.1], [1, 0.3]]
+[[variant]]
+name = "paper"
+[[variant]]
+name = "oldest"
+"rmac.critic_replacement" = "oldest"
+""")
+    plan = sweep.load_sweep(path)
+    assert plan.parameters == ["variant", "rmac.exploration.sigma", "s-ac.exploration.sigma",
+                               "rmac.critic_weights"]
+    names = [c.name for c in plan.configurations]
+    assert len(names) == 2 * 2 * 1 * 2 == len(set(names))
+    # The same last field in two learners keeps its learner in the name; others are shortened.
+    assert names[0] == "paper__rmac.exploration.sigma=0.5__s-ac.exploration.sigma=1.0__critic_weights=1,0.1"
+    assert names[-1] == "oldest__rmac.exploration.sigma=2__s-ac.exploration.sigma=1.0__critic_weights=1,0.3"
+    last = plan.configurations[-1].protocol
+    assert last.experiments == 3 and last.algorithms == ("rmac", "s-ac")
+    assert last.agent_configs == {
+        "rmac": {"exploration": {"sigma": 2}, "critic_weights": [1, 0.3], "critic_replacement": "oldest"},
+        "s-ac": {"rate_split": "actor", "exploration": {"sigma": 1.0}}}
+    assert "critic_replacement" not in plan.configurations[0].protocol.agent_configs["rmac"]
+
+
+@pytest.mark.parametrize("text, named", [
+    ("[grdi]\n", "[grdi]: unknown section (did you mean [grid]?)"),
+    ("[protocol]\nexperimentz = 3\n", "[protocol] experimentz: unknown key (did you mean experiments?)"),
+    ('[grid]\n"rmac.alpha_rr" = [0.01]\n', "\"rmac.alpha_rr\": unknown hyperparameter 'alpha_rr' of "
+                                           "RMACConfig; did you mean alpha_r?"),
+    ('[grid]\n"rmac.exploration.sigmaa" = [1]\n', "unknown hyperparameter 'sigmaa' of Exploration"),
+    ('[grid]\n"dqn.alpha" = [1]\n', "\"dqn.alpha\": unknown algorithm 'dqn'"),
+    ('[protocol]\nalgorithms = ["s-ac"]\n[grid]\n"rmac.alpha_r" = [0.01]\n',
+     "\"rmac.alpha_r\": sets rmac, which the protocol does not run"),
+    ('[grid]\n"rmac.alpha_r" = ["fast"]\n', "\"rmac.alpha_r\" value \"fast\": expected a number"),
+    ('[grid]\n"rmac.critic_capacity" = [2000.5]\n', "\"rmac.critic_capacity\" value 2000.5: expected an integer"),
+    ('[protocol]\nexperiments = "ten"\n', "[protocol] experiments: expected an integer >= 1"),
+    ('[grid]\n"rmac.alpha_r" = 0.01\n', "\"rmac.alpha_r\": expected a list of values to sweep"),
+    ('[grid]\n"rmac.critic_weights" = [1, 0.1]\n', "\"rmac.critic_weights\" value 1: expected a list of numbers"),
+    ('[grid]\n"rmac.gamma" = [0.9, 1.5]\n', "\"rmac.gamma\" value 1.5: RMACConfig.gamma must be in [0, 1]"),
+    ('[grid]\n"rmac.critic_weights" = [[1, 0.1, 3]]\n', "config.critic_weights has 3 entries"),
+    ('[protocol]\n"rmac.critic_replacement" = "newest"\n', "\"rmac.critic_replacement\": RMACConfig"),
+    ('[grid]\n"rmac.alpha_r" = [0.01, 0.01]\n', "\"rmac.alpha_r\": repeats a value"),
+    ('[[variant]]\n"rmac.alpha_r" = 0.01\n', "[[variant]] #1 name: each variant needs a name"),
+    ('[grid]\n"rmac.alpha_r" = [0.01]\n[[variant]]\nname = "a"\n"rmac.alpha_r" = 0.02\n',
+     "[[variant]] \"a\" \"rmac.alpha_r\": is also swept in [grid]"),
+    ("[grid\n", "not valid TOML"),
+])
+def test_a_malformed_file_names_the_key(tmp_path, text, named):
+    with pytest.raises(UserInputError) as error:
+        sweep.load_sweep(write(tmp_path, text))
+    message = str(error.value)
+    assert named in message and message.startswith(str(tmp_path / "sweep.toml"))
+    assert "\n" not in message
+
+
+def test_a_malformed_file_exits_2_with_one_line_before_running_anything(tmp_path):
+    path = write(tmp_path, '[protocol]\nalgorithms = ["s-ac"]\n[grid]\n"s-ac.alpha_actor" = 0.01\n')
+    result = subprocess.run([sys.executable, "-m", "rmac_mj.cli", "sweep", str(path), "--out",
+                             str(tmp_path / "out")], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 2
+    assert result.stderr.strip().splitlines() == [
+        f'rmac-mj: error: {path}: [grid] "s-ac.alpha_actor": expected a list of values to sweep, '
+        "e.g. [0.01, ...]; got 0.01"]
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_config_file_takes_single_values_only(tmp_path):
+    single = sweep.load_configuration(write(tmp_path, """
+[protocol]
+algorithms = ["rmac"]
+trials = 5
+"rmac.alpha_c" = 0.2
+[grid]
+"rmac.critic_weights" = [1, 0.3]     # one value of a list-valued field
+"rmac.alpha_r" = [0.01]              # a one-value grid is one configuration
+"""))
+    assert single.options == {"algorithms": ("rmac",), "trials": 5}
+    assert single.agent_configs == {"rmac": {"alpha_c": 0.2, "critic_weights": [1, 0.3],
+                                             "alpha_r": 0.01}}
+    with pytest.raises(UserInputError, match=r'"rmac.alpha_r": lists 2 values; --config runs one '
+                                             r"configuration"):
+        sweep.load_configuration(write(tmp_path, '[grid]\n"rmac.alpha_r" = [0.01, 0.02]\n'))
+    with pytest.raises(UserInputError, match="2 variants"):
+        sweep.load_configuration(write(tmp_path, '[[variant]]\nname = "a"\n[[variant]]\nname = "b"\n'))
+
+
+# ----------------------------------------------------------------------------------------------------
+# Running.
+
+def _hooked_cli(marker: pathlib.Path) -> list[str]:
+    """The CLI with one change: after the driver saves its first experiment it touches ``marker``
+    and blocks, so a kill lands with exactly one experiment saved (as in test_runner.py)."""
+    script = (
+        "import pathlib, sys, time\n"
+        "from rmac_mj.experiments import runner\n"
+        "save = runner.save_outcome\n"
+        "def save_then_wait(out, outcome):\n"
+        "    save(out, outcome)\n"
+        f"    pathlib.Path({str(marker)!r}).touch()\n"
+        "    time.sleep(600)\n"
+        "runner.save_outcome = save_then_wait\n"
+        "from rmac_mj.cli import main\n"
+        "sys.exit(main(sys.argv[1:]))\n")
+    return [sys.executable, "-c", script]
+
+
+def test_tiny_sweep_killed_resumed_and_summarised(tmp_path):
+    path = write(tmp_path, TINY)
+    killed, marker = tmp_path / "killed", tmp_path / "saved-one"
+    args = ["sweep", str(path), "--jobs", "1", "--no-optimal", "--no-progress", "--out", str(killed)]
+    process = subprocess.Popen([*_hooked_cli(marker), *args], stdout=subprocess.DEVNULL,
+                               stderr=subprocess.DEVNULL)
+    deadline = time.time() + 240
+    while not marker.exists():
+        assert process.poll() is None, "the sweep ended before saving its first experiment"
+        assert time.time() < deadline
+        time.sleep(0.02)
+    process.send_signal(signal.SIGKILL)
+    process.wait()
+    assert len(curves(killed)) == 1 and not (killed / "sweep.csv").exists()
+    resumed = subprocess.run([sys.executable, "-m", "rmac_mj.cli", *args, "--resume"],
+                             capture_output=True, text=True, timeout=300)
+    assert resumed.returncode == 0, resumed.stderr
+    assert "alpha_actor=0.02" in resumed.stdout
+
+    # The same sweep uninterrupted, all experiments through one pool of two workers.
+    whole = tmp_path / "whole"
+    rows = sweep.run_sweep(sweep.load_sweep(path), whole, jobs=2, progress=False,
+                           optimal=lambda protocol: -748.0, floor=lambda protocol, algorithm: -870.0)
+    resumed_curves, whole_curves = curves(killed), curves(whole)
+    assert sorted(resumed_curves) == sorted(whole_curves) and len(whole_curves) == 2 * 2
+    for key in whole_curves:
+        np.testing.assert_array_equal(resumed_curves[key], whole_curves[key])
+    assert not np.array_equal(whole_curves["alpha_actor=0.005/curves/s-ac/exp_000.npz"],
+                              whole_curves["alpha_actor=0.02/curves/s-ac/exp_000.npz"])
+
+    for out in (killed, whole):
+        with open(out / "sweep.csv", newline="") as handle:
+            table = list(csv.DictReader(handle))
+        assert [(r["configuration"], r["s-ac.alpha_actor"], r["algorithm"]) for r in table] == [
+            ("alpha_actor=0.005", "0.005", "s-ac"), ("alpha_actor=0.02", "0.02", "s-ac")]
+        index = json.loads((out / "sweep.json").read_text())
+        assert [c["directory"] for c in index["configurations"]] == ["alpha_actor=0.005",
+                                                                     "alpha_actor=0.02"]
+    summary = json.loads((whole / "alpha_actor=0.02" / "summary.json").read_text())
+    assert summary["exploration_floor"] == -870.0 and summary["optimal_return"] == -748.0
+    row = rows[1]
+    assert row["final_return_mean"] == pytest.approx(summary["s-ac"]["final_return_mean"])
+    assert row["gap_to_optimal"] == pytest.approx(-748.0 - row["final_return_mean"])
+    assert row["greedy_trial"] == 3 and row["greedy_return_mean"] == pytest.approx(
+        summary["s-ac"]["greedy_return_per_eval"][-1])
+    assert row["mean_return_first_5min"] == pytest.approx(np.mean(
+        [whole_curves[f"alpha_actor=0.02/curves/s-ac/exp_00{i}.npz"] for i in range(2)]))
+    for metric in ("final_return", "greedy_return", "minutes_to_90pct", "first_5min",
+                   "gap_to_optimal"):
+        assert (whole / f"sweep_{metric}.png").is_file(), metric
+    with pytest.raises(UserInputError, match="already holds a sweep"):
+        sweep.run_sweep(sweep.load_sweep(path), whole, jobs=1, progress=False)
+    other = write(tmp_path, TINY.replace("0.02]", "0.03]"), "other.toml")
+    with pytest.raises(UserInputError, match="a different file"):
+        sweep.run_sweep(sweep.load_sweep(other), whole, jobs=1, resume=True, progress=False)
+
+
+def test_reproduce_config_equals_the_same_set_overrides(tmp_path, capsys):
+    path = write(tmp_path, """
+[protocol]
+algorithms = ["s-ac"]
+experiments = 1
+trials = 5                           # the command line's --trials 3 wins
+seed = 7
+[grid]
+"s-ac.alpha_actor" = 0.02
+"s-ac.exploration.sigma" = 0.5
+""", "one.toml")
+    common = ["--jobs", "1", "--no-optimal", "--no-progress"]
+    assert cli.main(["reproduce", "--config", str(path), "--trials", "3", "--set",
+                     "s-ac.exploration.period=2", "--out", str(tmp_path / "config"), *common]) == 0
+    assert cli.main(["reproduce", "--algorithms", "s-ac", "--experiments", "1", "--trials", "3",
+                     "--seed", "7", "--set", "s-ac.alpha_actor=0.02", "--set",
+                     "s-ac.exploration.sigma=0.5", "--set", "s-ac.exploration.period=2", "--out",
+                     str(tmp_path / "set"), *common]) == 0
+    from_config = json.loads((tmp_path / "config" / "config.json").read_text())["protocol"]
+    from_set = json.loads((tmp_path / "set" / "config.json").read_text())["protocol"]
+    assert from_config == from_set
+    assert from_config["trials"] == 3 and from_config["agent_configs"] == {
+        "s-ac": {"alpha_actor": 0.02, "exploration": {"sigma": 0.5, "period": 2}}}
+    np.testing.assert_array_equal(*(np.load(tmp_path / d / "curves/s-ac/exp_000.npz")["returns"]
+                                    for d in ("config", "set")))
+
+    grid = write(tmp_path, '[protocol]\nalgorithms = ["s-ac"]\n[grid]\n"s-ac.alpha_actor" = [0.01, 0.02]\n')
+    assert cli.main(["reproduce", "--config", str(grid), "--out", str(tmp_path / "x")]) == 2
+    assert "lists 2 values; --config runs one configuration" in capsys.readouterr().err
