@@ -139,21 +139,7 @@ trials = 5
 # ----------------------------------------------------------------------------------------------------
 # Running.
 
-def _hooked_cli(marker: pathlib.Path) -> list[str]:
-    """The CLI with one change: after the driver saves its first experiment it touches ``marker``
-    and blocks, so a kill lands with exactly one experiment saved (as in test_runner.py)."""
-    script = (
-        "import pathlib, sys, time\n"
-        "from rmac_mj.experiments import runner\n"
-        "save = runner.save_outcome\n"
-        "def save_then_wait(out, outcome):\n"
-        "    save(out, outcome)\n"
-        f"    pathlib.Path({str(marker)!r}).touch()\n"
-        "    time.sleep(600)\n"
-        "runner.save_outcome = save_then_wait\n"
-        "from rmac_mj.cli import main\n"
-        "sys.exit(main(sys.argv[1:]))\n")
-    return [sys.executable, "-c", script]
+from test_runner import _hooked_cli  # noqa: E402  (tests/ is on sys.path, as pytest imports it)
 
 
 def test_tiny_sweep_killed_resumed_and_summarised(tmp_path):

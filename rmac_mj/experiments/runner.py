@@ -426,6 +426,21 @@ def warm_up(protocol: Protocol) -> None:
         run_trial(env, agent, learn=False)
 
 
+def _warm_up_announced(protocols: list[Protocol], log: Callable[[str], None] | None) -> None:
+    """:func:`warm_up` every protocol, saying so when numba really compiles (the first run only)."""
+    from rmac_mj import _cache
+
+    def compiling() -> None:
+        if log is not None:
+            log(f"compiling kernels, first run only (cached in {_cache.numba_cache_location()})")
+    compile_started = time.perf_counter()
+    with _cache.on_first_compile(compiling):
+        for protocol in protocols:
+            warm_up(protocol)
+    if log is not None and _cache.kernel_stats()["compiled"]:
+        log(f"kernels compiled in {time.perf_counter() - compile_started:.0f} s")
+
+
 def _ignore_interrupts() -> None:
     """Worker initialiser: Ctrl-C reaches the whole process group; only the driver handles it."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -690,16 +705,7 @@ def run_protocol(protocol: Protocol, out: str | os.PathLike, jobs: int | None = 
     clock = _WallClock(out, started, resume)
     pending = _pending(out, protocol, demonstration)
     if pending and not scheduler:
-        from rmac_mj import _cache
-
-        def compiling() -> None:
-            if log is not None:
-                log(f"compiling kernels, first run only (cached in {_cache.numba_cache_location()})")
-        compile_started = time.perf_counter()
-        with _cache.on_first_compile(compiling):
-            warm_up(protocol)
-        if log is not None and _cache.kernel_stats()["compiled"]:
-            log(f"kernels compiled in {time.perf_counter() - compile_started:.0f} s")
+        _warm_up_announced([protocol], log)
     if not scheduler:  # the workers stream their trials to progress/; a Dask worker may see no `out`
         pending = [dataclasses.replace(spec, stream_to=str(out)) for spec in pending]
         for spec in pending:  # a trial log left by an interrupted run is rewritten from the start
@@ -768,17 +774,7 @@ def run_protocols(runs: Iterable[tuple[Protocol, str | os.PathLike]], jobs: int 
         clocks.append(_WallClock(out, started, resume))
         pending.extend((k, spec) for spec in _pending(out, protocol, demonstration))
     if pending and not scheduler:
-        from rmac_mj import _cache
-
-        def compiling() -> None:
-            if log is not None:
-                log(f"compiling kernels, first run only (cached in {_cache.numba_cache_location()})")
-        compile_started = time.perf_counter()
-        with _cache.on_first_compile(compiling):
-            for k in sorted({k for k, _ in pending}):
-                warm_up(runs[k][0])
-        if log is not None and _cache.kernel_stats()["compiled"]:
-            log(f"kernels compiled in {time.perf_counter() - compile_started:.0f} s")
+        _warm_up_announced([runs[k][0] for k in sorted({k for k, _ in pending})], log)
     left = {k: 0 for k in range(len(runs))}
     for k, _ in pending:
         left[k] += 1
