@@ -1,6 +1,5 @@
 """S-AC (Algorithm 1): hand-worked TD and trace updates, actor direction, back ends, learning."""
 
-
 import numpy as np
 import pytest
 
