@@ -181,6 +181,28 @@ class Agent(abc.ABC):
         self._state_dim = state_space.dim
         self._in_trial = False
 
+    def _config_with_task_weights(self, config: Any, state_memories: tuple[str, ...],
+                                  process_memories: tuple[str, ...] = ("process",)) -> Any:
+        """``config`` with every ``<memory>_weights`` left None taken from the task's hints: the
+        StateSpace's ``weights`` for a memory over x, those then the ActionSpace's for one over
+        [x, u]; every weighting checked against n or n + m. The learner keeps the result as
+        ``self.config``, so results record the weightings actually used."""
+        n, m = self.state_space.dim, self.action_space.dim
+        hints = {name: self.state_space.weights for name in state_memories}
+        hints.update({name: np.r_[self.state_space.weights, self.action_space.weights]
+                      for name in process_memories})
+        config = dataclasses.replace(config, **{
+            f"{name}_weights": tuple(float(w) for w in weights)
+            for name, weights in hints.items() if getattr(config, f"{name}_weights") is None})
+        for name in hints:
+            size = n + m if name in process_memories else n
+            weights = getattr(config, f"{name}_weights")
+            if len(weights) != size:
+                raise ValueError(f"{self.name.upper()}: config.{name}_weights has {len(weights)} "
+                                 f"entries, this task needs {size} "
+                                 f"({'[x, u]' if name in process_memories else 'x'})")
+        return config
+
     # -- the boundary -------------------------------------------------------------------------------
     def _checked_state(self, x: Any, name: str = "x") -> np.ndarray:
         """x as a new float64 vector of shape (n,); ValueError naming ``name`` if not finite or wrong."""

@@ -216,24 +216,20 @@ class MLAC(Agent):
         self.n, self.m = n, m
         self.period = state_space.period  # (n,), 0 for non-periodic dimensions
         self._periodic = self.period > 0
-        weights = {prefix: self._weights(prefix, n if prefix != "process" else n + m)
-                   for prefix in _MEMORIES}
-        # self.config holds the weightings actually used (results record them).
-        self.config = config = dataclasses.replace(
-            config, **{f"{prefix}_weights": w for prefix, w in weights.items()})
+        self.config = config = self._config_with_task_weights(config, ("actor", "critic"))
         common = dict(norm=config.norm, conditioning=config.conditioning, rcond=config.rcond,
                       ridge=config.ridge, algorithm=config.backend)
         self.actor = LLRMemory(
-            n, m, config.actor_capacity, config.actor_neighbours, input_weights=weights["actor"],
+            n, m, config.actor_capacity, config.actor_neighbours, input_weights=config.actor_weights,
             input_period=self.period, clip=config.actor_clip,
             replacement=config.actor_replacement, **common)
         self.critic = LLRMemory(
-            n, 1, config.critic_capacity, config.critic_neighbours, input_weights=weights["critic"],
+            n, 1, config.critic_capacity, config.critic_neighbours, input_weights=config.critic_weights,
             input_period=self.period, clip=config.critic_clip,
             replacement=config.critic_replacement, **common)
         self.process = LLRMemory(
             n + m, n, config.process_capacity, config.process_neighbours,
-            input_weights=weights["process"], input_period=np.r_[self.period, np.zeros(m)],
+            input_weights=config.process_weights, input_period=np.r_[self.period, np.zeros(m)],
             output_period=self.period, clip=config.process_clip,
             replacement=config.process_replacement, **common)
         #: e(s_i): one eligibility trace per critic memory slot (RMAC paper, Alg. 2 line 26).
@@ -248,22 +244,6 @@ class MLAC(Agent):
         #: (pi(x_{k-1}), K(x_{k-1})) found when acting in x_{k-1}: saves one actor query per step.
         #: Derived state (None: recompute), so it is not part of the state dict.
         self._pi_prev: tuple[np.ndarray, np.ndarray] | None = None
-
-    def _weights(self, prefix: str, size: int) -> tuple[float, ...]:
-        """config.<prefix>_weights, or the StateSpace's hints when None; checked against the task."""
-        weights = getattr(self.config, f"{prefix}_weights")
-        if weights is None:
-            hints = [getattr(self.state_space, "weights", None)]
-            if prefix == "process":
-                hints.append(getattr(self.action_space, "weights", None))
-            if any(h is None for h in hints):
-                raise ValueError(f"MLAC: config.{prefix}_weights is None but the state and action "
-                                 "spaces give no weights; give the weighting explicitly")
-            weights = tuple(float(w) for h in hints for w in np.ravel(h))
-        if len(weights) != size:
-            raise ValueError(f"MLAC: config.{prefix}_weights has {len(weights)} entries, this task "
-                             f"needs {size} ({'[x, u]' if prefix == 'process' else 'x'})")
-        return weights
 
     # -- the policy -----------------------------------------------------------------------------------
     def _canonical(self, x: np.ndarray) -> np.ndarray:

@@ -222,20 +222,11 @@ class RMAC(Agent):
                  seed: int | np.random.Generator | None = None) -> None:
         super().__init__(state_space, action_space, config, seed)
         n, m = state_space.dim, action_space.dim
-        task_weights = {"critic": state_space.weights, "reference": state_space.weights,
-                        "process": np.r_[state_space.weights, action_space.weights]}
-        self.config = config = dataclasses.replace(config, **{
-            f"{prefix}_weights": tuple(float(w) for w in weights)
-            for prefix, weights in task_weights.items() if getattr(config, f"{prefix}_weights") is None})
+        self.config = config = self._config_with_task_weights(config, ("critic", "reference"))
         self.n, self.m = n, m
         if config.reachable_rule == "exact" and m != 1:
             raise ValueError(f"RMAC: config.reachable_rule='exact' needs a one-dimensional action, "
                              f"this task has {m}; use 'grid'")
-        for prefix, size in (("critic", n), ("reference", n), ("process", n + m)):
-            weights = getattr(config, f"{prefix}_weights")
-            if len(weights) != size:
-                raise ValueError(f"RMAC: config.{prefix}_weights has {len(weights)} entries, this "
-                                 f"task needs {size} ({'x' if size == n else '[x, u]'})")
         self.period = state_space.period  # (n,), 0 for non-periodic dimensions
         common = dict(norm=config.norm, conditioning=config.conditioning, rcond=config.rcond,
                       ridge=config.ridge, algorithm=config.backend)
