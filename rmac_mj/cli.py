@@ -210,7 +210,7 @@ def _parser() -> argparse.ArgumentParser:
     sweep.add_argument("--resume", action="store_true", help="finish an interrupted sweep in --out")
     sweep.add_argument("--no-optimal", action="store_true",
                        help="skip the near-optimal reference and exploration floor")
-    sweep.add_argument("--no-progress", action="store_true", help="no progress bar")
+    sweep.add_argument("--no-progress", action="store_true", help="no progress display")
 
     compare = command("compare", "overlay the learning curves of result directories and tabulate them")
     compare.add_argument("dirs", nargs="+", type=pathlib.Path, metavar="DIR",

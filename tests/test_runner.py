@@ -231,8 +231,9 @@ def test_trials_are_streamed_to_disk_as_they_happen(tmp_path):
 
 def test_the_driver_reads_only_complete_lines_of_the_live_logs(tmp_path):
     protocol = runner.Protocol(**TINY)
-    display = runner._Progress(protocol, {"s-ac": 0}, enabled=False)
-    feed = runner._TrialFeed(tmp_path, runner._pending(tmp_path, protocol), display)
+    pending = [(0, spec) for spec in runner._pending(tmp_path, protocol)]
+    display = runner._Progress([protocol], pending, enabled=False)
+    feed = runner._TrialFeed([tmp_path], pending, display)
     log = runner.progress_path(tmp_path, "s-ac", 1)
     log.parent.mkdir(parents=True)
     log.write_text("trial,return,greedy_return\n1,-4000.5,\n2,-39")  # trial 2 half written
@@ -242,7 +243,7 @@ def test_the_driver_reads_only_complete_lines_of_the_live_logs(tmp_path):
         handle.write("00.25,-3800.0\n")
     feed.poll()
     assert display.trials_done["s-ac"] == 2 and list(display.recent["s-ac"]) == [-4000.5, -3900.25]
-    display.experiment("s-ac", 1)  # the rest of the experiment, once it is saved
+    display.experiment((0, "s-ac", 1))  # the rest of the experiment, once it is saved
     assert display.trials_done["s-ac"] == 4 and display.done["s-ac"] == 1
 
 
@@ -254,9 +255,11 @@ def test_progress_bars_show_the_mean_of_the_last_trials():
             return True
 
     stream = Terminal()
-    display = runner._Progress(runner.Protocol(**TINY), {"s-ac": 0}, enabled=True, stream=stream)
+    protocol = runner.Protocol(**TINY)
+    pending = [(0, spec) for spec in runner._pending(pathlib.Path("nowhere"), protocol)]
+    display = runner._Progress([protocol], pending, enabled=True, stream=stream)
     for trial, value in enumerate([-3000.0, -2000.0, -1000.0], start=1):
-        display.trial("s-ac", 0, trial, value)
+        display.trial((0, "s-ac", 0), trial, value)
     display.close()
     assert "last 3 trials -2000" in stream.getvalue() and not display.plain
 
@@ -272,3 +275,24 @@ def test_a_resumed_run_reports_the_wall_time_of_all_its_parts(tmp_path):
     assert resumed["wall_time_s"] == pytest.approx(sum(parts))
     stored = json.loads(runner.wall_times_path(tmp_path).read_text())["parts"]
     assert [part["experiments"] for part in stored] == [2, 1]
+
+
+def test_one_progress_display_counts_the_learners_trials_over_several_runs(tmp_path):
+    first = runner.Protocol(**TINY)
+    second = runner.Protocol(**{**TINY, "experiments": 3, "trials": 5})
+    runner.curve_path(tmp_path / "b", "s-ac", 2).parent.mkdir(parents=True)
+    np.savez(runner.curve_path(tmp_path / "b", "s-ac", 2), returns=np.zeros(5))  # already finished
+    pending = [(k, spec) for k, (protocol, out) in enumerate([(first, tmp_path / "a"),
+                                                              (second, tmp_path / "b")])
+               for spec in runner._pending(out, protocol)]
+    display = runner._Progress([first, second], pending, enabled=False)
+    assert display.total_trials == {"all": 2 * 4 + 3 * 5, "s-ac": 23}
+    assert display.trials_done["s-ac"] == 5 and display.done == {"all": 1, "s-ac": 1}
+    display.trial((1, "s-ac", 0), 2, -100.0)
+    display.experiment((1, "s-ac", 0), returns=np.arange(5.0))  # 3 more trials of that run's 5
+    assert list(display.recent["s-ac"]) == [-100.0, 2.0, 3.0, 4.0]
+    display.experiment((1, "s-ac", 1))
+    assert display.trials_done["s-ac"] == 15 and display.runs_done == 1
+    display.experiment((0, "s-ac", 0))
+    display.experiment((0, "s-ac", 1))
+    assert display.trials_done == {"all": 23, "s-ac": 23} and display.runs_done == 2

@@ -451,7 +451,7 @@ _POLL_SECONDS = 0.5
 
 
 def _local_outcomes(specs: list, jobs: int,
-                    on_trial: Callable[[str, int, int, float], None] | None = None,
+                    on_trial: Callable[..., None] | None = None,
                     poll: Callable[[], None] | None = None,
                     run: Callable = run_experiment) -> Iterator:
     """Outcomes ``run(spec)`` of ``specs`` in the order they finish. Serially (``jobs == 1``) ``run``
@@ -508,25 +508,40 @@ def _is_terminal(stream: TextIO) -> bool:
 class _Progress:
     """Trials done, overall and per learner, with the mean return of each learner's last trials.
 
+    One display for one run or for several (a sweep): the learners' bars count the trials of all runs.
     On a terminal: tqdm bars (trials per second, time left). Otherwise (nohup, a Slurm log, a pipe):
     a plain line every ``interval`` seconds and at the end, without carriage returns or escape codes.
     Trials advance as the experiments report them (:meth:`trial`), and by the rest of an experiment
-    when it finishes (:meth:`experiment`).
+    when it finishes (:meth:`experiment`). An experiment is named by its key ``(run, algorithm,
+    index)``, ``run`` being its position in ``protocols``.
     """
 
     #: Trials over which the live mean return is taken, per learner.
     RECENT = 10
 
-    def __init__(self, protocol: Protocol, done: dict[str, int], enabled: bool,
-                 stream: TextIO | None = None, interval: float = 10.0):
-        self.trials = protocol.trials
-        self.algorithms = protocol.algorithms
-        self.experiments = {"all": protocol.experiments * len(protocol.algorithms),
-                            **{a: protocol.experiments for a in protocol.algorithms}}
-        self.done = {"all": sum(done.values()), **done}
-        self.trials_done = {key: count * self.trials for key, count in self.done.items()}
-        self.credited: dict[tuple[str, int], int] = {}  # trials counted of experiments in flight
-        self.recent = {a: collections.deque(maxlen=self.RECENT) for a in protocol.algorithms}
+    def __init__(self, protocols: list[Protocol], pending: list[tuple[int, ExperimentSpec]],
+                 enabled: bool, stream: TextIO | None = None, interval: float = 10.0):
+        self.algorithms = list(dict.fromkeys(a for p in protocols for a in p.algorithms))
+        self.trials = {k: p.trials for k, p in enumerate(protocols)}
+        self.runs = len(protocols)
+        left = collections.Counter(spec.algorithm for _, spec in pending)
+        runs_left = collections.Counter(k for k, _ in pending)
+        self.runs_done = self.runs - len(runs_left)
+        self.experiments = {a: sum(p.experiments for p in protocols if a in p.algorithms)
+                            for a in self.algorithms}
+        self.done = {a: self.experiments[a] - left[a] for a in self.algorithms}
+        total_trials = {a: sum(p.experiments * p.trials for p in protocols if a in p.algorithms)
+                        for a in self.algorithms}
+        self.total_trials = {"all": sum(total_trials.values()), **total_trials}
+        self.trials_done = {a: total_trials[a] - sum(self.trials[k] for k, spec in pending
+                                                     if spec.algorithm == a)
+                            for a in self.algorithms}
+        self.experiments["all"] = sum(self.experiments[a] for a in self.algorithms)
+        self.done["all"] = sum(self.done[a] for a in self.algorithms)
+        self.trials_done["all"] = sum(self.trials_done[a] for a in self.algorithms)
+        self.runs_left = runs_left
+        self.credited: dict[tuple[int, str, int], int] = {}  # trials counted of experiments in flight
+        self.recent = {a: collections.deque(maxlen=self.RECENT) for a in self.algorithms}
         self.stream = sys.stderr if stream is None else stream
         self.enabled = enabled
         # tqdm.auto draws widgets in a notebook, whose stderr is no terminal either
@@ -542,11 +557,11 @@ class _Progress:
             self._line()
             return
         from tqdm.auto import tqdm
-        for position, key in enumerate(["all", *protocol.algorithms]):
-            self.bars[key] = tqdm(total=self.experiments[key] * self.trials,
-                                  initial=self.trials_done[key], file=self.stream,
-                                  desc="all learners" if key == "all" else f"{key:>12}",
-                                  unit="trial", position=position, dynamic_ncols=True)
+        for position, key in enumerate(["all", *self.algorithms]):
+            label = ("all learners" if self.runs == 1 else f"{self.runs} runs") if key == "all" else key
+            self.bars[key] = tqdm(total=self.total_trials[key], initial=self.trials_done[key],
+                                  file=self.stream, desc=f"{label:>12}", unit="trial",
+                                  position=position, dynamic_ncols=True)
             self.bars[key].set_postfix_str(self._postfix(key))
 
     def _recent_mean(self, algorithm: str) -> str:
@@ -555,23 +570,32 @@ class _Progress:
 
     def _postfix(self, key: str) -> str:
         text = f"{self.done[key]}/{self.experiments[key]} experiments"
-        return text if key == "all" else f"{text}, {self._recent_mean(key)}"
+        if key != "all":
+            return f"{text}, {self._recent_mean(key)}"
+        return text if self.runs == 1 else f"{text}, {self.runs_done}/{self.runs} runs done"
 
-    def trial(self, algorithm: str, index: int, trial: int, value: float) -> None:
-        """Experiment ``index`` of ``algorithm`` finished learning trial ``trial`` with return ``value``."""
-        previous = self.credited.get((algorithm, index), 0)
+    def trial(self, key: tuple[int, str, int], trial: int, value: float) -> None:
+        """Experiment ``key`` finished learning trial ``trial`` with return ``value``."""
+        previous = self.credited.get(key, 0)
         if trial <= previous:
             return
-        self.credited[(algorithm, index)] = trial
-        self.recent[algorithm].append(value)
-        self._advance(algorithm, trial - previous)
+        self.credited[key] = trial
+        self.recent[key[1]].append(value)
+        self._advance(key[1], trial - previous)
 
-    def experiment(self, algorithm: str, index: int) -> None:
-        """Experiment ``index`` of ``algorithm`` finished (and is saved)."""
-        previous = self.credited.pop((algorithm, index), 0)
+    def experiment(self, key: tuple[int, str, int], returns: np.ndarray | None = None) -> None:
+        """Experiment ``key`` finished (and is saved); ``returns``: its learning curve, whose trials
+        not yet reported join the recent mean."""
+        run, algorithm, _ = key
+        previous = self.credited.pop(key, 0)
+        if returns is not None:
+            self.recent[algorithm].extend(np.asarray(returns, dtype=float)[previous:][-self.RECENT:])
         self.done["all"] += 1
         self.done[algorithm] += 1
-        self._advance(algorithm, self.trials - previous)
+        self.runs_left[run] -= 1
+        if self.runs_left[run] == 0:
+            self.runs_done += 1
+        self._advance(algorithm, self.trials[run] - previous)
 
     def _advance(self, algorithm: str, trials: int) -> None:
         for key in ("all", algorithm):
@@ -588,16 +612,16 @@ class _Progress:
 
     def _line(self) -> None:
         elapsed = time.monotonic() - self.started
-        total = self.experiments["all"] * self.trials
+        total = self.total_trials["all"]
         done = self.trials_done["all"]
         rate = (done - self.first_trials) / elapsed if elapsed > 0 else 0.0
         eta = f", about {_duration((total - done) / rate)} left" if rate > 0 and done < total else ""
+        runs = "" if self.runs == 1 else f", {self.runs_done}/{self.runs} runs"
         parts = [f"[{_duration(elapsed)}] {done}/{total} trials ({self.done['all']}/"
-                 f"{self.experiments['all']} experiments), {rate:.0f} trials/s{eta}"]
+                 f"{self.experiments['all']} experiments{runs}), {rate:.0f} trials/s{eta}"]
         for algorithm in self.algorithms:
             parts.append(f"{algorithm} {self.trials_done[algorithm]}/"
-                         f"{self.experiments[algorithm] * self.trials} trials, "
-                         f"{self._recent_mean(algorithm)}")
+                         f"{self.total_trials[algorithm]} trials, {self._recent_mean(algorithm)}")
         print(" | ".join(parts), file=self.stream, flush=True)
         self.last_line = time.monotonic()
 
@@ -621,9 +645,11 @@ def _duration(seconds: float) -> str:
 class _TrialFeed:
     """Follows the live trial logs that worker processes write (``progress/``) for the progress display."""
 
-    def __init__(self, out: pathlib.Path, specs: list[ExperimentSpec], progress: _Progress):
-        self.files = {(s.algorithm, s.index): progress_path(out, s.algorithm, s.index) for s in specs}
-        self.offsets: dict[tuple[str, int], int] = {}
+    def __init__(self, outs: list[pathlib.Path], pending: list[tuple[int, ExperimentSpec]],
+                 progress: _Progress):
+        self.files = {(k, s.algorithm, s.index): progress_path(outs[k], s.algorithm, s.index)
+                      for k, s in pending}
+        self.offsets: dict[tuple[int, str, int], int] = {}
         self.progress = progress
 
     def poll(self) -> None:
@@ -641,11 +667,11 @@ class _TrialFeed:
             for line in chunk[:end].decode("utf-8").splitlines():
                 trial, value, _ = line.split(",")
                 if trial != "trial":
-                    self.progress.trial(key[0], key[1], int(trial), float(value))
+                    self.progress.trial(key, int(trial), float(value))
         self.progress.tick()
 
-    def finished(self, algorithm: str, index: int) -> None:
-        self.files.pop((algorithm, index), None)
+    def finished(self, key: tuple[int, str, int]) -> None:
+        self.files.pop(key, None)
 
 
 class _WallClock:
@@ -685,7 +711,8 @@ def run_protocol(protocol: Protocol, out: str | os.PathLike, jobs: int | None = 
     Args:
       jobs: local worker processes (default: the machine's cores); ignored with ``scheduler``.
       scheduler: address of a Dask distributed scheduler to run the experiments on instead.
-      progress: show progress (bars on a terminal, periodic plain lines otherwise) on stderr.
+      progress: show progress (bars on a terminal, periodic plain lines otherwise) on stderr: the
+        trials done overall and per learner, with each learner's recent mean return.
       optimal: returns the near-optimal return for the summary and Fig. 2, or None.
       log: called with a one-line message before anything slow that shows no progress (compiling the
         kernels the first time); None says nothing.
@@ -695,38 +722,9 @@ def run_protocol(protocol: Protocol, out: str | os.PathLike, jobs: int | None = 
       floor: returns a learner's exploration floor (the near-optimal policy's return under that
         learner's exploration) for the summary and Fig. 2, or None.
     """
-    started = time.perf_counter() if started is None else started
-    out = pathlib.Path(out)
-    jobs = (os.cpu_count() or 1) if jobs is None else jobs
-    if jobs < 1:
-        raise ValueError(f"jobs must be a positive integer, got {jobs!r}")
-    demonstration, prior_sha256 = _read_prior_file(protocol)
-    _prepare(out, protocol, resume, prior_sha256)
-    clock = _WallClock(out, started, resume)
-    pending = _pending(out, protocol, demonstration)
-    if pending and not scheduler:
-        _warm_up_announced([protocol], log)
-    if not scheduler:  # the workers stream their trials to progress/; a Dask worker may see no `out`
-        pending = [dataclasses.replace(spec, stream_to=str(out)) for spec in pending]
-        for spec in pending:  # a trial log left by an interrupted run is rewritten from the start
-            progress_path(out, spec.algorithm, spec.index).unlink(missing_ok=True)
-    done = {a: protocol.experiments - sum(s.algorithm == a for s in pending) for a in protocol.algorithms}
-    display = _Progress(protocol, done, progress and bool(pending))
-    feed = _TrialFeed(out, pending, display)
-    outcomes = (_dask_outcomes(pending, scheduler) if scheduler else
-                _local_outcomes(pending, jobs, on_trial=display.trial,
-                                poll=feed.poll if display.enabled else None))
-    try:
-        with contextlib.closing(outcomes):  # on an interrupt, stop the workers at once
-            for outcome in outcomes:
-                save_outcome(out, outcome)
-                feed.finished(outcome["algorithm"], outcome["index"])
-                display.experiment(outcome["algorithm"], outcome["index"])
-                clock.record(experiments=1)
-    finally:
-        display.close()
-    return finalise(out, protocol, optimal=optimal, figures=figures, clock=clock, smooth=smooth,
-                    floor=floor)
+    return run_protocols([(protocol, out)], jobs=jobs, resume=resume, scheduler=scheduler,
+                         progress=progress, optimal=optimal, floor=floor, figures=figures, log=log,
+                         started=started, smooth=smooth)[0]
 
 
 def _read_prior_file(protocol: Protocol) -> tuple[prior_data.Demonstration | None, str | None]:
@@ -741,11 +739,15 @@ def _read_prior_file(protocol: Protocol) -> tuple[prior_data.Demonstration | Non
 
 
 def run_tagged(item: tuple[Any, ExperimentSpec],
-               on_trial: Callable[[str, int, int, float], None] | None = None
-               ) -> tuple[Any, dict[str, Any]]:
-    """``(tag, run_experiment(spec))`` for ``item = (tag, spec)``: lets one pool serve several runs."""
+               on_trial: Callable[..., None] | None = None) -> tuple[Any, dict[str, Any]]:
+    """``(tag, run_experiment(spec))`` for ``item = (tag, spec)``: lets one pool serve several runs.
+    ``on_trial`` is called as ``on_trial((tag, algorithm, index), trial, return)``."""
     tag, spec = item
-    return tag, run_experiment(spec, on_trial)
+    report = None
+    if on_trial is not None:
+        def report(algorithm: str, index: int, trial: int, value: float) -> None:
+            on_trial((tag, algorithm, index), trial, value)
+    return tag, run_experiment(spec, report)
 
 
 def run_protocols(runs: Iterable[tuple[Protocol, str | os.PathLike]], jobs: int | None = None,
@@ -759,8 +761,8 @@ def run_protocols(runs: Iterable[tuple[Protocol, str | os.PathLike]], jobs: int 
     Each ``out`` becomes exactly what :func:`run_protocol` writes (config.json, curves, snapshots,
     summary.json, returns.csv, Fig. 2, wall_times.json) and is resumable the same way; all pending
     experiments of all runs are queued together, and a run is summarised as soon as its last
-    experiment is saved. The arguments mean what they mean for :func:`run_protocol`. Returns each
-    run's summary, in order.
+    experiment is saved. The arguments mean what they mean for :func:`run_protocol`; the progress
+    display sums the learners' trials over the runs. Returns each run's summary, in order.
     """
     started = time.perf_counter() if started is None else started
     runs = [(protocol, pathlib.Path(out)) for protocol, out in runs]
@@ -775,34 +777,32 @@ def run_protocols(runs: Iterable[tuple[Protocol, str | os.PathLike]], jobs: int 
         pending.extend((k, spec) for spec in _pending(out, protocol, demonstration))
     if pending and not scheduler:
         _warm_up_announced([runs[k][0] for k in sorted({k for k, _ in pending})], log)
-    left = {k: 0 for k in range(len(runs))}
-    for k, _ in pending:
-        left[k] += 1
-    total = sum(p.experiments * len(p.algorithms) for p, _ in runs)
-    bar = None
-    if progress and pending:
-        from tqdm.auto import tqdm
-        bar = tqdm(total=total, initial=total - len(pending), unit="experiment", dynamic_ncols=True,
-                   desc=f"{len(runs)} runs")
+        # the workers stream their trials to progress/; a Dask worker may not see `out`
+        pending = [(k, dataclasses.replace(spec, stream_to=str(runs[k][1]))) for k, spec in pending]
+        for k, spec in pending:  # a trial log left by an interrupted run is rewritten from the start
+            progress_path(runs[k][1], spec.algorithm, spec.index).unlink(missing_ok=True)
+    left = collections.Counter(k for k, _ in pending)
+    display = _Progress([protocol for protocol, _ in runs], pending, progress and bool(pending))
+    feed = _TrialFeed([out for _, out in runs], pending, display)
     summaries: list[dict[str, Any] | None] = [None] * len(runs)
     outcomes = (_dask_outcomes(pending, scheduler, run_tagged) if scheduler
-                else _local_outcomes(pending, jobs, run=run_tagged))
+                else _local_outcomes(pending, jobs, on_trial=display.trial,
+                                     poll=feed.poll if display.enabled else None, run=run_tagged))
     try:
         with contextlib.closing(outcomes):  # on an interrupt, stop the workers at once
             for k, outcome in outcomes:
                 protocol, out = runs[k]
                 save_outcome(out, outcome)
+                key = (k, outcome["algorithm"], outcome["index"])
+                feed.finished(key)
+                display.experiment(key, outcome["returns"])
                 clocks[k].record(experiments=1)
                 left[k] -= 1
-                if bar is not None:
-                    bar.update(1)
-                    bar.set_postfix_str(f"{sum(n == 0 for n in left.values())}/{len(runs)} runs done")
                 if left[k] == 0:
                     summaries[k] = finalise(out, protocol, optimal=optimal, figures=figures,
                                             floor=floor, clock=clocks[k], smooth=smooth)
     finally:
-        if bar is not None:
-            bar.close()
+        display.close()
     return [summary if summary is not None else
             finalise(out, protocol, optimal=optimal, figures=figures, floor=floor, clock=clock,
                      smooth=smooth)
