@@ -34,14 +34,16 @@ def main(out: pathlib.Path) -> None:
     rows = list(csv.DictReader(open(out / "sweep.csv")))
     f = lambda row, key: float(row[key]) if row[key] not in ("", "None") else None  # noqa: E731
     ci = lambda row, m, lo, hi: f"{f(row, m):.0f} [{f(row, lo):.0f}, {f(row, hi):.0f}]"  # noqa
-    print("| configuration | greedy | exploring | floor | first 5 min | min to 90% |")
-    print("| --- | --- | --- | --- | --- | --- |")
+    print("| configuration | greedy | exploring | floor | exploring - floor | first 5 min "
+          "| min to 90% |")
+    print("| --- | --- | --- | --- | --- | --- | --- |")
     for row in rows:
         floor = f(row, "exploration_floor")
+        gap = "-" if floor is None else f"{f(row, 'final_return_mean') - floor:+.0f}"
         print(f"| {row['configuration']} | "
               f"{ci(row, 'greedy_return_mean', 'greedy_return_ci95_low', 'greedy_return_ci95_high')} | "
               f"{ci(row, 'final_return_mean', 'final_return_ci95_low', 'final_return_ci95_high')} | "
-              f"{'-' if floor is None else f'{floor:.0f}'} | "
+              f"{'-' if floor is None else f'{floor:.0f}'} | {gap} | "
               f"{ci(row, 'mean_return_first_5min', 'first_5min_ci95_low', 'first_5min_ci95_high')} | "
               f"{f(row, 'minutes_to_90pct'):.1f} |")
     base = load(out, PAPER)

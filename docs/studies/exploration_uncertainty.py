@@ -5,7 +5,8 @@ Usage: python docs/studies/exploration_uncertainty.py [THRESHOLD] [--experiments
 Runs experiments 0..N-1 of the sweep's protocol (seed 0, the same task and agent seeds as
 `rmac-mj sweep`) with Exploration(where='uncertain', uncertainty_threshold=THRESHOLD), records
 ``model_uncertainty`` on every scheduled exploring step (every 3rd step), and prints its
-percentiles and the fraction of scheduled steps that explored, per range of trials. THRESHOLD 0
+percentiles and the fraction of scheduled steps that explored, per range of trials, then for
+trials 201-600 near upright (|phi| < 0.3 rad) and elsewhere. THRESHOLD 0
 (the default) explores on every scheduled step, draw for draw as the paper's schedule, so it
 measures the distribution in a normal run.
 """
@@ -26,13 +27,13 @@ THRESHOLDS = (0.6, 0.8, 1.0, 1.2, 1.5)
 
 
 def run(index: int, threshold: float, trials: int) -> np.ndarray:
-    """(trial, uncertainty) of every scheduled step of experiment ``index``."""
+    """(trial, uncertainty, |phi|) of every scheduled step of experiment ``index``."""
     seen = []
     agent = None
 
     def recording(memory, query):
         value = model_uncertainty(memory, query)
-        seen.append((agent.trial, value))
+        seen.append((agent.trial, value, abs(float(query[0]))))
         return value
 
     rmac_module.model_uncertainty = recording
@@ -66,6 +67,17 @@ def main() -> None:
         q = np.percentile(v[np.isfinite(v)], [10, 25, 50, 75, 90])
         print(f"| {lo + 1}-{hi} | " + " / ".join(f"{x:.2f}" for x in q)
               + f" | {np.mean(v >= args.threshold):.2f} | "
+              + " | ".join(f"{np.mean(v >= t):.2f}" for t in THRESHOLDS) + " |")
+    late = data[data[:, 0] >= 200]
+    print()
+    print("| trials 201-600 | share of scheduled steps | median | explored | "
+          + " | ".join(f"P(>= {t:g})" for t in THRESHOLDS) + " |")
+    print("|---|---|---|---|" + "---|" * len(THRESHOLDS))
+    for label, rows in (("near upright, abs(phi) < 0.3", late[late[:, 2] < 0.3]),
+                        ("elsewhere", late[late[:, 2] >= 0.3])):
+        v = rows[:, 1]
+        print(f"| {label} | {len(v) / len(late):.2f} | {np.median(v):.2f} | "
+              f"{np.mean(v >= args.threshold):.2f} | "
               + " | ".join(f"{np.mean(v >= t):.2f}" for t in THRESHOLDS) + " |")
 
 
