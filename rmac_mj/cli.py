@@ -287,16 +287,21 @@ def _optimal_for(protocol) -> float | None:
 
 
 def _exploration_floor_for(protocol, algorithm: str) -> float | None:
-    """The exploration floor of ``algorithm``'s exploration on the paper's swing-up, else None."""
+    """The exploration floor of ``algorithm``'s exploration on the paper's swing-up, else None.
+
+    A decaying exploration is taken at its last trial's noise level (the final return averages the
+    last trials); exploration only where the model is uncertain has no floor (how often it explores
+    depends on the learner), so None."""
     if (protocol.domain, protocol.task, protocol.task_kwargs) != ("dc_pendulum", "swingup", {}):
         return None
     from rmac_mj.agents import config_class, config_from_dict
     from rmac_mj.experiments import optimal
     config = config_from_dict(config_class(algorithm), protocol.agent_configs.get(algorithm, {}))
     exploration = getattr(config, "exploration", None)
-    if exploration is None:
+    if exploration is None or exploration.where != "always":
         return None
-    return float(optimal.exploration_floor(exploration.sigma, exploration.period,
+    return float(optimal.exploration_floor(exploration.sigma_at(protocol.trials - 1),
+                                           exploration.period,
                                            exploration.phase).mean)
 
 

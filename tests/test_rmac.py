@@ -272,6 +272,19 @@ _OPTION_VALUES = {
                                           process_weights=(1.0, 0.1, 1.0, 0.5)),
     "reachable exact": dict(reachable_rule="exact"),
     "reachable exact, grid 4": dict(reachable_rule="exact", reachable_grid=4),
+    # The exploration is drawn outside the compiled step, which takes Delta u as given; these check
+    # that both back ends draw the same noise (the second trial's decayed sigma, the uncertainty
+    # read from the process memory before the step) and count the trials alike.
+    "exploration decays exponentially": dict(exploration=Exploration(
+        decay="exponential", decay_rate=0.5, sigma_min=0.1)),
+    "exploration decays linearly, sigma 2": dict(exploration=Exploration(
+        sigma=2.0, decay="linear", decay_trials=1, sigma_min=0.5)),
+    # (thresholds at which about half of the scheduled steps explore in this run)
+    "explore where uncertain": dict(exploration=Exploration(where="uncertain",
+                                                            uncertainty_threshold=1.5)),
+    "explore where uncertain, inverse query zero": dict(
+        exploration=Exploration(where="uncertain", uncertainty_threshold=2.0),
+        inverse_query="zero"),
 }
 
 

@@ -96,6 +96,8 @@ name = "oldest"
     ('[grid]\n"rmac.alpha_r" = [0.01]\n[[variant]]\nname = "a"\n"rmac.alpha_r" = 0.02\n',
      "[[variant]] \"a\" \"rmac.alpha_r\": is also swept in [grid]"),
     ("[grid\n", "not valid TOML"),
+    ('[[variant]]\nname = "u"\n"rmac.exploration.where" = "uncertain"\n',
+     "[[variant]] \"u\" \"rmac.exploration.where\": Exploration.uncertainty_threshold must be given"),
 ])
 def test_a_malformed_file_names_the_key(tmp_path, text, named):
     with pytest.raises(UserInputError) as error:
@@ -103,6 +105,18 @@ def test_a_malformed_file_names_the_key(tmp_path, text, named):
     message = str(error.value)
     assert named in message and message.startswith(str(tmp_path / "sweep.toml"))
     assert "\n" not in message
+
+
+def test_a_variant_sets_fields_that_depend_on_each_other(tmp_path):
+    # Each key is checked with the variant's other values: where='uncertain' needs its threshold.
+    plan = sweep.load_sweep(write(tmp_path, """
+[[variant]]
+name = "uncertain"
+"rmac.exploration.where" = "uncertain"
+"rmac.exploration.uncertainty_threshold" = 0.8
+"""))
+    assert plan.configurations[0].protocol.agent_configs["rmac"] == {
+        "exploration": {"where": "uncertain", "uncertainty_threshold": 0.8}}
 
 
 def test_a_malformed_file_exits_2_with_one_line_before_running_anything(tmp_path):

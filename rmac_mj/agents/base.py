@@ -23,7 +23,7 @@ from __future__ import annotations
 import abc
 import dataclasses
 import math
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -110,36 +110,158 @@ class ActionSpace:
         return np.clip(u, self.low, self.high)
 
 
+_DECAYS = ("none", "exponential", "linear")
+_WHERE = ("always", "uncertain")
+
+
 @dataclasses.dataclass(frozen=True)
 class Exploration:
     """Exploration of section 6.1: every ``period``-th step, zero-mean Gaussian noise of std ``sigma``.
 
-    The other steps are greedy (``Delta u = 0``). Step ``k`` of a trial explores when
-    ``k % period == phase``; with the defaults, steps 0, 3, 6, ... explore.
+    The other steps are greedy (``Delta u = 0``). Step ``k`` of a trial is *scheduled* to explore when
+    ``k % period == phase``; with the defaults, steps 0, 3, 6, ... explore, each with N(0, 1), in
+    every trial: the paper's setting. Two extensions (issue 14, study 4; the paper has neither):
+
+    * **A decaying noise level** (``decay``): the std for learning trial t (t = 0, 1, ... counts the
+      learning trials the agent has begun; greedy trials do not count) is
+
+      - 'none': ``sigma`` in every trial (the paper);
+      - 'exponential': ``max(sigma_min, sigma * decay_rate**t)``;
+      - 'linear': from ``sigma`` at t = 0 down to ``sigma_min`` at t = ``decay_trials``, then
+        ``sigma_min``.
+
+    * **Exploring only where the process model is uncertain** (``where``, for the learners that learn
+      one: RMAC and MLAC): with 'uncertain', a *scheduled* step explores only when the learner's
+      model uncertainty at the step (:func:`model_uncertainty`: the mean weighted distance from the
+      process model's query point to its K nearest samples, infinite while the memory holds fewer
+      than K) is at least ``uncertainty_threshold``; the other scheduled steps are greedy. The
+      schedule (``period``, ``phase``) still says *when* exploration may happen, the uncertainty
+      *whether* it does. 'always' (the paper) explores on every scheduled step.
+
+    Noise is drawn from the learner's generator only on steps that explore, so with the defaults the
+    random stream is the one of the paper's schedule, draw for draw.
 
     Attributes:
-      sigma: standard deviation of the exploration noise, in action units (V). Paper: 1.
+      sigma: standard deviation of the exploration noise, in action units (V). Paper: 1. With a
+        decay, the std of the first trial.
       period: explore once every ``period`` steps. Paper: 3.
       phase: which step of each period explores.
+      decay: 'none' (paper), 'exponential' or 'linear': how the std falls from trial to trial.
+      sigma_min: the std a decay ends at, in [0, sigma]. Unused with decay='none'.
+      decay_rate: the factor per trial of decay='exponential', in (0, 1). E.g. 0.99 halves the std
+        every 69 trials.
+      decay_trials: the trials decay='linear' takes to reach sigma_min, a positive integer.
+      where: 'always' (paper) or 'uncertain'.
+      uncertainty_threshold: for where='uncertain', the model uncertainty (in the process memory's
+        weighted input-distance units; dc_pendulum with Table 2's weighting: 1-norm over
+        (phi [rad], 0.1 omega [rad/s], u [V])) at or above which a scheduled step explores. Required
+        (a finite number >= 0) with where='uncertain', unused otherwise.
     """
 
     sigma: float = 1.0
     period: int = 3
     phase: int = 0
+    decay: str = "none"
+    sigma_min: float = 0.0
+    decay_rate: float = 0.99
+    decay_trials: int = 300
+    where: str = "always"
+    uncertainty_threshold: float | None = None
 
     def __post_init__(self) -> None:
-        if not (np.isfinite(self.sigma) and self.sigma >= 0):
-            raise ValueError(f"Exploration.sigma must be finite and >= 0, got {self.sigma!r}")
-        if int(self.period) != self.period or self.period < 1:
-            raise ValueError(f"Exploration.period must be a positive integer, got {self.period!r}")
-        if int(self.phase) != self.phase or not 0 <= self.phase < self.period:
-            raise ValueError(f"Exploration.phase must be in [0, period), got {self.phase!r}")
+        def integer(value: Any) -> bool:
+            return (not isinstance(value, bool) and isinstance(value, (int, np.integer, float))
+                    and float(value).is_integer())
 
-    def sample(self, k: int, dim: int, rng: np.random.Generator) -> np.ndarray:
-        """Delta u_k, ndarray of shape (dim,): noise on exploring steps, zeros otherwise."""
-        if self.sigma > 0 and k % self.period == self.phase:
-            return rng.normal(0.0, self.sigma, size=dim)
-        return np.zeros(dim)
+        def number(value: Any) -> bool:
+            return (not isinstance(value, bool) and isinstance(value, (int, float, np.number))
+                    and math.isfinite(value))
+
+        if not (number(self.sigma) and self.sigma >= 0):
+            raise ValueError(f"Exploration.sigma must be finite and >= 0, got {self.sigma!r}")
+        if not integer(self.period) or self.period < 1:
+            raise ValueError(f"Exploration.period must be a positive integer, got {self.period!r}")
+        if not integer(self.phase) or not 0 <= self.phase < self.period:
+            raise ValueError(f"Exploration.phase must be in [0, period), got {self.phase!r}")
+        if self.decay not in _DECAYS:
+            raise ValueError(f"Exploration.decay must be one of {_DECAYS}, got {self.decay!r}")
+        if not (number(self.sigma_min) and 0 <= self.sigma_min <= self.sigma):
+            raise ValueError(f"Exploration.sigma_min must be in [0, sigma={self.sigma!r}], "
+                             f"got {self.sigma_min!r}")
+        if not (number(self.decay_rate) and 0 < self.decay_rate <= 1):
+            raise ValueError(f"Exploration.decay_rate must be in (0, 1], got {self.decay_rate!r}")
+        if self.decay == "exponential" and self.decay_rate == 1:
+            raise ValueError("Exploration.decay_rate must be below 1 with decay='exponential' "
+                             "(1 never decays; use decay='none')")
+        if not integer(self.decay_trials) or self.decay_trials < 1:
+            raise ValueError(f"Exploration.decay_trials must be a positive integer, "
+                             f"got {self.decay_trials!r}")
+        if self.where not in _WHERE:
+            raise ValueError(f"Exploration.where must be one of {_WHERE}, got {self.where!r}")
+        threshold = self.uncertainty_threshold
+        if threshold is not None and not (number(threshold) and threshold >= 0):
+            raise ValueError(f"Exploration.uncertainty_threshold must be None or a finite number "
+                             f">= 0, got {threshold!r}")
+        if self.where == "uncertain" and threshold is None:
+            raise ValueError("Exploration.uncertainty_threshold must be given (a finite number >= 0) "
+                             "with where='uncertain'")
+
+    @property
+    def uses_trial(self) -> bool:
+        """Whether the noise depends on the trial index (a decay)."""
+        return self.decay != "none" and self.sigma_min != self.sigma
+
+    def sigma_at(self, trial: int) -> float:
+        """The noise std of learning trial ``trial`` (0 for the first), see ``decay``."""
+        if self.decay == "none" or trial <= 0:
+            return self.sigma
+        if self.decay == "exponential":
+            return max(self.sigma_min, self.sigma * self.decay_rate ** trial)
+        return self.sigma + (self.sigma_min - self.sigma) * min(trial, self.decay_trials) / \
+            self.decay_trials
+
+    def scheduled(self, k: int) -> bool:
+        """Whether step ``k`` of a trial is one on which exploration may happen (period, phase)."""
+        return k % self.period == self.phase
+
+    def sample(self, k: int, dim: int, rng: np.random.Generator, trial: int = 0,
+               uncertainty: Callable[[], float] | None = None) -> np.ndarray:
+        """Delta u_k, ndarray of shape (dim,): noise on exploring steps, zeros otherwise.
+
+        Args:
+          k: the step within the trial (0 for the action of ``start``).
+          dim: m, the action dimension.
+          rng: the learner's generator; drawn from only on a step that explores.
+          trial: the learning trial's index (for a decay).
+          uncertainty: for where='uncertain', a function returning the model uncertainty at this
+            step; called only on scheduled steps.
+        """
+        if not self.scheduled(k):
+            return np.zeros(dim)
+        sigma = self.sigma_at(trial)
+        if not sigma > 0:
+            return np.zeros(dim)
+        if self.where == "uncertain":
+            if uncertainty is None:
+                raise ValueError("Exploration.sample: where='uncertain' needs the learner's "
+                                 "uncertainty")
+            if not uncertainty() >= self.uncertainty_threshold:
+                return np.zeros(dim)
+        return rng.normal(0.0, sigma, size=dim)
+
+
+def model_uncertainty(memory: Any, query: np.ndarray) -> float:
+    """How uncertain an LLR process model is at ``query`` (shape (n + m,), [x, u]).
+
+    The mean weighted input distance (the memory's own norm and weighting) from ``query`` to its K
+    nearest samples; ``inf`` while the memory holds fewer than K samples (the fit there is
+    under-determined or rests on far samples). Small where the model has dense data, large where it
+    would extrapolate. Used by ``Exploration(where='uncertain')``.
+    """
+    distances = memory.neighbour_distances(query)
+    if len(distances) < memory.n_neighbours:
+        return math.inf
+    return float(distances.mean())
 
 
 class Agent(abc.ABC):
@@ -180,6 +302,8 @@ class Agent(abc.ABC):
         self.rng = np.random.default_rng(seed)
         self._state_dim = state_space.dim
         self._in_trial = False
+        #: Learning trials begun (``start`` calls); a decaying exploration reads the trial index.
+        self.trials_ = 0
 
     def _config_with_task_weights(self, config: Any, state_memories: tuple[str, ...],
                                   process_memories: tuple[str, ...] = ("process",)) -> Any:
@@ -234,6 +358,7 @@ class Agent(abc.ABC):
     def start(self, x0: Any) -> np.ndarray:
         """Begin a trial in state ``x0`` (shape (n,)); reset traces; return u_0 (shape (m,))."""
         x0 = self._checked_state(x0, "x0")
+        self.trials_ += 1
         u = self._start(x0)
         self._in_trial = True
         return u
@@ -248,6 +373,11 @@ class Agent(abc.ABC):
         self._check_in_trial("stop")
         self._stop(self._checked_reward(reward), self._checked_state(x))
         self._in_trial = False
+
+    @property
+    def trial(self) -> int:
+        """The index of the learning trial running (or last run): 0 for the first, -1 before any."""
+        return self.trials_ - 1
 
     def greedy_action(self, x: Any) -> np.ndarray:
         """The policy's action in ``x`` (shape (m,)) without exploration and without learning."""
@@ -328,13 +458,15 @@ class Agent(abc.ABC):
     # -- state ----------------------------------------------------------------------------------------
     def state_dict(self) -> dict[str, np.ndarray]:
         """Everything that decides what the agent does next, as a flat dict of numeric numpy arrays:
-        the learner's state, its random generator (``rng``) and whether a trial runs (``in_trial``)."""
+        the learner's state, its random generator (``rng``), whether a trial runs (``in_trial``) and
+        how many learning trials have begun (``trials``; a decaying exploration depends on it)."""
         state = self._state()
-        for key in ("rng", "in_trial"):
+        for key in ("rng", "in_trial", "trials"):
             if key in state:
                 raise KeyError(f"{type(self).__name__}._state() must not use the reserved key {key!r}")
         state["rng"] = generator_state_array(self.rng)
         state["in_trial"] = np.array(self._in_trial)
+        state["trials"] = np.array(self.trials_, dtype=np.int64)
         return state
 
     def load_state_dict(self, state: dict[str, np.ndarray]) -> None:
@@ -342,9 +474,18 @@ class Agent(abc.ABC):
         missing = sorted({"rng", "in_trial"} - set(state))
         if missing:
             raise ValueError(f"{self.name}: state dict lacks {missing}; has {sorted(state)}")
-        self._load_state({k: v for k, v in state.items() if k not in ("rng", "in_trial")})
+        # Snapshots written before the trial counter existed lack ``trials``; they load unless the
+        # agent's exploration decays, which would then start again from the first trial's noise.
+        exploration = getattr(self.config, "exploration", None)
+        if "trials" not in state and exploration is not None and exploration.uses_trial:
+            raise ValueError(f"{self.name}: state dict lacks 'trials', which a decaying "
+                             f"exploration needs; has {sorted(state)}")
+        self._load_state({k: v for k, v in state.items()
+                          if k not in ("rng", "in_trial", "trials")})
         set_generator_state(self.rng, state["rng"])
         self._in_trial = bool(state["in_trial"])
+        if "trials" in state:
+            self.trials_ = int(state["trials"])
 
     def config_dict(self) -> dict[str, Any]:
         """The hyperparameters as JSON-ready data (a dataclass's fields)."""

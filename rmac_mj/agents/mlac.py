@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 
 from rmac_mj.agents.base import (ActionSpace, Agent, Exploration, StateSpace,
-                                 discounted_returns)
+                                 discounted_returns, model_uncertainty)
 from rmac_mj.approximators.llr import LLRMemory, wrap
 
 _BACKENDS = ("numba", "numpy")
@@ -95,7 +95,9 @@ class MLACConfig:
     then ``ActionSpace.weights`` ((1, 0.1, 1) for dc_pendulum, as the authors' group's code)."""
 
     exploration: Exploration = Exploration()
-    """Exploration Delta u_k: N(0, 1) every third step, the S-AC schedule of the RMAC paper (6.1)."""
+    """Exploration Delta u_k: N(0, 1) every third step, the S-AC schedule of the RMAC paper (6.1).
+    With ``where='uncertain'`` the uncertainty is the process model's at (x_k, pi(x_k)), where the
+    policy acts."""
     action_cost: float = 1.0
     """P in dr/du = -2 P u, the reward's action gradient; the one piece of task knowledge MLAC uses
     (``dc_pendulum``: r = -x^T Q x - P u^2, P = 1). 0 ignores the reward's dependence on u."""
@@ -316,8 +318,13 @@ class MLAC(Agent):
     # -- Agent interface ------------------------------------------------------------------------------
     def _act(self, x: np.ndarray) -> np.ndarray:
         """Step 4: u = pi(x) + Delta u_k, saturated."""
-        du = self.config.exploration.sample(self._k, self.m, self.rng)
         self._pi_prev = self._pi(x)  # kept for the next actor update (x becomes x_{k-1})
+        exploration = self.config.exploration
+        uncertainty = None
+        if exploration.where == "uncertain":  # the process model where the policy acts: (x, pi(x))
+            query = np.concatenate([x, self._pi_prev[0]])
+            uncertainty = lambda: model_uncertainty(self.process, query)  # noqa: E731
+        du = exploration.sample(self._k, self.m, self.rng, self.trial, uncertainty)
         return self._clip(self._pi_prev[0] + du)
 
     def _start(self, x0: np.ndarray) -> np.ndarray:

@@ -29,7 +29,7 @@ import numpy as np
 
 from rmac_mj.agents import _rmac_kernels
 from rmac_mj.agents.base import (ActionSpace, Agent, Exploration, StateSpace, discounted_returns,
-                                 seed_memory)
+                                 model_uncertainty, seed_memory)
 from rmac_mj.approximators.llr import LLRMemory, wrap
 
 _BACKENDS = ("numba", "numpy")
@@ -86,7 +86,10 @@ class RMACConfig:
 
     exploration: Exploration = Exploration()
     """Exploration Delta u_k. The paper says RMAC still needs it but not how; the default is the S-AC
-    schedule of section 6.1 (N(0, 1) every third step). Without it beta_u stays 0 and u = 0 forever."""
+    schedule of section 6.1 (N(0, 1) every third step). Without it beta_u stays 0 and u = 0 forever.
+    With ``where='uncertain'`` the uncertainty is the process model's at the point the inverse of
+    line 11 linearises it, (x_k, u_{k-1}) (or (x_k, 0): ``inverse_query``), before line 14 inserts
+    the last transition (docs/studies/exploration-schedule.md)."""
 
     norm: int = 1
     """1- or 2-norm of the weighted input difference in all memories (section 4 allows both)."""
@@ -358,25 +361,34 @@ class RMAC(Agent):
         self._u_greedy = np.zeros(self.m)
         self._v_prev[0] = (self.critic.query(x0)[0][0] if self.config.initial_value == "critic"
                            else 0.0)  # line 2
-        u = self._explore(self._act(x0, np.zeros(self.m)))
+        u = self._explore(self._act(x0, np.zeros(self.m)), x0, np.zeros(self.m))
         self._x_prev[:] = x0
         self._u_prev[:] = u
         return u.copy()
 
-    def _explore(self, u_greedy: np.ndarray) -> np.ndarray:
-        du = self.config.exploration.sample(self._k, self.m, self.rng)  # line 8
+    def _noise(self, x: np.ndarray, u_prev: np.ndarray) -> np.ndarray:
+        """Delta u_k of line 8 for step k in x_k, after u_{k-1} (see ``RMACConfig.exploration``)."""
+        exploration = self.config.exploration
+        uncertainty = None
+        if exploration.where == "uncertain":
+            query = np.concatenate([x, self._u_query(u_prev)])
+            uncertainty = lambda: model_uncertainty(self.process, query)  # noqa: E731
+        return exploration.sample(self._k, self.m, self.rng, self.trial, uncertainty)
+
+    def _explore(self, u_greedy: np.ndarray, x: np.ndarray, u_prev: np.ndarray) -> np.ndarray:
+        du = self._noise(x, u_prev)  # line 8
         return np.minimum(np.maximum(u_greedy + du, self.action_space.low), self.action_space.high)
 
     def _step(self, reward: float, x: np.ndarray) -> np.ndarray:
         """Lines 8-29 for one control step: act with the current models, then learn."""
         self._k += 1
         if self._kernel_state is not None:
-            du = self.config.exploration.sample(self._k, self.m, self.rng)  # line 8
+            du = self._noise(x, self._u_prev)  # line 8
             # Lines 10-28 in one compiled call (x wrapped there), which also advances x_prev,
             # u_prev and v_prev; it returns a new array.
             return _rmac_kernels.step(self._kernel_state, reward, x, du)
         x = self._wrapped(x)
-        u = self._explore(self._act(x, self._u_prev))  # lines 10-12
+        u = self._explore(self._act(x, self._u_prev), x, self._u_prev)  # lines 10-12
         self._v_prev[0] = self._update(float(reward), x)   # lines 13-28
         self._x_prev[:] = x
         self._u_prev[:] = u

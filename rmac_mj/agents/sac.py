@@ -60,7 +60,8 @@ class SACConfig:
       tile_low, tile_high: range of the tile coder per state dimension, overriding the agent's
         StateSpace where given (e.g. a velocity range narrower than the task's nominal box; states
         outside are clipped). None: the StateSpace's box.
-      exploration: Delta u schedule. Paper: sigma 1 every third step.
+      exploration: Delta u schedule. Paper: sigma 1 every third step. A decay is supported;
+        ``where`` must be 'always' (S-AC has no process model to measure its uncertainty).
       trace_cutoff: traces below this are dropped (set to 0); 0 keeps every nonzero trace.
       backend: ``"numba"`` (compiled) or ``"numpy"`` (reference); same results.
     """
@@ -91,6 +92,9 @@ class SACConfig:
               "'both', 'actor' or 'none'")
         check("tile_coding", isinstance(self.tile_coding, TileCodingConfig), "a TileCodingConfig")
         check("exploration", isinstance(self.exploration, Exploration), "an Exploration")
+        if self.exploration.where != "always":
+            raise ValueError(f"SACConfig.exploration.where must be 'always': S-AC learns no process "
+                             f"model to be uncertain about, got {self.exploration.where!r}")
         check("trace_cutoff", finite(self.trace_cutoff) and 0 <= self.trace_cutoff < 1, "in [0, 1)")
         check("backend", self.backend in ("numba", "numpy"), "'numba' or 'numpy'")
         for name in ("tile_low", "tile_high"):
@@ -314,7 +318,7 @@ class SAC(Agent):
 
     def _act(self, tiles: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
         """Lines 6 and 8: u_k = sat(pi(x_k) + Delta u_k) and the applied exploration u_k - pi(x_k)."""
-        noise = self.config.exploration.sample(k, self.action_space.dim, self.rng)
+        noise = self.config.exploration.sample(k, self.action_space.dim, self.rng, self.trial)
         if self.config.backend == "numba":
             m = self.action_space.dim
             u, du = np.empty(m), np.empty(m)

@@ -335,6 +335,17 @@ class LLRMemory:
         return search_reference(self.X_[:count], xq, self._w, self._pin, self.norm,
                                 self.n_neighbours)
 
+    def neighbour_distances(self, x: Any) -> np.ndarray:
+        """Weighted distances (float, shape (min(K, n_samples_),)) from x to K(x), nearest first.
+
+        In the memory's norm (``norm``) of the weighted, wrapped input difference, the quantity that
+        orders the neighbours (for the 2-norm the distance itself, not its square).
+        """
+        xq = self._canonical(self._check("x", x, self.input_dim))
+        idx = self._neighbours(xq)
+        e = self._w * wrap(self.X_[idx] - xq, self._pin)
+        return np.abs(e).sum(axis=1) if self.norm == 1 else np.sqrt((e * e).sum(axis=1))
+
     def query(self, x: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """LLR at x (shape (n,)).
 

@@ -470,13 +470,19 @@ class _Checker:
             if name in names:
                 raise self.error(f"{label} name", f"repeats the variant name {name!r}")
             names.add(name)
-            values = {}
+            values, hints = {}, {}
             for key, value in _flatten({k: v for k, v in table.items() if k != "name"}).items():
                 where = f'[[variant]] "{name}" "{key}"'
-                self.value(value, self.hyperparameter(key, algorithms, where), where, key, fixed)
+                hints[key] = self.hyperparameter(key, algorithms, where)
+                self.value(value, hints[key], where)  # the type first, for every key
                 if key in grid:
                     raise self.error(where, "is also swept in [grid]; set it in one place")
                 values[key] = value
+            # Then the ranges, each key with the variant's other values, which it may depend on
+            # (rmac.exploration.where = "uncertain" needs its uncertainty_threshold).
+            for key, value in values.items():
+                where = f'[[variant]] "{name}" "{key}"'
+                self.value(value, hints[key], where, key, {**fixed, **values})
             variants.append((name, values))
         return tuple(variants)
 

@@ -1,0 +1,99 @@
+"""Summarise the exploration-schedule study (docs/studies/exploration-schedule.md) from its sweep.
+
+Usage: python docs/studies/exploration_schedule_summary.py OUT [--plot FILE.png]
+OUT is the `rmac-mj sweep docs/studies/exploration-schedule.toml --out OUT` directory. Prints the
+results table (from OUT/sweep.csv) and the paired differences of every configuration from the
+paper's (experiment i against experiment i: the same seeds), with two-sided t-tests.
+"""
+
+import csv
+import pathlib
+import sys
+
+import numpy as np
+from scipy import stats
+
+PAPER = "paper"
+TRIAL_SECONDS = 3.0
+
+
+def load(out: pathlib.Path, name: str) -> dict[str, np.ndarray]:
+    files = sorted((out / name / "curves" / "rmac").glob("exp_*.npz"))
+    data = [np.load(f) for f in files]
+    return {"returns": np.array([d["returns"] for d in data]),
+            "greedy": np.array([d["greedy_returns"] for d in data])}
+
+
+def paired(d: np.ndarray) -> str:
+    half = stats.t.ppf(0.975, len(d) - 1) * d.std(ddof=1) / np.sqrt(len(d))
+    p = stats.ttest_1samp(d, 0.0).pvalue
+    return f"{d.mean():+.0f} ± {half:.0f} (p {'< 0.001' if p < 0.001 else f'= {p:.3f}'})"
+
+
+def main(out: pathlib.Path) -> None:
+    rows = list(csv.DictReader(open(out / "sweep.csv")))
+    f = lambda row, key: float(row[key]) if row[key] not in ("", "None") else None  # noqa: E731
+    ci = lambda row, m, lo, hi: f"{f(row, m):.0f} [{f(row, lo):.0f}, {f(row, hi):.0f}]"  # noqa
+    print("| configuration | greedy | exploring | floor | exploring - floor | first 5 min "
+          "| min to 90% |")
+    print("| --- | --- | --- | --- | --- | --- | --- |")
+    for row in rows:
+        floor = f(row, "exploration_floor")
+        gap = "-" if floor is None else f"{f(row, 'final_return_mean') - floor:+.0f}"
+        print(f"| {row['configuration']} | "
+              f"{ci(row, 'greedy_return_mean', 'greedy_return_ci95_low', 'greedy_return_ci95_high')} | "
+              f"{ci(row, 'final_return_mean', 'final_return_ci95_low', 'final_return_ci95_high')} | "
+              f"{'-' if floor is None else f'{floor:.0f}'} | {gap} | "
+              f"{ci(row, 'mean_return_first_5min', 'first_5min_ci95_low', 'first_5min_ci95_high')} | "
+              f"{f(row, 'minutes_to_90pct'):.1f} |")
+    base = load(out, PAPER)
+    print()
+    print("| configuration | greedy (mean of the last 5 greedy trials) | exploring (last 50) "
+          "| first 5 min |")
+    print("| --- | --- | --- | --- |")
+    for row in rows:
+        name = row["configuration"]
+        if name == PAPER:
+            continue
+        c = load(out, name)
+        greedy = c["greedy"][:, -5:].mean(axis=1) - base["greedy"][:, -5:].mean(axis=1)
+        exploring = c["returns"][:, -50:].mean(axis=1) - base["returns"][:, -50:].mean(axis=1)
+        first = c["returns"][:, :100].mean(axis=1) - base["returns"][:, :100].mean(axis=1)
+        print(f"| {name} | {paired(greedy)} | {paired(exploring)} | {paired(first)} |")
+
+
+def plot(out: pathlib.Path, path: str) -> None:
+    """Mean exploring curve (10-trial moving average) and mean greedy return per configuration."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    names = [row["configuration"] for row in csv.DictReader(open(out / "sweep.csv"))]
+    fig, (ax, gx) = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
+    for name in names:
+        c = load(out, name)
+        style = dict(color="k", lw=2.0) if name == PAPER else dict(lw=1.0)
+        curve = np.convolve(c["returns"].mean(axis=0), np.ones(10) / 10, mode="valid")
+        ax.plot((np.arange(len(curve)) + 10) * TRIAL_SECONDS / 60, curve, label=name, **style)
+        every = c["returns"].shape[1] // c["greedy"].shape[1]
+        gx.plot(np.arange(1, c["greedy"].shape[1] + 1) * every * TRIAL_SECONDS / 60,
+                c["greedy"].mean(axis=0), label=name, **style)
+    for axis, title in ((ax, "learning (exploring) trials, 10-trial mean"),
+                        (gx, "greedy trial after every 10th")):
+        axis.axhline(-748, color="grey", lw=0.8, ls="--")
+        axis.set(xlabel="simulated time [min]", title=title, ylim=(-3000, -700))
+        axis.grid(alpha=0.3)
+    ax.set_ylabel("sum of rewards per trial, mean of 10 experiments")
+    gx.legend(title="exploration")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+if __name__ == "__main__":
+    args = sys.argv[1:]
+    figure = None
+    if "--plot" in args:
+        figure = args[args.index("--plot") + 1]
+        del args[args.index("--plot"):args.index("--plot") + 2]
+    main(pathlib.Path(args[0]))
+    if figure:
+        plot(pathlib.Path(args[0]), figure)
