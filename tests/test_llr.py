@@ -160,18 +160,21 @@ def test_replace_nearest(algorithm):
 
 @pytest.mark.parametrize("algorithm", ALGORITHMS)
 def test_redundancy_by_distance_evicts_the_duplicate(algorithm):
-    # K = 2, eta = 0.5, 1-norm; scores worked by hand (rho_i <- rho_i / 2 - d_i / 2 over K(x_*),
-    # rho_* = -min d): a 0 -> 0; b 1 -> a -0.5, b -1; c 3 -> b -1.5, a -1.75, c -2;
-    # d 1 (b's duplicate) -> b -0.75, a -1.375, d 0.
+    # K = 2, eta = 0.5, 1-norm; scores worked by hand: rho_i <- rho_i / 2 - d_i / 2 over K(x_*),
+    # rho_* = mean_i rho_i / 2 - min d / 2. a 0 -> a 0; b 1 -> a -0.5, b -0.75;
+    # c 3 -> b -1.375, a -1.75, c -1.78125; d 1 (b's duplicate) -> b -0.6875, a -1.375, d -0.515625.
     memory = LLRMemory(1, 1, 4, 2, replacement="redundancy", redundancy="distance",
                        redundancy_smoothing=0.5, algorithm=algorithm)
     for v in (0.0, 1.0, 3.0, 1.0):
         memory.insert([v], [v])
-    np.testing.assert_allclose(memory.redundancy_, [-1.375, -0.75, -2.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(memory.redundancy_, [-1.375, -0.6875, -1.78125, -0.515625],
+                               atol=1e-12)
     # Full. 10 is nearest to c (which 'nearest' would replace) and 'oldest' would replace a; the
-    # duplicate, at distance 0 from b when it came, is the most redundant: c -4.5, b -4.875.
+    # duplicate, at distance 0 from b when it came, is the most redundant (c -4.390625,
+    # b -4.84375); the newcomer starts at -4.6171875 / 2 - 7 / 2.
     assert memory.insert([10.0], [0.0]) == 3
-    np.testing.assert_allclose(memory.redundancy_, [-1.375, -4.875, -4.5, -7.0], atol=1e-12)
+    np.testing.assert_allclose(memory.redundancy_, [-1.375, -4.84375, -4.390625, -5.80859375],
+                               atol=1e-12)
     np.testing.assert_array_equal(memory.X_[:, 0], [0.0, 1.0, 3.0, 10.0])
 
 
@@ -186,10 +189,11 @@ def test_redundancy_by_misfit_evicts_the_sample_on_the_line(algorithm):
                        redundancy_smoothing=0.5, conditioning="none", algorithm=algorithm)
     memory.fit(X, Y)  # each scored among the other four
     np.testing.assert_allclose(memory.redundancy_, [-1, -1, 0, -1, -1], atol=1e-12)
-    # (3, 6) lies on the line too: the six-sample fit is still y = 2 x. 'nearest' would replace
-    # x = 2 and 'oldest' x = -2; the sample on the line goes, and the newcomer scores 0.
+    # (3, 6) lies on the line too: the six-sample fit is still y = 2 x, so the neighbours keep
+    # their scores. 'nearest' would replace x = 2 and 'oldest' x = -2; the sample on the line goes,
+    # and the newcomer starts at the neighbours' mean -0.8 / 2 + its own -0 / 2.
     assert memory.insert([3.0], [6.0]) == 2
-    np.testing.assert_allclose(memory.redundancy_, [-1, -1, 0, -1, -1], atol=1e-12)
+    np.testing.assert_allclose(memory.redundancy_, [-1, -1, -0.4, -1, -1], atol=1e-12)
     np.testing.assert_array_equal(memory.X_[:, 0], [-2.0, -1.0, 3.0, 1.0, 2.0])
 
 

@@ -633,26 +633,31 @@ def score(state, xq, y, idx, nk):
     """Update the redundancy scores of the neighbours ``idx[:nk]`` of a new sample [xq | y] (xq
     canonical) and return the new sample's own score (``LLRMemory`` documents the equations):
     rho_i <- (1 - eta) rho_i + eta c_i with c_i = -d(x_i, xq) ('distance') or -e_i^2
-    ('misfit'); the new sample's is c_* = -min_i d(x_i, xq), resp. -e_*^2 (0 with no neighbours)."""
+    ('misfit'); the new sample's is rho_* = (1 - eta) mean_i rho_i + eta c_*, the mean over the
+    updated neighbours, with c_* = -min_i d(x_i, xq), resp. -e_*^2 (0 with no neighbours)."""
     rho = state.redundancy
     eta = state.smoothing
     if nk <= 0:
         return 0.0
+    own = 0.0
     if state.measure == MEASURE_DISTANCE:
-        own = 0.0
         for a in range(nk):
             i = idx[a]
             d = distance_to(state, i, xq)
             if a == 0:
                 own = -d
             rho[i] = (1.0 - eta) * rho[i] - eta * d
-        return own
-    e2 = np.empty(nk + 1)
-    misfits(state, xq, y, idx, nk, e2)
+    else:
+        e2 = np.empty(nk + 1)
+        misfits(state, xq, y, idx, nk, e2)
+        for a in range(nk):
+            i = idx[a]
+            rho[i] = (1.0 - eta) * rho[i] - eta * e2[a + 1]
+        own = -e2[0]
+    mean = 0.0
     for a in range(nk):
-        i = idx[a]
-        rho[i] = (1.0 - eta) * rho[i] - eta * e2[a + 1]
-    return -e2[0]
+        mean += rho[idx[a]]
+    return (1.0 - eta) * (mean / nk) + eta * own
 
 
 @njit(cache=True)

@@ -35,7 +35,8 @@ Where the paper is silent, the choice is a constructor parameter (defaults in br
 
       rho_i <- (1 - eta) rho_i + eta c_i            for i in K(x_*),   eta = redundancy_smoothing,
 
-  and the new sample starts at its own measure, rho_* = c_*. The measures:
+  and the new sample starts from its neighbourhood's level with one such step towards its own
+  measure, rho_* = (1 - eta) mean_{i in K(x_*)} rho_i + eta c_* (0 on an empty memory). The measures:
 
   - 'distance': c_i = -d(x_i, x_*), the weighted distance of the memory (1- or 2-norm of
     w * wrap(x_i - x_*)); c_* = -min_i d(x_i, x_*). A sample close to new samples is redundant.
@@ -49,9 +50,13 @@ Where the paper is silent, the choice is a constructor parameter (defaults in br
   Once full, the new sample replaces the stored sample of highest score (first of equals), after
   its neighbours' scores have been updated; the new sample itself is always stored. Our choices:
   scores change only on insertion (a query leaves the memory unchanged, so greedy trials and
-  plots do not alter what is forgotten); the first sample of an empty memory starts at 0; ``fit``
-  scores each given sample as if it had been inserted last among the others. eta = 0.1 averages a
-  score over roughly its last ten neighbourhood events.
+  plots do not alter what is forgotten); the new sample's start above (a first version started it
+  at c_* itself: a new sample is then judged by its single nearest distance or its own misfit while
+  the others' scores are averages, so it was nearly always the most redundant, the next sample
+  replaced it, and the memories stopped taking in new states: RMAC got stuck in 5 of 10
+  experiments, docs/studies/memory-management.md); ``fit`` scores each given sample by its own
+  measure among the others (c_i as if inserted last). eta = 0.1 averages a score over roughly its
+  last ten neighbourhood events.
 * A query on an empty memory predicts 0 with beta = 0 (Algorithm 2 line 2: V_0 = 0, beta^P = 0).
 
 Two back ends give the same results: ``algorithm='numba'`` (compiled kernels in ``_llr_kernels``) and
@@ -493,14 +498,17 @@ class LLRMemory:
         x = self._canonical(x)
         own = 0.0
         if self.replacement == "redundancy":
-            # rho_i <- (1 - eta) rho_i + eta c_i over K(x), rho_* = c_* (module docstring).
+            # rho_i <- (1 - eta) rho_i + eta c_i over K(x) (module docstring).
             idx = search_reference(self.X_[:count], x, self._w, self._pin, self.norm,
                                    self.n_neighbours)
             neg_c = self._measures(x, y, idx)
             eta = float(self.redundancy_smoothing)
             for a, i in enumerate(idx):  # in the compiled kernel's order
                 self.redundancy_[i] = (1.0 - eta) * self.redundancy_[i] - eta * neg_c[1 + a]
-            own = -neg_c[0]
+            # rho_* = (1 - eta) mean rho_i + eta c_*, over the updated neighbours
+            # (summed in order, as the compiled kernel does)
+            own = (1.0 - eta) * (sum(float(self.redundancy_[i]) for i in idx) / len(idx)) \
+                - eta * neg_c[0] if len(idx) else 0.0
         if count < self.capacity:
             slot = count
             self._meta[0] += 1
