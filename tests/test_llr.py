@@ -158,14 +158,61 @@ def test_replace_nearest(algorithm):
     np.testing.assert_array_equal(memory.X_, [[2.2, 0.0], [1.1, 50.0], [2.0, 0.0]])
 
 
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+def test_redundancy_by_distance_evicts_the_duplicate(algorithm):
+    # K = 2, eta = 0.5, 1-norm; scores worked by hand: rho_i <- rho_i / 2 - d_i / 2 over K(x_*),
+    # rho_* = mean_i rho_i / 2 - min d / 2. a 0 -> a 0; b 1 -> a -0.5, b -0.75;
+    # c 3 -> b -1.375, a -1.75, c -1.78125; d 1 (b's duplicate) -> b -0.6875, a -1.375, d -0.515625.
+    memory = LLRMemory(1, 1, 4, 2, replacement="redundancy", redundancy="distance",
+                       redundancy_smoothing=0.5, algorithm=algorithm)
+    for v in (0.0, 1.0, 3.0, 1.0):
+        memory.insert([v], [v])
+    np.testing.assert_allclose(memory.redundancy_, [-1.375, -0.6875, -1.78125, -0.515625],
+                               atol=1e-12)
+    # Full. 10 is nearest to c (which 'nearest' would replace) and 'oldest' would replace a; the
+    # duplicate, at distance 0 from b when it came, is the most redundant (c -4.390625,
+    # b -4.84375); the newcomer starts at -4.6171875 / 2 - 7 / 2.
+    assert memory.insert([10.0], [0.0]) == 3
+    np.testing.assert_allclose(memory.redundancy_, [-1.375, -4.84375, -4.390625, -5.80859375],
+                               atol=1e-12)
+    np.testing.assert_array_equal(memory.X_[:, 0], [0.0, 1.0, 3.0, 10.0])
+
+
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+def test_redundancy_by_misfit_evicts_the_sample_on_the_line(algorithm):
+    # y = 2 x plus noise (1, -1, 0, -1, 1) at x = -2..2: the noise is orthogonal to [x, 1], so the
+    # affine fit of any of these sets is y = 2 x and the squared misfits are the noise squared; the
+    # sample at x = 0 lies on the line and the local model predicts it exactly.
+    X = np.arange(-2.0, 3.0)[:, None]
+    Y = 2 * X + np.array([[1.0], [-1.0], [0.0], [-1.0], [1.0]])
+    memory = LLRMemory(1, 1, 5, 5, replacement="redundancy", redundancy="misfit",
+                       redundancy_smoothing=0.5, conditioning="none", algorithm=algorithm)
+    memory.fit(X, Y)  # each scored among the other four
+    np.testing.assert_allclose(memory.redundancy_, [-1, -1, 0, -1, -1], atol=1e-12)
+    # (3, 6) lies on the line too: the six-sample fit is still y = 2 x, so the neighbours keep
+    # their scores. 'nearest' would replace x = 2 and 'oldest' x = -2; the sample on the line goes,
+    # and the newcomer starts at the neighbours' mean -0.8 / 2 + its own -0 / 2.
+    assert memory.insert([3.0], [6.0]) == 2
+    np.testing.assert_allclose(memory.redundancy_, [-1, -1, -0.4, -1, -1], atol=1e-12)
+    np.testing.assert_array_equal(memory.X_[:, 0], [-2.0, -1.0, 3.0, 1.0, 2.0])
+
+
+def test_scores_are_kept_only_under_redundancy_replacement():
+    memory = LLRMemory(1, 1, 3, 2)  # 'nearest'
+    for v in (0.0, 1.0, 3.0, 1.0):
+        memory.insert([v], [v])
+    np.testing.assert_array_equal(memory.redundancy_, 0.0)
+
+
 def test_back_ends_agree_on_a_random_history():
     rng = np.random.default_rng(3)
     kwargs = dict(input_dim=3, output_dim=2, capacity=60, n_neighbours=9,
                   input_weights=[1, 0.1, 1], input_period=[TWO_PI, 0, 0],
                   output_period=[TWO_PI, 0], clip=True)
-    for replacement in ("nearest", "oldest"):
-        fast = LLRMemory(**kwargs, replacement=replacement, algorithm="numba")
-        slow = LLRMemory(**kwargs, replacement=replacement, algorithm="numpy")
+    for replacement, measure in (("nearest", "distance"), ("oldest", "distance"),
+                                 ("redundancy", "distance"), ("redundancy", "misfit")):
+        fast = LLRMemory(**kwargs, replacement=replacement, redundancy=measure, algorithm="numba")
+        slow = LLRMemory(**kwargs, replacement=replacement, redundancy=measure, algorithm="numpy")
         for _ in range(200):
             x = np.r_[rng.uniform(-4, 4), rng.normal(0, 10), rng.uniform(-3, 3)]
             y = np.r_[rng.uniform(-np.pi, np.pi), rng.normal()]
@@ -178,6 +225,8 @@ def test_back_ends_agree_on_a_random_history():
                 fast.adjust(a[2], 0.1)
                 slow.adjust(b[2], 0.1)
         np.testing.assert_array_equal(fast.X_, slow.X_)
+        np.testing.assert_allclose(fast.redundancy_, slow.redundancy_, rtol=1e-9, atol=1e-9)
+        assert (replacement != "redundancy") == np.all(fast.redundancy_ == 0)
 
 
 @pytest.mark.parametrize("algorithm", ALGORITHMS)
@@ -222,7 +271,7 @@ def test_kernel_state_is_the_memory_itself():
     assert pred[0] == -1.0
 
 
-@pytest.mark.parametrize("replacement", ["nearest", "oldest"])
+@pytest.mark.parametrize("replacement", ["nearest", "oldest", "redundancy"])
 @pytest.mark.parametrize("norm", [1, 2])
 def test_a_neighbour_list_carried_across_an_insertion_equals_a_new_search(replacement, norm):
     # What lets RMAC search a point once where Algorithm 2 searches it before and after an
@@ -253,7 +302,8 @@ def test_a_neighbour_list_carried_across_an_insertion_equals_a_new_search(replac
         assert n_fresh >= n
         np.testing.assert_array_equal(idx[:n], fresh[:n])
         np.testing.assert_array_equal(dist[:n], fresh_dist[:n])
-    assert memory.n_samples_ == 25 and replaced_a_neighbour > 20
+    assert memory.n_samples_ == 25 and replaced_a_neighbour > (5 if replacement == "redundancy"
+                                                               else 20)
 
 
 @pytest.mark.parametrize("algorithm", ALGORITHMS)
@@ -284,6 +334,17 @@ def test_initialise_from_samples_and_state_dict_round_trip():
     copy.load_state_dict(memory.state_dict(prefix="c."), prefix="c.")
     for xq in rng.normal(size=(5, 2)):
         np.testing.assert_array_equal(memory.query(xq)[0], copy.query(xq)[0])
+    for measure in ("distance", "misfit"):  # the redundancy scores are state too
+        kwargs = dict(replacement="redundancy", redundancy=measure)
+        memory = LLRMemory(2, 1, 25, 5, **kwargs).fit(X[:20], Y[:20])
+        for x, y in zip(X[20:], Y[20:]):
+            memory.insert(x, y)
+        assert memory.n_samples_ == 25 and np.all(memory.redundancy_ < 0)
+        copy = LLRMemory(2, 1, 25, 5, **kwargs)
+        copy.load_state_dict(memory.state_dict())
+        np.testing.assert_array_equal(copy.redundancy_, memory.redundancy_)
+        assert copy.insert(X[0] + 0.1, [0.0]) == memory.insert(X[0] + 0.1, [0.0])
+        np.testing.assert_array_equal(copy.redundancy_, memory.redundancy_)
     np.testing.assert_allclose(memory.predict(X[:3]), np.array([memory.query(x)[0] for x in X[:3]]))
 
 
@@ -293,6 +354,8 @@ def test_initialise_from_samples_and_state_dict_round_trip():
     (dict(input_weights=[1.0, -0.1]), "input_weights"), (dict(norm=3), "norm"),
     (dict(conditioning="qr"), "conditioning"), (dict(rcond=1.5), "rcond"),
     (dict(replacement="random"), "replacement"), (dict(algorithm="kd_tree"), "algorithm"),
+    (dict(redundancy="age"), "redundancy"), (dict(redundancy_smoothing=0.0), "redundancy_smoothing"),
+    (dict(redundancy_smoothing=1.5), "redundancy_smoothing"),
     (dict(input_period=[1.0]), "input_period"),
 ])
 def test_bad_configuration_names_the_parameter(kwargs, name):

@@ -98,6 +98,29 @@ def test_more_samples_than_capacity_pass_through_the_replacement_rule(env):
         assert np.min(np.abs(given - row).sum(axis=1)) < 1e-12
 
 
+def test_redundancy_replacement_scores_the_seeded_samples_and_keeps_recorded_ones(env):
+    # Under 'redundancy' the first `capacity` samples are scored as they are stored (fit) and the
+    # rest update the scores as they pass through the rule; both back ends keep the same samples.
+    data = synthetic(T=150)
+    memories = []
+    for backend in ("numba", "numpy"):
+        cfg = RMACConfig(process_replacement="redundancy", critic_replacement="redundancy",
+                         critic_capacity=40, critic_neighbours=10, backend=backend)
+        agent = make_agent("rmac", *spaces(env), config=cfg, seed=0)
+        agent.seed_from(**data)
+        memories.append((agent.process, agent.critic))
+        assert agent.process.n_samples_ == 100 and agent.critic.n_samples_ == 40
+        X = np.c_[wrapped(data["states"]), data["actions"]]
+        for row in agent.process.X_:
+            assert np.min(np.abs(X - row).sum(axis=1)) < 1e-12
+        assert np.all(agent.process.redundancy_ <= 0) and np.all(agent.critic.redundancy_ < 0)
+        # Samples were replaced, and not only the last ones kept (as 'oldest' would).
+        assert agent.process.stamp_.min() < 50
+    for fast, slow in zip(*memories):
+        np.testing.assert_array_equal(fast.stamp_, slow.stamp_)
+        np.testing.assert_allclose(fast.redundancy_, slow.redundancy_, rtol=1e-9, atol=1e-12)
+
+
 def test_parts_select_what_is_seeded(env):
     agent = make_agent("rmac", *spaces(env), seed=0)
     agent.seed_from(**synthetic(), parts=["process"])

@@ -250,6 +250,16 @@ _OPTION_VALUES = {
     "critic replacement oldest": dict(critic_replacement="oldest"),
     "process replacement oldest": dict(process_replacement="oldest"),
     "reference replacement oldest": dict(reference_replacement="oldest"),
+    "replacement redundancy everywhere": dict(critic_replacement="redundancy",
+                                              process_replacement="redundancy",
+                                              reference_replacement="redundancy"),
+    "critic replacement redundancy": dict(critic_replacement="redundancy"),
+    "process replacement redundancy": dict(process_replacement="redundancy"),
+    "reference replacement redundancy": dict(reference_replacement="redundancy"),
+    "redundancy by the other measures, smoothing 0.5": dict(
+        critic_replacement="redundancy", process_replacement="redundancy",
+        reference_replacement="redundancy", critic_redundancy="misfit",
+        process_redundancy="distance", reference_redundancy="misfit", redundancy_smoothing=0.5),
     "conditioning svd": dict(conditioning="svd"),
     "conditioning svd rcond 0.2": dict(conditioning="svd", rcond=0.2),
     "conditioning none": dict(conditioning="none"),
@@ -436,10 +446,28 @@ def test_rmac_improves_on_pendulum_swingup():
     (dict(reference_weights=(1.0, -1.0)), "reference_weights"),
     (dict(conditioning="qr"), "conditioning"), (dict(inverse_query="x"), "inverse_query"),
     (dict(critic_replacement="lru"), "critic_replacement"), (dict(backend="jax"), "backend"),
+    (dict(process_redundancy="age"), "process_redundancy"),
+    (dict(critic_redundancy=None), "critic_redundancy"),
+    (dict(redundancy_smoothing=0.0), "redundancy_smoothing"),
+    (dict(redundancy_smoothing=float("nan")), "redundancy_smoothing"),
 ])
 def test_bad_configuration_names_the_parameter(kwargs, name):
     with pytest.raises(ValueError, match=name):
         RMACConfig(**kwargs)
+
+
+def test_each_memory_gets_its_redundancy_measure():
+    # process_replacement='redundancy' scores by misfit, the critic and reference by distance
+    # (issue 14's account of the authors' code), unless told otherwise.
+    S = StateSpace(low=-np.ones(2), high=np.ones(2), periodic=np.zeros(2, bool))
+    U = ActionSpace(low=-np.ones(1), high=np.ones(1))
+    agent = RMAC(S, U, RMACConfig(critic_replacement="redundancy", process_replacement="redundancy",
+                                  reference_replacement="redundancy", redundancy_smoothing=0.3))
+    assert (agent.process.redundancy, agent.critic.redundancy, agent.reference.redundancy) == (
+        "misfit", "distance", "distance")
+    assert agent.process.replacement == "redundancy" and agent.critic.redundancy_smoothing == 0.3
+    default = RMAC(S, U)
+    assert (default.process.replacement, default.critic.replacement) == ("nearest", "nearest")
 
 
 def test_weighting_must_match_the_task_dimensions():

@@ -56,7 +56,7 @@ from numba import njit, types
 from numba.experimental import structref
 
 from rmac_mj.approximators.llr import (LLR_STATE_TYPE, llr_add_weighted, llr_candidates,
-                                       llr_fit_at, llr_insert, llr_move_outputs, llr_query,
+                                       llr_fit_at, llr_insert_among, llr_move_outputs, llr_query,
                                        llr_refresh, wrap_scalar)
 
 
@@ -324,7 +324,7 @@ def _update(s, reward, x):
     z[n:] = u_prev
     zq = _canonical(z, P.in_period)
     nc = llr_candidates(P, zq, s.proc_idx, s.proc_dist, s.proc_idx, 0)
-    slot = llr_insert(P, z, x, s.proc_idx[0] if nc > 0 else -1)
+    slot = llr_insert_among(P, z, x, s.proc_idx, min(nc, P.n_neighbours))
     nc = llr_refresh(P, zq, s.proc_idx, s.proc_dist, nc, slot)
     # Line 16: best reachable state, X_R = beta^P U_R linearised at (x_{k-1}, u_{k-1}).
     beta_p = np.empty((n, n + m + 1))
@@ -379,7 +379,7 @@ def _update(s, reward, x):
         nk = _search_list(R, x_prev, s.ref_idx, s.ref_dist, s.ref_info, s.ref_point, prev)
     near = s.ref_idx[prev]
     version = R.meta[2]
-    slot = llr_insert(R, x_prev, x_r, near[0] if nk > 0 else -1)
+    slot = llr_insert_among(R, x_prev, x_r, near, nk)
     _carry(R, s.ref_idx, s.ref_dist, s.ref_info, s.ref_point, cur, version, slot)
     llr_move_outputs(R, near, nk, x_r, s.alpha_r)
     # Lines 22-28: TD(lambda) on the critic's samples; V_k computed above (line 22).
@@ -391,7 +391,7 @@ def _update(s, reward, x):
     v_in = np.empty(1)
     v_in[0] = s.v_prev[0]
     version = C.meta[2]
-    slot = llr_insert(C, x_prev, v_in, near[0] if nk > 0 else -1)  # line 23
+    slot = llr_insert_among(C, x_prev, v_in, near, nk)  # line 23
     _carry(C, s.crit_idx, s.crit_dist, s.crit_info, s.crit_point, cur, version, slot)
     delta = reward + s.gamma * v_k - s.v_prev[0]  # line 24
     decay = s.lam * s.gamma

@@ -41,7 +41,8 @@ _INVERSE_QUERIES = ("previous", "zero")
 _GRADIENT_AT = ("next", "previous")
 _INITIAL_VALUES = ("critic", "zero")
 _CONDITIONINGS = ("svd", "ridge", "none")
-_REPLACEMENTS = ("nearest", "oldest")
+_REPLACEMENTS = ("nearest", "oldest", "redundancy")
+_REDUNDANCY_MEASURES = ("distance", "misfit")
 _REACHABLE_RULES = ("vertices", "vertices_value", "grid", "exact")
 #: Absolute tolerance, in action units, of the golden-section refinement of reachable_rule='exact'.
 EXACT_TOLERANCE = 1e-6
@@ -112,12 +113,30 @@ class RMACConfig:
     process_clip: bool = False
     """Clip process model predictions to the neighbours' next states."""
     critic_replacement: str = "nearest"
-    """Critic memory management when full: 'nearest' (the sample most redundant with the new one)
-    or 'oldest'."""
+    """Critic memory management when full: 'nearest' (the sample most redundant with the new one),
+    'oldest', or 'redundancy' (the sample of highest smoothed redundancy score, measured by
+    ``critic_redundancy``; see :mod:`rmac_mj.approximators.llr` for the equations)."""
     process_replacement: str = "nearest"
-    """Process memory management when full."""
+    """Process memory management when full (same choices)."""
     reference_replacement: str = "nearest"
-    """Reference memory management when full."""
+    """Reference memory management when full (same choices)."""
+    critic_redundancy: str = "distance"
+    """What the critic's redundancy score measures under critic_replacement='redundancy':
+    'distance' (a sample close to new samples is redundant) or 'misfit' (a sample its local model
+    predicts well is redundant). Issue 14's account of the authors' code: distance for the critic
+    and reference memories, whose outputs move while learning (a misfit measured now says little
+    about the sample later); the squared misfit for the process memory, whose samples are fixed
+    observations of the dynamics."""
+    process_redundancy: str = "misfit"
+    """What the process memory's redundancy score measures under process_replacement='redundancy'
+    (see critic_redundancy)."""
+    reference_redundancy: str = "distance"
+    """What the reference memory's redundancy score measures under
+    reference_replacement='redundancy' (see critic_redundancy)."""
+    redundancy_smoothing: float = 0.1
+    """eta in (0, 1], the exponential smoothing of every redundancy score,
+    rho_i <- (1 - eta) rho_i + eta c_i each time sample i is a neighbour of a new sample (our
+    choice: about the last ten such events count)."""
     inverse_query: str = "previous"
     """Where the process model is linearised for the inverse (Alg. 2 lines 5, 11): at (x_k, u_{k-1}),
     the previously applied action ('previous'; u_{-1} = 0), or at (x_k, 0) ('zero')."""
@@ -178,6 +197,14 @@ class RMACConfig:
             if replacement not in _REPLACEMENTS:
                 raise ValueError(f"RMACConfig.{prefix}_replacement must be one of {_REPLACEMENTS}, "
                                  f"got {replacement!r}")
+            measure = getattr(self, f"{prefix}_redundancy")
+            if measure not in _REDUNDANCY_MEASURES:
+                raise ValueError(f"RMACConfig.{prefix}_redundancy must be one of "
+                                 f"{_REDUNDANCY_MEASURES}, got {measure!r}")
+        eta = self.redundancy_smoothing
+        if isinstance(eta, bool) or not isinstance(eta, (int, float, np.floating)) or not (
+                np.isfinite(eta) and 0 < eta <= 1):
+            raise ValueError(f"RMACConfig.redundancy_smoothing must be in (0, 1], got {eta!r}")
         if not isinstance(self.exploration, Exploration):
             raise ValueError(f"RMACConfig.exploration must be an Exploration, "
                              f"got {self.exploration!r}")
@@ -232,21 +259,25 @@ class RMAC(Agent):
                              f"this task has {m}; use 'grid'")
         self.period = state_space.period  # (n,), 0 for non-periodic dimensions
         common = dict(norm=config.norm, conditioning=config.conditioning, rcond=config.rcond,
-                      ridge=config.ridge, algorithm=config.backend)
+                      ridge=config.ridge, redundancy_smoothing=config.redundancy_smoothing,
+                      algorithm=config.backend)
         self.process = LLRMemory(
             n + m, n, config.process_capacity, config.process_neighbours,
             input_weights=config.process_weights, input_period=np.r_[self.period, np.zeros(m)],
             output_period=self.period, clip=config.process_clip,
-            replacement=config.process_replacement, **common)
+            replacement=config.process_replacement, redundancy=config.process_redundancy,
+            **common)
         self.reference = LLRMemory(
             n, n, config.reference_capacity, config.reference_neighbours,
             input_weights=config.reference_weights, input_period=self.period,
             output_period=self.period, clip=config.reference_clip,
-            replacement=config.reference_replacement, **common)
+            replacement=config.reference_replacement, redundancy=config.reference_redundancy,
+            **common)
         self.critic = LLRMemory(
             n, 1, config.critic_capacity, config.critic_neighbours,
             input_weights=config.critic_weights, input_period=self.period,
-            clip=config.critic_clip, replacement=config.critic_replacement, **common)
+            clip=config.critic_clip, replacement=config.critic_replacement,
+            redundancy=config.critic_redundancy, **common)
         #: e(s_i) of Algorithm 2 line 26, one per critic memory slot.
         self.traces = np.zeros(config.critic_capacity)
         #: U_R without the state rows: the 2^m combinations of action extremes, (2^m, m), max first.

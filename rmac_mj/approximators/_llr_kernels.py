@@ -29,13 +29,18 @@ updates change the memory) and its settings:
 ``n_neighbours``        K
 ``norm``                1 or 2
 ``clip``                clip predictions to the neighbours' output range
-``replacement``         ``REPLACE_OLDEST`` or ``REPLACE_NEAREST``
+``replacement``         ``REPLACE_OLDEST``, ``REPLACE_NEAREST`` or ``REPLACE_REDUNDANCY``
+``redundancy``          (N,) redundancy score of each sample (higher: more redundant), kept only
+                        under ``REPLACE_REDUNDANCY`` (see ``insert_among``)
+``measure``             ``MEASURE_DISTANCE`` or ``MEASURE_MISFIT``: what the score measures
+``smoothing``           eta, the exponential smoothing factor of the scores
 ``eig_cutoff``          relative eigenvalue cutoff of the normal matrix (see ``fit``)
 ``ridge``               ridge added to the slopes' diagonal
 ======================  ============================================================================
 
 A learner whose own step is compiled (RMAC) calls the state-level functions at the end of this module
-(``query``, ``neighbours``, ``candidates``, ``refresh``, ``fit_at``, ``insert``, ``move_outputs``,
+(``query``, ``neighbours``, ``candidates``, ``refresh``, ``fit_at``, ``insert``, ``insert_among``,
+``move_outputs``,
 ``add_weighted``) through the names ``llr.py`` exports; a structref crosses the Python/numba
 boundary much faster than a tuple of arrays.
 
@@ -56,6 +61,9 @@ from numba.experimental import structref
 # Codes shared with llr.py.
 REPLACE_OLDEST = 0
 REPLACE_NEAREST = 1
+REPLACE_REDUNDANCY = 2
+MEASURE_DISTANCE = 0
+MEASURE_MISFIT = 1
 
 
 @structref.register
@@ -84,14 +92,18 @@ LLR_STATE_TYPE = LLRStateType([
     ("clip", types.boolean), ("replacement", types.int64), ("eig_cutoff", types.float64),
     ("ridge", types.float64), ("best", types.float64[::1]), ("last_nearest", types.int64),
     ("last_point", types.float64[::1]), ("last_version", types.int64),
-    ("seen", types.boolean[::1]), ("lanes", types.float64[::1])])
+    ("seen", types.boolean[::1]), ("lanes", types.float64[::1]),
+    ("redundancy", types.float64[::1]), ("measure", types.int64), ("smoothing", types.float64)])
 
 
 @njit(cache=True)
 def new_state(Xt, Y, stamp, meta, weights, in_period, out_period, dist, n_neighbours, norm, clip,
-              replacement, eig_cutoff, ridge):
+              replacement, eig_cutoff, ridge, redundancy, measure, smoothing):
     """An :class:`LLRState` over the given arrays (not copied)."""
     state = structref.new(LLR_STATE_TYPE)
+    state.redundancy = redundancy
+    state.measure = measure
+    state.smoothing = smoothing
     state.Xt = Xt
     state.Y = Y
     state.stamp = stamp
@@ -530,11 +542,18 @@ def insert(state, x, y, nearest):
 
     ``nearest`` is the slot of the stored input closest to x (used by the 'nearest' replacement
     policy once the memory is full; -1 to find it: from the last search if that was made at x on
-    the memory as it is, else by a search)."""
+    the memory as it is, else by a search). Under 'redundancy' K(x) is searched and the sample
+    stored by ``insert_among``."""
     if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
         return -1
     Xt, meta = state.Xt, state.meta
     count = meta[0]
+    if state.replacement == REPLACE_REDUNDANCY:
+        xq = np.empty(x.shape[0])
+        canonical(x, state.in_period, xq)
+        idx = np.empty(state.n_neighbours, dtype=np.int64)
+        nk = _search(state, xq, state.n_neighbours, idx, state.best, idx, 0)
+        return insert_among(state, x, y, idx, nk)
     if count < state.Y.shape[0]:
         slot = count
         meta[0] = count + 1
@@ -559,6 +578,125 @@ def insert(state, x, y, nearest):
         Xt[j, slot] = wrap(x[j], state.in_period[j])
     state.Y[slot, :] = y
     state.stamp[slot] = meta[1]
+    meta[1] += 1
+    meta[2] += 1
+    return slot
+
+
+@njit(cache=True)
+def distance_to(state, i, xq):
+    """The weighted distance of sample i to a canonical xq: the 1-norm, or the 2-norm (not its
+    square, which the search uses), of w * wrap(x_i - xq)."""
+    d = 0.0
+    for j in range(xq.shape[0]):
+        e = state.weights[j] * wrap(state.Xt[j, i] - xq[j], state.in_period[j])
+        d += abs(e) if state.norm == 1 else e * e
+    return d if state.norm == 1 else np.sqrt(d)
+
+
+@njit(cache=True)
+def misfits(state, xq, y, idx, nk, out):
+    """Squared misfits of the new sample [xq | y] (xq canonical) and of its neighbours
+    ``idx[:nk]`` under one local model: the affine fit (``fit``, unclipped) to these nk + 1
+    samples at xq. out[0] is the new sample's, out[1 + a] that of idx[a]; each is
+    sum_o wrap(y_o - y_hat_o)^2 with y_hat = pred + beta_x wrap(x - xq)."""
+    n = xq.shape[0]
+    m = y.shape[0]
+    Xt2 = np.empty((n, nk + 1))
+    Y2 = np.empty((nk + 1, m))
+    for j in range(n):
+        Xt2[j, 0] = xq[j]
+    Y2[0, :] = y
+    for a in range(nk):
+        i = idx[a]
+        for j in range(n):
+            Xt2[j, a + 1] = state.Xt[j, i]
+        Y2[a + 1, :] = state.Y[i, :]
+    rows = np.arange(nk + 1)
+    beta = np.empty((m, n + 1))
+    pred = np.empty(m)
+    fit(Xt2, Y2, rows, nk + 1, xq, state.weights, state.in_period, state.out_period,
+        state.eig_cutoff, state.ridge, False, beta, pred)
+    for a in range(nk + 1):
+        e2 = 0.0
+        for o in range(m):
+            y_hat = pred[o]
+            for j in range(n):
+                y_hat += beta[o, j] * wrap(Xt2[j, a] - xq[j], state.in_period[j])
+            r = wrap(Y2[a, o] - y_hat, state.out_period[o])
+            e2 += r * r
+        out[a] = e2
+
+
+@njit(cache=True)
+def score(state, xq, y, idx, nk):
+    """Update the redundancy scores of the neighbours ``idx[:nk]`` of a new sample [xq | y] (xq
+    canonical) and return the new sample's own score (``LLRMemory`` documents the equations):
+    rho_i <- (1 - eta) rho_i + eta c_i with c_i = -d(x_i, xq) ('distance') or -e_i^2
+    ('misfit'); the new sample's is rho_* = (1 - eta) mean_i rho_i + eta c_*, the mean over the
+    updated neighbours, with c_* = -min_i d(x_i, xq), resp. -e_*^2 (0 with no neighbours)."""
+    rho = state.redundancy
+    eta = state.smoothing
+    if nk <= 0:
+        return 0.0
+    own = 0.0
+    if state.measure == MEASURE_DISTANCE:
+        for a in range(nk):
+            i = idx[a]
+            d = distance_to(state, i, xq)
+            if a == 0:
+                own = -d
+            rho[i] = (1.0 - eta) * rho[i] - eta * d
+    else:
+        e2 = np.empty(nk + 1)
+        misfits(state, xq, y, idx, nk, e2)
+        for a in range(nk):
+            i = idx[a]
+            rho[i] = (1.0 - eta) * rho[i] - eta * e2[a + 1]
+        own = -e2[0]
+    mean = 0.0
+    for a in range(nk):
+        mean += rho[idx[a]]
+    return (1.0 - eta) * (mean / nk) + eta * own
+
+
+@njit(cache=True)
+def insert_among(state, x, y, idx, nk):
+    """Store [x | y] given K(x) = ``idx[:nk]``, the nearest samples to x on the memory as it is,
+    nearest first (as ``neighbours`` or the first K of ``candidates`` give them); returns its slot
+    (-1: x or y not finite, nothing stored).
+
+    Once full: 'nearest' replaces idx[0], 'oldest' the oldest sample, 'redundancy' the sample of
+    highest redundancy score after the neighbours' scores are updated (``score``; first of equals).
+    Under 'redundancy' the scores are kept while the memory fills too."""
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
+        return -1
+    Xt, meta = state.Xt, state.meta
+    count = meta[0]
+    xq = np.empty(x.shape[0])
+    canonical(x, state.in_period, xq)
+    own = 0.0
+    if state.replacement == REPLACE_REDUNDANCY:
+        own = score(state, xq, y, idx, nk)
+    if count < state.Y.shape[0]:
+        slot = count
+        meta[0] = count + 1
+    elif state.replacement == REPLACE_NEAREST:
+        slot = idx[0]
+    elif state.replacement == REPLACE_REDUNDANCY:
+        rho = state.redundancy
+        slot = 0
+        for i in range(1, count):
+            if rho[i] > rho[slot]:
+                slot = i
+    else:  # oldest
+        slot = int(np.argmin(state.stamp))
+    for j in range(Xt.shape[0]):
+        Xt[j, slot] = xq[j]
+    state.Y[slot, :] = y
+    state.stamp[slot] = meta[1]
+    if state.replacement == REPLACE_REDUNDANCY:
+        state.redundancy[slot] = own
     meta[1] += 1
     meta[2] += 1
     return slot

@@ -21,9 +21,42 @@ Where the paper is silent, the choice is a constructor parameter (defaults in br
   slopes' diagonal instead (as TU Delft's GRL does); 'none' is the plain pseudo-inverse.
 * ``clip`` [False]: clip each prediction to the range of its neighbours' outputs (GRL does this).
 * ``replacement`` ['nearest']: when the memory is full, a new sample replaces either the stored sample
-  most redundant with it, its nearest neighbour ('nearest'), or the oldest sample ('oldest'). The
-  paper leaves memory management open (section 7); replacing the oldest made RMAC's critic forget
-  all but the last ~20 trials and degrade late, replacing the most redundant did not.
+  most redundant with it, its nearest neighbour ('nearest'), the oldest sample ('oldest'), or the
+  sample with the highest redundancy score ('redundancy', below). The paper leaves memory management
+  open (section 7); replacing the oldest made RMAC's critic forget all but the last ~20 trials and
+  degrade late, replacing the nearest did not.
+* ``redundancy`` ['distance'] and ``redundancy_smoothing`` [0.1]: the score of
+  ``replacement='redundancy'``, the scheme issue 14 describes of the authors' code (a redundancy
+  score per sample, smoothed over updates; the squared model misfit for the process memory, the
+  distance for the others). Its details are our own choices, made precise here. Every sample i
+  carries a score rho_i (higher: more redundant). When a sample [x_* | y_*] is inserted, with K(x_*)
+  its K nearest stored samples (before the insertion), each neighbour's score is smoothed
+  exponentially towards a redundancy measure c_i,
+
+      rho_i <- (1 - eta) rho_i + eta c_i            for i in K(x_*),   eta = redundancy_smoothing,
+
+  and the new sample starts from its neighbourhood's level with one such step towards its own
+  measure, rho_* = (1 - eta) mean_{i in K(x_*)} rho_i + eta c_* (0 on an empty memory). The measures:
+
+  - 'distance': c_i = -d(x_i, x_*), the weighted distance of the memory (1- or 2-norm of
+    w * wrap(x_i - x_*)); c_* = -min_i d(x_i, x_*). A sample close to new samples is redundant.
+  - 'misfit': one affine model is fitted (as a query, unclipped) at x_* to the new sample and its
+    neighbours, and c_j = -e_j^2 with e_j^2 = |wrap(y_j - y_hat(x_j))|^2 its squared residual, for
+    the neighbours and for the new sample alike. A sample the local model of its neighbourhood
+    predicts well adds little and is redundant; one it misfits holds information (a bend of the
+    function, or noise: this measure keeps outliers, which the process memory's deterministic
+    dynamics make rare).
+
+  Once full, the new sample replaces the stored sample of highest score (first of equals), after
+  its neighbours' scores have been updated; the new sample itself is always stored. Our choices:
+  scores change only on insertion (a query leaves the memory unchanged, so greedy trials and
+  plots do not alter what is forgotten); the new sample's start above (a first version started it
+  at c_* itself: a new sample is then judged by its single nearest distance or its own misfit while
+  the others' scores are averages, so it was nearly always the most redundant, the next sample
+  replaced it, and the memories stopped taking in new states: RMAC got stuck in 5 of 10
+  experiments, docs/studies/memory-management.md); ``fit`` scores each given sample by its own
+  measure among the others (c_i as if inserted last). eta = 0.1 averages a score over roughly its
+  last ten neighbourhood events.
 * A query on an empty memory predicts 0 with beta = 0 (Algorithm 2 line 2: V_0 = 0, beta^P = 0).
 
 Two back ends give the same results: ``algorithm='numba'`` (compiled kernels in ``_llr_kernels``) and
@@ -35,7 +68,8 @@ Compiled interface. A learner whose own step is compiled with numba (RMAC) works
 ``LLRMemory.kernel_state``, an :class:`LLRState` (a numba structref naming the memory's arrays and
 settings), and the compiled functions exported here: ``llr_query``, ``llr_neighbours``,
 ``llr_insert``, ``llr_move_outputs`` and ``llr_add_weighted``, the compiled counterparts of
-``query``, ``neighbours``, ``insert``, ``move_outputs`` and ``add_weighted``; ``llr_candidates``
+``query``, ``neighbours``, ``insert``, ``move_outputs`` and ``add_weighted``; ``llr_insert_among``
+(an insertion given the new sample's neighbours, found by a search just made); ``llr_candidates``
 (K+1 neighbours with their distances), ``llr_refresh`` (carry such a list across one insertion) and
 ``llr_fit_at`` (the local model from given neighbours) let a caller that queries a point before
 inserting there search only once. ``LLR_STATE_TYPE`` is the numba type of the state, for a
@@ -56,6 +90,7 @@ from rmac_mj.approximators._llr_kernels import LLR_STATE_TYPE, LLRState
 llr_query = _k.query
 llr_neighbours = _k.neighbours
 llr_insert = _k.insert
+llr_insert_among = _k.insert_among
 llr_move_outputs = _k.move_outputs
 llr_add_weighted = _k.add_weighted
 llr_candidates = _k.candidates
@@ -64,11 +99,14 @@ llr_fit_at = _k.fit_at
 wrap_scalar = _k.wrap
 
 __all__ = ["LLRMemory", "LLRState", "LLR_STATE_TYPE", "fit_reference", "llr_add_weighted",
-           "llr_candidates", "llr_fit_at", "llr_insert", "llr_move_outputs", "llr_neighbours",
+           "llr_candidates", "llr_fit_at", "llr_insert", "llr_insert_among", "llr_move_outputs",
+           "llr_neighbours", "misfit_reference",
            "llr_query", "llr_refresh", "search_reference", "wrap", "wrap_scalar"]
 
 _CONDITIONINGS = ("svd", "ridge", "none")
-_REPLACEMENTS = {"oldest": _k.REPLACE_OLDEST, "nearest": _k.REPLACE_NEAREST}
+_REPLACEMENTS = {"oldest": _k.REPLACE_OLDEST, "nearest": _k.REPLACE_NEAREST,
+                 "redundancy": _k.REPLACE_REDUNDANCY}
+_MEASURES = {"distance": _k.MEASURE_DISTANCE, "misfit": _k.MEASURE_MISFIT}
 _ALGORITHMS = ("numba", "numpy")
 #: Relative eigenvalue cutoff of G = A^T A used for 'none' and 'ridge' (a singular value ratio of
 #: about 3e-7): only numerically singular directions are dropped.
@@ -122,6 +160,26 @@ def fit_reference(X: np.ndarray, Y: np.ndarray, xq: np.ndarray, weights: np.ndar
     return pred, beta
 
 
+def distance_reference(X: np.ndarray, xq: np.ndarray, weights: np.ndarray, period: np.ndarray,
+                       norm: int) -> np.ndarray:
+    """Weighted distances (shape (k,)) of the rows of X (k, n) to xq: the 1-norm or the 2-norm (not
+    squared) of w * wrap(x - xq)."""
+    e = weights * wrap(X - xq, period)
+    return np.abs(e).sum(axis=1) if norm == 1 else np.sqrt((e * e).sum(axis=1))
+
+
+def misfit_reference(X: np.ndarray, Y: np.ndarray, xq: np.ndarray, weights: np.ndarray,
+                     in_period: np.ndarray, out_period: np.ndarray, eig_cutoff: float,
+                     ridge: float) -> np.ndarray:
+    """Squared residuals (shape (k,)) of the samples X (k, n) -> Y (k, m) under their one affine
+    fit at xq (``fit_reference``, unclipped): |wrap(y - pred - beta_x wrap(x - xq))|^2."""
+    pred, beta = fit_reference(X, Y, xq, weights, in_period, out_period, eig_cutoff, ridge, False)
+    n = X.shape[1]
+    fitted = pred + wrap(X - xq, in_period) @ beta[:, :n].T
+    r = wrap(Y - fitted, out_period)
+    return (r * r).sum(axis=1)
+
+
 # --------------------------------------------------------------------------------------------------
 
 class LLRMemory:
@@ -138,18 +196,22 @@ class LLRMemory:
         0 elsewhere. Default: nothing periodic.
       conditioning: 'svd', 'ridge' or 'none'; rcond, ridge: their parameters.
       clip: clip predictions to the neighbours' output range.
-      replacement: 'nearest' or 'oldest'.
+      replacement: 'nearest', 'oldest' or 'redundancy'.
+      redundancy: the score of 'redundancy' replacement, 'distance' or 'misfit' (module docstring).
+      redundancy_smoothing: eta in (0, 1], the exponential smoothing factor of the scores.
       algorithm: 'numba' or 'numpy'.
 
-    Learned state: ``X_`` (N, n), ``Y_`` (N, m) (the first ``n_samples_`` rows are valid) and
-    ``stamp_`` (N,), the insertion time of each sample. ``kernel_state`` names the same arrays for
-    compiled code.
+    Learned state: ``X_`` (N, n), ``Y_`` (N, m) (the first ``n_samples_`` rows are valid),
+    ``stamp_`` (N,), the insertion time of each sample, and ``redundancy_`` (N,), each sample's
+    redundancy score (kept under 'redundancy' replacement only, 0 otherwise). ``kernel_state``
+    names the same arrays for compiled code.
     """
 
     def __init__(self, input_dim: int, output_dim: int, capacity: int, n_neighbours: int,
                  input_weights: Any = None, norm: int = 1, input_period: Any = None,
                  output_period: Any = None, conditioning: str = "svd", rcond: float = 0.01,
                  ridge: float = 1e-3, clip: bool = False, replacement: str = "nearest",
+                 redundancy: str = "distance", redundancy_smoothing: float = 0.1,
                  algorithm: str = "numba") -> None:
         self.input_dim = input_dim
         self.output_dim = output_dim
@@ -164,6 +226,8 @@ class LLRMemory:
         self.ridge = ridge
         self.clip = clip
         self.replacement = replacement
+        self.redundancy = redundancy
+        self.redundancy_smoothing = redundancy_smoothing
         self.algorithm = algorithm
         self._validate()
         n, m, N = self.input_dim, self.output_dim, self.capacity
@@ -171,6 +235,7 @@ class LLRMemory:
         self._dist = np.empty(N)
         self.Y_ = np.zeros((N, m))
         self.stamp_ = np.zeros(N, dtype=np.int64)
+        self.redundancy_ = np.zeros(N)
         # [count, clock, version]: version counts changes to the inputs (see _llr_kernels).
         self._meta = np.zeros(3, dtype=np.int64)
         self._idx = np.empty(self.n_neighbours, dtype=np.int64)
@@ -182,7 +247,8 @@ class LLRMemory:
         return _k.new_state(
             self._Xt, self.Y_, self.stamp_, self._meta, self._w, self._pin, self._pout, self._dist,
             int(self.n_neighbours), int(self.norm), bool(self.clip), _REPLACEMENTS[self.replacement],
-            self._eig_cutoff, self._ridge)
+            self._eig_cutoff, self._ridge, self.redundancy_, _MEASURES[self.redundancy],
+            float(self.redundancy_smoothing))
 
     def __getstate__(self) -> dict[str, Any]:
         # The structref is a view of the arrays pickled here; it is made anew when unpickled.
@@ -190,6 +256,10 @@ class LLRMemory:
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         self.__dict__.update(state)
+        # (memories pickled before the redundancy scores existed)
+        self.__dict__.setdefault("redundancy", "distance")
+        self.__dict__.setdefault("redundancy_smoothing", 0.1)
+        self.__dict__.setdefault("redundancy_", np.zeros(self.capacity))
         self._state = self._new_kernel_state()
 
     # -- configuration ------------------------------------------------------------------------------
@@ -217,6 +287,13 @@ class LLRMemory:
         if self.replacement not in _REPLACEMENTS:
             raise ValueError(f"LLRMemory: replacement must be one of {tuple(_REPLACEMENTS)}, "
                              f"got {self.replacement!r}")
+        if self.redundancy not in _MEASURES:
+            raise ValueError(f"LLRMemory: redundancy must be one of {tuple(_MEASURES)}, "
+                             f"got {self.redundancy!r}")
+        eta = self.redundancy_smoothing
+        if isinstance(eta, bool) or not isinstance(eta, (int, float, np.floating)) or not (
+                np.isfinite(eta) and 0 < eta <= 1):
+            raise ValueError(f"LLRMemory: redundancy_smoothing must be in (0, 1], got {eta!r}")
         if self.algorithm not in _ALGORITHMS:
             raise ValueError(f"LLRMemory: algorithm must be one of {_ALGORITHMS}, "
                              f"got {self.algorithm!r}")
@@ -280,6 +357,7 @@ class LLRMemory:
         self._meta[:2] = 0
         self._meta[2] += 1
         self.stamp_[:] = 0
+        self.redundancy_[:] = 0.0
 
     def fit(self, X: Any, Y: Any) -> "LLRMemory":
         """Initialise the memory from given samples (prior knowledge, section 7).
@@ -304,16 +382,41 @@ class LLRMemory:
         self.stamp_[:s] = np.arange(s)
         self._meta[:2] = (s, s)
         self._meta[2] += 1
+        if self.replacement == "redundancy":
+            # Each sample scored as if inserted last, among the others (module docstring).
+            X_, Y_ = self.X_[:s], self.Y_[:s]
+            for i in range(s):
+                others = np.delete(np.arange(s), i)
+                idx = others[search_reference(X_[others], X_[i], self._w, self._pin, self.norm,
+                                              self.n_neighbours)]
+                self.redundancy_[i] = -self._measures(X_[i], Y_[i], idx)[0]
         return self
+
+    def _measures(self, x: np.ndarray, y: np.ndarray, idx: np.ndarray) -> np.ndarray:
+        """-c of the new sample [x | y] (x canonical) and of its neighbours idx (nearest first):
+        shape (1 + len(idx),); distances under 'distance' (the new sample's: to its nearest), squared
+        misfits under 'misfit'. All zero without neighbours."""
+        if len(idx) == 0:
+            return np.zeros(1)
+        if self.redundancy == "distance":
+            d = distance_reference(self.X_[idx], x, self._w, self._pin, self.norm)
+            return np.r_[d[0], d]
+        return misfit_reference(np.vstack([x, self.X_[idx]]), np.vstack([y, self.Y_[idx]]), x,
+                                self._w, self._pin, self._pout, self._eig_cutoff, self._ridge)
 
     def state_dict(self, prefix: str = "") -> dict[str, np.ndarray]:
         """Samples and bookkeeping as numeric arrays, keys prefixed with ``prefix``."""
         return {prefix + "X": self.X_.copy(), prefix + "Y": self.Y_.copy(),
-                prefix + "stamp": self.stamp_.copy(), prefix + "meta": self._meta[:2].copy()}
+                prefix + "stamp": self.stamp_.copy(), prefix + "meta": self._meta[:2].copy(),
+                prefix + "redundancy": self.redundancy_.copy()}
 
     def load_state_dict(self, state: dict[str, np.ndarray], prefix: str = "") -> None:
+        """Restore a ``state_dict``. A state saved before the redundancy scores existed (no
+        ``redundancy`` key) loads with scores 0."""
+        if prefix + "redundancy" not in state:
+            state = dict(state, **{prefix + "redundancy": np.zeros(self.capacity)})
         for key, arr in (("X", self.X_), ("Y", self.Y_), ("stamp", self.stamp_),
-                         ("meta", self._meta[:2])):
+                         ("meta", self._meta[:2]), ("redundancy", self.redundancy_)):
             value = np.asarray(state[prefix + key])
             if value.shape != arr.shape:
                 raise ValueError(f"LLRMemory.load_state_dict: {prefix + key} has shape "
@@ -388,7 +491,8 @@ class LLRMemory:
         """Store the sample [x | y] and return its slot.
 
         When the memory is full the replacement policy chooses the slot. ``nearest``, if given, is the
-        slot of the stored input nearest to x (saves a search under 'nearest' replacement).
+        slot of the stored input nearest to x (saves a search under 'nearest' replacement; unused
+        under 'redundancy', which searches K(x) to update the scores).
         """
         fast = self.algorithm == "numba"
         xv = self._check("x", x, self.input_dim, finite=not fast)
@@ -403,17 +507,34 @@ class LLRMemory:
             return int(_k.insert(self._state, x, y, nearest))
         count = int(self._meta[0])
         x = self._canonical(x)
+        own = 0.0
+        if self.replacement == "redundancy":
+            # rho_i <- (1 - eta) rho_i + eta c_i over K(x) (module docstring).
+            idx = search_reference(self.X_[:count], x, self._w, self._pin, self.norm,
+                                   self.n_neighbours)
+            neg_c = self._measures(x, y, idx)
+            eta = float(self.redundancy_smoothing)
+            for a, i in enumerate(idx):  # in the compiled kernel's order
+                self.redundancy_[i] = (1.0 - eta) * self.redundancy_[i] - eta * neg_c[1 + a]
+            # rho_* = (1 - eta) mean rho_i + eta c_*, over the updated neighbours
+            # (summed in order, as the compiled kernel does)
+            own = (1.0 - eta) * (sum(float(self.redundancy_[i]) for i in idx) / len(idx)) \
+                - eta * neg_c[0] if len(idx) else 0.0
         if count < self.capacity:
             slot = count
             self._meta[0] += 1
         elif self.replacement == "nearest":
             slot = nearest if nearest >= 0 else int(
                 search_reference(self.X_, x, self._w, self._pin, self.norm, 1)[0])
+        elif self.replacement == "redundancy":
+            slot = int(np.argmax(self.redundancy_[:count]))
         else:
             slot = int(np.argmin(self.stamp_))
         self.X_[slot] = x
         self.Y_[slot] = y
         self.stamp_[slot] = self._meta[1]
+        if self.replacement == "redundancy":
+            self.redundancy_[slot] = own
         self._meta[1] += 1
         self._meta[2] += 1
         return slot
