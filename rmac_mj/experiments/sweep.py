@@ -742,8 +742,11 @@ def plot_sweep(sweep: Sweep, rows: list[dict], out: pathlib.Path) -> list[pathli
     for metric, (column, low_column, high_column, label) in METRICS.items():
         if all(row.get(column) is None for row in rows):
             continue  # e.g. no greedy evaluations, no optimum
-        fig, axes = plt.subplots(1, len(parameters), figsize=(4.8 * len(parameters), 3.8),
-                                 squeeze=False, constrained_layout=True)
+        # a panel of many named values (variants) gets the width their tick labels need
+        widths = [max(4.8, 0.9 * len({json.dumps(row.get(p)) for row in rows})) for p in parameters]
+        fig, axes = plt.subplots(1, len(parameters), figsize=(max(sum(widths), 6.4), 3.8),
+                                 squeeze=False, constrained_layout=True,
+                                 gridspec_kw={"width_ratios": widths})
         for ax, parameter in zip(axes[0], parameters):
             choices = []
             for row in rows:
@@ -779,7 +782,9 @@ def plot_sweep(sweep: Sweep, rows: list[dict], out: pathlib.Path) -> list[pathli
                 else:
                     ax.plot(xs, ys, marker="o", linewidth=1.2, label=key or None)
             if ticks is not None:
-                ax.set_xticks(positions, ticks, rotation=30 if max(map(len, ticks)) > 6 else 0)
+                slanted = max(map(len, ticks)) > 6
+                ax.set_xticks(positions, ticks, rotation=30 if slanted else 0,
+                              ha="right" if slanted else "center")
             elif logarithmic:
                 ax.set_xscale("log")
                 ax.set_xticks(positions, [_label(c) for c in choices])
@@ -788,7 +793,7 @@ def plot_sweep(sweep: Sweep, rows: list[dict], out: pathlib.Path) -> list[pathli
             ax.grid(alpha=0.3)
             if any(series) and len(series) <= 12:
                 ax.legend(fontsize="x-small")
-        fig.suptitle(f"{sweep.path.name}: {label}")
+        fig.suptitle(f"{sweep.path.name}: {label}", fontsize="medium")
         path = out / f"sweep_{metric}.png"
         fig.savefig(path, dpi=120)
         plt.close(fig)
