@@ -43,6 +43,7 @@ _INITIAL_VALUES = ("critic", "zero")
 _CONDITIONINGS = ("svd", "ridge", "none")
 _REPLACEMENTS = ("nearest", "oldest")
 _REACHABLE_RULES = ("vertices", "vertices_value", "grid", "exact")
+_REFERENCE_INSERTS = ("target", "prediction")
 #: Absolute tolerance, in action units, of the golden-section refinement of reachable_rule='exact'.
 EXACT_TOLERANCE = 1e-6
 #: 1 / golden ratio, the shrink factor of one golden-section step.
@@ -144,6 +145,16 @@ class RMACConfig:
     reachable_grid: int = 21
     """Actions per action dimension for reachable_rule 'grid' and 'exact' (evenly spaced over the
     bounds, both bounds included)."""
+    reference_insert: str = "target"
+    """The output of the sample [x_{k-1} | .] that line 18 inserts in M^R: 'target' (the paper's),
+    x_r itself; or 'prediction', the reference's own estimate R(x_{k-1}) before the insertion (from
+    K(x_{k-1}); x_r on an empty memory), which line 20 then moves towards x_r with the neighbours
+    when the new sample replaced the nearest one (a full memory), as the critic inserts its estimate
+    V_{k-1} (line 23) and lets TD move it. With 'target' every insertion near the goal writes a raw
+    vertex state (a speed of about +-2.6 rad/s on the pendulum) over the few samples there, so
+    R near upright is a fit to the last ~20 bang-bang targets and its fixed point moves every trial
+    (docs/studies/upright-offset.md); 'prediction' makes every sample a running average of its
+    targets at rate alpha_r."""
     initial_value: str = "critic"
     """V_0 of a trial (line 2): the critic's estimate V(x_0) ('critic'; 0 on the empty memory) or the
     literal 0 every trial ('zero')."""
@@ -181,6 +192,7 @@ class RMACConfig:
         for name, allowed in (("conditioning", _CONDITIONINGS), ("inverse_query", _INVERSE_QUERIES),
                               ("critic_gradient_at", _GRADIENT_AT),
                               ("reachable_rule", _REACHABLE_RULES),
+                              ("reference_insert", _REFERENCE_INSERTS),
                               ("initial_value", _INITIAL_VALUES), ("backend", _BACKENDS)):
             if getattr(self, name) not in allowed:
                 raise ValueError(f"RMACConfig.{name} must be one of {allowed}, "
@@ -287,7 +299,8 @@ class RMAC(Agent):
             float(cfg.lam), float(cfg.alpha_c), float(cfg.alpha_r), BETA_U_ZERO,
             cfg.inverse_query == "previous", cfg.critic_gradient_at == "next",
             self._list_info[0], self._list_info[1], _REACHABLE_RULES.index(cfg.reachable_rule),
-            float(cfg.action_cost), np.ascontiguousarray(self.candidates), self._refine_steps)
+            float(cfg.action_cost), np.ascontiguousarray(self.candidates), self._refine_steps,
+            cfg.reference_insert == "prediction")
 
     def __getstate__(self) -> dict:
         # The structref is a view of arrays pickled here; it is made anew when unpickled.
@@ -414,7 +427,10 @@ class RMAC(Agent):
             x_r = self._best_reachable(pred, beta_u, u_prev)
         # Lines 17-20: insert [x_{k-1} | x_r] in M^R and move K(x_{k-1}) towards x_r.
         near = self.reference.neighbours(x_prev)
-        self.reference.insert(x_prev, x_r, int(near[0]) if len(near) else None)
+        inserted = x_r
+        if cfg.reference_insert == "prediction" and len(near):  # R(x_{k-1}) instead of x_r
+            inserted = self._canonical(self.reference.query(x_prev)[0])
+        self.reference.insert(x_prev, inserted, int(near[0]) if len(near) else None)
         self.reference.move_outputs(near, x_r, cfg.alpha_r)
         # Lines 22-28: TD(lambda) on the critic's samples. V_k was computed above (line 22).
         near = self.critic.neighbours(x_prev)
