@@ -62,8 +62,11 @@ from rmac_mj import tasks
 SETTLE_ANGLE = 0.05   # rad, |phi - phi_ss| from the settle step on
 SETTLE_SPEED = 0.5    # rad/s, |phi_dot| from the settle step on
 UPRIGHT = 0.5         # rad: a trial "ends upright" when it settles (see settle_step) within this of 0
-FIELDS = ("directory", "algorithm", "experiment", "repeat", "greedy_return", "stored_greedy_return", "phi_ss",
-          "phi_dot_ss", "u_ss", "phi_std", "settle_step", "offset_loss")
+FIELDS = ("directory", "algorithm", "experiment", "repeat", "greedy_return", "stored_greedy_return",
+          "phi_ss", "phi_dot_ss", "u_ss", "phi_std", "settle_step", "offset_loss", "critic_peak",
+          "critic_switch", "critic_gain", "memory_near_upright")
+#: The slice phi_dot = 0 on which RMAC's learned memories are read (rad).
+SLICE = np.linspace(-0.3, 0.3, 121)
 
 
 def result_dirs(path: pathlib.Path) -> list[pathlib.Path]:
@@ -250,9 +253,41 @@ def _measure_one(directory: pathlib.Path, algorithm: str, index: int, agent, env
         raise SystemExit(f"upright_offset: {directory} {algorithm} experiment {index}: the "
                          f"replayed greedy return {rewards.sum()!r} differs from the stored "
                          f"{stored!r}")
-    return {"directory": str(directory), "algorithm": algorithm, "experiment": index,
-            "greedy_return": float(rewards.sum()), "stored_greedy_return": stored,
-            **steady_state(states, actions, rewards, last)}
+    row = {"directory": str(directory), "algorithm": algorithm, "experiment": index,
+           "greedy_return": float(rewards.sum()), "stored_greedy_return": stored,
+           **steady_state(states, actions, rewards, last)}
+    if algorithm == "rmac":
+        row.update(rmac_memories(agent, row))
+    return row
+
+
+def rmac_memories(agent, row: dict) -> dict:
+    """What RMAC's learned memories say around upright, on the slice phi_dot = 0 (SLICE):
+
+    * ``critic_peak``: the angle of the critic's largest value V(phi, 0);
+    * ``critic_switch``: where the vertex rule (Algorithm 2 line 16) switches from the +3 V vertex
+      (below) to the -3 V one (above), nearest phi_ss: the zero of beta^C(phi, 0) . beta_u, the
+      critic's local slope along the process model's input gain (at the steady state), falling;
+    * ``critic_gain``: V(critic_peak, 0) - V(x_ss): what the critic thinks the offset costs;
+    * ``memory_near_upright``: critic samples with |phi| < 0.1 rad and |phi_dot| < 1 rad/s (the
+      reference memory holds samples at the same inputs: both insert at x_{k-1}).
+    """
+    x_ss = np.array([row["phi_ss"], row["phi_dot_ss"]])
+    _, beta, _ = agent.process.query(np.r_[x_ss, row["u_ss"]])
+    beta_u = beta[:, agent.n]
+    values, slopes = [], []
+    for phi in SLICE:
+        value, slope, _ = agent.critic.query([phi, 0.0])
+        values.append(value[0])
+        slopes.append(slope[0, :agent.n] @ beta_u)
+    values, slopes = np.array(values), np.array(slopes)
+    falling = np.flatnonzero((slopes[:-1] > 0) & (slopes[1:] <= 0))
+    switch = (float("nan") if len(falling) == 0 else
+              float(SLICE[falling][np.argmin(np.abs(SLICE[falling] - x_ss[0]))]))
+    X = agent.critic.X_[:agent.critic.n_samples_]
+    return {"critic_peak": float(SLICE[np.argmax(values)]), "critic_switch": switch,
+            "critic_gain": float(values.max() - agent.critic.query(x_ss)[0][0]),
+            "memory_near_upright": int(((np.abs(X[:, 0]) < 0.1) & (np.abs(X[:, 1]) < 1.0)).sum())}
 
 
 def upright(row: dict) -> bool:
@@ -282,6 +317,18 @@ def summarise(rows: list[dict]) -> None:
               f"| {_ci(np.abs(phi))} | {(phi < 0).sum()} / {(phi > 0).sum()} | {_ci(u)} "
               f"| {_ci(np.abs(u))} | {_ci(loss[settled])} "
               f"| {_ci([r['greedy_return'] for r in every])} |")
+        if algorithm == "rmac" and len(group) > 2:
+            switch = np.array([r["critic_switch"] for r in group])
+            peak = np.array([r["critic_peak"] for r in group])
+            ok = np.isfinite(switch)
+            print(f"|   | RMAC's critic: vertex-rule switch at {_ci(switch[ok])} rad, \\|switch\\| "
+                  f"{_ci(np.abs(switch[ok]))}, corr(phi_ss, switch) = "
+                  f"{np.corrcoef(phi[ok], switch[ok])[0, 1]:.2f} ({ok.sum()} exp.); peak of V(phi, 0) "
+                  f"\\|peak\\| {_ci(np.abs(peak))}, corr(phi_ss, peak) = "
+                  f"{np.corrcoef(phi, peak)[0, 1]:.2f}; V(peak) - V(x_ss) "
+                  f"{_ci([r['critic_gain'] for r in group])}; critic samples near upright "
+                  f"{_ci([r['memory_near_upright'] for r in group])} of "
+                  f"{agent_capacity(group)} |||||||||")
         if len(group) > 2 and np.ptp(phi) > 0:
             # Holding phi takes u = -c sin(phi) (gravity against the motor): fit c across experiments.
             s = np.sin(phi)
@@ -317,6 +364,12 @@ def persistence(rows: list[dict]) -> None:
         print(f"| {pathlib.Path(directory).name} | {algorithm} | {phi.shape[0]} x {phi.shape[1]} "
               f"({np.isfinite(phi).sum()}) | {np.nanmean(np.abs(phi)):.3f} | {within:.3f} "
               f"| {between:.3f} | {corr:.2f} | {kept:.2f} |")
+
+
+def agent_capacity(group: list[dict]) -> str:
+    config = json.loads((pathlib.Path(group[0]["directory"]) / "config.json").read_text())
+    return str(config["protocol"].get("agent_configs", {}).get("rmac", {}).get("critic_capacity",
+                                                                               2000))
 
 
 def paired(rows: list[dict], base_rows: list[dict]) -> None:

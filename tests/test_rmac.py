@@ -83,16 +83,16 @@ def test_reference_target_is_best_vertex_under_a_linear_critic(backend, m):
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
-@pytest.mark.parametrize("insert", ["target", "prediction"])
-def test_reference_insert_writes_the_target_or_the_moved_prediction(backend, insert):
+@pytest.mark.parametrize("rate", [1.0, 0.3, 0.0])
+def test_reference_insert_rate_writes_the_target_or_the_moved_estimate(backend, rate):
     # A full reference memory holding the exact affine map R(x) = D x + e: the step from x0 replaces
-    # the sample nearest x0 (line 18) and moves K(x0), the new sample among them, towards x_r by
-    # alpha_r (line 20). 'target' leaves x_r there; 'prediction' R(x0) + alpha_r (x_r - R(x0)).
+    # the sample nearest x0 with y = R(x0) + rate (x_r - R(x0)) (line 18; rate 1: x_r) and moves
+    # K(x0), the new sample among them, towards x_r by alpha_r (line 20).
     n, m, alpha_r = 2, 1, 0.25
     A, B, c = _linear_system(n, m, seed=3)
     g = np.array([-2.0, 0.7])
     agent = _agent(n, m, backend, critic_clip=False, reference_clip=False, reference_capacity=60,
-                   reference_neighbours=6, alpha_r=alpha_r, reference_insert=insert)
+                   reference_neighbours=6, alpha_r=alpha_r, reference_insert_rate=rate)
     rng = np.random.default_rng(2)
     X, U = rng.uniform(-1, 1, (100, n)), rng.uniform(-3, 3, (100, m))
     agent.process.fit(np.c_[X, U], X @ A.T + U @ B.T + c)
@@ -107,16 +107,17 @@ def test_reference_insert_writes_the_target_or_the_moved_prediction(backend, ins
     vertices = [A @ x0 + B @ np.array(v) + c for v in itertools.product((3.0, -3.0), repeat=m)]
     x_r = vertices[int(np.argmax([g @ v for v in vertices]))]
     r0 = D @ x0 + e
-    expected = x_r if insert == "target" else r0 + alpha_r * (x_r - r0)
+    inserted = r0 + rate * (x_r - r0)
+    expected = inserted + alpha_r * (x_r - inserted)
     assert agent.reference.n_samples_ == 60
     slot = int(np.argmax(agent.reference.stamp_))
     np.testing.assert_allclose(agent.reference.X_[slot], x0, atol=1e-12)
     np.testing.assert_allclose(agent.reference.Y_[slot], expected, atol=1e-8)
 
 
-def test_reference_insert_is_validated_by_name():
-    with pytest.raises(ValueError, match="reference_insert"):
-        RMACConfig(reference_insert="average")
+def test_reference_insert_rate_is_validated():
+    with pytest.raises(ValueError, match="reference_insert_rate"):
+        RMACConfig(reference_insert_rate=1.5)
 
 
 def _lq_reachable_case(rule, backend, action_cost):
@@ -309,9 +310,9 @@ _OPTION_VALUES = {
                                           process_weights=(1.0, 0.1, 1.0, 0.5)),
     "reachable exact": dict(reachable_rule="exact"),
     "reachable exact, grid 4": dict(reachable_rule="exact", reachable_grid=4),
-    "reference insert prediction": dict(reference_insert="prediction"),
-    "reference insert prediction, oldest": dict(reference_insert="prediction",
-                                                reference_replacement="oldest"),
+    "reference insert rate 0.3": dict(reference_insert_rate=0.3),
+    "reference insert rate 0, oldest": dict(reference_insert_rate=0.0,
+                                            reference_replacement="oldest"),
 }
 
 
