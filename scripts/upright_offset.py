@@ -2,7 +2,9 @@
 
     python scripts/upright_offset.py RESULT_DIR [RESULT_DIR ...] [--trial 600] [--last 30]
         [--algorithms rmac s-ac] [--csv FILE] [--pair-with RESULT_DIR] [--plot FILE.png]
-        [--set FIELD=VALUE ...] [--continue N] [--policy learned|critic-greedy]
+        [--set ALGO.FIELD=VALUE ...] [--continue N] [--repeat R]
+        [--policy learned|critic-greedy|oracle-inverse]
+    python scripts/upright_offset.py ROWS.csv [...] [--pair-with BASE.csv]   # redraw saved tables
 
 A RESULT_DIR is an ``rmac-mj reproduce`` directory or a sweep directory (every configuration under it
 is taken). For every experiment, the agent's snapshot at ``--trial`` (reproduce always saves the last
@@ -67,6 +69,25 @@ FIELDS = ("directory", "algorithm", "experiment", "repeat", "greedy_return", "st
           "critic_switch", "critic_gain", "memory_near_upright")
 #: The slice phi_dot = 0 on which RMAC's learned memories are read (rad).
 SLICE = np.linspace(-0.3, 0.3, 121)
+
+
+def read_csv(path: pathlib.Path) -> list[dict]:
+    """Rows written by ``--csv`` (so that a table can be redrawn without replaying the trials)."""
+    rows = []
+    with open(path, newline="") as handle:
+        for row in csv.DictReader(handle):
+            out: dict = {}
+            for key, text in row.items():
+                if key in ("directory", "algorithm"):
+                    out[key] = text
+                elif text == "":
+                    out[key] = None
+                elif key in ("experiment", "repeat", "settle_step", "memory_near_upright"):
+                    out[key] = int(float(text))
+                else:
+                    out[key] = float(text)
+            rows.append(out)
+    return rows
 
 
 def result_dirs(path: pathlib.Path) -> list[pathlib.Path]:
@@ -239,8 +260,8 @@ def measure(directory: pathlib.Path, trial: int, last: int, algorithms: list[str
 def _measure_one(directory: pathlib.Path, algorithm: str, index: int, agent, env, trial: int,
                  last: int, policy: str, intervened: bool) -> dict:
     """The greedy trial of one agent as a row (see ``measure``)."""
-    actor = {"learned": agent, "critic-greedy": CriticGreedy(agent),
-             "oracle-inverse": OracleInverse(agent, env)}[policy]
+    actor = {"learned": lambda: agent, "critic-greedy": lambda: CriticGreedy(agent),
+             "oracle-inverse": lambda: OracleInverse(agent, env)}[policy]()
     states, actions, rewards = greedy_trajectory(actor, env)
     stored = None
     curve = directory / "curves" / algorithm / f"exp_{index:03d}.npz"
@@ -317,8 +338,9 @@ def summarise(rows: list[dict]) -> None:
               f"| {_ci(np.abs(phi))} | {(phi < 0).sum()} / {(phi > 0).sum()} | {_ci(u)} "
               f"| {_ci(np.abs(u))} | {_ci(loss[settled])} "
               f"| {_ci([r['greedy_return'] for r in every])} |")
-        if algorithm == "rmac" and len(group) > 2:
-            switch = np.array([r["critic_switch"] for r in group])
+        if algorithm == "rmac" and len(group) > 2 and group[0].get("critic_switch", "") != "":
+            switch = np.array([np.nan if r["critic_switch"] is None else r["critic_switch"]
+                               for r in group], dtype=float)
             peak = np.array([r["critic_peak"] for r in group])
             ok = np.isfinite(switch)
             print(f"|   | RMAC's critic: vertex-rule switch at {_ci(switch[ok])} rad, \\|switch\\| "
@@ -372,28 +394,41 @@ def agent_capacity(group: list[dict]) -> str:
                                                                                2000))
 
 
-def paired(rows: list[dict], base_rows: list[dict]) -> None:
-    """Paired t-tests of |phi_ss| and the offset loss, every directory against the base."""
-    base = {(r["algorithm"], r["experiment"]): r for r in base_rows}
-    groups: dict[tuple[str, str], list[dict]] = {}
+def _per_experiment(rows: list[dict]) -> dict[tuple[str, str, int], dict[str, float]]:
+    """Per directory, learner and experiment: the means over its greedy trials (``--repeat``) of
+    |phi_ss| and the offset loss (upright trials only) and of the greedy return (all trials)."""
+    out: dict[tuple[str, str, int], list[dict]] = {}
     for row in rows:
-        groups.setdefault((row["directory"], row["algorithm"]), []).append(row)
-    print("\n| directory | learner | pairs | metric | difference (this - base) [95% CI] | p (paired t) |")
+        out.setdefault((row["directory"], row["algorithm"], row["experiment"]), []).append(row)
+    means = {}
+    for key, group in out.items():
+        up = [r for r in group if upright(r)]
+        means[key] = {
+            "|phi_ss|": float(np.mean([abs(r["phi_ss"]) for r in up])) if up else float("nan"),
+            "offset loss": float(np.mean([r["offset_loss"] for r in up])) if up else float("nan"),
+            "greedy return (all)": float(np.mean([r["greedy_return"] for r in group]))}
+    return means
+
+
+def paired(rows: list[dict], base_rows: list[dict]) -> None:
+    """Paired t-tests, every directory against the base, experiment by experiment (each the mean
+    over its greedy trials): |phi_ss| and the offset loss where both end upright, and the greedy
+    return."""
+    base = {(a, i): v for (_, a, i), v in _per_experiment(base_rows).items()}
+    groups: dict[tuple[str, str], list[tuple[int, dict]]] = {}
+    for (directory, algorithm, index), value in _per_experiment(rows).items():
+        groups.setdefault((directory, algorithm), []).append((index, value))
+    print("\n| directory | learner | pairs | metric (mean over greedy trials) | difference (this - "
+          "base) [95% CI] | p (paired t) |")
     print("|---|---|---|---|---|---|")
     for (directory, algorithm), group in groups.items():
-        pairs = [(r, base[(algorithm, r["experiment"])]) for r in group
-                 if (algorithm, r["experiment"]) in base and upright(r)
-                 and upright(base[(algorithm, r["experiment"])])]
-        if len(pairs) < 2:
-            continue
-        every = [(r, base[(algorithm, r["experiment"])]) for r in group
-                 if (algorithm, r["experiment"]) in base]
-        for metric, get, among in (("|phi_ss|", lambda r: abs(r["phi_ss"]), pairs),
-                                   ("offset loss", lambda r: r["offset_loss"], pairs),
-                                   ("greedy return (all)", lambda r: r["greedy_return"], every)):
-            d = np.array([get(a) - get(b) for a, b in among])
+        for metric in ("|phi_ss|", "offset loss", "greedy return (all)"):
+            d = np.array([value[metric] - base[(algorithm, index)][metric] for index, value in group
+                          if (algorithm, index) in base])
             d = d[np.isfinite(d)]
-            p = stats.ttest_1samp(d, 0.0).pvalue if len(d) > 1 and np.ptp(d) > 0 else float("nan")
+            if len(d) < 2:
+                continue
+            p = stats.ttest_1samp(d, 0.0).pvalue if np.ptp(d) > 0 else float("nan")
             print(f"| {pathlib.Path(directory).name} | {algorithm} | {len(d)} | {metric} | {_ci(d)} "
                   f"| {p:.2g} |")
 
@@ -425,7 +460,9 @@ def plot(rows: list[dict], path: str) -> None:
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("directories", nargs="+", type=pathlib.Path)
+    parser.add_argument("directories", nargs="+", type=pathlib.Path,
+                        help="result or sweep directories, or CSV files written by --csv (their "
+                             "rows are summarised as they are)")
     parser.add_argument("--trial", type=int, default=600)
     parser.add_argument("--last", type=int, default=30)
     parser.add_argument("--algorithms", nargs="*")
@@ -441,14 +478,23 @@ def main(argv: list[str] | None = None) -> None:
                         help="R greedy trials per experiment, one more learning trial between two")
     args = parser.parse_args(argv)
     overrides = parse_sets(args.set)
-    rows = [row for path in args.directories for directory in result_dirs(path)
-            for row in measure(directory, args.trial, args.last, args.algorithms, overrides,
-                               args.more_trials, args.policy, args.repeat)]
+    rows = []
+    for path in args.directories:
+        if path.suffix == ".csv":  # a table of an earlier run, redrawn
+            rows += [r for r in read_csv(path) if not args.algorithms
+                     or r["algorithm"] in args.algorithms]
+            continue
+        rows += [row for directory in result_dirs(path)
+                 for row in measure(directory, args.trial, args.last, args.algorithms, overrides,
+                                    args.more_trials, args.policy, args.repeat)]
     summarise([r for r in rows if r["repeat"] == 0])
-    if args.repeat > 1:
+    if max(r["repeat"] for r in rows) > 0:
         persistence(rows)
     if args.pair_with is not None:
-        paired(rows, measure(args.pair_with, args.trial, args.last, args.algorithms))
+        base = (read_csv(args.pair_with) if args.pair_with.suffix == ".csv" else
+                measure(args.pair_with, args.trial, args.last, args.algorithms, {},
+                        args.more_trials, "learned", args.repeat))
+        paired(rows, base)
     if args.csv:
         with open(args.csv, "w", newline="") as handle:
             writer = csv.DictWriter(handle, fieldnames=FIELDS)

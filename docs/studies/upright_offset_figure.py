@@ -1,11 +1,11 @@
 """The figure of docs/studies/upright-offset.md.
 
-Usage: python docs/studies/upright_offset_figure.py PAPER_CSV REPEAT_TARGET_CSV REPEAT_PREDICTION_CSV
+Usage: python docs/studies/upright_offset_figure.py PAPER_CSV REPEAT_TARGET_CSV REPEAT_RATE_CSV
            SNAPSHOT OUT.png
 
 PAPER_CSV: ``scripts/upright_offset.py RESULT --csv`` of a run with all three learners; the REPEAT
 CSVs: ``--repeat`` runs of RMAC (consecutive greedy trials one learning trial apart) with the paper's
-reference insertion and with ``reference_insert=prediction``; SNAPSHOT: one RMAC snapshot whose
+reference insertion and with ``reference_insert_rate`` RATE (0.3); SNAPSHOT: one RMAC snapshot whose
 reference model is drawn over consecutive learning trials under both insertions.
 """
 
@@ -22,12 +22,15 @@ from rmac_mj import tasks  # noqa: E402
 from rmac_mj.experiments import episode  # noqa: E402
 
 
+RATE = 0.3
+
+
 def rows(path):
     with open(path) as handle:
         return list(csv.DictReader(handle))
 
 
-def main(paper_csv, target_csv, prediction_csv, snapshot, out):
+def main(paper_csv, target_csv, rate_csv, snapshot, out):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -46,7 +49,7 @@ def main(paper_csv, target_csv, prediction_csv, snapshot, out):
     a.legend(fontsize=7)
     # (b) the offset is redrawn by every learning trial.
     for data, colour, label in ((rows(target_csv), "C0", "paper (insert x_r)"),
-                                (rows(prediction_csv), "C3", "insert R(x_{k-1})")):
+                                (rows(rate_csv), "C3", f"insert rate {RATE}, after 30 trials")):
         for index in range(8):
             series = sorted((r for r in data if int(r["experiment"]) == index),
                             key=lambda r: int(r["repeat"]))
@@ -60,17 +63,17 @@ def main(paper_csv, target_csv, prediction_csv, snapshot, out):
     b.legend(fontsize=7)
     # (c) the reference model's demanded speed at rest, R_phidot(phi, 0), over 5 learning trials.
     phis = np.linspace(-0.3, 0.3, 121)
-    for insert, colour in (("target", "C0"), ("prediction", "C3")):
-        overrides = {} if insert == "target" else {"reference_insert": "prediction"}
+    for insert, colour in (("target", "C0"), ("rate", "C3")):
+        overrides = {} if insert == "target" else {"reference_insert_rate": RATE}
         agent, meta = uo.load_agent(pathlib.Path(snapshot), overrides, 0)
         env = tasks.load(meta["domain"], meta["task"], task_kwargs=meta["task_kwargs"])
-        for _ in range(30 if insert == "prediction" else 0):
+        for _ in range(30 if insert == "rate" else 0):
             episode.run_trial(env, agent, learn=True)
         for t in range(5):
             c.plot(phis, [agent.reference.query([p, 0.0])[0][1] for p in phis], color=colour,
                    lw=0.9, alpha=0.5 + 0.1 * t,
                    label=("paper (insert x_r)" if insert == "target" else
-                          "insert R(x_{k-1}), after 30 trials") if t == 0 else None)
+                          f"insert rate {RATE}, after 30 trials") if t == 0 else None)
             episode.run_trial(env, agent, learn=True)
     c.axhline(0, color="k", lw=0.5)
     c.axvline(0, color="k", lw=0.5)
