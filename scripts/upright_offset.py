@@ -66,7 +66,7 @@ SETTLE_SPEED = 0.5    # rad/s, |phi_dot| from the settle step on
 UPRIGHT = 0.5         # rad: a trial "ends upright" when it settles (see settle_step) within this of 0
 FIELDS = ("directory", "algorithm", "experiment", "repeat", "greedy_return", "stored_greedy_return",
           "phi_ss", "phi_dot_ss", "u_ss", "phi_std", "settle_step", "offset_loss", "critic_peak",
-          "critic_switch", "critic_gain", "memory_near_upright")
+          "critic_switch", "critic_gain", "critic_points_back", "memory_near_upright")
 #: The slice phi_dot = 0 on which RMAC's learned memories are read (rad).
 SLICE = np.linspace(-0.3, 0.3, 121)
 
@@ -82,7 +82,8 @@ def read_csv(path: pathlib.Path) -> list[dict]:
                     out[key] = text
                 elif text == "":
                     out[key] = None
-                elif key in ("experiment", "repeat", "settle_step", "memory_near_upright"):
+                elif key in ("experiment", "repeat", "settle_step", "memory_near_upright",
+                             "critic_points_back"):
                     out[key] = int(float(text))
                 else:
                     out[key] = float(text)
@@ -290,6 +291,8 @@ def rmac_memories(agent, row: dict) -> dict:
       (below) to the -3 V one (above), nearest phi_ss: the zero of beta^C(phi, 0) . beta_u, the
       critic's local slope along the process model's input gain (at the steady state), falling;
     * ``critic_gain``: V(critic_peak, 0) - V(x_ss): what the critic thinks the offset costs;
+    * ``critic_points_back``: 1 if at x_ss the vertex rule picks the vertex that pushes towards
+      upright (the sign of the critic's slope along beta_u is that of -phi_ss), else 0;
     * ``memory_near_upright``: critic samples with |phi| < 0.1 rad and |phi_dot| < 1 rad/s (the
       reference memory holds samples at the same inputs: both insert at x_{k-1}).
     """
@@ -308,6 +311,8 @@ def rmac_memories(agent, row: dict) -> dict:
     X = agent.critic.X_[:agent.critic.n_samples_]
     return {"critic_peak": float(SLICE[np.argmax(values)]), "critic_switch": switch,
             "critic_gain": float(values.max() - agent.critic.query(x_ss)[0][0]),
+            "critic_points_back": int(np.sign(agent.critic.query(x_ss)[1][0, :agent.n] @ beta_u)
+                                      == -np.sign(x_ss[0])),
             "memory_near_upright": int(((np.abs(X[:, 0]) < 0.1) & (np.abs(X[:, 1]) < 1.0)).sum())}
 
 
@@ -348,7 +353,9 @@ def summarise(rows: list[dict]) -> None:
                   f"{np.corrcoef(phi[ok], switch[ok])[0, 1]:.2f} ({ok.sum()} exp.); peak of V(phi, 0) "
                   f"\\|peak\\| {_ci(np.abs(peak))}, corr(phi_ss, peak) = "
                   f"{np.corrcoef(phi, peak)[0, 1]:.2f}; V(peak) - V(x_ss) "
-                  f"{_ci([r['critic_gain'] for r in group])}; critic samples near upright "
+                  f"{_ci([r['critic_gain'] for r in group])}; at x_ss the vertex rule pushes "
+                  f"back towards upright in {sum(r['critic_points_back'] for r in group)}/"
+                  f"{len(group)}; critic samples near upright "
                   f"{_ci([r['memory_near_upright'] for r in group])} of "
                   f"{agent_capacity(group)} |||||||||")
         if len(group) > 2 and np.ptp(phi) > 0:
