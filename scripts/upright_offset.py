@@ -66,7 +66,8 @@ SETTLE_SPEED = 0.5    # rad/s, |phi_dot| from the settle step on
 UPRIGHT = 0.5         # rad: a trial "ends upright" when it settles (see settle_step) within this of 0
 FIELDS = ("directory", "algorithm", "experiment", "repeat", "greedy_return", "stored_greedy_return",
           "phi_ss", "phi_dot_ss", "u_ss", "phi_std", "settle_step", "offset_loss", "critic_peak",
-          "critic_switch", "critic_gain", "critic_points_back", "memory_near_upright")
+          "critic_switch", "critic_gain", "critic_points_back", "memory_near_upright",
+          "critic_span_at_upright")
 #: The slice phi_dot = 0 on which RMAC's learned memories are read (rad).
 SLICE = np.linspace(-0.3, 0.3, 121)
 
@@ -293,6 +294,8 @@ def rmac_memories(agent, row: dict) -> dict:
     * ``critic_gain``: V(critic_peak, 0) - V(x_ss): what the critic thinks the offset costs;
     * ``critic_points_back``: 1 if at x_ss the vertex rule picks the vertex that pushes towards
       upright (the sign of the critic's slope along beta_u is that of -phi_ss), else 0;
+    * ``critic_span_at_upright``: the range of phi (rad) that K([0, 0]), the critic's neighbours
+      of the fit at upright, spans;
     * ``memory_near_upright``: critic samples with |phi| < 0.1 rad and |phi_dot| < 1 rad/s (the
       reference memory holds samples at the same inputs: both insert at x_{k-1}).
     """
@@ -313,7 +316,8 @@ def rmac_memories(agent, row: dict) -> dict:
             "critic_gain": float(values.max() - agent.critic.query(x_ss)[0][0]),
             "critic_points_back": int(np.sign(agent.critic.query(x_ss)[1][0, :agent.n] @ beta_u)
                                       == -np.sign(x_ss[0])),
-            "memory_near_upright": int(((np.abs(X[:, 0]) < 0.1) & (np.abs(X[:, 1]) < 1.0)).sum())}
+            "memory_near_upright": int(((np.abs(X[:, 0]) < 0.1) & (np.abs(X[:, 1]) < 1.0)).sum()),
+            "critic_span_at_upright": float(np.ptp(X[agent.critic.neighbours(np.zeros(agent.n)), 0]))}
 
 
 def upright(row: dict) -> bool:
@@ -357,7 +361,8 @@ def summarise(rows: list[dict]) -> None:
                   f"back towards upright in {sum(r['critic_points_back'] for r in group)}/"
                   f"{len(group)}; critic samples near upright "
                   f"{_ci([r['memory_near_upright'] for r in group])} of "
-                  f"{agent_capacity(group)} |||||||||")
+                  f"{agent_capacity(group)}; the critic's neighbours at upright span "
+                  f"{_ci([r['critic_span_at_upright'] for r in group])} rad of phi |||||||||")
         if len(group) > 2 and np.ptp(phi) > 0:
             # Holding phi takes u = -c sin(phi) (gravity against the motor): fit c across experiments.
             s = np.sin(phi)
