@@ -82,6 +82,44 @@ def test_reference_target_is_best_vertex_under_a_linear_critic(backend, m):
     assert len(agent.vertices) == 2 ** m
 
 
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("rate", [1.0, 0.3, 0.0])
+def test_reference_insert_rate_writes_the_target_or_the_moved_estimate(backend, rate):
+    # A full reference memory holding the exact affine map R(x) = D x + e: the step from x0 replaces
+    # the sample nearest x0 with y = R(x0) + rate (x_r - R(x0)) (line 18; rate 1: x_r) and moves
+    # K(x0), the new sample among them, towards x_r by alpha_r (line 20).
+    n, m, alpha_r = 2, 1, 0.25
+    A, B, c = _linear_system(n, m, seed=3)
+    g = np.array([-2.0, 0.7])
+    agent = _agent(n, m, backend, critic_clip=False, reference_clip=False, reference_capacity=60,
+                   reference_neighbours=6, alpha_r=alpha_r, reference_insert_rate=rate)
+    rng = np.random.default_rng(2)
+    X, U = rng.uniform(-1, 1, (100, n)), rng.uniform(-3, 3, (100, m))
+    agent.process.fit(np.c_[X, U], X @ A.T + U @ B.T + c)
+    Xc = rng.uniform(-5, 5, (500, n))
+    agent.critic.fit(Xc, (Xc @ g + 3.0)[:, None])
+    D, e = np.array([[0.5, 0.1], [-0.2, 0.3]]), np.array([0.05, -0.1])
+    Xr = rng.uniform(-1, 1, (60, n))
+    agent.reference.fit(Xr, Xr @ D.T + e)
+    x0 = np.array([0.2, -0.4])
+    u0 = agent.start(x0)
+    agent.step(-1.0, A @ x0 + B @ u0 + c)
+    vertices = [A @ x0 + B @ np.array(v) + c for v in itertools.product((3.0, -3.0), repeat=m)]
+    x_r = vertices[int(np.argmax([g @ v for v in vertices]))]
+    r0 = D @ x0 + e
+    inserted = r0 + rate * (x_r - r0)
+    expected = inserted + alpha_r * (x_r - inserted)
+    assert agent.reference.n_samples_ == 60
+    slot = int(np.argmax(agent.reference.stamp_))
+    np.testing.assert_allclose(agent.reference.X_[slot], x0, atol=1e-12)
+    np.testing.assert_allclose(agent.reference.Y_[slot], expected, atol=1e-8)
+
+
+def test_reference_insert_rate_is_validated():
+    with pytest.raises(ValueError, match="reference_insert_rate"):
+        RMACConfig(reference_insert_rate=1.5)
+
+
 def _lq_reachable_case(rule, backend, action_cost):
     """A hand-worked linear-quadratic case for the reachable rules (n = m = 1).
 
@@ -295,6 +333,9 @@ _OPTION_VALUES = {
     "explore where uncertain, inverse query zero": dict(
         exploration=Exploration(where="uncertain", uncertainty_threshold=2.0),
         inverse_query="zero"),
+    "reference insert rate 0.3": dict(reference_insert_rate=0.3),
+    "reference insert rate 0, oldest": dict(reference_insert_rate=0.0,
+                                            reference_replacement="oldest"),
 }
 
 

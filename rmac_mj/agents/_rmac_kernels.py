@@ -27,6 +27,7 @@ The kernels take an :class:`RMACState`, a numba structref that names what a step
 ``action_cost``         P of the score -P |u|^2 + gamma V(x') (rules other than 'vertices')
 ``candidates``          (c, m) candidate actions of those rules (vertices or grid)
 ``refine_steps``        golden-section steps of rule 'exact' (0: none)
+``insert_rate``         ``reference_insert_rate``: M^R gets R(x_{k-1}) + rate (x_r - R(x_{k-1}))
 ``ref_idx``, ...        neighbour lists of the reference memory (``ref_*``) and of the critic
                         (``crit_*``): two buffers each, one for x_k and one for x_{k-1}
                         (``cur`` says which is x_k's): ``*_idx`` (2, K+1) samples, ``*_dist``
@@ -85,7 +86,7 @@ RMAC_STATE_TYPE = RMACStateType([
     ("gamma", types.float64), ("lam", types.float64), ("alpha_c", types.float64),
     ("alpha_r", types.float64), ("beta_u_zero", types.float64), ("inverse_previous", types.boolean),
     ("gradient_at_next", types.boolean), ("rule", types.int64), ("action_cost", types.float64),
-    ("candidates", _MATRIX), ("refine_steps", types.int64),
+    ("candidates", _MATRIX), ("refine_steps", types.int64), ("insert_rate", types.float64),
     ("ref_idx", _INDICES), ("ref_dist", _MATRIX), ("ref_info", _INDICES), ("ref_point", _MATRIX),
     ("crit_idx", _INDICES), ("crit_dist", _MATRIX), ("crit_info", _INDICES),
     ("crit_point", _MATRIX), ("cur", types.int64), ("proc_idx", types.int64[::1]),
@@ -95,7 +96,7 @@ RMAC_STATE_TYPE = RMACStateType([
 @njit(cache=True)
 def new_state(process, reference, critic, traces, x_prev, u_prev, v_prev, vertices, period, low,
               high, gamma, lam, alpha_c, alpha_r, beta_u_zero, inverse_previous, gradient_at_next,
-              ref_info, crit_info, rule, action_cost, candidates, refine_steps):
+              ref_info, crit_info, rule, action_cost, candidates, refine_steps, insert_rate):
     """An :class:`RMACState` over the given memory states and arrays (not copied). ``ref_info`` and
     ``crit_info`` (2, 2) int64 mark the neighbour lists; set their [:, 0] to -1 to drop the lists
     (at the start of a trial, after loading a state)."""
@@ -122,6 +123,7 @@ def new_state(process, reference, critic, traces, x_prev, u_prev, v_prev, vertic
     state.action_cost = action_cost
     state.candidates = candidates
     state.refine_steps = refine_steps
+    state.insert_rate = insert_rate
     n = x_prev.shape[0]
     state.ref_idx = np.zeros((2, reference.n_neighbours + 1), dtype=np.int64)
     state.ref_dist = np.zeros((2, reference.n_neighbours + 1))
@@ -378,8 +380,17 @@ def _update(s, reward, x):
     else:
         nk = _search_list(R, x_prev, s.ref_idx, s.ref_dist, s.ref_info, s.ref_point, prev)
     near = s.ref_idx[prev]
+    inserted = x_r
+    if s.insert_rate < 1.0 and nk > 0:  # R(x_{k-1}) from K(x_{k-1}), moved towards x_r
+        beta_r = np.empty((n, n + 1))
+        r_prev = np.empty(n)
+        llr_fit_at(R, x_prev, near, nk, beta_r, r_prev)
+        inserted = np.empty(n)
+        for j in range(n):
+            inserted[j] = wrap_scalar(
+                r_prev[j] + s.insert_rate * wrap_scalar(x_r[j] - r_prev[j], period[j]), period[j])
     version = R.meta[2]
-    slot = llr_insert_among(R, x_prev, x_r, near, nk)
+    slot = llr_insert_among(R, x_prev, inserted, near, nk)
     _carry(R, s.ref_idx, s.ref_dist, s.ref_info, s.ref_point, cur, version, slot)
     llr_move_outputs(R, near, nk, x_r, s.alpha_r)
     # Lines 22-28: TD(lambda) on the critic's samples; V_k computed above (line 22).

@@ -166,6 +166,16 @@ class RMACConfig:
     reachable_grid: int = 21
     """Actions per action dimension for reachable_rule 'grid' and 'exact' (evenly spaced over the
     bounds, both bounds included)."""
+    reference_insert_rate: float = 1.0
+    """What line 18 inserts in M^R for x_{k-1}: R(x_{k-1}) + rate wrap(x_r - R(x_{k-1})), the
+    reference's own estimate before the insertion (from K(x_{k-1}); x_r on an empty memory) moved
+    this far towards x_r; line 20 then moves it on with K(x_{k-1}) when it replaced the nearest
+    sample (a full memory). 1 (the paper's): x_r itself. With 1 every insertion near the goal writes a
+    raw vertex state (about +-2.6 rad/s on the pendulum) over the few samples there, so R near
+    upright is a fit to the last ~20 bang-bang targets and the greedy policy's resting angle is
+    redrawn every trial (docs/studies/upright-offset.md); below 1 each sample averages its targets,
+    as the critic inserts its estimate V_{k-1} (line 23) and lets TD move it. 0 inserts R(x_{k-1})
+    unmoved: measured, the reference then never learns a swing-up."""
     initial_value: str = "critic"
     """V_0 of a trial (line 2): the critic's estimate V(x_0) ('critic'; 0 on the empty memory) or the
     literal 0 every trial ('zero')."""
@@ -173,7 +183,7 @@ class RMACConfig:
     """'numba' (compiled kernels) or 'numpy' (the readable reference); both give the same results."""
 
     def __post_init__(self) -> None:
-        for name in ("gamma", "lam", "alpha_c", "alpha_r"):
+        for name in ("gamma", "lam", "alpha_c", "alpha_r", "reference_insert_rate"):
             value = getattr(self, name)
             if not (np.isfinite(value) and 0.0 <= value <= 1.0):
                 raise ValueError(f"RMACConfig.{name} must be in [0, 1], got {value!r}")
@@ -321,7 +331,8 @@ class RMAC(Agent):
             float(cfg.lam), float(cfg.alpha_c), float(cfg.alpha_r), BETA_U_ZERO,
             cfg.inverse_query == "previous", cfg.critic_gradient_at == "next",
             self._list_info[0], self._list_info[1], _REACHABLE_RULES.index(cfg.reachable_rule),
-            float(cfg.action_cost), np.ascontiguousarray(self.candidates), self._refine_steps)
+            float(cfg.action_cost), np.ascontiguousarray(self.candidates), self._refine_steps,
+            float(cfg.reference_insert_rate))
 
     def __getstate__(self) -> dict:
         # The structref is a view of arrays pickled here; it is made anew when unpickled.
@@ -457,7 +468,12 @@ class RMAC(Agent):
             x_r = self._best_reachable(pred, beta_u, u_prev)
         # Lines 17-20: insert [x_{k-1} | x_r] in M^R and move K(x_{k-1}) towards x_r.
         near = self.reference.neighbours(x_prev)
-        self.reference.insert(x_prev, x_r, int(near[0]) if len(near) else None)
+        inserted = x_r
+        if cfg.reference_insert_rate < 1.0 and len(near):  # R(x_{k-1}) moved towards x_r
+            r_prev = self.reference.query(x_prev)[0]
+            inserted = self._canonical(
+                r_prev + cfg.reference_insert_rate * wrap(x_r - r_prev, self.period))
+        self.reference.insert(x_prev, inserted, int(near[0]) if len(near) else None)
         self.reference.move_outputs(near, x_r, cfg.alpha_r)
         # Lines 22-28: TD(lambda) on the critic's samples. V_k was computed above (line 22).
         near = self.critic.neighbours(x_prev)
