@@ -120,6 +120,46 @@ def test_reference_insert_rate_is_validated():
         RMACConfig(reference_insert_rate=1.5)
 
 
+def test_learning_rates_decay_linearly_to_their_final_values():
+    config = RMACConfig(alpha_c=0.4, alpha_c_final=0.1, alpha_r=0.02, rate_decay_trials=200)
+    assert config.rates_decay and not RMACConfig().rates_decay
+    assert config.rates_at(0) == (0.4, 0.02)  # alpha_r has no final value: constant
+    assert config.rates_at(100) == pytest.approx((0.25, 0.02))
+    assert config.rates_at(200) == pytest.approx((0.1, 0.02)) == config.rates_at(599)
+    assert RMACConfig(alpha_r=0.02, alpha_r_final=0.005, rate_decay_trials=3).rates_at(1) == \
+        pytest.approx((0.1, 0.015))
+
+
+@pytest.mark.parametrize("field, value", [("alpha_c_final", 1.5), ("alpha_r_final", -0.1),
+                                          ("alpha_c_final", "0.1"), ("rate_decay_trials", 0),
+                                          ("rate_decay_trials", 2.5)])
+def test_learning_rate_schedule_is_validated(field, value):
+    with pytest.raises(ValueError, match=field):
+        RMACConfig(**{field: value})
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_the_critic_learns_at_the_scheduled_rate_of_each_trial(backend):
+    # A schedule whose final rate equals its start changes nothing, bit for bit; a decaying critic
+    # rate changes what the second trial learns (rate_decay_trials=1: trial 2 learns at the final).
+    S = StateSpace(low=[-np.pi, -8 * np.pi], high=[np.pi, 8 * np.pi], periodic=[True, False],
+                   weights=[1.0, 0.1])
+    U = ActionSpace(low=[-3.0], high=[3.0])
+
+    def learned(**rates):
+        agent = RMAC(S, U, RMACConfig(backend=backend, rate_decay_trials=1, **_SMALL_MEMORIES,
+                                      **rates), seed=2)
+        returns = _plain_pendulum_returns(agent, 2, steps=30)
+        return returns, agent.critic.Y_.copy()
+
+    constant = learned()
+    same = learned(alpha_c_final=0.1, alpha_r_final=0.005)  # Table 2's rates as the final ones
+    assert same[0] == constant[0] and np.array_equal(same[1], constant[1])
+    first_trial_only = learned(alpha_c=0.1, alpha_c_final=0.0)
+    assert first_trial_only[0][0] == constant[0][0]  # trial 1 learns at alpha_c = 0.1 either way
+    assert not np.array_equal(first_trial_only[1], constant[1])
+
+
 def _lq_reachable_case(rule, backend, action_cost):
     """A hand-worked linear-quadratic case for the reachable rules (n = m = 1).
 
@@ -333,6 +373,9 @@ _OPTION_VALUES = {
     "explore where uncertain, inverse query zero": dict(
         exploration=Exploration(where="uncertain", uncertainty_threshold=2.0),
         inverse_query="zero"),
+    "learning rates decay": dict(alpha_c=0.4, alpha_c_final=0.1, alpha_r=0.02,
+                                 alpha_r_final=0.005, rate_decay_trials=1),
+    "critic rate decays alone": dict(alpha_c=0.3, alpha_c_final=0.05, rate_decay_trials=2),
     "reference insert rate 0.3": dict(reference_insert_rate=0.3),
     "reference insert rate 0, oldest": dict(reference_insert_rate=0.0,
                                             reference_replacement="oldest"),

@@ -94,6 +94,13 @@ RMAC_STATE_TYPE = RMACStateType([
 
 
 @njit(cache=True)
+def set_rates(state, alpha_c, alpha_r):
+    """Set the critic's and the reference's learning rates (a trial's, when they decay)."""
+    state.alpha_c = alpha_c
+    state.alpha_r = alpha_r
+
+
+@njit(cache=True)
 def new_state(process, reference, critic, traces, x_prev, u_prev, v_prev, vertices, period, low,
               high, gamma, lam, alpha_c, alpha_r, beta_u_zero, inverse_previous, gradient_at_next,
               ref_info, crit_info, rule, action_cost, candidates, refine_steps, insert_rate):

@@ -477,9 +477,10 @@ class Agent(abc.ABC):
         # Snapshots written before the trial counter existed lack ``trials``; they load unless the
         # agent's exploration decays, which would then start again from the first trial's noise.
         exploration = getattr(self.config, "exploration", None)
-        if "trials" not in state and exploration is not None and exploration.uses_trial:
+        if "trials" not in state and ((exploration is not None and exploration.uses_trial) or
+                                      getattr(self.config, "rates_decay", False)):
             raise ValueError(f"{self.name}: state dict lacks 'trials', which a decaying "
-                             f"exploration needs; has {sorted(state)}")
+                             f"exploration or learning rate needs; has {sorted(state)}")
         self._load_state({k: v for k, v in state.items()
                           if k not in ("rng", "in_trial", "trials")})
         set_generator_state(self.rng, state["rng"])

@@ -63,6 +63,16 @@ class RMACConfig:
     alpha_r: float = 0.005
     """Reference model learning rate (Table 2)."""
 
+    alpha_c_final: float | None = None
+    """Where ``alpha_c`` decays to: linearly over the first ``rate_decay_trials`` learning trials
+    (trial t uses alpha_c + min(t / rate_decay_trials, 1) (alpha_c_final - alpha_c)), then constant.
+    None (the paper's): constant ``alpha_c``. Not in the paper: learning fast first and finely later
+    (docs/studies/rmac-best.md)."""
+    alpha_r_final: float | None = None
+    """Where ``alpha_r`` decays to, as ``alpha_c_final``; None: constant (the paper's)."""
+    rate_decay_trials: int = 200
+    """Learning trials over which ``alpha_c`` and ``alpha_r`` reach their final values."""
+
     critic_capacity: int = 2000
     """Critic memory size (Table 2)."""
     critic_neighbours: int = 20
@@ -182,11 +192,31 @@ class RMACConfig:
     backend: str = "numba"
     """'numba' (compiled kernels) or 'numpy' (the readable reference); both give the same results."""
 
+    @property
+    def rates_decay(self) -> bool:
+        """Whether the learning rates depend on the trial (``alpha_c_final``/``alpha_r_final``)."""
+        return self.alpha_c_final is not None or self.alpha_r_final is not None
+
+    def rates_at(self, trial: int) -> tuple[float, float]:
+        """(alpha_c, alpha_r) of learning trial ``trial`` (0: the first); see ``alpha_c_final``."""
+        fraction = min(max(trial, 0) / self.rate_decay_trials, 1.0)
+        return tuple(float(start if final is None else start + fraction * (final - start))
+                     for start, final in ((self.alpha_c, self.alpha_c_final),
+                                          (self.alpha_r, self.alpha_r_final)))
+
     def __post_init__(self) -> None:
-        for name in ("gamma", "lam", "alpha_c", "alpha_r", "reference_insert_rate"):
+        for name in ("gamma", "lam", "alpha_c", "alpha_r", "reference_insert_rate", "alpha_c_final",
+                     "alpha_r_final"):
             value = getattr(self, name)
-            if not (np.isfinite(value) and 0.0 <= value <= 1.0):
+            if value is None and name.endswith("_final"):
+                continue
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)) or \
+                    not (np.isfinite(value) and 0.0 <= value <= 1.0):
                 raise ValueError(f"RMACConfig.{name} must be in [0, 1], got {value!r}")
+        if isinstance(self.rate_decay_trials, bool) or \
+                not isinstance(self.rate_decay_trials, (int, np.integer)) or self.rate_decay_trials < 1:
+            raise ValueError(f"RMACConfig.rate_decay_trials must be a positive integer, got "
+                             f"{self.rate_decay_trials!r}")
         for prefix in ("critic", "process", "reference"):
             capacity = getattr(self, f"{prefix}_capacity")
             neighbours = getattr(self, f"{prefix}_neighbours")
@@ -316,7 +346,9 @@ class RMAC(Agent):
         # The compiled step's neighbour lists (reference, critic) x (two buffers) x [length,
         # version]; a length of -1 drops a list (see _rmac_kernels).
         self._list_info = np.full((2, 2, 2), -1, dtype=np.int64)
+        self._kernel_state = None
         self._kernel_state = self._new_kernel_state()
+        self._kernel_rates_trial = self.trial
 
     def _new_kernel_state(self) -> _rmac_kernels.RMACState | None:
         """The compiled step's view of this agent's arrays (numba back end), else None."""
@@ -328,11 +360,20 @@ class RMAC(Agent):
             self.traces, self._x_prev, self._u_prev, self._v_prev,
             np.ascontiguousarray(self.vertices), np.ascontiguousarray(self.period, dtype=float),
             self.action_space.low.copy(), self.action_space.high.copy(), float(cfg.gamma),
-            float(cfg.lam), float(cfg.alpha_c), float(cfg.alpha_r), BETA_U_ZERO,
+            float(cfg.lam), *self._rates(), BETA_U_ZERO,
             cfg.inverse_query == "previous", cfg.critic_gradient_at == "next",
             self._list_info[0], self._list_info[1], _REACHABLE_RULES.index(cfg.reachable_rule),
             float(cfg.action_cost), np.ascontiguousarray(self.candidates), self._refine_steps,
             float(cfg.reference_insert_rate))
+
+    def _rates(self) -> tuple[float, float]:
+        """(alpha_c, alpha_r) of the running learning trial; the compiled step's copy follows it."""
+        rates = self.config.rates_at(self.trial)
+        if self._kernel_state is not None and self.config.rates_decay and \
+                self._kernel_rates_trial != self.trial:
+            _rmac_kernels.set_rates(self._kernel_state, *rates)
+            self._kernel_rates_trial = self.trial
+        return rates
 
     def __getstate__(self) -> dict:
         # The structref is a view of arrays pickled here; it is made anew when unpickled.
@@ -341,7 +382,9 @@ class RMAC(Agent):
     def __setstate__(self, state: dict) -> None:
         self.__dict__.update(state)
         self._list_info[:, :, 0] = -1
+        self._kernel_state = None
         self._kernel_state = self._new_kernel_state()
+        self._kernel_rates_trial = self.trial
 
     # -- the policy: u = f^-1(x, R(x)) ------------------------------------------------------------------
     def _canonical(self, x: np.ndarray) -> np.ndarray:
@@ -425,6 +468,8 @@ class RMAC(Agent):
         """Lines 8-29 for one control step: act with the current models, then learn."""
         self._k += 1
         if self._kernel_state is not None:
+            if self.config.rates_decay:
+                self._rates()  # the trial's learning rates into the compiled step
             du = self._noise(x, self._u_prev)  # line 8
             # Lines 10-28 in one compiled call (x wrapped there), which also advances x_prev,
             # u_prev and v_prev; it returns a new array.
@@ -439,6 +484,8 @@ class RMAC(Agent):
     def _stop(self, reward: float, x: np.ndarray) -> None:
         """The last transition of a trial: learn (lines 13-28), no action."""
         if self._kernel_state is not None:
+            if self.config.rates_decay:
+                self._rates()
             _rmac_kernels.stop(self._kernel_state, reward, x)
         else:
             self._update(reward, self._wrapped(x))
@@ -474,7 +521,8 @@ class RMAC(Agent):
             inserted = self._canonical(
                 r_prev + cfg.reference_insert_rate * wrap(x_r - r_prev, self.period))
         self.reference.insert(x_prev, inserted, int(near[0]) if len(near) else None)
-        self.reference.move_outputs(near, x_r, cfg.alpha_r)
+        alpha_c, alpha_r = cfg.rates_at(self.trial)
+        self.reference.move_outputs(near, x_r, alpha_r)
         # Lines 22-28: TD(lambda) on the critic's samples. V_k was computed above (line 22).
         near = self.critic.neighbours(x_prev)
         slot = self.critic.insert(x_prev, [v_prev], int(near[0]) if len(near) else None)  # line 23
@@ -482,7 +530,7 @@ class RMAC(Agent):
         self.traces *= cfg.lam * cfg.gamma  # line 26
         self.traces[near] = 1.0
         self.traces[slot] = 1.0
-        self.critic.add_weighted(self.traces, [cfg.alpha_c * delta])  # line 27
+        self.critic.add_weighted(self.traces, [alpha_c * delta])  # line 27
         return v_k
 
     def _reachable_score(self, u: np.ndarray, pred: np.ndarray, beta_u: np.ndarray,
