@@ -6,6 +6,8 @@ import math
 import numpy as np
 import pytest
 
+import plain_pendulum
+
 from rmac_mj.agents.base import ActionSpace, Exploration, StateSpace, model_uncertainty
 from rmac_mj.agents.mlac import MLAC, MLACConfig
 from rmac_mj.agents.rmac import RMAC, RMACConfig
@@ -18,25 +20,8 @@ VOLTS = ActionSpace(low=[-3.0], high=[3.0])
 
 
 def _returns(agent, trials, steps=60):
-    """Trials of the DC-motor pendulum in plain floats (Euler, 3 x 0.01 s per step) from hanging down."""
-    J, mass, g, length, b, K, R = 1.91e-4, 0.055, 9.81, 0.042, 3e-6, 0.0536, 9.5
-    out = []
-    for _ in range(trials):
-        phi, w = -math.pi, 0.0
-        u = float(agent.start(np.array([phi, w]))[0])
-        total = 0.0
-        for k in range(1, steps + 1):
-            for _ in range(3):
-                w += 0.01 * (mass * g * length * math.sin(phi) - (b + K * K / R) * w + K / R * u) / J
-                phi = (phi + 0.01 * w + math.pi) % (2 * math.pi) - math.pi
-            reward = -(5.0 * phi * phi + 0.1 * w * w + u * u)
-            total += reward
-            if k == steps:
-                agent.stop(reward, np.array([phi, w]))
-            else:
-                u = float(agent.step(reward, np.array([phi, w]))[0])
-        out.append(total)
-    return out
+    """Learning trials of the DC-motor pendulum in plain floats, from hanging down; their returns."""
+    return plain_pendulum.returns(agent, trials, steps)
 
 
 # -- the schedule ---------------------------------------------------------------------------------

@@ -1,10 +1,11 @@
 """RMAC (Algorithm 2): inverse model, reachable-set vertex, TD(lambda) on memory samples, learning."""
 
 import itertools
-import math
 
 import numpy as np
 import pytest
+
+import plain_pendulum
 
 from rmac_mj.agents.base import ActionSpace, Exploration, StateSpace
 from rmac_mj.agents.rmac import EXACT_TOLERANCE, RMAC, RMACConfig
@@ -260,28 +261,7 @@ def _pendulum():
     return env, state_space_of(env), action_space_of(env)
 
 
-def _plain_pendulum_returns(agent, trials, steps=100):
-    """Trials of the paper's DC-motor pendulum integrated with plain Python floats (Euler, 3 x 0.01 s
-    per control step), so that a pin of the learner's results depends on no simulator."""
-    J, mass, g, length, b, K, R = 1.91e-4, 0.055, 9.81, 0.042, 3e-6, 0.0536, 9.5
-    returns = []
-    for _ in range(trials):
-        phi, w = -math.pi, 0.0
-        u = float(agent.start(np.array([phi, w]))[0])
-        total = 0.0
-        for k in range(1, steps + 1):
-            for _ in range(3):
-                w += 0.01 * (mass * g * length * math.sin(phi) - (b + K * K / R) * w + K / R * u) / J
-                phi = (phi + 0.01 * w + math.pi) % (2 * math.pi) - math.pi
-            reward = -(5.0 * phi * phi + 0.1 * w * w + u * u)
-            total += reward
-            x = np.array([phi, w])
-            if k == steps:
-                agent.stop(reward, x)
-            else:
-                u = float(agent.step(reward, x)[0])
-        returns.append(total)
-    return returns
+_plain_pendulum_returns = plain_pendulum.returns
 
 
 #: Every option away from its default, with memories small enough to fill up within a trial.
@@ -388,17 +368,7 @@ _OPTION_VALUES = {
 _WARM_UP = 8
 
 
-def _plain_pendulum(x, u):
-    """One 0.03 s control step of the DC-motor pendulum in plain floats; a second action, if any,
-    turns the pendulum by 0.01 rad per unit. Returns (reward, next state)."""
-    J, mass, g, length, b, K, R = 1.91e-4, 0.055, 9.81, 0.042, 3e-6, 0.0536, 9.5
-    phi, w = float(x[0]), float(x[1])
-    for _ in range(3):
-        w += 0.01 * (mass * g * length * math.sin(phi) - (b + K * K / R) * w + K / R * u[0]) / J
-        phi = (phi + 0.01 * w + math.pi) % (2 * math.pi) - math.pi
-    if len(u) > 1:
-        phi = (phi + 0.01 * u[1] + math.pi) % (2 * math.pi) - math.pi
-    return -(5.0 * phi * phi + 0.1 * w * w + float(u @ u)), np.array([phi, w])
+_plain_pendulum = plain_pendulum.control_step
 
 
 def _assert_same_state(fast, slow, when, tol):
