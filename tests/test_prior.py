@@ -199,7 +199,8 @@ def test_record_save_load_round_trip(env, tmp_path):
     again = prior.record(env, controller, trials=2, seed=3, action_noise=0.5)
     np.testing.assert_array_equal(again.actions, demo.actions)  # the seed decides the noise
     # The recorded rewards are the task's: replaying the actions gives the same return.
-    timestep, total = env.reset(), 0.0
+    env.reset()
+    total = 0.0
     for u in demo.actions[:100]:
         total += env.step(u).reward
     assert total == pytest.approx(demo.trial_returns()[0], abs=1e-9)

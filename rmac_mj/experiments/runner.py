@@ -743,11 +743,10 @@ def run_tagged(item: tuple[Any, ExperimentSpec],
     """``(tag, run_experiment(spec))`` for ``item = (tag, spec)``: lets one pool serve several runs.
     ``on_trial`` is called as ``on_trial((tag, algorithm, index), trial, return)``."""
     tag, spec = item
-    report = None
-    if on_trial is not None:
-        def report(algorithm: str, index: int, trial: int, value: float) -> None:
-            on_trial((tag, algorithm, index), trial, value)
-    return tag, run_experiment(spec, report)
+
+    def report(algorithm: str, index: int, trial: int, value: float) -> None:
+        on_trial((tag, algorithm, index), trial, value)
+    return tag, run_experiment(spec, report if on_trial is not None else None)
 
 
 def run_protocols(runs: Iterable[tuple[Protocol, str | os.PathLike]], jobs: int | None = None,
