@@ -1,11 +1,14 @@
 """Judge result directories against the goal of issue 14 (docs/studies/rmac-best.md).
 
-Usage: python docs/studies/goal_report.py DIR[:LEARNER[:LABEL]] ... [--plot FILE.png]
+Usage: python docs/studies/goal_report.py DIR[:LEARNER[:LABEL]] ... [--paired] [--plot FILE.png]
 
 Each DIR is an `rmac-mj reproduce --out` directory run with `--evaluate-every`; LEARNER picks one of
 its learners (default: every learner in it). Prints one markdown row per (directory, learner) with
-the five goal metrics, their 95% confidence intervals and whether each goal is met, then Welch's
-t-tests of the exploring and greedy returns of every row against the first row.
+the five goal metrics, their 95% confidence intervals and whether each goal is met, then the
+difference of every row from the first: Welch's t-test, or with ``--paired`` (runs with the same
+seeds, e.g. the configurations of one sweep) experiment i against experiment i, mean +- 95%
+half-width and a paired t-test. "greedy, last 5" is the mean of the last five greedy trials, a
+steadier measure of the final policy than the last greedy trial alone.
 
 The goal (issue 14): greedy return after the last trial >= -775; exploring return, mean of the last
 50 trials, >= -905; mean return of the first 5 simulated minutes >= -1800; the mean curve within 10%
@@ -41,7 +44,7 @@ def load(directory: pathlib.Path, learner: str):
 
 def metrics(returns: np.ndarray, greedy: np.ndarray, seconds: float) -> dict:
     first = int(round(5 * 60 / seconds))
-    return {"greedy": greedy[:, -1], "exploring": returns[:, -50:].mean(axis=1),
+    return {"greedy": greedy[:, -1], "greedy_last5": greedy[:, -5:].mean(axis=1), "exploring": returns[:, -50:].mean(axis=1),
             "first_5min": returns[:, :first].mean(axis=1),
             "minutes_to_90pct": minutes_to_within(returns.mean(axis=0), trial_seconds=seconds),
             "stuck": int(np.sum(returns[:, -50:].mean(axis=1) < STUCK_BELOW)), "n": len(returns)}
@@ -93,6 +96,8 @@ def plot(rows: list[tuple[str, np.ndarray, np.ndarray, float]], path: str) -> No
 
 def main(arguments: list[str]) -> None:
     out = None
+    paired = "--paired" in arguments
+    arguments = [a for a in arguments if a != "--paired"]
     if "--plot" in arguments:
         at = arguments.index("--plot")
         out = arguments[at + 1]
@@ -115,11 +120,20 @@ def main(arguments: list[str]) -> None:
     base_label, base = table[0]
     for label, m in table[1:]:
         parts = []
-        for key in ("greedy", "exploring", "first_5min"):
-            difference = m[key].mean() - base[key].mean()
-            p = stats.ttest_ind(m[key], base[key], equal_var=False).pvalue
-            parts.append(f"{key} {difference:+.0f} (p = {p:.2g})")
-        print(f"- {label} vs {base_label} (Welch): " + ", ".join(parts))
+        for key in ("greedy", "greedy_last5", "exploring", "first_5min"):
+            if paired:
+                if len(m[key]) != len(base[key]):
+                    raise SystemExit(f"goal_report: --paired needs as many experiments in {label} "
+                                     f"as in {base_label}")
+                d = m[key] - base[key]
+                half = stats.t.ppf(0.975, len(d) - 1) * d.std(ddof=1) / np.sqrt(len(d))
+                p = stats.ttest_rel(m[key], base[key]).pvalue
+                parts.append(f"{key} {d.mean():+.0f} ± {half:.0f} (p = {p:.2g})")
+            else:
+                difference = m[key].mean() - base[key].mean()
+                p = stats.ttest_ind(m[key], base[key], equal_var=False).pvalue
+                parts.append(f"{key} {difference:+.0f} (p = {p:.2g})")
+        print(f"- {label} vs {base_label} ({'paired' if paired else 'Welch'}): " + ", ".join(parts))
     if out:
         plot(curves, out)
 
