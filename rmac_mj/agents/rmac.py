@@ -30,7 +30,7 @@ import numpy as np
 from rmac_mj.agents import _rmac_kernels
 from rmac_mj.agents.base import (ActionSpace, Agent, Exploration, StateSpace, discounted_returns,
                                  model_uncertainty, seed_memory)
-from rmac_mj.approximators.llr import LLRMemory, wrap
+from rmac_mj.approximators.llr import LLRMemory, check_redundancy_smoothing, wrap
 
 _BACKENDS = ("numba", "numpy")
 #: beta_u counts as zero (u = 0, section 5) below this fraction of the state gains: when every
@@ -241,10 +241,7 @@ class RMACConfig:
             if measure not in _REDUNDANCY_MEASURES:
                 raise ValueError(f"RMACConfig.{prefix}_redundancy must be one of "
                                  f"{_REDUNDANCY_MEASURES}, got {measure!r}")
-        eta = self.redundancy_smoothing
-        if isinstance(eta, bool) or not isinstance(eta, (int, float, np.floating)) or not (
-                np.isfinite(eta) and 0 < eta <= 1):
-            raise ValueError(f"RMACConfig.redundancy_smoothing must be in (0, 1], got {eta!r}")
+        check_redundancy_smoothing(self.redundancy_smoothing, "RMACConfig.redundancy_smoothing")
         if not isinstance(self.exploration, Exploration):
             raise ValueError(f"RMACConfig.exploration must be an Exploration, "
                              f"got {self.exploration!r}")

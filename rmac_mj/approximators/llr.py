@@ -116,6 +116,13 @@ _NUMERICAL_EIG_CUTOFF = 1e-13
 # --------------------------------------------------------------------------------------------------
 # Reference implementation (plain numpy). The numba kernels follow these line by line.
 
+def check_redundancy_smoothing(eta, name: str) -> None:
+    """ValueError naming ``name`` unless the redundancy score's smoothing factor is in (0, 1]."""
+    if isinstance(eta, bool) or not isinstance(eta, (int, float, np.floating)) or not (
+            np.isfinite(eta) and 0 < eta <= 1):
+        raise ValueError(f"{name} must be in (0, 1], got {eta!r}")
+
+
 def wrap(d: np.ndarray, period: np.ndarray) -> np.ndarray:
     """Differences ``d`` (shape (..., n)) wrapped to [-period/2, period/2) where period > 0."""
     d = np.asarray(d, dtype=float)
@@ -290,10 +297,7 @@ class LLRMemory:
         if self.redundancy not in _MEASURES:
             raise ValueError(f"LLRMemory: redundancy must be one of {tuple(_MEASURES)}, "
                              f"got {self.redundancy!r}")
-        eta = self.redundancy_smoothing
-        if isinstance(eta, bool) or not isinstance(eta, (int, float, np.floating)) or not (
-                np.isfinite(eta) and 0 < eta <= 1):
-            raise ValueError(f"LLRMemory: redundancy_smoothing must be in (0, 1], got {eta!r}")
+        check_redundancy_smoothing(self.redundancy_smoothing, "LLRMemory: redundancy_smoothing")
         if self.algorithm not in _ALGORITHMS:
             raise ValueError(f"LLRMemory: algorithm must be one of {_ALGORITHMS}, "
                              f"got {self.algorithm!r}")
