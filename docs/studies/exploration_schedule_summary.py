@@ -63,29 +63,13 @@ def main(out: pathlib.Path) -> None:
 
 
 def plot(out: pathlib.Path, path: str) -> None:
-    """Mean exploring curve (10-trial moving average) and mean greedy return per configuration."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    """Mean exploring curve (10-trial running mean) and mean greedy return per configuration
+    (goal_report's figure)."""
+    from goal_report import plot as plot_curves
     names = [row["configuration"] for row in csv.DictReader(open(out / "sweep.csv"))]
-    fig, (ax, gx) = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
-    for name in names:
-        c = load(out, name)
-        style = dict(color="k", lw=2.0) if name == PAPER else dict(lw=1.0)
-        curve = np.convolve(c["returns"].mean(axis=0), np.ones(10) / 10, mode="valid")
-        ax.plot((np.arange(len(curve)) + 10) * TRIAL_SECONDS / 60, curve, label=name, **style)
-        every = c["returns"].shape[1] // c["greedy"].shape[1]
-        gx.plot(np.arange(1, c["greedy"].shape[1] + 1) * every * TRIAL_SECONDS / 60,
-                c["greedy"].mean(axis=0), label=name, **style)
-    for axis, title in ((ax, "learning (exploring) trials, 10-trial mean"),
-                        (gx, "greedy trial after every 10th")):
-        axis.axhline(-748, color="grey", lw=0.8, ls="--")
-        axis.set(xlabel="simulated time [min]", title=title, ylim=(-3000, -700))
-        axis.grid(alpha=0.3)
-    ax.set_ylabel("sum of rewards per trial, mean of 10 experiments")
-    gx.legend(title="exploration")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    plot_curves([(name, c["returns"], c["greedy"], TRIAL_SECONDS)
+                 for name, c in ((name, load(out, name)) for name in names)], path,
+                bands=False)
 
 
 if __name__ == "__main__":

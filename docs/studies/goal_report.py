@@ -64,8 +64,9 @@ def parse(argument: str) -> list[tuple[pathlib.Path, str, str]]:
     return [(path, a, label or f"{path.name} {a}") for a in learners]
 
 
-def plot(rows: list[tuple[str, np.ndarray, np.ndarray, float]], path: str) -> None:
-    """Exploring learning curves (10-trial running mean) and greedy returns, mean and 95% CI."""
+def plot(rows: list[tuple[str, np.ndarray, np.ndarray, float]], path: str, bands: bool = True) -> None:
+    """Exploring learning curves (10-trial running mean) and greedy returns, mean and (``bands``)
+    95% CI, for rows (label, returns, greedy returns, trial seconds)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -76,12 +77,14 @@ def plot(rows: list[tuple[str, np.ndarray, np.ndarray, float]], path: str) -> No
         smooth = [np.convolve(c, window, mode="valid") for c in (mean, low, high)]
         minutes = (np.arange(len(smooth[0])) + 10) * seconds / 60
         line, = ax.plot(minutes, smooth[0], label=label, lw=1.2)
-        ax.fill_between(minutes, smooth[1], smooth[2], color=line.get_color(), alpha=0.2)
+        if bands:
+            ax.fill_between(minutes, smooth[1], smooth[2], color=line.get_color(), alpha=0.2)
         every = returns.shape[1] // greedy.shape[1]
         gm, glo, ghi = confidence_interval(greedy)
         gminutes = np.arange(1, greedy.shape[1] + 1) * every * seconds / 60
         gx.plot(gminutes, gm, color=line.get_color(), lw=1.2, label=label)
-        gx.fill_between(gminutes, glo, ghi, color=line.get_color(), alpha=0.2)
+        if bands:
+            gx.fill_between(gminutes, glo, ghi, color=line.get_color(), alpha=0.2)
     for axis, title, goal in ((ax, "exploring trials (10-trial mean)", GOAL["exploring"]),
                               (gx, "greedy trials", GOAL["greedy"])):
         axis.axhline(-748, color="k", lw=0.8, ls="--", label="near-optimal (-748)")

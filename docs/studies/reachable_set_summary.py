@@ -24,26 +24,11 @@ def load(directory: pathlib.Path):
 
 
 def plot(root: str, rules: list[str], path: str) -> None:
-    """Mean learning curve (10-trial moving average) and mean greedy return per rule."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, (ax, gx) = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
-    for rule in rules:
-        returns, greedy, _ = load(pathlib.Path(root) / rule)
-        curve = np.convolve(returns.mean(axis=0), np.ones(10) / 10, mode="valid")
-        minutes = (np.arange(len(curve)) + 10) * TRIAL_SECONDS / 60
-        ax.plot(minutes, curve, label=rule)
-        gx.plot(np.arange(1, greedy.shape[1] + 1) * 20 * TRIAL_SECONDS / 60, greedy.mean(axis=0),
-                marker=".", label=rule)
-    for axis, title in ((ax, "exploring trials (10-trial mean)"), (gx, "greedy trial every 20")):
-        axis.axhline(-748, color="k", lw=0.8, ls="--")
-        axis.set(xlabel="simulated minutes", title=title, ylim=(-3000, -600))
-        axis.grid(alpha=0.3)
-    ax.set_ylabel("return per trial, mean of experiments")
-    gx.legend(title="reachable_rule")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    """Mean learning curve (10-trial running mean) and mean greedy return per rule
+    (goal_report's figure)."""
+    from goal_report import plot as plot_curves
+    plot_curves([(rule, *load(pathlib.Path(root) / rule)[:2], TRIAL_SECONDS) for rule in rules], path,
+                bands=False)
 
 
 def main(root: str, rules: list[str]) -> None:
