@@ -73,11 +73,11 @@ def plot(out: pathlib.Path, path: str) -> None:
 
 
 if __name__ == "__main__":
-    args = sys.argv[1:]
-    figure = None
-    if "--plot" in args:
-        figure = args[args.index("--plot") + 1]
-        del args[args.index("--plot"):args.index("--plot") + 2]
-    main(pathlib.Path(args[0]))
-    if figure:
-        plot(pathlib.Path(args[0]), figure)
+    import argparse
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("out", type=pathlib.Path, help="the sweep's --out directory")
+    parser.add_argument("--plot", metavar="FILE.png", help="also draw the curves")
+    args = parser.parse_args()
+    main(args.out)
+    if args.plot:
+        plot(args.out, args.plot)

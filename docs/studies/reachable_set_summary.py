@@ -49,13 +49,14 @@ def main(root: str, rules: list[str]) -> None:
     for test in compare_final_returns(finals):
         print("-", describe_test(test))
 
+
 if __name__ == "__main__":
-    args = sys.argv[2:]
-    out = None
-    if "--plot" in args:
-        out = args[args.index("--plot") + 1]
-        del args[args.index("--plot"):args.index("--plot") + 2]
-    chosen = args or ["vertices", "vertices_value", "grid", "exact"]
-    main(sys.argv[1], chosen)
-    if out:
-        plot(sys.argv[1], chosen, out)
+    import argparse
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("root", help="the directory holding one reproduce directory per rule")
+    parser.add_argument("rules", nargs="*", default=["vertices", "vertices_value", "grid", "exact"])
+    parser.add_argument("--plot", metavar="FILE.png", help="also draw the curves")
+    args = parser.parse_args()
+    main(args.root, args.rules)
+    if args.plot:
+        plot(args.root, args.rules, args.plot)
