@@ -8,7 +8,6 @@ paper's (experiment i against experiment i: the same seeds), with two-sided t-te
 
 import csv
 import pathlib
-import sys
 
 import numpy as np
 from scipy import stats

@@ -6,7 +6,6 @@ Prints one markdown row per rule and Welch's t-test of every pair of rules' fina
 """
 
 import pathlib
-import sys
 
 import numpy as np
 
