@@ -343,34 +343,31 @@ class RMAC(Agent):
         # The compiled step's neighbour lists (reference, critic) x (two buffers) x [length,
         # version]; a length of -1 drops a list (see _rmac_kernels).
         self._list_info = np.full((2, 2, 2), -1, dtype=np.int64)
-        self._kernel_state = None
         self._kernel_state = self._new_kernel_state()
-        self._kernel_rates_trial = self.trial
 
     def _new_kernel_state(self) -> _rmac_kernels.RMACState | None:
         """The compiled step's view of this agent's arrays (numba back end), else None."""
         if self.config.backend != "numba":
             return None
         cfg = self.config
+        self._kernel_rates_trial = self.trial
         return _rmac_kernels.new_state(
             self.process.kernel_state, self.reference.kernel_state, self.critic.kernel_state,
             self.traces, self._x_prev, self._u_prev, self._v_prev,
             np.ascontiguousarray(self.vertices), np.ascontiguousarray(self.period, dtype=float),
             self.action_space.low.copy(), self.action_space.high.copy(), float(cfg.gamma),
-            float(cfg.lam), *self._rates(), BETA_U_ZERO,
+            float(cfg.lam), *cfg.rates_at(self.trial), BETA_U_ZERO,
             cfg.inverse_query == "previous", cfg.critic_gradient_at == "next",
             self._list_info[0], self._list_info[1], _REACHABLE_RULES.index(cfg.reachable_rule),
             float(cfg.action_cost), np.ascontiguousarray(self.candidates), self._refine_steps,
             float(cfg.reference_insert_rate))
 
-    def _rates(self) -> tuple[float, float]:
-        """(alpha_c, alpha_r) of the running learning trial; the compiled step's copy follows it."""
-        rates = self.config.rates_at(self.trial)
-        if self._kernel_state is not None and self.config.rates_decay and \
-                self._kernel_rates_trial != self.trial:
-            _rmac_kernels.set_rates(self._kernel_state, *rates)
+    def _sync_kernel_rates(self) -> None:
+        """Give the compiled step the running trial's alpha_c and alpha_r (when they decay), once
+        per trial: the trial counter may also change by ``load_state_dict``."""
+        if self._kernel_rates_trial != self.trial:
+            _rmac_kernels.set_rates(self._kernel_state, *self.config.rates_at(self.trial))
             self._kernel_rates_trial = self.trial
-        return rates
 
     def __getstate__(self) -> dict:
         # The structref is a view of arrays pickled here; it is made anew when unpickled.
@@ -379,9 +376,7 @@ class RMAC(Agent):
     def __setstate__(self, state: dict) -> None:
         self.__dict__.update(state)
         self._list_info[:, :, 0] = -1
-        self._kernel_state = None
         self._kernel_state = self._new_kernel_state()
-        self._kernel_rates_trial = self.trial
 
     # -- the policy: u = f^-1(x, R(x)) ------------------------------------------------------------------
     def _canonical(self, x: np.ndarray) -> np.ndarray:
@@ -466,7 +461,7 @@ class RMAC(Agent):
         self._k += 1
         if self._kernel_state is not None:
             if self.config.rates_decay:
-                self._rates()  # the trial's learning rates into the compiled step
+                self._sync_kernel_rates()
             du = self._noise(x, self._u_prev)  # line 8
             # Lines 10-28 in one compiled call (x wrapped there), which also advances x_prev,
             # u_prev and v_prev; it returns a new array.
@@ -482,7 +477,7 @@ class RMAC(Agent):
         """The last transition of a trial: learn (lines 13-28), no action."""
         if self._kernel_state is not None:
             if self.config.rates_decay:
-                self._rates()
+                self._sync_kernel_rates()
             _rmac_kernels.stop(self._kernel_state, reward, x)
         else:
             self._update(reward, self._wrapped(x))
