@@ -301,8 +301,8 @@ def _exploration_floor_for(protocol, algorithm: str) -> float | None:
     if exploration is None or exploration.where != "always":
         return None
     return float(optimal.exploration_floor(exploration.sigma_at(protocol.trials - 1),
-                                           exploration.period,
-                                           exploration.phase).mean)
+                                           exploration.period, exploration.phase,
+                                           announce=_say).mean)
 
 
 def parse_overrides(assignments: Sequence[str]) -> dict[str, dict]:
@@ -545,7 +545,7 @@ def _optimal(args) -> int:
     print(result.describe())
     if (args.domain, args.task) == ("dc_pendulum", "swingup"):  # the floor is of the pendulum's DP
         from rmac_mj.experiments import optimal
-        print(optimal.exploration_floor(refresh=args.refresh).describe())
+        print(optimal.exploration_floor(refresh=args.refresh, announce=_say).describe())
     return 0
 
 

@@ -136,6 +136,12 @@ class OptimalConfig:
         for name in ("max_phi_dot", "control_timestep", "action_weight"):
             object.__setattr__(self, name, float(getattr(self, name)))
 
+    @classmethod
+    def from_json_dict(cls, d: dict[str, Any]) -> "OptimalConfig":
+        """The config of ``dataclasses.asdict(config)`` read back from JSON (lists to tuples)."""
+        return cls(**{**d, "state_weights": tuple(d["state_weights"]),
+                      "start_state": tuple(d["start_state"])})
+
     def coarser(self) -> "OptimalConfig":
         """The convergence check's problem: about half the nodes per state dimension, half the action
         intervals of the DP and of the look-ahead (the extremes and every other voltage stay in each
@@ -238,9 +244,7 @@ class OptimalResult:
 
     @classmethod
     def from_json_dict(cls, d: dict[str, Any], from_cache: bool = True) -> "OptimalResult":
-        config = d["config"]
-        config = OptimalConfig(**{**config, "state_weights": tuple(config["state_weights"]),
-                                  "start_state": tuple(config["start_state"])})
+        config = OptimalConfig.from_json_dict(d["config"])
         return cls(simulated_return=float(d["simulated_return"]), dp_value=float(d["dp_value"]),
                    config=config, fine=SolveSummary(**d["fine"]),
                    coarse=None if d["coarse"] is None else SolveSummary(**d["coarse"]),
@@ -425,10 +429,12 @@ def greedy_rollout(config: OptimalConfig, model: mujoco.MjModel, values: np.ndar
     return states, applied, rewards
 
 
-def _solve_once(config: OptimalConfig, model: mujoco.MjModel
+def _solve_once(config: OptimalConfig, model: mujoco.MjModel, values: np.ndarray | None = None
                 ) -> tuple[SolveSummary, np.ndarray, np.ndarray, np.ndarray]:
+    """Solve (or take the given ``values``), then simulate the greedy policy."""
     start = time.perf_counter()
-    values = solve_values(config, model)
+    if values is None:
+        values = solve_values(config, model)
     dp_value = float(interpolate_value(config, values[0], np.asarray(config.start_state))[0])
     states, actions, rewards = greedy_rollout(config, model, values)
     peak = float(np.max(np.abs(states[:, 1])))
@@ -446,8 +452,8 @@ def solve(config: OptimalConfig = OptimalConfig(), model_xml: str | None = None)
     start = time.perf_counter()
     if model_xml is None:
         model_xml = model_path("dc_pendulum").read_text()
-    model = _load_model(model_xml)
-    fine, states, actions, rewards = _solve_once(config, model)
+    model, values = _solved(config, model_xml)  # kept for an exploration floor that follows
+    fine, states, actions, rewards = _solve_once(config, model, values)
     coarse = _solve_once(config.coarser(), model)[0] if config.check_convergence else None
     return OptimalResult(simulated_return=fine.simulated_return, dp_value=fine.dp_value, config=config,
                          fine=fine, coarse=coarse, states=states, actions=actions, rewards=rewards,
@@ -559,9 +565,7 @@ class ExplorationFloor:
 
     @classmethod
     def from_json_dict(cls, d: dict[str, Any], from_cache: bool = True) -> "ExplorationFloor":
-        config = d["config"]
-        config = OptimalConfig(**{**config, "state_weights": tuple(config["state_weights"]),
-                                  "start_state": tuple(config["start_state"])})
+        config = OptimalConfig.from_json_dict(d["config"])
         return cls(mean=float(d["mean"]), std=float(d["std"]),
                    ci95=(float(d["ci95"][0]), float(d["ci95"][1])),
                    returns=np.asarray(d["returns"], dtype=float), sigma=float(d["sigma"]),
@@ -623,11 +627,12 @@ def _solved(config: OptimalConfig, model_xml: str) -> tuple[mujoco.MjModel, np.n
 def exploration_floor(sigma: float = 1.0, period: int = 3, phase: int = 0, rollouts: int = 100,
                       seed: int = 0, config: OptimalConfig = OptimalConfig(),
                       cache_dir: str | os.PathLike | None = None, refresh: bool = False,
-                      model_xml: str | None = None) -> ExplorationFloor:
+                      model_xml: str | None = None,
+                      announce: Callable[[str], None] | None = None) -> ExplorationFloor:
     """The near-optimal policy's return under exploration, from the cache if there, else computed.
 
-    The DP of :func:`optimal_return` is solved again (its values are not cached, only its answer),
-    then ``rollouts`` noisy trials are simulated (:func:`noisy_rollouts`). Defaults: the paper's
+    The DP of :func:`optimal_return` is solved again unless this process just solved it (its values
+    are not cached on disk, only its answer), then ``rollouts`` noisy trials are simulated (:func:`noisy_rollouts`). Defaults: the paper's
     exploration (section 6.1), 100 trials.
 
     Args:
@@ -635,7 +640,7 @@ def exploration_floor(sigma: float = 1.0, period: int = 3, phase: int = 0, rollo
       period, phase: explore at steps k with ``k % period == phase``.
       rollouts: noisy trials to average, >= 2.
       seed: seed of the noise.
-      config, cache_dir, refresh, model_xml: as in :func:`optimal_return`.
+      config, cache_dir, refresh, model_xml, announce: as in :func:`optimal_return`.
     """
     if not isinstance(config, OptimalConfig):
         raise TypeError(f"exploration_floor: config must be an OptimalConfig, got {type(config).__name__}")
@@ -653,23 +658,22 @@ def exploration_floor(sigma: float = 1.0, period: int = 3, phase: int = 0, rollo
     key = hashlib.sha256(json.dumps([cache_key(config, model_xml), sigma, period, phase, rollouts, seed])
                          .encode()).hexdigest()[:20]
     directory = pathlib.Path(cache_dir).expanduser() if cache_dir is not None else default_cache_dir()
-    path = directory / f"exploration-floor-{key}.json"
-    if not refresh and path.is_file():
-        try:
-            with open(path) as f:
-                return ExplorationFloor.from_json_dict(json.load(f), from_cache=True)
-        except (OSError, ValueError, KeyError, TypeError):
-            pass  # an unreadable or foreign entry is recomputed and overwritten
-    start = time.perf_counter()
-    model, values = _solved(config, model_xml)
-    returns = noisy_rollouts(config, model, values, sigma, period, phase, rollouts,
-                             np.random.default_rng(seed))
-    from rmac_mj.experiments.results import confidence_interval
-    mean, low, high = confidence_interval(returns)
-    result = ExplorationFloor(mean=float(mean), std=float(returns.std(ddof=1)),
-                              ci95=(float(low), float(high)), returns=returns, sigma=sigma,
-                              period=period, phase=phase, rollouts=rollouts, seed=seed, config=config,
-                              runtime_s=time.perf_counter() - start)
-    from rmac_mj.experiments.results import write_json
-    write_json(path, result.to_json_dict())
-    return result
+
+    def compute() -> ExplorationFloor:
+        start = time.perf_counter()
+        model, values = _solved(config, model_xml)
+        returns = noisy_rollouts(config, model, values, sigma, period, phase, rollouts,
+                                 np.random.default_rng(seed))
+        mean, low, high = confidence_interval(returns)
+        return ExplorationFloor(mean=float(mean), std=float(returns.std(ddof=1)),
+                                ci95=(float(low), float(high)), returns=returns, sigma=sigma,
+                                period=period, phase=phase, rollouts=rollouts, seed=seed,
+                                config=config, runtime_s=time.perf_counter() - start)
+    from rmac_mj.experiments.results import cached_json, confidence_interval
+    return cached_json(
+        directory / f"exploration-floor-{key}.json",
+        lambda document: ExplorationFloor.from_json_dict(document, from_cache=True), compute,
+        refresh=refresh, announce=announce,
+        message=(f"computing the exploration floor ({rollouts} noisy trials of the near-optimal "
+                 f"policy, after its dynamic programming: about a minute; cached after, in "
+                 f"{directory})"))
