@@ -25,7 +25,7 @@ import pathlib
 import signal
 import sys
 import time
-from typing import Sequence
+from typing import Any, Sequence
 
 from rmac_mj import __version__
 from rmac_mj.errors import UserInputError
@@ -307,21 +307,18 @@ def _exploration_floor_for(protocol, algorithm: str) -> float | None:
 
 def parse_overrides(assignments: Sequence[str]) -> dict[str, dict]:
     """``["rmac.exploration.sigma=0.5", ...]`` -> ``{"rmac": {"exploration": {"sigma": 0.5}}}``."""
-    overrides: dict[str, dict] = {}
+    from rmac_mj.experiments.sweep import nest
+    flat: dict[str, Any] = {}
     for assignment in assignments:
         key, separator, text = assignment.partition("=")
         path = key.strip().split(".")
         if not separator or len(path) < 2 or not all(path):
             raise UsageError(f"--set expects ALGO.FIELD=VALUE, got {assignment!r}")
         try:
-            value = json.loads(text)
+            flat[".".join(path)] = json.loads(text)
         except json.JSONDecodeError:
-            value = text  # a bare word, e.g. rate_split=actor
-        node = overrides.setdefault(path[0], {})
-        for part in path[1:-1]:
-            node = node.setdefault(part, {})
-        node[path[-1]] = value
-    return overrides
+            flat[".".join(path)] = text  # a bare word, e.g. rate_split=actor
+    return nest(flat)
 
 
 def _algorithms(args, overrides: dict[str, dict]) -> tuple[str, ...]:
@@ -428,14 +425,9 @@ def shortest_distinct_suffixes(paths: Sequence[pathlib.Path]) -> list[str]:
 def _settings_line(summary: dict) -> str:
     """How a run was made: its size, seed and --set overrides."""
     protocol = summary.get("protocol", {})
-
-    def flatten(node, prefix):
-        for key, value in node.items():
-            if isinstance(value, dict):
-                yield from flatten(value, f"{prefix}{key}.")
-            else:
-                yield f"{prefix}{key}={json.dumps(value)}"
-    overrides = list(flatten(protocol.get("agent_configs") or {}, ""))
+    from rmac_mj.experiments.sweep import flatten
+    overrides = [f"{key}={json.dumps(value)}"
+                 for key, value in flatten(protocol.get("agent_configs") or {}).items()]
     text = (f"{protocol.get('experiments', '?')} experiments of {protocol.get('trials', '?')} trials, "
             f"seed {protocol.get('seed', '?')}")
     return text + ("; --set " + " ".join(overrides) if overrides else "; default hyperparameters")

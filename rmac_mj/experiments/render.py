@@ -23,7 +23,7 @@ import os
 import pathlib
 import re
 import time
-from typing import Callable, Sequence, Union
+from typing import TYPE_CHECKING, Callable, Sequence, Union
 
 import numpy as np
 from dm_control.rl import control
@@ -34,6 +34,9 @@ from rmac_mj.errors import MissingInputError, UserInputError
 from rmac_mj.agents import display_name
 from rmac_mj.agents.base import Agent
 from rmac_mj.experiments.episode import learner_state_of, n_sub_steps, state_of
+
+if TYPE_CHECKING:  # mujoco is imported after the GL back end is chosen (rmac_mj._gl)
+    import mujoco
 
 #: Video formats :func:`write_video` writes, by file suffix.
 VIDEO_SUFFIXES: tuple[str, ...] = (".mp4", ".gif")

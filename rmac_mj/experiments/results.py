@@ -6,15 +6,17 @@ package (``numpy.load(..., allow_pickle=False)``).
 
 from __future__ import annotations
 
+import csv
 import dataclasses
 import importlib.metadata
+import io
 import json
 import os
 import pathlib
 import platform
 import subprocess
 import tempfile
-from typing import Any, Sequence
+from typing import Any, Iterable, Sequence
 
 import numpy as np
 
@@ -249,6 +251,19 @@ def cached_json(path: str | os.PathLike, decode, compute, refresh: bool = False,
     except OSError as err:
         raise ValueError(f"cannot write the cache entry {str(path)!r}: {err}") from err
     return result
+
+
+def write_csv(path: str | os.PathLike, header: Sequence[str], rows: Iterable[Sequence[Any]]
+              ) -> pathlib.Path:
+    """A UTF-8 CSV file of ``header`` then ``rows``, written atomically (see :func:`write_atomic`)."""
+    def write(handle) -> None:
+        text = io.TextIOWrapper(handle, newline="", encoding="utf-8")
+        writer = csv.writer(text)
+        writer.writerow(header)
+        writer.writerows(rows)
+        text.flush()
+        text.detach()
+    return write_atomic(path, write)
 
 
 def write_npz(path: str | os.PathLike, **arrays: np.ndarray) -> pathlib.Path:

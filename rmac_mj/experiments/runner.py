@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import collections
 import contextlib
-import csv
 import dataclasses
 import datetime
 import hashlib
@@ -840,15 +839,7 @@ def finalise(out: pathlib.Path, protocol: Protocol, wall_time_s: float | None = 
     summary["final_return_tests"] = results.compare_final_returns(
         {a: summary[a]["final_return_per_experiment"] for a in protocol.algorithms})
 
-    def write_csv(handle):
-        import io
-        text = io.TextIOWrapper(handle, newline="", encoding="utf-8")
-        writer = csv.writer(text)
-        writer.writerow(["algorithm", "experiment", "trial", "return"])
-        writer.writerows(rows)
-        text.flush()
-        text.detach()
-    results.write_atomic(out / "returns.csv", write_csv)
+    results.write_csv(out / "returns.csv", ["algorithm", "experiment", "trial", "return"], rows)
     if figures:
         from rmac_mj.experiments import plots
         plots.plot_learning_curves({out.name or str(out): summary}, out / "fig2_learning_curves",

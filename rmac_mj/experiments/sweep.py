@@ -30,11 +30,9 @@ learner (:data:`COLUMNS`) and ``OUT/sweep_<metric>.png`` plots each metric again
 
 from __future__ import annotations
 
-import csv
 import dataclasses
 import difflib
 import hashlib
-import io
 import itertools
 import json
 import math
@@ -157,7 +155,7 @@ def load_sweep(path: str | pathlib.Path) -> Sweep:
     options, fixed = check.protocol(document)
     algorithms = options.get("algorithms", runner.Protocol().algorithms)
     grid = {}
-    for key, values in _flatten(check.table(document, "grid")).items():
+    for key, values in flatten(check.table(document, "grid")).items():
         where = f'[grid] "{key}"'
         hint = check.hyperparameter(key, algorithms, where)
         if not isinstance(values, list):
@@ -190,7 +188,7 @@ def load_configuration(path: str | pathlib.Path) -> SingleConfiguration:
     options, fixed = check.protocol(document)
     algorithms = options.get("algorithms", runner.Protocol().algorithms)
     overrides = dict(fixed)
-    for key, value in _flatten(check.table(document, "grid")).items():
+    for key, value in flatten(check.table(document, "grid")).items():
         where = f'[grid] "{key}"'
         hint = check.hyperparameter(key, algorithms, where)
         if check.problem(value, hint) is not None and isinstance(value, list):
@@ -237,7 +235,7 @@ def merge(base: dict, overrides: dict) -> dict:
     return merged
 
 
-def _flatten(table: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+def flatten(table: dict[str, Any], prefix: str = "") -> dict[str, Any]:
     """TOML dotted keys nest (``rmac.alpha_r = 1`` is ``{"rmac": {"alpha_r": 1}}``): back to
     ``"rmac.alpha_r"``, so a quoted and a bare key mean the same. Inline tables flatten the same way
     (an override of some fields of a nested config)."""
@@ -245,7 +243,7 @@ def _flatten(table: dict[str, Any], prefix: str = "") -> dict[str, Any]:
     for key, value in table.items():
         name = f"{prefix}{key}"
         if isinstance(value, dict):
-            flat.update(_flatten(value, f"{name}."))
+            flat.update(flatten(value, f"{name}."))
         else:
             flat[name] = value
     return flat
@@ -296,7 +294,7 @@ class _Checker:
             if key in PROTOCOL_KEYS:
                 options[key] = self.option(key, value)
             elif "." in key or key in ALGORITHMS:
-                hyper.update(_flatten({key: value}))
+                hyper.update(flatten({key: value}))
             else:
                 close = difflib.get_close_matches(key, PROTOCOL_KEYS, n=1)
                 hint = f" (did you mean {close[0]}?)" if close else ""
@@ -471,7 +469,7 @@ class _Checker:
                 raise self.error(f"{label} name", f"repeats the variant name {name!r}")
             names.add(name)
             values, hints = {}, {}
-            for key, value in _flatten({k: v for k, v in table.items() if k != "name"}).items():
+            for key, value in flatten({k: v for k, v in table.items() if k != "name"}).items():
                 where = f'[[variant]] "{name}" "{key}"'
                 hints[key] = self.hyperparameter(key, algorithms, where)
                 self.value(value, hints[key], where)  # the type first, for every key
@@ -686,16 +684,8 @@ def write_csv(path: pathlib.Path, sweep: Sweep, rows: list[dict]) -> pathlib.Pat
     optimum, a CI of one experiment) as an empty cell."""
     header = ["configuration", *(["variant"] if sweep.variants else []), *sweep.grid, "algorithm",
               *COLUMNS]
-
-    def write(handle):
-        text = io.TextIOWrapper(handle, newline="", encoding="utf-8")
-        writer = csv.writer(text)
-        writer.writerow(header)
-        for row in rows:
-            writer.writerow([_cell(row.get(column)) for column in header])
-        text.flush()
-        text.detach()
-    return results.write_atomic(path, write)
+    return results.write_csv(path, header,
+                             ([_cell(row.get(column)) for column in header] for row in rows))
 
 
 def format_table(sweep: Sweep, rows: list[dict]) -> str:
