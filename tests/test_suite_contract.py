@@ -116,6 +116,43 @@ def test_bad_actions_raise_before_anything_is_stepped(domain, task):
     assert env.physics.data.time > time
 
 
+@pytest.mark.parametrize("domain, task", tasks.ALL_TASKS)
+def test_learner_state_names_observations_and_boxes_the_start(domain, task):
+    env = tasks.load(domain, task)
+    hints = env.task.learner_state
+    assert isinstance(hints, LearnerState)
+    observation = env.reset().observation
+    x = np.concatenate([np.asarray(observation[key]).ravel() for key in hints.keys])
+    assert x.shape == (len(hints.low),)
+    assert np.all(np.asarray(hints.low) <= x) and np.all(x <= np.asarray(hints.high))
+    assert len(hints.action_weights) == env.action_spec().shape[0]
+
+
+@pytest.mark.parametrize("domain, task", tasks.ALL_TASKS)  # the toy has no batched reward
+def test_batched_reward_is_the_step_reward(domain, task):
+    """``task.reward_of(physics.state_of(...), u)`` is what the step charges: what trajopt relies on."""
+    env = tasks.load(domain, task, task_kwargs={"random": 0})
+    env.reset()
+    spec = env.action_spec()
+    rng = np.random.default_rng(2)
+    for action in [rng.uniform(spec.minimum, spec.maximum, size=spec.shape) for _ in range(10)]:
+        x = env.physics.state_of(env.physics.data.qpos.copy(), env.physics.data.qvel.copy())
+        reward = env.step(action).reward
+        applied = np.clip(action, spec.minimum, spec.maximum)
+        assert reward == pytest.approx(float(env.task.reward_of(x, applied)), abs=1e-12)
+
+
+def test_learner_state_rejects_inconsistent_hints():
+    good = dict(keys=("a",), low=(-1.0,), high=(1.0,), periodic=(False,), labels=("a [m]",),
+                weights=(1.0,), action_weights=(1.0,), action_labels=("u [V]",))
+    LearnerState(**good)
+    for change, name in [({"high": (1.0, 2.0)}, "high"), ({"low": (1.0,)}, "low"),
+                         ({"weights": (-1.0,)}, "weights"), ({"action_labels": ()}, "action_weights"),
+                         ({"keys": ()}, "keys")]:
+        with pytest.raises(ValueError, match=name):
+            LearnerState(**{**good, **change})
+
+
 def _conformance_case(domain: str, task: str):
     class Case(test_utils.EnvironmentTestMixin, absltest.TestCase):
         def make_object_under_test(self):
