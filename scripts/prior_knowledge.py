@@ -110,15 +110,13 @@ def analyse(out: pathlib.Path, replay_trials: int) -> dict:
            "worst_trial_mean": float(returns.min(axis=1).mean()),
            "worst_trial": float(returns.min()),
            "worst_first10": float(returns[:, :10].min())}
-    reference = demo
-    if True:
-        below = returns < (reference - MARGIN)[:, None]
-        row["exp_below_demo"] = int(below.any(axis=1).sum())
-        row["trials_below_demo"] = int(below.sum())
-        row["trials_below_demo_first100"] = int(below[:, :100].sum())
-        row["last_trial_below_demo"] = int(np.max(np.where(below.any(axis=0))[0]) + 1) \
-            if below.any() else 0
-        row["final_vs_demo"] = float((finals - reference).mean())
+    below = returns < (demo - MARGIN)[:, None]
+    row["exp_below_demo"] = int(below.any(axis=1).sum())
+    row["trials_below_demo"] = int(below.sum())
+    row["trials_below_demo_first100"] = int(below[:, :100].sum())
+    row["last_trial_below_demo"] = int(np.max(np.where(below.any(axis=0))[0]) + 1) \
+        if below.any() else 0
+    row["final_vs_demo"] = float((finals - demo).mean())
     if replay_trials:
         flags = np.array([replay(protocol, algorithm, i, returns[i], replay_trials)
                           for i in range(protocol.experiments)])  # (experiments, 1 + trials, 3)
