@@ -107,7 +107,7 @@ class ActionSpace:
         return int(self.low.shape[0])
 
     def clip(self, u: np.ndarray) -> np.ndarray:
-        return np.clip(u, self.low, self.high)
+        return np.minimum(np.maximum(u, self.low), self.high)
 
 
 _DECAYS = ("none", "exponential", "linear")

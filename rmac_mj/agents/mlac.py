@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 
 from rmac_mj.agents.base import (ActionSpace, Agent, Exploration, StateSpace,
-                                 discounted_returns, model_uncertainty)
+                                 discounted_returns, model_uncertainty, seed_memory)
 from rmac_mj.approximators.llr import LLRMemory, wrap
 
 _BACKENDS = ("numba", "numpy")
@@ -250,11 +250,7 @@ class MLAC(Agent):
     # -- the policy -----------------------------------------------------------------------------------
     def _canonical(self, x: np.ndarray) -> np.ndarray:
         """x with periodic entries wrapped to [-period/2, period/2)."""
-        if not self._periodic.any():
-            return x
-        out = x.copy()
-        out[self._periodic] = wrap(x[self._periodic], self.period[self._periodic])
-        return out
+        return wrap(x, self.period)
 
     def _clip(self, u: np.ndarray) -> np.ndarray:
         """u saturated to the action bounds (np.clip's dispatch costs more than the work here)."""
@@ -366,8 +362,7 @@ class MLAC(Agent):
         self.traces *= cfg.lam * cfg.gamma                                       # line 26
         self.traces[near] = 1.0
         self.traces[slot] = 1.0
-        live = np.flatnonzero(self.traces)  # the samples visited in this trial (others add 0)
-        self.critic.adjust(live, (cfg.alpha_critic * delta * self.traces[live])[:, None])  # line 27
+        self.critic.add_weighted(self.traces, [cfg.alpha_critic * delta])  # line 27
         # 3. The actor moves along the model-based gradient of the return.
         self._improve_actor(x_prev, u_prev)
         return v_k
@@ -394,18 +389,20 @@ class MLAC(Agent):
         (:meth:`seed_memories`); the rest are inserted in time order through its replacement rule.
         """
         period = self.period
-        x = np.where(period > 0, wrap(states, period), states)
-        x_next = np.where(period > 0, wrap(next_states, period), next_states)
+        x = wrap(states, period)
+        x_next = wrap(next_states, period)
         data = {"actor": (x, actions),
                 "critic": (x, discounted_returns(rewards, trial, self.config.gamma)[:, None]),
                 "process": (np.hstack([x, actions]), x_next)}
-        capacity = {name: getattr(self, name).capacity for name in parts}
-        self.seed_memories(**{name: (data[name][0][:capacity[name]], data[name][1][:capacity[name]])
-                              for name in parts})
+        if "actor" in parts and np.any((actions < self.action_space.low) |
+                                       (actions > self.action_space.high)):
+            raise ValueError("MLAC.seed_from: actions must lie inside the action bounds "
+                             f"[{self.action_space.low}, {self.action_space.high}]")
         for name in parts:
-            X, Y = data[name]
-            for row in range(capacity[name], len(X)):
-                getattr(self, name).insert(X[row], Y[row])
+            seed_memory(getattr(self, name), *data[name])
+        self._pi_prev = None
+        if "critic" in parts:
+            self.traces[:] = 0.0
 
     def seed_memories(self, *, actor: tuple[Any, Any] | None = None,
                       critic: tuple[Any, Any] | None = None,

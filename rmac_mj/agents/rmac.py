@@ -380,7 +380,7 @@ class RMAC(Agent):
 
     # -- the policy: u = f^-1(x, R(x)) ------------------------------------------------------------------
     def _canonical(self, x: np.ndarray) -> np.ndarray:
-        return np.where(self.period > 0, wrap(x, self.period), x)
+        return wrap(x, self.period)
 
     def _inverse(self, x: np.ndarray, x_desired: np.ndarray, u_query: np.ndarray) -> np.ndarray:
         """f^-1(x, x_desired): least-squares inverse of the local process model (section 5).
@@ -599,8 +599,8 @@ class RMAC(Agent):
         replacement rule in time order (``base.seed_memory``). Angles are wrapped as when learning.
         """
         period = self.state_space.period
-        x = np.where(period > 0, wrap(states, period), states)
-        x_next = np.where(period > 0, wrap(next_states, period), next_states)
+        x = wrap(states, period)
+        x_next = wrap(next_states, period)
         if "process" in parts:
             seed_memory(self.process, np.hstack([x, actions]), x_next)
         if "reference" in parts:

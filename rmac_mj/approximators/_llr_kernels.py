@@ -546,18 +546,15 @@ def insert(state, x, y, nearest):
     stored by ``insert_among``."""
     if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
         return -1
-    Xt, meta = state.Xt, state.meta
-    count = meta[0]
+    meta = state.meta
     if state.replacement == REPLACE_REDUNDANCY:
         xq = np.empty(x.shape[0])
         canonical(x, state.in_period, xq)
         idx = np.empty(state.n_neighbours, dtype=np.int64)
         nk = _search(state, xq, state.n_neighbours, idx, state.best, idx, 0)
         return insert_among(state, x, y, idx, nk)
-    if count < state.Y.shape[0]:
-        slot = count
-        meta[0] = count + 1
-    elif state.replacement == REPLACE_NEAREST:
+    one = np.empty(1, dtype=np.int64)
+    if meta[0] >= state.Y.shape[0] and state.replacement == REPLACE_NEAREST:
         if nearest < 0:
             xq = np.empty(x.shape[0])
             canonical(x, state.in_period, xq)
@@ -565,22 +562,14 @@ def insert(state, x, y, nearest):
                     and np.all(state.last_point == xq)):
                 nearest = state.last_nearest
             else:
-                one = np.empty(1, dtype=np.int64)
                 one_d = np.empty(1)
-                distances(Xt, 0, count, xq, state.weights, state.in_period, state.norm,
+                distances(state.Xt, 0, meta[0], xq, state.weights, state.in_period, state.norm,
                           state.dist)
-                smallest(state.dist, count, 1, one, one_d, one, 0, state.seen, state.lanes)
+                smallest(state.dist, meta[0], 1, one, one_d, one, 0, state.seen, state.lanes)
                 nearest = one[0]
-        slot = nearest
-    else:  # oldest
-        slot = int(np.argmin(state.stamp))
-    for j in range(Xt.shape[0]):
-        Xt[j, slot] = wrap(x[j], state.in_period[j])
-    state.Y[slot, :] = y
-    state.stamp[slot] = meta[1]
-    meta[1] += 1
-    meta[2] += 1
-    return slot
+        one[0] = nearest
+        return insert_among(state, x, y, one, 1)
+    return insert_among(state, x, y, one, 0)
 
 
 @njit(cache=True)

@@ -349,7 +349,7 @@ class LLRMemory:
         return self._Xt.T
 
     def _canonical(self, x: np.ndarray) -> np.ndarray:
-        return np.where(self._pin > 0, wrap(x, self._pin), x)
+        return wrap(x, self._pin)
 
     # -- state --------------------------------------------------------------------------------------
     @property
@@ -450,8 +450,7 @@ class LLRMemory:
         """
         xq = self._canonical(self._check("x", x, self.input_dim))
         idx = self._neighbours(xq)
-        e = self._w * wrap(self.X_[idx] - xq, self._pin)
-        return np.abs(e).sum(axis=1) if self.norm == 1 else np.sqrt((e * e).sum(axis=1))
+        return distance_reference(self.X_[idx], xq, self._w, self._pin, self.norm)
 
     def query(self, x: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """LLR at x (shape (n,)).
@@ -564,7 +563,7 @@ class LLRMemory:
             return
         Y, period = self.Y_, self._pout
         Y[idx] += rate * wrap(target - Y[idx], period)
-        Y[idx] = np.where(period > 0, wrap(Y[idx], period), Y[idx])
+        Y[idx] = wrap(Y[idx], period)
 
     def add_weighted(self, weights: Any, delta: Any) -> None:
         """y_i += delta * weights_i for every stored sample i (a TD(lambda) update with eligibility
