@@ -375,6 +375,12 @@ class Agent(abc.ABC):
         self._in_trial = False
 
     @property
+    def _uses_trial_counter(self) -> bool:
+        """Whether what the agent does depends on the trial index (a decaying exploration)."""
+        exploration = getattr(self.config, "exploration", None)
+        return exploration is not None and exploration.uses_trial
+
+    @property
     def trial(self) -> int:
         """The index of the learning trial running (or last run): 0 for the first, -1 before any."""
         return self.trials_ - 1
@@ -476,9 +482,7 @@ class Agent(abc.ABC):
             raise ValueError(f"{self.name}: state dict lacks {missing}; has {sorted(state)}")
         # Snapshots written before the trial counter existed lack ``trials``; they load unless the
         # agent's exploration decays, which would then start again from the first trial's noise.
-        exploration = getattr(self.config, "exploration", None)
-        if "trials" not in state and ((exploration is not None and exploration.uses_trial) or
-                                      getattr(self.config, "rates_decay", False)):
+        if "trials" not in state and self._uses_trial_counter:
             raise ValueError(f"{self.name}: state dict lacks 'trials', which a decaying "
                              f"exploration or learning rate needs; has {sorted(state)}")
         self._load_state({k: v for k, v in state.items()

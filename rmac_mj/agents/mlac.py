@@ -252,14 +252,10 @@ class MLAC(Agent):
         """x with periodic entries wrapped to [-period/2, period/2)."""
         return wrap(x, self.period)
 
-    def _clip(self, u: np.ndarray) -> np.ndarray:
-        """u saturated to the action bounds (np.clip's dispatch costs more than the work here)."""
-        return np.minimum(np.maximum(u, self.action_space.low), self.action_space.high)
-
     def _pi(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """pi(x), saturated to the action bounds, and the actor's neighbours K(x) (nearest first)."""
         u, _, near = self.actor.query(x)
-        return self._clip(u), near
+        return self.action_space.clip(u), near
 
     def policy(self, states: Any) -> np.ndarray:
         """pi(x) for a batch of states (shape (q, n)) without exploration; returns shape (q, m)."""
@@ -309,7 +305,7 @@ class MLAC(Agent):
         # When the memory is full the new sample may take a neighbour's slot: move each sample once.
         moved = near if slot in near else np.append(near, slot)
         before = self.actor.outputs(moved)
-        self.actor.adjust(moved, self._clip(before + step) - before)
+        self.actor.adjust(moved, self.action_space.clip(before + step) - before)
 
     # -- Agent interface ------------------------------------------------------------------------------
     def _act(self, x: np.ndarray) -> np.ndarray:
@@ -321,7 +317,7 @@ class MLAC(Agent):
             query = np.concatenate([x, self._pi_prev[0]])
             uncertainty = lambda: model_uncertainty(self.process, query)  # noqa: E731
         du = exploration.sample(self._k, self.m, self.rng, self.trial, uncertainty)
-        return self._clip(self._pi_prev[0] + du)
+        return self.action_space.clip(self._pi_prev[0] + du)
 
     def _start(self, x0: np.ndarray) -> np.ndarray:
         """A trial begins: traces reset, V_0, u_0 = pi(x_0) + Delta u_0."""

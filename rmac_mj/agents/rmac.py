@@ -362,6 +362,10 @@ class RMAC(Agent):
             float(cfg.action_cost), np.ascontiguousarray(self.candidates), self._refine_steps,
             float(cfg.reference_insert_rate))
 
+    @property
+    def _uses_trial_counter(self) -> bool:
+        return super()._uses_trial_counter or self.config.rates_decay
+
     def _sync_kernel_rates(self) -> None:
         """Give the compiled step the running trial's alpha_c and alpha_r (when they decay), once
         per trial: the trial counter may also change by ``load_state_dict``."""
