@@ -217,7 +217,6 @@ class MLAC(Agent):
         n, m = state_space.dim, action_space.dim
         self.n, self.m = n, m
         self.period = state_space.period  # (n,), 0 for non-periodic dimensions
-        self._periodic = self.period > 0
         self.config = config = self._config_with_task_weights(config, ("actor", "critic"))
         common = dict(norm=config.norm, conditioning=config.conditioning, rcond=config.rcond,
                       ridge=config.ridge, algorithm=config.backend)
