@@ -10,23 +10,21 @@ import csv
 import pathlib
 
 import numpy as np
-from scipy import stats
+
+import goal_report
 
 PAPER = "paper"
 TRIAL_SECONDS = 3.0
 
 
 def load(out: pathlib.Path, name: str) -> dict[str, np.ndarray]:
-    files = sorted((out / name / "curves" / "rmac").glob("exp_*.npz"))
-    data = [np.load(f) for f in files]
-    return {"returns": np.array([d["returns"] for d in data]),
-            "greedy": np.array([d["greedy_returns"] for d in data])}
+    returns, greedy, _ = goal_report.load(out / name, "rmac")
+    return {"returns": returns, "greedy": greedy}
 
 
 def paired(d: np.ndarray) -> str:
-    half = stats.t.ppf(0.975, len(d) - 1) * d.std(ddof=1) / np.sqrt(len(d))
-    p = stats.ttest_1samp(d, 0.0).pvalue
-    return f"{d.mean():+.0f} ± {half:.0f} (p {'< 0.001' if p < 0.001 else f'= {p:.3f}'})"
+    mean, half, p = goal_report.paired_difference(d, np.zeros_like(d))
+    return f"{mean:+.0f} ± {half:.0f} (p {'< 0.001' if p < 0.001 else f'= {p:.3f}'})"
 
 
 def main(out: pathlib.Path) -> None:

@@ -16,29 +16,22 @@ import pathlib
 import sys
 
 import numpy as np
-from scipy import stats
+
+import goal_report
 
 SAME_SIZE = {"redundancy-process-50": "critic-reference-2000__process_capacity=50",
              "redundancy-critic-reference-4000": "critic-reference-4000__process_capacity=100"}
 
 
-def load(directory: pathlib.Path):
-    files = sorted((directory / "curves" / "rmac").glob("exp_*.npz"))
-    data = [np.load(f) for f in files]
-    return np.array([d["returns"] for d in data]), np.array([d["greedy_returns"] for d in data])
-
-
 def paired(a: np.ndarray, b: np.ndarray) -> str:
-    d = a - b
-    half = stats.t.ppf(0.975, len(d) - 1) * d.std(ddof=1) / np.sqrt(len(d))
-    p = stats.ttest_rel(a, b).pvalue
-    return f"{d.mean():+.0f} ± {half:.0f} (p {p:.3f})" if p >= 0.001 else \
-        f"{d.mean():+.0f} ± {half:.0f} (p {p:.1e})"
+    mean, half, p = goal_report.paired_difference(a, b)
+    return f"{mean:+.0f} ± {half:.0f} (p {p:.3f})" if p >= 0.001 else \
+        f"{mean:+.0f} ± {half:.0f} (p {p:.1e})"
 
 
 def metrics(directory: pathlib.Path):
-    returns, greedy = load(directory)
-    return greedy[:, -5:].mean(axis=1), returns[:, -50:].mean(axis=1)
+    m = goal_report.metrics(*goal_report.load(directory, "rmac"))
+    return m["greedy_last5"], m["exploring"]
 
 
 def main(root: str, sizes: str | None) -> None:

@@ -20,24 +20,14 @@ import pathlib
 import sys
 
 import numpy as np
-from scipy import stats
 
-from rmac_mj.experiments.results import confidence_interval, minutes_to_within
+import goal_report
+from rmac_mj.experiments.results import confidence_interval
 
 
 def metrics(directory: pathlib.Path) -> dict:
-    files = sorted((directory / "curves" / "s-ac").glob("exp_*.npz"))
-    if not files:
-        raise SystemExit(f"sac_summary: no S-AC curves in {directory}")
-    data = [np.load(f) for f in files]
-    returns = np.array([d["returns"] for d in data])
-    greedy = np.array([d["greedy_returns"] for d in data])
-    seconds = json.loads((directory / "summary.json").read_text()).get("trial_seconds", 3.0)
-    first = int(round(5 * 60 / seconds))
-    return {"greedy": greedy[:, -1], "greedy_last5": greedy[:, -5:].mean(axis=1),
-            "exploring": returns[:, -50:].mean(axis=1), "first_5min": returns[:, :first].mean(axis=1),
-            "minutes": minutes_to_within(returns.mean(axis=0), trial_seconds=seconds),
-            "stuck": int(np.sum(returns[:, -50:].mean(axis=1) < -1500)), "n": len(returns)}
+    """goal_report's metrics of the S-AC experiments in ``directory``."""
+    return goal_report.metrics(*goal_report.load(directory, "s-ac"))
 
 
 def ci(samples: np.ndarray) -> str:
@@ -46,13 +36,11 @@ def ci(samples: np.ndarray) -> str:
 
 
 def paired(a: np.ndarray, b: np.ndarray) -> str:
-    d = a - b
-    if not np.any(d):
+    if not np.any(a - b):
         return "0 (identical)"
-    half = stats.t.ppf(0.975, len(d) - 1) * d.std(ddof=1) / np.sqrt(len(d))
-    p = stats.ttest_rel(a, b).pvalue
-    return f"{d.mean():+.0f} ± {half:.0f} (p {p:.3f})" if p >= 0.001 else \
-        f"{d.mean():+.0f} ± {half:.0f} (p < 0.001)"
+    mean, half, p = goal_report.paired_difference(a, b)
+    return f"{mean:+.0f} ± {half:.0f} (p {p:.3f})" if p >= 0.001 else \
+        f"{mean:+.0f} ± {half:.0f} (p < 0.001)"
 
 
 def plot(root: pathlib.Path, index: dict, path: str) -> None:
@@ -111,7 +99,7 @@ def main(arguments: list[str]) -> None:
     print("|---|---|---|---|---|---|---|---|---|---|")
     for name, m in rows:
         print(f"| {name} | {ci(m['greedy'])} | {ci(m['greedy_last5'])} | {ci(m['exploring'])} "
-              f"| {ci(m['first_5min'])} | {m['minutes']:.1f} | {m['stuck']}/{m['n']} "
+              f"| {ci(m['first_5min'])} | {m['minutes_to_90pct']:.1f} | {m['stuck']}/{m['n']} "
               f"| {paired(m['greedy_last5'], base['greedy_last5'])} "
               f"| {paired(m['exploring'], base['exploring'])} "
               f"| {paired(m['first_5min'], base['first_5min'])} |")
