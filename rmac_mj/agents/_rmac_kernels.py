@@ -57,8 +57,8 @@ from numba import njit, types
 from numba.experimental import structref
 
 from rmac_mj.approximators.llr import (LLR_STATE_TYPE, llr_add_weighted, llr_candidates,
-                                       llr_fit_at, llr_insert_among, llr_move_outputs, llr_query,
-                                       llr_refresh, wrap_scalar)
+                                       llr_canonical, llr_fit_at, llr_insert_among,
+                                       llr_move_outputs, llr_query, llr_refresh, wrap_scalar)
 
 
 @structref.register
@@ -148,9 +148,9 @@ def new_state(process, reference, critic, traces, x_prev, u_prev, v_prev, vertic
 
 @njit(cache=True)
 def _canonical(x, period):
+    """A new array: x with its periodic entries wrapped (LLR's ``canonical``)."""
     out = np.empty(x.shape[0])
-    for j in range(x.shape[0]):
-        out[j] = wrap_scalar(x[j], period[j])
+    llr_canonical(x, period, out)
     return out
 
 

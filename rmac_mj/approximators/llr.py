@@ -97,10 +97,11 @@ llr_candidates = _k.candidates
 llr_refresh = _k.refresh
 llr_fit_at = _k.fit_at
 wrap_scalar = _k.wrap
+llr_canonical = _k.canonical
 
 __all__ = ["LLRMemory", "LLRState", "LLR_STATE_TYPE", "fit_reference", "llr_add_weighted",
-           "llr_candidates", "llr_fit_at", "llr_insert", "llr_insert_among", "llr_move_outputs",
-           "llr_neighbours", "misfit_reference",
+           "llr_canonical", "llr_candidates", "llr_fit_at", "llr_insert", "llr_insert_among",
+           "llr_move_outputs", "llr_neighbours", "misfit_reference",
            "llr_query", "llr_refresh", "search_reference", "wrap", "wrap_scalar"]
 
 _CONDITIONINGS = ("svd", "ridge", "none")
