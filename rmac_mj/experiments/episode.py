@@ -20,11 +20,16 @@ from rmac_mj.tasks.common import LearnerState
 
 
 def learner_state_of(env: control.Environment) -> LearnerState:
-    """The task's description of the learners' state (``env.task.learner_state``)."""
-    learner_state = getattr(env.task, "learner_state", None)
+    """The description of the learners' state: the task's (``env.task.learner_state``, the suite) or
+    the environment's own (an outside environment adapted by :mod:`rmac_mj.envs`)."""
+    learner_state = getattr(env, "learner_state", None)
+    if learner_state is None:
+        learner_state = getattr(getattr(env, "task", None), "learner_state", None)
     if not isinstance(learner_state, LearnerState):
-        raise ValueError(f"task {type(env.task).__name__} declares no learner_state (a "
-                         f"rmac_mj.tasks.common.LearnerState), got {learner_state!r}")
+        owner = type(getattr(env, "task", env)).__name__
+        raise ValueError(f"{owner} declares no learner_state (a rmac_mj.tasks.common.LearnerState; "
+                         f"an outside environment gets one through rmac_mj.envs.load), got "
+                         f"{learner_state!r}")
     return learner_state
 
 
@@ -59,7 +64,11 @@ def steps_per_trial(env: control.Environment) -> int:
 
     dm-control keeps the step limit (time limit / control timestep) private; it is read here, the one
     place that does, rather than running an episode, which would draw from the task's random state.
+    An environment adapted by :mod:`rmac_mj.envs` says it (``steps_per_trial``).
     """
+    own = getattr(env, "steps_per_trial", None)
+    if isinstance(own, int):
+        return own
     limit = getattr(env, "_step_limit", None)
     if limit is None or not math.isfinite(limit) or limit <= 0:
         raise ValueError(f"the environment must have a finite time limit (trials end on it), got a "

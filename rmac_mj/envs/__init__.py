@@ -1,0 +1,43 @@
+"""Any environment for the learners: dm-control's suite, Gymnasium, or a factory of the user's.
+
+    from rmac_mj import envs
+    env = envs.load("gymnasium:Pendulum-v1", seed=0)      # x = [atan2(obs[1], obs[0]), obs[2]]
+    env = envs.load("dm_control:cartpole/swingup", seed=0,
+                    learner_state={"low": [-1.8, -3.1416, -5, -20], "high": [1.8, 3.1416, 5, 20]})
+    env = envs.load("my_package.tasks:make_env", kwargs={"mass": 2.0})
+
+The result is a ``dm_env.Environment`` (:class:`Environment`) that the trial loop
+(:func:`rmac_mj.experiments.episode.run_trial`) and the learners use as they use a task of the suite:
+its observation holds the entries of ``env.learner_state.keys``. What x is comes from the
+environment's specs where they say enough (finite bounds; a (cos, sin) pair folded into one periodic
+angle; the trial length from the time limit), otherwise from the user (``learner_state``: a
+``LearnerState`` or some of its fields); anything still missing or ambiguous is refused in one line
+naming it. Rewards are the environment's; a termination (not a truncation) ends a trial with
+discount 0, so the learner does not bootstrap from the last state.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+from rmac_mj.envs.environment import Environment
+from rmac_mj.envs.observations import ObservationMap, infer_learner_state
+from rmac_mj.envs.spec import EnvSpec, parse
+from rmac_mj.tasks.common import LearnerState
+
+
+def load(env: str, kwargs: Mapping[str, Any] | None = None, *, seed: int | None = None,
+         learner_state: LearnerState | Mapping[str, Any] | None = None, action_repeat: int = 1,
+         trial_steps: int | None = None, control_timestep: float | None = None) -> Environment:
+    """The environment named by the SPEC ``env``, seeded, as the learners see it.
+
+    Arguments as the fields of :class:`EnvSpec`; ``seed`` seeds the environment's starts.
+    """
+    spec = EnvSpec(env, kwargs=kwargs or {}, learner_state=learner_state,
+                   action_repeat=action_repeat, trial_steps=trial_steps,
+                   control_timestep=control_timestep)
+    return spec.make(seed)
+
+
+__all__ = ["EnvSpec", "Environment", "LearnerState", "ObservationMap", "infer_learner_state",
+           "load", "parse"]

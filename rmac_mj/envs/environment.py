@@ -1,0 +1,128 @@
+"""What the trial loop drives: any dm_env environment, its observation mapped to the learner's x.
+
+:class:`Environment` wraps a ``dm_env.Environment`` (dm-control's, a user's, or a Gymnasium one
+through :class:`~rmac_mj.envs.gymnasium_env.GymnasiumEnvironment`). It hands the trial loop
+(:func:`rmac_mj.experiments.episode.run_trial`) what a task of the suite does: an observation whose
+entries are the ``learner_state.keys``, the learner state itself, and the trial's length; and it
+can repeat each action ``action_repeat`` times (rewards summed), the usual way to give a learner a
+longer control step than the environment's.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import dm_env
+import numpy as np
+from dm_env import specs
+
+from rmac_mj.envs.observations import ObservationLayout, ObservationMap
+from rmac_mj.tasks.common import LearnerState
+
+
+class Environment(dm_env.Environment):
+    """``base`` seen by a learner.
+
+    Args:
+      base: the environment, a ``dm_env.Environment``.
+      learner_state: what x is (its ``keys`` are entries over ``layout``, see
+        :mod:`rmac_mj.envs.observations`).
+      layout: the base's raw observation layout.
+      base_timestep: seconds per step of ``base``.
+      steps_per_trial: steps (of this environment, i.e. after the action repeat) after which a
+        trial is truncated, or ends earlier when the base ends it.
+      action_repeat: base steps per step, each with the same action; rewards are summed.
+      name: the environment's SPEC, for messages and figures.
+
+    Attributes:
+      learner_state, steps_per_trial, action_repeat, name: as given.
+      base: the wrapped environment.
+      map: the :class:`~rmac_mj.envs.observations.ObservationMap` from raw observations to x.
+    """
+
+    def __init__(self, base: dm_env.Environment, learner_state: LearnerState,
+                 layout: ObservationLayout, base_timestep: float, steps_per_trial: int,
+                 action_repeat: int = 1, name: str = "") -> None:
+        self.base = base
+        self.learner_state = learner_state
+        self.map = ObservationMap(learner_state.keys, layout)
+        if self.map.dim != len(learner_state.low):
+            raise ValueError(f"{name}: learner_state.keys give {self.map.dim} dimensions, its low "
+                             f"and high {len(learner_state.low)}")
+        action = base.action_spec()
+        m = int(np.prod(action.shape, dtype=int))
+        if len(learner_state.action_weights) != m:
+            raise ValueError(f"{name}: learner_state.action_weights has "
+                             f"{len(learner_state.action_weights)} entries, the action {m}")
+        self._action_spec = specs.BoundedArray(
+            shape=(m,), dtype=float, name="action",
+            minimum=np.broadcast_to(action.minimum, action.shape).reshape(m).astype(float),
+            maximum=np.broadcast_to(action.maximum, action.shape).reshape(m).astype(float))
+        self._base_shape = action.shape
+        self.base_timestep = float(base_timestep)
+        self.steps_per_trial = int(steps_per_trial)
+        self.action_repeat = int(action_repeat)
+        self.name = name
+        self._step = 0
+
+    # ------------------------------------------------------------------------------ dm_env interface
+    def reset(self) -> dm_env.TimeStep:
+        self._step = 0
+        timestep = self.base.reset()
+        return timestep._replace(observation=self.map.entries(timestep.observation))
+
+    def step(self, action: Any) -> dm_env.TimeStep:
+        """Apply ``action`` for ``action_repeat`` base steps; the reward is their sum, the discount
+        their product (0 once the base terminates)."""
+        action = np.asarray(action, dtype=float).reshape(self._base_shape)
+        reward, discount = 0.0, 1.0
+        for _ in range(self.action_repeat):
+            timestep = self.base.step(action)
+            reward += float(timestep.reward)
+            discount *= 1.0 if timestep.discount is None else float(timestep.discount)
+            if timestep.last():
+                break
+        self._step += 1
+        observation = self.map.entries(timestep.observation)
+        if timestep.last() or self._step >= self.steps_per_trial:
+            return dm_env.TimeStep(dm_env.StepType.LAST, reward, discount, observation)
+        return dm_env.TimeStep(dm_env.StepType.MID, reward, discount, observation)
+
+    def observation_spec(self) -> dict[str, specs.Array]:
+        sizes = [e.size for e in self.map.entries_]
+        return {name: specs.Array(shape=(size,), dtype=float, name=name)
+                for name, size in zip(self.map.names, sizes)}
+
+    def action_spec(self) -> specs.BoundedArray:
+        return self._action_spec
+
+    def close(self) -> None:
+        self.base.close()
+
+    # ----------------------------------------------------------------------------------- time
+    def control_timestep(self) -> float:
+        """Seconds per step: the base's step times the action repeat."""
+        return self.base_timestep * self.action_repeat
+
+    @property
+    def trial_seconds(self) -> float:
+        """Simulated seconds of a trial that runs to its limit."""
+        return self.steps_per_trial * self.control_timestep()
+
+    @property
+    def physics(self) -> Any:
+        """The base's MuJoCo physics, where it has one (dm-control); AttributeError otherwise."""
+        physics = getattr(self.base, "physics", None)
+        if physics is None:
+            raise AttributeError(f"{self.name or type(self.base).__name__} has no physics")
+        return physics
+
+    def __repr__(self) -> str:
+        return (f"Environment({self.name!r}, x=[{', '.join(self.learner_state.keys)}], "
+                f"{self.steps_per_trial} steps of {self.control_timestep():g} s)")
+
+
+def trial_steps(base_steps: int, action_repeat: int) -> int:
+    """Steps of a trial of ``base_steps`` base steps under ``action_repeat`` (the last may be short)."""
+    return int(math.ceil(base_steps / action_repeat))

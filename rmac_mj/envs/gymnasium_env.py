@@ -1,0 +1,97 @@
+"""A Gymnasium environment seen through dm_env, the interface of the suite and of the trial loop.
+
+Gymnasium's ``terminated`` becomes a dm_env termination (discount 0: the trial ends and the learner
+does not bootstrap), ``truncated`` a truncation (discount 1: a time limit, the learner bootstraps).
+The first ``reset`` passes the seed; later resets continue the environment's own random stream, so
+a sequence of trials is one seeded stream of starts, as in dm-control.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import dm_env
+import numpy as np
+from dm_env import specs
+
+from rmac_mj.envs.observations import OBSERVATION, layout_of_gymnasium
+
+
+class GymnasiumEnvironment(dm_env.Environment):
+    """``env`` (a ``gymnasium.Env`` with a bounded Box action space) as a ``dm_env.Environment``.
+
+    Observations are a dict: ``{"observation": obs}`` for a Box space, the space's own dict for a
+    Dict space. Actions are float arrays of shape (m,), cast to the space's dtype.
+
+    Attributes:
+      env: the Gymnasium environment (with its wrappers, e.g. ``TimeLimit``).
+      layout: the observation's entries and bounds (:class:`~rmac_mj.envs.observations.ObservationLayout`).
+    """
+
+    def __init__(self, env: Any, seed: int | None = None, name: str = "gymnasium") -> None:
+        from gymnasium import spaces
+
+        space = env.action_space
+        if not isinstance(space, spaces.Box):
+            raise ValueError(f"{name}: the action space is {type(space).__name__}; the learners "
+                             f"need a bounded Box")
+        low, high = np.asarray(space.low, dtype=float), np.asarray(space.high, dtype=float)
+        if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high)) and np.all(low < high)):
+            raise ValueError(f"{name}: the action space must be bounded (finite low < high), got "
+                             f"low={space.low}, high={space.high}")
+        self.env = env
+        self.layout = layout_of_gymnasium(env.observation_space)
+        self._dict_observation = isinstance(env.observation_space, spaces.Dict)
+        self._shape, self._dtype = space.shape, space.dtype
+        self._action_spec = specs.BoundedArray(shape=(low.size,), dtype=float, minimum=low.ravel(),
+                                               maximum=high.ravel(), name="action")
+        self._seed = seed
+        self._reset_next_step = True
+
+    # ------------------------------------------------------------------------------ dm_env interface
+    def reset(self) -> dm_env.TimeStep:
+        observation, _ = self.env.reset(seed=self._seed)
+        self._seed = None  # later resets continue the seeded stream
+        self._reset_next_step = False
+        return dm_env.restart(self._observation(observation))
+
+    def step(self, action: Any) -> dm_env.TimeStep:
+        if self._reset_next_step:
+            return self.reset()
+        action = np.asarray(action, dtype=self._dtype).reshape(self._shape)
+        observation, reward, terminated, truncated, _ = self.env.step(action)
+        observation, reward = self._observation(observation), float(reward)
+        if terminated:
+            self._reset_next_step = True
+            return dm_env.termination(reward, observation)
+        if truncated:
+            self._reset_next_step = True
+            return dm_env.truncation(reward, observation)
+        return dm_env.transition(reward, observation)
+
+    def observation_spec(self) -> dict[str, specs.Array]:
+        return {key: specs.Array(shape=(size,), dtype=float, name=key)
+                for key, size in self.layout.sizes.items()}
+
+    def action_spec(self) -> specs.BoundedArray:
+        return self._action_spec
+
+    def close(self) -> None:
+        self.env.close()
+
+    # ----------------------------------------------------------------------------------- time
+    def control_timestep(self) -> float | None:
+        """Seconds per step (the environment's ``dt``), None when it does not say."""
+        dt = getattr(self.env.unwrapped, "dt", None)
+        return float(dt) if dt is not None else None
+
+    def step_limit(self) -> int | None:
+        """Steps per episode from the time limit (``spec.max_episode_steps``), None without one."""
+        spec = getattr(self.env, "spec", None)
+        steps = getattr(spec, "max_episode_steps", None)
+        return int(steps) if steps is not None else None
+
+    def _observation(self, observation: Any) -> dict[str, np.ndarray]:
+        if self._dict_observation:
+            return {key: np.asarray(value) for key, value in observation.items()}
+        return {OBSERVATION: np.asarray(observation)}

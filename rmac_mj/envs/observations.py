@@ -1,0 +1,391 @@
+"""The learner's state x from an environment's observations: entries, (cos, sin) folding, inference.
+
+An environment nobody here wrote gives observations as a dict of arrays (dm_env) or a Box or Dict
+space (Gymnasium). The learners need a flat x with a nominal box and its periodic dimensions, which
+:class:`rmac_mj.tasks.common.LearnerState` describes; its ``keys`` are *entries*, expressions over
+the raw observation (a Box observation is called ``observation``):
+
+* ``KEY``: the whole entry ``KEY``, flattened (one dimension of x per element);
+* ``KEY[i]``: element i of ``KEY``, one dimension;
+* ``atan2(KEY[j], KEY[i])``: the angle whose sine is ``KEY[j]`` and cosine ``KEY[i]``, one periodic
+  dimension in [-pi, pi).
+
+:func:`infer_learner_state` reads what the specs say (finite bounds) and what the environment shows
+(pairs of elements of one key with sin^2 + cos^2 = 1 on every probed observation, folded into one
+angle), fills in what the user declared, and refuses in one line whatever is still missing or
+ambiguous.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import math
+import re
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from rmac_mj.tasks.common import LearnerState
+
+#: The key of a Box (non-dict) observation.
+OBSERVATION = "observation"
+#: A bound at or beyond this magnitude counts as none (float32's max stands in for "unbounded").
+UNBOUNDED = 1e30
+#: |cos^2 + sin^2 - 1| allowed on every probed observation (float32 observations round at 1e-7).
+UNIT_TOLERANCE = 1e-5
+
+_ELEMENT = re.compile(r"^(?P<key>[^\[\]()]+)\[(?P<index>\d+)\]$")
+_ANGLE = re.compile(r"^atan2\((?P<sin>[^,()]+\[\d+\]),\s*(?P<cos>[^,()]+\[\d+\])\)$")
+
+
+@dataclasses.dataclass(frozen=True)
+class ObservationLayout:
+    """The raw observation's entries: key -> (size, low, high), low/high of shape (size,), NaN where
+    the spec gives no finite bound."""
+
+    sizes: dict[str, int]
+    low: dict[str, np.ndarray]
+    high: dict[str, np.ndarray]
+
+    @property
+    def keys(self) -> tuple[str, ...]:
+        return tuple(self.sizes)
+
+    def check_key(self, key: str, owner: str) -> None:
+        if key not in self.sizes:
+            close = difflib.get_close_matches(key, self.keys, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise ValueError(f"{owner}: the observation has no entry {key!r}{hint}; it has "
+                             f"{', '.join(self.keys)}")
+
+    def bound(self, key: str, index: int) -> tuple[float, float]:
+        """(low, high) of element ``index`` of ``key``; NaN where unbounded."""
+        return float(self.low[key][index]), float(self.high[key][index])
+
+
+def _bounds(low: Any, high: Any, size: int) -> tuple[np.ndarray, np.ndarray]:
+    lo = np.broadcast_to(np.asarray(low, dtype=float), (size,)).reshape(size).copy()
+    hi = np.broadcast_to(np.asarray(high, dtype=float), (size,)).reshape(size).copy()
+    lo[~(np.abs(lo) < UNBOUNDED)] = np.nan
+    hi[~(np.abs(hi) < UNBOUNDED)] = np.nan
+    return lo, hi
+
+
+def layout_of_dm_env(spec: Any) -> ObservationLayout:
+    """The layout of a dm_env observation spec (a dict of ``specs.Array``, or one Array)."""
+    specs = spec if isinstance(spec, Mapping) else {OBSERVATION: spec}
+    sizes, low, high = {}, {}, {}
+    for key, array_spec in specs.items():
+        if isinstance(array_spec, Mapping):
+            raise ValueError(f"observation entry {key!r} is a nested dict; declare the learner "
+                             f"state as a LearnerState of a flat observation")
+        size = int(np.prod(array_spec.shape, dtype=int))
+        lo, hi = (getattr(array_spec, "minimum", np.nan), getattr(array_spec, "maximum", np.nan))
+        sizes[str(key)] = size
+        low[str(key)], high[str(key)] = _bounds(lo, hi, size)
+    return ObservationLayout(sizes, low, high)
+
+
+def layout_of_gymnasium(space: Any) -> ObservationLayout:
+    """The layout of a Gymnasium observation space: a Box, or a Dict of Boxes."""
+    from gymnasium import spaces
+
+    boxes = dict(space.spaces) if isinstance(space, spaces.Dict) else {OBSERVATION: space}
+    sizes, low, high = {}, {}, {}
+    for key, box in boxes.items():
+        if not isinstance(box, spaces.Box):
+            raise ValueError(f"observation entry {key!r} is a {type(box).__name__} space; the "
+                             f"learners take Box observations (or a Dict of Boxes)")
+        size = int(np.prod(box.shape, dtype=int))
+        sizes[str(key)] = size
+        low[str(key)], high[str(key)] = _bounds(box.low, box.high, size)
+    return ObservationLayout(sizes, low, high)
+
+
+# ----------------------------------------------------------------------------------------------------
+# Entries: expressions over the raw observation, compiled into one map observation -> x.
+
+@dataclasses.dataclass(frozen=True)
+class _Entry:
+    """One parsed entry: plain elements (key, indices) or an angle (sin element, cos element)."""
+
+    text: str
+    key: str | None = None
+    indices: tuple[int, ...] = ()
+    sin: tuple[str, int] | None = None
+    cos: tuple[str, int] | None = None
+
+    @property
+    def is_angle(self) -> bool:
+        return self.sin is not None
+
+    @property
+    def size(self) -> int:
+        return 1 if self.is_angle else len(self.indices)
+
+
+def parse_entry(text: str, layout: ObservationLayout) -> _Entry:
+    """Parse ``KEY``, ``KEY[i]`` or ``atan2(KEY[j], KEY[i])`` against ``layout``; ValueError naming it."""
+    if not isinstance(text, str) or not text.strip():
+        raise ValueError(f"learner_state.keys: an entry must be a non-empty string, got {text!r}")
+    text = text.strip()
+
+    def element(part: str) -> tuple[str, int]:
+        match = _ELEMENT.match(part.strip())
+        if match is None:
+            raise ValueError(f"learner_state.keys: {text!r} must read KEY, KEY[i] or "
+                             f"atan2(KEY[j], KEY[i])")
+        key, index = match["key"].strip(), int(match["index"])
+        layout.check_key(key, f"learner_state.keys entry {text!r}")
+        if index >= layout.sizes[key]:
+            raise ValueError(f"learner_state.keys entry {text!r}: {key!r} has {layout.sizes[key]} "
+                             f"elements, index {index} is out of range")
+        return key, index
+
+    angle = _ANGLE.match(text)
+    if angle is not None:
+        return _Entry(text, sin=element(angle["sin"]), cos=element(angle["cos"]))
+    if "[" in text or "(" in text:
+        key, index = element(text)
+        return _Entry(text, key=key, indices=(index,))
+    layout.check_key(text, f"learner_state.keys entry {text!r}")
+    return _Entry(text, key=text, indices=tuple(range(layout.sizes[text])))
+
+
+class ObservationMap:
+    """x from a raw observation: the entries' elements gathered from one flat vector, angles folded.
+
+    ``__call__(observation) -> ndarray of shape (n,)``; ``entries(observation)`` gives the same as a
+    dict entry -> ndarray, the observation a wrapped environment hands to the trial loop.
+    """
+
+    def __init__(self, entries: Sequence[str], layout: ObservationLayout) -> None:
+        self.layout = layout
+        self._keys = layout.keys
+        offsets = dict(zip(self._keys, np.cumsum([0] + [layout.sizes[k] for k in self._keys])))
+        self.entries_ = tuple(parse_entry(e, layout) for e in entries)
+        if len({e.text for e in self.entries_}) != len(self.entries_):
+            raise ValueError(f"learner_state.keys must not repeat an entry, got {list(entries)}")
+        plain, sin, cos, angle_at, slices = [], [], [], [], []
+        at = 0
+        for entry in self.entries_:
+            slices.append(slice(at, at + entry.size))
+            if entry.is_angle:
+                sin.append(offsets[entry.sin[0]] + entry.sin[1])
+                cos.append(offsets[entry.cos[0]] + entry.cos[1])
+                angle_at.append(at)
+                plain.append(0)  # placeholder, overwritten by the angle
+            else:
+                plain.extend(offsets[entry.key] + i for i in entry.indices)
+            at += entry.size
+        self.dim = at
+        self._plain = np.asarray(plain, dtype=np.int64)
+        self._sin = np.asarray(sin, dtype=np.int64)
+        self._cos = np.asarray(cos, dtype=np.int64)
+        self._angle_at = np.asarray(angle_at, dtype=np.int64)
+        self._slices = tuple(slices)
+        self.names = tuple(e.text for e in self.entries_)
+
+    def flat(self, observation: Any) -> np.ndarray:
+        """The raw observation's entries concatenated in layout order, as floats."""
+        if not isinstance(observation, Mapping):
+            observation = {OBSERVATION: observation}
+        return np.concatenate([observation[k] for k in self._keys], axis=None, dtype=float)
+
+    def __call__(self, observation: Any) -> np.ndarray:
+        flat = self.flat(observation)
+        x = flat[self._plain]
+        if self._angle_at.size:
+            x[self._angle_at] = np.arctan2(flat[self._sin], flat[self._cos])
+        return x
+
+    def entries(self, observation: Any) -> dict[str, np.ndarray]:
+        x = self(observation)
+        return {name: x[s] for name, s in zip(self.names, self._slices)}
+
+    def periodic(self) -> tuple[bool, ...]:
+        return tuple(flag for e in self.entries_ for flag in [e.is_angle] * e.size)
+
+    def spec_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(low, high) of shape (n,) from the specs: [-pi, pi) for angles, NaN where unbounded."""
+        low, high = [], []
+        for e in self.entries_:
+            if e.is_angle:
+                low.append(-math.pi), high.append(math.pi)
+            else:
+                low.extend(self.layout.low[e.key][list(e.indices)])
+                high.extend(self.layout.high[e.key][list(e.indices)])
+        return np.asarray(low, dtype=float), np.asarray(high, dtype=float)
+
+    def dimension_names(self) -> tuple[str, ...]:
+        """A name per dimension of x: the entry, or ``KEY[i]`` for the elements of a whole key."""
+        names = []
+        for e in self.entries_:
+            if e.size == 1:
+                names.append(e.text)
+            else:
+                names.extend(f"{e.key}[{i}]" for i in e.indices)
+        return tuple(names)
+
+
+# ----------------------------------------------------------------------------------------------------
+# Inference.
+
+def unit_pairs(layout: ObservationLayout, samples: np.ndarray) -> list[tuple[str, int, int]]:
+    """The (cos, sin) pairs of ``samples`` (shape (T, flat size), raw observations flattened in
+    layout order): (key, i, j), i < j, elements of one key within [-1, 1] whose squares sum to 1 on
+    every sample, and that are not constant. ValueError naming the key where an element belongs to
+    more than one such pair (which angle it is cannot be told)."""
+    pairs: list[tuple[str, int, int]] = []
+    offset = 0
+    for key in layout.keys:
+        size = layout.sizes[key]
+        block = samples[:, offset:offset + size]
+        offset += size
+        candidates = [(i, j) for i in range(size) for j in range(i + 1, size)
+                      if _is_unit_pair(block[:, i], block[:, j], layout, key, i, j)]
+        used: dict[int, list[tuple[int, int]]] = {}
+        for i, j in candidates:
+            used.setdefault(i, []).append((i, j))
+            used.setdefault(j, []).append((i, j))
+        clashes = sorted({pair for element_pairs in used.values() if len(element_pairs) > 1
+                          for pair in element_pairs})
+        if clashes:
+            listed = ", ".join(f"({key}[{i}], {key}[{j}])" for i, j in clashes)
+            raise ValueError(f"observation {key!r} is ambiguous: its elements form overlapping "
+                             f"(cos, sin) pairs {listed}; declare learner_state.keys (e.g. "
+                             f"'atan2({key}[{clashes[0][1]}], {key}[{clashes[0][0]}])')")
+        pairs.extend((key, i, j) for i, j in candidates)
+    return pairs
+
+
+def _is_unit_pair(c: np.ndarray, s: np.ndarray, layout: ObservationLayout, key: str,
+                  i: int, j: int) -> bool:
+    for index in (i, j):
+        low, high = layout.bound(key, index)
+        if (not math.isnan(low) and low < -1 - UNIT_TOLERANCE) or \
+                (not math.isnan(high) and high > 1 + UNIT_TOLERANCE):
+            return False
+    if not np.all(np.abs(c * c + s * s - 1.0) <= UNIT_TOLERANCE):
+        return False
+    return bool(np.ptp(np.arctan2(s, c)) > 1e-6)  # a constant pair is no angle that moves
+
+
+def inferred_entries(layout: ObservationLayout, samples: np.ndarray) -> list[str]:
+    """Every element of the observation as an entry, each (cos, sin) pair folded into one angle
+    (at the cosine's place; the cosine is taken to come first, as in Gymnasium and dm-control)."""
+    pairs = unit_pairs(layout, samples)
+    folded = {(key, i): f"atan2({key}[{j}], {key}[{i}])" for key, i, j in pairs}
+    dropped = {(key, j) for key, _, j in pairs}
+    entries = []
+    for key in layout.keys:
+        for index in range(layout.sizes[key]):
+            if (key, index) in folded:
+                entries.append(folded[key, index])
+            elif (key, index) not in dropped:
+                entries.append(f"{key}[{index}]" if layout.sizes[key] > 1 or key == OBSERVATION
+                               else key)
+    return entries
+
+
+def default_weights(low: np.ndarray, high: np.ndarray) -> np.ndarray:
+    """Input weighting of each dimension: 2 pi / (high - low), so a nominal range weighs as one
+    turn of an angle. On dc_pendulum this gives (1, 0.125) for Table 2's (1, 0.1)."""
+    return 2.0 * math.pi / (np.asarray(high, dtype=float) - np.asarray(low, dtype=float))
+
+
+_FIELDS = tuple(f.name for f in dataclasses.fields(LearnerState))
+#: What a declaration may hold: LearnerState's fields, and ``bounds``: {dimension name: [low, high]}
+#: for some dimensions of x (named as in the messages, e.g. "velocity[0]"), the others inferred.
+DECLARABLE = _FIELDS + ("bounds",)
+
+
+def check_declaration(declared: Mapping[str, Any] | None) -> dict[str, Any]:
+    """A ``[learner_state]`` table (some of :data:`DECLARABLE`) as a dict; unknown fields refused."""
+    declared = dict(declared or {})
+    for name in declared:
+        if name not in DECLARABLE:
+            close = difflib.get_close_matches(name, DECLARABLE, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise ValueError(f"learner_state has no field {name!r}{hint}; its fields: "
+                             f"{', '.join(DECLARABLE)}")
+    bounds = declared.get("bounds", {})
+    if not isinstance(bounds, Mapping):
+        raise ValueError(f"learner_state.bounds must map dimension names to [low, high], got "
+                         f"{bounds!r}")
+    return declared
+
+
+def infer_learner_state(layout: ObservationLayout, samples: np.ndarray, action_low: np.ndarray,
+                        action_high: np.ndarray, declared: Mapping[str, Any] | None = None,
+                        owner: str = "the environment") -> LearnerState:
+    """The full LearnerState: the ``declared`` fields as given, the others inferred.
+
+    Args:
+      layout: the raw observation's entries and spec bounds.
+      samples: probed observations, flattened in layout order, shape (T, flat size); used only to
+        find (cos, sin) pairs when ``declared`` gives no ``keys``.
+      action_low, action_high: the action bounds, shape (m,).
+      declared: some of LearnerState's fields (a ``[learner_state]`` table).
+      owner: how the environment is named in messages (its SPEC).
+    Raises:
+      ValueError: in one line, naming what is missing (bounds of an unbounded entry) or ambiguous.
+    """
+    declared = check_declaration(declared)
+    if "bounds" in declared and ("low" in declared or "high" in declared):
+        raise ValueError(f"{owner}: declare the state box either as learner_state.low and .high or "
+                         f"as learner_state.bounds, not both")
+    keys = declared.get("keys")
+    if isinstance(keys, str):
+        raise ValueError(f"learner_state.keys must be a list of entries, got the string {keys!r}")
+    entries = list(keys) if keys is not None else inferred_entries(layout, samples)
+    mapping = ObservationMap(entries, layout)
+    n = mapping.dim
+    spec_low, spec_high = mapping.spec_bounds()
+
+    def vector(name: str, default: np.ndarray | None) -> np.ndarray | None:
+        if name not in declared:
+            return default
+        value = np.asarray(declared[name], dtype=float).reshape(-1)
+        if value.shape != (n,):
+            raise ValueError(f"{owner}: learner_state.{name} needs {n} values, one per dimension of "
+                             f"x = [{', '.join(mapping.dimension_names())}], got {declared[name]!r}")
+        return value
+
+    low, high = vector("low", spec_low), vector("high", spec_high)
+    names = mapping.dimension_names()
+    for name, bound in declared.get("bounds", {}).items():
+        if name not in names:
+            close = difflib.get_close_matches(name, names, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise ValueError(f"{owner}: learner_state.bounds names {name!r}{hint}, not a dimension "
+                             f"of x = [{', '.join(names)}]")
+        bound = np.asarray(bound, dtype=float).reshape(-1)
+        if bound.shape != (2,):
+            raise ValueError(f"{owner}: learner_state.bounds[{name!r}] must be [low, high], got "
+                             f"{declared['bounds'][name]!r}")
+        low[names.index(name)], high[names.index(name)] = bound
+    missing = [name for name, lo, hi in zip(names, low, high) if math.isnan(lo) or math.isnan(hi)]
+    if missing:
+        example = ", ".join(f'"{name}" = [LOW, HIGH]' for name in missing)
+        raise ValueError(f"{owner}: no finite bounds for {', '.join(missing)} (the observation spec "
+                         f"gives none); declare them: learner_state.bounds = {{{example}}}")
+    periodic = declared.get("periodic", mapping.periodic())
+    labels = declared.get("labels", tuple(
+        f"{name} [rad]" if p else name for name, p in zip(mapping.dimension_names(),
+                                                          mapping.periodic())))
+    weights = declared.get("weights", tuple(default_weights(low, high)))
+    action_low = np.asarray(action_low, dtype=float).reshape(-1)
+    action_high = np.asarray(action_high, dtype=float).reshape(-1)
+    action_weights = declared.get("action_weights",
+                                  tuple(default_weights(action_low, action_high)))
+    action_labels = declared.get("action_labels",
+                                 tuple(f"u[{i}]" for i in range(action_low.size)))
+    try:
+        return LearnerState(keys=tuple(entries), low=tuple(low), high=tuple(high),
+                            periodic=tuple(periodic), labels=tuple(labels), weights=tuple(weights),
+                            action_weights=tuple(action_weights),
+                            action_labels=tuple(action_labels))
+    except ValueError as error:
+        raise ValueError(f"{owner}: {error}") from None

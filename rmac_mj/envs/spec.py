@@ -1,0 +1,312 @@
+"""Where an environment comes from (its SPEC) and how the learners see it (:class:`EnvSpec`).
+
+A SPEC names an environment nobody here wrote:
+
+* ``dm_control:DOMAIN/TASK``: a task of dm-control's suite, ``dm_control.suite.load(DOMAIN, TASK)``;
+* ``gymnasium:ID``: ``gymnasium.make(ID)``, any registered id with a bounded Box action space;
+* ``package.module:factory`` (importable) or ``path/to/file.py:factory``: a function of the user's
+  that returns a ``dm_env.Environment`` or a ``gymnasium.Env``; it is given the ``kwargs``, and the
+  experiment's seed as ``seed=`` when it takes a parameter of that name.
+
+The suite's own tasks stay ``rmac_mj.tasks.load(domain, task)`` (``--domain/--task``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import importlib
+import importlib.util
+import inspect
+import math
+import pathlib
+import sys
+import zlib
+from typing import Any, Callable, Mapping
+
+import dm_env
+import numpy as np
+
+from rmac_mj.envs.environment import Environment, trial_steps
+from rmac_mj.envs.gymnasium_env import GymnasiumEnvironment
+from rmac_mj.envs.observations import (ObservationLayout, ObservationMap, check_declaration,
+                                       infer_learner_state, layout_of_dm_env)
+from rmac_mj.tasks.common import LearnerState
+
+#: The SPEC prefixes that name a library rather than a module of the user's.
+SOURCES = ("dm_control", "gymnasium")
+#: Probing for (cos, sin) pairs: episodes of uniformly random actions, their steps, and the seed.
+PROBE_EPISODES, PROBE_STEPS, PROBE_SEED = 3, 100, 0
+#: The longest episode run to find where an environment without a time limit truncates.
+MAX_PROBE_STEPS = 100_000
+
+
+def parse(spec: str) -> tuple[str, str]:
+    """``(source, target)`` of a SPEC: ('dm_control', 'DOMAIN/TASK'), ('gymnasium', 'ID') or
+    ('factory', 'module:function'); ValueError naming the SPEC otherwise."""
+    if not isinstance(spec, str) or ":" not in spec:
+        raise ValueError(f"env {spec!r} must read dm_control:DOMAIN/TASK, gymnasium:ID, "
+                         f"package.module:factory or path/to/file.py:factory")
+    prefix, _, rest = spec.partition(":")
+    if prefix == "dm_control":
+        domain, _, task = rest.partition("/")
+        if not domain or not task or "/" in task:
+            raise ValueError(f"env {spec!r} must read dm_control:DOMAIN/TASK, e.g. "
+                             f"dm_control:cartpole/swingup")
+        return prefix, rest
+    if prefix == "gymnasium":
+        if not rest:
+            raise ValueError(f"env {spec!r} must read gymnasium:ID, e.g. gymnasium:Pendulum-v1")
+        return prefix, rest
+    module, _, function = spec.rpartition(":")
+    if not module or not function or not all(part.isidentifier() for part in function.split(".")):
+        raise ValueError(f"env {spec!r}: a factory must read package.module:function or "
+                         f"path/to/file.py:function")
+    return "factory", spec
+
+
+def load_factory(target: str) -> Callable[..., Any]:
+    """The function a ``module:function`` or ``file.py:function`` SPEC names."""
+    module_name, _, attribute = target.rpartition(":")
+    if module_name.endswith(".py"):
+        path = pathlib.Path(module_name).expanduser().resolve()
+        if not path.is_file():
+            raise ValueError(f"env {target!r}: no file {str(path)!r}")
+        name = f"rmac_mj_user_{path.stem}_{zlib.crc32(str(path).encode()):08x}"
+        module = sys.modules.get(name)
+        if module is None:
+            loader_spec = importlib.util.spec_from_file_location(name, path)
+            module = importlib.util.module_from_spec(loader_spec)
+            sys.modules[name] = module
+            loader_spec.loader.exec_module(module)
+    else:
+        try:
+            module = importlib.import_module(module_name)
+        except ImportError as error:
+            raise ValueError(f"env {target!r}: cannot import {module_name!r} ({error}); a module "
+                             f"must be installed or on PYTHONPATH, or give path/to/file.py:"
+                             f"{attribute}") from None
+    try:
+        factory = functools.reduce(getattr, attribute.split("."), module)
+    except AttributeError:
+        raise ValueError(f"env {target!r}: {module_name!r} has no {attribute!r}") from None
+    if not callable(factory):
+        raise ValueError(f"env {target!r}: {attribute!r} is not callable")
+    return factory
+
+
+@dataclasses.dataclass(frozen=True)
+class EnvSpec:
+    """An outside environment and how the learners see it.
+
+    Attributes:
+      env: the SPEC (see the module docstring).
+      kwargs: keyword arguments of the environment: dm-control's ``task_kwargs`` (e.g.
+        ``time_limit``; not ``random``, the seed), ``gymnasium.make``'s (e.g. ``g``,
+        ``max_episode_steps``), or the factory's.
+      learner_state: what x is: a :class:`~rmac_mj.tasks.common.LearnerState`, or a mapping of some
+        of its fields (a ``[learner_state]`` table) with the others inferred, or None (all inferred;
+        a dm-control task that declares ``learner_state`` itself is taken at its word).
+      action_repeat: environment steps per learner step, with the same action (rewards summed).
+      trial_steps: learner steps after which a trial is truncated; None: the environment's own time
+        limit (dm-control's, Gymnasium's ``max_episode_steps``).
+      control_timestep: seconds per environment step where the environment does not say (a plain
+        dm_env, a Gymnasium env without ``dt``); None: the environment's.
+    """
+
+    env: str
+    kwargs: Mapping[str, Any] = dataclasses.field(default_factory=dict)
+    learner_state: LearnerState | Mapping[str, Any] | None = None
+    action_repeat: int = 1
+    trial_steps: int | None = None
+    control_timestep: float | None = None
+
+    def __post_init__(self) -> None:
+        parse(self.env)
+        if not isinstance(self.kwargs, Mapping):
+            raise ValueError(f"EnvSpec.kwargs must be a mapping, got {self.kwargs!r}")
+        object.__setattr__(self, "kwargs", dict(self.kwargs))
+        if self.source == "dm_control" and "random" in self.kwargs:
+            raise ValueError("EnvSpec.kwargs must not set 'random': the seed comes from the experiment")
+        if not isinstance(self.learner_state, (LearnerState, type(None))):
+            object.__setattr__(self, "learner_state", check_declaration(self.learner_state))
+        for name, value in (("action_repeat", self.action_repeat), ("trial_steps", self.trial_steps)):
+            if value is None and name == "trial_steps":
+                continue
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+                raise ValueError(f"EnvSpec.{name} must be a positive integer, got {value!r}")
+        dt = self.control_timestep
+        if dt is not None and not (isinstance(dt, (int, float)) and not isinstance(dt, bool)
+                                   and math.isfinite(dt) and dt > 0):
+            raise ValueError(f"EnvSpec.control_timestep must be a positive number of seconds, "
+                             f"got {dt!r}")
+
+    @property
+    def source(self) -> str:
+        """'dm_control', 'gymnasium' or 'factory'."""
+        return parse(self.env)[0]
+
+    # ------------------------------------------------------------------------------- building
+    def build_base(self, seed: int | None = None) -> dm_env.Environment:
+        """The environment itself as a ``dm_env.Environment`` (Gymnasium's adapted), seeded."""
+        source, target = parse(self.env)
+        kwargs = dict(self.kwargs)
+        if source == "dm_control":
+            from dm_control import suite
+
+            domain, task = target.split("/")
+            if (domain, task) not in suite.ALL_TASKS:
+                known = ", ".join(f"{d}/{t}" for d, t in suite.ALL_TASKS if d == domain) or \
+                    ", ".join(sorted(suite.TASKS_BY_DOMAIN))
+                raise ValueError(f"env {self.env!r}: dm-control has no {target!r}; "
+                                 f"{'its tasks' if domain in suite.TASKS_BY_DOMAIN else 'domains'}: "
+                                 f"{known}")
+            return suite.load(domain, task, task_kwargs=dict(kwargs, random=seed))
+        if source == "gymnasium":
+            try:
+                import gymnasium
+            except ImportError:
+                raise ValueError(f"env {self.env!r} needs Gymnasium: pip install gymnasium") from None
+            try:
+                env = gymnasium.make(target, **kwargs)
+            except gymnasium.error.Error as error:
+                raise ValueError(f"env {self.env!r}: {error}") from None
+            return GymnasiumEnvironment(env, seed=seed, name=self.env)
+        factory = load_factory(target)
+        if seed is not None and "seed" in inspect.signature(factory).parameters:
+            kwargs["seed"] = seed
+        made = factory(**kwargs)
+        if isinstance(made, dm_env.Environment):
+            return made
+        if _is_gymnasium_env(made):
+            return GymnasiumEnvironment(made, seed=seed, name=self.env)
+        raise ValueError(f"env {self.env!r}: the factory returned a {type(made).__name__}, not a "
+                         f"dm_env.Environment or a gymnasium.Env")
+
+    def make(self, seed: int | None = None) -> Environment:
+        """The environment the learners run on, seeded with ``seed`` (an int, or None for fresh
+        entropy): x as :meth:`resolve` says, trials as long as its time limit or ``trial_steps``."""
+        base = self.build_base(seed)
+        spec = self
+        if not isinstance(self.learner_state, LearnerState) or (
+                self.trial_steps is None and _step_limit(base) is None):
+            spec = self.resolve()
+        base_dt, base_limit = spec._time_of(base)
+        steps = spec.trial_steps or trial_steps(base_limit, spec.action_repeat)
+        return Environment(base, spec.learner_state, _layout(base), base_dt, steps,
+                           action_repeat=spec.action_repeat, name=self.env)
+
+    def resolve(self) -> "EnvSpec":
+        """This spec with its full LearnerState (declared fields kept, the rest inferred, probing an
+        instance of the environment of its own for (cos, sin) pairs when ``keys`` are not given) and,
+        for an environment without a time limit that truncates its episodes itself, ``trial_steps``
+        measured. Raises ValueError, in one line, on whatever is missing or ambiguous."""
+        base = self.build_base(PROBE_SEED)
+        spec = self
+        if self.trial_steps is None and _step_limit(base) is None:
+            spec = dataclasses.replace(spec, trial_steps=_truncation_steps(base, self))
+            base = self.build_base(PROBE_SEED)
+        spec._time_of(base)  # refuse an environment without a time step now
+        declared = self.learner_state
+        if isinstance(declared, LearnerState):
+            return spec
+        if declared is None:
+            own = getattr(getattr(base, "task", None), "learner_state", None)
+            if isinstance(own, LearnerState):
+                return dataclasses.replace(spec, learner_state=own)
+        layout = _layout(base)
+        needs_probe = not (declared and "keys" in declared)
+        samples = _probe(base, layout) if needs_probe else np.zeros((0, sum(layout.sizes.values())))
+        action = base.action_spec()
+        learner_state = infer_learner_state(
+            layout, samples, np.broadcast_to(action.minimum, action.shape),
+            np.broadcast_to(action.maximum, action.shape), declared, owner=self.env)
+        base.close()
+        return dataclasses.replace(spec, learner_state=learner_state)
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready: every field, the learner state as its fields."""
+        learner_state = self.learner_state
+        if isinstance(learner_state, LearnerState):
+            learner_state = dataclasses.asdict(learner_state)
+        return {"env": self.env, "kwargs": dict(self.kwargs), "learner_state": learner_state,
+                "action_repeat": int(self.action_repeat), "trial_steps": self.trial_steps,
+                "control_timestep": self.control_timestep}
+
+    def _time_of(self, base: dm_env.Environment) -> tuple[float, int]:
+        """(seconds per base step, base steps per episode); ValueError naming what is missing."""
+        dt = self.control_timestep
+        if dt is None:
+            own = getattr(base, "control_timestep", None)
+            dt = own() if callable(own) else None
+        if dt is None or not dt > 0:
+            raise ValueError(f"env {self.env!r} does not say its time step (no dt); set "
+                             f"control_timestep (seconds per environment step)")
+        limit = _step_limit(base)
+        if limit is None and self.trial_steps is None:
+            raise ValueError(f"env {self.env!r} has no time limit and does not truncate its "
+                             f"episodes; set trial_steps (or, for Gymnasium, max_episode_steps in "
+                             f"its kwargs)")
+        return float(dt), limit if limit is not None else self.trial_steps * self.action_repeat
+
+
+def _is_gymnasium_env(obj: Any) -> bool:
+    gymnasium = sys.modules.get("gymnasium")
+    return gymnasium is not None and isinstance(obj, gymnasium.Env)
+
+
+def _layout(base: dm_env.Environment) -> ObservationLayout:
+    layout = getattr(base, "layout", None)  # a GymnasiumEnvironment knows its space's bounds
+    return layout if isinstance(layout, ObservationLayout) else layout_of_dm_env(
+        base.observation_spec())
+
+
+def _step_limit(base: dm_env.Environment) -> int | None:
+    """Steps per episode of ``base``: Gymnasium's ``max_episode_steps``, dm-control's step limit
+    (private there; read here as the trial loop does), None when it has none."""
+    if isinstance(base, GymnasiumEnvironment):
+        return base.step_limit()
+    limit = getattr(base, "_step_limit", None)
+    if limit is None or not math.isfinite(limit) or limit <= 0:
+        return None
+    return int(math.ceil(limit))
+
+
+def _truncation_steps(base: dm_env.Environment, spec: EnvSpec) -> int | None:
+    """Learner steps per trial of an environment that truncates its episodes itself (a ``last()``
+    with a nonzero discount) at the same step in each of two probe episodes of random actions;
+    None when it terminates instead, varies, or runs past :data:`MAX_PROBE_STEPS`."""
+    rng = np.random.default_rng(PROBE_SEED)
+    action = base.action_spec()
+    low = np.broadcast_to(action.minimum, action.shape).astype(float)
+    high = np.broadcast_to(action.maximum, action.shape).astype(float)
+    lengths = set()
+    for _ in range(2):
+        base.reset()
+        for steps in range(1, MAX_PROBE_STEPS + 1):
+            timestep = base.step(rng.uniform(low, high))
+            if timestep.last():
+                break
+        if not timestep.last() or timestep.discount == 0.0:
+            return None
+        lengths.add(steps)
+    return trial_steps(lengths.pop(), spec.action_repeat) if len(lengths) == 1 else None
+
+
+def _probe(base: dm_env.Environment, layout: ObservationLayout) -> np.ndarray:
+    """Raw observations (flattened, shape (T, size)) of a few episodes of uniform random actions."""
+    rng = np.random.default_rng(PROBE_SEED)
+    spec = base.action_spec()
+    low = np.broadcast_to(spec.minimum, spec.shape).astype(float)
+    high = np.broadcast_to(spec.maximum, spec.shape).astype(float)
+    flatten = ObservationMap([], layout).flat
+    samples = []
+    for _ in range(PROBE_EPISODES):
+        timestep = base.reset()
+        samples.append(flatten(timestep.observation))
+        for _ in range(PROBE_STEPS):
+            timestep = base.step(rng.uniform(low, high))
+            samples.append(flatten(timestep.observation))
+            if timestep.last():
+                break
+    return np.asarray(samples)

@@ -1,0 +1,277 @@
+"""Outside environments (rmac_mj.envs): every SPEC form end to end, the learner state inferred or
+refused, terminations against truncations."""
+
+from __future__ import annotations
+
+import math
+import textwrap
+
+import dm_env
+import gymnasium
+import numpy as np
+import pytest
+from dm_env import specs
+
+from rmac_mj import envs
+from rmac_mj.agents import make_agent
+from rmac_mj.agents.sac import SACConfig
+from rmac_mj.envs.observations import ObservationMap, inferred_entries, layout_of_dm_env
+from rmac_mj.experiments.episode import (action_space_of, run_trial, state_of, state_space_of,
+                                         steps_per_trial, trial_seconds)
+
+SMALL_SAC = SACConfig(backend="numpy")
+
+
+# ----------------------------------------------------------------------------------------------------
+# A user's own environments, defined here and loaded by SPEC (this file's path:function).
+
+class Slider(dm_env.Environment):
+    """A user's dm_env: a mass on a rail of +-1 m, pushed by u in [-1, 1] N for 0.1 s a step; it
+    terminates off the rail. Observation: position and velocity, bounded by their specs. Reward:
+    -x^2 while on the rail, -10 on the step that leaves it."""
+
+    def __init__(self, start: float = 0.0, seed: int | None = None) -> None:
+        self.start, self.rng = start, np.random.default_rng(seed)
+        self.x = self.v = 0.0
+
+    def reset(self):
+        self.x, self.v = self.start + 0.01 * self.rng.standard_normal(), 0.0
+        return dm_env.restart(self._observation())
+
+    def step(self, action):
+        self.v += 0.1 * float(np.asarray(action).reshape(-1)[0])
+        self.x += 0.1 * self.v
+        if abs(self.x) > 1.0:
+            return dm_env.termination(-10.0, self._observation())
+        return dm_env.transition(-self.x ** 2, self._observation())
+
+    def _observation(self):
+        return {"position": np.array([self.x]), "velocity": np.array([self.v])}
+
+    def observation_spec(self):
+        return {"position": specs.BoundedArray((1,), float, -1.0, 1.0, name="position"),
+                "velocity": specs.BoundedArray((1,), float, -2.0, 2.0, name="velocity")}
+
+    def action_spec(self):
+        return specs.BoundedArray((1,), float, -1.0, 1.0)
+
+
+def make_slider(start: float = 0.0, seed: int | None = None) -> Slider:
+    return Slider(start, seed)
+
+
+class Wheel(gymnasium.Env):
+    """A user's Gymnasium env: a wheel turned by torque, observed as (cos, sin, speed)."""
+
+    def __init__(self, steps: int = 12):
+        self.observation_space = gymnasium.spaces.Box(np.array([-1, -1, -4.0]),
+                                                      np.array([1, 1, 4.0]), dtype=np.float64)
+        self.action_space = gymnasium.spaces.Box(-1.0, 1.0, (1,), dtype=np.float32)
+        self.steps, self.dt = steps, 0.05
+        self.angle = self.speed = 0.0
+        self.k = 0
+
+    def reset(self, *, seed=None, options=None):
+        super().reset(seed=seed)
+        self.angle, self.speed, self.k = float(self.np_random.uniform(-np.pi, np.pi)), 0.0, 0
+        return self._observation(), {}
+
+    def step(self, action):
+        self.speed = float(np.clip(self.speed + self.dt * 10 * float(action[0]), -4, 4))
+        self.angle += self.dt * self.speed
+        self.k += 1
+        return self._observation(), -abs(self.speed), False, self.k >= self.steps, {}
+
+    def _observation(self):
+        return np.array([math.cos(self.angle), math.sin(self.angle), self.speed])
+
+
+class DoubleCos(Slider):
+    """Ambiguous: 'angles' holds (cos a, sin a, cos a), so element 1 pairs with 0 and with 2."""
+
+    def _observation(self):
+        return {"angles": np.array([math.cos(self.x), math.sin(self.x), math.cos(self.x)])}
+
+    def observation_spec(self):
+        return {"angles": specs.BoundedArray((3,), float, -1.0, 1.0, name="angles")}
+
+
+def make_wheel(steps: int = 12) -> Wheel:
+    return Wheel(steps)
+
+
+def make_double_cos() -> DoubleCos:
+    return DoubleCos(start=0.5)
+
+
+HERE = __file__
+
+
+def tiny_run(env) -> list[float]:
+    agent = make_agent("s-ac", state_space_of(env), action_space_of(env), config=SMALL_SAC, seed=0)
+    returns = [run_trial(env, agent) for _ in range(2)]
+    returns.append(run_trial(env, agent, learn=False))
+    assert all(np.isfinite(returns))
+    return returns
+
+
+# ----------------------------------------------------------------------------------------------------
+# Each SPEC form end to end.
+
+def test_gymnasium_pendulum_is_inferred_and_runs():
+    env = envs.load("gymnasium:Pendulum-v1", {"max_episode_steps": 15}, seed=3)
+    ls = env.learner_state
+    assert ls.keys == ("atan2(observation[1], observation[0])", "observation[2]")
+    assert ls.periodic == (True, False) and ls.low == (-math.pi, -8.0) and ls.high == (math.pi, 8.0)
+    assert steps_per_trial(env) == 15 and trial_seconds(env) == pytest.approx(0.75)
+    tiny_run(env)
+
+
+def test_gymnasium_seed_gives_the_same_starts():
+    starts = [[state_of(e.reset().observation, e.learner_state) for _ in range(3)]
+              for e in (envs.load("gymnasium:Pendulum-v1", seed=7) for _ in range(2))]
+    np.testing.assert_array_equal(starts[0], starts[1])
+    assert not np.array_equal(starts[0][0], starts[0][1])  # later resets continue the stream
+
+
+def test_dm_control_with_declared_bounds_and_action_repeat():
+    bounds = {"position[0]": [-1.8, 1.8], "velocity[0]": [-5, 5], "velocity[1]": [-20, 20]}
+    env = envs.load("dm_control:cartpole/swingup", {"time_limit": 0.2}, seed=0,
+                    learner_state={"bounds": bounds}, action_repeat=2)
+    assert env.learner_state.keys == ("position[0]", "atan2(position[2], position[1])",
+                                      "velocity[0]", "velocity[1]")
+    assert env.learner_state.periodic == (False, True, False, False)
+    assert steps_per_trial(env) == 10 and env.control_timestep() == pytest.approx(0.02)
+    # The angle is the pole's, pi when it hangs down.
+    x = state_of(env.reset().observation, env.learner_state)
+    assert abs(abs(x[1]) - math.pi) < 0.05
+    tiny_run(env)
+
+
+def test_factory_from_a_file_returning_dm_env_with_its_seed():
+    env = envs.load(f"{HERE}:make_slider", {"start": 0.5}, seed=4, trial_steps=6,
+                    control_timestep=0.1)
+    assert env.learner_state.keys == ("position", "velocity")
+    assert steps_per_trial(env) == 6 and trial_seconds(env) == pytest.approx(0.6)
+    again = envs.load(f"{HERE}:make_slider", {"start": 0.5}, seed=4, trial_steps=6,
+                      control_timestep=0.1)
+    assert env.reset().observation["position"] == again.reset().observation["position"]
+    tiny_run(env)
+
+
+def test_factory_from_a_module_returning_gymnasium(tmp_path, monkeypatch):
+    (tmp_path / "my_tasks.py").write_text(textwrap.dedent(f"""
+        import importlib.util
+        spec = importlib.util.spec_from_file_location("source", {HERE!r})
+        source = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(source)
+        def wheel(steps=12):
+            return source.Wheel(steps)
+    """))
+    monkeypatch.syspath_prepend(str(tmp_path))
+    env = envs.load("my_tasks:wheel", {"steps": 8}, seed=1)
+    assert env.learner_state.keys == ("atan2(observation[1], observation[0])", "observation[2]")
+    assert steps_per_trial(env) == 8 and env.control_timestep() == 0.05
+    tiny_run(env)
+
+
+def make_suite_pendulum(seed=None):
+    """A factory returning a dm-control task that declares its own learner_state."""
+    from rmac_mj import tasks
+
+    return tasks.load("dc_pendulum", "swingup", task_kwargs={"random": seed})
+
+
+def test_a_task_that_declares_its_learner_state_is_taken_at_its_word():
+    from rmac_mj import tasks
+
+    env = envs.load(f"{HERE}:make_suite_pendulum", seed=0)
+    assert env.learner_state == tasks.load("dc_pendulum", "swingup").task.learner_state
+
+
+# ----------------------------------------------------------------------------------------------------
+# The learner state: folding, refusals.
+
+def test_cos_sin_folding_recovers_the_angle():
+    angles = np.random.default_rng(0).uniform(-np.pi, np.pi, 50)
+    spec = {"position": specs.Array((3,), float), "velocity": specs.Array((1,), float)}
+    layout = layout_of_dm_env(spec)
+    samples = np.stack([[0.3, np.cos(a), np.sin(a), 2.0] for a in angles])
+    entries = inferred_entries(layout, samples)
+    assert entries == ["position[0]", "atan2(position[2], position[1])", "velocity"]
+    fold = ObservationMap(entries, layout)
+    for a in angles:
+        x = fold({"position": np.array([0.3, np.cos(a), np.sin(a)]), "velocity": np.array([2.0])})
+        np.testing.assert_allclose(x, [0.3, a, 2.0], atol=1e-12)
+
+
+def test_pendulum_v1_angle_is_the_simulators():
+    env = envs.load("gymnasium:Pendulum-v1", seed=5)
+    env.reset()
+    for u in (2.0, -1.0, 0.5):
+        x = state_of(env.step(np.array([u])).observation, env.learner_state)
+        theta, theta_dot = env.base.env.unwrapped.state
+        assert x[0] == pytest.approx((theta + np.pi) % (2 * np.pi) - np.pi, abs=1e-6)
+        assert x[1] == pytest.approx(theta_dot, abs=1e-5)
+
+
+def test_an_ambiguous_observation_is_refused_naming_the_key():
+    with pytest.raises(ValueError, match=r"observation 'angles' is ambiguous.*angles\[0\], angles\[1\]"):
+        envs.load(f"{HERE}:make_double_cos", trial_steps=5, control_timestep=0.1)
+    # Declared, it runs.
+    env = envs.load(f"{HERE}:make_double_cos", trial_steps=5, control_timestep=0.1,
+                    learner_state={"keys": ["atan2(angles[1], angles[0])"]})
+    assert env.learner_state.periodic == (True,)
+
+
+@pytest.mark.parametrize("spec, kwargs, message", [
+    ("dm_control:pendulum/swingup", {}, r"no finite bounds for velocity .*learner_state.bounds = "
+                                        r"\{\"velocity\" = \[LOW, HIGH\]\}"),
+    (f"{HERE}:make_slider", {}, r"does not say its time step.*control_timestep"),
+    ("gymnasium:CartPole-v1", {}, r"action space is Discrete"),
+    ("gymnasium:NoSuchEnv-v0", {}, r"gymnasium:NoSuchEnv-v0"),
+    ("dm_control:cartpole/swingupp", {}, r"its tasks: .*cartpole/swingup"),
+    ("no_such_module:make", {}, r"cannot import 'no_such_module'"),
+    ("gymnasium:Pendulum-v1", {"learner_state": {"bound": {}}}, r"did you mean 'bounds'"),
+    ("gymnasium:Pendulum-v1", {"learner_state": {"bounds": {"theta": [0, 1]}}},
+     r"names 'theta'.*x = \[atan2"),
+])
+def test_what_is_missing_or_wrong_is_refused_in_one_line(spec, kwargs, message):
+    with pytest.raises(ValueError, match=message) as error:
+        envs.load(spec, seed=0, **kwargs)
+    assert "\n" not in str(error.value)
+
+
+def test_slider_needs_a_time_limit():
+    with pytest.raises(ValueError, match=r"has no time limit and does not truncate its episodes; set trial_steps"):
+        envs.load(f"{HERE}:make_slider", control_timestep=0.1)
+
+
+# ----------------------------------------------------------------------------------------------------
+# Terminations end a trial with discount 0; truncations and time limits with discount 1.
+
+def test_termination_and_truncation_reach_the_trial_loop():
+    env = envs.load(f"{HERE}:make_slider", {"start": 0.9}, seed=0, trial_steps=50,
+                    control_timestep=0.1)
+    env.reset()
+    steps, timestep = 0, None
+    while timestep is None or not timestep.last():
+        timestep = env.step(np.array([1.0]))
+        steps += 1
+    assert steps < 50 and timestep.discount == 0.0 and timestep.reward == -10.0
+    wheel = envs.load(f"{HERE}:make_wheel", seed=0)
+    wheel.reset()
+    for _ in range(12):
+        timestep = wheel.step(np.array([0.1]))
+    assert timestep.last() and timestep.discount == 1.0
+
+
+def test_action_repeat_sums_the_rewards():
+    one = envs.load(f"{HERE}:make_slider", seed=2, trial_steps=4, control_timestep=0.1)
+    two = envs.load(f"{HERE}:make_slider", seed=2, trial_steps=2, control_timestep=0.1,
+                    action_repeat=2)
+    one.reset(), two.reset()
+    rewards = [one.step(np.array([0.5])).reward for _ in range(4)]
+    repeated = [two.step(np.array([0.5])).reward for _ in range(2)]
+    np.testing.assert_allclose(repeated, [rewards[0] + rewards[1], rewards[2] + rewards[3]])
+    assert two.control_timestep() == pytest.approx(0.2)
