@@ -26,7 +26,7 @@ def test_make_agent_takes_overrides_of_the_paper_defaults(algorithm):
     agent = make_agent(algorithm, STATES, ACTIONS, config={"gamma": 0.9}, seed=0)
     assert agent.config.gamma == 0.9 and agent.config.lam == 0.65  # the paper's lambda kept
     assert agent.name == algorithm
-    with pytest.raises(ValueError, match="unknown hyperparameters"):
+    with pytest.raises(ValueError, match=r"has no parameter 'gama' \(did you mean 'gamma'\?\)"):
         make_agent(algorithm, STATES, ACTIONS, config={"gama": 0.9})
 
 

@@ -55,19 +55,21 @@ def test_noise_follows_the_schedule_draw_for_draw():
 
 
 @pytest.mark.parametrize("kwargs, name", [
-    (dict(decay="cubic"), "Exploration.decay must be one of"),
-    (dict(sigma=1.0, sigma_min=1.5), "Exploration.sigma_min must be in \\[0, sigma=1.0\\]"),
+    (dict(decay="cubic"), "Exploration.decay must be one of 'none', 'exponential', 'linear', got 'cubic'"),
+    (dict(sigma=1.0, sigma_min=1.5), "Exploration.sigma_min must be a number in \\[0, sigma=1.0\\], got 1.5"),
     (dict(sigma_min=-0.1), "Exploration.sigma_min"),
-    (dict(decay_rate=0.0), "Exploration.decay_rate must be in \\(0, 1\\]"),
+    (dict(decay_rate=0.0), "Exploration.decay_rate must be a number in \\(0, 1\\], got 0.0"),
     (dict(decay="exponential", decay_rate=1.0), "Exploration.decay_rate must be below 1"),
-    (dict(decay_trials=0), "Exploration.decay_trials must be a positive integer"),
+    (dict(decay_trials=0), "Exploration.decay_trials must be an integer >= 1, got 0"),
     (dict(decay_trials=2.5), "Exploration.decay_trials"),
-    (dict(where="sometimes"), "Exploration.where must be one of"),
-    (dict(where="uncertain"), "Exploration.uncertainty_threshold must be given"),
+    (dict(where="sometimes"), "Exploration.where must be 'always' or 'uncertain', got 'sometimes'"),
+    (dict(where="uncertain"), "Exploration.uncertainty_threshold must be a finite number >= 0 with where='uncertain'"),
     (dict(where="uncertain", uncertainty_threshold=-1.0), "Exploration.uncertainty_threshold"),
     (dict(uncertainty_threshold=math.inf), "Exploration.uncertainty_threshold"),
     (dict(sigma=math.nan), "Exploration.sigma must be"),
     (dict(period=0), "Exploration.period"),
+    (dict(period=3.0), "Exploration.period must be an integer >= 1, got 3.0"),
+    (dict(phase=3), "Exploration.phase must be an integer in \\[0, period=3\\), got 3"),
 ])
 def test_bad_exploration_names_the_field(kwargs, name):
     with pytest.raises(ValueError, match=name):

@@ -182,7 +182,7 @@ def test_generic_dimensions():
 @pytest.mark.parametrize("field, value", [
     ("gamma", 1.0), ("gamma", -0.1), ("lam", 1.5), ("alpha_actor", -0.01), ("alpha_critic", 2.0),
     ("alpha_critic", float("nan")), ("rate_split", "half"), ("trace_cutoff", 1.0),
-    ("backend", "cuda"), ("tile_low", [0.0, 1.0]), ("tile_high", (0.0, float("inf"))),
+    ("backend", "cuda"), ("tile_low", [0.0, "1"]), ("tile_high", (0.0, float("inf"))),
     ("exploration", 1.0), ("tile_coding", 16),
 ])
 def test_config_validation(field, value):

@@ -77,27 +77,27 @@ name = "oldest"
 @pytest.mark.parametrize("text, named", [
     ("[grdi]\n", "[grdi]: unknown section (did you mean [grid]?)"),
     ("[protocol]\nexperimentz = 3\n", "[protocol] experimentz: unknown key (did you mean experiments?)"),
-    ('[grid]\n"rmac.alpha_rr" = [0.01]\n', "\"rmac.alpha_rr\": unknown hyperparameter 'alpha_rr' of "
-                                           "RMACConfig; did you mean alpha_r?"),
-    ('[grid]\n"rmac.exploration.sigmaa" = [1]\n', "unknown hyperparameter 'sigmaa' of Exploration"),
+    ('[grid]\n"rmac.alpha_rr" = [0.01]\n', "\"rmac.alpha_rr\": RMACConfig has no parameter 'alpha_rr' "
+                                           "(did you mean 'alpha_r'?)"),
+    ('[grid]\n"rmac.exploration.sigmaa" = [1]\n', "Exploration has no parameter 'sigmaa'"),
     ('[grid]\n"dqn.alpha" = [1]\n', "\"dqn.alpha\": unknown algorithm 'dqn'"),
     ('[protocol]\nalgorithms = ["s-ac"]\n[grid]\n"rmac.alpha_r" = [0.01]\n',
      "\"rmac.alpha_r\": sets rmac, which the protocol does not run"),
-    ('[grid]\n"rmac.alpha_r" = ["fast"]\n', "\"rmac.alpha_r\" value \"fast\": expected a number"),
-    ('[grid]\n"rmac.critic_capacity" = [2000.5]\n', "\"rmac.critic_capacity\" value 2000.5: expected an integer"),
+    ('[grid]\n"rmac.alpha_r" = ["fast"]\n', "\"rmac.alpha_r\" value \"fast\": expected a number in [0, 1]"),
+    ('[grid]\n"rmac.critic_capacity" = [2000.5]\n', "\"rmac.critic_capacity\" value 2000.5: expected an integer >= 1"),
     ('[protocol]\nexperiments = "ten"\n', "[protocol] experiments: expected an integer >= 1"),
     ('[grid]\n"rmac.alpha_r" = 0.01\n', "\"rmac.alpha_r\": expected a list of values to sweep"),
-    ('[grid]\n"rmac.critic_weights" = [1, 0.1]\n', "\"rmac.critic_weights\" value 1: expected a list of numbers"),
-    ('[grid]\n"rmac.gamma" = [0.9, 1.5]\n', "\"rmac.gamma\" value 1.5: RMACConfig.gamma must be in [0, 1]"),
+    ('[grid]\n"rmac.critic_weights" = [1, 0.1]\n', "\"rmac.critic_weights\" value 1: expected a list of finite numbers >= 0"),
+    ('[grid]\n"rmac.gamma" = [0.9, 1.5]\n', "\"rmac.gamma\" value 1.5: expected a number in [0, 1)"),
     ('[grid]\n"rmac.critic_weights" = [[1, 0.1, 3]]\n', "config.critic_weights has 3 entries"),
-    ('[protocol]\n"rmac.critic_replacement" = "newest"\n', "\"rmac.critic_replacement\": RMACConfig"),
+    ('[protocol]\n"rmac.critic_replacement" = "newest"\n', "\"rmac.critic_replacement\": expected one of 'oldest', 'nearest', 'redundancy', got \"newest\""),
     ('[grid]\n"rmac.alpha_r" = [0.01, 0.01]\n', "\"rmac.alpha_r\": repeats a value"),
     ('[[variant]]\n"rmac.alpha_r" = 0.01\n', "[[variant]] #1 name: each variant needs a name"),
     ('[grid]\n"rmac.alpha_r" = [0.01]\n[[variant]]\nname = "a"\n"rmac.alpha_r" = 0.02\n',
      "[[variant]] \"a\" \"rmac.alpha_r\": is also swept in [grid]"),
     ("[grid\n", "not valid TOML"),
     ('[[variant]]\nname = "u"\n"rmac.exploration.where" = "uncertain"\n',
-     "[[variant]] \"u\" \"rmac.exploration.where\": Exploration.uncertainty_threshold must be given"),
+     "[[variant]] \"u\" \"rmac.exploration.where\": Exploration.uncertainty_threshold must be a finite number >= 0 with where='uncertain'"),
 ])
 def test_a_malformed_file_names_the_key(tmp_path, text, named):
     with pytest.raises(UserInputError) as error:

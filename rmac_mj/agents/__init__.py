@@ -3,13 +3,12 @@
 
 from __future__ import annotations
 
-import dataclasses
 import importlib
-import typing
 from typing import Any
 
 import numpy as np
 
+from rmac_mj import constraints
 from rmac_mj.agents.base import ActionSpace, Agent, Exploration, StateSpace
 
 #: Algorithm key -> (module, agent class, config class). Imported lazily: numba kernels compile on use.
@@ -48,22 +47,22 @@ def agent_class(name: str) -> type:
 
 
 def config_from_dict(cls: type, values: dict[str, Any]):
-    """Rebuild a (possibly nested) frozen config dataclass from ``dataclasses.asdict`` output."""
-    hints = typing.get_type_hints(cls)
+    """Rebuild a (possibly nested) frozen config dataclass from ``dataclasses.asdict`` output (or
+    any dict of some of its parameters, e.g. a TOML table); the config checks the values against its
+    ``parameter_constraints`` (:mod:`rmac_mj.constraints`), and an unknown name is refused with the
+    closest known one."""
+    table = cls.parameter_constraints
+    for name in values:
+        if name not in table:
+            raise constraints.unknown(cls.__name__, name, table)
     kwargs = {}
-    for field in dataclasses.fields(cls):
-        if field.name not in values:
-            continue
-        value = values[field.name]
-        hint = hints.get(field.name)
-        if dataclasses.is_dataclass(hint) and isinstance(value, dict):
-            value = config_from_dict(hint, value)
+    for name, value in values.items():
+        nested = constraints.nested_class(table[name])
+        if nested is not None and isinstance(value, dict):
+            value = config_from_dict(nested, value)
         elif isinstance(value, list):
             value = tuple(value)
-        kwargs[field.name] = value
-    unknown = sorted(set(values) - {f.name for f in dataclasses.fields(cls)})
-    if unknown:
-        raise ValueError(f"{cls.__name__}: unknown hyperparameters {unknown}")
+        kwargs[name] = value
     return cls(**kwargs)
 
 

@@ -23,9 +23,12 @@ from __future__ import annotations
 import abc
 import dataclasses
 import math
-from typing import Any, Callable
+from numbers import Integral, Real
+from typing import Any, Callable, ClassVar
 
 import numpy as np
+
+from rmac_mj.constraints import Field, Interval, Options, check_config, invalid
 
 
 def _weights(owner: str, weights, n: int) -> np.ndarray:
@@ -110,10 +113,6 @@ class ActionSpace:
         return np.minimum(np.maximum(u, self.low), self.high)
 
 
-_DECAYS = ("none", "exponential", "linear")
-_WHERE = ("always", "uncertain")
-
-
 @dataclasses.dataclass(frozen=True)
 class Exploration:
     """Exploration of section 6.1: every ``period``-th step, zero-mean Gaussian noise of std ``sigma``.
@@ -168,43 +167,26 @@ class Exploration:
     where: str = "always"
     uncertainty_threshold: float | None = None
 
+    parameter_constraints: ClassVar[dict[str, list]] = {
+        "sigma": [Interval(Real, 0, None)],
+        "period": [Interval(Integral, 1, None)],
+        "phase": [Interval(Integral, 0, Field("period"), closed="left")],
+        "decay": [Options("none", "exponential", "linear")],
+        "sigma_min": [Interval(Real, 0, Field("sigma"))],
+        "decay_rate": [Interval(Real, 0, 1, closed="right")],
+        "decay_trials": [Interval(Integral, 1, None)],
+        "where": [Options("always", "uncertain")],
+        "uncertainty_threshold": [Interval(Real, 0, None), None],
+    }
+
     def __post_init__(self) -> None:
-        def integer(value: Any) -> bool:
-            return (not isinstance(value, bool) and isinstance(value, (int, np.integer, float))
-                    and float(value).is_integer())
-
-        def number(value: Any) -> bool:
-            return (not isinstance(value, bool) and isinstance(value, (int, float, np.number))
-                    and math.isfinite(value))
-
-        if not (number(self.sigma) and self.sigma >= 0):
-            raise ValueError(f"Exploration.sigma must be finite and >= 0, got {self.sigma!r}")
-        if not integer(self.period) or self.period < 1:
-            raise ValueError(f"Exploration.period must be a positive integer, got {self.period!r}")
-        if not integer(self.phase) or not 0 <= self.phase < self.period:
-            raise ValueError(f"Exploration.phase must be in [0, period), got {self.phase!r}")
-        if self.decay not in _DECAYS:
-            raise ValueError(f"Exploration.decay must be one of {_DECAYS}, got {self.decay!r}")
-        if not (number(self.sigma_min) and 0 <= self.sigma_min <= self.sigma):
-            raise ValueError(f"Exploration.sigma_min must be in [0, sigma={self.sigma!r}], "
-                             f"got {self.sigma_min!r}")
-        if not (number(self.decay_rate) and 0 < self.decay_rate <= 1):
-            raise ValueError(f"Exploration.decay_rate must be in (0, 1], got {self.decay_rate!r}")
+        check_config(self)
         if self.decay == "exponential" and self.decay_rate == 1:
-            raise ValueError("Exploration.decay_rate must be below 1 with decay='exponential' "
-                             "(1 never decays; use decay='none')")
-        if not integer(self.decay_trials) or self.decay_trials < 1:
-            raise ValueError(f"Exploration.decay_trials must be a positive integer, "
-                             f"got {self.decay_trials!r}")
-        if self.where not in _WHERE:
-            raise ValueError(f"Exploration.where must be one of {_WHERE}, got {self.where!r}")
-        threshold = self.uncertainty_threshold
-        if threshold is not None and not (number(threshold) and threshold >= 0):
-            raise ValueError(f"Exploration.uncertainty_threshold must be None or a finite number "
-                             f">= 0, got {threshold!r}")
-        if self.where == "uncertain" and threshold is None:
-            raise ValueError("Exploration.uncertainty_threshold must be given (a finite number >= 0) "
-                             "with where='uncertain'")
+            raise invalid("Exploration", "decay_rate", self.decay_rate,
+                          "below 1 with decay='exponential' (1 never decays; use decay='none')")
+        if self.where == "uncertain" and self.uncertainty_threshold is None:
+            raise invalid("Exploration", "uncertainty_threshold", None,
+                          "a finite number >= 0 with where='uncertain'")
 
     @property
     def uses_trial(self) -> bool:

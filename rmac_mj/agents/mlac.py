@@ -40,20 +40,16 @@ Memories can be seeded from data (prior knowledge) with :meth:`MLAC.seed_memorie
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
+from numbers import Real
+from typing import Any, ClassVar
 
 import numpy as np
 
 from rmac_mj.agents.base import (ActionSpace, Agent, Exploration, StateSpace,
                                  discounted_returns, model_uncertainty, seed_memory)
-from rmac_mj.approximators.llr import LLRMemory, wrap
+from rmac_mj.approximators.llr import SHARED_CONSTRAINTS, LLRMemory, memory_constraints, wrap
+from rmac_mj.constraints import InstanceOf, Interval, Options, check_config
 
-_BACKENDS = ("numba", "numpy")
-_CONDITIONINGS = ("svd", "ridge", "none")
-_REPLACEMENTS = ("nearest", "oldest")
-_INITIAL_VALUES = ("critic", "zero")
-_MODEL_ACTIONS = ("policy", "applied")
-_SATURATION_RULES = ("zero", "outward")
 _MEMORIES = ("actor", "critic", "process")
 
 
@@ -142,55 +138,25 @@ class MLACConfig:
     backend: str = "numba"
     """Back end of the LLR memories: 'numba' (compiled) or 'numpy' (reference); same results."""
 
+    parameter_constraints: ClassVar[dict[str, list]] = {
+        "gamma": [Interval(Real, 0, 1, closed="left")],
+        "lam": [Interval(Real, 0, 1)],
+        "alpha_actor": [Interval(Real, 0, 1)],
+        "alpha_critic": [Interval(Real, 0, 1)],
+        **{name: constraints for memory in _MEMORIES for name, constraints in
+           memory_constraints(memory, ("nearest", "oldest"), redundancy=False).items()},
+        "exploration": [InstanceOf(Exploration)],
+        "action_cost": [Interval(Real, 0, None)],
+        "saturation_threshold": [Interval(Real, 0, 1, closed="right")],
+        "saturation_rule": [Options("zero", "outward")],
+        "model_action": [Options("policy", "applied")],
+        "initial_value": [Options("critic", "zero")],
+        **SHARED_CONSTRAINTS,
+        "backend": [Options("numba", "numpy")],
+    }
+
     def __post_init__(self) -> None:
-        def check(name: str, ok: bool, expected: str) -> None:
-            if not ok:
-                raise ValueError(f"MLACConfig.{name} must be {expected}, got {getattr(self, name)!r}")
-
-        def number(value: Any) -> bool:
-            return (isinstance(value, (int, float, np.integer, np.floating))
-                    and not isinstance(value, bool) and bool(np.isfinite(value)))
-
-        def integer(value: Any) -> bool:
-            return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
-
-        for name in ("gamma", "lam", "alpha_actor", "alpha_critic"):
-            value = getattr(self, name)
-            check(name, number(value) and 0.0 <= value <= 1.0, "in [0, 1]")
-        for prefix in _MEMORIES:
-            capacity, neighbours = (getattr(self, f"{prefix}_capacity"),
-                                    getattr(self, f"{prefix}_neighbours"))
-            check(f"{prefix}_capacity", integer(capacity) and capacity >= 1, "a positive integer")
-            check(f"{prefix}_neighbours", integer(neighbours) and 1 <= neighbours <= capacity,
-                  f"an integer in [1, {prefix}_capacity={capacity}]")
-            weights = getattr(self, f"{prefix}_weights")
-            if weights is not None:
-                try:
-                    weights = tuple(float(w) for w in weights)
-                except (TypeError, ValueError):
-                    check(f"{prefix}_weights", False, "None or a tuple of finite numbers >= 0")
-                check(f"{prefix}_weights",
-                      len(weights) > 0 and all(np.isfinite(w) and w >= 0 for w in weights),
-                      "None or a tuple of finite numbers >= 0")
-                object.__setattr__(self, f"{prefix}_weights", weights)
-            check(f"{prefix}_replacement", getattr(self, f"{prefix}_replacement") in _REPLACEMENTS,
-                  f"one of {_REPLACEMENTS}")
-            check(f"{prefix}_clip", isinstance(getattr(self, f"{prefix}_clip"), (bool, np.bool_)),
-                  "True or False")
-        check("exploration", isinstance(self.exploration, Exploration), "an Exploration")
-        check("action_cost", number(self.action_cost) and self.action_cost >= 0,
-              "a finite number >= 0")
-        check("saturation_threshold",
-              number(self.saturation_threshold) and 0 < self.saturation_threshold <= 1, "in (0, 1]")
-        check("saturation_rule", self.saturation_rule in _SATURATION_RULES,
-              f"one of {_SATURATION_RULES}")
-        check("model_action", self.model_action in _MODEL_ACTIONS, f"one of {_MODEL_ACTIONS}")
-        check("initial_value", self.initial_value in _INITIAL_VALUES, f"one of {_INITIAL_VALUES}")
-        check("norm", self.norm in (1, 2) and not isinstance(self.norm, bool), "1 or 2")
-        check("conditioning", self.conditioning in _CONDITIONINGS, f"one of {_CONDITIONINGS}")
-        check("rcond", number(self.rcond) and 0 <= self.rcond < 1, "in [0, 1)")
-        check("ridge", number(self.ridge) and self.ridge >= 0, "a finite number >= 0")
-        check("backend", self.backend in _BACKENDS, f"one of {_BACKENDS}")
+        check_config(self)
 
 
 class MLAC(Agent):

@@ -24,25 +24,22 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+from numbers import Integral, Real
+from typing import ClassVar
 
 import numpy as np
 
 from rmac_mj.agents import _rmac_kernels
 from rmac_mj.agents.base import (ActionSpace, Agent, Exploration, StateSpace, discounted_returns,
                                  model_uncertainty, seed_memory)
-from rmac_mj.approximators.llr import LLRMemory, check_redundancy_smoothing, wrap
+from rmac_mj.approximators.llr import SHARED_CONSTRAINTS, LLRMemory, memory_constraints, wrap
+from rmac_mj.constraints import InstanceOf, Interval, Options, check_config
 
 _BACKENDS = ("numba", "numpy")
 #: beta_u counts as zero (u = 0, section 5) below this fraction of the state gains: when every
 #: neighbour of the process model holds the same action, the truncated fit removes the u direction
 #: and rounding alone would otherwise decide a saturated action's sign.
 BETA_U_ZERO = 1e-9
-_INVERSE_QUERIES = ("previous", "zero")
-_GRADIENT_AT = ("next", "previous")
-_INITIAL_VALUES = ("critic", "zero")
-_CONDITIONINGS = ("svd", "ridge", "none")
-_REPLACEMENTS = ("nearest", "oldest", "redundancy")
-_REDUNDANCY_MEASURES = ("distance", "misfit")
 _REACHABLE_RULES = ("vertices", "vertices_value", "grid", "exact")
 #: Absolute tolerance, in action units, of the golden-section refinement of reachable_rule='exact'.
 EXACT_TOLERANCE = 1e-6
@@ -204,67 +201,31 @@ class RMACConfig:
                      for start, final in ((self.alpha_c, self.alpha_c_final),
                                           (self.alpha_r, self.alpha_r_final)))
 
+    parameter_constraints: ClassVar[dict[str, list]] = {
+        "gamma": [Interval(Real, 0, 1, closed="left")],
+        "lam": [Interval(Real, 0, 1)],
+        "alpha_c": [Interval(Real, 0, 1)],
+        "alpha_r": [Interval(Real, 0, 1)],
+        "alpha_c_final": [Interval(Real, 0, 1), None],
+        "alpha_r_final": [Interval(Real, 0, 1), None],
+        "rate_decay_trials": [Interval(Integral, 1, None)],
+        **memory_constraints("critic"), **memory_constraints("process"),
+        **memory_constraints("reference"),
+        "exploration": [InstanceOf(Exploration)],
+        **SHARED_CONSTRAINTS,
+        "redundancy_smoothing": LLRMemory.parameter_constraints["redundancy_smoothing"],
+        "inverse_query": [Options("previous", "zero")],
+        "critic_gradient_at": [Options("next", "previous")],
+        "reachable_rule": [Options(*_REACHABLE_RULES)],
+        "action_cost": [Interval(Real, 0, None)],
+        "reachable_grid": [Interval(Integral, 2, None)],
+        "reference_insert_rate": [Interval(Real, 0, 1)],
+        "initial_value": [Options("critic", "zero")],
+        "backend": [Options(*_BACKENDS)],
+    }
+
     def __post_init__(self) -> None:
-        for name in ("gamma", "lam", "alpha_c", "alpha_r", "reference_insert_rate", "alpha_c_final",
-                     "alpha_r_final"):
-            value = getattr(self, name)
-            if value is None and name.endswith("_final"):
-                continue
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)) or \
-                    not (np.isfinite(value) and 0.0 <= value <= 1.0):
-                raise ValueError(f"RMACConfig.{name} must be in [0, 1], got {value!r}")
-        if isinstance(self.rate_decay_trials, bool) or \
-                not isinstance(self.rate_decay_trials, (int, np.integer)) or self.rate_decay_trials < 1:
-            raise ValueError(f"RMACConfig.rate_decay_trials must be a positive integer, got "
-                             f"{self.rate_decay_trials!r}")
-        for prefix in ("critic", "process", "reference"):
-            capacity = getattr(self, f"{prefix}_capacity")
-            neighbours = getattr(self, f"{prefix}_neighbours")
-            for name, value in ((f"{prefix}_capacity", capacity),
-                                (f"{prefix}_neighbours", neighbours)):
-                if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-                    raise ValueError(f"RMACConfig.{name} must be a positive integer, got {value!r}")
-            if neighbours > capacity:
-                raise ValueError(f"RMACConfig.{prefix}_neighbours={neighbours} exceeds "
-                                 f"{prefix}_capacity={capacity}")
-            if getattr(self, f"{prefix}_weights") is not None:
-                weights = tuple(float(w) for w in getattr(self, f"{prefix}_weights"))
-                if not weights or not all(np.isfinite(w) and w >= 0 for w in weights):
-                    raise ValueError(f"RMACConfig.{prefix}_weights must be None or finite and >= 0, "
-                                     f"got {weights!r}")
-                object.__setattr__(self, f"{prefix}_weights", weights)
-            replacement = getattr(self, f"{prefix}_replacement")
-            if replacement not in _REPLACEMENTS:
-                raise ValueError(f"RMACConfig.{prefix}_replacement must be one of {_REPLACEMENTS}, "
-                                 f"got {replacement!r}")
-            measure = getattr(self, f"{prefix}_redundancy")
-            if measure not in _REDUNDANCY_MEASURES:
-                raise ValueError(f"RMACConfig.{prefix}_redundancy must be one of "
-                                 f"{_REDUNDANCY_MEASURES}, got {measure!r}")
-        check_redundancy_smoothing(self.redundancy_smoothing, "RMACConfig.redundancy_smoothing")
-        if not isinstance(self.exploration, Exploration):
-            raise ValueError(f"RMACConfig.exploration must be an Exploration, "
-                             f"got {self.exploration!r}")
-        for name, allowed in (("conditioning", _CONDITIONINGS), ("inverse_query", _INVERSE_QUERIES),
-                              ("critic_gradient_at", _GRADIENT_AT),
-                              ("reachable_rule", _REACHABLE_RULES),
-                              ("initial_value", _INITIAL_VALUES), ("backend", _BACKENDS)):
-            if getattr(self, name) not in allowed:
-                raise ValueError(f"RMACConfig.{name} must be one of {allowed}, "
-                                 f"got {getattr(self, name)!r}")
-        if not (np.isfinite(self.action_cost) and self.action_cost >= 0):
-            raise ValueError(f"RMACConfig.action_cost must be finite and >= 0, "
-                             f"got {self.action_cost!r}")
-        if (isinstance(self.reachable_grid, bool)
-                or not isinstance(self.reachable_grid, (int, np.integer)) or self.reachable_grid < 2):
-            raise ValueError(f"RMACConfig.reachable_grid must be an integer >= 2, "
-                             f"got {self.reachable_grid!r}")
-        if self.norm not in (1, 2):
-            raise ValueError(f"RMACConfig.norm must be 1 or 2, got {self.norm!r}")
-        if not (np.isfinite(self.rcond) and 0 <= self.rcond < 1):
-            raise ValueError(f"RMACConfig.rcond must be in [0, 1), got {self.rcond!r}")
-        if not (np.isfinite(self.ridge) and self.ridge >= 0):
-            raise ValueError(f"RMACConfig.ridge must be finite and >= 0, got {self.ridge!r}")
+        check_config(self)
 
 
 class RMAC(Agent):

@@ -35,14 +35,19 @@ and measured in docs/sac.md):
 from __future__ import annotations
 
 import dataclasses
-import math
-from typing import Literal
+from numbers import Real
+from typing import ClassVar, Literal
 
 import numba
 import numpy as np
 
 from rmac_mj.agents.base import ActionSpace, Agent, Exploration, StateSpace
 from rmac_mj.approximators.tile_coding import Backend, TileCoder, TileCodingConfig
+from rmac_mj.constraints import InstanceOf, Interval, Options, TupleOf, check_config, invalid
+
+
+#: tile_low/tile_high: a bound per state dimension, None keeping the StateSpace's.
+_TILE_BOUNDS = TupleOf([Interval(Real), None], what="a list of finite numbers or None entries")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -78,30 +83,25 @@ class SACConfig:
     trace_cutoff: float = 1e-5
     backend: Backend = "numba"
 
-    def __post_init__(self) -> None:
-        def check(name: str, ok: bool, expected: str) -> None:
-            if not ok:
-                raise ValueError(f"SACConfig.{name} must be {expected}, got {getattr(self, name)!r}")
+    parameter_constraints: ClassVar[dict[str, list]] = {
+        "gamma": [Interval(Real, 0, 1, closed="left")],
+        "lam": [Interval(Real, 0, 1)],
+        "alpha_actor": [Interval(Real, 0, 1)],
+        "alpha_critic": [Interval(Real, 0, 1)],
+        "rate_split": [Options("both", "actor", "none")],
+        "tile_coding": [InstanceOf(TileCodingConfig)],
+        "tile_low": [_TILE_BOUNDS, None],
+        "tile_high": [_TILE_BOUNDS, None],
+        "exploration": [InstanceOf(Exploration)],
+        "trace_cutoff": [Interval(Real, 0, 1, closed="left")],
+        "backend": [Options("numba", "numpy")],
+    }
 
-        finite = lambda v: isinstance(v, (int, float)) and math.isfinite(v)  # noqa: E731
-        check("gamma", finite(self.gamma) and 0 <= self.gamma < 1, "in [0, 1)")
-        check("lam", finite(self.lam) and 0 <= self.lam <= 1, "in [0, 1]")
-        check("alpha_actor", finite(self.alpha_actor) and 0 <= self.alpha_actor <= 1, "in [0, 1]")
-        check("alpha_critic", finite(self.alpha_critic) and 0 <= self.alpha_critic <= 1, "in [0, 1]")
-        check("rate_split", self.rate_split in ("both", "actor", "none"),
-              "'both', 'actor' or 'none'")
-        check("tile_coding", isinstance(self.tile_coding, TileCodingConfig), "a TileCodingConfig")
-        check("exploration", isinstance(self.exploration, Exploration), "an Exploration")
+    def __post_init__(self) -> None:
+        check_config(self)
         if self.exploration.where != "always":
-            raise ValueError(f"SACConfig.exploration.where must be 'always': S-AC learns no process "
-                             f"model to be uncertain about, got {self.exploration.where!r}")
-        check("trace_cutoff", finite(self.trace_cutoff) and 0 <= self.trace_cutoff < 1, "in [0, 1)")
-        check("backend", self.backend in ("numba", "numpy"), "'numba' or 'numpy'")
-        for name in ("tile_low", "tile_high"):
-            value = getattr(self, name)
-            if value is not None:
-                check(name, isinstance(value, tuple) and all(v is None or finite(v) for v in value),
-                      "None or a tuple of finite floats (None entries keep the StateSpace's bound)")
+            raise invalid("SACConfig", "exploration.where", self.exploration.where,
+                          "'always': S-AC learns no process model to be uncertain about")
 
 
 # --------------------------------------------------------------------------------------------------

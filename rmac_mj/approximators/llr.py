@@ -78,12 +78,14 @@ learner's own structref fields.
 
 from __future__ import annotations
 
+from numbers import Integral, Real
 from typing import Any
 
 import numpy as np
 
 from rmac_mj.approximators import _llr_kernels as _k
 from rmac_mj.approximators._llr_kernels import LLR_STATE_TYPE, LLRState
+from rmac_mj.constraints import WEIGHTS, Boolean, Field, Interval, Options, TupleOf, check
 
 #: The compiled interface (see the module docstring): the functions take an LLRState first;
 #: ``wrap_scalar(d, period)`` is ``wrap`` for one number, for compiled callers.
@@ -116,13 +118,6 @@ _NUMERICAL_EIG_CUTOFF = 1e-13
 
 # --------------------------------------------------------------------------------------------------
 # Reference implementation (plain numpy). The numba kernels follow these line by line.
-
-def check_redundancy_smoothing(eta, name: str) -> None:
-    """ValueError naming ``name`` unless the redundancy score's smoothing factor is in (0, 1]."""
-    if isinstance(eta, bool) or not isinstance(eta, (int, float, np.floating)) or not (
-            np.isfinite(eta) and 0 < eta <= 1):
-        raise ValueError(f"{name} must be in (0, 1], got {eta!r}")
-
 
 def wrap(d: np.ndarray, period: np.ndarray) -> np.ndarray:
     """Differences ``d`` (shape (..., n)) wrapped to [-period/2, period/2) where period > 0."""
@@ -271,37 +266,34 @@ class LLRMemory:
         self._state = self._new_kernel_state()
 
     # -- configuration ------------------------------------------------------------------------------
+    parameter_constraints: dict[str, list] = {
+        "input_dim": [Interval(Integral, 1, None)],
+        "output_dim": [Interval(Integral, 1, None)],
+        "capacity": [Interval(Integral, 1, None)],
+        "n_neighbours": [Interval(Integral, 1, Field("capacity"))],
+        "input_weights": [TupleOf(Interval(Real, 0, None), length=Field("input_dim")), None],
+        "norm": [Options(1, 2)],
+        "input_period": [TupleOf(Interval(Real, 0, None), length=Field("input_dim")), None],
+        "output_period": [TupleOf(Interval(Real, 0, None), length=Field("output_dim")), None],
+        "conditioning": [Options(*_CONDITIONINGS)],
+        "rcond": [Interval(Real, 0, 1, closed="left")],
+        "ridge": [Interval(Real, 0, None)],
+        "clip": [Boolean()],
+        "replacement": [Options(*_REPLACEMENTS)],
+        "redundancy": [Options(*_MEASURES)],
+        "redundancy_smoothing": [Interval(Real, 0, 1, closed="right")],
+        "algorithm": [Options(*_ALGORITHMS)],
+    }
+
     def _validate(self) -> None:
-        for name in ("input_dim", "output_dim", "capacity", "n_neighbours"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-                raise ValueError(f"LLRMemory: {name} must be a positive integer, got {value!r}")
-        if self.n_neighbours > self.capacity:
-            raise ValueError(f"LLRMemory: n_neighbours={self.n_neighbours} exceeds "
-                             f"capacity={self.capacity}")
+        """Check the constructor's arguments against :attr:`parameter_constraints`; derive the
+        arrays and numbers the kernels take."""
+        values = check("LLRMemory", self.parameter_constraints,
+                       {name: getattr(self, name) for name in self.parameter_constraints})
         n, m = self.input_dim, self.output_dim
-        self._w = self._vector("input_weights", self.input_weights, n, 1.0)
-        self._pin = self._vector("input_period", self.input_period, n, 0.0)
-        self._pout = self._vector("output_period", self.output_period, m, 0.0)
-        if self.norm not in (1, 2):
-            raise ValueError(f"LLRMemory: norm must be 1 or 2, got {self.norm!r}")
-        if self.conditioning not in _CONDITIONINGS:
-            raise ValueError(f"LLRMemory: conditioning must be one of {_CONDITIONINGS}, "
-                             f"got {self.conditioning!r}")
-        if not (np.isfinite(self.rcond) and 0 <= self.rcond < 1):
-            raise ValueError(f"LLRMemory: rcond must be in [0, 1), got {self.rcond!r}")
-        if not (np.isfinite(self.ridge) and self.ridge >= 0):
-            raise ValueError(f"LLRMemory: ridge must be finite and >= 0, got {self.ridge!r}")
-        if self.replacement not in _REPLACEMENTS:
-            raise ValueError(f"LLRMemory: replacement must be one of {tuple(_REPLACEMENTS)}, "
-                             f"got {self.replacement!r}")
-        if self.redundancy not in _MEASURES:
-            raise ValueError(f"LLRMemory: redundancy must be one of {tuple(_MEASURES)}, "
-                             f"got {self.redundancy!r}")
-        check_redundancy_smoothing(self.redundancy_smoothing, "LLRMemory: redundancy_smoothing")
-        if self.algorithm not in _ALGORITHMS:
-            raise ValueError(f"LLRMemory: algorithm must be one of {_ALGORITHMS}, "
-                             f"got {self.algorithm!r}")
+        self._w = self._vector(values["input_weights"], n, 1.0)
+        self._pin = self._vector(values["input_period"], n, 0.0)
+        self._pout = self._vector(values["output_period"], m, 0.0)
         if self.conditioning == "svd":
             self._eig_cutoff = max(float(self.rcond) ** 2, _NUMERICAL_EIG_CUTOFF)
         else:
@@ -309,16 +301,11 @@ class LLRMemory:
         self._ridge = float(self.ridge) if self.conditioning == "ridge" else 0.0
 
     @staticmethod
-    def _vector(name: str, value: Any, size: int, default: float) -> np.ndarray:
+    def _vector(value: tuple | None, size: int, default: float) -> np.ndarray:
+        """A checked per-dimension setting as a contiguous float vector (``default`` for None)."""
         if value is None:
             return np.full(size, default)
-        v = np.ascontiguousarray(np.asarray(value, dtype=float).reshape(-1))
-        if v.shape != (size,):
-            raise ValueError(f"LLRMemory: {name} must have length {size}, got shape {v.shape} "
-                             f"({value!r})")
-        if not np.all(np.isfinite(v)) or np.any(v < 0):
-            raise ValueError(f"LLRMemory: {name} must be finite and >= 0, got {value!r}")
-        return v
+        return np.ascontiguousarray(value, dtype=float)
 
     def _check(self, name: str, value: Any, size: int, finite: bool = True) -> np.ndarray:
         """value as a float vector of shape (size,); checked finite unless ``finite`` is False (the
@@ -601,3 +588,26 @@ class LLRMemory:
         return (f"LLRMemory(input_dim={self.input_dim}, output_dim={self.output_dim}, "
                 f"capacity={self.capacity}, n_neighbours={self.n_neighbours}, "
                 f"n_samples_={self.n_samples_}, algorithm={self.algorithm!r})")
+
+
+def memory_constraints(memory: str, replacements: tuple[str, ...] = tuple(_REPLACEMENTS),
+                       redundancy: bool = True) -> dict[str, list]:
+    """A learner config's constraints on the settings of its LLR memory ``memory`` (e.g. 'critic'),
+    LLRMemory's own rules under the config's names: ``{memory}_capacity``, ``{memory}_neighbours``
+    (at most the capacity), ``{memory}_weights`` (None: the task's; the length is checked against
+    the task), ``{memory}_clip``, ``{memory}_replacement`` (one of ``replacements``) and, with
+    ``redundancy``, ``{memory}_redundancy``."""
+    own = LLRMemory.parameter_constraints
+    table = {f"{memory}_capacity": own["capacity"],
+             f"{memory}_neighbours": [Interval(Integral, 1, Field(f"{memory}_capacity"))],
+             f"{memory}_weights": [WEIGHTS, None],
+             f"{memory}_clip": own["clip"],
+             f"{memory}_replacement": [Options(*replacements)]}
+    if redundancy:
+        table[f"{memory}_redundancy"] = own["redundancy"]
+    return table
+
+
+#: The settings every memory of a learner shares, as LLRMemory checks them.
+SHARED_CONSTRAINTS = {name: LLRMemory.parameter_constraints[name]
+                      for name in ("norm", "conditioning", "rcond", "ridge")}

@@ -27,10 +27,13 @@ Two back ends compute the same features: ``"numpy"`` (readable reference) and ``
 from __future__ import annotations
 
 import dataclasses
-from typing import Literal, Sequence
+from numbers import Integral
+from typing import ClassVar, Literal, Sequence
 
 import numba
 import numpy as np
+
+from rmac_mj.constraints import Interval, Options, TupleOf, check, check_config
 
 Backend = Literal["numba", "numpy"]
 
@@ -50,17 +53,14 @@ class TileCodingConfig:
     tiles: int | tuple[int, ...] = 7
     offsets: Literal["uniform", "grid"] = "uniform"
 
+    parameter_constraints: ClassVar[dict[str, list]] = {
+        "num_tilings": [Interval(Integral, 1, None)],
+        "tiles": [Interval(Integral, 1, None), TupleOf(Interval(Integral, 1, None))],
+        "offsets": [Options("uniform", "grid")],
+    }
+
     def __post_init__(self) -> None:
-        if int(self.num_tilings) != self.num_tilings or self.num_tilings < 1:
-            raise ValueError(
-                f"TileCodingConfig.num_tilings must be a positive integer, got {self.num_tilings!r}")
-        tiles = (self.tiles,) if np.isscalar(self.tiles) else tuple(self.tiles)
-        if not tiles or any(int(t) != t or t < 1 for t in tiles):
-            raise ValueError(
-                f"TileCodingConfig.tiles must be a positive integer or a tuple of them, got {self.tiles!r}")
-        if self.offsets not in ("uniform", "grid"):
-            raise ValueError(
-                f"TileCodingConfig.offsets must be 'uniform' or 'grid', got {self.offsets!r}")
+        check_config(self)
 
     def tiles_for(self, dim: int) -> np.ndarray:
         """ndarray of int of shape (dim,): tiles per dimension of one tiling."""
@@ -148,8 +148,7 @@ class TileCoder:
         if not (np.all(np.isfinite(self.low)) and np.all(np.isfinite(self.high))
                 and np.all(self.high > self.low)):
             raise ValueError(f"TileCoder: need finite low < high, got low={self.low}, high={self.high}")
-        if backend not in ("numba", "numpy"):
-            raise ValueError(f"TileCoder: backend must be 'numba' or 'numpy', got {backend!r}")
+        check("TileCoder", {"backend": [Options("numba", "numpy")]}, {"backend": backend})
         self.config = config
         self.backend = backend
         self.dim = self.low.shape[0]

@@ -39,8 +39,6 @@ import math
 import pathlib
 import re
 import sys
-import types
-import typing
 from typing import Any, Callable, Iterable
 
 import numpy as np
@@ -50,6 +48,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
+from rmac_mj import constraints
 from rmac_mj.agents import ALGORITHMS, config_class, config_from_dict
 from rmac_mj.errors import MissingInputError, UserInputError
 from rmac_mj.experiments import results, runner
@@ -191,7 +190,7 @@ def load_configuration(path: str | pathlib.Path) -> SingleConfiguration:
     for key, value in flatten(check.table(document, "grid")).items():
         where = f'[grid] "{key}"'
         hint = check.hyperparameter(key, algorithms, where)
-        if check.problem(value, hint) is not None and isinstance(value, list):
+        if constraints.unmet(value, hint) is not None and isinstance(value, list):
             if len(value) != 1:
                 raise check.error(where, f"lists {len(value)} values; --config runs one configuration "
                                          "(give one value, or run the file with `rmac-mj sweep`)")
@@ -375,8 +374,9 @@ class _Checker:
             except (ValueError, TypeError) as error:
                 raise self.error(where, f"{algorithm}: {error}") from None
 
-    def hyperparameter(self, key: str, algorithms: Iterable[str], where: str):
-        """The type hint of the hyperparameter ``key`` ("ALGO.FIELD[.FIELD]")."""
+    def hyperparameter(self, key: str, algorithms: Iterable[str], where: str) -> list:
+        """The constraints of the hyperparameter ``key`` ("ALGO.FIELD[.FIELD]"), from its config's
+        table (:mod:`rmac_mj.constraints`)."""
         algorithm, *path = key.split(".")
         if not path or not all(path):
             raise self.error(where, 'expected a hyperparameter "ALGO.FIELD", e.g. "rmac.alpha_r"')
@@ -385,25 +385,17 @@ class _Checker:
         if algorithm not in algorithms:
             raise self.error(where, f"sets {algorithm}, which the protocol does not run (algorithms = "
                                     f"{_toml(list(algorithms))})")
-        cls = config_class(algorithm)
-        for depth, part in enumerate(path):
-            names = [field.name for field in dataclasses.fields(cls)]
-            if part not in names:
-                close = difflib.get_close_matches(part, names, n=1)
-                hint = f"; did you mean {close[0]}?" if close else ""
-                raise self.error(where, f"unknown hyperparameter {part!r} of {cls.__name__}{hint}")
-            hint_type = typing.get_type_hints(cls)[part]
-            if depth < len(path) - 1:
-                if not (isinstance(hint_type, type) and dataclasses.is_dataclass(hint_type)):
-                    raise self.error(where, f"{cls.__name__}.{part} has no fields")
-                cls = hint_type
-        return hint_type
+        try:
+            return constraints.lookup(config_class(algorithm), path)
+        except constraints.InvalidParameterError as error:
+            raise self.error(where, str(error)) from None
 
-    def value(self, value: Any, hint, where: str, key: str | None = None,
+    def value(self, value: Any, allowed: list, where: str, key: str | None = None,
               base: dict[str, Any] | None = None) -> None:
-        """Check ``value``'s type against ``hint``; with ``key``, also that the learner's config
-        accepts it on top of the ``base`` hyperparameters (ranges, choices)."""
-        problem = self.problem(value, hint)
+        """Check ``value`` against the constraints ``allowed``; with ``key``, also that the
+        learner's config accepts it on top of the ``base`` hyperparameters (rules that tie values
+        together)."""
+        problem = constraints.unmet(value, allowed)
         if problem is not None:
             raise self.error(where, f"expected {problem}, got {_toml(value)}")
         if key is not None:
@@ -413,48 +405,6 @@ class _Checker:
                 config_from_dict(config_class(algorithm), overrides)
             except (ValueError, TypeError) as error:
                 raise self.error(where, str(error)) from None
-
-    def problem(self, value: Any, hint) -> str | None:
-        """None when ``value`` (TOML data) fits the type ``hint``, else what was expected."""
-        origin, args = typing.get_origin(hint), typing.get_args(hint)
-        if hint is float:
-            return None if _is_number(value) else "a number"
-        if hint is int:
-            return None if isinstance(value, int) and not isinstance(value, bool) else "an integer"
-        if hint is bool:
-            return None if isinstance(value, bool) else "true or false"
-        if hint is str:
-            return None if isinstance(value, str) else "a string"
-        if origin is typing.Literal:
-            return None if value in args and isinstance(value, str) else \
-                "one of " + ", ".join(json.dumps(a) for a in args)
-        if origin in (typing.Union, types.UnionType):
-            options = [a for a in args if a is not type(None)]
-            problems = [self.problem(value, a) for a in options]
-            return None if None in problems else " or ".join(p for p in problems if p)
-        if origin is tuple:
-            if len(args) == 2 and args[1] is Ellipsis:
-                expected = f"a list of {_plural(args[0])}"
-                elements = [args[0]] * len(value) if isinstance(value, list) else []
-            else:
-                expected = f"a list of {len(args)} values"
-                elements = list(args)
-            if not isinstance(value, list) or len(elements) != len(value):
-                return expected
-            return None if all(self.problem(v, a) is None for v, a in zip(value, elements)) \
-                else expected
-        if isinstance(hint, type) and dataclasses.is_dataclass(hint):
-            if not isinstance(value, dict):
-                return f"a table of {hint.__name__} fields"
-            hints = typing.get_type_hints(hint)
-            for key, item in value.items():
-                if key not in hints:
-                    return f"{hint.__name__} fields ({', '.join(hints)}), not {key!r}"
-                problem = self.problem(item, hints[key])
-                if problem:
-                    return f"{hint.__name__}.{key} to be {problem}"
-            return None
-        return None  # an annotation this checker does not know: the config validates it
 
     def variants(self, document: dict, algorithms, fixed: dict, grid: dict
                  ) -> tuple[tuple[str, dict[str, Any]], ...]:
@@ -483,10 +433,6 @@ class _Checker:
                 self.value(value, hints[key], where, key, {**fixed, **values})
             variants.append((name, values))
         return tuple(variants)
-
-
-def _plural(hint) -> str:
-    return {float: "numbers", int: "integers", str: "strings", bool: "booleans"}.get(hint, "values")
 
 
 def _is_number(value: Any) -> bool:

@@ -1,0 +1,364 @@
+"""Parameter constraints, declared once (in the spirit of scikit-learn's ``_parameter_constraints``).
+
+Every configuration (``RMACConfig``, ``SACConfig``, ``MLACConfig``, ``Exploration``,
+``TileCodingConfig``, ``LLRMemory``) declares a table ``{parameter: [constraint, ...]}``; a value is
+valid when it satisfies at least one constraint of its list (``None`` in the list allows None).
+:func:`check` validates all of a configuration's values against its table in one place, so that
+every learner refuses the same bad value the same way, with one kind of message::
+
+    RMACConfig.gamma must be a number in [0, 1), got 1.0
+    LLRMemory.n_neighbours must be an integer in [1, capacity=100], got 200
+    RMACConfig has no parameter 'alpha_x' (did you mean 'alpha_r'?)
+
+The sweep file checker (``rmac_mj.experiments.sweep``) reads the same tables (:func:`lookup`,
+:func:`unmet`), so a TOML value is judged by the rule the config applies.
+
+The constraints:
+
+* :class:`Interval` (``Real`` or ``Integral``, with optional bounds, open or closed): real numbers are
+  finite ints or floats (numpy's too), never bools; integers are ints, never floats or bools.
+  A bound may be another parameter of the same configuration (:class:`Field`).
+* :class:`Options`: one of a few values (strings, or ints such as the norm's 1 and 2; never a bool).
+* :class:`Boolean`: True or False (numpy's bool too).
+* :class:`TupleOf`: a sequence (tuple, list or 1-D array) whose entries satisfy an element
+  constraint, normalised to a tuple, e.g. input weightings (finite numbers >= 0).
+* :class:`InstanceOf`: an instance of a class, e.g. an ``Exploration`` in a learner's config; the sweep
+  checker descends into a dataclass's own table.
+
+Rules that tie several values together beyond a bound (``where='uncertain'`` needs a threshold)
+stay in the configuration's ``__post_init__`` and raise through :func:`invalid`, so their messages
+read the same.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import math
+import numbers
+from typing import Any, Iterable, Mapping, Sequence
+
+import numpy as np
+
+__all__ = ["Boolean", "Field", "InstanceOf", "Interval", "InvalidParameterError", "Options",
+           "TupleOf", "WEIGHTS", "check", "invalid", "lookup", "unknown", "unmet"]
+
+
+class InvalidParameterError(ValueError, TypeError):
+    """A configuration value its table refuses (a ValueError and, for a wrong type, a TypeError to
+    code that catches that, as scikit-learn's)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Field:
+    """A bound taken from another parameter of the same configuration, e.g. ``Field("capacity")``."""
+
+    name: str
+
+
+class Constraint:
+    """One rule a value may satisfy; ``str(constraint)`` says what it expects."""
+
+    def satisfied(self, value: Any, context: Mapping[str, Any] | None = None) -> bool:
+        raise NotImplementedError
+
+    def normalise(self, value: Any) -> Any:
+        """The value as the configuration keeps it (e.g. a list as a tuple); called once satisfied."""
+        return value
+
+    def describe(self, context: Mapping[str, Any] | None = None) -> str:
+        raise NotImplementedError
+
+    def __str__(self) -> str:
+        return self.describe()
+
+
+def _is_real(value: Any) -> bool:
+    return (isinstance(value, (numbers.Real, np.floating, np.integer))
+            and not isinstance(value, (bool, np.bool_)) and math.isfinite(value))
+
+
+def _is_integer(value: Any) -> bool:
+    return isinstance(value, (numbers.Integral, np.integer)) and not isinstance(value, (bool, np.bool_))
+
+
+class Interval(Constraint):
+    """A real number (``numbers.Real``) or an integer (``numbers.Integral``) in a range.
+
+    Args:
+      kind: ``numbers.Real`` or ``numbers.Integral``.
+      low, high: the bounds, None for none, or a :class:`Field` naming another parameter.
+      closed: which bounds belong to the range: 'both', 'left', 'right' or 'neither'.
+    """
+
+    def __init__(self, kind: type, low: Any = None, high: Any = None, closed: str = "both") -> None:
+        if kind not in (numbers.Real, numbers.Integral):
+            raise ValueError(f"Interval kind must be numbers.Real or numbers.Integral, got {kind!r}")
+        if closed not in ("both", "left", "right", "neither"):
+            raise ValueError(f"Interval closed must be 'both', 'left', 'right' or 'neither', "
+                             f"got {closed!r}")
+        self.kind, self.low, self.high, self.closed = kind, low, high, closed
+
+    @staticmethod
+    def _bound(bound: Any, context: Mapping[str, Any] | None) -> Any:
+        """A Field's value from ``context`` (None when unknown or not a number: then no bound)."""
+        if not isinstance(bound, Field):
+            return bound
+        value = (context or {}).get(bound.name)
+        return value if _is_real(value) else None
+
+    def satisfied(self, value: Any, context: Mapping[str, Any] | None = None) -> bool:
+        if not (_is_integer(value) if self.kind is numbers.Integral else _is_real(value)):
+            return False
+        low, high = self._bound(self.low, context), self._bound(self.high, context)
+        if low is not None and (value < low or (value == low and self.closed in ("right", "neither"))):
+            return False
+        if high is not None and (value > high or
+                                 (value == high and self.closed in ("left", "neither"))):
+            return False
+        return True
+
+    def describe(self, context: Mapping[str, Any] | None = None) -> str:
+        noun = "an integer" if self.kind is numbers.Integral else "a number"
+
+        def show(bound: Any) -> str:
+            if isinstance(bound, Field):
+                value = (context or {}).get(bound.name)
+                return f"{bound.name}={value!r}" if value is not None else bound.name
+            return f"{bound:g}" if isinstance(bound, float) else str(bound)
+
+        if self.low is not None and self.high is not None:
+            left = "[" if self.closed in ("both", "left") else "("
+            right = "]" if self.closed in ("both", "right") else ")"
+            return f"{noun} in {left}{show(self.low)}, {show(self.high)}{right}"
+        if self.kind is numbers.Real:
+            noun = "a finite number"
+        if self.low is not None:
+            return f"{noun} {'>=' if self.closed in ('both', 'left') else '>'} {show(self.low)}"
+        if self.high is not None:
+            return f"{noun} {'<=' if self.closed in ('both', 'right') else '<'} {show(self.high)}"
+        return "a finite number" if self.kind is numbers.Real else "an integer"
+
+
+class Options(Constraint):
+    """One of the given values: strings, or ints (a bool never counts as an int here)."""
+
+    def __init__(self, *values: Any) -> None:
+        self.values = tuple(values)
+
+    def satisfied(self, value: Any, context: Mapping[str, Any] | None = None) -> bool:
+        if isinstance(value, str):
+            return value in [v for v in self.values if isinstance(v, str)]
+        if _is_integer(value):
+            return any(_is_integer(v) and value == v for v in self.values)
+        return False
+
+    def describe(self, context: Mapping[str, Any] | None = None) -> str:
+        shown = [repr(v) for v in self.values]
+        if len(shown) == 2:
+            return f"{shown[0]} or {shown[1]}"
+        return "one of " + ", ".join(shown)
+
+
+class Boolean(Constraint):
+    """True or False."""
+
+    def satisfied(self, value: Any, context: Mapping[str, Any] | None = None) -> bool:
+        return isinstance(value, (bool, np.bool_))
+
+    def normalise(self, value: Any) -> bool:
+        return bool(value)
+
+    def describe(self, context: Mapping[str, Any] | None = None) -> str:
+        return "True or False"
+
+
+class TupleOf(Constraint):
+    """A sequence (tuple, list, 1-D array) of at least one entry, each satisfying ``elements`` (a
+    constraint, or a list of them with None allowed); normalised to a tuple (real entries as floats).
+    ``length``: a required number of entries (an int or a :class:`Field`), else any."""
+
+    def __init__(self, elements: Any, length: Any = None, what: str | None = None) -> None:
+        self.elements = list(elements) if isinstance(elements, (list, tuple)) else [elements]
+        self.length = length
+        self.what = what
+
+    def _entries(self, value: Any) -> list | None:
+        if isinstance(value, np.ndarray):
+            return list(value.tolist()) if value.ndim == 1 else None
+        if isinstance(value, (tuple, list)):
+            return list(value)
+        return None
+
+    def satisfied(self, value: Any, context: Mapping[str, Any] | None = None) -> bool:
+        entries = self._entries(value)
+        if not entries:
+            return False
+        length = Interval._bound(self.length, context)
+        if length is not None and len(entries) != length:
+            return False
+        return all(_first_satisfied(self.elements, entry, context) is not None for entry in entries)
+
+    def normalise(self, value: Any) -> tuple:
+        out = []
+        for entry in self._entries(value):
+            if _is_real(entry) and not _is_integer(entry):
+                entry = float(entry)
+            elif _is_integer(entry) and any(isinstance(c, Interval) and c.kind is numbers.Real
+                                            for c in self.elements):
+                entry = float(entry)
+            elif _is_integer(entry):
+                entry = int(entry)
+            out.append(entry)
+        return tuple(out)
+
+    def describe(self, context: Mapping[str, Any] | None = None) -> str:
+        if self.what:
+            return self.what
+        element = _alternatives(self.elements, context)
+        length = self.length
+        if isinstance(length, Field):
+            value = (context or {}).get(length.name)
+            count = f"{length.name}={value!r}" if value is not None else length.name
+            return f"a list of {count} entries, each {element}"
+        if length is not None:
+            return f"a list of {length} entries, each {element}"
+        return f"a list of one or more entries, each {element}"
+
+
+class InstanceOf(Constraint):
+    """An instance of ``cls`` (for a dataclass, the sweep checker descends into its own table)."""
+
+    def __init__(self, cls: type) -> None:
+        self.cls = cls
+
+    def satisfied(self, value: Any, context: Mapping[str, Any] | None = None) -> bool:
+        return isinstance(value, self.cls)
+
+    def describe(self, context: Mapping[str, Any] | None = None) -> str:
+        name = self.cls.__name__
+        return f"{'an' if name[0] in 'AEIOU' else 'a'} {name}"
+
+
+#: Input weightings of an LLR memory: finite numbers >= 0, one per input dimension.
+WEIGHTS = TupleOf(Interval(numbers.Real, 0, None), what="a list of finite numbers >= 0")
+
+
+def _alternatives(constraints: Sequence[Any], context: Mapping[str, Any] | None = None) -> str:
+    """What a list of constraints expects, e.g. "a number in [0, 1] or None"."""
+    shown = ["None" if c is None else c.describe(context) for c in constraints]
+    return (", or " if any("," in text for text in shown) else " or ").join(shown)
+
+
+#: What :func:`_first_satisfied` returns for a None its constraints allow.
+_NONE_ALLOWED = object()
+
+
+def _first_satisfied(constraints: Iterable[Any], value: Any,
+                     context: Mapping[str, Any] | None = None) -> Any:
+    """The first constraint ``value`` satisfies (``_NONE_ALLOWED`` for an allowed None), or None."""
+    for constraint in constraints:
+        if constraint is None:
+            if value is None:
+                return _NONE_ALLOWED
+        elif constraint.satisfied(value, context):
+            return constraint
+    return None
+
+
+def unmet(value: Any, constraints: Sequence[Any],
+          context: Mapping[str, Any] | None = None) -> str | None:
+    """None when ``value`` satisfies one of ``constraints``, else what was expected (for messages).
+
+    ``context`` holds the configuration's other values, for bounds that name them; without it such
+    a bound is not applied (the whole configuration is checked later). A nested configuration may
+    be given as data, a dict of some of its parameters (as a TOML table gives it), which are then
+    judged by its own table."""
+    if _first_satisfied(constraints, value, context) is not None:
+        return None
+    nested = nested_class(constraints)
+    if nested is not None and isinstance(value, dict):
+        table = nested.parameter_constraints
+        for key, item in value.items():
+            if key not in table:
+                return f"{nested.__name__} parameters ({', '.join(table)}), not {key!r}"
+            problem = unmet(item, table[key], value)
+            if problem is not None:
+                return f"{nested.__name__}.{key} to be {problem}"
+        return None
+    return _alternatives(constraints, context)
+
+
+def invalid(owner: str, name: str, value: Any, expected: str) -> InvalidParameterError:
+    """The one message of a refused value: ``{owner}.{name} must be {expected}, got {value!r}``."""
+    return InvalidParameterError(f"{owner}.{name} must be {expected}, got {value!r}")
+
+
+def unknown(owner: str, name: str, known: Iterable[str]) -> InvalidParameterError:
+    """The one message of a parameter ``owner`` does not have, with the closest known name."""
+    known = list(known)
+    close = difflib.get_close_matches(name, known, n=1)
+    hint = f" (did you mean {close[0]!r}?)" if close else f"; it has {', '.join(known)}"
+    return InvalidParameterError(f"{owner} has no parameter {name!r}{hint}")
+
+
+def check(owner: str, table: Mapping[str, Sequence[Any]], values: Mapping[str, Any]) -> dict:
+    """Check every ``values[name]`` against ``table[name]``; return the normalised values.
+
+    Raises :class:`InvalidParameterError` naming the first refused parameter (in table order), its
+    value and what was expected. Every name of ``values`` must be in ``table``.
+    """
+    for name in values:
+        if name not in table:
+            raise unknown(owner, name, table)
+    normalised = {}
+    for name, constraints in table.items():
+        if name not in values:
+            continue
+        value = values[name]
+        chosen = _first_satisfied(constraints, value, values)
+        if chosen is None:
+            raise invalid(owner, name, value, unmet(value, constraints, values))
+        normalised[name] = value if chosen is _NONE_ALLOWED else chosen.normalise(value)
+    return normalised
+
+
+def check_config(config: Any) -> None:
+    """Check a frozen dataclass config against its class's ``parameter_constraints`` table, and keep
+    the normalised values (e.g. weightings as tuples of floats) in place."""
+    cls = type(config)
+    values = {field.name: getattr(config, field.name) for field in dataclasses.fields(config)}
+    normalised = check(cls.__name__, cls.parameter_constraints, values)
+    for name, value in normalised.items():
+        if value is not values[name]:
+            object.__setattr__(config, name, value)
+
+
+def lookup(cls: type, path: Sequence[str]) -> list:
+    """The constraints of the (possibly nested) parameter ``path`` of config class ``cls``, e.g.
+    ``lookup(RMACConfig, ["exploration", "sigma"])``; descends through :class:`InstanceOf` a
+    dataclass. Raises :class:`InvalidParameterError` for an unknown name (with the closest one)."""
+    constraints: list = []
+    owner = cls
+    for depth, name in enumerate(path):
+        table = getattr(owner, "parameter_constraints", None)
+        if table is None:
+            raise InvalidParameterError(f"{owner.__name__} has no parameters (no {name!r})")
+        if name not in table:
+            raise unknown(owner.__name__, name, table)
+        constraints = list(table[name])
+        if depth < len(path) - 1:
+            nested = [c.cls for c in constraints if isinstance(c, InstanceOf)
+                      and hasattr(c.cls, "parameter_constraints")]
+            if not nested:
+                raise InvalidParameterError(f"{owner.__name__}.{name} has no parameters of its own")
+            owner = nested[0]
+    return constraints
+
+
+def nested_class(constraints: Sequence[Any]) -> type | None:
+    """The config class of a nested parameter (an :class:`InstanceOf` a class with its own table)."""
+    for constraint in constraints:
+        if isinstance(constraint, InstanceOf) and hasattr(constraint.cls, "parameter_constraints"):
+            return constraint.cls
+    return None
