@@ -307,7 +307,7 @@ def _exploration_floor_for(protocol, algorithm: str) -> float | None:
 
 def parse_overrides(assignments: Sequence[str]) -> dict[str, dict]:
     """``["rmac.exploration.sigma=0.5", ...]`` -> ``{"rmac": {"exploration": {"sigma": 0.5}}}``."""
-    from rmac_mj.experiments.sweep import nest
+    from rmac_mj.experiments.sweep_file import nest
     flat: dict[str, Any] = {}
     for assignment in assignments:
         key, separator, text = assignment.partition("=")
@@ -324,7 +324,7 @@ def parse_overrides(assignments: Sequence[str]) -> dict[str, dict]:
 def _algorithms(args, overrides: dict[str, dict]) -> tuple[str, ...]:
     """--algorithms if given (by --config too); else the learners --set names (an ablation reruns only
     them); else the paper's learners (``Protocol``'s default)."""
-    from rmac_mj.experiments.runner import Protocol
+    from rmac_mj.experiments.protocol import Protocol
 
     if args.algorithms is not None:
         return tuple(a.strip() for a in args.algorithms.split(",") if a.strip())
@@ -342,9 +342,9 @@ def _with_config(parser: argparse.ArgumentParser, argv: Sequence[str] | None, pa
     """Parse ``argv`` again with the --config file's values as reproduce's defaults: the file gives
     the protocol, options on the command line override it, and --set is applied on top of its
     hyperparameters. File options reproduce has no flag for travel in ``args.config_protocol``."""
-    from rmac_mj.experiments import sweep
+    from rmac_mj.experiments import sweep_file
 
-    config = sweep.load_configuration(path)
+    config = sweep_file.load_configuration(path)
     reproduce = parser.reproduce_parser
     flags = {action.dest for action in reproduce._actions}
     defaults, extra = {}, {}
@@ -358,7 +358,8 @@ def _with_config(parser: argparse.ArgumentParser, argv: Sequence[str] | None, pa
 
 
 def _reproduce(args) -> int:
-    from rmac_mj.experiments import runner, sweep
+    from rmac_mj.experiments import report, runner, sweep_file
+    from rmac_mj.experiments.protocol import Protocol
 
     if args.prior is None and (args.prior_trials is not None or args.prior_parts is not None):
         raise UsageError("--prior-trials and --prior-parts need --prior")
@@ -374,9 +375,9 @@ def _reproduce(args) -> int:
             if not prior["prior_parts"]:
                 raise UsageError("--prior-parts must name at least one part")
     overrides = parse_overrides(args.set)
-    agent_configs = sweep.merge(getattr(args, "config_agent_configs", {}), overrides)
+    agent_configs = sweep_file.merge(getattr(args, "config_agent_configs", {}), overrides)
     with _user_input():
-        protocol = runner.Protocol(
+        protocol = Protocol(
             domain=args.domain, task=args.task,
             algorithms=_algorithms(args, overrides), experiments=args.experiments,
             trials=args.trials, seed=args.seed, evaluate_every=args.evaluate_every,
@@ -397,7 +398,7 @@ def _reproduce(args) -> int:
                                f"in {out}, run again with --resume") from None
         raise _Interrupted(f"no experiment had finished, nothing is saved; run again with --resume "
                            f"to start over in {out}") from None
-    print(runner.summary_table(summary, protocol.algorithms))
+    print(report.summary_table(summary, protocol.algorithms))
     parts = summary["wall_time_parts_s"]
     total = summary["wall_time_s"]
     detail = (f" over {len(parts)} parts ({' + '.join(f'{p:.1f}' for p in parts)} s)"
@@ -425,16 +426,16 @@ def shortest_distinct_suffixes(paths: Sequence[pathlib.Path]) -> list[str]:
 def _settings_line(summary: dict) -> str:
     """How a run was made: its size, seed and --set overrides."""
     protocol = summary.get("protocol", {})
-    from rmac_mj.experiments.sweep import flatten
+    from rmac_mj.experiments.sweep_file import flatten
     overrides = [f"{key}={json.dumps(value)}"
                  for key, value in flatten(protocol.get("agent_configs") or {}).items()]
     text = (f"{protocol.get('experiments', '?')} experiments of {protocol.get('trials', '?')} trials, "
             f"seed {protocol.get('seed', '?')}")
     return text + ("; --set " + " ".join(overrides) if overrides else "; default hyperparameters")
 def _sweep(args) -> int:
-    from rmac_mj.experiments import sweep
+    from rmac_mj.experiments import sweep, sweep_file
 
-    plan = sweep.load_sweep(args.file)  # the whole file is validated before anything runs
+    plan = sweep_file.load_sweep(args.file)  # the whole file is validated before anything runs
     if args.jobs is not None and args.scheduler:
         raise UsageError("--jobs and --scheduler exclude each other")
     out = _writable_dir(args.out)
@@ -457,7 +458,8 @@ def _sweep(args) -> int:
 
 
 def _compare(args) -> int:
-    from rmac_mj.experiments import plots, runner
+    from rmac_mj.experiments import plots, report
+    from rmac_mj.experiments.store import ResultStore
 
     directories = []
     for directory in args.dirs:
@@ -467,29 +469,25 @@ def _compare(args) -> int:
         directories.append(directory)
     summaries = {}
     for directory, label in zip(directories, shortest_distinct_suffixes(directories)):
-        path = directory / "summary.json"
-        if not path.is_file():
-            raise UsageError(f"{directory} has no summary.json (not a finished `reproduce` run)")
-        with _user_input(f"{path}: "):
-            summaries[label] = json.loads(path.read_text())
+        store = ResultStore(directory)
+        summaries[label] = store.read_summary()
         if "trial_seconds" not in summaries[label]:
-            raise UsageError(f"{path} has no trial_seconds (the task's trial length)")
+            raise UsageError(f"{store.summary_path} has no trial_seconds (the task's trial length)")
     optimal = next((s["optimal_return"] for s in summaries.values() if s.get("optimal_return")), None)
     floors = {s.get("exploration_floor") for s in summaries.values()}
     paths = plots.plot_learning_curves(summaries, args.out, optimal_return=optimal, smooth=args.smooth,
                                        exploration_floor=floors.pop() if len(floors) == 1 else None)
     for label, summary in summaries.items():
         print(f"== {label}: {_settings_line(summary)}")
-        print(runner.summary_table(summary))
+        print(report.summary_table(summary))
     print("figure:", ", ".join(map(str, paths)))
     return 0
 
 
 def _policy(args) -> int:
-    from rmac_mj.experiments import plots
+    from rmac_mj.experiments import policy_plots
     from rmac_mj.experiments.episode import learner_state_of, state_of
-    from rmac_mj.experiments.render import snapshot_environment
-    from rmac_mj.experiments.snapshots import load_snapshot
+    from rmac_mj.experiments.snapshots import load_snapshot, snapshot_environment
 
     snapshots, envs = [], []
     for path in args.snapshots:
@@ -521,7 +519,7 @@ def _policy(args) -> int:
             raise UsageError(f"{option} needs LO < HI, got {lim[0]:g},{lim[1]:g}")
     first = args.snapshots[0]
     stem = args.out or first.with_name(first.stem + ("_policy" if len(snapshots) == 1 else "_policies"))
-    paths = plots.plot_policies(snapshots, stem, learner_state, anchor, dims=(i, j), limits=limits,
+    paths = policy_plots.plot_policies(snapshots, stem, learner_state, anchor, dims=(i, j), limits=limits,
                                 resolution=args.resolution, envs=None if args.no_trajectory else envs)
     print("figure:", ", ".join(map(str, paths)))
     return 0
@@ -545,20 +543,20 @@ def _render(args) -> int:
     chosen = [x for x in (args.snapshot, args.progression, args.compare) if x is not None]
     if len(chosen) != 1:
         raise UsageError("give exactly one of SNAPSHOT, --progression DIR or --compare DIR")
-    from rmac_mj.experiments import render
+    from rmac_mj.experiments import result_videos
 
     options = {"width": args.width, "height": args.height, "overlay": not args.no_overlay,
                "frames_per_step": args.frames_per_step}
     if args.snapshot is not None:
-        path = render.render_snapshot(args.snapshot, args.out, domain=args.domain, task=args.task,
+        path = result_videos.render_snapshot(args.snapshot, args.out, domain=args.domain, task=args.task,
                                       **options)
     elif args.domain is not None or args.task is not None:
         raise UsageError("--domain/--task apply to a single SNAPSHOT only")
     elif args.progression is not None:
-        path = render.render_progression(args.progression, args.out, experiment=args.experiment,
+        path = result_videos.render_progression(args.progression, args.out, experiment=args.experiment,
                                          **options)
     else:
-        path = render.render_comparison(args.compare, args.out, experiment=args.experiment,
+        path = result_videos.render_comparison(args.compare, args.out, experiment=args.experiment,
                                         **options)
     print("video:", path)
     return 0
@@ -572,7 +570,7 @@ def _bench(args) -> int:
     report = bench.run(quick=args.quick, domain=args.domain, task=args.task)
     print(bench.format_markdown(report) if args.markdown else bench.format_table(report))
     if args.json:
-        from rmac_mj.experiments.results import write_json
+        from rmac_mj.experiments.files import write_json
         write_json(args.json, report)
         print("json:", args.json)
     return 0

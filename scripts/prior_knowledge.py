@@ -4,24 +4,24 @@
 
 Learning curves come from the runs' files. Whether a trial swings up is not in them (they hold sums of
 rewards), so the first ``--replay`` trials of every experiment are replayed: the runner is
-deterministic, so rebuilding each experiment's agent, environment and demonstration exactly as
-``runner.run_experiment`` does reproduces its trials, and every replayed return is checked against the
-stored one to 1e-9.
+deterministic, so rebuilding each experiment with ``protocol.build_experiment`` (as the runner does)
+reproduces its trials, and every replayed return is checked against the stored one to 1e-9.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import pathlib
 
 import numpy as np
 from scipy import stats
 
 from rmac_mj.agents import make_agent
-from rmac_mj.experiments import runner
-from rmac_mj.experiments.episode import action_space_of, run_trial, state_space_of
-from rmac_mj.experiments.results import confidence_interval, stuck_threshold
+from rmac_mj.experiments.episode import run_trial
+from rmac_mj.experiments.metrics import (FIRST_MINUTES, confidence_interval, early_returns,
+                                         final_returns, stuck_threshold)
+from rmac_mj.experiments.protocol import Protocol, build_experiment, demonstration_for
+from rmac_mj.experiments.store import ResultStore
 
 #: A learning trial counts as "worse than the demonstrator" below its mean return minus this.
 MARGIN = 500.0
@@ -30,27 +30,14 @@ UPRIGHT = 0.2
 LAST_SECOND_STEPS = 34
 
 
-def protocol_of(out: pathlib.Path) -> runner.Protocol:
-    document = json.loads((out / "config.json").read_text())["protocol"]
-    document["algorithms"] = tuple(document["algorithms"])
-    document["snapshot_trials"] = tuple(document["snapshot_trials"])
-    document["prior_parts"] = tuple(document.get("prior_parts", ()))
-    return runner.Protocol(**document)
-
-
-def replay(protocol: runner.Protocol, algorithm: str, index: int, returns: np.ndarray, trials: int):
+def replay(protocol: Protocol, algorithm: str, index: int, returns: np.ndarray, trials: int):
     """Rows (return, reached upright, held the last second, greedy return after it): row 0 a greedy
     trial right after seeding, rows 1..trials the first learning trials of one experiment."""
-    agent_seq, task_seed = runner.experiment_seeds(protocol.seed, index)
-    env = runner.make_environment(protocol, task_seed)
-    agent = make_agent(algorithm, state_space_of(env), action_space_of(env),
-                       config=protocol.agent_configs.get(algorithm),
-                       seed=np.random.default_rng(agent_seq))
-    if protocol.prior is not None:
-        if protocol.prior_file is not None:
-            raise SystemExit("replaying a file prior is not supported here")
-        demo = runner.demonstration_for(protocol, index)
-        agent.seed_from(**demo.arrays(), parts=protocol.prior_parts or None)
+    if protocol.prior_file is not None:
+        raise SystemExit("replaying a file prior is not supported here")
+    experiment = build_experiment(protocol, algorithm, index)
+    env, agent = experiment.env, experiment.agent
+
     def flags(angles):
         a = np.abs(angles)
         return bool(a.min() < UPRIGHT), bool(np.all(a[-LAST_SECOND_STEPS:] < UPRIGHT))
@@ -58,7 +45,7 @@ def replay(protocol: runner.Protocol, algorithm: str, index: int, returns: np.nd
     # The policy as seeded, before any learning, and after each replayed trial.
     def greedy_now() -> tuple[float, list[float]]:
         """A greedy trial of a copy of the agent as it is now (the original is untouched)."""
-        twin = make_agent(algorithm, state_space_of(env), action_space_of(env),
+        twin = make_agent(algorithm, experiment.state_space, experiment.action_space,
                           config=protocol.agent_configs.get(algorithm))
         twin.load_state_dict(agent.state_dict())
         angles: list[float] = []
@@ -81,29 +68,29 @@ def replay(protocol: runner.Protocol, algorithm: str, index: int, returns: np.nd
 
 
 def analyse(out: pathlib.Path, replay_trials: int) -> dict:
-    protocol = protocol_of(out)
+    store = ResultStore(out)
+    protocol = Protocol.from_dict(store.read_config()["protocol"])
     (algorithm,) = protocol.algorithms
-    returns, greedy, greedy_trials, _ = runner.load_curves(out, protocol, algorithm)
-    demo = []
-    for index in range(protocol.experiments):
-        with np.load(runner.curve_path(out, algorithm, index), allow_pickle=False) as data:
-            demo.append(data["demonstration_returns"].mean() if data["demonstration_returns"].size
-                        else np.nan)
-    demo = np.array(demo)
+    curves = store.load_curves(algorithm, protocol.experiments)
+    returns, greedy = curves.returns, curves.greedy_returns
     if protocol.prior is None:  # the demonstration the same experiment would have been seeded with
-        seeded = runner.Protocol(algorithms=protocol.algorithms, seed=protocol.seed, prior="demo")
-        demo = np.array([runner.demonstration_for(seeded, i).trial_returns().mean()
+        seeded = Protocol(algorithms=protocol.algorithms, seed=protocol.seed, prior="demo")
+        demo = np.array([demonstration_for(seeded, i).trial_returns().mean()
                          for i in range(protocol.experiments)])
-    finals = returns[:, -50:].mean(axis=1)
-    optimal = json.loads((out / "summary.json").read_text()).get("optimal_return")
+    else:
+        demo = curves.demonstration_returns.mean(axis=1) if curves.demonstration_returns.size \
+            else np.full(protocol.experiments, np.nan)
+    finals = final_returns(returns)
+    seconds = store.read_summary()["trial_seconds"]
+    optimal = store.read_summary().get("optimal_return")
     stuck_below = stuck_threshold(optimal) if optimal is not None else -1500.0
     row = {"name": out.name, "experiments": protocol.experiments, "prior": protocol.prior,
            "parts": protocol.prior_parts,
            "trial": {t: float(returns[:, t - 1].mean()) for t in (1, 2, 3, 5, 10, 50, 100, 600)
                      if t <= returns.shape[1]},
            "last50": confidence_interval(finals), "finals": finals,
-           "first5": confidence_interval(returns[:, :100].mean(axis=1)),
-           "first10": confidence_interval(returns[:, :200].mean(axis=1)),
+           "first5": confidence_interval(early_returns(returns, FIRST_MINUTES, seconds)),
+           "first10": confidence_interval(early_returns(returns, 2 * FIRST_MINUTES, seconds)),
            "stuck": int((finals < stuck_below).sum()), "worst_final": float(finals.min()),
            "greedy_end": float(greedy[:, -1].mean()) if greedy.size else None,
            "demo_mean": float(np.nanmean(demo)) if np.isfinite(demo).any() else None,

@@ -11,7 +11,9 @@ import pytest
 
 from rmac_mj import tasks
 from rmac_mj.agents import make_agent
-from rmac_mj.experiments import bench, plots, render, runner
+from rmac_mj.experiments import bench, plots, policy_plots, render, report, runner
+from rmac_mj.experiments.protocol import Protocol
+from rmac_mj.experiments.store import ResultStore
 from rmac_mj.experiments.episode import (action_space_of, n_sub_steps, run_trial, state_of,
                                          state_space_of, steps_per_trial, trial_seconds)
 from rmac_mj.experiments.snapshots import load_snapshot
@@ -56,7 +58,7 @@ def test_sac_tiles_the_four_dimensional_box(toy):
 
 
 def test_runner_summary_and_figure_use_the_tasks_trial_length(toy, tmp_path):
-    protocol = runner.Protocol(**TINY)
+    protocol = Protocol(**TINY)
     summary = runner.run_protocol(protocol, tmp_path, jobs=1, progress=False,
                                   optimal=lambda p: -1.0)
     on_disk = json.loads((tmp_path / "summary.json").read_text())
@@ -71,19 +73,19 @@ def test_runner_summary_and_figure_use_the_tasks_trial_length(toy, tmp_path):
         assert row["stuck_below"] == -2.0 and row["stuck_experiments"] == 2  # the toy costs more
         assert len(row["greedy_return_per_eval"]) == 3
     assert (tmp_path / "fig2_learning_curves.png").is_file()
-    assert "one trial = 0.2 s" in runner.summary_table(summary)
-    agent, meta = load_snapshot(runner.snapshot_path(tmp_path, "rmac", 1, 3))
+    assert "one trial = 0.2 s" in report.summary_table(summary)
+    agent, meta = load_snapshot(ResultStore(tmp_path).snapshot_path("rmac", 1, 3))
     assert (meta["domain"], meta["task"]) == ("toy", "settle") and agent.vertices.shape == (4, 2)
-    env = runner.make_environment(protocol)
-    outcome_greedy = np.load(runner.curve_path(tmp_path, "rmac", 1))["greedy_returns"][-1]
+    env = protocol.make_environment()
+    outcome_greedy = np.load(ResultStore(tmp_path).curve_path("rmac", 1))["greedy_returns"][-1]
     assert run_trial(env, agent, learn=False) == pytest.approx(outcome_greedy, abs=1e-9)
 
 
 def test_protocol_refuses_an_unknown_task(toy):
     with pytest.raises(ValueError, match="unknown domain"):
-        runner.Protocol(domain="cartpole")
+        Protocol(domain="cartpole")
     with pytest.raises(ValueError, match="unknown task 'swingup' of domain 'toy'"):
-        runner.Protocol(domain="toy", task="swingup")
+        Protocol(domain="toy", task="swingup")
 
 
 class Recorder:
@@ -109,7 +111,7 @@ def test_policy_maps_slice_through_the_anchor_over_the_tasks_box(toy):
     learner_state = env.task.learner_state
     anchor = np.array([0.5, 0.25, 1.5, -0.5])
     agent = Recorder((1, 3))
-    xs, ys, actions, values = plots.policy_slice(agent, learner_state.low, learner_state.high, anchor,
+    xs, ys, actions, values = policy_plots.policy_slice(agent, learner_state.low, learner_state.high, anchor,
                                                  dims=(1, 3), resolution=(5, 4))
     np.testing.assert_allclose(xs, np.linspace(-1, 1, 5))
     np.testing.assert_allclose(ys, np.linspace(-5, 5, 4))
@@ -119,7 +121,7 @@ def test_policy_maps_slice_through_the_anchor_over_the_tasks_box(toy):
     np.testing.assert_allclose(actions[..., 0], np.tile(xs, (4, 1)))   # x axis: dims[0]
     np.testing.assert_allclose(actions[..., 1], np.tile(ys[:, None], (1, 5)))
     with pytest.raises(ValueError, match="dims"):
-        plots.policy_slice(agent, learner_state.low, learner_state.high, anchor, dims=(2, 2))
+        policy_plots.policy_slice(agent, learner_state.low, learner_state.high, anchor, dims=(2, 2))
 
 
 def test_episode_render_records_the_tasks_state_and_action(toy):

@@ -142,14 +142,14 @@ def _fake_run(directory, seed, agent_configs=None):
 
     import numpy as np
 
-    from rmac_mj.experiments import results
+    from rmac_mj.experiments import metrics
 
     rng = np.random.default_rng(seed)
     directory.mkdir(parents=True)
     summary = {"trial_seconds": 3.0, "optimal_return": None,
                "protocol": {"experiments": 3, "trials": 60, "seed": seed,
                             "agent_configs": agent_configs or {}},
-               "rmac": results.summarise(-1000 + rng.normal(0, 50, (3, 60)), trial_seconds=3.0)}
+               "rmac": metrics.summarise(-1000 + rng.normal(0, 50, (3, 60)), trial_seconds=3.0)}
     (directory / "summary.json").write_text(json.dumps(summary))
 
 

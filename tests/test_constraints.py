@@ -15,7 +15,7 @@ from rmac_mj.agents.sac import SACConfig
 from rmac_mj.approximators.llr import LLRMemory
 from rmac_mj.approximators.tile_coding import TileCodingConfig
 from rmac_mj.errors import UserInputError
-from rmac_mj.experiments import sweep
+from rmac_mj.experiments import sweep_file
 
 CONFIGS = (RMACConfig, SACConfig, MLACConfig, Exploration, TileCodingConfig)
 LEARNERS = (RMACConfig, SACConfig, MLACConfig)
@@ -126,7 +126,7 @@ def test_the_sweep_checker_expects_what_the_config_expects(tmp_path, key, value,
     path = pathlib.Path(tmp_path) / "sweep.toml"
     path.write_text(f'[protocol]\nalgorithms = ["{algorithm}"]\n[grid]\n"{key}" = [{toml}]\n')
     with pytest.raises(UserInputError) as error:
-        sweep.load_sweep(path)
+        sweep_file.load_sweep(path)
     expected = constraints.unmet(value, cls.parameter_constraints[field])
     assert expected is not None and f"expected {expected}, got {toml}" in str(error.value)
     assert f"{cls.__name__}.{field} must be {expected}, got {value!r}" == refusal(cls, **{field: value})

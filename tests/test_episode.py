@@ -7,7 +7,7 @@ from rmac_mj import tasks
 from rmac_mj.agents import ALGORITHMS, make_agent
 from rmac_mj.experiments.episode import (action_space_of, run_trial, state_of, state_space_of,
                                          steps_per_trial, trial_seconds)
-from rmac_mj.experiments.plots import policy_actions, policy_slice
+from rmac_mj.experiments.policy_plots import policy_actions, policy_slice
 
 
 @pytest.fixture(scope="module", params=ALGORITHMS)

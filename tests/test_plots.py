@@ -5,7 +5,7 @@ scales with the greedy trajectory."""
 import numpy as np
 import pytest
 
-from rmac_mj.experiments import plots, results, runner
+from rmac_mj.experiments import metrics, plots, policy_plots, report
 
 
 def old_summary(trial_seconds: float, trials: int = 4) -> dict:
@@ -25,7 +25,7 @@ def old_summary(trial_seconds: float, trials: int = 4) -> dict:
 def drawn(monkeypatch):
     """The figures plot_learning_curves draws, kept instead of written."""
     figures = []
-    monkeypatch.setattr(plots, "_save", lambda fig, stem, formats=("png", "pdf"): figures.append(fig))
+    monkeypatch.setattr(plots, "save_figure", lambda fig, stem, formats=("png", "pdf"): figures.append(fig))
     return figures
 
 
@@ -47,7 +47,7 @@ def test_one_summary_names_its_trial_length_and_an_old_one_still_tabulates(drawn
     assert drawn[0].axes[0].get_xlabel() == "time [min] (simulated; one trial = 0.2 s)"
     greedy = [line for line in drawn[0].axes[0].get_lines() if "greedy" in line.get_label()]
     np.testing.assert_allclose(greedy[0].get_xdata(), np.array([2, 4]) * 0.2 / 60)
-    assert "one trial = 0.2 s" in runner.summary_table(summary)
+    assert "one trial = 0.2 s" in report.summary_table(summary)
 
 
 def test_a_summary_without_trial_length_is_refused_by_name(drawn):
@@ -63,8 +63,8 @@ def _summary(n_experiments, seed=0, level=-1000.0, **protocol):
     curves = level - 3000.0 * np.exp(-trials / 20.0) + rng.normal(0, 40, (n_experiments, 100))
     curves[0] -= 20000.0 * (n_experiments < 5)  # one bad experiment: a huge interval when n is small
     return {"trial_seconds": 3.0, "protocol": protocol,
-            "rmac": results.summarise(curves, trial_seconds=3.0),
-            "s-ac": results.summarise(curves - 50.0, trial_seconds=3.0)}
+            "rmac": metrics.summarise(curves, trial_seconds=3.0),
+            "s-ac": metrics.summarise(curves - 50.0, trial_seconds=3.0)}
 
 
 def test_axes_follow_the_curves_not_the_bands():
@@ -144,7 +144,7 @@ def _pendulum():
 
 def test_side_by_side_policies_share_their_colour_scales():
     _, learner_state = _pendulum()
-    fig = plots.policies_figure([(_MapAgent(10.0), {"algorithm": "rmac"}),
+    fig = policy_plots.policies_figure([(_MapAgent(10.0), {"algorithm": "rmac"}),
                                  (_MapAgent(1000.0), {"algorithm": "s-ac"})],
                                 learner_state, anchor=[np.pi, 0.0], resolution=9)
     images = [ax.images[0] for ax in fig.axes if ax.images]
@@ -160,13 +160,13 @@ def test_the_greedy_trajectory_is_drawn_from_the_start_state():
     from test_render import energy_pump_agent  # (tests/ is on sys.path, as pytest imports it)
 
     env, learner_state = _pendulum()
-    states, total = plots.greedy_trajectory(env, energy_pump_agent())
+    states, total = policy_plots.greedy_trajectory(env, energy_pump_agent())
     assert states.shape == (11, 2) and total < 0
     np.testing.assert_allclose(states[0], [-np.pi, 0.0])
     agent = _MapAgent(1.0)
     agent.begin_greedy_trial = lambda: None
     agent.greedy_action = lambda x: np.array([3.0])
-    fig = plots.policies_figure([(agent, {"algorithm": "rmac"})], learner_state, anchor=[np.pi, 0.0],
+    fig = policy_plots.policies_figure([(agent, {"algorithm": "rmac"})], learner_state, anchor=[np.pi, 0.0],
                                 resolution=5, envs=[env])
     lines = [line for line in fig.axes[0].get_lines() if "greedy trial from $x_0$" in str(line.get_label())]
     assert len(lines) == 1

@@ -11,6 +11,8 @@ from rmac_mj.agents.base import discounted_returns
 from rmac_mj.agents.rmac import RMACConfig
 from rmac_mj.errors import MissingInputError, UserInputError
 from rmac_mj.experiments import demonstrators, prior, runner
+from rmac_mj.experiments.protocol import Protocol, demonstration_for, experiment_seeds
+from rmac_mj.experiments.store import ResumeRefused
 from rmac_mj.experiments.episode import action_space_of, run_trial, state_space_of
 
 
@@ -260,10 +262,10 @@ def test_unreadable_or_missing_prior_file_is_refused(env, tmp_path):
 # -- the runner and the command line ------------------------------------------------------------------
 
 def test_seeded_rmac_reaches_upright_in_its_first_trial(env):
-    protocol = runner.Protocol(algorithms=("rmac",), experiments=1, trials=1, prior="demo")
-    demo = runner.demonstration_for(protocol, 0)
-    np.testing.assert_array_equal(demo.actions, runner.demonstration_for(protocol, 0).actions)
-    assert not np.array_equal(demo.actions, runner.demonstration_for(protocol, 1).actions)
+    protocol = Protocol(algorithms=("rmac",), experiments=1, trials=1, prior="demo")
+    demo = demonstration_for(protocol, 0)
+    np.testing.assert_array_equal(demo.actions, demonstration_for(protocol, 0).actions)
+    assert not np.array_equal(demo.actions, demonstration_for(protocol, 1).actions)
     seeded, empty = (make_agent("rmac", *spaces(env), seed=0) for _ in range(2))
     seeded.seed_from(**demo.arrays())
     angles = []
@@ -275,14 +277,14 @@ def test_seeded_rmac_reaches_upright_in_its_first_trial(env):
 def test_protocol_refuses_learners_and_parts_that_take_no_prior():
     with pytest.raises(ValueError, match=r"^s-ac does not take prior knowledge: run only learners "
                                          r"that do \(rmac"):
-        runner.Protocol(algorithms=("rmac", "s-ac"), prior="demo")
+        Protocol(algorithms=("rmac", "s-ac"), prior="demo")
     with pytest.raises(ValueError, match="rmac takes no actor prior"):
-        runner.Protocol(algorithms=("rmac",), prior="demo", prior_parts=("actor",))
+        Protocol(algorithms=("rmac",), prior="demo", prior_parts=("actor",))
     with pytest.raises(ValueError, match="prior_parts needs prior"):
-        runner.Protocol(algorithms=("rmac",), prior_parts=("process",))
-    with pytest.raises(ValueError, match="prior_trials must be a positive integer"):
-        runner.Protocol(algorithms=("rmac",), prior="demo", prior_trials=0)
-    assert runner.Protocol(prior=None).is_paper_protocol
+        Protocol(algorithms=("rmac",), prior_parts=("process",))
+    with pytest.raises(ValueError, match="Protocol.prior_trials must be an integer >= 1, got 0"):
+        Protocol(algorithms=("rmac",), prior="demo", prior_trials=0)
+    assert Protocol(prior=None).is_paper_protocol
 
 
 def test_reproduce_with_prior_end_to_end(env, tmp_path, capsys):
@@ -297,28 +299,28 @@ def test_reproduce_with_prior_end_to_end(env, tmp_path, capsys):
     with np.load(out / "curves/rmac/exp_000.npz") as curve:
         demonstration_returns, returns = curve["demonstration_returns"], curve["returns"]
     assert demonstration_returns.shape == (2,) and returns.shape == (2,)
-    protocol = runner.Protocol(algorithms=("rmac",), experiments=1, trials=2, prior="demo",
+    protocol = Protocol(algorithms=("rmac",), experiments=1, trials=2, prior="demo",
                                prior_trials=2)
     np.testing.assert_allclose(demonstration_returns,
-                               runner.demonstration_for(protocol, 0).trial_returns())
+                               demonstration_for(protocol, 0).trial_returns())
     # The run is the seeded agent's: its first trial is the one a seeded agent makes.
     agent = make_agent("rmac", *spaces(env), seed=np.random.default_rng(
-        runner.experiment_seeds(0, 0)[0]))
-    agent.seed_from(**runner.demonstration_for(protocol, 0).arrays())
+        experiment_seeds(0, 0)[0]))
+    agent.seed_from(**demonstration_for(protocol, 0).arrays())
     assert run_trial(env, agent) == pytest.approx(returns[0], abs=1e-9)
 
     # A user's own recording.
-    path = prior.save_demonstration(tmp_path / "logs.npz", runner.demonstration_for(protocol, 0))
+    path = prior.save_demonstration(tmp_path / "logs.npz", demonstration_for(protocol, 0))
     out = tmp_path / "file"
-    from_file = runner.Protocol(algorithms=("rmac",), experiments=1, trials=1, prior=str(path),
+    from_file = Protocol(algorithms=("rmac",), experiments=1, trials=1, prior=str(path),
                                 prior_parts=("process", "critic"))
     runner.run_protocol(from_file, out, jobs=1, progress=False, figures=False)
     document = json.loads((out / "config.json").read_text())
     assert document["protocol"]["prior_parts"] == ["process", "critic"]
     assert len(document["prior_sha256"]) == 64
     runner.run_protocol(from_file, out, jobs=1, resume=True, progress=False, figures=False)
-    prior.save_demonstration(path, runner.demonstration_for(protocol, 1))  # the file changes
-    with pytest.raises(runner.ResumeRefused, match="different config"):
+    prior.save_demonstration(path, demonstration_for(protocol, 1))  # the file changes
+    with pytest.raises(ResumeRefused, match="different config"):
         runner.run_protocol(from_file, out, jobs=1, resume=True, progress=False, figures=False)
     capsys.readouterr()
 

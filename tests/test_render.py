@@ -9,7 +9,7 @@ import pytest
 
 from rmac_mj import _gl, tasks
 from rmac_mj.agents.base import ActionSpace, PolicyAgent, StateSpace
-from rmac_mj.experiments import render
+from rmac_mj.experiments import render, result_videos, video
 from rmac_mj.experiments.episode import run_trial
 
 SHORT = {"time_limit": 0.3}  # 10 control steps: enough to see motion, quick to render
@@ -114,7 +114,7 @@ def _moving_square(frames: int, height: int, width: int) -> np.ndarray:
 @pytest.mark.parametrize("suffix", [".mp4", ".gif"])
 def test_videos_are_written_and_read_back(tmp_path, suffix):
     clip = _moving_square(12, 49, 65)  # odd size: MP4 pads to even
-    path = render.write_video(clip, tmp_path / f"clip{suffix}", fps=30)
+    path = video.write_video(clip, tmp_path / f"clip{suffix}", fps=30)
     frames = imageio.mimread(path)
     assert len(frames) == 12
     expected = (50, 66) if suffix == ".mp4" else (49, 65)
@@ -124,32 +124,30 @@ def test_videos_are_written_and_read_back(tmp_path, suffix):
 
 def test_gif_can_be_made_smaller(tmp_path):
     clip = _moving_square(12, 48, 64)
-    path = render.write_video(clip, tmp_path / "small.gif", fps=30, scale=0.5, frame_step=2)
+    path = video.write_video(clip, tmp_path / "small.gif", fps=30, scale=0.5, frame_step=2)
     frames = imageio.mimread(path)
     assert len(frames) == 6 and frames[0].shape[:2] == (24, 32)
 
 
 def test_unknown_video_format_is_rejected(tmp_path):
     with pytest.raises(ValueError, match=r"\.mp4"):
-        render.write_video(_moving_square(2, 8, 8), tmp_path / "clip.avi", fps=30)
+        video.write_video(_moving_square(2, 8, 8), tmp_path / "clip.avi", fps=30)
 
 
 def test_side_by_side_and_sequence_compose_clips():
     a, b = _moving_square(5, 40, 60), _moving_square(3, 40, 60)
-    both = render.side_by_side([a, b], labels=["S-AC", "RMAC"])
+    both = video.side_by_side([a, b], labels=["S-AC", "RMAC"])
     assert both.shape == (5, 40, 60 + 4 + 60, 3)
     np.testing.assert_array_equal(both[4, 30:, 64:], b[2, 30:])  # the short clip holds its last frame
-    chain = render.sequence([a, b], hold=2)
+    chain = video.sequence([a, b], hold=2)
     assert chain.shape == (5 + 2 + 3 + 2, 40, 60, 3)
     np.testing.assert_array_equal(chain[7], b[0])
     with pytest.raises(ValueError, match="frame size"):
-        render.side_by_side([a, _moving_square(5, 40, 62)])
+        video.side_by_side([a, _moving_square(5, 40, 62)])
 
 
 def _fake_results(tmp_path, monkeypatch, trials=(1, 10)):
     """A result directory of empty snapshot files that "load" as the scripted agent on a short task."""
-    from rmac_mj.experiments import snapshots
-
     for algorithm in ("rmac", "s-ac"):
         for trial in trials:
             path = tmp_path / "snapshots" / algorithm / "exp_000" / f"trial_{trial:04d}.npz"
@@ -161,20 +159,20 @@ def _fake_results(tmp_path, monkeypatch, trials=(1, 10)):
         return energy_pump_agent(), {"algorithm": algorithm, "domain": "dc_pendulum", "task": "swingup",
                                    "task_kwargs": {"time_limit": 0.09}, "trial": trial}
 
-    monkeypatch.setattr(snapshots, "load_snapshot", load)
+    monkeypatch.setattr(result_videos, "load_snapshot", load)
     return tmp_path
 
 
 def test_progression_and_comparison_from_a_result_directory(tmp_path, monkeypatch):
     results = _fake_results(tmp_path, monkeypatch)
     options = {"width": 64, "height": 48, "overlay": False}
-    path = render.render_progression(results, tmp_path / "progression.mp4", **options)
+    path = result_videos.render_progression(results, tmp_path / "progression.mp4", **options)
     assert len(imageio.mimread(path)) == 2 * (4 + 17)  # 4 frames each, last held 0.5 s at 33.3 fps
     # (a GIF merges the held frames into one long frame, so its count would not tell)
-    path = render.render_comparison(results, tmp_path / "comparison.gif", **options)
+    path = result_videos.render_comparison(results, tmp_path / "comparison.gif", **options)
     assert imageio.mimread(path)[0].shape[:2] == (48, 64 + 4 + 64)
     with pytest.raises(FileNotFoundError, match=r"available: \[1, 10\]"):
-        render.render_progression(results, tmp_path / "p.gif", trials=(1, 600), **options)
+        result_videos.render_progression(results, tmp_path / "p.gif", trials=(1, 600), **options)
 
 
 def test_backend_selection_prefers_egl_then_osmesa(monkeypatch):
@@ -218,7 +216,7 @@ def test_a_3_s_episode_plays_3_s_as_a_gif(tmp_path, frames_per_step):
     env = tasks.load("dc_pendulum", "swingup")  # the paper's 3 s trial
     episode = render.render_episode(env, energy_pump_agent(), width=32, height=24, overlay=False,
                                     frames_per_step=frames_per_step)
-    path = render.write_video(episode.frames, tmp_path / "swingup.gif", fps=episode.fps)
+    path = video.write_video(episode.frames, tmp_path / "swingup.gif", fps=episode.fps)
     delays = []
     with Image.open(path) as gif:
         for index in range(gif.n_frames):
@@ -230,8 +228,8 @@ def test_a_3_s_episode_plays_3_s_as_a_gif(tmp_path, frames_per_step):
 
 @pytest.mark.parametrize("fps", [100 / 3, 30.0, 60.0, 100.0])
 def test_gif_delays_add_up_to_real_time(fps):
-    step, delays = render.gif_timing(301, fps)
-    assert delays.min() >= render.GIF_MIN_DELAY_CS
+    step, delays = video.gif_timing(301, fps)
+    assert delays.min() >= video.GIF_MIN_DELAY_CS
     assert delays.sum() / 100 == pytest.approx(len(range(0, 301, step)) * step / fps, abs=0.005)
 
 

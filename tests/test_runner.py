@@ -13,17 +13,20 @@ import pytest
 
 from rmac_mj.experiments import runner
 from rmac_mj.experiments.episode import run_trial
+from rmac_mj.experiments.progress import Progress, TrialFeed
+from rmac_mj.experiments.protocol import ExperimentSpec, Protocol, run_experiment
 from rmac_mj.experiments.snapshots import load_snapshot
+from rmac_mj.experiments.store import ResultStore, ResumeRefused
 
 TINY = dict(algorithms=("s-ac",), experiments=2, trials=4, snapshot_trials=(1, 2), evaluate_every=2)
 
 
 def returns_of(out, protocol):
-    return {a: runner.load_curves(pathlib.Path(out), protocol, a)[0] for a in protocol.algorithms}
+    return {a: ResultStore(out).load_curves(a, protocol.experiments).returns for a in protocol.algorithms}
 
 
 def test_tiny_protocol_end_to_end(tmp_path):
-    protocol = runner.Protocol(**TINY)
+    protocol = Protocol(**TINY)
     summary = runner.run_protocol(protocol, tmp_path, jobs=1, progress=False,
                                   optimal=lambda p: -900.0)
     for name in ("config.json", "summary.json", "returns.csv", "fig2_learning_curves.png",
@@ -50,7 +53,7 @@ def test_tiny_protocol_end_to_end(tmp_path):
 
 
 def test_serial_and_parallel_runs_are_identical(tmp_path):
-    protocol = runner.Protocol(**TINY)
+    protocol = Protocol(**TINY)
     runner.run_protocol(protocol, tmp_path / "serial", jobs=1, progress=False, figures=False)
     runner.run_protocol(protocol, tmp_path / "parallel", jobs=2, progress=False, figures=False)
     serial, parallel = returns_of(tmp_path / "serial", protocol), returns_of(tmp_path / "parallel", protocol)
@@ -59,11 +62,11 @@ def test_serial_and_parallel_runs_are_identical(tmp_path):
 
 
 def test_resume_with_a_changed_config_is_refused(tmp_path):
-    runner.run_protocol(runner.Protocol(**TINY), tmp_path, jobs=1, progress=False, figures=False)
-    with pytest.raises(runner.ResumeRefused, match="already holds a run"):
-        runner.run_protocol(runner.Protocol(**TINY), tmp_path, jobs=1, progress=False)
-    changed = runner.Protocol(**{**TINY, "trials": 5})
-    with pytest.raises(runner.ResumeRefused, match="different config") as refusal:
+    runner.run_protocol(Protocol(**TINY), tmp_path, jobs=1, progress=False, figures=False)
+    with pytest.raises(ResumeRefused, match="already holds a run"):
+        runner.run_protocol(Protocol(**TINY), tmp_path, jobs=1, progress=False)
+    changed = Protocol(**{**TINY, "trials": 5})
+    with pytest.raises(ResumeRefused, match="different config") as refusal:
         runner.run_protocol(changed, tmp_path, jobs=1, resume=True, progress=False)
     assert "trials: 4 in the directory, 5 now" in str(refusal.value)  # names what differs
     assert "snapshot_trials: [1, 2, 4] in the directory, [1, 2, 5] now" in str(refusal.value)
@@ -76,12 +79,13 @@ def _hooked_cli(marker: pathlib.Path) -> list[str]:
     script = (
         "import pathlib, sys, time\n"
         "from rmac_mj.experiments import runner\n"
-        "save = runner.save_outcome\n"
-        "def save_then_wait(out, outcome):\n"
-        "    save(out, outcome)\n"
+        "from rmac_mj.experiments.store import ResultStore\n"
+        "save = ResultStore.save\n"
+        "def save_then_wait(store, result):\n"
+        "    save(store, result)\n"
         f"    pathlib.Path({str(marker)!r}).touch()\n"
         "    time.sleep(600)\n"
-        "runner.save_outcome = save_then_wait\n"
+        "ResultStore.save = save_then_wait\n"
         "from rmac_mj.cli import main\n"
         "sys.exit(main(sys.argv[1:]))\n")
     return [sys.executable, "-c", script]
@@ -115,21 +119,21 @@ def test_killed_run_resumed_equals_uninterrupted(tmp_path):
     assert resumed.returncode == 0, resumed.stderr
     whole = tmp_path / "whole"
     subprocess.run([*command, "--out", str(whole)], check=True, capture_output=True, timeout=300)
-    protocol = runner.Protocol(algorithms=("s-ac",), experiments=4, trials=10)
+    protocol = Protocol(algorithms=("s-ac",), experiments=4, trials=10)
     np.testing.assert_array_equal(returns_of(killed, protocol)["s-ac"],
                                   returns_of(whole, protocol)["s-ac"])
     assert not list(killed.rglob("*.tmp"))
 
 
 def test_snapshot_round_trip_reproduces_the_policy(tmp_path):
-    protocol = runner.Protocol(**{**TINY, "experiments": 1})
-    outcome = runner.run_experiment(runner.ExperimentSpec(protocol, "s-ac", 0))
-    runner.save_outcome(tmp_path, outcome)
-    agent, meta = load_snapshot(runner.snapshot_path(tmp_path, "s-ac", 0, 4))
+    protocol = Protocol(**{**TINY, "experiments": 1})
+    outcome = run_experiment(ExperimentSpec(protocol, "s-ac", 0))
+    ResultStore(tmp_path).save(outcome)
+    agent, meta = load_snapshot(ResultStore(tmp_path).snapshot_path("s-ac", 0, 4))
     assert meta["trial"] == 4 and meta["algorithm"] == "s-ac"
-    env = runner.make_environment(protocol)
+    env = protocol.make_environment()
     # The greedy trial after trial 4, recorded during learning, is what the reloaded agent does.
-    assert run_trial(env, agent, learn=False) == pytest.approx(outcome["greedy_returns"][-1], abs=1e-9)
+    assert run_trial(env, agent, learn=False) == pytest.approx(outcome.greedy_returns[-1], abs=1e-9)
 
 
 def test_protocol_validation_names_the_parameter():
@@ -138,14 +142,14 @@ def test_protocol_validation_names_the_parameter():
                          ({"seed": -3}, "seed"), ({"evaluate_every": -1}, "evaluate_every"),
                          ({"task_kwargs": {"random": 1}}, "random")]:
         with pytest.raises(ValueError, match=name):
-            runner.Protocol(**kwargs)
-    assert runner.Protocol().is_paper_protocol
-    assert not runner.Protocol(experiments=4).is_paper_protocol
+            Protocol(**kwargs)
+    assert Protocol().is_paper_protocol
+    assert not Protocol(experiments=4).is_paper_protocol
 
 
 def test_dask_scheduler_path_matches_local_run(tmp_path):
     distributed = pytest.importorskip("distributed")
-    protocol = runner.Protocol(**TINY)
+    protocol = Protocol(**TINY)
     runner.run_protocol(protocol, tmp_path / "local", jobs=1, progress=False, figures=False)
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                                   dashboard_address=None) as cluster:
@@ -183,7 +187,7 @@ def test_every_result_file_is_readable_by_others(tmp_path):
 
     from rmac_mj.agents import ALGORITHMS
 
-    protocol = runner.Protocol(algorithms=ALGORITHMS, experiments=1, trials=2, snapshot_trials=(1,))
+    protocol = Protocol(algorithms=ALGORITHMS, experiments=1, trials=2, snapshot_trials=(1,))
     old = os.umask(0o022)
     try:
         runner.run_protocol(protocol, tmp_path, jobs=1, progress=False)
@@ -211,30 +215,30 @@ def test_a_non_terminal_run_prints_plain_progress_lines(tmp_path):
 
 
 def test_trials_are_streamed_to_disk_as_they_happen(tmp_path):
-    protocol = runner.Protocol(**{**TINY, "experiments": 1})
-    log = runner.progress_path(tmp_path, "s-ac", 0)
+    protocol = Protocol(**{**TINY, "experiments": 1})
+    log = ResultStore(tmp_path).progress_path("s-ac", 0)
     seen = []
 
     def on_trial(algorithm, index, trial, value):  # the log already holds this trial
         seen.append(log.read_text().splitlines()[-1].split(",")[0])
 
-    streamed = runner.run_experiment(runner.ExperimentSpec(protocol, "s-ac", 0, stream_to=str(tmp_path)),
-                                     on_trial=on_trial)
+    streamed = run_experiment(ExperimentSpec(protocol, "s-ac", 0, stream_to=str(tmp_path)),
+                              on_trial=on_trial)
     assert seen == ["1", "2", "3", "4"]
     lines = log.read_text().splitlines()
     assert lines[0] == "trial,return,greedy_return"
-    np.testing.assert_array_equal([float(line.split(",")[1]) for line in lines[1:]], streamed["returns"])
+    np.testing.assert_array_equal([float(line.split(",")[1]) for line in lines[1:]], streamed.returns)
     assert [line.split(",")[2] != "" for line in lines[1:]] == [False, True, False, True]
-    silent = runner.run_experiment(runner.ExperimentSpec(protocol, "s-ac", 0))
-    np.testing.assert_array_equal(silent["returns"], streamed["returns"])  # streaming changes nothing
+    silent = run_experiment(ExperimentSpec(protocol, "s-ac", 0))
+    np.testing.assert_array_equal(silent.returns, streamed.returns)  # streaming changes nothing
 
 
 def test_the_driver_reads_only_complete_lines_of_the_live_logs(tmp_path):
-    protocol = runner.Protocol(**TINY)
-    pending = [(0, spec) for spec in runner._pending(tmp_path, protocol)]
-    display = runner._Progress([protocol], pending, enabled=False)
-    feed = runner._TrialFeed([tmp_path], pending, display)
-    log = runner.progress_path(tmp_path, "s-ac", 1)
+    protocol = Protocol(**TINY)
+    display = Progress([protocol], [{}], enabled=False)
+    feed = TrialFeed(display)
+    log = ResultStore(tmp_path).progress_path("s-ac", 1)
+    feed.watch((0, "s-ac", 1), log)
     log.parent.mkdir(parents=True)
     log.write_text("trial,return,greedy_return\n1,-4000.5,\n2,-39")  # trial 2 half written
     feed.poll()
@@ -255,9 +259,8 @@ def test_progress_bars_show_the_mean_of_the_last_trials():
             return True
 
     stream = Terminal()
-    protocol = runner.Protocol(**TINY)
-    pending = [(0, spec) for spec in runner._pending(pathlib.Path("nowhere"), protocol)]
-    display = runner._Progress([protocol], pending, enabled=True, stream=stream)
+    protocol = Protocol(**TINY)
+    display = Progress([protocol], [{}], enabled=True, stream=stream)
     for trial, value in enumerate([-3000.0, -2000.0, -1000.0], start=1):
         display.trial((0, "s-ac", 0), trial, value)
     display.close()
@@ -265,27 +268,22 @@ def test_progress_bars_show_the_mean_of_the_last_trials():
 
 
 def test_a_resumed_run_reports_the_wall_time_of_all_its_parts(tmp_path):
-    protocol = runner.Protocol(**TINY)
+    protocol = Protocol(**TINY)
     first = runner.run_protocol(protocol, tmp_path, jobs=1, progress=False, figures=False)
     assert first["wall_time_parts_s"] == [first["wall_time_s"]] and first["wall_time_s"] > 0
-    runner.curve_path(tmp_path, "s-ac", 1).unlink()  # as if killed before the last experiment
+    ResultStore(tmp_path).curve_path("s-ac", 1).unlink()  # as if killed before the last experiment
     resumed = runner.run_protocol(protocol, tmp_path, jobs=1, resume=True, progress=False, figures=False)
     parts = resumed["wall_time_parts_s"]
     assert len(parts) == 2 and parts[0] == pytest.approx(first["wall_time_s"], abs=0.5)
     assert resumed["wall_time_s"] == pytest.approx(sum(parts))
-    stored = json.loads(runner.wall_times_path(tmp_path).read_text())["parts"]
+    stored = json.loads(ResultStore(tmp_path).wall_times_path.read_text())["parts"]
     assert [part["experiments"] for part in stored] == [2, 1]
 
 
 def test_one_progress_display_counts_the_learners_trials_over_several_runs(tmp_path):
-    first = runner.Protocol(**TINY)
-    second = runner.Protocol(**{**TINY, "experiments": 3, "trials": 5})
-    runner.curve_path(tmp_path / "b", "s-ac", 2).parent.mkdir(parents=True)
-    np.savez(runner.curve_path(tmp_path / "b", "s-ac", 2), returns=np.zeros(5))  # already finished
-    pending = [(k, spec) for k, (protocol, out) in enumerate([(first, tmp_path / "a"),
-                                                              (second, tmp_path / "b")])
-               for spec in runner._pending(out, protocol)]
-    display = runner._Progress([first, second], pending, enabled=False)
+    first = Protocol(**TINY)
+    second = Protocol(**{**TINY, "experiments": 3, "trials": 5})
+    display = Progress([first, second], [{}, {"s-ac": 1}], enabled=False)  # one already finished
     assert display.total_trials == {"all": 2 * 4 + 3 * 5, "s-ac": 23}
     assert display.trials_done["s-ac"] == 5 and display.done == {"all": 1, "s-ac": 1}
     display.trial((1, "s-ac", 0), 2, -100.0)

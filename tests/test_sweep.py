@@ -14,7 +14,7 @@ import pytest
 
 from rmac_mj import cli
 from rmac_mj.errors import UserInputError
-from rmac_mj.experiments import sweep
+from rmac_mj.experiments import sweep, sweep_file
 
 TINY = """
 [protocol]
@@ -58,7 +58,7 @@ name = "paper"
 name = "oldest"
 "rmac.critic_replacement" = "oldest"
 """)
-    plan = sweep.load_sweep(path)
+    plan = sweep_file.load_sweep(path)
     assert plan.parameters == ["variant", "rmac.exploration.sigma", "s-ac.exploration.sigma",
                                "rmac.critic_weights"]
     names = [c.name for c in plan.configurations]
@@ -101,7 +101,7 @@ name = "oldest"
 ])
 def test_a_malformed_file_names_the_key(tmp_path, text, named):
     with pytest.raises(UserInputError) as error:
-        sweep.load_sweep(write(tmp_path, text))
+        sweep_file.load_sweep(write(tmp_path, text))
     message = str(error.value)
     assert named in message and message.startswith(str(tmp_path / "sweep.toml"))
     assert "\n" not in message
@@ -109,7 +109,7 @@ def test_a_malformed_file_names_the_key(tmp_path, text, named):
 
 def test_a_variant_sets_fields_that_depend_on_each_other(tmp_path):
     # Each key is checked with the variant's other values: where='uncertain' needs its threshold.
-    plan = sweep.load_sweep(write(tmp_path, """
+    plan = sweep_file.load_sweep(write(tmp_path, """
 [[variant]]
 name = "uncertain"
 "rmac.exploration.where" = "uncertain"
@@ -131,7 +131,7 @@ def test_a_malformed_file_exits_2_with_one_line_before_running_anything(tmp_path
 
 
 def test_a_config_file_takes_single_values_only(tmp_path):
-    single = sweep.load_configuration(write(tmp_path, """
+    single = sweep_file.load_configuration(write(tmp_path, """
 [protocol]
 algorithms = ["rmac"]
 trials = 5
@@ -145,9 +145,9 @@ trials = 5
                                              "alpha_r": 0.01}}
     with pytest.raises(UserInputError, match=r'"rmac.alpha_r": lists 2 values; --config runs one '
                                              r"configuration"):
-        sweep.load_configuration(write(tmp_path, '[grid]\n"rmac.alpha_r" = [0.01, 0.02]\n'))
+        sweep_file.load_configuration(write(tmp_path, '[grid]\n"rmac.alpha_r" = [0.01, 0.02]\n'))
     with pytest.raises(UserInputError, match="2 variants"):
-        sweep.load_configuration(write(tmp_path, '[[variant]]\nname = "a"\n[[variant]]\nname = "b"\n'))
+        sweep_file.load_configuration(write(tmp_path, '[[variant]]\nname = "a"\n[[variant]]\nname = "b"\n'))
 
 
 # ----------------------------------------------------------------------------------------------------
@@ -177,7 +177,7 @@ def test_tiny_sweep_killed_resumed_and_summarised(tmp_path):
 
     # The same sweep uninterrupted, all experiments through one pool of two workers.
     whole = tmp_path / "whole"
-    rows = sweep.run_sweep(sweep.load_sweep(path), whole, jobs=2, progress=False,
+    rows = sweep.run_sweep(sweep_file.load_sweep(path), whole, jobs=2, progress=False,
                            optimal=lambda protocol: -748.0, floor=lambda protocol, algorithm: -870.0)
     resumed_curves, whole_curves = curves(killed), curves(whole)
     assert sorted(resumed_curves) == sorted(whole_curves) and len(whole_curves) == 2 * 2
@@ -207,10 +207,10 @@ def test_tiny_sweep_killed_resumed_and_summarised(tmp_path):
                    "gap_to_optimal"):
         assert (whole / f"sweep_{metric}.png").is_file(), metric
     with pytest.raises(UserInputError, match="already holds a sweep"):
-        sweep.run_sweep(sweep.load_sweep(path), whole, jobs=1, progress=False)
+        sweep.run_sweep(sweep_file.load_sweep(path), whole, jobs=1, progress=False)
     other = write(tmp_path, TINY.replace("0.02]", "0.03]"), "other.toml")
     with pytest.raises(UserInputError, match="a different file"):
-        sweep.run_sweep(sweep.load_sweep(other), whole, jobs=1, resume=True, progress=False)
+        sweep.run_sweep(sweep_file.load_sweep(other), whole, jobs=1, resume=True, progress=False)
 
 
 def test_reproduce_config_equals_the_same_set_overrides(tmp_path, capsys):

@@ -22,7 +22,9 @@ import sys
 import numpy as np
 from scipy import stats
 
-from rmac_mj.experiments.results import confidence_interval, minutes_to_within
+from rmac_mj.experiments.metrics import (FIRST_MINUTES, confidence_interval, early_returns,
+                                         final_returns, minutes_to_within)
+from rmac_mj.experiments.store import ResultStore
 
 GOAL = {"greedy": -775.0, "exploring": -905.0, "first_5min": -1800.0, "minutes_to_90pct": 5.0}
 STUCK_BELOW = -1500.0
@@ -30,24 +32,21 @@ STUCK_BELOW = -1500.0
 
 def load(directory: pathlib.Path, learner: str):
     """Per-experiment learning curves and greedy returns, and the trial length in seconds."""
-    files = sorted((directory / "curves" / learner).glob("exp_*.npz"))
-    if not files:
+    store = ResultStore(directory)
+    if not store.finished(learner):
         raise SystemExit(f"goal_report: no curves of {learner!r} in {directory}")
-    data = [np.load(f) for f in files]
-    returns = np.array([d["returns"] for d in data])
-    greedy = np.array([d["greedy_returns"] for d in data])
-    if greedy.shape[1] == 0:
+    curves = store.load_curves(learner)
+    if curves.greedy_returns.shape[1] == 0:
         raise SystemExit(f"goal_report: {directory} has no greedy trials (run with --evaluate-every)")
-    seconds = json.loads((directory / "summary.json").read_text()).get("trial_seconds", 3.0)
-    return returns, greedy, seconds
+    return curves.returns, curves.greedy_returns, store.read_summary()["trial_seconds"]
 
 
 def metrics(returns: np.ndarray, greedy: np.ndarray, seconds: float) -> dict:
-    first = int(round(5 * 60 / seconds))
-    return {"greedy": greedy[:, -1], "greedy_last5": greedy[:, -5:].mean(axis=1), "exploring": returns[:, -50:].mean(axis=1),
-            "first_5min": returns[:, :first].mean(axis=1),
+    finals = final_returns(returns)
+    return {"greedy": greedy[:, -1], "greedy_last5": greedy[:, -5:].mean(axis=1), "exploring": finals,
+            "first_5min": early_returns(returns, FIRST_MINUTES, seconds),
             "minutes_to_90pct": minutes_to_within(returns.mean(axis=0), trial_seconds=seconds),
-            "stuck": int(np.sum(returns[:, -50:].mean(axis=1) < STUCK_BELOW)), "n": len(returns)}
+            "stuck": int(np.sum(finals < STUCK_BELOW)), "n": len(returns)}
 
 
 def paired_difference(a: np.ndarray, b: np.ndarray) -> tuple[float, float, float]:

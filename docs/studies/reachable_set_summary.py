@@ -9,17 +9,17 @@ import pathlib
 
 import numpy as np
 
-from rmac_mj.experiments.results import (compare_final_returns, confidence_interval, describe_test,
+from rmac_mj.experiments.metrics import (compare_final_returns, confidence_interval, final_returns,
                                          minutes_to_within)
+from rmac_mj.experiments.report import describe_test
+from rmac_mj.experiments.store import ResultStore
 
 TRIAL_SECONDS, STUCK_BELOW = 3.0, -1496.0
 
 
 def load(directory: pathlib.Path):
-    files = sorted((directory / "curves" / "rmac").glob("exp_*.npz"))
-    data = [np.load(f) for f in files]
-    return (np.array([d["returns"] for d in data]), np.array([d["greedy_returns"] for d in data]),
-            np.array([float(d["wall_time_s"]) for d in data]))
+    curves = ResultStore(directory).load_curves("rmac")
+    return curves.returns, curves.greedy_returns, curves.wall_times
 
 
 def plot(root: str, rules: list[str], path: str) -> None:
@@ -37,7 +37,7 @@ def main(root: str, rules: list[str]) -> None:
     print("|---|---|---|---|---|---|---|---|---|")
     for rule in rules:
         returns, greedy, wall = load(pathlib.Path(root) / rule)
-        final = returns[:, -50:].mean(axis=1)
+        final = final_returns(returns)
         finals[rule] = final
         m, lo, hi = confidence_interval(final)
         gm, glo, ghi = confidence_interval(greedy[:, -1])

@@ -250,7 +250,8 @@ def real_run(experiments: int, trials: int, jobs: int, physics_step_us: float,
       - ``in_experiments_s``: the time the workers spent inside experiments (per worker), so that
         ``wall_s - in_experiments_s`` is what starting workers, importing and writing cost.
     """
-    from rmac_mj.experiments.runner import Protocol, run_protocol
+    from rmac_mj.experiments.protocol import Protocol
+    from rmac_mj.experiments.runner import run_protocol
 
     protocol = Protocol(domain=domain, task=task, experiments=experiments, trials=trials)
     steps = experiments * len(protocol.algorithms) * trials * steps_per_trial(

@@ -497,7 +497,7 @@ def optimal_return(config: OptimalConfig = OptimalConfig(), cache_dir: str | os.
         model_xml = model_path("dc_pendulum").read_text()
     directory = pathlib.Path(cache_dir).expanduser() if cache_dir is not None else default_cache_dir()
     path = directory / f"optimal-{cache_key(config, model_xml)}.json"
-    from rmac_mj.experiments.results import cached_json
+    from rmac_mj.experiments.files import cached_json
     return cached_json(
         path, lambda document: OptimalResult.from_json_dict(document, from_cache=True),
         lambda: solve(config, model_xml), refresh=refresh, announce=announce,
@@ -669,7 +669,8 @@ def exploration_floor(sigma: float = 1.0, period: int = 3, phase: int = 0, rollo
                                 ci95=(float(low), float(high)), returns=returns, sigma=sigma,
                                 period=period, phase=phase, rollouts=rollouts, seed=seed,
                                 config=config, runtime_s=time.perf_counter() - start)
-    from rmac_mj.experiments.results import cached_json, confidence_interval
+    from rmac_mj.experiments.files import cached_json
+    from rmac_mj.experiments.metrics import confidence_interval
     return cached_json(
         directory / f"exploration-floor-{key}.json",
         lambda document: ExplorationFloor.from_json_dict(document, from_cache=True), compute,

@@ -1,15 +1,16 @@
-"""Figures of the paper: learning curves (Fig. 2) and learned policies and critics (Figs. 3, 4).
+"""Figures of results: learning curves (the paper's Fig. 2) and a sweep's metrics.
 
-Figures are drawn from saved results (``summary.json``, snapshots), never by retraining. Nothing here
-knows a particular task: the trial length comes from the summary, axis ranges and labels from the
-task's ``learner_state`` and the action bounds, learner names from the agents.
+Figures are drawn from saved results (``summary.json``, ``sweep.csv``'s rows), never by retraining.
+Nothing here knows a particular task: the trial length comes from the summary, learner names from the
+agents. The policy and critic maps (Figs. 3, 4) are in :mod:`rmac_mj.experiments.policy_plots`.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import pathlib
-from typing import Any, Sequence
+from typing import Any
 
 import matplotlib
 
@@ -18,7 +19,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from rmac_mj.agents import display_name  # noqa: E402
-from rmac_mj.experiments.results import FEW_EXPERIMENTS, FINAL_WINDOW  # noqa: E402
+from rmac_mj.experiments.metrics import FEW_EXPERIMENTS, FINAL_WINDOW, FIRST_MINUTES  # noqa: E402
+from rmac_mj.experiments.sweep_file import Sweep, is_number, short_names, value_label  # noqa: E402
 
 #: Colour per learner (in every figure); in a comparison of runs the line style tells the runs apart.
 _STYLES = {"rmac": {"color": "tab:blue"}, "s-ac": {"color": "tab:orange"}}
@@ -33,7 +35,7 @@ def _trial_seconds(label: str, summary: dict[str, Any]) -> float:
     return float(seconds)
 
 
-def _save(fig, stem: str | os.PathLike, formats=("png", "pdf")) -> list[pathlib.Path]:
+def save_figure(fig, stem: str | os.PathLike, formats=("png", "pdf")) -> list[pathlib.Path]:
     stem = pathlib.Path(stem)
     stem.parent.mkdir(parents=True, exist_ok=True)
     paths = []
@@ -176,199 +178,105 @@ def plot_learning_curves(summaries: dict[str, dict[str, Any]], stem: str | os.Pa
         as the learners do, the level an exploring learning curve is judged against.
     """
     fig = learning_curves_figure(summaries, optimal_return, detail_ylim, smooth, exploration_floor)
-    return _save(fig, stem)
+    return save_figure(fig, stem)
 
 
-def policy_actions(agent, states: np.ndarray) -> np.ndarray:
-    """The greedy action in each of ``states`` (shape (q, n)), each evaluated on its own: shape (q, m).
+def _axis_values(values: list) -> tuple[list[float], list[str] | None]:
+    """Positions on the x axis: the values themselves when all are numbers, else 0, 1, 2, ... with
+    the values as tick labels."""
+    if all(is_number(v) for v in values):
+        return [float(v) for v in values], None
+    return list(range(len(values))), [value_label(v) if v is not None else "-" for v in values]
 
-    Agents with a batch ``policy(states)`` (RMAC: u = f^-1(x, R(x)) linearised at u = 0) use it; for
-    the others each state is a fresh greedy trial's first action. Either way an action does not depend
-    on which states were evaluated before it.
+
+def _sweep_metrics(rows: list[dict]) -> dict[str, tuple[str, str | None, str | None, str]]:
+    """Metric -> (column, CI low column, CI high column, axis label) of the sweep_<metric>.png
+    figures; the labels say what the rows measured (the final window, the stuck threshold)."""
+    windows = sorted({row["final_window"] for row in rows})
+    window = f"the last {windows[0]} trials" if len(windows) == 1 else "the last trials"
+    thresholds = sorted({row["stuck_below"] for row in rows if row.get("stuck_below") is not None})
+    stuck = f" (final level < {thresholds[0]:.0f})" if len(thresholds) == 1 else ""
+    return {
+        "final_return": ("final_return_mean", "final_return_ci95_low", "final_return_ci95_high",
+                         f"final return (mean of {window})"),
+        "greedy_return": ("greedy_return_mean", "greedy_return_ci95_low", "greedy_return_ci95_high",
+                          "greedy return (last evaluation)"),
+        "minutes_to_90pct": ("minutes_to_90pct", None, None,
+                             "simulated minutes to within 10% of the final level"),
+        "first_5min": ("mean_return_first_5min", "first_5min_ci95_low", "first_5min_ci95_high",
+                       f"mean return of the first {FIRST_MINUTES:g} simulated minutes"),
+        "stuck": ("stuck_experiments", None, None, f"stuck experiments{stuck}"),
+        "gap_to_optimal": ("gap_to_optimal", None, None, "near-optimal return - final return"),
+        "wall_time": ("wall_time_s", None, None, "wall time of its experiments, summed [s]"),
+    }
+
+
+def plot_sweep(sweep: Sweep, rows: list[dict], out: pathlib.Path) -> list[pathlib.Path]:
+    """``out/sweep_<metric>.png``: each metric against each swept parameter, one panel per parameter.
+
+    In a parameter's panel each line joins the configurations that share every other swept value
+    (and the learner), drawn slightly apart; error bars are 95% confidence intervals where the
+    metric has one.
     """
-    states = np.asarray(states, dtype=float)
-    if hasattr(agent, "policy"):
-        return np.asarray(agent.policy(states)).reshape(len(states), -1)
-    actions = []
-    for x in states:
-        agent.begin_greedy_trial()
-        actions.append(np.asarray(agent.greedy_action(x)).reshape(-1))
-    return np.array(actions)
-
-
-def policy_slice(agent, low: Sequence[float], high: Sequence[float], anchor: Sequence[float],
-                 dims: tuple[int, int] = (0, 1), resolution: tuple[int, int] = (101, 101)):
-    """Policy and critic of ``agent`` on a grid over two state dimensions (see :func:`policy_actions`).
-
-    The grid spans ``[low[i], high[i]]`` along ``i, j = dims``; every other dimension is held at its
-    value in ``anchor`` (e.g. the start state), so for n > 2 the maps are a slice through it.
-
-    Args:
-      low, high, anchor: sequences of length n (the state's dimension).
-      dims: the two state dimensions on the horizontal and the vertical axis.
-      resolution: grid points along dims[0] and dims[1].
-    Returns:
-      (xs (r0,), ys (r1,), actions (r1, r0, m), values (r1, r0)).
-    """
-    anchor = np.asarray(anchor, dtype=float).reshape(-1)
-    n = anchor.shape[0]
-    low, high = np.asarray(low, dtype=float), np.asarray(high, dtype=float)
-    if low.shape != (n,) or high.shape != (n,):
-        raise ValueError(f"low and high must have the anchor's {n} entries, got {low.shape} and "
-                         f"{high.shape}")
-    i, j = _check_dims(dims, n)
-    xs = np.linspace(low[i], high[i], resolution[0])
-    ys = np.linspace(low[j], high[j], resolution[1])
-    grid_y, grid_x = np.meshgrid(ys, xs, indexing="ij")
-    states = np.repeat(anchor[None, :], grid_x.size, axis=0)
-    states[:, i], states[:, j] = grid_x.ravel(), grid_y.ravel()
-    actions = policy_actions(agent, states)
-    values = np.array([agent.value(x) for x in states])
-    shape = (len(ys), len(xs))
-    return xs, ys, actions.reshape(*shape, -1), values.reshape(shape)
-
-
-def _check_dims(dims, n: int) -> tuple[int, int]:
-    try:
-        i, j = (int(d) for d in dims)
-    except (TypeError, ValueError):
-        raise ValueError(f"dims must be two state dimensions, got {dims!r}") from None
-    if not (0 <= i < n and 0 <= j < n and i != j):
-        raise ValueError(f"dims must be two different state dimensions in [0, {n}), got {dims!r}")
-    return i, j
-
-
-def greedy_trajectory(env, agent) -> tuple[np.ndarray, float]:
-    """A greedy trial (no exploration, no learning) of ``agent`` on ``env`` from the task's start
-    state: the learner's states, ndarray of shape (T, n), and the trial's return."""
-    from rmac_mj.experiments.episode import learner_state_of, state_of
-
-    keys = learner_state_of(env).keys
-    timestep = env.reset()
-    agent.begin_greedy_trial()
-    states, total = [state_of(timestep.observation, keys)], 0.0
-    while not timestep.last():
-        timestep = env.step(agent.greedy_action(states[-1]))
-        total += float(timestep.reward)
-        states.append(state_of(timestep.observation, keys))
-    return np.array(states), total
-
-
-def _draw_trajectory(ax, states: np.ndarray, dims: tuple[int, int], learner_state,
-                     label: str | None) -> None:
-    """The path of ``states`` over the dims (i, j), broken where a periodic dimension wraps."""
-    i, j = dims
-    x, y = states[:, i], states[:, j]
-    jumps = np.zeros(len(states) - 1, dtype=bool)
-    for d in dims:
-        if learner_state.periodic[d]:
-            period = learner_state.high[d] - learner_state.low[d]
-            jumps |= np.abs(np.diff(states[:, d])) > period / 2
-    breaks = np.nonzero(jumps)[0] + 1
-    for part, (px, py) in enumerate(zip(np.split(x, breaks), np.split(y, breaks))):
-        ax.plot(px, py, color="white", linewidth=2.6, alpha=0.8)
-        ax.plot(px, py, color="black", linewidth=1.1, label=label if part == 0 else None)
-    ax.plot(x[0], y[0], "o", color="black", markerfacecolor="white", markersize=6)
-    ax.plot(x[-1], y[-1], "X", color="black", markerfacecolor="white", markersize=7)
-
-
-def policies_figure(snapshots: Sequence[tuple[Any, dict[str, Any]]], learner_state,
-                    anchor: Sequence[float], dims: tuple[int, int] = (0, 1),
-                    limits: dict[int, tuple[float, float]] | None = None, resolution: int = 101,
-                    envs: Sequence[Any] | None = None):
-    """The figure of :func:`plot_policies` (see it), not yet saved."""
-    n = len(learner_state.low)
-    i, j = _check_dims(dims, n)
-    low, high = np.array(learner_state.low), np.array(learner_state.high)
-    for d, (lo, hi) in (limits or {}).items():
-        if not (0 <= d < n and np.isfinite(lo) and np.isfinite(hi) and lo < hi):
-            raise ValueError(f"limits[{d}] must be a finite (low, high) with low < high for a state "
-                             f"dimension in [0, {n}), got {(lo, hi)!r}")
-        low[d], high[d] = lo, hi
-    if envs is not None and len(envs) != len(snapshots):
-        raise ValueError(f"envs must give one environment per snapshot ({len(snapshots)}), got {len(envs)}")
-    grids = [policy_slice(agent, low, high, anchor, (i, j), (resolution, resolution))
-             for agent, _ in snapshots]
-    every_value = np.concatenate([grid[3].ravel() for grid in grids])
-    value_range = (float(every_value.min()), float(every_value.max()))
-    m = grids[0][2].shape[-1]
-    action_labels = list(learner_state.action_labels) if len(learner_state.action_labels) == m else [
-        f"u{k + 1}" for k in range(m)]
-    rows = len(snapshots)
-    fig, axes = plt.subplots(rows, m + 1, figsize=(5.5 * (m + 1), 4.2 * rows), constrained_layout=True,
-                             squeeze=False)
-    images = [None] * (m + 1)
-    for row, ((agent, meta), (xs, ys, actions, values)) in enumerate(zip(snapshots, grids)):
-        algorithm = meta.get("algorithm", "")
-        name = display_name(algorithm)
-        policy_name = r"policy $u = f^{-1}(x, R(x))$" if algorithm == "rmac" else r"actor $\pi(x)$"
-        after = f", after {meta['trial']} trials" if meta.get("trial") is not None else ""
-        a_low, a_high = agent.action_space.low, agent.action_space.high
-        extent = (xs[0], xs[-1], ys[0], ys[-1])
-        for k in range(m):
-            images[k] = axes[row, k].imshow(actions[..., k], origin="lower", extent=extent,
-                                            aspect="auto", cmap="RdBu_r", vmin=a_low[k], vmax=a_high[k])
-            axes[row, k].set_title(f"{name} {policy_name}" + (f", {action_labels[k]}" if m > 1 else "")
-                                   + after)
-        images[m] = axes[row, m].imshow(values, origin="lower", extent=extent, aspect="auto",
-                                        cmap="viridis", vmin=value_range[0], vmax=value_range[1])
-        axes[row, m].set_title(f"{name} critic $V(x)${after}")
-        if envs is not None:
-            states, total = greedy_trajectory(envs[row], agent)
-            for ax in axes[row]:
-                _draw_trajectory(ax, states, (i, j), learner_state,
-                                 f"greedy trial from $x_0$ (return {total:.0f})")
-                ax.set_xlim(extent[0], extent[1])
-                ax.set_ylim(extent[2], extent[3])
-            axes[row, 0].legend(loc="lower left", fontsize="small")
-        for ax in axes[row]:
-            ax.set_xlabel(learner_state.labels[i])
-            ax.set_ylabel(learner_state.labels[j])
-    for k in range(m):
-        fig.colorbar(images[k], ax=axes[:, k], label=action_labels[k])
-    fig.colorbar(images[m], ax=axes[:, m], label="$V(x)$" + (" (one scale for all rows)" if rows > 1 else ""))
-    title = []
-    experiments = {meta.get("experiment") for _, meta in snapshots}
-    if len(experiments) == 1 and None not in experiments:
-        title.append(f"experiment {experiments.pop()}")
-    others = [d for d in range(n) if d not in (i, j)]
-    if others:
-        title.append("slice at " + ", ".join(f"{learner_state.labels[d]} = {anchor[d]:.3g}"
-                                              for d in others))
-    if title:
-        fig.suptitle("; ".join(title))
-    return fig
-
-
-def plot_policies(snapshots: Sequence[tuple[Any, dict[str, Any]]], stem: str | os.PathLike,
-                  learner_state, anchor: Sequence[float], dims: tuple[int, int] = (0, 1),
-                  limits: dict[int, tuple[float, float]] | None = None, resolution: int = 101,
-                  envs: Sequence[Any] | None = None) -> list[pathlib.Path]:
-    """Figs. 3 and 4 for one or more agents: the policy (one map per action dimension) and the critic
-    as heat maps, one row per agent, each column on one colour scale shared by all rows, so that
-    learners compare side by side.
-
-    For S-AC the policy is the actor pi(x); for RMAC it is the composition u = f^-1(x, R(x)) of the
-    inverse process model and the reference model, both evaluated greedily (no exploration).
-
-    Args:
-      snapshots: (agent, meta) pairs, as ``load_snapshot`` returns (meta: algorithm, trial, experiment).
-      stem: output path without suffix; a .png and a .pdf are written.
-      learner_state: the task's ``LearnerState``: the axes' ranges (its box) and labels, the actions'
-        labels.
-      anchor: a state of shape (n,) through which the maps slice when n > 2 (e.g. the start state).
-      dims: the state dimensions on the horizontal and vertical axes.
-      limits: per state dimension, a (low, high) range overriding the task's box.
-      envs: per snapshot, the environment of its greedy trial from the start state, drawn over its
-        maps (start: circle, end: cross); None draws none.
-    """
-    return _save(policies_figure(snapshots, learner_state, anchor, dims, limits, resolution, envs), stem)
-
-
-def plot_policy(agent, meta: dict[str, Any], stem: str | os.PathLike, learner_state,
-                anchor: Sequence[float], dims: tuple[int, int] = (0, 1),
-                limits: dict[int, tuple[float, float]] | None = None,
-                resolution: int = 101, env=None) -> list[pathlib.Path]:
-    """Figs. 3 and 4 for one agent (see :func:`plot_policies`); ``env``: draw its greedy trial."""
-    return plot_policies([(agent, meta)], stem, learner_state, anchor, dims, limits, resolution,
-                         envs=None if env is None else [env])
+    parameters = sweep.parameters or ["configuration"]
+    paths = []
+    for metric, (column, low_column, high_column, label) in _sweep_metrics(rows).items():
+        if all(row.get(column) is None for row in rows):
+            continue  # e.g. no greedy evaluations, no optimum
+        # a panel of many named values (variants) gets the width their tick labels need
+        widths = [max(4.8, 0.9 * len({json.dumps(row.get(p)) for row in rows})) for p in parameters]
+        fig, axes = plt.subplots(1, len(parameters), figsize=(max(sum(widths), 6.4), 3.8),
+                                 squeeze=False, constrained_layout=True,
+                                 gridspec_kw={"width_ratios": widths})
+        for ax, parameter in zip(axes[0], parameters):
+            choices = []
+            for row in rows:
+                if all(json.dumps(row.get(parameter)) != json.dumps(c) for c in choices):
+                    choices.append(row.get(parameter))
+            positions, ticks = _axis_values(choices)
+            others = [p for p in parameters if p != parameter]
+            series: dict[str, list] = {}
+            for row in rows:
+                key = ", ".join([f"{short_names(others).get(p, p) if p != 'variant' else 'variant'}"
+                                 f"={value_label(row.get(p))}" for p in others] +
+                                ([row["algorithm"]] if len({r["algorithm"] for r in rows}) > 1
+                                 else []))
+                x = positions[[json.dumps(c) for c in choices].index(json.dumps(row.get(parameter)))]
+                series.setdefault(key, []).append((x, row))
+            logarithmic = ticks is None and all(p > 0 for p in positions) and \
+                max(positions) >= 10 * min(positions)
+            span = (np.log10(max(positions) / min(positions)) if logarithmic
+                    else max(positions) - min(positions)) or 1.0
+            for number, (key, points) in enumerate(series.items()):
+                points.sort(key=lambda p: p[0])
+                # Lines side by side, a little apart, so that their error bars do not hide each other.
+                dodge = 0.012 * span * (number - (len(series) - 1) / 2)
+                xs = [x * 10 ** dodge if logarithmic else x + dodge for x, _ in points]
+                ys = [np.nan if r.get(column) is None else r[column] for _, r in points]
+                if low_column is not None:
+                    low = [np.nan if r.get(low_column) is None else r[low_column] for _, r in points]
+                    high = [np.nan if r.get(high_column) is None else r[high_column]
+                            for _, r in points]
+                    errors = np.abs(np.array([np.subtract(ys, low), np.subtract(high, ys)]))
+                    ax.errorbar(xs, ys, yerr=errors, marker="o", capsize=3, linewidth=1.2,
+                                label=key or None)
+                else:
+                    ax.plot(xs, ys, marker="o", linewidth=1.2, label=key or None)
+            if ticks is not None:
+                slanted = max(map(len, ticks)) > 6
+                ax.set_xticks(positions, ticks, rotation=30 if slanted else 0,
+                              ha="right" if slanted else "center")
+            elif logarithmic:
+                ax.set_xscale("log")
+                ax.set_xticks(positions, [value_label(c) for c in choices])
+            ax.set_xlabel(parameter)
+            ax.set_ylabel(label)
+            ax.grid(alpha=0.3)
+            if any(series) and len(series) <= 12:
+                ax.legend(fontsize="x-small")
+        fig.suptitle(f"{sweep.path.name}: {label}", fontsize="medium")
+        path = out / f"sweep_{metric}.png"
+        fig.savefig(path, dpi=120)
+        plt.close(fig)
+        paths.append(path)
+    return paths

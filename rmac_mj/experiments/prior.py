@@ -43,7 +43,7 @@ from dm_control.rl import control
 
 from rmac_mj.agents.base import ActionSpace, StateSpace, check_transitions
 from rmac_mj.errors import MissingInputError, UserInputError
-from rmac_mj.experiments import results
+from rmac_mj.experiments import files
 from rmac_mj.experiments.episode import action_space_of, learner_state_of, state_of
 
 #: The keys of a demonstration file, in order.
@@ -116,7 +116,7 @@ def save_demonstration(path: str | os.PathLike, demo: Demonstration) -> pathlib.
     """Write ``demo`` as an ``.npz`` file in the documented format (atomically)."""
     if not isinstance(demo, Demonstration):
         raise TypeError(f"demo must be a Demonstration, got {type(demo).__name__}")
-    return results.write_npz(path, **demo.arrays())
+    return files.write_npz(path, **demo.arrays())
 
 
 def load_demonstration(path: str | os.PathLike, state_space: StateSpace | None = None,

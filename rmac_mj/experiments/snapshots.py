@@ -3,7 +3,7 @@
 A snapshot holds the agent's learned state (``Agent.state_dict``, one array per key, prefixed
 ``agent/``) and a JSON document ``meta`` (a 0-d unicode array) with the algorithm, its hyperparameters,
 the task it learned on and where in the experiment it was taken. No pickle: opening a snapshot someone
-sent you cannot run code.
+sent you cannot run code. :func:`snapshot_environment` is the environment a snapshot's agent acts in.
 """
 
 from __future__ import annotations
@@ -14,11 +14,12 @@ import pathlib
 from typing import Any
 
 import numpy as np
+from dm_control.rl import control
 
 from rmac_mj.agents import Agent, make_agent
 from rmac_mj.errors import MissingInputError, UserInputError
 from rmac_mj.agents.base import ActionSpace, StateSpace
-from rmac_mj.experiments.results import write_npz
+from rmac_mj.experiments.files import write_npz
 
 _PREFIX = "agent/"
 
@@ -70,3 +71,31 @@ def load_snapshot(path: str | os.PathLike) -> tuple[Agent, dict[str, Any]]:
     agent = make_agent(meta["algorithm"], state_space, action_space, config=meta["config"], seed=0)
     agent.load_state_dict(state)
     return agent, meta
+
+
+def snapshot_environment(agent: Agent, meta: dict, domain: str | None = None,
+                         task: str | None = None) -> control.Environment:
+    """The environment a snapshot's agent acts in: the one it learned on (its domain, task and
+    task_kwargs), or ``domain``/``task`` with their defaults; UserInputError if its state or action
+    dimensions differ from the agent's."""
+    from rmac_mj import tasks
+    from rmac_mj.experiments.episode import action_space_of, state_space_of
+
+    domain = domain or meta["domain"]
+    task = task or (meta["task"] if domain == meta["domain"] else None)
+    if task is None:
+        raise UserInputError(f"give the task of domain {domain!r} too (the snapshot learned "
+                             f"{meta['domain']}/{meta['task']})")
+    own = (domain, task) == (meta["domain"], meta["task"])
+    try:
+        env = tasks.load(domain, task, task_kwargs=meta.get("task_kwargs") if own else None)
+    except ValueError as error:
+        raise UserInputError(str(error)) from None
+    if own:
+        return env
+    n, m = state_space_of(env).dim, action_space_of(env).dim
+    if (n, m) != (agent.state_space.dim, agent.action_space.dim):
+        raise UserInputError(f"{domain}/{task} has {n} state and {m} action dimensions, the agent "
+                             f"(learned on {meta['domain']}/{meta['task']}) "
+                             f"{agent.state_space.dim} and {agent.action_space.dim}")
+    return env

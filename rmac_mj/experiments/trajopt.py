@@ -603,7 +603,7 @@ def cached_optimise(domain: str, task: str, config: TrajoptConfig = TrajoptConfi
       announce: called with a one-line message before a solve (not for a cache hit), e.g. ``print``.
     """
     from rmac_mj import tasks
-    from rmac_mj.experiments import optimal, results
+    from rmac_mj.experiments import files, optimal
 
     if not isinstance(config, TrajoptConfig):
         raise TypeError(f"cached_optimise: config must be a TrajoptConfig, got {type(config).__name__}")
@@ -614,7 +614,7 @@ def cached_optimise(domain: str, task: str, config: TrajoptConfig = TrajoptConfi
     def compute() -> TrajoptResult:
         result = optimise(env, config)
         return dataclasses.replace(result, problem={"domain": domain, "task": task, **result.problem})
-    return results.cached_json(
+    return files.cached_json(
         path, lambda document: TrajoptResult.from_json_dict(document, from_cache=True), compute,
         refresh=refresh, announce=announce,
         message=(f"computing the near-optimal reference of {domain}/{task} by trajectory optimisation "

@@ -1,22 +1,19 @@
-"""Learning-curve statistics, provenance and atomic result files.
+"""Learning-curve metrics: the one place where results are turned into numbers.
 
-Everything written here is plain: JSON, CSV and ``.npz`` files that numpy or pandas read without this
-package (``numpy.load(..., allow_pickle=False)``).
+``reproduce`` (``summary.json`` and its table), ``sweep`` (``sweep.csv``, its table and figures),
+``compare`` and the study scripts all read their numbers from here, so that "final return" or "the first
+5 minutes" mean one thing everywhere. Curves are ndarrays of shape (experiments, trials) of sums of
+rewards per trial; times are simulated, from the task's trial length (``trial_seconds``).
+
+Estimates across experiments: the mean with a Student-t 95% interval (:func:`confidence_interval`) and
+Welch's t-test between learners (:func:`compare_final_returns`). Other aggregates (robust ones such as
+the interquartile mean, bootstrap intervals) belong here too, beside them, so that every command gets
+them at once.
 """
 
 from __future__ import annotations
 
-import csv
-import dataclasses
-import importlib.metadata
-import io
-import json
-import os
-import pathlib
-import platform
-import subprocess
-import tempfile
-from typing import Any, Iterable, Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -25,6 +22,8 @@ FINAL_WINDOW = 50
 #: The "first minutes" over which the early return is averaged (simulated time; the paper's Fig. 2
 #: compares the learners over their first 10 minutes).
 EARLY_MINUTES = 10.0
+#: A shorter early window, for the studies of how fast learning starts (sweeps report it).
+FIRST_MINUTES = 5.0
 #: Significance level of the end-of-run comparison of learners (two-sided).
 SIGNIFICANCE_LEVEL = 0.05
 #: With fewer experiments than this per learner, 95% intervals are too wide to read (the Student t
@@ -101,36 +100,68 @@ def _nan_to_none(values) -> Any:
     return [None if not np.isfinite(v) else float(v) for v in array]
 
 
+def final_returns(returns: np.ndarray, window: int = FINAL_WINDOW) -> np.ndarray:
+    """Each experiment's final level: the mean of its last ``window`` trials (all, if fewer).
+
+    Args:
+      returns: ndarray of shape (experiments, trials).
+    Returns:
+      ndarray of shape (experiments,).
+    """
+    returns = np.asarray(returns, dtype=float)
+    return returns[:, -min(window, returns.shape[1]):].mean(axis=1)
+
+
+def early_returns(returns: np.ndarray, minutes: float, trial_seconds: float) -> np.ndarray:
+    """Each experiment's mean return over the trials that end within its first ``minutes`` of
+    simulated time (at least one trial); ndarray of shape (experiments,)."""
+    returns = np.asarray(returns, dtype=float)
+    return returns[:, :trials_in(minutes, trial_seconds)].mean(axis=1)
+
+
+def interval(samples: np.ndarray) -> list[float | None]:
+    """[mean, low, high] of the 95% interval of the mean of ``samples`` (shape (experiments,));
+    None where undefined (fewer than two samples)."""
+    return _nan_to_none(np.stack(confidence_interval(np.asarray(samples, dtype=float))))
+
+
 def summarise(returns: np.ndarray, greedy: np.ndarray | None = None,
               greedy_trials: Sequence[int] = (), optimal_return: float | None = None, *,
-              trial_seconds: float) -> dict:
+              trial_seconds: float, wall_times: np.ndarray | None = None) -> dict:
     """The summary of one learner: returns is an ndarray of shape (experiments, trials).
 
     ``greedy`` (experiments, evaluations) holds the greedy-trial returns after the trials listed in
     ``greedy_trials``; ``trial_seconds`` is the task's trial length (simulated s), which turns trials
     into minutes. Stuck experiments are counted only against a reference (``optimal_return``; see
-    :func:`stuck_threshold`), else ``stuck_experiments`` is None.
+    :func:`stuck_threshold`), else ``stuck_experiments`` is None. ``wall_times`` (experiments,): each
+    experiment's wall time (s).
     """
     returns = np.asarray(returns, dtype=float)
     n_experiments, n_trials = returns.shape
     window = min(FINAL_WINDOW, n_trials)
     early = trials_in(EARLY_MINUTES, trial_seconds)
     mean, low, high = confidence_interval(returns)
-    finals = returns[:, -window:].mean(axis=1)
-    final_mean, final_low, final_high = confidence_interval(finals)
+    finals = final_returns(returns, window)
+    final_mean, final_low, final_high = interval(finals)
+    first = early_returns(returns, FIRST_MINUTES, trial_seconds)
+    first_mean, first_low, first_high = interval(first)
     stuck_below = stuck_threshold(optimal_return)
     summary = {
         "experiments": n_experiments,
         "trials": n_trials,
+        "final_window": window,
         "mean_return_per_trial": mean.tolist(),
         "ci95_low_per_trial": _nan_to_none(low),
         "ci95_high_per_trial": _nan_to_none(high),
-        "final_return_mean": float(final_mean),
-        "final_return_ci95": [_nan_to_none(final_low), _nan_to_none(final_high)],
+        "final_return_mean": final_mean,
+        "final_return_ci95": [final_low, final_high],
         "final_return_per_experiment": finals.tolist(),
         "minutes_to_90pct": minutes_to_within(mean, window=window, trial_seconds=trial_seconds),
         "mean_return_first_10min": float(returns[:, :early].mean()),
         "first_10min_trials": min(early, n_trials),
+        "mean_return_first_5min": first_mean,
+        "first_5min_ci95": [first_low, first_high],
+        "first_5min_trials": min(trials_in(FIRST_MINUTES, trial_seconds), n_trials),
         "stuck_below": stuck_below,
         "stuck_experiments": None if stuck_below is None else int(np.sum(finals < stuck_below)),
     }
@@ -140,6 +171,12 @@ def summarise(returns: np.ndarray, greedy: np.ndarray | None = None,
         greedy = np.asarray(greedy, dtype=float)
         summary["greedy_eval_trials"] = [int(t) for t in greedy_trials]
         summary["greedy_return_per_eval"] = greedy.mean(axis=0).tolist()
+        last_mean, last_low, last_high = interval(greedy[:, -1])
+        summary["greedy_return_last_mean"] = last_mean
+        summary["greedy_return_last_ci95"] = [last_low, last_high]
+    if wall_times is not None:
+        summary["experiment_wall_s_mean"] = float(np.mean(wall_times))
+        summary["experiment_wall_s_total"] = float(np.sum(wall_times))
     return summary
 
 
@@ -174,147 +211,3 @@ def compare_final_returns(finals: dict[str, Sequence[float]],
     return tests
 
 
-def describe_test(test: dict[str, Any]) -> str:
-    """One line for a result of :func:`compare_final_returns`."""
-    a, b = test["learners"]
-    if test["p_value"] is None:
-        return (f"final returns, {a} vs {b}: no test possible ({test['experiments'][0]} and "
-                f"{test['experiments'][1]} experiments; Welch's t-test needs 2 or more, with spread)")
-    p = test["p_value"]
-    p_text = f"p = {p:.2g}" if p >= 1e-4 else "p < 0.0001"
-    if test["better"] is None:
-        return (f"final returns, {a} vs {b}: difference {test['difference']:+.1f}, not significant "
-                f"({p_text}, Welch's t-test; a difference this size needs more experiments to rank them)")
-    worse = b if test["better"] == a else a
-    return (f"final returns: {test['better']} better than {worse} by {abs(test['difference']):.1f}, "
-            f"{p_text} (Welch's t-test, significant at {test['level']:g})")
-
-
-def few_experiments_note(experiments: int) -> str:
-    """The warning printed and drawn when ``experiments`` < :data:`FEW_EXPERIMENTS`."""
-    return (f"note: {experiments} experiment{'s' if experiments != 1 else ''} per learner: too few to rank "
-            f"the learners; the 95% intervals and the t-test assume normally distributed returns, which "
-            f"fewer than {FEW_EXPERIMENTS} experiments cannot show")
-
-
-def write_atomic(path: str | os.PathLike, write) -> pathlib.Path:
-    """Call ``write(file_handle)`` on a temporary file beside ``path``, then rename it into place.
-
-    A reader never sees a half-written ``path``: it is either absent or complete. The file gets the
-    permissions a plain ``open(path, "w")`` would give (0666 less the umask), not the temporary file's
-    private 0600, so results on a shared machine or cluster stay readable by the group.
-    """
-    path = pathlib.Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle = tempfile.NamedTemporaryFile(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp",
-                                         delete=False)
-    try:
-        with handle:
-            write(handle)
-        os.chmod(handle.name, 0o666 & ~_umask())
-        os.replace(handle.name, path)
-    except BaseException:
-        pathlib.Path(handle.name).unlink(missing_ok=True)
-        raise
-    return path
-
-
-def _umask() -> int:
-    """The process's umask (read by setting it and putting it back)."""
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
-
-
-def write_json(path: str | os.PathLike, document: Any) -> pathlib.Path:
-    text = json.dumps(document, indent=2, sort_keys=False, allow_nan=False)
-    return write_atomic(path, lambda handle: handle.write(text.encode() + b"\n"))
-
-
-def cached_json(path: str | os.PathLike, decode, compute, refresh: bool = False,
-                announce=None, message: str = ""):
-    """A result cached as JSON at ``path``: ``decode(document)`` of the file when it is there and
-    readable (an unreadable or foreign entry is recomputed and overwritten), else ``compute()``,
-    written with ``.to_json_dict()``. ``announce(message)`` is called before a computation."""
-    path = pathlib.Path(path)
-    if not refresh and path.is_file():
-        try:
-            with open(path) as handle:
-                return decode(json.load(handle))
-        except (OSError, ValueError, KeyError, TypeError):
-            pass
-    if announce is not None and message:
-        announce(message)
-    result = compute()
-    try:
-        write_json(path, result.to_json_dict())
-    except OSError as err:
-        raise ValueError(f"cannot write the cache entry {str(path)!r}: {err}") from err
-    return result
-
-
-def write_csv(path: str | os.PathLike, header: Sequence[str], rows: Iterable[Sequence[Any]]
-              ) -> pathlib.Path:
-    """A UTF-8 CSV file of ``header`` then ``rows``, written atomically (see :func:`write_atomic`)."""
-    def write(handle) -> None:
-        text = io.TextIOWrapper(handle, newline="", encoding="utf-8")
-        writer = csv.writer(text)
-        writer.writerow(header)
-        writer.writerows(rows)
-        text.flush()
-        text.detach()
-    return write_atomic(path, write)
-
-
-def write_npz(path: str | os.PathLike, **arrays: np.ndarray) -> pathlib.Path:
-    return write_atomic(path, lambda handle: np.savez(handle, **arrays))
-
-
-def code_version() -> dict[str, Any]:
-    """The package version and, in a git checkout, the commit and whether the tree is dirty."""
-    version = {"package": _version("rmac-mj")}
-    root = pathlib.Path(__file__).resolve().parents[2]
-    try:
-        commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True,
-                                text=True, timeout=10, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=root,
-                               capture_output=True, text=True, timeout=10, check=True).stdout.strip()
-        version["commit"] = commit
-        version["dirty"] = bool(dirty)
-    except (OSError, subprocess.SubprocessError):
-        version["commit"] = None
-    return version
-
-
-def _version(distribution: str) -> str | None:
-    try:
-        return importlib.metadata.version(distribution)
-    except importlib.metadata.PackageNotFoundError:
-        return None
-
-
-def provenance() -> dict[str, Any]:
-    """Package versions, code version and machine: stored beside every result."""
-    return {
-        "code": code_version(),
-        "packages": {name: _version(name) for name in
-                     ("mujoco", "dm-control", "numpy", "scipy", "numba", "matplotlib")},
-        "python": platform.python_version(),
-        "machine": {"cpus": os.cpu_count(), "processor": platform.processor() or platform.machine(),
-                    "system": platform.system()},
-    }
-
-
-def as_jsonable(value: Any) -> Any:
-    """Dataclasses, tuples and numpy scalars/arrays as plain JSON data."""
-    if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return as_jsonable(dataclasses.asdict(value))
-    if isinstance(value, dict):
-        return {str(k): as_jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [as_jsonable(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, np.generic):
-        return value.item()
-    return value

@@ -1,0 +1,113 @@
+"""Where experiments run: in this process, in local worker processes, or on a Dask cluster.
+
+Every back end takes an iterable of work items and a function ``run(item)`` and yields the results in
+the order they finish. Items are drawn from the iterable only as workers become free (a few ahead of
+them), so a plan of any size costs memory and time in proportion to what is running, not to what is
+planned, and the caller learns when each item starts (its ``on_start``). The same seeds give the same
+results on every back end: an experiment's randomness comes from its own seed sequence.
+"""
+
+from __future__ import annotations
+
+import collections
+import itertools
+import multiprocessing
+import queue
+import signal
+from typing import Any, Callable, Iterable, Iterator
+
+#: Seconds between two calls of ``poll`` while the driver waits for a worker.
+POLL_SECONDS = 0.5
+#: Items handed to the workers beyond one each, so that none waits for the driver.
+_AHEAD = 1
+
+
+def _ignore_interrupts() -> None:
+    """Worker initialiser: Ctrl-C reaches the whole process group; only the driver handles it."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _started(items: Iterable, on_start: Callable[[Any], None] | None) -> Iterator:
+    for item in items:
+        if on_start is not None:
+            on_start(item)
+        yield item
+
+
+def local_outcomes(items: Iterable, run: Callable, jobs: int,
+                   on_trial: Callable[..., None] | None = None,
+                   poll: Callable[[], None] | None = None,
+                   on_start: Callable[[Any], None] | None = None) -> Iterator:
+    """``run(item)`` of every item, in the order they finish.
+
+    With ``jobs == 1``, or a single item, they run in this process, one after another, as
+    ``run(item, on_trial)``, and ``on_trial`` sees every trial. Otherwise ``jobs`` worker processes
+    run them and the driver calls ``poll()`` every :data:`POLL_SECONDS` while it waits. Closing the
+    generator (an interrupt) terminates the workers at once: only the items in flight are lost.
+    """
+    items = _started(items, on_start)
+    first = list(itertools.islice(items, 1 if jobs == 1 else jobs + _AHEAD))
+    if len(first) <= 1:
+        for item in itertools.chain(first, items):
+            yield run(item, on_trial)
+        return
+    # "spawn": workers start clean (no inherited GL contexts or numba state); the numba cache (filled
+    # by the driver's warm-up) makes their start-up cheap.
+    context = multiprocessing.get_context("spawn")
+    pool = context.Pool(processes=min(jobs, len(first)), initializer=_ignore_interrupts)
+    finished: queue.SimpleQueue = queue.SimpleQueue()
+    pending = itertools.chain(first, items)
+    in_flight = 0
+    try:
+        while True:
+            for item in itertools.islice(pending, max(0, jobs + _AHEAD - in_flight)):
+                pool.apply_async(run, (item,), callback=lambda result: finished.put((True, result)),
+                                 error_callback=lambda error: finished.put((False, error)))
+                in_flight += 1
+            if not in_flight:
+                break
+            while True:
+                try:
+                    ok, outcome = finished.get(timeout=POLL_SECONDS)
+                    break
+                except queue.Empty:
+                    if poll is not None:
+                        poll()
+            in_flight -= 1
+            if not ok:
+                raise outcome
+            yield outcome
+        pool.close()
+    finally:
+        pool.terminate()
+        pool.join()
+
+
+def dask_outcomes(items: Iterable, run: Callable, scheduler: str, window: int | None = None,
+                  on_start: Callable[[Any], None] | None = None) -> Iterator:
+    """``run(item)`` of every item on the Dask cluster at ``scheduler``, in the order they finish.
+
+    At most ``window`` items (default: twice the cluster's worker threads, at least 2) are submitted
+    at a time; closing the generator cancels those still pending."""
+    try:
+        from distributed import Client, as_completed
+    except ImportError as error:  # pragma: no cover - depends on the optional extra
+        raise RuntimeError("--scheduler needs Dask: pip install 'rmac-mj[distributed]'") from error
+    items = _started(items, on_start)
+    with Client(scheduler) as client:
+        if window is None:
+            threads = sum(client.nthreads().values())
+            window = max(2, 2 * threads)
+        futures = collections.deque(client.submit(run, item, pure=False)
+                                    for item in itertools.islice(items, window))
+        running = as_completed(futures)
+        try:
+            for future in running:
+                outcome = future.result()
+                futures.remove(future)
+                for item in itertools.islice(items, 1):
+                    futures.append(client.submit(run, item, pure=False))
+                    running.add(futures[-1])
+                yield outcome
+        finally:
+            client.cancel(list(futures))

@@ -1,0 +1,145 @@
+"""Result files: atomic writes of JSON, CSV and ``.npz``, a JSON cache, and provenance.
+
+Everything written here is plain: JSON, CSV and ``.npz`` files that numpy or pandas read without this
+package (``numpy.load(..., allow_pickle=False)``). Every file is written to a temporary name and
+renamed into place, so a reader (or a resumed run) never sees half a file.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import importlib.metadata
+import io
+import json
+import os
+import pathlib
+import platform
+import subprocess
+import tempfile
+from typing import Any, Iterable, Sequence
+
+import numpy as np
+
+
+def write_atomic(path: str | os.PathLike, write) -> pathlib.Path:
+    """Call ``write(file_handle)`` on a temporary file beside ``path``, then rename it into place.
+
+    A reader never sees a half-written ``path``: it is either absent or complete. The file gets the
+    permissions a plain ``open(path, "w")`` would give (0666 less the umask), not the temporary file's
+    private 0600, so results on a shared machine or cluster stay readable by the group.
+    """
+    path = pathlib.Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handle = tempfile.NamedTemporaryFile(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp",
+                                         delete=False)
+    try:
+        with handle:
+            write(handle)
+        os.chmod(handle.name, 0o666 & ~_umask())
+        os.replace(handle.name, path)
+    except BaseException:
+        pathlib.Path(handle.name).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def _umask() -> int:
+    """The process's umask (read by setting it and putting it back)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def write_json(path: str | os.PathLike, document: Any) -> pathlib.Path:
+    text = json.dumps(document, indent=2, sort_keys=False, allow_nan=False)
+    return write_atomic(path, lambda handle: handle.write(text.encode() + b"\n"))
+
+
+def cached_json(path: str | os.PathLike, decode, compute, refresh: bool = False,
+                announce=None, message: str = ""):
+    """A result cached as JSON at ``path``: ``decode(document)`` of the file when it is there and
+    readable (an unreadable or foreign entry is recomputed and overwritten), else ``compute()``,
+    written with ``.to_json_dict()``. ``announce(message)`` is called before a computation."""
+    path = pathlib.Path(path)
+    if not refresh and path.is_file():
+        try:
+            with open(path) as handle:
+                return decode(json.load(handle))
+        except (OSError, ValueError, KeyError, TypeError):
+            pass
+    if announce is not None and message:
+        announce(message)
+    result = compute()
+    try:
+        write_json(path, result.to_json_dict())
+    except OSError as err:
+        raise ValueError(f"cannot write the cache entry {str(path)!r}: {err}") from err
+    return result
+
+
+def write_csv(path: str | os.PathLike, header: Sequence[str], rows: Iterable[Sequence[Any]]
+              ) -> pathlib.Path:
+    """A UTF-8 CSV file of ``header`` then ``rows``, written atomically (see :func:`write_atomic`)."""
+    def write(handle) -> None:
+        text = io.TextIOWrapper(handle, newline="", encoding="utf-8")
+        writer = csv.writer(text)
+        writer.writerow(header)
+        writer.writerows(rows)
+        text.flush()
+        text.detach()
+    return write_atomic(path, write)
+
+
+def write_npz(path: str | os.PathLike, **arrays: np.ndarray) -> pathlib.Path:
+    return write_atomic(path, lambda handle: np.savez(handle, **arrays))
+
+
+def code_version() -> dict[str, Any]:
+    """The package version and, in a git checkout, the commit and whether the tree is dirty."""
+    version = {"package": _version("rmac-mj")}
+    root = pathlib.Path(__file__).resolve().parents[2]
+    try:
+        commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True,
+                                text=True, timeout=10, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=root,
+                               capture_output=True, text=True, timeout=10, check=True).stdout.strip()
+        version["commit"] = commit
+        version["dirty"] = bool(dirty)
+    except (OSError, subprocess.SubprocessError):
+        version["commit"] = None
+    return version
+
+
+def _version(distribution: str) -> str | None:
+    try:
+        return importlib.metadata.version(distribution)
+    except importlib.metadata.PackageNotFoundError:
+        return None
+
+
+def provenance() -> dict[str, Any]:
+    """Package versions, code version and machine: stored beside every result."""
+    return {
+        "code": code_version(),
+        "packages": {name: _version(name) for name in
+                     ("mujoco", "dm-control", "numpy", "scipy", "numba", "matplotlib")},
+        "python": platform.python_version(),
+        "machine": {"cpus": os.cpu_count(), "processor": platform.processor() or platform.machine(),
+                    "system": platform.system()},
+    }
+
+
+def as_jsonable(value: Any) -> Any:
+    """Dataclasses, tuples and numpy scalars/arrays as plain JSON data."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return as_jsonable(dataclasses.asdict(value))
+    if isinstance(value, dict):
+        return {str(k): as_jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [as_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value

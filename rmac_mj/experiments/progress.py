@@ -1,0 +1,203 @@
+"""The progress display of a run (or of a sweep's runs): trials done, rate, time left, recent returns.
+
+Workers stream every trial to their experiment's live log (``ResultStore.progress_path``);
+:class:`TrialFeed` follows those logs for the experiments in flight and feeds :class:`Progress`.
+"""
+
+from __future__ import annotations
+
+import collections
+import math
+import pathlib
+import sys
+import time
+from typing import Sequence, TextIO
+
+import numpy as np
+
+#: An experiment in a display: (run, algorithm, index), ``run`` being the position of its protocol.
+Key = tuple[int, str, int]
+
+
+def duration(seconds: float) -> str:
+    """``"42 s"``, ``"3 min 05 s"`` or ``"2 h 07 min"``."""
+    seconds = int(round(seconds))
+    if seconds < 60:
+        return f"{seconds} s"
+    minutes, seconds = divmod(seconds, 60)
+    if minutes < 60:
+        return f"{minutes} min {seconds:02d} s"
+    return f"{minutes // 60} h {minutes % 60:02d} min"
+
+
+def _is_terminal(stream: TextIO) -> bool:
+    isatty = getattr(stream, "isatty", None)
+    try:
+        return bool(isatty and isatty())
+    except ValueError:  # a closed stream
+        return False
+
+
+class Progress:
+    """Trials done, overall and per learner, with the mean return of each learner's last trials.
+
+    One display for one run or for several (a sweep): the learners' bars count the trials of all runs.
+    On a terminal: tqdm bars (trials per second, time left). Otherwise (nohup, a Slurm log, a pipe):
+    a plain line every ``interval`` seconds and at the end, without carriage returns or escape codes.
+    Trials advance as the experiments report them (:meth:`trial`), and by the rest of an experiment
+    when it finishes (:meth:`experiment`).
+
+    Args:
+      protocols: the runs' protocols (anything with ``algorithms``, ``experiments`` and ``trials``).
+      finished: per run, how many experiments of each learner were already done before this start.
+    """
+
+    #: Trials over which the live mean return is taken, per learner.
+    RECENT = 10
+
+    def __init__(self, protocols: Sequence, finished: Sequence[dict[str, int]], enabled: bool,
+                 stream: TextIO | None = None, interval: float = 10.0):
+        self.algorithms = list(dict.fromkeys(a for p in protocols for a in p.algorithms))
+        self.trials = {k: p.trials for k, p in enumerate(protocols)}
+        self.runs = len(protocols)
+        self.runs_left = {k: sum(p.experiments - finished[k].get(a, 0) for a in p.algorithms)
+                          for k, p in enumerate(protocols)}
+        self.runs_done = sum(1 for left in self.runs_left.values() if left == 0)
+        self.experiments = {a: sum(p.experiments for p in protocols if a in p.algorithms)
+                            for a in self.algorithms}
+        self.done = {a: sum(finished[k].get(a, 0) for k, p in enumerate(protocols)
+                            if a in p.algorithms) for a in self.algorithms}
+        total_trials = {a: sum(p.experiments * p.trials for p in protocols if a in p.algorithms)
+                        for a in self.algorithms}
+        self.total_trials = {"all": sum(total_trials.values()), **total_trials}
+        self.trials_done = {a: sum(finished[k].get(a, 0) * p.trials for k, p in enumerate(protocols)
+                                   if a in p.algorithms) for a in self.algorithms}
+        self.experiments["all"] = sum(self.experiments[a] for a in self.algorithms)
+        self.done["all"] = sum(self.done[a] for a in self.algorithms)
+        self.trials_done["all"] = sum(self.trials_done[a] for a in self.algorithms)
+        self.credited: dict[Key, int] = {}  # trials counted of experiments in flight
+        self.recent = {a: collections.deque(maxlen=self.RECENT) for a in self.algorithms}
+        self.stream = sys.stderr if stream is None else stream
+        self.enabled = enabled
+        # tqdm.auto draws widgets in a notebook, whose stderr is no terminal either
+        self.plain = enabled and not (_is_terminal(self.stream) or "ipykernel" in sys.modules)
+        self.interval = interval
+        self.started = time.monotonic()
+        self.first_trials = self.trials_done["all"]
+        self.last_line = -math.inf
+        self.bars = {}
+        if not enabled:
+            return
+        if self.plain:
+            self._line()
+            return
+        from tqdm.auto import tqdm
+        for position, key in enumerate(["all", *self.algorithms]):
+            label = ("all learners" if self.runs == 1 else f"{self.runs} runs") if key == "all" else key
+            self.bars[key] = tqdm(total=self.total_trials[key], initial=self.trials_done[key],
+                                  file=self.stream, desc=f"{label:>12}", unit="trial",
+                                  position=position, dynamic_ncols=True)
+            self.bars[key].set_postfix_str(self._postfix(key))
+
+    def _recent_mean(self, algorithm: str) -> str:
+        recent = self.recent[algorithm]
+        return f"last {len(recent)} trials {np.mean(recent):.0f}" if recent else "no trial yet"
+
+    def _postfix(self, key: str) -> str:
+        text = f"{self.done[key]}/{self.experiments[key]} experiments"
+        if key != "all":
+            return f"{text}, {self._recent_mean(key)}"
+        return text if self.runs == 1 else f"{text}, {self.runs_done}/{self.runs} runs done"
+
+    def trial(self, key: Key, trial: int, value: float) -> None:
+        """Experiment ``key`` finished learning trial ``trial`` with return ``value``."""
+        previous = self.credited.get(key, 0)
+        if trial <= previous:
+            return
+        self.credited[key] = trial
+        self.recent[key[1]].append(value)
+        self._advance(key[1], trial - previous)
+
+    def experiment(self, key: Key, returns: np.ndarray | None = None) -> None:
+        """Experiment ``key`` finished (and is saved); ``returns``: its learning curve, whose trials
+        not yet reported join the recent mean."""
+        run, algorithm, _ = key
+        previous = self.credited.pop(key, 0)
+        if returns is not None:
+            self.recent[algorithm].extend(np.asarray(returns, dtype=float)[previous:][-self.RECENT:])
+        self.done["all"] += 1
+        self.done[algorithm] += 1
+        self.runs_left[run] -= 1
+        if self.runs_left[run] == 0:
+            self.runs_done += 1
+        self._advance(algorithm, self.trials[run] - previous)
+
+    def _advance(self, algorithm: str, trials: int) -> None:
+        for key in ("all", algorithm):
+            self.trials_done[key] += trials
+            if key in self.bars:
+                self.bars[key].set_postfix_str(self._postfix(key), refresh=False)
+                self.bars[key].update(trials)
+        self.tick()
+
+    def tick(self) -> None:
+        """In plain mode, print a line if ``interval`` seconds passed since the last one."""
+        if self.plain and time.monotonic() - self.last_line >= self.interval:
+            self._line()
+
+    def _line(self) -> None:
+        elapsed = time.monotonic() - self.started
+        total = self.total_trials["all"]
+        done = self.trials_done["all"]
+        rate = (done - self.first_trials) / elapsed if elapsed > 0 else 0.0
+        eta = f", about {duration((total - done) / rate)} left" if rate > 0 and done < total else ""
+        runs = "" if self.runs == 1 else f", {self.runs_done}/{self.runs} runs"
+        parts = [f"[{duration(elapsed)}] {done}/{total} trials ({self.done['all']}/"
+                 f"{self.experiments['all']} experiments{runs}), {rate:.0f} trials/s{eta}"]
+        for algorithm in self.algorithms:
+            parts.append(f"{algorithm} {self.trials_done[algorithm]}/"
+                         f"{self.total_trials[algorithm]} trials, {self._recent_mean(algorithm)}")
+        print(" | ".join(parts), file=self.stream, flush=True)
+        self.last_line = time.monotonic()
+
+    def close(self) -> None:
+        if self.plain:  # the final state
+            self._line()
+        for bar in self.bars.values():
+            bar.close()
+
+
+class TrialFeed:
+    """Follows the live trial logs of the experiments in flight and reports their trials to a
+    :class:`Progress` display."""
+
+    def __init__(self, progress: Progress):
+        self.files: dict[Key, pathlib.Path] = {}
+        self.offsets: dict[Key, int] = {}
+        self.progress = progress
+
+    def watch(self, key: Key, path: pathlib.Path) -> None:
+        """Follow experiment ``key``'s live log at ``path`` (it may not exist yet)."""
+        self.files[key] = path
+
+    def poll(self) -> None:
+        for key, path in self.files.items():
+            try:
+                with open(path, "rb") as handle:
+                    handle.seek(self.offsets.get(key, 0))
+                    chunk = handle.read()
+            except FileNotFoundError:
+                continue
+            end = chunk.rfind(b"\n") + 1  # complete lines only; the rest is still being written
+            if not end:
+                continue
+            self.offsets[key] = self.offsets.get(key, 0) + end
+            for line in chunk[:end].decode("utf-8").splitlines():
+                trial, value, _ = line.split(",")
+                if trial != "trial":
+                    self.progress.trial(key, int(trial), float(value))
+        self.progress.tick()
+
+    def finished(self, key: Key) -> None:
+        self.files.pop(key, None)
+        self.offsets.pop(key, None)

@@ -1,0 +1,331 @@
+"""What is run: the protocol of the paper's comparison (section 6), and one learning experiment of it.
+
+A *learning experiment* is one agent learning for ``trials`` consecutive trials of a task (the paper's:
+3 s swing-ups of the DC-motor pendulum from [pi, 0]; any registered ``domain``/``task`` runs the same
+way); the protocol repeats it ``experiments`` times per algorithm with independent seeds.
+
+Seeding: experiment i of every algorithm draws its agent's stream from
+``SeedSequence(seed, spawn_key=(i,))``, which equals ``SeedSequence(seed).spawn(n)[i]``, and its task's
+seed from that sequence's child ``(i, 0)``. The results therefore do not depend on the number of
+workers, on the order of completion, or on resuming.
+
+Prior knowledge (``Protocol.prior``): each experiment's fresh agent is seeded before its first trial,
+either from ``prior_trials`` trials of a named demonstrator of the task recorded for that experiment
+from the sequence ``(i, 1)`` (the same demonstration for every learner of experiment i), or from one
+recorded file (``experiments.prior``) that the driver reads and checks once.
+
+:func:`build_experiment` assembles experiment i (environment, agent, prior knowledge) and
+:func:`run_experiment` runs it; a script that replays or extends an experiment builds it the same way.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import numbers
+import pathlib
+import time
+from typing import Any, Callable, ClassVar
+
+import numpy as np
+from dm_control.rl import control
+
+from rmac_mj import constraints, tasks
+from rmac_mj.agents import ALGORITHMS, Agent, agent_class, config_class, config_from_dict, make_agent
+from rmac_mj.agents.base import PRIOR_PARTS, ActionSpace, StateSpace
+from rmac_mj.experiments import demonstrators, files, prior as prior_data
+from rmac_mj.experiments.episode import action_space_of, run_trial, state_space_of
+from rmac_mj.experiments.snapshots import snapshot_arrays
+from rmac_mj.experiments.store import ExperimentResult, ResultStore, TrialLog
+
+
+class _Empty(constraints.Constraint):
+    """An empty list (of snapshot trials, or of prior parts: none)."""
+
+    def satisfied(self, value: Any, context: Any = None) -> bool:
+        return isinstance(value, (tuple, list)) and len(value) == 0
+
+    def normalise(self, value: Any) -> tuple:
+        return ()
+
+    def describe(self, context: Any = None) -> str:
+        return "an empty list"
+
+
+_EMPTY = _Empty()
+
+
+@dataclasses.dataclass(frozen=True)
+class Protocol:
+    """What is run: the paper's protocol by default (section 6: 40 experiments of 600 trials).
+
+    Attributes:
+      domain, task: the environment, loaded with ``rmac_mj.tasks.load`` (see :meth:`make_environment`,
+        the one place an experiment's environment is built).
+      task_kwargs: task arguments (not ``random``, which comes from the seed).
+      algorithms: algorithm keys, from ``rmac_mj.agents.ALGORITHMS``.
+      experiments: learning experiments per algorithm.
+      trials: consecutive learning trials per experiment.
+      seed: root of every experiment's random stream.
+      evaluate_every: after every this many learning trials, one greedy trial (no exploration, no
+        learning) is recorded; 0 disables it.
+      snapshot_trials: after which trials the agent is saved; stored sorted, without trials beyond
+        ``trials``, and with the final trial, which is always saved.
+      agent_configs: per algorithm, overrides of its hyperparameters (e.g. for ablations).
+      prior: prior knowledge seeded into every fresh agent before its first trial: None (none, the
+        paper's protocol), the name of a demonstrator of the task (``'demo'``, see
+        ``experiments.demonstrators``), or the path of a recorded ``.npz`` file
+        (``experiments.prior``). Every learner must take prior knowledge.
+      prior_trials: trials of the demonstrator recorded per experiment (demonstrators only).
+      prior_parts: which kinds of knowledge to seed (``base.PRIOR_PARTS``, e.g. ``('process',)`` for
+        the recorded dynamics alone); empty: everything each learner takes.
+    """
+
+    domain: str = "dc_pendulum"
+    task: str = "swingup"
+    task_kwargs: dict[str, Any] = dataclasses.field(default_factory=dict)
+    algorithms: tuple[str, ...] = ("rmac", "s-ac")
+    experiments: int = 40
+    trials: int = 600
+    seed: int = 0
+    evaluate_every: int = 0
+    snapshot_trials: tuple[int, ...] = (1, 10, 50, 200)
+    agent_configs: dict[str, dict[str, Any]] = dataclasses.field(default_factory=dict)
+    prior: str | None = None
+    prior_trials: int = 5
+    prior_parts: tuple[str, ...] = ()
+
+    #: The type and range of every field (:mod:`rmac_mj.constraints`); the sweep file's [protocol]
+    #: table is checked against the same rules.
+    parameter_constraints: ClassVar[dict[str, list]] = {
+        "domain": [constraints.InstanceOf(str)],
+        "task": [constraints.InstanceOf(str)],
+        "task_kwargs": [constraints.InstanceOf(dict)],
+        "algorithms": [constraints.TupleOf(constraints.InstanceOf(str),
+                                           what="a list of one or more algorithm names")],
+        "experiments": [constraints.Interval(numbers.Integral, 1, None)],
+        "trials": [constraints.Interval(numbers.Integral, 1, None)],
+        "seed": [constraints.Interval(numbers.Integral, 0, None)],
+        "evaluate_every": [constraints.Interval(numbers.Integral, 0, None)],
+        "snapshot_trials": [constraints.TupleOf(constraints.Interval(numbers.Integral, 1, None)),
+                            _EMPTY],
+        "agent_configs": [constraints.InstanceOf(dict)],
+        "prior": [constraints.InstanceOf(str), None],
+        "prior_trials": [constraints.Interval(numbers.Integral, 1, None)],
+        "prior_parts": [constraints.TupleOf(constraints.Options(*PRIOR_PARTS)), _EMPTY],
+    }
+
+    def __post_init__(self) -> None:
+        if isinstance(self.algorithms, (tuple, list)):
+            for name in self.algorithms:
+                if name not in ALGORITHMS:
+                    raise ValueError(f"unknown algorithm {name!r}; available: {', '.join(ALGORITHMS)}")
+        constraints.check_config(self)
+        if len(set(self.algorithms)) != len(self.algorithms):
+            raise ValueError(f"algorithms must not repeat, got {self.algorithms}")
+        object.__setattr__(self, "snapshot_trials",
+                           tuple(sorted({t for t in self.snapshot_trials if t <= self.trials}
+                                        | {self.trials})))
+        if self.domain not in tasks.TASKS_BY_DOMAIN:
+            raise ValueError(f"unknown domain {self.domain!r}; available: "
+                             f"{', '.join(sorted(tasks.TASKS_BY_DOMAIN))}")
+        if self.task not in tasks.TASKS_BY_DOMAIN[self.domain]:
+            raise ValueError(f"unknown task {self.task!r} of domain {self.domain!r}; available: "
+                             f"{', '.join(tasks.TASKS_BY_DOMAIN[self.domain])}")
+        if "random" in self.task_kwargs:
+            raise ValueError("task_kwargs must not set 'random': the task's seed comes from `seed`")
+        for name, overrides in self.agent_configs.items():
+            if name not in ALGORITHMS:
+                raise ValueError(f"agent_configs names unknown algorithm {name!r}")
+            config_from_dict(config_class(name), overrides)  # raises on unknown or bad values
+        self._check_prior()
+
+    def _check_prior(self) -> None:
+        if self.prior is None:
+            if self.prior_parts:
+                raise ValueError("prior_parts needs prior knowledge: set prior too")
+            return
+        if not self.prior:
+            raise ValueError(f"prior must be a demonstrator name or a .npz path, got {self.prior!r}")
+        if not self.prior.endswith(".npz"):
+            demonstrators.get(self.domain, self.task, self.prior)  # raises, naming what exists
+        refusing = [a for a in self.algorithms if not agent_class(a).prior_parts]
+        if refusing:
+            taking = [a for a in ALGORITHMS if agent_class(a).prior_parts]
+            verb = "does" if len(refusing) == 1 else "do"
+            raise ValueError(f"{', '.join(refusing)} {verb} not take prior knowledge: run only "
+                             f"learners that do ({', '.join(taking)}), e.g. --algorithms "
+                             f"{','.join(taking)}")
+        for name in self.algorithms:
+            lacking = sorted(set(self.prior_parts) - set(agent_class(name).prior_parts))
+            if lacking:
+                raise ValueError(f"{name} takes no {', '.join(lacking)} prior (it takes "
+                                 f"{', '.join(agent_class(name).prior_parts)})")
+
+    @property
+    def environment_name(self) -> str:
+        """The environment, as people read it: ``domain/task``."""
+        return f"{self.domain}/{self.task}"
+
+    def make_environment(self, task_seed: int | None = None) -> control.Environment:
+        """The protocol's environment, its task's random state seeded with ``task_seed`` (None:
+        unseeded). Every environment of a run is built here."""
+        kwargs = dict(self.task_kwargs)
+        if task_seed is not None:
+            kwargs["random"] = task_seed
+        return tasks.load(self.domain, self.task, task_kwargs=kwargs)
+
+    @property
+    def prior_file(self) -> pathlib.Path | None:
+        """The recorded prior knowledge file, when ``prior`` names one."""
+        return pathlib.Path(self.prior) if self.prior and self.prior.endswith(".npz") else None
+
+    @property
+    def is_paper_protocol(self) -> bool:
+        """True when the paper's protocol is run unchanged (both learners, default settings)."""
+        default = Protocol()
+        return (self.domain, self.task, self.task_kwargs, set(self.algorithms), self.experiments,
+                self.trials, self.agent_configs, self.prior) == (
+            default.domain, default.task, default.task_kwargs, set(default.algorithms),
+            default.experiments, default.trials, default.agent_configs, default.prior)
+
+    def as_dict(self) -> dict[str, Any]:
+        """The protocol as JSON data (what ``config.json`` stores); :meth:`from_dict` reads it back."""
+        return files.as_jsonable(self)
+
+    @classmethod
+    def from_dict(cls, document: dict[str, Any]) -> "Protocol":
+        """The protocol of :meth:`as_dict`'s document (lists back to tuples); ValueError or TypeError
+        naming what is wrong with it."""
+        if not isinstance(document, dict):
+            raise TypeError(f"a protocol is a JSON object, got {type(document).__name__}")
+        fields = {field.name for field in dataclasses.fields(cls)}
+        unknown = sorted(set(document) - fields)
+        if unknown:
+            raise ValueError(f"unknown protocol fields {unknown}")
+        values = dict(document)
+        for name in ("algorithms", "snapshot_trials", "prior_parts"):
+            if isinstance(values.get(name), list):
+                values[name] = tuple(values[name])
+        return cls(**values)
+
+
+def experiment_seeds(seed: int, index: int) -> tuple[np.random.SeedSequence, int]:
+    """The agent's seed sequence and the task's integer seed of experiment ``index``."""
+    agent_seq = np.random.SeedSequence(seed, spawn_key=(index,))
+    task_seed = int(np.random.SeedSequence(seed, spawn_key=(index, 0)).generate_state(1)[0])
+    return agent_seq, task_seed
+
+
+def demonstration_for(protocol: Protocol, index: int) -> prior_data.Demonstration:
+    """``prior_trials`` trials of demonstrator ``protocol.prior`` for experiment ``index``, recorded
+    deterministically from the sequence ``(index, 1)``: its child 0 seeds the recording's task, the
+    sequence itself the demonstrator's action noise."""
+    demonstrator = demonstrators.get(protocol.domain, protocol.task, protocol.prior)
+    sequence = np.random.SeedSequence(protocol.seed, spawn_key=(index, 1))
+    task_seed = int(np.random.SeedSequence(protocol.seed, spawn_key=(index, 1, 0))
+                    .generate_state(1)[0])
+    env = protocol.make_environment(task_seed)
+    return prior_data.record(env, demonstrator.controller(env), protocol.prior_trials,
+                             seed=np.random.default_rng(sequence),
+                             action_noise=demonstrator.action_noise)
+
+
+@dataclasses.dataclass
+class Experiment:
+    """Experiment ``index`` of ``algorithm``, assembled and ready for its first trial.
+
+    Attributes:
+      env: its environment, the task's random state seeded with ``task_seed``.
+      agent: the fresh agent, its generator from the experiment's seed sequence, already seeded with
+        the prior knowledge of ``demonstration`` (if any).
+      state_space, action_space: the task's, as the agent sees them.
+      demonstration: the prior knowledge seeded, or None.
+    """
+
+    algorithm: str
+    index: int
+    env: control.Environment
+    agent: Agent
+    state_space: StateSpace
+    action_space: ActionSpace
+    task_seed: int
+    demonstration: prior_data.Demonstration | None
+
+
+def build_experiment(protocol: Protocol, algorithm: str, index: int,
+                     demonstration: prior_data.Demonstration | None = None) -> Experiment:
+    """Assemble experiment ``index`` of ``algorithm`` exactly as the runner does: its environment and
+    fresh agent from the experiment's seeds, then the prior knowledge (``demonstration`` when the
+    protocol's prior is a file the caller read; else recorded here from the protocol's demonstrator)."""
+    agent_seq, task_seed = experiment_seeds(protocol.seed, index)
+    env = protocol.make_environment(task_seed)
+    state_space, action_space = state_space_of(env), action_space_of(env)
+    agent = make_agent(algorithm, state_space, action_space,
+                       config=protocol.agent_configs.get(algorithm),
+                       seed=np.random.default_rng(agent_seq))
+    if protocol.prior is not None:
+        if demonstration is None:
+            demonstration = demonstration_for(protocol, index)
+        agent.seed_from(**demonstration.arrays(), parts=protocol.prior_parts or None)
+    return Experiment(algorithm=algorithm, index=index, env=env, agent=agent,
+                      state_space=state_space, action_space=action_space, task_seed=task_seed,
+                      demonstration=demonstration if protocol.prior is not None else None)
+
+
+@dataclasses.dataclass(frozen=True)
+class ExperimentSpec:
+    """One learning experiment to run: ``algorithm`` number ``index`` of ``protocol``.
+
+    ``stream_to``: the result directory whose live trial log (``ResultStore.progress_path``) receives
+    every trial as it ends; None streams nothing. ``demonstration``: the recorded prior knowledge when
+    ``protocol.prior`` is a file (read once by the driver).
+    """
+
+    protocol: Protocol
+    algorithm: str
+    index: int
+    stream_to: str | None = None
+    demonstration: prior_data.Demonstration | None = None
+
+
+def run_experiment(spec: ExperimentSpec,
+                   on_trial: Callable[[str, int, int, float], None] | None = None) -> ExperimentResult:
+    """Run one learning experiment; return its curve, greedy evaluations and snapshots.
+
+    Nothing is written but the live trial log in ``spec.stream_to`` (if any), so it runs unchanged in
+    a local worker process or on a remote Dask worker, and the caller decides where the results go.
+    ``on_trial(algorithm, index, trial, return)`` is called after every learning trial.
+    """
+    protocol = spec.protocol
+    experiment = build_experiment(protocol, spec.algorithm, spec.index, spec.demonstration)
+    env, agent = experiment.env, experiment.agent
+    meta = {"domain": protocol.domain, "task": protocol.task, "task_kwargs": protocol.task_kwargs,
+            "experiment": spec.index, "seed": protocol.seed}
+    returns = np.empty(protocol.trials)
+    greedy_trials, greedy_returns, snapshots = [], [], {}
+    snapshot_trials = set(protocol.snapshot_trials) | {protocol.trials}
+    start = time.perf_counter()
+    log_path = (ResultStore(spec.stream_to).progress_path(spec.algorithm, spec.index)
+                if spec.stream_to is not None else None)
+    with TrialLog(log_path) as log:
+        for trial in range(1, protocol.trials + 1):
+            returns[trial - 1] = run_trial(env, agent, learn=True)
+            greedy = None
+            if protocol.evaluate_every and trial % protocol.evaluate_every == 0:
+                greedy = run_trial(env, agent, learn=False)
+                greedy_trials.append(trial)
+                greedy_returns.append(greedy)
+            if trial in snapshot_trials:
+                snapshots[trial] = snapshot_arrays(agent, experiment.state_space,
+                                                   experiment.action_space, trial=trial, **meta)
+            log.write(trial, returns[trial - 1], greedy)
+            if on_trial is not None:
+                on_trial(spec.algorithm, spec.index, trial, float(returns[trial - 1]))
+    demonstration = experiment.demonstration
+    return ExperimentResult(
+        algorithm=spec.algorithm, index=spec.index, returns=returns,
+        greedy_trials=np.asarray(greedy_trials, dtype=int),
+        greedy_returns=np.asarray(greedy_returns, dtype=float), snapshots=snapshots,
+        wall_time_s=time.perf_counter() - start, task_seed=experiment.task_seed,
+        demonstration_returns=(demonstration.trial_returns() if demonstration is not None
+                               else np.zeros(0)))

@@ -1,0 +1,64 @@
+"""What people read at the end of a run: the summary table, the tests between learners, the notes.
+
+The numbers come from :mod:`rmac_mj.experiments.metrics` (through ``summary.json``); this module only
+words them, the same way for ``reproduce``, ``compare`` and ``sweep``.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Iterable
+
+from rmac_mj.agents import ALGORITHMS
+from rmac_mj.experiments import metrics
+
+
+def describe_test(test: dict[str, Any]) -> str:
+    """One line for a result of :func:`compare_final_returns`."""
+    a, b = test["learners"]
+    if test["p_value"] is None:
+        return (f"final returns, {a} vs {b}: no test possible ({test['experiments'][0]} and "
+                f"{test['experiments'][1]} experiments; Welch's t-test needs 2 or more, with spread)")
+    p = test["p_value"]
+    p_text = f"p = {p:.2g}" if p >= 1e-4 else "p < 0.0001"
+    if test["better"] is None:
+        return (f"final returns, {a} vs {b}: difference {test['difference']:+.1f}, not significant "
+                f"({p_text}, Welch's t-test; a difference this size needs more experiments to rank them)")
+    worse = b if test["better"] == a else a
+    return (f"final returns: {test['better']} better than {worse} by {abs(test['difference']):.1f}, "
+            f"{p_text} (Welch's t-test, significant at {test['level']:g})")
+
+
+def few_experiments_note(experiments: int) -> str:
+    """The warning printed and drawn when ``experiments`` < :data:`FEW_EXPERIMENTS`."""
+    return (f"note: {experiments} experiment{'s' if experiments != 1 else ''} per learner: too few to rank "
+            f"the learners; the 95% intervals and the t-test assume normally distributed returns, which "
+            f"fewer than {metrics.FEW_EXPERIMENTS} experiments cannot show")
+
+
+def summary_table(summary: dict[str, Any], algorithms: Iterable[str] | None = None) -> str:
+    """The end-of-run table: one row per learner, then whether their final returns differ
+    significantly, and a warning when too few experiments make the intervals meaningless."""
+    algorithms = [a for a in (algorithms or ALGORITHMS) if a in summary]
+    header = (f"{'learner':>8} {'experiments':>11} {'final return':>13} {'95% CI':>19} "
+              f"{'min to 90%':>10} {'first 10 min':>12} {'stuck':>5}")
+    lines = [header, "-" * len(header)]
+    for algorithm in algorithms:
+        row = summary[algorithm]
+        low, high = row["final_return_ci95"]
+        ci = f"[{low:.0f}, {high:.0f}]" if low is not None else "n/a"
+        stuck = "n/a" if row.get("stuck_experiments") is None else str(row["stuck_experiments"])
+        lines.append(f"{algorithm:>8} {row['experiments']:>11d} {row['final_return_mean']:>13.1f} "
+                     f"{ci:>19} {row['minutes_to_90pct']:>10.1f} "
+                     f"{row['mean_return_first_10min']:>12.1f} {stuck:>5}")
+    if summary.get("optimal_return") is not None:
+        lines.append(f"near-optimal return: {summary['optimal_return']:.1f}")
+    if summary.get("trial_seconds") is not None:
+        lines.append(f"one trial = {summary['trial_seconds']:g} s of simulated time")
+    tests = metrics.compare_final_returns(
+        {a: summary[a]["final_return_per_experiment"] for a in algorithms
+         if "final_return_per_experiment" in summary[a]})
+    lines.extend(describe_test(test) for test in tests)
+    fewest = min((summary[a]["experiments"] for a in algorithms), default=None)
+    if fewest is not None and fewest < metrics.FEW_EXPERIMENTS:
+        lines.append(few_experiments_note(fewest))
+    return "\n".join(lines)

@@ -1,0 +1,296 @@
+"""The result directory of a run: its layout, and every read and write of it.
+
+    OUT/config.json                              what was run (protocol, code version, provenance)
+    OUT/curves/<algorithm>/exp_<iii>.npz         an experiment's results; its presence marks it done
+    OUT/snapshots/<algorithm>/exp_<iii>/trial_<tttt>.npz   the agent after that trial
+    OUT/progress/<algorithm>/exp_<iii>.csv       the live trial log of a running experiment
+    OUT/returns.csv, summary.json, fig2_learning_curves.{png,pdf}, wall_times.json
+
+:class:`ResultStore` owns this layout: the runner, the sweep, rendering, ``compare`` and the scripts
+read and write through it, never by building paths themselves. Files are written atomically
+(:mod:`rmac_mj.experiments.files`), an experiment's snapshots before its curve, so a killed run leaves
+only whole files and an experiment counts as done only once everything it wrote is in place.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import pathlib
+import re
+from typing import Any, Iterator
+
+import numpy as np
+
+from rmac_mj.errors import MissingInputError, UserInputError
+from rmac_mj.experiments import files
+
+_EXPERIMENT_FILE = re.compile(r"exp_(\d{3,})\.npz")
+_TRIAL_FILE = re.compile(r"trial_(\d+)\.npz")
+
+
+class ResumeRefused(UserInputError):
+    """The result directory holds a different run; its results must not be mixed with this one's."""
+
+
+@dataclasses.dataclass(frozen=True)
+class ExperimentResult:
+    """What one learning experiment produced (before it is saved).
+
+    Attributes:
+      algorithm, index: which experiment.
+      returns: ndarray of shape (trials,): the sum of rewards of every learning trial.
+      greedy_trials: ndarray of shape (evaluations,): after which learning trials a greedy trial ran.
+      greedy_returns: ndarray of shape (evaluations,): their returns.
+      snapshots: trial -> the snapshot arrays of the agent after it (``snapshots.snapshot_arrays``).
+      wall_time_s: the experiment's wall time (s).
+      task_seed: the seed of its task's random state.
+      demonstration_returns: ndarray of shape (prior trials,): the returns of the demonstration it
+        was seeded with (empty without one).
+    """
+
+    algorithm: str
+    index: int
+    returns: np.ndarray
+    greedy_trials: np.ndarray
+    greedy_returns: np.ndarray
+    snapshots: dict[int, dict[str, np.ndarray]]
+    wall_time_s: float
+    task_seed: int
+    demonstration_returns: np.ndarray
+
+
+@dataclasses.dataclass(frozen=True)
+class Curves:
+    """One learner's curves over the experiments of a run.
+
+    Attributes:
+      returns: ndarray of shape (experiments, trials): sum of rewards per learning trial.
+      greedy_returns: ndarray of shape (experiments, evaluations): greedy trials' returns.
+      greedy_trials: ndarray of shape (evaluations,): after which learning trials they ran.
+      wall_times: ndarray of shape (experiments,): each experiment's wall time (s).
+      demonstration_returns: ndarray of shape (experiments, prior trials): the demonstrations the
+        experiments were seeded with (zero columns without prior knowledge).
+    """
+
+    returns: np.ndarray
+    greedy_returns: np.ndarray
+    greedy_trials: np.ndarray
+    wall_times: np.ndarray
+    demonstration_returns: np.ndarray
+
+
+class TrialLog:
+    """The live log of one experiment: a CSV (``trial,return,greedy_return``) flushed after every trial,
+    so ``tail -f`` or pandas can follow a run. Not atomic and rewritten when a resumed run repeats the
+    experiment: it is a view of a run in progress, not a result."""
+
+    HEADER = "trial,return,greedy_return\n"
+
+    def __init__(self, path: pathlib.Path | None):
+        self.path, self.handle = path, None
+
+    def __enter__(self) -> "TrialLog":
+        if self.path is not None:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self.handle = open(self.path, "w", encoding="utf-8")
+            self.handle.write(self.HEADER)
+            self.handle.flush()
+        return self
+
+    def write(self, trial: int, value: float, greedy: float | None) -> None:
+        if self.handle is not None:
+            text = "" if greedy is None else repr(float(greedy))
+            self.handle.write(f"{trial},{float(value)!r},{text}\n")
+            self.handle.flush()
+
+    def __exit__(self, *exc) -> None:
+        if self.handle is not None:
+            self.handle.close()
+
+
+def _experiment_name(index: int) -> str:
+    return f"exp_{index:03d}"
+
+
+class ResultStore:
+    """One result directory (see the module docstring); ``root`` need not exist yet."""
+
+    def __init__(self, root: str | os.PathLike):
+        self.root = pathlib.Path(root)
+
+    def __repr__(self) -> str:
+        return f"ResultStore({str(self.root)!r})"
+
+    # -- paths ---------------------------------------------------------------------------------------
+    @property
+    def config_path(self) -> pathlib.Path:
+        return self.root / "config.json"
+
+    @property
+    def summary_path(self) -> pathlib.Path:
+        return self.root / "summary.json"
+
+    @property
+    def returns_path(self) -> pathlib.Path:
+        return self.root / "returns.csv"
+
+    @property
+    def figure_stem(self) -> pathlib.Path:
+        """Fig. 2 without suffix (.png and .pdf are written)."""
+        return self.root / "fig2_learning_curves"
+
+    @property
+    def wall_times_path(self) -> pathlib.Path:
+        """The wall time of every part of a run (the first and each ``--resume``): ``{"parts": [...]}``."""
+        return self.root / "wall_times.json"
+
+    def curve_path(self, algorithm: str, index: int) -> pathlib.Path:
+        return self.root / "curves" / algorithm / f"{_experiment_name(index)}.npz"
+
+    def snapshot_dir(self, algorithm: str, index: int) -> pathlib.Path:
+        return self.root / "snapshots" / algorithm / _experiment_name(index)
+
+    def snapshot_path(self, algorithm: str, index: int, trial: int) -> pathlib.Path:
+        return self.snapshot_dir(algorithm, index) / f"trial_{trial:04d}.npz"
+
+    def progress_path(self, algorithm: str, index: int) -> pathlib.Path:
+        """The live trial log of an experiment (see :class:`TrialLog`)."""
+        return self.root / "progress" / algorithm / f"{_experiment_name(index)}.csv"
+
+    # -- config --------------------------------------------------------------------------------------
+    def read_config(self) -> dict[str, Any] | None:
+        """The directory's ``config.json``, or None when there is none."""
+        if not self.config_path.exists():
+            return None
+        return json.loads(self.config_path.read_text())
+
+    def write_config(self, document: dict[str, Any]) -> None:
+        self.root.mkdir(parents=True, exist_ok=True)
+        files.write_json(self.config_path, document)
+
+    def begin(self, document: dict[str, Any], resume: bool) -> None:
+        """Start a run described by ``document`` (``protocol``, ``code`` and optionally
+        ``prior_sha256``) here, writing ``config.json``; or, with ``resume``, check that the directory
+        holds this very run (same protocol, prior file and code version) and clear what a killed run
+        left half written. Raises :class:`ResumeRefused` naming the settings that differ."""
+        existing = self.read_config()
+        if existing is None:
+            self.write_config({**document, "provenance": files.provenance()})
+            return
+        if not resume:
+            raise ResumeRefused(f"{self.root} already holds a run; pass --resume to finish it, or "
+                                "choose another --out")
+        if (existing.get("protocol"), existing.get("prior_sha256")) != (
+                document["protocol"], document.get("prior_sha256")):
+            differences = _differences(existing.get("protocol", {}), document["protocol"])
+            if existing.get("prior_sha256") != document.get("prior_sha256"):
+                differences.append("the prior knowledge file's contents (sha256)")
+            raise ResumeRefused(f"{self.root} was written with a different config "
+                                f"({'; '.join(differences)}); refusing to mix results (give the same "
+                                "settings, or another --out)")
+        old, new = existing.get("code", {}), document["code"]
+        if (old.get("package"), old.get("commit")) != (new.get("package"), new.get("commit")):
+            raise ResumeRefused(f"{self.root} was written by another code version "
+                                f"({old.get('commit')}, now {new.get('commit')}); refusing to mix "
+                                "results")
+        self.remove_temporaries()
+
+    def remove_temporaries(self) -> None:
+        """Delete the files a killed run was writing (never renamed into place)."""
+        for stale in self.root.rglob(".*.tmp"):
+            stale.unlink()
+
+    # -- experiments ---------------------------------------------------------------------------------
+    def finished(self, algorithm: str) -> set[int]:
+        """The indices of ``algorithm``'s experiments whose results are saved (one directory listing:
+        the cost grows with what has finished, not with what is planned)."""
+        folder = self.root / "curves" / algorithm
+        try:
+            names = os.listdir(folder)
+        except (FileNotFoundError, NotADirectoryError):
+            return set()
+        return {int(match.group(1)) for name in names if (match := _EXPERIMENT_FILE.fullmatch(name))}
+
+    def save(self, result: ExperimentResult) -> None:
+        """Write an experiment's snapshots, then its curve: the curve file marks the experiment done."""
+        for trial, arrays in result.snapshots.items():
+            files.write_npz(self.snapshot_path(result.algorithm, result.index, trial), **arrays)
+        files.write_npz(self.curve_path(result.algorithm, result.index), returns=result.returns,
+                        greedy_trials=result.greedy_trials, greedy_returns=result.greedy_returns,
+                        wall_time_s=np.float64(result.wall_time_s),
+                        task_seed=np.int64(result.task_seed),
+                        demonstration_returns=result.demonstration_returns)
+
+    def load_curves(self, algorithm: str, experiments: int | None = None) -> Curves:
+        """The curves of ``algorithm``'s experiments 0 .. ``experiments`` - 1 (all must be saved);
+        None: every saved experiment, in order of index."""
+        returns, greedy, wall, demonstrations = [], [], [], []
+        greedy_trials = np.zeros(0, dtype=int)
+        indices = range(experiments) if experiments is not None else sorted(self.finished(algorithm))
+        for index in indices:
+            with np.load(self.curve_path(algorithm, index), allow_pickle=False) as data:
+                returns.append(data["returns"])
+                greedy.append(data["greedy_returns"])
+                greedy_trials = data["greedy_trials"]
+                wall.append(float(data["wall_time_s"]))
+                demonstrations.append(data["demonstration_returns"])
+        return Curves(returns=np.array(returns), greedy_returns=np.array(greedy),
+                      greedy_trials=greedy_trials, wall_times=np.array(wall),
+                      demonstration_returns=np.array(demonstrations))
+
+    # -- snapshots -----------------------------------------------------------------------------------
+    def snapshot_algorithms(self) -> list[str]:
+        """The learners with snapshots in this directory, sorted."""
+        folder = self.root / "snapshots"
+        return sorted(p.name for p in folder.iterdir() if p.is_dir()) if folder.is_dir() else []
+
+    def snapshot_trials(self, algorithm: str, index: int = 0) -> dict[int, pathlib.Path]:
+        """Trial number -> snapshot path, for one experiment; MissingInputError when it has none."""
+        folder = self.snapshot_dir(algorithm, index)
+        found = {int(match.group(1)): path for path in folder.glob("trial_*.npz")
+                 if (match := _TRIAL_FILE.fullmatch(path.name))}
+        if not found:
+            raise MissingInputError(f"no snapshots in {folder} (algorithms with snapshots in "
+                                    f"{self.root}: {self.snapshot_algorithms() or 'none'})")
+        return dict(sorted(found.items()))
+
+    # -- summaries -----------------------------------------------------------------------------------
+    def write_returns(self, rows: Iterator[tuple[str, int, int, float]]) -> None:
+        """``returns.csv``: one row (algorithm, experiment, trial, return) per learning trial."""
+        files.write_csv(self.returns_path, ["algorithm", "experiment", "trial", "return"], rows)
+
+    def write_summary(self, summary: dict[str, Any]) -> None:
+        files.write_json(self.summary_path, summary)
+
+    def read_summary(self) -> dict[str, Any]:
+        """The run's ``summary.json``; MissingInputError when the run has none (not finished)."""
+        if not self.summary_path.is_file():
+            raise MissingInputError(f"{self.root} has no summary.json (not a finished `reproduce` run)")
+        try:
+            return json.loads(self.summary_path.read_text())
+        except ValueError as error:
+            raise UserInputError(f"{self.summary_path}: not a JSON document ({error})") from None
+
+    def read_wall_times(self) -> list[dict[str, Any]]:
+        """The parts recorded in ``wall_times.json`` (empty when there is none or it is unreadable)."""
+        try:
+            return [dict(part) for part in json.loads(self.wall_times_path.read_text())["parts"]]
+        except (OSError, ValueError, KeyError, TypeError):
+            return []
+
+    def write_wall_times(self, parts: list[dict[str, Any]]) -> None:
+        files.write_json(self.wall_times_path, {"parts": parts})
+
+
+def _differences(old: Any, new: Any, path: str = "") -> list[str]:
+    """``"field: A in the directory, B now"`` for every setting that differs (nested fields dotted)."""
+    if isinstance(old, dict) and isinstance(new, dict):
+        found = []
+        for key in [*old, *(k for k in new if k not in old)]:
+            found += _differences(old.get(key), new.get(key), f"{path}{key}.")
+        return found
+    if old == new:
+        return []
+    return [f"{path.rstrip('.')}: {json.dumps(old)} in the directory, {json.dumps(new)} now"]
