@@ -30,6 +30,11 @@ class LearnerState:
     """Default weighting of each action dim in the process model input (dc_pendulum: Table 2's 1)."""
     action_labels: tuple[str, ...]
     """Per action dim, e.g. "u [V]" or "tau1 [N m]"."""
+    action_cost: tuple[float, ...] | None = None
+    """What the reward charges for the action, per action dim: r holds -sum_i action_cost[i] u_i^2
+    and no other term in u (the diagonal of the reward's R; dc_pendulum: (P,) = (1,)). The one piece
+    of reward knowledge a learner may use (RMAC's scored reachable rules, MLAC's dr/du). None: the
+    task does not say (e.g. its R is not diagonal); a learner that needs it must then be told."""
 
     def __post_init__(self) -> None:
         if not self.keys or not all(isinstance(k, str) and k for k in self.keys):
@@ -46,8 +51,11 @@ class LearnerState:
         if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high)) and np.all(low < high)):
             raise ValueError(f"LearnerState.low and high must be finite with low < high, "
                              f"got {self.low!r} and {self.high!r}")
-        for name in ("weights", "action_weights"):
-            w = np.asarray(getattr(self, name), dtype=float)
+        if self.action_cost is not None and len(self.action_cost) != len(self.action_labels):
+            raise ValueError(f"LearnerState.action_cost must be None or have one entry per action dim "
+                             f"({len(self.action_labels)}), got {self.action_cost!r}")
+        for name in ("weights", "action_weights", "action_cost"):
+            w = np.asarray(getattr(self, name) if getattr(self, name) is not None else (), dtype=float)
             if not (np.all(np.isfinite(w)) and np.all(w >= 0)):
                 raise ValueError(f"LearnerState.{name} must be finite and >= 0, got {getattr(self, name)!r}")
         # Canonical Python types, so that the hints compare, hash and serialise the same however given.
@@ -59,6 +67,8 @@ class LearnerState:
         object.__setattr__(self, "weights", tuple(float(v) for v in self.weights))
         object.__setattr__(self, "action_weights", tuple(float(v) for v in self.action_weights))
         object.__setattr__(self, "action_labels", tuple(str(v) for v in self.action_labels))
+        if self.action_cost is not None:
+            object.__setattr__(self, "action_cost", tuple(float(v) for v in self.action_cost))
 
 
 def wrap_angle(angle):

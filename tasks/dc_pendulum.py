@@ -294,8 +294,10 @@ class SwingUp(base.Task):
 
     @property
     def learner_state(self) -> common.LearnerState:
-        """x = [phi, phi_dot]; the box is one period in phi and +-NOMINAL_SPEED; Table 2's weights."""
+        """x = [phi, phi_dot]; the box is one period in phi and +-NOMINAL_SPEED; Table 2's weights; the
+        reward's action cost P."""
         return common.LearnerState(
             keys=("angle", "velocity"), low=(-np.pi, -NOMINAL_SPEED), high=(np.pi, NOMINAL_SPEED),
             periodic=(True, False), labels=("angle phi [rad]", "angular velocity phi_dot [rad/s]"),
-            weights=(1.0, 0.1), action_weights=(1.0,), action_labels=("u [V]",))
+            weights=(1.0, 0.1), action_weights=(1.0,), action_labels=("u [V]",),
+            action_cost=(self._p,))

@@ -7,7 +7,7 @@ from rmac_mj.agents import ALGORITHMS, config_class, make_agent
 from rmac_mj.agents.base import ActionSpace, Exploration, StateSpace
 
 STATES = StateSpace(low=[-np.pi, -25.0], high=[np.pi, 25.0], periodic=[True, False])
-ACTIONS = ActionSpace(low=[-3.0], high=[3.0])
+ACTIONS = ActionSpace(low=[-3.0], high=[3.0], cost=[1.0])
 
 
 @pytest.mark.parametrize("algorithm", ALGORITHMS)

@@ -62,7 +62,8 @@ def test_a_bool_norm_and_a_string_clip_are_refused_by_rmac_and_mlac_alike(cls):
 def test_a_string_action_cost_and_a_missing_rcond_are_named(cls):
     # Was: a raw numpy TypeError naming nothing.
     assert refusal(cls, action_cost="1") == \
-        f"{cls.__name__}.action_cost must be a finite number >= 0, got '1'"
+        f"{cls.__name__}.action_cost must be a finite number >= 0 or a list of finite numbers >= 0 " \
+        "or None, got '1'"
     assert refusal(cls, rcond=None) == f"{cls.__name__}.rcond must be a number in [0, 1), got None"
 
 

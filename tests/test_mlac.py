@@ -19,7 +19,7 @@ V0 = -10.0
 
 def _agent(backend="numba", n=2, m=1, low=-3.0, high=3.0, **config):
     state_space = StateSpace(low=-10 * np.ones(n), high=10 * np.ones(n), periodic=np.zeros(n, bool))
-    action_space = ActionSpace(low=low * np.ones(m), high=high * np.ones(m))
+    action_space = ActionSpace(low=low * np.ones(m), high=high * np.ones(m), cost=np.ones(m))
     defaults = dict(actor_weights=(1.0,) * n, critic_weights=(1.0,) * n,
                     process_weights=(1.0,) * (n + m), exploration=NO_EXPLORATION, backend=backend,
                     conditioning="svd",     # exact local fits of affine data
@@ -210,7 +210,7 @@ def test_bad_configuration_names_the_field(kwargs, name):
 def test_weightings_must_match_the_task_or_come_from_its_hints():
     S3 = StateSpace(low=-np.ones(3), high=np.ones(3), periodic=np.zeros(3, bool),
                     weights=[1.0, 0.5, 0.2])
-    U = ActionSpace(low=-np.ones(1), high=np.ones(1))
+    U = ActionSpace(low=-np.ones(1), high=np.ones(1), cost=[0.5])
     with pytest.raises(ValueError, match="actor_weights has 2 entries, this task needs 3"):
         MLAC(S3, U, MLACConfig(actor_weights=(1.0, 0.1)))  # an explicit weighting for n = 2
     # By default the task's weights fill in every weighting, and the config records them.
@@ -219,3 +219,41 @@ def test_weightings_must_match_the_task_or_come_from_its_hints():
     assert agent.config.process_weights == (1.0, 0.5, 0.2, 1.0)
     agent = MLAC(S3, U, MLACConfig(actor_weights=(1, 1, 1)))  # explicit values win
     assert agent.config.actor_weights == (1.0, 1.0, 1.0)
+
+
+def test_the_action_cost_comes_from_the_task():
+    S = StateSpace(low=-np.ones(2), high=np.ones(2), periodic=np.zeros(2, bool))
+    assert MLAC(S, ActionSpace(low=[-1.0], high=[1.0], cost=[0.5])).config.action_cost == (0.5,)
+    # An explicit cost wins; a number stands for every action dimension.
+    U2 = ActionSpace(low=-np.ones(2), high=np.ones(2), cost=[0.5, 0.0])
+    assert MLAC(S, U2, MLACConfig(action_cost=2)).config.action_cost == (2.0, 2.0)
+    with pytest.raises(ValueError, match="action_cost has 3 entries, this task has 2"):
+        MLAC(S, U2, MLACConfig(action_cost=(1, 1, 1)))
+    # A task that does not say what its reward charges: MLAC must be told.
+    with pytest.raises(ValueError, match="does not declare .*set config.action_cost"):
+        MLAC(S, ActionSpace(low=[-1.0], high=[1.0]))
+    assert MLAC(S, ActionSpace(low=[-1.0], high=[1.0]),
+                MLACConfig(action_cost=0)).config.action_cost == (0.0,)
+
+
+def test_mlac_on_the_arm_follows_the_arms_reward_which_charges_no_torque():
+    """Issue 19.1: two_link_arm/reach charges no torque (R = 0), so MLAC's actor gradient has no
+    -2 P u term there (it had, with a default P = 1 copied from the pendulum)."""
+    from rmac_mj import tasks
+    from rmac_mj.experiments.episode import action_space_of, run_trial, state_space_of
+
+    env = tasks.load("two_link_arm", "reach")
+    agent = MLAC(state_space_of(env), action_space_of(env), seed=0)
+    assert agent.config.action_cost == (0.0, 0.0)
+    x = np.array([0.5, 0.0, -0.3, 0.0])
+    u = np.array([1.0, -2.0])
+    # Empty memories: no model term, so the gradient is the reward's dr/du alone, which is 0 here.
+    assert np.array_equal(agent.action_gradient(x, u), np.zeros(2))
+    assert np.isfinite(run_trial(env, agent))
+    # On the pendulum the task's P = 1, or what task_kwargs make it.
+    for kwargs, cost in (({}, (1.0,)), ({"action_weight": 0.25}, (0.25,))):
+        env = tasks.load("dc_pendulum", "swingup", task_kwargs=kwargs)
+        agent = MLAC(state_space_of(env), action_space_of(env), seed=0)
+        assert agent.config.action_cost == cost
+        assert np.array_equal(agent.action_gradient(np.zeros(2), np.array([1.5])),
+                              [-2.0 * cost[0] * 1.5])

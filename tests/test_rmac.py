@@ -24,7 +24,7 @@ def _linear_system(n=2, m=1, seed=0):
 
 def _agent(n, m, backend, **config):
     state_space = StateSpace(low=-10 * np.ones(n), high=10 * np.ones(n), periodic=np.zeros(n, bool))
-    action_space = ActionSpace(low=-3 * np.ones(m), high=3 * np.ones(m))
+    action_space = ActionSpace(low=-3 * np.ones(m), high=3 * np.ones(m), cost=np.ones(m))
     defaults = dict(critic_weights=(1.0,) * n, reference_weights=(1.0,) * n,
                     process_weights=(1.0,) * (n + m), exploration=NO_EXPLORATION, backend=backend,
                     conditioning="svd")  # exact local models, so that results are exact
@@ -145,7 +145,7 @@ def test_the_critic_learns_at_the_scheduled_rate_of_each_trial(backend):
     # rate changes what the second trial learns (rate_decay_trials=1: trial 2 learns at the final).
     S = StateSpace(low=[-np.pi, -8 * np.pi], high=[np.pi, 8 * np.pi], periodic=[True, False],
                    weights=[1.0, 0.1])
-    U = ActionSpace(low=[-3.0], high=[3.0])
+    U = ActionSpace(low=[-3.0], high=[3.0], cost=[1.0])
 
     def learned(**rates):
         agent = RMAC(S, U, RMACConfig(backend=backend, rate_decay_trials=1, **_SMALL_MEMORIES,
@@ -400,7 +400,7 @@ def test_back_ends_take_the_same_steps_for_every_option(options):
         tol = 10 * EXACT_TOLERANCE
     S = StateSpace(low=[-np.pi, -8 * np.pi], high=[np.pi, 8 * np.pi], periodic=[True, False],
                    weights=[1.0, 0.1])  # Table 2's weighting, as the dc_pendulum task gives
-    U = ActionSpace(low=-3.0 * np.ones(m), high=3.0 * np.ones(m))
+    U = ActionSpace(low=-3.0 * np.ones(m), high=3.0 * np.ones(m), cost=np.ones(m))
     kwargs = dict(_SMALL_MEMORIES, **_OPTION_VALUES[options])
     fast = RMAC(S, U, RMACConfig(backend="numba", **kwargs), seed=3)
     slow = RMAC(S, U, RMACConfig(backend="numpy", **kwargs), seed=3)
@@ -439,7 +439,7 @@ def test_a_pickled_copy_continues_like_the_original(backend):
     import pickle
     S = StateSpace(low=[-np.pi, -8 * np.pi], high=[np.pi, 8 * np.pi], periodic=[True, False],
                    weights=[1.0, 0.1])  # Table 2's weighting, as the dc_pendulum task gives
-    U = ActionSpace(low=[-3.0], high=[3.0])
+    U = ActionSpace(low=[-3.0], high=[3.0], cost=[1.0])
     agent = RMAC(S, U, RMACConfig(backend=backend, **_SMALL_MEMORIES), seed=1)
     _plain_pendulum_returns(agent, 2, steps=30)
     clone, twin = pickle.loads(pickle.dumps(agent)), copy.deepcopy(agent)
@@ -452,7 +452,7 @@ def test_a_pickled_copy_continues_like_the_original(backend):
 def test_seeded_run_is_pinned_bit_for_bit(config, backend, trials):
     S = StateSpace(low=[-np.pi, -8 * np.pi], high=[np.pi, 8 * np.pi], periodic=[True, False],
                    weights=[1.0, 0.1])  # Table 2's weighting, as the dc_pendulum task gives
-    U = ActionSpace(low=[-3.0], high=[3.0])
+    U = ActionSpace(low=[-3.0], high=[3.0], cost=[1.0])
     options = _SMALL_OPTIONS if config == "small" else {}
     agent = RMAC(S, U, RMACConfig(backend=backend, **options), seed=2024)
     returns = _plain_pendulum_returns(agent, trials)
@@ -514,7 +514,7 @@ def test_each_memory_gets_its_redundancy_measure():
     # process_replacement='redundancy' scores by misfit, the critic and reference by distance
     # (issue 14's account of the authors' code), unless told otherwise.
     S = StateSpace(low=-np.ones(2), high=np.ones(2), periodic=np.zeros(2, bool))
-    U = ActionSpace(low=-np.ones(1), high=np.ones(1))
+    U = ActionSpace(low=-np.ones(1), high=np.ones(1), cost=[1.0])
     agent = RMAC(S, U, RMACConfig(critic_replacement="redundancy", process_replacement="redundancy",
                                   reference_replacement="redundancy", redundancy_smoothing=0.3))
     assert (agent.process.redundancy, agent.critic.redundancy, agent.reference.redundancy) == (
@@ -526,6 +526,18 @@ def test_each_memory_gets_its_redundancy_measure():
 
 def test_weighting_must_match_the_task_dimensions():
     S = StateSpace(low=-np.ones(3), high=np.ones(3), periodic=np.zeros(3, bool))
-    U = ActionSpace(low=-np.ones(1), high=np.ones(1))
+    U = ActionSpace(low=-np.ones(1), high=np.ones(1), cost=[1.0])
     with pytest.raises(ValueError, match="critic_weights"):
         RMAC(S, U, RMACConfig(critic_weights=(1.0, 0.1)))  # Table 2's weighting is for n = 2
+
+
+def test_the_action_cost_comes_from_the_task_where_a_reachable_rule_scores_it():
+    S = StateSpace(low=-np.ones(2), high=np.ones(2), periodic=np.zeros(2, bool))
+    unknown = ActionSpace(low=[-1.0], high=[1.0])
+    # The paper's 'vertices' ranks by the critic alone: no cost needed, none recorded.
+    assert RMAC(S, unknown).config.action_cost is None
+    assert RMAC(S, ActionSpace(low=[-1.0], high=[1.0], cost=[0.2])).config.action_cost == (0.2,)
+    with pytest.raises(ValueError, match="reachable_rule='grid' uses the reward's action cost"):
+        RMAC(S, unknown, RMACConfig(reachable_rule="grid"))
+    agent = RMAC(S, unknown, RMACConfig(reachable_rule="grid", action_cost=0.5))
+    assert agent.config.action_cost == (0.5,)

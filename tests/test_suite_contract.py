@@ -142,12 +142,32 @@ def test_batched_reward_is_the_step_reward(domain, task):
         assert reward == pytest.approx(float(env.task.reward_of(x, applied)), abs=1e-12)
 
 
+@pytest.mark.parametrize("domain, task", tasks.ALL_TASKS)  # the toy has no batched reward
+def test_the_declared_action_cost_is_what_the_reward_charges(domain, task):
+    """learner_state.action_cost P is the reward's whole dependence on u: r(x, u) = r(x, 0) -
+    sum_i P_i u_i^2, for the task's defaults and for a changed reward; what learners rely on."""
+    for task_kwargs in ({}, {"action_weight": 0.3} if domain == "dc_pendulum" else
+                        {"action_weights": (0.5, 2.0)}):
+        env = tasks.load(domain, task, task_kwargs=task_kwargs)
+        cost = env.task.learner_state.action_cost
+        assert cost is not None and len(cost) == env.action_spec().shape[0]
+        rng = np.random.default_rng(0)
+        x = rng.uniform(-1, 1, (20, len(env.task.learner_state.low)))
+        u = rng.uniform(-2, 2, (20, len(cost)))
+        charged = env.task.reward_of(x, np.zeros_like(u)) - env.task.reward_of(x, u)
+        assert np.allclose(charged, (np.asarray(cost) * u * u).sum(axis=1), rtol=1e-12, atol=0)
+        if task_kwargs:
+            assert cost != load(domain, task).task.learner_state.action_cost
+
+
 def test_learner_state_rejects_inconsistent_hints():
     good = dict(keys=("a",), low=(-1.0,), high=(1.0,), periodic=(False,), labels=("a [m]",),
                 weights=(1.0,), action_weights=(1.0,), action_labels=("u [V]",))
     LearnerState(**good)
     for change, name in [({"high": (1.0, 2.0)}, "high"), ({"low": (1.0,)}, "low"),
                          ({"weights": (-1.0,)}, "weights"), ({"action_labels": ()}, "action_weights"),
+                         ({"action_cost": (1.0, 2.0)}, "action_cost"),
+                         ({"action_cost": (-1.0,)}, "action_cost"),
                          ({"keys": ()}, "keys")]:
         with pytest.raises(ValueError, match=name):
             LearnerState(**{**good, **change})

@@ -24,7 +24,8 @@ The kernels take an :class:`RMACState`, a numba structref that names what a step
 ``gradient_at_next``    fit the critic's ranking model at x_k (else at x_{k-1})
 ``rule``                index of ``RMACConfig.reachable_rule`` in ('vertices', 'vertices_value',
                         'grid', 'exact')
-``action_cost``         P of the score -P |u|^2 + gamma V(x') (rules other than 'vertices')
+``action_cost``         (m,) P of the score -sum_i P_i u_i^2 + gamma V(x') (rules other than
+                        'vertices')
 ``candidates``          (c, m) candidate actions of those rules (vertices or grid)
 ``refine_steps``        golden-section steps of rule 'exact' (0: none)
 ``insert_rate``         ``reference_insert_rate``: M^R gets R(x_{k-1}) + rate (x_r - R(x_{k-1}))
@@ -85,7 +86,7 @@ RMAC_STATE_TYPE = RMACStateType([
     ("vertices", _MATRIX), ("period", _VECTOR), ("low", _VECTOR), ("high", _VECTOR),
     ("gamma", types.float64), ("lam", types.float64), ("alpha_c", types.float64),
     ("alpha_r", types.float64), ("beta_u_zero", types.float64), ("inverse_previous", types.boolean),
-    ("gradient_at_next", types.boolean), ("rule", types.int64), ("action_cost", types.float64),
+    ("gradient_at_next", types.boolean), ("rule", types.int64), ("action_cost", _VECTOR),
     ("candidates", _MATRIX), ("refine_steps", types.int64), ("insert_rate", types.float64),
     ("ref_idx", _INDICES), ("ref_dist", _MATRIX), ("ref_info", _INDICES), ("ref_point", _MATRIX),
     ("crit_idx", _INDICES), ("crit_dist", _MATRIX), ("crit_info", _INDICES),
@@ -244,7 +245,7 @@ _INV_PHI = (5.0 ** 0.5 - 1.0) / 2.0
 
 @njit(cache=True)
 def _reachable_score(s, u, pred, beta_p, x_next):
-    """-P |u|^2 + gamma V(x'(u)), writing the canonical x'(u) to x_next; see
+    """-sum_i P_i u_i^2 + gamma V(x'(u)), writing the canonical x'(u) to x_next; see
     RMAC._reachable_score."""
     n = pred.shape[0]
     m = u.shape[0]
@@ -259,10 +260,10 @@ def _reachable_score(s, u, pred, beta_p, x_next):
     beta = np.empty((1, n + 1))
     v = np.empty(1)
     llr_query(C, x_next, idx, beta, v)
-    uu = 0.0
+    cost = 0.0
     for i in range(m):
-        uu += u[i] * u[i]
-    return -s.action_cost * uu + s.gamma * v[0]
+        cost += s.action_cost[i] * (u[i] * u[i])
+    return -cost + s.gamma * v[0]
 
 
 @njit(cache=True)

@@ -31,13 +31,13 @@ import numpy as np
 from rmac_mj.constraints import Field, Interval, Options, check_config, invalid
 
 
-def _weights(owner: str, weights, n: int) -> np.ndarray:
+def _weights(owner: str, weights, n: int, name: str = "weights") -> np.ndarray:
     """``weights`` as a float vector of shape (n,), ones for None; ValueError unless finite and >= 0."""
     if weights is None:
         return np.ones(n)
     w = np.asarray(weights, dtype=float).reshape(-1)
     if w.shape != (n,) or not np.all(np.isfinite(w) & (w >= 0)):
-        raise ValueError(f"{owner}: weights must be {n} finite numbers >= 0 (one per dimension), "
+        raise ValueError(f"{owner}: {name} must be {n} finite numbers >= 0 (one per dimension), "
                          f"got {weights!r}")
     return w
 
@@ -90,11 +90,16 @@ class ActionSpace:
 
     ``weights`` (shape (m,)) is the task's default weighting of each action dimension in a learner's
     input distances (RMAC's process model; dc_pendulum: Table 2's 1). None: ones.
+
+    ``cost`` (shape (m,)) is what the task's reward charges for an action, r containing
+    -sum_i cost_i u_i^2 (dc_pendulum: P = 1; two_link_arm: 0): the reward knowledge a learner may
+    use. None: the task does not say.
     """
 
     low: np.ndarray
     high: np.ndarray
     weights: np.ndarray | None = None
+    cost: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         low = np.asarray(self.low, dtype=float).reshape(-1)
@@ -104,6 +109,8 @@ class ActionSpace:
         object.__setattr__(self, "low", low)
         object.__setattr__(self, "high", high)
         object.__setattr__(self, "weights", _weights("ActionSpace", self.weights, low.shape[0]))
+        if self.cost is not None:
+            object.__setattr__(self, "cost", _weights("ActionSpace", self.cost, low.shape[0], "cost"))
 
     @property
     def dim(self) -> int:
@@ -308,6 +315,26 @@ class Agent(abc.ABC):
                                  f"entries, this task needs {size} "
                                  f"({'[x, u]' if name in process_memories else 'x'})")
         return config
+
+    def _config_with_task_action_cost(self, config: Any, used_by: str | None) -> Any:
+        """``config`` with its ``action_cost`` resolved against the task, as a tuple of m numbers: None
+        takes the task's (``ActionSpace.cost``), a number P stands for P in every action dimension.
+        ``used_by`` says what reads it; None when nothing does, and then a cost the task does not
+        declare stays None. The learner keeps the result as ``self.config``."""
+        m, cost = self.action_space.dim, config.action_cost
+        if cost is None:
+            cost = self.action_space.cost
+            if cost is None and used_by is not None:
+                raise ValueError(f"{self.name.upper()}: {used_by} uses the reward's action cost, "
+                                 f"which this task does not declare (learner_state.action_cost); "
+                                 f"set config.action_cost (0: the reward does not depend on u)")
+        elif np.ndim(cost) == 0:
+            cost = (cost,) * m
+        if cost is not None and len(cost) != m:
+            raise ValueError(f"{self.name.upper()}: config.action_cost has {len(cost)} entries, "
+                             f"this task has {m} action dimensions")
+        return dataclasses.replace(
+            config, action_cost=None if cost is None else tuple(float(c) for c in cost))
 
     # -- the boundary -------------------------------------------------------------------------------
     def _checked_state(self, x: Any, name: str = "x") -> np.ndarray:

@@ -29,9 +29,10 @@ order of the MLAC algorithm: model, critic, actor, then act):
    move by alpha_actor dQ/du (each kept inside the action bounds);
 4. u_k = pi(x_k) + Delta u_k, saturated.
 
-The reward's action gradient is the one piece of task knowledge MLAC uses: ``action_cost`` P gives
-dr/du = -2 P u, right for a reward with the term -P |u|^2 (``dc_pendulum``: P = 1). 0 drops the term
-(a task whose reward does not depend on u, or when the learner should not be told). Every other
+The reward's action gradient is the one piece of reward knowledge MLAC uses: ``action_cost`` P gives
+dr/du = -2 P u, right for a reward with the term -sum_i P_i u_i^2. It comes from the task
+(``ActionSpace.cost``: dc_pendulum P = 1, two_link_arm 0); 0 drops the term (when the learner
+should not be told). Every other
 choice is a field of :class:`MLACConfig`; docs/mlac.md lists them with what was measured.
 
 Memories can be seeded from data (prior knowledge) with :meth:`MLAC.seed_memories`.
@@ -48,7 +49,7 @@ import numpy as np
 from rmac_mj.agents.base import (ActionSpace, Agent, Exploration, StateSpace,
                                  discounted_returns, model_uncertainty, seed_memory)
 from rmac_mj.approximators.llr import SHARED_CONSTRAINTS, LLRMemory, memory_constraints, wrap
-from rmac_mj.constraints import InstanceOf, Interval, Options, check_config
+from rmac_mj.constraints import WEIGHTS, InstanceOf, Interval, Options, check_config
 
 _MEMORIES = ("actor", "critic", "process")
 
@@ -94,9 +95,11 @@ class MLACConfig:
     """Exploration Delta u_k: N(0, 1) every third step, the S-AC schedule of the RMAC paper (6.1).
     With ``where='uncertain'`` the uncertainty is the process model's at (x_k, pi(x_k)), where the
     policy acts."""
-    action_cost: float = 1.0
-    """P in dr/du = -2 P u, the reward's action gradient; the one piece of task knowledge MLAC uses
-    (``dc_pendulum``: r = -x^T Q x - P u^2, P = 1). 0 ignores the reward's dependence on u."""
+    action_cost: float | tuple[float, ...] | None = None
+    """P in dr/du = -2 P u (per action dimension), the reward's action gradient; the one piece of
+    reward knowledge MLAC uses. None: the task's (``ActionSpace.cost``; dc_pendulum: r = -x^T Q x -
+    P u^2 with P = 1; two_link_arm: 0); a number: P in every action dimension; 0 ignores the
+    reward's dependence on u. ``agent.config.action_cost`` holds the resolved tuple."""
     saturation_threshold: float = 0.92
     """The saturation rule (see ``saturation_rule``) applies to an action dimension where the
     policy's action lies beyond this fraction of the half-range from the middle of the action box
@@ -146,7 +149,7 @@ class MLACConfig:
         **{name: constraints for memory in _MEMORIES for name, constraints in
            memory_constraints(memory, ("nearest", "oldest"), redundancy=False).items()},
         "exploration": [InstanceOf(Exploration)],
-        "action_cost": [Interval(Real, 0, None)],
+        "action_cost": [Interval(Real, 0, None), WEIGHTS, None],
         "saturation_threshold": [Interval(Real, 0, 1, closed="right")],
         "saturation_rule": [Options("zero", "outward")],
         "model_action": [Options("policy", "applied")],
@@ -183,7 +186,9 @@ class MLAC(Agent):
         n, m = state_space.dim, action_space.dim
         self.n, self.m = n, m
         self.period = state_space.period  # (n,), 0 for non-periodic dimensions
-        self.config = config = self._config_with_task_weights(config, ("actor", "critic"))
+        config = self._config_with_task_weights(config, ("actor", "critic"))
+        self.config = config = self._config_with_task_action_cost(config, "the actor's gradient")
+        self._action_cost = np.array(config.action_cost)  # P, shape (m,)
         common = dict(norm=config.norm, conditioning=config.conditioning, rcond=config.rcond,
                       ridge=config.ridge, algorithm=config.backend)
         self.actor = LLRMemory(
@@ -257,7 +262,7 @@ class MLAC(Agent):
         if cfg.saturation_rule == "outward":
             ignored &= model_term * (u_pi - self._u_mid) > 0
         model_term[ignored] = 0.0
-        dr_du = -2.0 * cfg.action_cost * u_pi                # reward term -P |u|^2
+        dr_du = -2.0 * self._action_cost * u_pi              # reward term -sum_i P_i u_i^2
         return model_term + dr_du
 
     def _improve_actor(self, x_prev: np.ndarray, u_prev: np.ndarray) -> None:

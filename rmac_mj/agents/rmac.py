@@ -33,7 +33,7 @@ from rmac_mj.agents import _rmac_kernels
 from rmac_mj.agents.base import (ActionSpace, Agent, Exploration, StateSpace, discounted_returns,
                                  model_uncertainty, seed_memory)
 from rmac_mj.approximators.llr import SHARED_CONSTRAINTS, LLRMemory, memory_constraints, wrap
-from rmac_mj.constraints import InstanceOf, Interval, Options, check_config
+from rmac_mj.constraints import WEIGHTS, InstanceOf, Interval, Options, check_config
 
 _BACKENDS = ("numba", "numpy")
 #: beta_u counts as zero (u = 0, section 5) below this fraction of the state gains: when every
@@ -166,10 +166,13 @@ class RMACConfig:
       refinement finds the best point of the bracket when it is unimodal there.
 
     The reward r(x_{k-1}, u) = -x^T Q x - P |u|^2 has the same state part for every candidate, so the
-    score is -P |u|^2 + gamma V(x'(u)) with P = ``action_cost``."""
-    action_cost: float = 1.0
-    """P, the reward's action cost -P |u|^2 (dc_pendulum: 1), used only by the reachable rules other
-    than 'vertices'. It is the one piece of task knowledge those rules use (MLAC uses the same)."""
+    score is -sum_i P_i u_i^2 + gamma V(x'(u)) with P = ``action_cost``."""
+    action_cost: float | tuple[float, ...] | None = None
+    """P, the reward's action cost -sum_i P_i u_i^2, used only by the reachable rules other than
+    'vertices': the one piece of reward knowledge those rules use (MLAC uses the same). None: the
+    task's (``ActionSpace.cost``; dc_pendulum: its P = 1, two_link_arm: 0); a number: P in every
+    action dimension. ``agent.config.action_cost`` holds the resolved tuple (None when the rule does
+    not use it and the task does not say)."""
     reachable_grid: int = 21
     """Actions per action dimension for reachable_rule 'grid' and 'exact' (evenly spaced over the
     bounds, both bounds included)."""
@@ -217,7 +220,7 @@ class RMACConfig:
         "inverse_query": [Options("previous", "zero")],
         "critic_gradient_at": [Options("next", "previous")],
         "reachable_rule": [Options(*_REACHABLE_RULES)],
-        "action_cost": [Interval(Real, 0, None)],
+        "action_cost": [Interval(Real, 0, None), WEIGHTS, None],
         "reachable_grid": [Interval(Integral, 2, None)],
         "reference_insert_rate": [Interval(Real, 0, 1)],
         "initial_value": [Options("critic", "zero")],
@@ -250,7 +253,12 @@ class RMAC(Agent):
                  seed: int | np.random.Generator | None = None) -> None:
         super().__init__(state_space, action_space, config, seed)
         n, m = state_space.dim, action_space.dim
-        self.config = config = self._config_with_task_weights(config, ("critic", "reference"))
+        config = self._config_with_task_weights(config, ("critic", "reference"))
+        self.config = config = self._config_with_task_action_cost(
+            config, None if config.reachable_rule == "vertices" else
+            f"reachable_rule={config.reachable_rule!r}")
+        #: P of the reachable rules' score (zeros when the rule does not use it), shape (m,).
+        self._action_cost = np.array(config.action_cost or np.zeros(action_space.dim), dtype=float)
         self.n, self.m = n, m
         if config.reachable_rule == "exact" and m != 1:
             raise ValueError(f"RMAC: config.reachable_rule='exact' needs a one-dimensional action, "
@@ -320,7 +328,7 @@ class RMAC(Agent):
             float(cfg.lam), *cfg.rates_at(self.trial), BETA_U_ZERO,
             cfg.inverse_query == "previous", cfg.critic_gradient_at == "next",
             self._list_info[0], self._list_info[1], _REACHABLE_RULES.index(cfg.reachable_rule),
-            float(cfg.action_cost), np.ascontiguousarray(self.candidates), self._refine_steps,
+            self._action_cost, np.ascontiguousarray(self.candidates), self._refine_steps,
             float(cfg.reference_insert_rate))
 
     @property
@@ -492,10 +500,10 @@ class RMAC(Agent):
 
     def _reachable_score(self, u: np.ndarray, pred: np.ndarray, beta_u: np.ndarray,
                          u_prev: np.ndarray) -> tuple[float, np.ndarray]:
-        """-P |u|^2 + gamma V(x'(u)) and x'(u) (canonical), x'(u) = pred + beta_u (u - u_{k-1})."""
+        """-sum_i P_i u_i^2 + gamma V(x'(u)) and x'(u) (canonical), x'(u) = pred + beta_u (u - u_{k-1})."""
         x_next = self._canonical(pred + beta_u @ (u - u_prev))
         value = float(self.critic.query(x_next)[0][0])
-        return -self.config.action_cost * float(u @ u) + self.config.gamma * value, x_next
+        return -float(np.sum(self._action_cost * (u * u))) + self.config.gamma * value, x_next
 
     def _best_reachable(self, pred: np.ndarray, beta_u: np.ndarray,
                         u_prev: np.ndarray) -> np.ndarray:

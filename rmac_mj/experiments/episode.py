@@ -49,14 +49,17 @@ def state_space_of(env: control.Environment) -> StateSpace:
 
 
 def action_space_of(env: control.Environment) -> ActionSpace:
-    """The bounded action spec, with the task's action weightings, as an :class:`ActionSpace`."""
+    """The bounded action spec, with the task's action weightings and action cost, as an
+    :class:`ActionSpace`."""
     spec = env.action_spec()
     low = np.broadcast_to(spec.minimum, spec.shape)
-    weights = learner_state_of(env).action_weights
+    learner_state = learner_state_of(env)
+    weights = learner_state.action_weights
     if len(weights) != low.size:
         raise ValueError(f"task {type(env.task).__name__}: learner_state.action_weights has "
                          f"{len(weights)} entries, the action spec {low.size}")
-    return ActionSpace(low=low, high=np.broadcast_to(spec.maximum, spec.shape), weights=weights)
+    return ActionSpace(low=low, high=np.broadcast_to(spec.maximum, spec.shape), weights=weights,
+                       cost=learner_state.action_cost)
 
 
 def steps_per_trial(env: control.Environment) -> int:

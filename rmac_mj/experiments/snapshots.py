@@ -38,7 +38,8 @@ def snapshot_arrays(agent: Agent, state_space: StateSpace, action_space: ActionS
                         "periodic": state_space.periodic.tolist(),
                         "weights": state_space.weights.tolist()},
         "action_space": {"low": action_space.low.tolist(), "high": action_space.high.tolist(),
-                         "weights": action_space.weights.tolist()},
+                         "weights": action_space.weights.tolist(),
+                         "cost": None if action_space.cost is None else action_space.cost.tolist()},
         **meta,
     }
     arrays = {_PREFIX + key: np.asarray(value) for key, value in agent.state_dict().items()}
