@@ -24,10 +24,12 @@ class LearnerState:
     periodic: tuple[bool, ...]
     labels: tuple[str, ...]
     """Axis label with unit per state dim, e.g. "angle phi [rad]"."""
-    weights: tuple[float, ...]
+    input_weights: tuple[float, ...]
     """Default input weighting of each state dim in LLR distances (dc_pendulum: Table 2's (1, 0.1))."""
-    action_weights: tuple[float, ...]
-    """Default weighting of each action dim in the process model input (dc_pendulum: Table 2's 1)."""
+    action_input_weights: tuple[float, ...]
+    """Default input weighting of each action dim in the process model's LLR distances (dc_pendulum:
+    Table 2's 1). Not the reward's weights (a task's ``action_weights`` kwarg); those give
+    ``action_cost``."""
     action_labels: tuple[str, ...]
     """Per action dim, e.g. "u [V]" or "tau1 [N m]"."""
     action_cost: tuple[float, ...] | None = None
@@ -40,13 +42,14 @@ class LearnerState:
         if not self.keys or not all(isinstance(k, str) and k for k in self.keys):
             raise ValueError(f"LearnerState.keys must be non-empty strings, got {self.keys!r}")
         n = len(self.low)
-        for name in ("high", "periodic", "labels", "weights"):
+        for name in ("high", "periodic", "labels", "input_weights"):
             if len(getattr(self, name)) != n:
                 raise ValueError(f"LearnerState.{name} must have one entry per state dim ({n}, as low), "
                                  f"got {len(getattr(self, name))}")
-        if len(self.action_weights) != len(self.action_labels) or not self.action_weights:
-            raise ValueError(f"LearnerState.action_weights and action_labels must have one entry per "
-                             f"action dim, got {len(self.action_weights)} and {len(self.action_labels)}")
+        if len(self.action_input_weights) != len(self.action_labels) or not self.action_input_weights:
+            raise ValueError(f"LearnerState.action_input_weights and action_labels must have one entry "
+                             f"per action dim, got {len(self.action_input_weights)} and "
+                             f"{len(self.action_labels)}")
         low, high = np.asarray(self.low, dtype=float), np.asarray(self.high, dtype=float)
         if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high)) and np.all(low < high)):
             raise ValueError(f"LearnerState.low and high must be finite with low < high, "
@@ -54,7 +57,7 @@ class LearnerState:
         if self.action_cost is not None and len(self.action_cost) != len(self.action_labels):
             raise ValueError(f"LearnerState.action_cost must be None or have one entry per action dim "
                              f"({len(self.action_labels)}), got {self.action_cost!r}")
-        for name in ("weights", "action_weights", "action_cost"):
+        for name in ("input_weights", "action_input_weights", "action_cost"):
             w = np.asarray(getattr(self, name) if getattr(self, name) is not None else (), dtype=float)
             if not (np.all(np.isfinite(w)) and np.all(w >= 0)):
                 raise ValueError(f"LearnerState.{name} must be finite and >= 0, got {getattr(self, name)!r}")
@@ -64,8 +67,9 @@ class LearnerState:
         object.__setattr__(self, "high", tuple(float(v) for v in high))
         object.__setattr__(self, "periodic", tuple(bool(v) for v in self.periodic))
         object.__setattr__(self, "labels", tuple(str(v) for v in self.labels))
-        object.__setattr__(self, "weights", tuple(float(v) for v in self.weights))
-        object.__setattr__(self, "action_weights", tuple(float(v) for v in self.action_weights))
+        object.__setattr__(self, "input_weights", tuple(float(v) for v in self.input_weights))
+        object.__setattr__(self, "action_input_weights",
+                           tuple(float(v) for v in self.action_input_weights))
         object.__setattr__(self, "action_labels", tuple(str(v) for v in self.action_labels))
         if self.action_cost is not None:
             object.__setattr__(self, "action_cost", tuple(float(v) for v in self.action_cost))

@@ -299,5 +299,5 @@ class SwingUp(base.Task):
         return common.LearnerState(
             keys=("angle", "velocity"), low=(-np.pi, -NOMINAL_SPEED), high=(np.pi, NOMINAL_SPEED),
             periodic=(True, False), labels=("angle phi [rad]", "angular velocity phi_dot [rad/s]"),
-            weights=(1.0, 0.1), action_weights=(1.0,), action_labels=("u [V]",),
+            input_weights=(1.0, 0.1), action_input_weights=(1.0,), action_labels=("u [V]",),
             action_cost=(self._p,))

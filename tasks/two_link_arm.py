@@ -218,7 +218,7 @@ class Reach(base.Task):
             periodic=(True, False, True, False),
             labels=("shoulder angle theta1 [rad]", "shoulder speed omega1 [rad/s]",
                     "elbow angle theta2 [rad]", "elbow speed omega2 [rad/s]"),
-            weights=(1.0, 0.2, 1.0, 0.2), action_weights=(2.0, 3.0),
+            input_weights=(1.0, 0.2, 1.0, 0.2), action_input_weights=(2.0, 3.0),
             action_labels=("tau1 [N m]", "tau2 [N m]"),
             action_cost=tuple(np.diag(self._r)) if np.array_equal(self._r, np.diag(np.diag(self._r)))
             else None)

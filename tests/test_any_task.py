@@ -27,9 +27,9 @@ def test_spaces_and_trial_length_come_from_the_task(toy):
     space, actions = state_space_of(env), action_space_of(env)
     assert space.dim == 4 and list(space.periodic) == [True, False, False, False]
     np.testing.assert_array_equal(space.low, [-np.pi, -1.0, -20.0, -5.0])
-    np.testing.assert_array_equal(space.weights, [1.0, 1.0, 0.1, 0.2])
+    np.testing.assert_array_equal(space.input_weights, [1.0, 1.0, 0.1, 0.2])
     np.testing.assert_array_equal(actions.low, [-1.0, -2.0])
-    np.testing.assert_array_equal(actions.weights, [1.0, 0.5])
+    np.testing.assert_array_equal(actions.input_weights, [1.0, 0.5])
     assert steps_per_trial(env) == 10 and n_sub_steps(env) == 2
     assert trial_seconds(env) == pytest.approx(0.2)
     x = state_of(env.reset().observation, env.task.learner_state)

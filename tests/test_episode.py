@@ -57,8 +57,8 @@ def test_state_is_angle_then_velocity():
     np.testing.assert_allclose(x, [-np.pi, 0.0])
     space = state_space_of(env)
     assert list(space.periodic) == [True, False] and space.period[0] == pytest.approx(2 * np.pi)
-    np.testing.assert_array_equal(space.weights, [1.0, 0.1])  # Table 2's input weighting
-    np.testing.assert_array_equal(action_space_of(env).weights, [1.0])
+    np.testing.assert_array_equal(space.input_weights, [1.0, 0.1])  # Table 2's input weighting
+    np.testing.assert_array_equal(action_space_of(env).input_weights, [1.0])
     assert steps_per_trial(env) == 100 and trial_seconds(env) == pytest.approx(3.0)
 
 

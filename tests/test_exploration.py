@@ -15,7 +15,7 @@ from rmac_mj.agents.sac import SAC, SACConfig
 from rmac_mj.approximators.llr import LLRMemory
 
 PENDULUM = StateSpace(low=[-np.pi, -8 * np.pi], high=[np.pi, 8 * np.pi], periodic=[True, False],
-                      weights=[1.0, 0.1])
+                      input_weights=[1.0, 0.1])
 VOLTS = ActionSpace(low=[-3.0], high=[3.0], cost=[1.0])
 
 

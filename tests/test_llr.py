@@ -5,19 +5,19 @@ import pytest
 
 from rmac_mj.approximators.llr import LLRMemory
 
-ALGORITHMS = ("numba", "numpy")
+BACKENDS = ("numba", "numpy")
 TWO_PI = 2 * np.pi
 
 
-@pytest.mark.parametrize("algorithm", ALGORITHMS)
+@pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("conditioning", ["svd", "none"])
-def test_recovers_affine_function_exactly(algorithm, conditioning):
+def test_recovers_affine_function_exactly(backend, conditioning):
     rng = np.random.default_rng(0)
     A = np.array([[1.0, -2.0, 0.5], [0.3, 0.0, 4.0]])
     b = np.array([0.7, -1.2])
     X = rng.uniform(-1, 1, size=(50, 3))
     memory = LLRMemory(3, 2, 100, 10, input_weights=[1, 0.5, 2], conditioning=conditioning,
-                       algorithm=algorithm).fit(X, X @ A.T + b)
+                       backend=backend).fit(X, X @ A.T + b)
     for xq in rng.uniform(-1, 1, size=(5, 3)):
         pred, beta, idx = memory.query(xq)
         np.testing.assert_allclose(pred, A @ xq + b, atol=1e-10)
@@ -25,14 +25,14 @@ def test_recovers_affine_function_exactly(algorithm, conditioning):
         assert len(idx) == 10
 
 
-@pytest.mark.parametrize("algorithm", ALGORITHMS)
-def test_minimum_norm_with_one_and_two_samples(algorithm):
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_minimum_norm_with_one_and_two_samples(backend):
     w = np.array([1.0, 0.1])
     xq = np.array([0.2, 3.0])
     for X, Y in ((np.array([[0.5, 1.0]]), np.array([[2.0]])),
                  (np.array([[0.5, 1.0], [-0.1, 7.0]]), np.array([[2.0], [-1.0]]))):
         memory = LLRMemory(2, 1, 10, 5, input_weights=w, conditioning="none",
-                           algorithm=algorithm).fit(X, Y)
+                           backend=backend).fit(X, Y)
         pred, beta, idx = memory.query(xq)
         assert len(idx) == len(X)
         # The minimum-norm solution of the under-determined fit in centred, weighted coordinates.
@@ -63,14 +63,14 @@ def _brute_force_neighbours(X, xq, w, period, k, norm):
     return sorted(range(len(X)), key=lambda i: (d[i], i))[:k]
 
 
-@pytest.mark.parametrize("algorithm", ALGORITHMS)
+@pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("norm", [1, 2])
-def test_neighbours_match_brute_force_with_weights_and_periodic_input(algorithm, norm):
+def test_neighbours_match_brute_force_with_weights_and_periodic_input(backend, norm):
     rng = np.random.default_rng(1)
     w, period = np.array([1.0, 0.1]), np.array([TWO_PI, 0.0])
     X = np.c_[rng.uniform(-np.pi, np.pi, 300), rng.uniform(-20, 20, 300)]
     memory = LLRMemory(2, 1, 300, 15, input_weights=w, input_period=period, norm=norm,
-                       algorithm=algorithm).fit(X, np.zeros((300, 1)))
+                       backend=backend).fit(X, np.zeros((300, 1)))
     for xq in np.r_[[[np.pi - 0.01, 0.0], [-np.pi, 5.0]], rng.uniform(-3, 3, size=(20, 2))]:
         expected = _brute_force_neighbours(X, xq, w, period, 15, norm)
         np.testing.assert_array_equal(memory.neighbours(xq), expected)
@@ -105,28 +105,28 @@ def test_angles_near_plus_and_minus_pi_are_neighbours():
     assert flat.neighbours([np.pi - 0.01, 0.0])[0] == 2
 
 
-@pytest.mark.parametrize("algorithm", ALGORITHMS)
-def test_periodic_fit_spans_the_seam(algorithm):
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_periodic_fit_spans_the_seam(backend):
     # y = wrapped angle shifted by 0.1 (a next-state-like periodic output), queried at the seam.
     phis = np.linspace(np.pi - 0.2, np.pi + 0.2, 9)
     X = ((phis + np.pi) % TWO_PI - np.pi)[:, None]
     Y = ((phis + 0.1 + np.pi) % TWO_PI - np.pi)[:, None]
     memory = LLRMemory(1, 1, 20, 9, input_period=[TWO_PI], output_period=[TWO_PI],
-                       algorithm=algorithm).fit(X, Y)
+                       backend=backend).fit(X, Y)
     pred, beta, _ = memory.query([np.pi - 0.05])
     assert abs(((pred[0] - (np.pi + 0.05)) + np.pi) % TWO_PI - np.pi) < 1e-10
     np.testing.assert_allclose(beta[0, 0], 1.0, atol=1e-10)
 
 
-@pytest.mark.parametrize("algorithm", ALGORITHMS)
-def test_truncated_svd_tames_nearly_collinear_neighbours(algorithm):
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_truncated_svd_tames_nearly_collinear_neighbours(backend):
     # Neighbours along a trajectory: on a line in (phi, phi_dot) with tiny scatter across it.
     rng = np.random.default_rng(2)
     t = np.linspace(-0.5, 0.5, 20)
     X = np.c_[t, 10 * t] + rng.normal(0, 1e-4, size=(20, 2))
     Y = (-100 + 5 * t + rng.normal(0, 1.0, 20))[:, None]
     xq = np.array([0.0, 3.0])  # off the line
-    kwargs = dict(input_weights=[1, 0.1], algorithm=algorithm)
+    kwargs = dict(input_weights=[1, 0.1], backend=backend)
     wild = LLRMemory(2, 1, 20, 20, conditioning="none", **kwargs).fit(X, Y).query(xq)[0][0]
     tame = LLRMemory(2, 1, 20, 20, conditioning="svd", rcond=0.01, **kwargs).fit(X, Y).query(xq)[0]
     ridge = LLRMemory(2, 1, 20, 20, conditioning="ridge", ridge=1e-3, **kwargs).fit(X, Y)
@@ -137,9 +137,9 @@ def test_truncated_svd_tames_nearly_collinear_neighbours(algorithm):
     assert Y.min() <= clipped.query(xq)[0][0] <= Y.max()
 
 
-@pytest.mark.parametrize("algorithm", ALGORITHMS)
-def test_replace_oldest(algorithm):
-    memory = LLRMemory(1, 1, 3, 1, replacement="oldest", algorithm=algorithm)
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_replace_oldest(backend):
+    memory = LLRMemory(1, 1, 3, 1, replacement="oldest", backend=backend)
     for v in (0.0, 1.0, 2.0):
         memory.insert([v], [v])
     assert memory.insert([0.9], [9.0]) == 0  # slot of the first sample
@@ -147,10 +147,10 @@ def test_replace_oldest(algorithm):
     np.testing.assert_array_equal(memory.X_[:, 0], [0.9, 0.1, 2.0])
 
 
-@pytest.mark.parametrize("algorithm", ALGORITHMS)
-def test_replace_nearest(algorithm):
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_replace_nearest(backend):
     memory = LLRMemory(2, 1, 3, 1, input_weights=[1, 0.01], replacement="nearest",
-                       algorithm=algorithm)
+                       backend=backend)
     for x in ([0.0, 0.0], [1.0, 0.0], [2.0, 0.0]):
         memory.insert(x, [0.0])
     assert memory.insert([1.1, 50.0], [7.0]) == 1  # nearest under the weighting
@@ -158,13 +158,13 @@ def test_replace_nearest(algorithm):
     np.testing.assert_array_equal(memory.X_, [[2.2, 0.0], [1.1, 50.0], [2.0, 0.0]])
 
 
-@pytest.mark.parametrize("algorithm", ALGORITHMS)
-def test_redundancy_by_distance_evicts_the_duplicate(algorithm):
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_redundancy_by_distance_evicts_the_duplicate(backend):
     # K = 2, eta = 0.5, 1-norm; scores worked by hand: rho_i <- rho_i / 2 - d_i / 2 over K(x_*),
     # rho_* = mean_i rho_i / 2 - min d / 2. a 0 -> a 0; b 1 -> a -0.5, b -0.75;
     # c 3 -> b -1.375, a -1.75, c -1.78125; d 1 (b's duplicate) -> b -0.6875, a -1.375, d -0.515625.
     memory = LLRMemory(1, 1, 4, 2, replacement="redundancy", redundancy="distance",
-                       redundancy_smoothing=0.5, algorithm=algorithm)
+                       redundancy_smoothing=0.5, backend=backend)
     for v in (0.0, 1.0, 3.0, 1.0):
         memory.insert([v], [v])
     np.testing.assert_allclose(memory.redundancy_, [-1.375, -0.6875, -1.78125, -0.515625],
@@ -178,15 +178,15 @@ def test_redundancy_by_distance_evicts_the_duplicate(algorithm):
     np.testing.assert_array_equal(memory.X_[:, 0], [0.0, 1.0, 3.0, 10.0])
 
 
-@pytest.mark.parametrize("algorithm", ALGORITHMS)
-def test_redundancy_by_misfit_evicts_the_sample_on_the_line(algorithm):
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_redundancy_by_misfit_evicts_the_sample_on_the_line(backend):
     # y = 2 x plus noise (1, -1, 0, -1, 1) at x = -2..2: the noise is orthogonal to [x, 1], so the
     # affine fit of any of these sets is y = 2 x and the squared misfits are the noise squared; the
     # sample at x = 0 lies on the line and the local model predicts it exactly.
     X = np.arange(-2.0, 3.0)[:, None]
     Y = 2 * X + np.array([[1.0], [-1.0], [0.0], [-1.0], [1.0]])
     memory = LLRMemory(1, 1, 5, 5, replacement="redundancy", redundancy="misfit",
-                       redundancy_smoothing=0.5, conditioning="none", algorithm=algorithm)
+                       redundancy_smoothing=0.5, conditioning="none", backend=backend)
     memory.fit(X, Y)  # each scored among the other four
     np.testing.assert_allclose(memory.redundancy_, [-1, -1, 0, -1, -1], atol=1e-12)
     # (3, 6) lies on the line too: the six-sample fit is still y = 2 x, so the neighbours keep
@@ -211,8 +211,8 @@ def test_back_ends_agree_on_a_random_history():
                   output_period=[TWO_PI, 0], clip=True)
     for replacement, measure in (("nearest", "distance"), ("oldest", "distance"),
                                  ("redundancy", "distance"), ("redundancy", "misfit")):
-        fast = LLRMemory(**kwargs, replacement=replacement, redundancy=measure, algorithm="numba")
-        slow = LLRMemory(**kwargs, replacement=replacement, redundancy=measure, algorithm="numpy")
+        fast = LLRMemory(**kwargs, replacement=replacement, redundancy=measure, backend="numba")
+        slow = LLRMemory(**kwargs, replacement=replacement, redundancy=measure, backend="numpy")
         for _ in range(200):
             x = np.r_[rng.uniform(-4, 4), rng.normal(0, 10), rng.uniform(-3, 3)]
             y = np.r_[rng.uniform(-np.pi, np.pi), rng.normal()]
@@ -229,9 +229,9 @@ def test_back_ends_agree_on_a_random_history():
         assert (replacement != "redundancy") == np.all(fast.redundancy_ == 0)
 
 
-@pytest.mark.parametrize("algorithm", ALGORITHMS)
-def test_move_outputs_takes_the_short_way_round_and_wraps(algorithm):
-    memory = LLRMemory(1, 2, 5, 1, output_period=[TWO_PI, 0.0], algorithm=algorithm)
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_move_outputs_takes_the_short_way_round_and_wraps(backend):
+    memory = LLRMemory(1, 2, 5, 1, output_period=[TWO_PI, 0.0], backend=backend)
     for y in ([np.pi - 0.1, 1.0], [0.0, 2.0], [1.0, 3.0]):
         memory.insert([0.0], y)
     memory.move_outputs([0, 1], [-np.pi + 0.1, 5.0], 0.75)
@@ -243,9 +243,9 @@ def test_move_outputs_takes_the_short_way_round_and_wraps(algorithm):
         memory.move_outputs([3], [0.0, 0.0], 0.5)  # only 3 samples stored
 
 
-@pytest.mark.parametrize("algorithm", ALGORITHMS)
-def test_add_weighted_adds_delta_times_weight_to_stored_samples(algorithm):
-    memory = LLRMemory(1, 1, 4, 1, algorithm=algorithm)
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_add_weighted_adds_delta_times_weight_to_stored_samples(backend):
+    memory = LLRMemory(1, 1, 4, 1, backend=backend)
     for v in (1.0, 2.0, 3.0):
         memory.insert([v], [v])
     traces = np.array([1.0, 0.5, 0.0, 7.0])  # the 4th slot holds no sample: ignored
@@ -306,12 +306,12 @@ def test_a_neighbour_list_carried_across_an_insertion_equals_a_new_search(replac
                                                                else 20)
 
 
-@pytest.mark.parametrize("algorithm", ALGORITHMS)
-def test_insert_after_a_query_at_the_same_point_replaces_the_same_sample(algorithm):
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_insert_after_a_query_at_the_same_point_replaces_the_same_sample(backend):
     # insert() may take the nearest sample from a query just made at the same point; it must be
     # the sample a search would find, and a change in between must not go unnoticed.
     rng = np.random.default_rng(6)
-    kwargs = dict(input_weights=[1.0, 0.1], input_period=[TWO_PI, 0.0], algorithm=algorithm)
+    kwargs = dict(input_weights=[1.0, 0.1], input_period=[TWO_PI, 0.0], backend=backend)
     a, b = LLRMemory(2, 1, 40, 5, **kwargs), LLRMemory(2, 1, 40, 5, **kwargs)
     for _ in range(300):
         x = np.r_[rng.uniform(-4, 4), rng.normal(0, 5)]
@@ -353,7 +353,7 @@ def test_initialise_from_samples_and_state_dict_round_trip():
     (dict(capacity=5, n_neighbours=6), "n_neighbours"), (dict(input_weights=[1.0]), "input_weights"),
     (dict(input_weights=[1.0, -0.1]), "input_weights"), (dict(norm=3), "norm"),
     (dict(conditioning="qr"), "conditioning"), (dict(rcond=1.5), "rcond"),
-    (dict(replacement="random"), "replacement"), (dict(algorithm="kd_tree"), "algorithm"),
+    (dict(replacement="random"), "replacement"), (dict(backend="kd_tree"), "backend"),
     (dict(redundancy="age"), "redundancy"), (dict(redundancy_smoothing=0.0), "redundancy_smoothing"),
     (dict(redundancy_smoothing=1.5), "redundancy_smoothing"),
     (dict(input_period=[1.0]), "input_period"),

@@ -24,7 +24,7 @@ def _agent(backend="numba", n=2, m=1, low=-3.0, high=3.0, **config):
                     process_weights=(1.0,) * (n + m), exploration=NO_EXPLORATION, backend=backend,
                     conditioning="svd",     # exact local fits of affine data
                     critic_clip=False,      # the critic's slope is what is tested
-                    alpha_critic=0.0)       # the critic stays the known linear function
+                    alpha_c=0.0)       # the critic stays the known linear function
     defaults.update(config)
     return MLAC(state_space, action_space, MLACConfig(**defaults), seed=0)
 
@@ -35,15 +35,15 @@ def _seed_linear_world(agent, u_policy, rng):
     U = rng.uniform(-3, 3, (100, 1))
     Xc = rng.uniform(-5, 5, (300, 2))
     Xa = rng.uniform(-1, 1, (50, 2))
-    agent.seed_memories(process=(np.c_[X, U], X @ A.T + U @ B.T + C),
-                        critic=(Xc, Xc @ G + V0),
-                        actor=(Xa, np.full((50, 1), u_policy)))
+    agent.process.fit(np.c_[X, U], X @ A.T + U @ B.T + C)
+    agent.critic.fit(Xc, (Xc @ G + V0)[:, None])
+    agent.actor.fit(Xa, np.full((50, 1), u_policy))
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_actor_samples_move_by_the_hand_worked_model_based_step(backend):
     gamma, alpha, P, u_pi = 0.97, 0.05, 1.0, 0.5
-    agent = _agent(backend, gamma=gamma, alpha_actor=alpha, action_cost=P)
+    agent = _agent(backend, gamma=gamma, alpha_a=alpha, action_cost=P)
     _seed_linear_world(agent, u_pi, np.random.default_rng(0))
     # dQ/du = gamma g^T B - 2 P u = 0.97 (-2 * 0.001 - 0.3 * 0.5) - 2 * 0.5 = -0.14744 - 1 = -1.14744
     np.testing.assert_allclose(agent.action_gradient(np.array([0.2, -0.4]), np.array([u_pi])),
@@ -69,15 +69,15 @@ def test_each_term_of_the_gradient_and_two_actions():
     B2 = rng.normal(size=(2, 2))
     agent = _agent(m=2, action_cost=0.0, gamma=0.9)
     X, U = rng.uniform(-1, 1, (100, 2)), rng.uniform(-3, 3, (100, 2))
-    agent.seed_memories(process=(np.c_[X, U], X @ A.T + U @ B2.T + C))
+    agent.process.fit(np.c_[X, U], X @ A.T + U @ B2.T + C)
     Xc = rng.uniform(-5, 5, (300, 2))
-    agent.seed_memories(critic=(Xc, Xc @ G + V0))
+    agent.critic.fit(Xc, (Xc @ G + V0)[:, None])
     u = np.array([1.0, -2.0])
     np.testing.assert_allclose(agent.action_gradient(np.zeros(2), u), 0.9 * G @ B2, rtol=1e-9)
     # Only the reward's term (P = 2): dr/du = -2 P u, whatever the model says.
     agent = _agent(m=2, action_cost=2.0, gamma=0.0)
-    agent.seed_memories(process=(np.c_[X, U], X @ A.T + U @ B2.T + C),
-                        critic=(Xc, Xc @ G + V0))
+    agent.process.fit(np.c_[X, U], X @ A.T + U @ B2.T + C)
+    agent.critic.fit(Xc, (Xc @ G + V0)[:, None])
     np.testing.assert_allclose(agent.action_gradient(np.zeros(2), u), -4.0 * u, rtol=1e-12)
 
 
@@ -118,41 +118,15 @@ def test_saturation_is_measured_from_the_middle_of_an_asymmetric_box():
 
 
 def test_actor_samples_stay_inside_the_action_bounds():
-    agent = _agent(alpha_actor=1.0, action_cost=0.0)
+    agent = _agent(alpha_a=1.0, action_cost=0.0)
     _seed_linear_world(agent, 2.5, np.random.default_rng(3))
-    agent.seed_memories(critic=(np.array([[0.0, 0.0], [0.0, 1.0], [1.0, 0.0]]),
-                                np.array([0.0, 100.0, 0.0])))  # dV/dphi_dot = 100: push u up
+    agent.critic.fit(np.array([[0.0, 0.0], [0.0, 1.0], [1.0, 0.0]]),
+                     np.array([[0.0], [100.0], [0.0]]))  # dV/dphi_dot = 100: push u up
     x0 = np.array([0.0, 0.0])
     agent.start(x0)
     agent.step(-1.0, A @ x0 + B @ [2.5] + C)
     outputs = agent.actor.Y_[:agent.actor.n_samples_, 0]
     assert outputs.max() == 3.0 and outputs.min() >= -3.0
-
-
-def test_seeded_memories_hold_exactly_the_given_samples_and_bad_data_is_refused():
-    agent = _agent()
-    rng = np.random.default_rng(4)
-    X, U, V = rng.uniform(-1, 1, (30, 2)), rng.uniform(-3, 3, (30, 1)), rng.normal(size=30)
-    agent.seed_memories(actor=(X, U), critic=(X, V))
-    np.testing.assert_array_equal(agent.actor.X_[:30], X)
-    np.testing.assert_array_equal(agent.actor.Y_[:30], U)
-    np.testing.assert_array_equal(agent.critic.Y_[:30, 0], V)
-    assert agent.actor.n_samples_ == agent.critic.n_samples_ == 30
-    assert agent.process.n_samples_ == 0  # not given, left alone
-    with pytest.raises(ValueError, match=r"actor outputs must have shape \(s, 1\)"):
-        agent.seed_memories(actor=(X, np.c_[U, U]))
-    with pytest.raises(ValueError, match="process has 30 inputs but 29 outputs"):
-        agent.seed_memories(process=(np.c_[X, U], X[:29]))
-    with pytest.raises(ValueError, match="action bounds"):
-        agent.seed_memories(actor=(X, U + 10))
-    with pytest.raises(ValueError, match="critic inputs must be finite"):
-        agent.seed_memories(critic=(np.full((3, 2), np.nan), np.zeros(3)))
-    with pytest.raises(ValueError, match="more than its capacity 100"):
-        agent.seed_memories(process=(np.zeros((101, 3)), np.zeros((101, 2))))
-    np.testing.assert_array_equal(agent.actor.Y_[:30], U)  # refused calls changed nothing
-    agent.start(X[0])
-    with pytest.raises(RuntimeError, match="between trials"):
-        agent.seed_memories(actor=(X, U))
 
 
 def _pendulum():
@@ -189,8 +163,8 @@ def test_mlac_improves_on_pendulum_swingup():
 
 
 @pytest.mark.parametrize("kwargs, name", [
-    (dict(gamma=1.5), "gamma"), (dict(alpha_actor=-0.1), "alpha_actor"),
-    (dict(alpha_critic=float("nan")), "alpha_critic"), (dict(lam=2), "lam"),
+    (dict(gamma=1.5), "gamma"), (dict(alpha_a=-0.1), "alpha_a"),
+    (dict(alpha_c=float("nan")), "alpha_c"), (dict(lam=2), "lam"),
     (dict(actor_capacity=0), "actor_capacity"), (dict(process_neighbours=200), "process_neighbours"),
     (dict(critic_neighbours=True), "critic_neighbours"),
     (dict(actor_weights=(1.0, -1.0)), "actor_weights"), (dict(process_weights="ab"), "process_weights"),
@@ -209,7 +183,7 @@ def test_bad_configuration_names_the_field(kwargs, name):
 
 def test_weightings_must_match_the_task_or_come_from_its_hints():
     S3 = StateSpace(low=-np.ones(3), high=np.ones(3), periodic=np.zeros(3, bool),
-                    weights=[1.0, 0.5, 0.2])
+                    input_weights=[1.0, 0.5, 0.2])
     U = ActionSpace(low=-np.ones(1), high=np.ones(1), cost=[0.5])
     with pytest.raises(ValueError, match="actor_weights has 2 entries, this task needs 3"):
         MLAC(S3, U, MLACConfig(actor_weights=(1.0, 0.1)))  # an explicit weighting for n = 2

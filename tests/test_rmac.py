@@ -144,7 +144,7 @@ def test_the_critic_learns_at_the_scheduled_rate_of_each_trial(backend):
     # A schedule whose final rate equals its start changes nothing, bit for bit; a decaying critic
     # rate changes what the second trial learns (rate_decay_trials=1: trial 2 learns at the final).
     S = StateSpace(low=[-np.pi, -8 * np.pi], high=[np.pi, 8 * np.pi], periodic=[True, False],
-                   weights=[1.0, 0.1])
+                   input_weights=[1.0, 0.1])
     U = ActionSpace(low=[-3.0], high=[3.0], cost=[1.0])
 
     def learned(**rates):
@@ -399,7 +399,7 @@ def test_back_ends_take_the_same_steps_for_every_option(options):
         # the back ends may keep different points of the final bracket (EXACT_TOLERANCE wide).
         tol = 10 * EXACT_TOLERANCE
     S = StateSpace(low=[-np.pi, -8 * np.pi], high=[np.pi, 8 * np.pi], periodic=[True, False],
-                   weights=[1.0, 0.1])  # Table 2's weighting, as the dc_pendulum task gives
+                   input_weights=[1.0, 0.1])  # Table 2's weighting, as the dc_pendulum task gives
     U = ActionSpace(low=-3.0 * np.ones(m), high=3.0 * np.ones(m), cost=np.ones(m))
     kwargs = dict(_SMALL_MEMORIES, **_OPTION_VALUES[options])
     fast = RMAC(S, U, RMACConfig(backend="numba", **kwargs), seed=3)
@@ -438,7 +438,7 @@ def test_a_pickled_copy_continues_like_the_original(backend):
     import copy
     import pickle
     S = StateSpace(low=[-np.pi, -8 * np.pi], high=[np.pi, 8 * np.pi], periodic=[True, False],
-                   weights=[1.0, 0.1])  # Table 2's weighting, as the dc_pendulum task gives
+                   input_weights=[1.0, 0.1])  # Table 2's weighting, as the dc_pendulum task gives
     U = ActionSpace(low=[-3.0], high=[3.0], cost=[1.0])
     agent = RMAC(S, U, RMACConfig(backend=backend, **_SMALL_MEMORIES), seed=1)
     _plain_pendulum_returns(agent, 2, steps=30)
@@ -451,7 +451,7 @@ def test_a_pickled_copy_continues_like_the_original(backend):
 @pytest.mark.parametrize("config, backend, trials", list(_PINNED))
 def test_seeded_run_is_pinned_bit_for_bit(config, backend, trials):
     S = StateSpace(low=[-np.pi, -8 * np.pi], high=[np.pi, 8 * np.pi], periodic=[True, False],
-                   weights=[1.0, 0.1])  # Table 2's weighting, as the dc_pendulum task gives
+                   input_weights=[1.0, 0.1])  # Table 2's weighting, as the dc_pendulum task gives
     U = ActionSpace(low=[-3.0], high=[3.0], cost=[1.0])
     options = _SMALL_OPTIONS if config == "small" else {}
     agent = RMAC(S, U, RMACConfig(backend=backend, **options), seed=2024)

@@ -15,7 +15,7 @@ NO_EXPLORATION = Exploration(sigma=0.0)
 
 def line_agent(backend="numba", **kwargs):
     """1-D state in [0, 1], one tiling of 2 tiles: x = 0.25 is tile 0, x = 0.75 is tile 1."""
-    config = dict(gamma=0.9, lam=0.5, alpha_critic=0.5, alpha_actor=0.1, rate_split="none",
+    config = dict(gamma=0.9, lam=0.5, alpha_c=0.5, alpha_a=0.1, rate_split="none",
                   tile_coding=TileCodingConfig(num_tilings=1, tiles=2), exploration=NO_EXPLORATION,
                   backend=backend)
     config.update(kwargs)
@@ -62,7 +62,7 @@ def test_rate_split(rate_split, v_change):
     agent.start(x0)
     agent.step(-1.0, [0.0, 30.0])  # delta = -1; 16 active weights each move by alpha(_c / 16)
     assert agent.value(x0) == pytest.approx(v_change)
-    assert agent.alpha_actor == pytest.approx(0.005 / 16 if rate_split != "none" else 0.005)
+    assert agent.rate_a == pytest.approx(0.005 / 16 if rate_split != "none" else 0.005)
 
 
 @pytest.mark.parametrize("backend", ["numba", "numpy"])
@@ -83,7 +83,7 @@ def test_actor_follows_rewarded_perturbation(backend, reward, toward):
 
 
 def test_actor_output_stays_within_bounds():
-    config = SACConfig(alpha_actor=1.0, rate_split="none", exploration=Exploration(sigma=1.0))
+    config = SACConfig(alpha_a=1.0, rate_split="none", exploration=Exploration(sigma=1.0))
     agent = SAC(PENDULUM, VOLTS, config, seed=3)
     x0 = np.array([np.pi, 0.0])
     u0 = agent.start(x0)
@@ -180,8 +180,8 @@ def test_generic_dimensions():
 
 
 @pytest.mark.parametrize("field, value", [
-    ("gamma", 1.0), ("gamma", -0.1), ("lam", 1.5), ("alpha_actor", -0.01), ("alpha_critic", 2.0),
-    ("alpha_critic", float("nan")), ("rate_split", "half"), ("trace_cutoff", 1.0),
+    ("gamma", 1.0), ("gamma", -0.1), ("lam", 1.5), ("alpha_a", -0.01), ("alpha_c", 2.0),
+    ("alpha_c", float("nan")), ("rate_split", "half"), ("trace_cutoff", 1.0),
     ("backend", "cuda"), ("tile_low", [0.0, "1"]), ("tile_high", (0.0, float("inf"))),
     ("exploration", 1.0), ("tile_coding", 16),
 ])
@@ -194,7 +194,7 @@ def test_boundary_errors_and_config_round_trip():
     with pytest.raises(ValueError, match="tile_high"):
         SAC(PENDULUM, VOLTS, SACConfig(tile_high=(1.0,)))
     from rmac_mj.agents import config_from_dict
-    config = SACConfig(alpha_critic=0.2, rate_split="actor", tile_high=(None, 30.0),
+    config = SACConfig(alpha_c=0.2, rate_split="actor", tile_high=(None, 30.0),
                        exploration=Exploration(sigma=0.5, period=2),
                        tile_coding=TileCodingConfig(num_tilings=8, tiles=5))
     agent = SAC(PENDULUM, VOLTS, config, seed=0)

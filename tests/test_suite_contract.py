@@ -58,7 +58,7 @@ def test_specs_observations_and_learner_state(domain, task):
     learner_state = env.task.learner_state
     assert isinstance(learner_state, LearnerState)
     n, m = len(learner_state.low), int(np.prod(spec.shape))
-    assert len(learner_state.action_labels) == len(learner_state.action_weights) == m
+    assert len(learner_state.action_labels) == len(learner_state.action_input_weights) == m
     observation_spec = env.observation_spec()
     assert set(learner_state.keys) <= set(observation_spec)
     for timestep in rollout(env, random_actions(env, 5 * steps_per_trial(env), margin=1.2)):
@@ -125,7 +125,7 @@ def test_learner_state_names_observations_and_boxes_the_start(domain, task):
     x = np.concatenate([np.asarray(observation[key]).ravel() for key in hints.keys])
     assert x.shape == (len(hints.low),)
     assert np.all(np.asarray(hints.low) <= x) and np.all(x <= np.asarray(hints.high))
-    assert len(hints.action_weights) == env.action_spec().shape[0]
+    assert len(hints.action_input_weights) == env.action_spec().shape[0]
 
 
 @pytest.mark.parametrize("domain, task", tasks.ALL_TASKS)  # the toy has no batched reward
@@ -162,10 +162,11 @@ def test_the_declared_action_cost_is_what_the_reward_charges(domain, task):
 
 def test_learner_state_rejects_inconsistent_hints():
     good = dict(keys=("a",), low=(-1.0,), high=(1.0,), periodic=(False,), labels=("a [m]",),
-                weights=(1.0,), action_weights=(1.0,), action_labels=("u [V]",))
+                input_weights=(1.0,), action_input_weights=(1.0,), action_labels=("u [V]",))
     LearnerState(**good)
     for change, name in [({"high": (1.0, 2.0)}, "high"), ({"low": (1.0,)}, "low"),
-                         ({"weights": (-1.0,)}, "weights"), ({"action_labels": ()}, "action_weights"),
+                         ({"input_weights": (-1.0,)}, "input_weights"),
+                         ({"action_labels": ()}, "action_input_weights"),
                          ({"action_cost": (1.0, 2.0)}, "action_cost"),
                          ({"action_cost": (-1.0,)}, "action_cost"),
                          ({"keys": ()}, "keys")]:

@@ -24,7 +24,7 @@ trials = 3
 evaluate_every = 3
 snapshot_trials = [1]
 [grid]
-"s-ac.alpha_actor" = [0.005, 0.02]
+"s-ac.alpha_a" = [0.005, 0.02]
 """
 
 
@@ -120,12 +120,12 @@ name = "uncertain"
 
 
 def test_a_malformed_file_exits_2_with_one_line_before_running_anything(tmp_path):
-    path = write(tmp_path, '[protocol]\nalgorithms = ["s-ac"]\n[grid]\n"s-ac.alpha_actor" = 0.01\n')
+    path = write(tmp_path, '[protocol]\nalgorithms = ["s-ac"]\n[grid]\n"s-ac.alpha_a" = 0.01\n')
     result = subprocess.run([sys.executable, "-m", "rmac_mj.cli", "sweep", str(path), "--out",
                              str(tmp_path / "out")], capture_output=True, text=True, timeout=120)
     assert result.returncode == 2
     assert result.stderr.strip().splitlines() == [
-        f'rmac-mj: error: {path}: [grid] "s-ac.alpha_actor": expected a list of values to sweep, '
+        f'rmac-mj: error: {path}: [grid] "s-ac.alpha_a": expected a list of values to sweep, '
         "e.g. [0.01, ...]; got 0.01"]
     assert not (tmp_path / "out").exists()
 
@@ -173,7 +173,7 @@ def test_tiny_sweep_killed_resumed_and_summarised(tmp_path):
     resumed = subprocess.run([sys.executable, "-m", "rmac_mj.cli", *args, "--resume"],
                              capture_output=True, text=True, timeout=300)
     assert resumed.returncode == 0, resumed.stderr
-    assert "alpha_actor=0.02" in resumed.stdout
+    assert "alpha_a=0.02" in resumed.stdout
 
     # The same sweep uninterrupted, all experiments through one pool of two workers.
     whole = tmp_path / "whole"
@@ -183,18 +183,18 @@ def test_tiny_sweep_killed_resumed_and_summarised(tmp_path):
     assert sorted(resumed_curves) == sorted(whole_curves) and len(whole_curves) == 2 * 2
     for key in whole_curves:
         np.testing.assert_array_equal(resumed_curves[key], whole_curves[key])
-    assert not np.array_equal(whole_curves["alpha_actor=0.005/curves/s-ac/exp_000.npz"],
-                              whole_curves["alpha_actor=0.02/curves/s-ac/exp_000.npz"])
+    assert not np.array_equal(whole_curves["alpha_a=0.005/curves/s-ac/exp_000.npz"],
+                              whole_curves["alpha_a=0.02/curves/s-ac/exp_000.npz"])
 
     for out in (killed, whole):
         with open(out / "sweep.csv", newline="") as handle:
             table = list(csv.DictReader(handle))
-        assert [(r["configuration"], r["s-ac.alpha_actor"], r["algorithm"]) for r in table] == [
-            ("alpha_actor=0.005", "0.005", "s-ac"), ("alpha_actor=0.02", "0.02", "s-ac")]
+        assert [(r["configuration"], r["s-ac.alpha_a"], r["algorithm"]) for r in table] == [
+            ("alpha_a=0.005", "0.005", "s-ac"), ("alpha_a=0.02", "0.02", "s-ac")]
         index = json.loads((out / "sweep.json").read_text())
-        assert [c["directory"] for c in index["configurations"]] == ["alpha_actor=0.005",
-                                                                     "alpha_actor=0.02"]
-    summary = json.loads((whole / "alpha_actor=0.02" / "summary.json").read_text())
+        assert [c["directory"] for c in index["configurations"]] == ["alpha_a=0.005",
+                                                                     "alpha_a=0.02"]
+    summary = json.loads((whole / "alpha_a=0.02" / "summary.json").read_text())
     assert summary["exploration_floor"] == -870.0 and summary["optimal_return"] == -748.0
     row = rows[1]
     assert row["final_return_mean"] == pytest.approx(summary["s-ac"]["final_return_mean"])
@@ -202,7 +202,7 @@ def test_tiny_sweep_killed_resumed_and_summarised(tmp_path):
     assert row["greedy_trial"] == 3 and row["greedy_return_mean"] == pytest.approx(
         summary["s-ac"]["greedy_return_per_eval"][-1])
     assert row["mean_return_first_5min"] == pytest.approx(np.mean(
-        [whole_curves[f"alpha_actor=0.02/curves/s-ac/exp_00{i}.npz"] for i in range(2)]))
+        [whole_curves[f"alpha_a=0.02/curves/s-ac/exp_00{i}.npz"] for i in range(2)]))
     for metric in ("final_return", "greedy_return", "minutes_to_90pct", "first_5min",
                    "gap_to_optimal"):
         assert (whole / f"sweep_{metric}.png").is_file(), metric
@@ -221,24 +221,24 @@ experiments = 1
 trials = 5                           # the command line's --trials 3 wins
 seed = 7
 [grid]
-"s-ac.alpha_actor" = 0.02
+"s-ac.alpha_a" = 0.02
 "s-ac.exploration.sigma" = 0.5
 """, "one.toml")
     common = ["--jobs", "1", "--no-optimal", "--no-progress"]
     assert cli.main(["reproduce", "--config", str(path), "--trials", "3", "--set",
                      "s-ac.exploration.period=2", "--out", str(tmp_path / "config"), *common]) == 0
     assert cli.main(["reproduce", "--algorithms", "s-ac", "--experiments", "1", "--trials", "3",
-                     "--seed", "7", "--set", "s-ac.alpha_actor=0.02", "--set",
+                     "--seed", "7", "--set", "s-ac.alpha_a=0.02", "--set",
                      "s-ac.exploration.sigma=0.5", "--set", "s-ac.exploration.period=2", "--out",
                      str(tmp_path / "set"), *common]) == 0
     from_config = json.loads((tmp_path / "config" / "config.json").read_text())["protocol"]
     from_set = json.loads((tmp_path / "set" / "config.json").read_text())["protocol"]
     assert from_config == from_set
     assert from_config["trials"] == 3 and from_config["agent_configs"] == {
-        "s-ac": {"alpha_actor": 0.02, "exploration": {"sigma": 0.5, "period": 2}}}
+        "s-ac": {"alpha_a": 0.02, "exploration": {"sigma": 0.5, "period": 2}}}
     np.testing.assert_array_equal(*(np.load(tmp_path / d / "curves/s-ac/exp_000.npz")["returns"]
                                     for d in ("config", "set")))
 
-    grid = write(tmp_path, '[protocol]\nalgorithms = ["s-ac"]\n[grid]\n"s-ac.alpha_actor" = [0.01, 0.02]\n')
+    grid = write(tmp_path, '[protocol]\nalgorithms = ["s-ac"]\n[grid]\n"s-ac.alpha_a" = [0.01, 0.02]\n')
     assert cli.main(["reproduce", "--config", str(grid), "--out", str(tmp_path / "x")]) == 2
     assert "lists 2 values; --config runs one configuration" in capsys.readouterr().err

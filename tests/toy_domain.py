@@ -109,7 +109,7 @@ class Settle(base.Task):
             periodic=(True, False, False, False),
             labels=("bar angle theta [rad]", "cart position s [m]", "bar rate omega [rad/s]",
                     "cart speed v [m/s]"),
-            weights=(1.0, 1.0, 0.1, 0.2), action_weights=(1.0, 0.5),
+            input_weights=(1.0, 1.0, 0.1, 0.2), action_input_weights=(1.0, 0.5),
             action_labels=("torque tau [N m]", "force f [N]"))
 
 

@@ -11,8 +11,8 @@ mean curve is within 10% of its final level, stuck experiments (last 50 trials b
 the paired difference from the baseline, experiment i against experiment i (same seeds): mean ±
 95% half-width and the p-value of a paired t-test. --sort greedy_last5 orders the rows by that
 metric (best first); the default keeps the sweep's order. --plot draws, for the learning-rate
-sweep (sac.toml), the first 5 minutes and the last five greedy trials against alpha_actor, one line
-per (alpha_critic, lambda), mean and 95% CI.
+sweep (sac.toml), the first 5 minutes and the last five greedy trials against alpha_a, one line
+per (alpha_c, lambda), mean and 95% CI.
 """
 
 import json
@@ -50,8 +50,8 @@ def plot(root: pathlib.Path, index: dict, path: str) -> None:
     lines: dict = {}
     for c in index["configurations"]:
         v = c["values"]
-        lines.setdefault((v["s-ac.alpha_critic"], v["s-ac.lam"]), []).append(
-            (v["s-ac.alpha_actor"], metrics(root / c["directory"])))
+        lines.setdefault((v["s-ac.alpha_c"], v["s-ac.lam"]), []).append(
+            (v["s-ac.alpha_a"], metrics(root / c["directory"])))
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
     for (critic, lam), points in sorted(lines.items()):
         points.sort(key=lambda p: p[0])

@@ -46,12 +46,17 @@ def agent_class(name: str) -> type:
     return _lookup(name)[0]
 
 
-def config_from_dict(cls: type, values: dict[str, Any]):
+def config_from_dict(cls: type, values: dict[str, Any], stored: bool = False):
     """Rebuild a (possibly nested) frozen config dataclass from ``dataclasses.asdict`` output (or
     any dict of some of its parameters, e.g. a TOML table); the config checks the values against its
     ``parameter_constraints`` (:mod:`rmac_mj.constraints`), and an unknown name is refused with the
-    closest known one."""
+    closest known one. ``stored``: the values come from a file an earlier version wrote (a
+    snapshot), so parameters renamed since (the class's ``former_names``) are read by their new
+    names; what a user writes must use the current names."""
     table = cls.parameter_constraints
+    if stored:
+        former = getattr(cls, "former_names", {})
+        values = {former.get(name, name): value for name, value in values.items()}
     for name in values:
         if name not in table:
             raise constraints.unknown(cls.__name__, name, table)
@@ -59,7 +64,7 @@ def config_from_dict(cls: type, values: dict[str, Any]):
     for name, value in values.items():
         nested = constraints.nested_class(table[name])
         if nested is not None and isinstance(value, dict):
-            value = config_from_dict(nested, value)
+            value = config_from_dict(nested, value, stored)
         elif isinstance(value, list):
             value = tuple(value)
         kwargs[name] = value

@@ -28,6 +28,7 @@ from typing import Any, Callable, ClassVar
 
 import numpy as np
 
+from rmac_mj.approximators.llr import wrap
 from rmac_mj.constraints import Field, Interval, Options, check_config, invalid
 
 
@@ -50,14 +51,14 @@ class StateSpace:
       low, high: ndarray of shape (n,), the nominal range of each state dimension (for a periodic
         dimension, one period: ``high - low`` is the period).
       periodic: ndarray of bool of shape (n,), True where a dimension wraps around (an angle).
-      weights: ndarray of shape (n,), the task's default weighting of each dimension in a learner's
-        input distances (RMAC's LLR memories; dc_pendulum: Table 2's (1, 0.1)). None: ones.
+      input_weights: ndarray of shape (n,), the task's default weighting of each dimension in a
+        learner's input distances (RMAC's LLR memories; dc_pendulum: Table 2's (1, 0.1)). None: ones.
     """
 
     low: np.ndarray
     high: np.ndarray
     periodic: np.ndarray
-    weights: np.ndarray | None = None
+    input_weights: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         low = np.asarray(self.low, dtype=float).reshape(-1)
@@ -72,7 +73,8 @@ class StateSpace:
         object.__setattr__(self, "low", low)
         object.__setattr__(self, "high", high)
         object.__setattr__(self, "periodic", periodic)
-        object.__setattr__(self, "weights", _weights("StateSpace", self.weights, low.shape[0]))
+        object.__setattr__(self, "input_weights",
+                           _weights("StateSpace", self.input_weights, low.shape[0], "input_weights"))
 
     @property
     def dim(self) -> int:
@@ -83,13 +85,20 @@ class StateSpace:
         """ndarray of shape (n,): the period of each periodic dimension, 0 for the others."""
         return np.where(self.periodic, self.high - self.low, 0.0)
 
+    def canonical(self, x: np.ndarray) -> np.ndarray:
+        """x (shape (..., n)) with each periodic entry wrapped to [-period/2, period/2): the form in
+        which every learner stores and compares states (as ``LLRMemory`` wraps its inputs)."""
+        if not self.periodic.any():
+            return np.asarray(x, dtype=float)
+        return wrap(x, self.period)
+
 
 @dataclasses.dataclass(frozen=True)
 class ActionSpace:
     """A bounded continuous action: ndarrays ``low`` and ``high`` of shape (m,).
 
-    ``weights`` (shape (m,)) is the task's default weighting of each action dimension in a learner's
-    input distances (RMAC's process model; dc_pendulum: Table 2's 1). None: ones.
+    ``input_weights`` (shape (m,)) is the task's default weighting of each action dimension in a
+    learner's input distances (RMAC's process model; dc_pendulum: Table 2's 1). None: ones.
 
     ``cost`` (shape (m,)) is what the task's reward charges for an action, r containing
     -sum_i cost_i u_i^2 (dc_pendulum: P = 1; two_link_arm: 0): the reward knowledge a learner may
@@ -98,7 +107,7 @@ class ActionSpace:
 
     low: np.ndarray
     high: np.ndarray
-    weights: np.ndarray | None = None
+    input_weights: np.ndarray | None = None
     cost: np.ndarray | None = None
 
     def __post_init__(self) -> None:
@@ -108,7 +117,8 @@ class ActionSpace:
             raise ValueError(f"ActionSpace: need finite low < high of one shape, got {low}, {high}")
         object.__setattr__(self, "low", low)
         object.__setattr__(self, "high", high)
-        object.__setattr__(self, "weights", _weights("ActionSpace", self.weights, low.shape[0]))
+        object.__setattr__(self, "input_weights",
+                           _weights("ActionSpace", self.input_weights, low.shape[0], "input_weights"))
         if self.cost is not None:
             object.__setattr__(self, "cost", _weights("ActionSpace", self.cost, low.shape[0], "cost"))
 
@@ -301,8 +311,8 @@ class Agent(abc.ABC):
         [x, u]; every weighting checked against n or n + m. The learner keeps the result as
         ``self.config``, so results record the weightings actually used."""
         n, m = self.state_space.dim, self.action_space.dim
-        hints = {name: self.state_space.weights for name in state_memories}
-        hints.update({name: np.r_[self.state_space.weights, self.action_space.weights]
+        hints = {name: self.state_space.input_weights for name in state_memories}
+        hints.update({name: np.r_[self.state_space.input_weights, self.action_space.input_weights]
                       for name in process_memories})
         config = dataclasses.replace(config, **{
             f"{name}_weights": tuple(float(w) for w in weights)

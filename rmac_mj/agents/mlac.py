@@ -24,9 +24,9 @@ order of the MLAC algorithm: model, critic, actor, then act):
 
 1. insert [x_{k-1}, u_{k-1} | x_k] in M^P;
 2. V_k = V(x_k); insert [x_{k-1} | V_{k-1}] in M^C; delta_k = r_k + gamma V_k - V_{k-1}; traces 1 on
-   K(x_{k-1}) and the inserted slot, lambda gamma e elsewhere; V_i += alpha_critic delta_k e_i;
+   K(x_{k-1}) and the inserted slot, lambda gamma e elsewhere; V_i += alpha_c delta_k e_i;
 3. u_pi = pi(x_{k-1}); insert [x_{k-1} | u_pi] in M^A; the samples K(x_{k-1}) and the inserted one
-   move by alpha_actor dQ/du (each kept inside the action bounds);
+   move by alpha_a dQ/du (each kept inside the action bounds);
 4. u_k = pi(x_k) + Delta u_k, saturated.
 
 The reward's action gradient is the one piece of reward knowledge MLAC uses: ``action_cost`` P gives
@@ -35,7 +35,7 @@ dr/du = -2 P u, right for a reward with the term -sum_i P_i u_i^2. It comes from
 should not be told). Every other
 choice is a field of :class:`MLACConfig`; docs/mlac.md lists them with what was measured.
 
-Memories can be seeded from data (prior knowledge) with :meth:`MLAC.seed_memories`.
+Prior knowledge (recorded transitions) seeds the memories through :meth:`Agent.seed_from`.
 """
 
 from __future__ import annotations
@@ -64,9 +64,9 @@ class MLACConfig:
     """Discount factor (RMAC paper, section 6.2)."""
     lam: float = 0.65
     """Trace decay lambda of the critic."""
-    alpha_actor: float = 0.05
-    """Actor learning rate: the actor's samples move by alpha_actor dQ/du per step."""
-    alpha_critic: float = 0.3
+    alpha_a: float = 0.05
+    """Actor learning rate: the actor's samples move by alpha_a dQ/du per step."""
+    alpha_c: float = 0.3
     """Critic learning rate alpha_c of the TD(lambda) update on the critic's samples."""
 
     actor_capacity: int = 2000
@@ -74,22 +74,22 @@ class MLACConfig:
     actor_neighbours: int = 25
     """Actor nearest neighbours K: the samples that define pi(x) and move in an update."""
     actor_weights: tuple[float, ...] | None = None
-    """Actor input weighting over x (n entries). None: the task's, ``StateSpace.weights``: (1, 0.1)
+    """Actor input weighting over x (n entries). None: the task's, ``StateSpace.input_weights``: (1, 0.1)
     for dc_pendulum, as the authors' group's code uses."""
     critic_capacity: int = 2000
     """Critic memory size."""
     critic_neighbours: int = 15
     """Critic nearest neighbours K."""
     critic_weights: tuple[float, ...] | None = None
-    """Critic input weighting over x (n entries). None: the task's, ``StateSpace.weights`` ((1, 0.1)
+    """Critic input weighting over x (n entries). None: the task's, ``StateSpace.input_weights`` ((1, 0.1)
     for dc_pendulum)."""
     process_capacity: int = 100
     """Process memory size."""
     process_neighbours: int = 10
     """Process nearest neighbours K."""
     process_weights: tuple[float, ...] | None = None
-    """Process input weighting over [x, u] (n + m entries). None: the task's, ``StateSpace.weights``
-    then ``ActionSpace.weights`` ((1, 0.1, 1) for dc_pendulum, as the authors' group's code)."""
+    """Process input weighting over [x, u] (n + m entries). None: the task's, ``StateSpace.input_weights``
+    then ``ActionSpace.input_weights`` ((1, 0.1, 1) for dc_pendulum, as the authors' group's code)."""
 
     exploration: Exploration = Exploration()
     """Exploration Delta u_k: N(0, 1) every third step, the S-AC schedule of the RMAC paper (6.1).
@@ -141,11 +141,13 @@ class MLACConfig:
     backend: str = "numba"
     """Back end of the LLR memories: 'numba' (compiled) or 'numpy' (reference); same results."""
 
+    #: Parameters renamed since earlier versions (read from snapshots those wrote): old -> new.
+    former_names: ClassVar[dict[str, str]] = {"alpha_actor": "alpha_a", "alpha_critic": "alpha_c"}
     parameter_constraints: ClassVar[dict[str, list]] = {
         "gamma": [Interval(Real, 0, 1, closed="left")],
         "lam": [Interval(Real, 0, 1)],
-        "alpha_actor": [Interval(Real, 0, 1)],
-        "alpha_critic": [Interval(Real, 0, 1)],
+        "alpha_a": [Interval(Real, 0, 1)],
+        "alpha_c": [Interval(Real, 0, 1)],
         **{name: constraints for memory in _MEMORIES for name, constraints in
            memory_constraints(memory, ("nearest", "oldest"), redundancy=False).items()},
         "exploration": [InstanceOf(Exploration)],
@@ -190,7 +192,7 @@ class MLAC(Agent):
         self.config = config = self._config_with_task_action_cost(config, "the actor's gradient")
         self._action_cost = np.array(config.action_cost)  # P, shape (m,)
         common = dict(norm=config.norm, conditioning=config.conditioning, rcond=config.rcond,
-                      ridge=config.ridge, algorithm=config.backend)
+                      ridge=config.ridge, backend=config.backend)
         self.actor = LLRMemory(
             n, m, config.actor_capacity, config.actor_neighbours, input_weights=config.actor_weights,
             input_period=self.period, clip=config.actor_clip,
@@ -218,10 +220,6 @@ class MLAC(Agent):
         self._pi_prev: tuple[np.ndarray, np.ndarray] | None = None
 
     # -- the policy -----------------------------------------------------------------------------------
-    def _canonical(self, x: np.ndarray) -> np.ndarray:
-        """x with periodic entries wrapped to [-period/2, period/2)."""
-        return wrap(x, self.period)
-
     def _pi(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """pi(x), saturated to the action bounds, and the actor's neighbours K(x) (nearest first)."""
         u, _, near = self.actor.query(x)
@@ -266,11 +264,11 @@ class MLAC(Agent):
         return model_term + dr_du
 
     def _improve_actor(self, x_prev: np.ndarray, u_prev: np.ndarray) -> None:
-        """Step 3: insert [x_{k-1} | pi(x_{k-1})], move it and K(x_{k-1}) along alpha_actor dQ/du."""
+        """Step 3: insert [x_{k-1} | pi(x_{k-1})], move it and K(x_{k-1}) along alpha_a dQ/du."""
         # pi(x_{k-1}) and K(x_{k-1}) as found when u_{k-1} was chosen: the actor has not changed since.
         u_pi, near = self._pi_prev if self._pi_prev is not None else self._pi(x_prev)
         u_model = u_pi if self.config.model_action == "policy" else u_prev
-        step = self.config.alpha_actor * self.action_gradient(x_prev, u_pi, u_model)
+        step = self.config.alpha_a * self.action_gradient(x_prev, u_pi, u_model)
         slot = self.actor.insert(x_prev, u_pi, nearest=int(near[0]) if len(near) else None)
         # When the memory is full the new sample may take a neighbour's slot: move each sample once.
         moved = near if slot in near else np.append(near, slot)
@@ -291,7 +289,7 @@ class MLAC(Agent):
 
     def _start(self, x0: np.ndarray) -> np.ndarray:
         """A trial begins: traces reset, V_0, u_0 = pi(x_0) + Delta u_0."""
-        x0 = self._canonical(x0)
+        x0 = self.state_space.canonical(x0)
         self.traces[:] = 0.0
         self._k = 0
         self._v_prev = (float(self.critic.query(x0)[0][0]) if self.config.initial_value == "critic"
@@ -302,7 +300,7 @@ class MLAC(Agent):
 
     def _step(self, reward: float, x: np.ndarray) -> np.ndarray:
         """Learn from (x_{k-1}, u_{k-1}, r_k, x_k) (steps 1-3), then act in x_k (step 4)."""
-        x = self._canonical(x)
+        x = self.state_space.canonical(x)
         self._k += 1
         self._v_prev = self._update(reward, x)
         u = self._act(x)
@@ -311,7 +309,7 @@ class MLAC(Agent):
 
     def _stop(self, reward: float, x: np.ndarray) -> None:
         """The trial's last transition is learned like any other (the trial ends on a time limit)."""
-        self._update(reward, self._canonical(x))
+        self._update(reward, self.state_space.canonical(x))
 
     def _update(self, reward: float, x: np.ndarray) -> float:
         """Steps 1-3 of the module docstring; returns V_k."""
@@ -328,18 +326,18 @@ class MLAC(Agent):
         self.traces *= cfg.lam * cfg.gamma                                       # line 26
         self.traces[near] = 1.0
         self.traces[slot] = 1.0
-        self.critic.add_weighted(self.traces, [cfg.alpha_critic * delta])  # line 27
+        self.critic.add_weighted(self.traces, [cfg.alpha_c * delta])  # line 27
         # 3. The actor moves along the model-based gradient of the return.
         self._improve_actor(x_prev, u_prev)
         return v_k
 
     def _greedy_action(self, x: np.ndarray) -> np.ndarray:
         """pi(x), saturated; no exploration, no learning, nothing carried between calls."""
-        return self._pi(self._canonical(x))[0]
+        return self._pi(self.state_space.canonical(x))[0]
 
     def _value(self, x: np.ndarray) -> float:
         """V(x), the critic's LLR estimate."""
-        return float(self.critic.query(self._canonical(x))[0][0])
+        return float(self.critic.query(self.state_space.canonical(x))[0][0])
 
     # -- prior knowledge ------------------------------------------------------------------------------
     #: What :meth:`Agent.seed_from` can initialise from recorded transitions.
@@ -351,8 +349,8 @@ class MLAC(Agent):
         its (x_t, u_t), the critic with its discounted returns-to-go (this agent's gamma, 0 after a
         trial's last transition), the process model with its transitions [x_t, u_t] -> x_{t+1}.
 
-        Up to each memory's capacity the memory holds exactly these samples
-        (:meth:`seed_memories`); the rest are inserted in time order through its replacement rule.
+        Up to each memory's capacity the memory holds exactly these samples; the rest are inserted
+        in time order through its replacement rule (``seed_memory``).
         """
         period = self.period
         x = wrap(states, period)
@@ -368,58 +366,6 @@ class MLAC(Agent):
             seed_memory(getattr(self, name), *data[name])
         self._pi_prev = None
         if "critic" in parts:
-            self.traces[:] = 0.0
-
-    def seed_memories(self, *, actor: tuple[Any, Any] | None = None,
-                      critic: tuple[Any, Any] | None = None,
-                      process: tuple[Any, Any] | None = None) -> None:
-        """Initialise memories from data (prior knowledge, RMAC paper section 7); between trials.
-
-        Each argument given replaces all samples of that memory (``LLRMemory.fit``); None leaves it.
-
-        Args:
-          actor: (X, U), shapes (s, n) and (s, m): states and the actions to take there (e.g. a
-            demonstration's (x_k, u_k)); the actions must lie inside the action bounds.
-          critic: (X, V), shapes (s, n) and (s,) or (s, 1): states and value estimates (e.g. the
-            demonstration's discounted returns-to-go). The critic's traces are reset.
-          process: (XU, X_next), shapes (s, n + m) and (s, n): recorded transitions [x_k, u_k] ->
-            x_{k+1}.
-        s may not exceed the memory's capacity. Raises ValueError naming the argument.
-        """
-        if self._in_trial:
-            raise RuntimeError("MLAC.seed_memories: called inside a trial; seed between trials")
-        given = {"actor": actor, "critic": critic, "process": process}
-        checked = {}
-        for name, data in given.items():
-            if data is None:
-                continue
-            if not (isinstance(data, (tuple, list)) and len(data) == 2):
-                raise ValueError(f"MLAC.seed_memories: {name} must be a pair (inputs, outputs)")
-            X, Y = (np.asarray(a, dtype=float) for a in data)
-            memory = getattr(self, name)
-            if name == "critic" and Y.ndim == 1:
-                Y = Y[:, None]
-            for label, arr, width in (("inputs", X, memory.input_dim),
-                                      ("outputs", Y, memory.output_dim)):
-                if arr.ndim != 2 or arr.shape[1] != width:
-                    raise ValueError(f"MLAC.seed_memories: {name} {label} must have shape "
-                                     f"(s, {width}), got {arr.shape}")
-                if not np.all(np.isfinite(arr)):
-                    raise ValueError(f"MLAC.seed_memories: {name} {label} must be finite")
-            if len(X) != len(Y):
-                raise ValueError(f"MLAC.seed_memories: {name} has {len(X)} inputs but {len(Y)} "
-                                 "outputs")
-            if len(X) > memory.capacity:
-                raise ValueError(f"MLAC.seed_memories: {name} has {len(X)} samples, more than its "
-                                 f"capacity {memory.capacity}")
-            if name == "actor" and np.any((Y < self.action_space.low) | (Y > self.action_space.high)):
-                raise ValueError("MLAC.seed_memories: actor outputs must lie inside the action "
-                                 f"bounds [{self.action_space.low}, {self.action_space.high}]")
-            checked[name] = (X, Y)
-        for name, (X, Y) in checked.items():  # all checked before any memory changes
-            getattr(self, name).fit(X, Y)
-        self._pi_prev = None
-        if "critic" in checked:
             self.traces[:] = 0.0
 
     # -- state ----------------------------------------------------------------------------------------

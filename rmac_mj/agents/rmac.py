@@ -75,21 +75,21 @@ class RMACConfig:
     critic_neighbours: int = 20
     """Critic nearest neighbours K (Table 2)."""
     critic_weights: tuple[float, ...] | None = None
-    """Critic input weighting over x; None: the task's (``StateSpace.weights``; dc_pendulum: Table 2's
+    """Critic input weighting over x; None: the task's (``StateSpace.input_weights``; dc_pendulum: Table 2's
     (1, 0.1))."""
     process_capacity: int = 100
     """Process memory size (Table 2)."""
     process_neighbours: int = 9
     """Process nearest neighbours K (Table 2)."""
     process_weights: tuple[float, ...] | None = None
-    """Process input weighting over [x, u]; None: the task's (``StateSpace.weights`` then
-    ``ActionSpace.weights``; dc_pendulum: Table 2's (1, 0.1, 1))."""
+    """Process input weighting over [x, u]; None: the task's (``StateSpace.input_weights`` then
+    ``ActionSpace.input_weights``; dc_pendulum: Table 2's (1, 0.1, 1))."""
     reference_capacity: int = 2000
     """Reference memory size (Table 2)."""
     reference_neighbours: int = 20
     """Reference nearest neighbours K (Table 2)."""
     reference_weights: tuple[float, ...] | None = None
-    """Reference input weighting over x; None: the task's (``StateSpace.weights``; dc_pendulum: Table
+    """Reference input weighting over x; None: the task's (``StateSpace.input_weights``; dc_pendulum: Table
     2's (1, 0.1))."""
 
     exploration: Exploration = Exploration()
@@ -266,7 +266,7 @@ class RMAC(Agent):
         self.period = state_space.period  # (n,), 0 for non-periodic dimensions
         common = dict(norm=config.norm, conditioning=config.conditioning, rcond=config.rcond,
                       ridge=config.ridge, redundancy_smoothing=config.redundancy_smoothing,
-                      algorithm=config.backend)
+                      backend=config.backend)
         self.process = LLRMemory(
             n + m, n, config.process_capacity, config.process_neighbours,
             input_weights=config.process_weights, input_period=np.r_[self.period, np.zeros(m)],
@@ -308,7 +308,6 @@ class RMAC(Agent):
         self._u_prev = np.zeros(m)
         self._v_prev = np.zeros(1)
         self._u_greedy = np.zeros(m)
-        self._periodic = bool(np.any(self.period > 0))
         # The compiled step's neighbour lists (reference, critic) x (two buffers) x [length,
         # version]; a length of -1 drops a list (see _rmac_kernels).
         self._list_info = np.full((2, 2, 2), -1, dtype=np.int64)
@@ -352,9 +351,6 @@ class RMAC(Agent):
         self._kernel_state = self._new_kernel_state()
 
     # -- the policy: u = f^-1(x, R(x)) ------------------------------------------------------------------
-    def _canonical(self, x: np.ndarray) -> np.ndarray:
-        return wrap(x, self.period)
-
     def _inverse(self, x: np.ndarray, x_desired: np.ndarray, u_query: np.ndarray) -> np.ndarray:
         """f^-1(x, x_desired): least-squares inverse of the local process model (section 5).
 
@@ -391,20 +387,14 @@ class RMAC(Agent):
                              np.asarray(u_query, dtype=float), (len(states), self.m))
         out = np.empty((len(states), self.m))
         for i, x in enumerate(states):
-            x = self._canonical(x)
+            x = self.state_space.canonical(x)
             out[i] = self._inverse(x, self.reference.query(x)[0], uq[i])
         return out
 
     # -- Agent interface --------------------------------------------------------------------------------
-    def _wrapped(self, x: np.ndarray) -> np.ndarray:
-        """A checked x (see :class:`Agent`) with periodic entries wrapped to [-period/2, period/2)."""
-        if not self._periodic:
-            return x
-        return self._canonical(x)
-
     def _start(self, x0: np.ndarray) -> np.ndarray:
         """Lines 1-6: reset the traces, u_0 = f^-1(x_0, R(x_0)) + Delta u_0."""
-        x0 = self._wrapped(x0)
+        x0 = self.state_space.canonical(x0)
         self._list_info[:, :, 0] = -1
         self.traces[:] = 0.0  # line 3
         self._k = 0
@@ -439,7 +429,7 @@ class RMAC(Agent):
             # Lines 10-28 in one compiled call (x wrapped there), which also advances x_prev,
             # u_prev and v_prev; it returns a new array.
             return _rmac_kernels.step(self._kernel_state, reward, x, du)
-        x = self._wrapped(x)
+        x = self.state_space.canonical(x)
         u = self._explore(self._act(x, self._u_prev), x, self._u_prev)  # lines 10-12
         self._v_prev[0] = self._update(float(reward), x)   # lines 13-28
         self._x_prev[:] = x
@@ -453,7 +443,7 @@ class RMAC(Agent):
                 self._sync_kernel_rates()
             _rmac_kernels.stop(self._kernel_state, reward, x)
         else:
-            self._update(reward, self._wrapped(x))
+            self._update(reward, self.state_space.canonical(x))
         self._u_greedy = np.zeros(self.m)  # a greedy trial that follows starts from u_{-1} = 0
 
     def _update(self, reward: float, x: np.ndarray) -> float:
@@ -475,7 +465,7 @@ class RMAC(Agent):
             else:
                 x_c, slope = x_prev, self.critic.query(x_prev)[1][0, :n]
             values = wrap(reachable - x_c, self.period) @ slope
-            x_r = self._canonical(reachable[int(np.argmax(values))])
+            x_r = self.state_space.canonical(reachable[int(np.argmax(values))])
         else:  # the other rules: r + gamma V(x') with the full critic (RMACConfig.reachable_rule)
             x_r = self._best_reachable(pred, beta_u, u_prev)
         # Lines 17-20: insert [x_{k-1} | x_r] in M^R and move K(x_{k-1}) towards x_r.
@@ -483,7 +473,7 @@ class RMAC(Agent):
         inserted = x_r
         if cfg.reference_insert_rate < 1.0 and len(near):  # R(x_{k-1}) moved towards x_r
             r_prev = self.reference.query(x_prev)[0]
-            inserted = self._canonical(
+            inserted = self.state_space.canonical(
                 r_prev + cfg.reference_insert_rate * wrap(x_r - r_prev, self.period))
         self.reference.insert(x_prev, inserted, int(near[0]) if len(near) else None)
         alpha_c, alpha_r = cfg.rates_at(self.trial)
@@ -501,7 +491,7 @@ class RMAC(Agent):
     def _reachable_score(self, u: np.ndarray, pred: np.ndarray, beta_u: np.ndarray,
                          u_prev: np.ndarray) -> tuple[float, np.ndarray]:
         """-sum_i P_i u_i^2 + gamma V(x'(u)) and x'(u) (canonical), x'(u) = pred + beta_u (u - u_{k-1})."""
-        x_next = self._canonical(pred + beta_u @ (u - u_prev))
+        x_next = self.state_space.canonical(pred + beta_u @ (u - u_prev))
         value = float(self.critic.query(x_next)[0][0])
         return -float(np.sum(self._action_cost * (u * u))) + self.config.gamma * value, x_next
 
@@ -548,14 +538,14 @@ class RMAC(Agent):
         previous action: the one greedy_action returned last (0 after start() and stop()). For a
         stateless map over many states (policy plots) use :meth:`policy`.
         """
-        x = self._wrapped(x)
+        x = self.state_space.canonical(x)
         u = self._act(x, self._u_greedy)
         self._u_greedy = u
         return u.copy()
 
     def _value(self, x: np.ndarray) -> float:
         """V(x), the critic's LLR estimate."""
-        return float(self.critic.query(self._wrapped(x))[0][0])
+        return float(self.critic.query(self.state_space.canonical(x))[0][0])
 
     # -- prior knowledge (section 7) --------------------------------------------------------------------
     def _seed_from(self, states: np.ndarray, actions: np.ndarray, rewards: np.ndarray,

@@ -57,8 +57,8 @@ class SACConfig:
     Attributes:
       gamma: discount factor. Paper: 0.97.
       lam: trace decay lambda. Paper: 0.65.
-      alpha_actor: actor learning rate alpha_a (eq. 4). Paper: 0.005.
-      alpha_critic: critic learning rate alpha_c (eq. 3). Paper: 0.1.
+      alpha_a: actor learning rate (eq. 4). Paper: 0.005.
+      alpha_c: critic learning rate (eq. 3). Paper: 0.1.
       rate_split: which learning rates are divided over the ``num_tilings`` active weights:
         ``"both"``, ``"actor"`` or ``"none"`` (not in the paper; measured in docs/sac.md).
       tile_coding: the tiling layout of actor and critic. Paper: 16 tilings of 7 x 7 tiles.
@@ -73,8 +73,8 @@ class SACConfig:
 
     gamma: float = 0.97
     lam: float = 0.65
-    alpha_actor: float = 0.005
-    alpha_critic: float = 0.1
+    alpha_a: float = 0.005
+    alpha_c: float = 0.1
     rate_split: Literal["both", "actor", "none"] = "both"
     tile_coding: TileCodingConfig = TileCodingConfig()
     tile_low: tuple[float, ...] | None = None
@@ -83,11 +83,13 @@ class SACConfig:
     trace_cutoff: float = 1e-5
     backend: Backend = "numba"
 
+    #: Parameters renamed since earlier versions (read from snapshots those wrote): old -> new.
+    former_names: ClassVar[dict[str, str]] = {"alpha_actor": "alpha_a", "alpha_critic": "alpha_c"}
     parameter_constraints: ClassVar[dict[str, list]] = {
         "gamma": [Interval(Real, 0, 1, closed="left")],
         "lam": [Interval(Real, 0, 1)],
-        "alpha_actor": [Interval(Real, 0, 1)],
-        "alpha_critic": [Interval(Real, 0, 1)],
+        "alpha_a": [Interval(Real, 0, 1)],
+        "alpha_c": [Interval(Real, 0, 1)],
         "rate_split": [Options("both", "actor", "none")],
         "tile_coding": [InstanceOf(TileCodingConfig)],
         "tile_low": [_TILE_BOUNDS, None],
@@ -213,9 +215,9 @@ class SAC(Agent):
                     bound[d] = v
         self.coder = TileCoder(low, high, state_space.periodic, config.tile_coding, config.backend)
         T = self.coder.num_tilings
-        self.alpha_critic = config.alpha_critic / T if config.rate_split == "both" else config.alpha_critic
-        self.alpha_actor = (config.alpha_actor / T if config.rate_split in ("both", "actor")
-                            else config.alpha_actor)
+        #: The step per active weight of the critic and of the actor (see ``rate_split``).
+        self.rate_c = config.alpha_c / T if config.rate_split == "both" else config.alpha_c
+        self.rate_a = config.alpha_a / T if config.rate_split in ("both", "actor") else config.alpha_a
         self._decay = config.gamma * config.lam
         self._a_low = action_space.low
         self._a_high = action_space.high
@@ -335,7 +337,7 @@ class SAC(Agent):
             self.last_delta_, self._n_traces = _learn_numba(
                 self.critic_, self.actor_, self._traces, self._trace_idx, self._n_traces,
                 self._prev_tiles, self._tiles, reward, c.gamma, self._decay, c.trace_cutoff,
-                self.alpha_critic, self.alpha_actor, self._prev_du, self._a_low, self._a_high)
+                self.rate_c, self.rate_a, self._prev_du, self._a_low, self._a_high)
         else:
             self._learn_numpy(reward)
 
@@ -351,11 +353,11 @@ class SAC(Agent):
         self._n_traces = int(np.count_nonzero(self._traces))
         self._trace_idx[:self._n_traces] = np.flatnonzero(self._traces)
         # Line 12 (eq. 3 with traces): dV/dtheta(x) is the indicator of x's tiles.
-        self.critic_ += (self.alpha_critic * delta) * self._traces
+        self.critic_ += (self.rate_c * delta) * self._traces
         # Line 13 (eq. 4): dpi/dvartheta(x_{k-1}) is the indicator of x_{k-1}'s tiles.
         T = prev.shape[0]
         raw = self.actor_[prev].sum(axis=0)
-        step = self.alpha_actor * delta * self._prev_du
+        step = self.rate_a * delta * self._prev_du
         new = raw + T * step
         lo, hi = np.minimum(self._a_low, raw), np.maximum(self._a_high, raw)
         clipped = (new > hi) | (new < lo)

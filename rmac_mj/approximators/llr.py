@@ -59,8 +59,8 @@ Where the paper is silent, the choice is a constructor parameter (defaults in br
   last ten neighbourhood events.
 * A query on an empty memory predicts 0 with beta = 0 (Algorithm 2 line 2: V_0 = 0, beta^P = 0).
 
-Two back ends give the same results: ``algorithm='numba'`` (compiled kernels in ``_llr_kernels``) and
-``algorithm='numpy'`` (the readable reference below). Compiled brute force finds the 20 nearest of
+Two back ends give the same results: ``backend='numba'`` (compiled kernels in ``_llr_kernels``) and
+``backend='numpy'`` (the readable reference below). Compiled brute force finds the 20 nearest of
 2000 samples in about 3 us and needs nothing rebuilt when samples change; scipy's cKDTree took 32 us
 per query and 720 us per rebuild here (measured; a memory changes every control step).
 
@@ -110,7 +110,7 @@ _CONDITIONINGS = ("svd", "ridge", "none")
 _REPLACEMENTS = {"oldest": _k.REPLACE_OLDEST, "nearest": _k.REPLACE_NEAREST,
                  "redundancy": _k.REPLACE_REDUNDANCY}
 _MEASURES = {"distance": _k.MEASURE_DISTANCE, "misfit": _k.MEASURE_MISFIT}
-_ALGORITHMS = ("numba", "numpy")
+_BACKENDS = ("numba", "numpy")
 #: Relative eigenvalue cutoff of G = A^T A used for 'none' and 'ridge' (a singular value ratio of
 #: about 3e-7): only numerically singular directions are dropped.
 _NUMERICAL_EIG_CUTOFF = 1e-13
@@ -202,7 +202,7 @@ class LLRMemory:
       replacement: 'nearest', 'oldest' or 'redundancy'.
       redundancy: the score of 'redundancy' replacement, 'distance' or 'misfit' (module docstring).
       redundancy_smoothing: eta in (0, 1], the exponential smoothing factor of the scores.
-      algorithm: 'numba' or 'numpy'.
+      backend: 'numba' (compiled kernels) or 'numpy' (the readable reference); same results.
 
     Learned state: ``X_`` (N, n), ``Y_`` (N, m) (the first ``n_samples_`` rows are valid),
     ``stamp_`` (N,), the insertion time of each sample, and ``redundancy_`` (N,), each sample's
@@ -215,7 +215,7 @@ class LLRMemory:
                  output_period: Any = None, conditioning: str = "svd", rcond: float = 0.01,
                  ridge: float = 1e-3, clip: bool = False, replacement: str = "nearest",
                  redundancy: str = "distance", redundancy_smoothing: float = 0.1,
-                 algorithm: str = "numba") -> None:
+                 backend: str = "numba") -> None:
         self.input_dim = input_dim
         self.output_dim = output_dim
         self.capacity = capacity
@@ -231,7 +231,7 @@ class LLRMemory:
         self.replacement = replacement
         self.redundancy = redundancy
         self.redundancy_smoothing = redundancy_smoothing
-        self.algorithm = algorithm
+        self.backend = backend
         self._validate()
         n, m, N = self.input_dim, self.output_dim, self.capacity
         self._Xt = np.zeros((n, N))  # inputs by dimension: see _llr_kernels
@@ -282,7 +282,7 @@ class LLRMemory:
         "replacement": [Options(*_REPLACEMENTS)],
         "redundancy": [Options(*_MEASURES)],
         "redundancy_smoothing": [Interval(Real, 0, 1, closed="right")],
-        "algorithm": [Options(*_ALGORITHMS)],
+        "backend": [Options(*_BACKENDS)],
     }
 
     def _validate(self) -> None:
@@ -425,7 +425,7 @@ class LLRMemory:
     def _neighbours(self, xq: np.ndarray) -> np.ndarray:
         """Unvalidated K(xq) for a canonical xq (periodic entries in [-period/2, period/2))."""
         count = int(self._meta[0])
-        if self.algorithm == "numba":
+        if self.backend == "numba":
             return self._idx[:_k.neighbours(self._state, xq, self._idx)]
         return search_reference(self.X_[:count], xq, self._w, self._pin, self.norm,
                                 self.n_neighbours)
@@ -449,7 +449,7 @@ class LLRMemory:
             beta @ [x; 1] == prediction (for periodic inputs: valid for wrapped offsets from x).
           neighbours: int64 ndarray of shape (min(K, n_samples_),), nearest first.
         """
-        fast = self.algorithm == "numba"
+        fast = self.backend == "numba"
         xq = self._check("x", x, self.input_dim, finite=not fast)
         pred, beta, idx = self._query(xq)
         if fast and len(idx) == 0 and not np.all(np.isfinite(xq)):
@@ -458,7 +458,7 @@ class LLRMemory:
 
     def _query(self, xq: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Unvalidated query; returned arrays may be internal buffers (copy before keeping)."""
-        if self.algorithm == "numba":
+        if self.backend == "numba":
             nk = _k.query(self._state, xq, self._idx, self._beta, self._pred)
             return self._pred, self._beta, self._idx[:max(nk, 0)]
         xq = self._canonical(xq)
@@ -485,7 +485,7 @@ class LLRMemory:
         slot of the stored input nearest to x (saves a search under 'nearest' replacement; unused
         under 'redundancy', which searches K(x) to update the scores).
         """
-        fast = self.algorithm == "numba"
+        fast = self.backend == "numba"
         xv = self._check("x", x, self.input_dim, finite=not fast)
         yv = self._check("y", y, self.output_dim, finite=not fast)
         slot = self._insert(xv, yv, -1 if nearest is None else int(nearest))
@@ -494,7 +494,7 @@ class LLRMemory:
         return slot
 
     def _insert(self, x: np.ndarray, y: np.ndarray, nearest: int = -1) -> int:
-        if self.algorithm == "numba":
+        if self.backend == "numba":
             return int(_k.insert(self._state, x, y, nearest))
         count = int(self._meta[0])
         x = self._canonical(x)
@@ -546,7 +546,7 @@ class LLRMemory:
         target = self._check("target", target, self.output_dim)
         if not np.isfinite(rate):
             raise ValueError(f"LLRMemory.move_outputs: rate must be finite, got {rate!r}")
-        if self.algorithm == "numba":
+        if self.backend == "numba":
             _k.move_outputs(self._state, idx, len(idx), target, float(rate))
             return
         Y, period = self.Y_, self._pout
@@ -568,7 +568,7 @@ class LLRMemory:
         delta = self._check("delta", delta, self.output_dim)
         if not np.all(np.isfinite(w[:count])):
             raise ValueError("LLRMemory.add_weighted: weights must be finite")
-        if self.algorithm == "numba":
+        if self.backend == "numba":
             _k.add_weighted(self._state, np.ascontiguousarray(w), delta)
             return
         self.Y_[:count] += w[:count, None] * delta
@@ -587,7 +587,7 @@ class LLRMemory:
     def __repr__(self) -> str:
         return (f"LLRMemory(input_dim={self.input_dim}, output_dim={self.output_dim}, "
                 f"capacity={self.capacity}, n_neighbours={self.n_neighbours}, "
-                f"n_samples_={self.n_samples_}, algorithm={self.algorithm!r})")
+                f"n_samples_={self.n_samples_}, backend={self.backend!r})")
 
 
 def memory_constraints(memory: str, replacements: tuple[str, ...] = tuple(_REPLACEMENTS),

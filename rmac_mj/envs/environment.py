@@ -52,9 +52,9 @@ class Environment(dm_env.Environment):
                              f"and high {len(learner_state.low)}")
         action = base.action_spec()
         m = int(np.prod(action.shape, dtype=int))
-        if len(learner_state.action_weights) != m:
-            raise ValueError(f"{name}: learner_state.action_weights has "
-                             f"{len(learner_state.action_weights)} entries, the action {m}")
+        if len(learner_state.action_input_weights) != m:
+            raise ValueError(f"{name}: learner_state.action_input_weights has "
+                             f"{len(learner_state.action_input_weights)} entries, the action {m}")
         self._action_spec = specs.BoundedArray(
             shape=(m,), dtype=float, name="action",
             minimum=np.broadcast_to(action.minimum, action.shape).reshape(m).astype(float),

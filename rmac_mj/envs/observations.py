@@ -375,17 +375,17 @@ def infer_learner_state(layout: ObservationLayout, samples: np.ndarray, action_l
     labels = declared.get("labels", tuple(
         f"{name} [rad]" if p else name for name, p in zip(mapping.dimension_names(),
                                                           mapping.periodic())))
-    weights = declared.get("weights", tuple(default_weights(low, high)))
+    weights = declared.get("input_weights", tuple(default_weights(low, high)))
     action_low = np.asarray(action_low, dtype=float).reshape(-1)
     action_high = np.asarray(action_high, dtype=float).reshape(-1)
-    action_weights = declared.get("action_weights",
+    action_weights = declared.get("action_input_weights",
                                   tuple(default_weights(action_low, action_high)))
     action_labels = declared.get("action_labels",
                                  tuple(f"u[{i}]" for i in range(action_low.size)))
     try:
         return LearnerState(keys=tuple(entries), low=tuple(low), high=tuple(high),
-                            periodic=tuple(periodic), labels=tuple(labels), weights=tuple(weights),
-                            action_weights=tuple(action_weights),
+                            periodic=tuple(periodic), labels=tuple(labels), input_weights=tuple(weights),
+                            action_input_weights=tuple(action_weights),
                             action_labels=tuple(action_labels))
     except ValueError as error:
         raise ValueError(f"{owner}: {error}") from None

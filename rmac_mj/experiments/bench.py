@@ -167,7 +167,7 @@ def llr_query_insert_us(calls: int, repeats: int, domain: str = "dc_pendulum",
     its dimensions, weights and periods, filled uniformly over its box."""
     space = state_space_of(tasks.load(domain, task))
     memory = LLRMemory(input_dim=space.dim, output_dim=1, capacity=2000, n_neighbours=20,
-                       input_weights=space.weights, input_period=space.period)
+                       input_weights=space.input_weights, input_period=space.period)
     rng = np.random.default_rng(0)
     fill = rng.uniform(space.low, space.high, (2000, space.dim))
     for x in fill:

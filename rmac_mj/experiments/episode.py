@@ -45,7 +45,7 @@ def state_space_of(env: control.Environment) -> StateSpace:
     """The task's nominal state box, periodic dimensions and state weightings as a StateSpace."""
     learner_state = learner_state_of(env)
     return StateSpace(low=learner_state.low, high=learner_state.high, periodic=learner_state.periodic,
-                      weights=learner_state.weights)
+                      input_weights=learner_state.input_weights)
 
 
 def action_space_of(env: control.Environment) -> ActionSpace:
@@ -54,11 +54,11 @@ def action_space_of(env: control.Environment) -> ActionSpace:
     spec = env.action_spec()
     low = np.broadcast_to(spec.minimum, spec.shape)
     learner_state = learner_state_of(env)
-    weights = learner_state.action_weights
+    weights = learner_state.action_input_weights
     if len(weights) != low.size:
-        raise ValueError(f"task {type(env.task).__name__}: learner_state.action_weights has "
+        raise ValueError(f"task {type(env.task).__name__}: learner_state.action_input_weights has "
                          f"{len(weights)} entries, the action spec {low.size}")
-    return ActionSpace(low=low, high=np.broadcast_to(spec.maximum, spec.shape), weights=weights,
+    return ActionSpace(low=low, high=np.broadcast_to(spec.maximum, spec.shape), input_weights=weights,
                        cost=learner_state.action_cost)
 
 

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 from dm_control.rl import control
 
-from rmac_mj.agents import Agent, make_agent
+from rmac_mj.agents import Agent, config_class, config_from_dict, make_agent
 from rmac_mj.errors import MissingInputError, UserInputError
 from rmac_mj.agents.base import ActionSpace, StateSpace
 from rmac_mj.experiments.files import write_npz
@@ -36,9 +36,9 @@ def snapshot_arrays(agent: Agent, state_space: StateSpace, action_space: ActionS
         "config": agent.config_dict(),
         "state_space": {"low": state_space.low.tolist(), "high": state_space.high.tolist(),
                         "periodic": state_space.periodic.tolist(),
-                        "weights": state_space.weights.tolist()},
+                        "input_weights": state_space.input_weights.tolist()},
         "action_space": {"low": action_space.low.tolist(), "high": action_space.high.tolist(),
-                         "weights": action_space.weights.tolist(),
+                         "input_weights": action_space.input_weights.tolist(),
                          "cost": None if action_space.cost is None else action_space.cost.tolist()},
         **meta,
     }
@@ -66,10 +66,14 @@ def load_snapshot(path: str | os.PathLike) -> tuple[Agent, dict[str, Any]]:
             raise UserInputError(f"{path} is not an rmac-mj snapshot (no 'meta' entry)")
         meta = json.loads(str(data["meta"]))
         state = {key[len(_PREFIX):]: data[key] for key in data.files if key.startswith(_PREFIX)}
-    # Snapshots written before the spaces had weights lack them (their configs hold explicit ones).
-    state_space = StateSpace(**meta["state_space"])
-    action_space = ActionSpace(**meta["action_space"])
-    agent = make_agent(meta["algorithm"], state_space, action_space, config=meta["config"], seed=0)
+    # Snapshots written before the spaces had weights lack them (their configs hold explicit ones);
+    # older ones call them "weights".
+    state_space, action_space = (
+        cls(**{"input_weights" if key == "weights" else key: value
+               for key, value in meta[name].items()})
+        for cls, name in ((StateSpace, "state_space"), (ActionSpace, "action_space")))
+    config = config_from_dict(config_class(meta["algorithm"]), meta["config"], stored=True)
+    agent = make_agent(meta["algorithm"], state_space, action_space, config=config, seed=0)
     agent.load_state_dict(state)
     return agent, meta
 
