@@ -6,13 +6,16 @@ when ``OpenGL`` is. On a Linux machine without a display the default (GLFW) cann
 libEGL loads and finds a device, else OSMesa when libOSMesa loads. A ``MUJOCO_GL`` set by the user is
 always kept.
 :func:`require_gl_backend` is the check the renderers run first: it raises :class:`GLBackendError`
-with the system packages to install instead of a stack trace from deep inside OpenGL.
+with the system packages to install instead of a stack trace from deep inside OpenGL;
+:func:`open_renderer` opens every renderer of the package (videos, pictures, the Gymnasium
+environments' ``render()``) through it.
 """
 
 from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import numbers
 import os
 import sys
 from typing import MutableMapping
@@ -154,3 +157,37 @@ def require_gl_backend(environ: MutableMapping[str, str] | None = None) -> str:
         raise GLBackendError(f"no display and no off-screen back end (MUJOCO_GL is "
                              f"{chosen or 'unset'}).\n{INSTALL_HINT}")
     return chosen or "glfw"
+
+
+def open_renderer(model, width: int, height: int):
+    """A ``mujoco.Renderer`` of ``model`` (an ``MjModel``) at ``width`` x ``height`` pixels.
+
+    Use it as a context manager so its GL context is freed. Raises :class:`GLBackendError` (naming
+    the system packages to install) when no GL back end can start.
+    """
+    _check_size(model, width, height)
+    backend = require_gl_backend()
+    import mujoco
+    from mujoco.rendering.classic import gl_context
+
+    context_class = getattr(gl_context, "GLContext", None)
+    if context_class is None:
+        raise GLBackendError(f"MuJoCo could not import its {backend} back end.\n{INSTALL_HINT}")
+    if context_class.__module__.startswith("mujoco.glfw") and not has_display():
+        # mujoco was imported before rmac_mj chose a back end (it reads MUJOCO_GL only then).
+        raise GLBackendError("mujoco was imported before an off-screen back end was chosen, and "
+                             "there is no display for its default (GLFW): set MUJOCO_GL=egl "
+                             f"before starting Python, or import rmac_mj first.\n{INSTALL_HINT}")
+    try:
+        return mujoco.Renderer(model, height=height, width=width)
+    except Exception as error:  # context creation fails in many library-specific ways
+        raise GLBackendError(f"the {backend} back end failed to start: {error}\n"
+                             f"{INSTALL_HINT}") from error
+
+
+def _check_size(model, width: int, height: int) -> None:
+    for name, value, limit, attribute in (("width", width, model.vis.global_.offwidth, "offwidth"),
+                                          ("height", height, model.vis.global_.offheight, "offheight")):
+        if not isinstance(value, numbers.Integral) or isinstance(value, bool) or not 0 < value <= limit:
+            raise ValueError(f"{name} must be an integer in [1, {limit}] (the model's <global "
+                             f"{attribute}>), got {value!r}")

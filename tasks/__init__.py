@@ -6,6 +6,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import inspect
 from typing import Any
 
@@ -59,3 +60,11 @@ def build_environment(domain_name: str, task_name: str, task_kwargs: dict[str, A
         raise ValueError(f"unknown task_kwargs {unknown} for {domain_name}/{task_name}; "
                          f"accepted: {sorted(accepted)}")
     return factory(environment_kwargs=environment_kwargs, **task_kwargs)
+
+
+# Every task above as a Gymnasium environment, rmac_mj/<Domain>-<Task>-v0 (see gymnasium_env), when
+# Gymnasium is installed (the [gymnasium] extra).
+if importlib.util.find_spec("gymnasium") is not None:
+    from rmac_mj.tasks import gymnasium_env
+
+    gymnasium_env.register_suite()

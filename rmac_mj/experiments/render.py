@@ -26,7 +26,7 @@ import numpy as np
 from dm_control.rl import control
 from PIL import Image
 
-from rmac_mj import _gl
+from rmac_mj._gl import open_renderer
 from rmac_mj.agents.base import Agent
 from rmac_mj.experiments import video
 from rmac_mj.experiments.episode import learner_state_of, n_sub_steps, state_of
@@ -77,40 +77,6 @@ class RenderedEpisode:
 
 # --------------------------------------------------------------------------------------------------
 # Rendering
-
-
-def open_renderer(model, width: int, height: int):
-    """A ``mujoco.Renderer`` of ``model`` (an ``MjModel``) at ``width`` x ``height`` pixels.
-
-    Use it as a context manager so its GL context is freed. Raises :class:`rmac_mj._gl.GLBackendError`
-    (naming the system packages to install) when no GL back end can start.
-    """
-    _check_size(model, width, height)
-    backend = _gl.require_gl_backend()
-    import mujoco
-    from mujoco.rendering.classic import gl_context
-
-    context_class = getattr(gl_context, "GLContext", None)
-    if context_class is None:
-        raise _gl.GLBackendError(f"MuJoCo could not import its {backend} back end.\n{_gl.INSTALL_HINT}")
-    if context_class.__module__.startswith("mujoco.glfw") and not _gl.has_display():
-        # mujoco was imported before rmac_mj chose a back end (it reads MUJOCO_GL only then).
-        raise _gl.GLBackendError("mujoco was imported before an off-screen back end was chosen, and "
-                                 "there is no display for its default (GLFW): set MUJOCO_GL=egl "
-                                 f"before starting Python, or import rmac_mj first.\n{_gl.INSTALL_HINT}")
-    try:
-        return mujoco.Renderer(model, height=height, width=width)
-    except Exception as error:  # context creation fails in many library-specific ways
-        raise _gl.GLBackendError(f"the {backend} back end failed to start: {error}\n"
-                                 f"{_gl.INSTALL_HINT}") from error
-
-
-def _check_size(model, width: int, height: int) -> None:
-    for name, value, limit, attribute in (("width", width, model.vis.global_.offwidth, "offwidth"),
-                                          ("height", height, model.vis.global_.offheight, "offheight")):
-        if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or not 0 < value <= limit:
-            raise ValueError(f"{name} must be an integer in [1, {limit}] (the model's <global "
-                             f"{attribute}>), got {value!r}")
 
 
 def render_episode(env: control.Environment, agent: Agent | None = None, policy: Policy | None = None,
