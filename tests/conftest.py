@@ -13,3 +13,18 @@ def toy(monkeypatch):
 
     toy_domain.register(monkeypatch)
     return toy_domain
+
+
+def pytest_collection_modifyitems(config, items):
+    """Tests run for a deep-RL baseline (a parameter naming one) are skipped, with the reason, when
+    its [baselines] extra is not installed."""
+    from rmac_mj.agents import sb3
+
+    if sb3.available():
+        return
+    skip = pytest.mark.skip(reason=sb3.INSTALL_HINT)
+    for item in items:
+        callspec = getattr(item, "callspec", None)
+        if callspec is not None and any(isinstance(value, str) and value in sb3.BASELINES
+                                        for value in callspec.params.values()):
+            item.add_marker(skip)

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from learners import quick_config
 
 from rmac_mj import tasks
 from rmac_mj.agents import ALGORITHMS, make_agent
@@ -13,7 +14,8 @@ from rmac_mj.experiments.policy_plots import policy_actions, policy_slice
 @pytest.fixture(scope="module", params=ALGORITHMS)
 def learned(request):
     env = tasks.load("dc_pendulum", "swingup")
-    agent = make_agent(request.param, state_space_of(env), action_space_of(env), seed=3)
+    agent = make_agent(request.param, state_space_of(env), action_space_of(env),
+                       config=quick_config(request.param), seed=3)
     for _ in range(15):
         run_trial(env, agent, learn=True)
     return env, agent

@@ -53,12 +53,20 @@ def test_tiny_protocol_end_to_end(tmp_path):
 
 
 def test_serial_and_parallel_runs_are_identical(tmp_path):
-    protocol = Protocol(**TINY)
+    from learners import quick_config
+
+    from rmac_mj.agents import sb3
+
+    # a deep-RL baseline too, when installed: its torch and numpy streams are the learner's own
+    algorithms = ("s-ac", "sb3-sac") if sb3.available() else ("s-ac",)
+    protocol = Protocol(**{**TINY, "algorithms": algorithms},
+                        agent_configs={"sb3-sac": quick_config("sb3-sac")})
     runner.run_protocol(protocol, tmp_path / "serial", jobs=1, progress=False, figures=False)
     runner.run_protocol(protocol, tmp_path / "parallel", jobs=2, progress=False, figures=False)
     serial, parallel = returns_of(tmp_path / "serial", protocol), returns_of(tmp_path / "parallel", protocol)
-    np.testing.assert_array_equal(serial["s-ac"], parallel["s-ac"])
-    assert not np.array_equal(serial["s-ac"][0], serial["s-ac"][1])  # experiments are independent
+    for algorithm in algorithms:
+        np.testing.assert_array_equal(serial[algorithm], parallel[algorithm])
+        assert not np.array_equal(serial[algorithm][0], serial[algorithm][1])  # independent experiments
 
 
 def test_resume_with_a_changed_config_is_refused(tmp_path):
@@ -185,9 +193,12 @@ def test_every_result_file_is_readable_by_others(tmp_path):
     figures) is group- and other-readable, as a cluster's shared result directory needs."""
     import stat
 
+    from learners import quick_config
+
     from rmac_mj.agents import ALGORITHMS
 
-    protocol = Protocol(algorithms=ALGORITHMS, experiments=1, trials=2, snapshot_trials=(1,))
+    protocol = Protocol(algorithms=ALGORITHMS, experiments=1, trials=2, snapshot_trials=(1,),
+                        agent_configs={a: quick_config(a) for a in ALGORITHMS})
     old = os.umask(0o022)
     try:
         runner.run_protocol(protocol, tmp_path, jobs=1, progress=False)
