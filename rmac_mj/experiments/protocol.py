@@ -304,7 +304,7 @@ def run_experiment(spec: ExperimentSpec,
     returns = np.empty(protocol.trials)
     greedy_trials, greedy_returns, snapshots = [], [], {}
     snapshot_trials = set(protocol.snapshot_trials) | {protocol.trials}
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), time.process_time()
     log_path = (ResultStore(spec.stream_to).progress_path(spec.algorithm, spec.index)
                 if spec.stream_to is not None else None)
     with TrialLog(log_path) as log:
@@ -326,6 +326,7 @@ def run_experiment(spec: ExperimentSpec,
         algorithm=spec.algorithm, index=spec.index, returns=returns,
         greedy_trials=np.asarray(greedy_trials, dtype=int),
         greedy_returns=np.asarray(greedy_returns, dtype=float), snapshots=snapshots,
-        wall_time_s=time.perf_counter() - start, task_seed=experiment.task_seed,
+        wall_time_s=time.perf_counter() - start, cpu_time_s=time.process_time() - cpu_start,
+        task_seed=experiment.task_seed,
         demonstration_returns=(demonstration.trial_returns() if demonstration is not None
                                else np.zeros(0)))

@@ -45,6 +45,8 @@ class ExperimentResult:
       greedy_returns: ndarray of shape (evaluations,): their returns.
       snapshots: trial -> the snapshot arrays of the agent after it (``snapshots.snapshot_arrays``).
       wall_time_s: the experiment's wall time (s).
+      cpu_time_s: the CPU time of the process that ran it, over the experiment (s): its cost on a
+        loaded machine, where the wall time is not.
       task_seed: the seed of its task's random state.
       demonstration_returns: ndarray of shape (prior trials,): the returns of the demonstration it
         was seeded with (empty without one).
@@ -57,6 +59,7 @@ class ExperimentResult:
     greedy_returns: np.ndarray
     snapshots: dict[int, dict[str, np.ndarray]]
     wall_time_s: float
+    cpu_time_s: float
     task_seed: int
     demonstration_returns: np.ndarray
 
@@ -70,6 +73,8 @@ class Curves:
       greedy_returns: ndarray of shape (experiments, evaluations): greedy trials' returns.
       greedy_trials: ndarray of shape (evaluations,): after which learning trials they ran.
       wall_times: ndarray of shape (experiments,): each experiment's wall time (s).
+      cpu_times: ndarray of shape (experiments,): each experiment's CPU time (s); NaN for results
+        written before it was recorded.
       demonstration_returns: ndarray of shape (experiments, prior trials): the demonstrations the
         experiments were seeded with (zero columns without prior knowledge).
     """
@@ -78,6 +83,7 @@ class Curves:
     greedy_returns: np.ndarray
     greedy_trials: np.ndarray
     wall_times: np.ndarray
+    cpu_times: np.ndarray
     demonstration_returns: np.ndarray
 
 
@@ -220,13 +226,14 @@ class ResultStore:
         files.write_npz(self.curve_path(result.algorithm, result.index), returns=result.returns,
                         greedy_trials=result.greedy_trials, greedy_returns=result.greedy_returns,
                         wall_time_s=np.float64(result.wall_time_s),
+                        cpu_time_s=np.float64(result.cpu_time_s),
                         task_seed=np.int64(result.task_seed),
                         demonstration_returns=result.demonstration_returns)
 
     def load_curves(self, algorithm: str, experiments: int | None = None) -> Curves:
         """The curves of ``algorithm``'s experiments 0 .. ``experiments`` - 1 (all must be saved);
         None: every saved experiment, in order of index."""
-        returns, greedy, wall, demonstrations = [], [], [], []
+        returns, greedy, wall, cpu, demonstrations = [], [], [], [], []
         greedy_trials = np.zeros(0, dtype=int)
         indices = range(experiments) if experiments is not None else sorted(self.finished(algorithm))
         for index in indices:
@@ -235,9 +242,10 @@ class ResultStore:
                 greedy.append(data["greedy_returns"])
                 greedy_trials = data["greedy_trials"]
                 wall.append(float(data["wall_time_s"]))
+                cpu.append(float(data["cpu_time_s"]) if "cpu_time_s" in data.files else np.nan)
                 demonstrations.append(data["demonstration_returns"])
         return Curves(returns=np.array(returns), greedy_returns=np.array(greedy),
-                      greedy_trials=greedy_trials, wall_times=np.array(wall),
+                      greedy_trials=greedy_trials, wall_times=np.array(wall), cpu_times=np.array(cpu),
                       demonstration_returns=np.array(demonstrations))
 
     # -- snapshots -----------------------------------------------------------------------------------
