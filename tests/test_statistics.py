@@ -1,0 +1,87 @@
+"""IQM, stratified-bootstrap intervals, probability of improvement and performance profiles, on
+samples whose answers are known by hand."""
+
+import numpy as np
+import pytest
+
+from rmac_mj.experiments import statistics
+
+
+def test_iqm_is_the_mean_of_the_middle_half_and_ignores_outliers():
+    assert statistics.iqm([0, 0, 1, 2, 3, 4, 100, 100]) == 2.5  # mean of 1, 2, 3, 4
+    ten = np.arange(1.0, 11.0)
+    assert statistics.iqm(ten) == 5.5  # 2 cut from each end: mean of 3..8
+    wild = ten.copy()
+    wild[0], wild[-1] = -1e9, 1e9
+    assert statistics.iqm(wild) == 5.5
+
+
+def test_bootstrap_interval_of_a_two_point_sample_is_its_range():
+    """{0, 1}: a resample's mean is 0, 0.5 or 1 with probabilities 1/4, 1/2, 1/4, so the central 95%
+    runs from 0 to 1 (with n = 2 the IQM trims nothing)."""
+    estimate = statistics.iqm_interval([0.0, 1.0])
+    assert (estimate.value, estimate.low, estimate.high) == (0.5, 0.0, 1.0)
+
+
+def test_constant_scores_have_a_zero_width_interval():
+    estimate = statistics.iqm_interval(np.full(10, -950.0))
+    assert estimate.value == estimate.low == estimate.high == -950.0
+
+
+def test_the_bootstrap_resamples_within_each_task():
+    """Task A scores 0 five times, task B 1 five times: every stratified resample holds five of each,
+    whose IQM is exactly 0.5; pooling the tasks before resampling would give a wide interval."""
+    estimate = statistics.iqm_interval([np.zeros(5), np.ones(5)])
+    assert (estimate.value, estimate.low, estimate.high) == (0.5, 0.5, 0.5)
+    pooled = statistics.iqm_interval(np.r_[np.zeros(5), np.ones(5)])
+    assert pooled.low < 0.4 and pooled.high > 0.6
+
+
+def test_intervals_are_reproducible_and_cover_the_estimate():
+    rng = np.random.default_rng(1)
+    sample = rng.normal(-1000.0, 50.0, size=10)
+    first, second = statistics.iqm_interval(sample), statistics.iqm_interval(sample)
+    assert first == second
+    assert first.low < first.value < first.high
+    narrower = statistics.iqm_interval(sample, confidence=0.5)
+    assert first.low < narrower.low < narrower.high < first.high
+
+
+def test_probability_of_improvement_known_answers():
+    x = np.arange(10.0)
+    same = statistics.probability_of_improvement(x, x)
+    assert same.value == 0.5 and same.low < 0.5 < same.high
+    better = statistics.probability_of_improvement(x + 100.0, x)
+    assert (better.value, better.low, better.high) == (1.0, 1.0, 1.0)
+    assert statistics.probability_of_improvement(x, x + 100.0).value == 0.0
+    # pairs of (1, 2) against (2, 0): 1 > 2 no, 1 > 0 yes, 2 = 2 half, 2 > 0 yes: 2.5 of 4
+    assert statistics.probability_of_improvement([1.0, 2.0], [2.0, 0.0]).value == 0.625
+    # over tasks: the mean of the tasks' probabilities
+    assert statistics.probability_of_improvement([x + 100, x], [x, x]).value == 0.75
+
+
+def test_pairwise_improvement_names_every_pair_once():
+    table = statistics.pairwise_improvement({"a": np.arange(5.0), "b": np.arange(5.0) + 10,
+                                             "c": np.arange(5.0)})
+    assert list(table) == ["a > b", "a > c", "b > c"]
+    assert table["a > b"] == {"value": 0.0, "ci95": [0.0, 0.0]}
+    assert table["a > c"]["value"] == 0.5
+
+
+def test_performance_profile_is_the_fraction_above_each_threshold():
+    fraction, low, high = statistics.performance_profile(np.arange(1.0, 11.0), [0.0, 5.0, 10.0])
+    np.testing.assert_array_equal(fraction, [1.0, 0.5, 0.0])
+    assert (low[0], high[0], low[2], high[2]) == (1.0, 1.0, 0.0, 0.0)  # nothing to resample there
+    assert low[1] < 0.5 < high[1]
+
+
+def test_one_experiment_gives_an_estimate_without_an_interval():
+    estimate = statistics.iqm_interval([3.0])
+    assert estimate.value == 3.0 and np.isnan(estimate.low)
+    assert estimate.as_dict() == {"value": 3.0, "ci95": [None, None]}
+
+
+@pytest.mark.parametrize("bad", [[], [1.0, np.nan], [[1.0, 2.0], []]])
+def test_bad_scores_are_refused(bad):
+    with pytest.raises(ValueError, match="scores"):
+        statistics.iqm_interval(bad)
