@@ -458,6 +458,7 @@ def _sweep(args) -> int:
 
 
 def _compare(args) -> int:
+    from rmac_mj.agents import ALGORITHMS
     from rmac_mj.experiments import plots, report
     from rmac_mj.experiments.store import ResultStore
 
@@ -480,7 +481,14 @@ def _compare(args) -> int:
     for label, summary in summaries.items():
         print(f"== {label}: {_settings_line(summary)}")
         print(report.summary_table(summary))
-    print("figure:", ", ".join(map(str, paths)))
+    if len(summaries) > 1:
+        print("== across the runs")
+        print("\n".join(report.across_runs(summaries)))
+    paths += plots.plot_performance_profiles(
+        {(label, a): s[a]["final_return_per_experiment"] for label, s in summaries.items()
+         for a in ALGORITHMS if a in s and "final_return_per_experiment" in s[a]},
+        args.out.with_name(args.out.name + "_profiles"))
+    print("figures:", ", ".join(map(str, paths)))
     return 0
 
 

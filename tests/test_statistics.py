@@ -64,7 +64,7 @@ def test_pairwise_improvement_names_every_pair_once():
     table = statistics.pairwise_improvement({"a": np.arange(5.0), "b": np.arange(5.0) + 10,
                                              "c": np.arange(5.0)})
     assert list(table) == ["a > b", "a > c", "b > c"]
-    assert table["a > b"] == {"value": 0.0, "ci95": [0.0, 0.0]}
+    assert table["a > b"] == {"value": 0.0, "ci95": [0.0, 0.0], "experiments": [5, 5]}
     assert table["a > c"]["value"] == 0.5
 
 
@@ -85,3 +85,39 @@ def test_one_experiment_gives_an_estimate_without_an_interval():
 def test_bad_scores_are_refused(bad):
     with pytest.raises(ValueError, match="scores"):
         statistics.iqm_interval(bad)
+
+
+# -- in the results: summary.json, the end-of-run table, compare ----------------------------------
+
+def test_summary_has_the_iqm_of_final_and_first_returns_and_the_cpu_per_simulated_minute():
+    from rmac_mj.experiments import metrics
+
+    # 5 experiments of 40 three-second trials (2 simulated minutes); experiment i returns -100 i
+    # in every trial, so its final and first-5-minute returns are -100 i.
+    returns = -100.0 * np.arange(5)[:, None] * np.ones((1, 40))
+    summary = metrics.summarise(returns, trial_seconds=3.0, cpu_times=np.full(5, 30.0))
+    assert summary["final_return_iqm"] == -200.0  # the middle three of 0, -100, ..., -400
+    low, high = summary["final_return_iqm_ci95"]
+    assert low < -200.0 < high
+    assert summary["first_5min_iqm"] == -200.0 and len(summary["first_5min_iqm_ci95"]) == 2
+    assert summary["cpu_s_per_simulated_minute"] == 15.0  # 30 s of CPU for 2 simulated minutes
+
+
+def test_reproduce_and_compare_report_the_probability_of_improvement(tmp_path, capsys):
+    from rmac_mj.cli import main
+    from rmac_mj.experiments import runner
+    from rmac_mj.experiments.protocol import Protocol
+
+    for seed in (0, 1):
+        protocol = Protocol(algorithms=("s-ac", "rmac"), experiments=2, trials=3, seed=seed,
+                            snapshot_trials=())
+        summary = runner.run_protocol(protocol, tmp_path / f"seed{seed}", jobs=1, progress=False)
+    pair = summary["probability_of_improvement"]["s-ac > rmac"]
+    assert 0.0 <= pair["value"] <= 1.0 and pair["experiments"] == [2, 2]
+    assert (tmp_path / "seed1" / "performance_profiles.png").is_file()
+    assert main(["compare", str(tmp_path / "seed0"), str(tmp_path / "seed1"),
+                 "--out", str(tmp_path / "both")]) == 0
+    out = capsys.readouterr().out
+    assert "P(s-ac > rmac) = " in out  # within a run
+    assert "P(seed0: rmac > seed1: rmac) = " in out  # and across the runs
+    assert (tmp_path / "both_profiles.png").is_file()

@@ -127,15 +127,22 @@ def interval(samples: np.ndarray) -> list[float | None]:
 
 def summarise(returns: np.ndarray, greedy: np.ndarray | None = None,
               greedy_trials: Sequence[int] = (), optimal_return: float | None = None, *,
-              trial_seconds: float, wall_times: np.ndarray | None = None) -> dict:
+              trial_seconds: float, wall_times: np.ndarray | None = None,
+              cpu_times: np.ndarray | None = None) -> dict:
     """The summary of one learner: returns is an ndarray of shape (experiments, trials).
 
     ``greedy`` (experiments, evaluations) holds the greedy-trial returns after the trials listed in
     ``greedy_trials``; ``trial_seconds`` is the task's trial length (simulated s), which turns trials
     into minutes. Stuck experiments are counted only against a reference (``optimal_return``; see
-    :func:`stuck_threshold`), else ``stuck_experiments`` is None. ``wall_times`` (experiments,): each
-    experiment's wall time (s).
+    :func:`stuck_threshold`), else ``stuck_experiments`` is None. ``wall_times`` and ``cpu_times``
+    (experiments,): each experiment's wall and CPU time (s).
+
+    Beside the paper's mean and Student-t interval, the final return and the first minutes' return
+    have the interquartile mean with its stratified-bootstrap interval (:mod:`statistics`, the
+    field's estimate since Agarwal et al. 2021: robust to a few stuck experiments).
     """
+    from rmac_mj.experiments import statistics
+
     returns = np.asarray(returns, dtype=float)
     n_experiments, n_trials = returns.shape
     window = min(FINAL_WINDOW, n_trials)
@@ -165,6 +172,9 @@ def summarise(returns: np.ndarray, greedy: np.ndarray | None = None,
         "stuck_below": stuck_below,
         "stuck_experiments": None if stuck_below is None else int(np.sum(finals < stuck_below)),
     }
+    for key, scores in (("final_return", finals), ("first_5min", first)):
+        estimate = statistics.iqm_interval(scores).as_dict()
+        summary[f"{key}_iqm"], summary[f"{key}_iqm_ci95"] = estimate["value"], estimate["ci95"]
     if optimal_return is not None:
         summary["gap_to_optimal"] = float(optimal_return - final_mean)
     if greedy is not None and len(greedy_trials):
@@ -177,6 +187,11 @@ def summarise(returns: np.ndarray, greedy: np.ndarray | None = None,
     if wall_times is not None:
         summary["experiment_wall_s_mean"] = float(np.mean(wall_times))
         summary["experiment_wall_s_total"] = float(np.sum(wall_times))
+    if cpu_times is not None and np.all(np.isfinite(cpu_times)):
+        summary["experiment_cpu_s_mean"] = float(np.mean(cpu_times))
+        # CPU of an experiment (its greedy trials and snapshots included) per minute it learned
+        summary["cpu_s_per_simulated_minute"] = float(np.mean(cpu_times)
+                                                      / (n_trials * trial_seconds / 60.0))
     return summary
 
 

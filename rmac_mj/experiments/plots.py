@@ -1,4 +1,4 @@
-"""Figures of results: learning curves (the paper's Fig. 2) and a sweep's metrics.
+"""Figures of results: learning curves (the paper's Fig. 2), performance profiles and a sweep's metrics.
 
 Figures are drawn from saved results (``summary.json``, ``sweep.csv``'s rows), never by retraining.
 Nothing here knows a particular task: the trial length comes from the summary, learner names from the
@@ -23,7 +23,9 @@ from rmac_mj.experiments.metrics import FEW_EXPERIMENTS, FINAL_WINDOW, FIRST_MIN
 from rmac_mj.experiments.sweep_file import Sweep, is_number, short_names, value_label  # noqa: E402
 
 #: Colour per learner (in every figure); in a comparison of runs the line style tells the runs apart.
-_STYLES = {"rmac": {"color": "tab:blue"}, "s-ac": {"color": "tab:orange"}}
+_STYLES = {"rmac": {"color": "tab:blue"}, "s-ac": {"color": "tab:orange"},
+           "mlac": {"color": "tab:green"}, "sb3-sac": {"color": "tab:red"},
+           "sb3-td3": {"color": "tab:purple"}, "sb3-ppo": {"color": "tab:brown"}}
 _RUN_STYLES = ("-", "--", ":", "-.", (0, (5, 1, 1, 1)), (0, (1, 3)))
 
 
@@ -179,6 +181,50 @@ def plot_learning_curves(summaries: dict[str, dict[str, Any]], stem: str | os.Pa
     """
     fig = learning_curves_figure(summaries, optimal_return, detail_ylim, smooth, exploration_floor)
     return save_figure(fig, stem)
+
+
+def performance_profiles_figure(scores: dict[tuple[str, str], Any],
+                                what: str = "final return (mean of the last trials)"):
+    """The figure of :func:`plot_performance_profiles` (see it), not yet saved."""
+    from rmac_mj.experiments import statistics
+
+    everything = np.concatenate([np.asarray(v, dtype=float) for v in scores.values()])
+    low, high = _padded(everything.min(), everything.max())
+    thresholds = np.linspace(low, high, 241)
+    fig, ax = plt.subplots(figsize=(6.5, 4.2), constrained_layout=True)
+    runs = list(dict.fromkeys(run for run, _ in scores))
+    for (run, algorithm), values in scores.items():
+        fraction, band_low, band_high = statistics.performance_profile(values, thresholds)
+        colour = _STYLES.get(algorithm, {}).get("color")
+        name = display_name(algorithm) + (f" ({run})" if run else "")
+        line, = ax.plot(thresholds, fraction, color=colour, drawstyle="steps-post", linewidth=1.4,
+                        linestyle=_RUN_STYLES[runs.index(run) % len(_RUN_STYLES)],
+                        label=f"{name}, {len(values)} experiments")
+        ax.fill_between(thresholds, band_low, band_high, color=line.get_color(), alpha=0.15,
+                        step="post", linewidth=0)
+    ax.set_xlabel(f"{what}, tau")
+    ax.set_ylabel("fraction of experiments above tau")
+    ax.set_ylim(-0.02, 1.02)
+    ax.grid(alpha=0.3)
+    ax.set_title("Performance profiles, 95% stratified-bootstrap bands")
+    ax.legend(loc="lower left", fontsize="small")
+    return fig
+
+
+def plot_performance_profiles(scores: dict[tuple[str, str], Any], stem: str | os.PathLike,
+                              what: str = "final return (mean of the last trials)"
+                              ) -> list[pathlib.Path]:
+    """Performance profiles (Agarwal et al. 2021): per learner, the fraction of its experiments whose
+    score exceeds each threshold tau, with pointwise 95% bootstrap bands; a profile above another
+    is better over the whole distribution, not only on average.
+
+    Args:
+      scores: (run label, algorithm) -> the per-experiment scores (shape (experiments,)); an empty
+        run label for a single run.
+      stem: output path without suffix; a .png and a .pdf are written.
+      what: the score's name on the x axis.
+    """
+    return save_figure(performance_profiles_figure(scores, what), stem)
 
 
 def _axis_values(values: list) -> tuple[list[float], list[str] | None]:

@@ -28,6 +28,42 @@ def describe_test(test: dict[str, Any]) -> str:
             f"{p_text} (Welch's t-test, significant at {test['level']:g})")
 
 
+def _estimate(value: float | None, ci95: list | None, digits: int = 0) -> str:
+    """``v [low, high]``, or n/a (a summary written before the estimate existed)."""
+    if value is None:
+        return "n/a"
+    if not ci95 or ci95[0] is None:
+        return f"{value:.{digits}f}"
+    return f"{value:.{digits}f} [{ci95[0]:.{digits}f}, {ci95[1]:.{digits}f}]"
+
+
+def describe_improvement(pair: str, estimate: dict[str, Any]) -> str:
+    """One line for the probability of improvement of ``pair`` ("a > b"): ``{"value", "ci95",
+    "experiments"}``. A learner is called better only when the interval excludes 0.5 and both have
+    ``FEW_EXPERIMENTS`` or more (with fewer, a bootstrap interval says nothing)."""
+    a, b = pair.split(" > ", 1)
+    low, high = estimate["ci95"]
+    enough = min(estimate.get("experiments", [0])) >= metrics.FEW_EXPERIMENTS
+    verdict = ""
+    if enough and low is not None and (low > 0.5 or high < 0.5):
+        verdict = f": {a if low > 0.5 else b} better"
+    return (f"final returns: P({pair}) = {_estimate(estimate['value'], estimate['ci95'], 2)}, "
+            f"probability of improvement{verdict}")
+
+
+def across_runs(summaries: dict[str, dict[str, Any]]) -> list[str]:
+    """The probability of improvement of the final returns between every pair of (run, learner)
+    of several runs (``rmac-mj compare``), one line each: a comparison across runs, not only within
+    one."""
+    from rmac_mj.experiments import statistics
+
+    finals = {f"{label}: {algorithm}": summary[algorithm]["final_return_per_experiment"]
+              for label, summary in summaries.items() for algorithm in ALGORITHMS
+              if algorithm in summary and "final_return_per_experiment" in summary[algorithm]}
+    return [describe_improvement(pair, estimate)
+            for pair, estimate in statistics.pairwise_improvement(finals).items()]
+
+
 def few_experiments_note(experiments: int) -> str:
     """The warning printed and drawn when ``experiments`` < :data:`FEW_EXPERIMENTS`."""
     return (f"note: {experiments} experiment{'s' if experiments != 1 else ''} per learner: too few to rank "
@@ -40,15 +76,16 @@ def summary_table(summary: dict[str, Any], algorithms: Iterable[str] | None = No
     significantly, and a warning when too few experiments make the intervals meaningless."""
     algorithms = [a for a in (algorithms or ALGORITHMS) if a in summary]
     header = (f"{'learner':>8} {'experiments':>11} {'final return':>13} {'95% CI':>19} "
-              f"{'min to 90%':>10} {'first 10 min':>12} {'stuck':>5}")
+              f"{'IQM [95% CI]':>25} {'min to 90%':>10} {'first 10 min':>12} {'stuck':>5}")
     lines = [header, "-" * len(header)]
     for algorithm in algorithms:
         row = summary[algorithm]
         low, high = row["final_return_ci95"]
         ci = f"[{low:.0f}, {high:.0f}]" if low is not None else "n/a"
         stuck = "n/a" if row.get("stuck_experiments") is None else str(row["stuck_experiments"])
+        iqm = _estimate(row.get("final_return_iqm"), row.get("final_return_iqm_ci95"))
         lines.append(f"{algorithm:>8} {row['experiments']:>11d} {row['final_return_mean']:>13.1f} "
-                     f"{ci:>19} {row['minutes_to_90pct']:>10.1f} "
+                     f"{ci:>19} {iqm:>25} {row['minutes_to_90pct']:>10.1f} "
                      f"{row['mean_return_first_10min']:>12.1f} {stuck:>5}")
     if summary.get("optimal_return") is not None:
         lines.append(f"near-optimal return: {summary['optimal_return']:.1f}")
@@ -58,6 +95,9 @@ def summary_table(summary: dict[str, Any], algorithms: Iterable[str] | None = No
         {a: summary[a]["final_return_per_experiment"] for a in algorithms
          if "final_return_per_experiment" in summary[a]})
     lines.extend(describe_test(test) for test in tests)
+    improvement = summary.get("probability_of_improvement", {})
+    lines.extend(describe_improvement(pair, estimate) for pair, estimate in improvement.items()
+                 if all(name in algorithms for name in pair.split(" > ")))
     fewest = min((summary[a]["experiments"] for a in algorithms), default=None)
     if fewest is not None and fewest < metrics.FEW_EXPERIMENTS:
         lines.append(few_experiments_note(fewest))

@@ -20,7 +20,7 @@ import time
 from typing import Any, Callable, Iterable, Iterator
 
 from rmac_mj.agents import make_agent
-from rmac_mj.experiments import execution, files, metrics, prior as prior_data
+from rmac_mj.experiments import execution, files, metrics, prior as prior_data, statistics
 from rmac_mj.experiments.episode import action_space_of, run_trial, state_space_of, trial_seconds
 from rmac_mj.experiments.progress import Progress, TrialFeed
 from rmac_mj.experiments.protocol import ExperimentSpec, Protocol, run_experiment
@@ -259,12 +259,14 @@ def finalise(store: ResultStore, protocol: Protocol, wall_time_s: float | None =
         curves = store.load_curves(algorithm, protocol.experiments)
         summary[algorithm] = metrics.summarise(curves.returns, curves.greedy_returns,
                                                curves.greedy_trials, optimal_return,
-                                               trial_seconds=seconds, wall_times=curves.wall_times)
+                                               trial_seconds=seconds, wall_times=curves.wall_times,
+                                               cpu_times=curves.cpu_times)
         summary[algorithm]["exploration_floor"] = floors.get(algorithm)
         rows.extend((algorithm, i, t + 1, float(r)) for i, curve in enumerate(curves.returns)
                     for t, r in enumerate(curve))
-    summary["final_return_tests"] = metrics.compare_final_returns(
-        {a: summary[a]["final_return_per_experiment"] for a in protocol.algorithms})
+    finals = {a: summary[a]["final_return_per_experiment"] for a in protocol.algorithms}
+    summary["final_return_tests"] = metrics.compare_final_returns(finals)
+    summary["probability_of_improvement"] = statistics.pairwise_improvement(finals)
 
     store.write_returns(rows)
     if figures:
@@ -272,6 +274,8 @@ def finalise(store: ResultStore, protocol: Protocol, wall_time_s: float | None =
         plots.plot_learning_curves({store.root.name or str(store.root): summary}, store.figure_stem,
                                    optimal_return=optimal_return, smooth=smooth,
                                    exploration_floor=summary["exploration_floor"])
+        plots.plot_performance_profiles({("", a): finals[a] for a in protocol.algorithms},
+                                        store.profiles_stem)
     if clock is not None:
         clock.record()
         summary["wall_time_s"] = sum(clock.parts)

@@ -141,11 +141,13 @@ def probability_of_improvement(x: Any, y: Any, confidence: float = CONFIDENCE,
 def pairwise_improvement(scores: Mapping[str, Any], confidence: float = CONFIDENCE,
                          n_resamples: int = N_RESAMPLES, seed: int = SEED) -> dict[str, dict]:
     """:func:`probability_of_improvement` of every pair of learners, in the order given, keyed
-    ``"A > B"`` (P(B > A) is 1 - P(A > B)), as JSON-ready dicts."""
+    ``"A > B"`` (P(B > A) is 1 - P(A > B)), as JSON-ready dicts ``{"value", "ci95", "experiments":
+    [n_A, n_B]}`` (one task each; the counts are summed over tasks otherwise)."""
     table = {}
     for a, b in itertools.combinations(scores, 2):
-        table[f"{a} > {b}"] = probability_of_improvement(scores[a], scores[b], confidence,
-                                                         n_resamples, seed).as_dict()
+        estimate = probability_of_improvement(scores[a], scores[b], confidence, n_resamples, seed)
+        counts = [sum(len(part) for part in _strata(scores[name])) for name in (a, b)]
+        table[f"{a} > {b}"] = {**estimate.as_dict(), "experiments": counts}
     return table
 
 

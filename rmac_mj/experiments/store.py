@@ -5,6 +5,7 @@
     OUT/snapshots/<algorithm>/exp_<iii>/trial_<tttt>.npz   the agent after that trial
     OUT/progress/<algorithm>/exp_<iii>.csv       the live trial log of a running experiment
     OUT/returns.csv, summary.json, fig2_learning_curves.{png,pdf}, wall_times.json
+    OUT/performance_profiles.{png,pdf}
 
 :class:`ResultStore` owns this layout: the runner, the sweep, rendering, ``compare`` and the scripts
 read and write through it, never by building paths themselves. Files are written atomically
@@ -146,6 +147,11 @@ class ResultStore:
     def figure_stem(self) -> pathlib.Path:
         """Fig. 2 without suffix (.png and .pdf are written)."""
         return self.root / "fig2_learning_curves"
+
+    @property
+    def profiles_stem(self) -> pathlib.Path:
+        """The performance profiles of the final returns, without suffix (.png and .pdf)."""
+        return self.root / "performance_profiles"
 
     @property
     def wall_times_path(self) -> pathlib.Path:
