@@ -1,6 +1,6 @@
 """The rmac-mj command: reproduce the paper's comparison, draw its figures, render videos, benchmark.
 
-    rmac-mj reproduce [--domain dc_pendulum --task swingup] [--experiments 40] [--trials 600]
+    rmac-mj reproduce [--domain D --task T] [--experiments 40] [--trials 600]
                       [--algorithms rmac,s-ac] [--seed 0] [--jobs N] [--out DIR] [--resume]
                       [--evaluate-every N] [--scheduler ADDRESS]
                       [--prior demo|FILE.npz] [--prior-trials N] [--prior-parts process,...]
@@ -10,7 +10,7 @@
     rmac-mj policy SNAPSHOT [SNAPSHOT] [--out STEM] [--dims 0,1] [--xlim LO,HI] [--ylim LO,HI]
     rmac-mj optimal [--domain D --task T] [--refresh]
     rmac-mj render SNAPSHOT --out episode.mp4 | rmac-mj render --progression DIR --out progression.mp4
-    rmac-mj bench [--domain dc_pendulum --task swingup] [--json FILE] [--quick] [--markdown]
+    rmac-mj bench [--domain D --task T] [--json FILE] [--quick] [--markdown]
 
 ``rmac-mj`` alone prints the commands; ``rmac-mj COMMAND --help`` their options and defaults.
 """
@@ -129,10 +129,12 @@ def _dims(text: str) -> tuple[int, int]:
 
 
 def _add_task_options(parser: argparse.ArgumentParser, default: bool, what: str) -> None:
-    """--domain and --task; with ``default`` the paper's dc_pendulum/swingup, else None (``what``)."""
-    parser.add_argument("--domain", default="dc_pendulum" if default else None,
+    """--domain and --task; with ``default`` the suite's default task, else None (``what``)."""
+    from rmac_mj.tasks import DEFAULT_TASK
+
+    parser.add_argument("--domain", default=DEFAULT_TASK[0] if default else None,
                         help=f"domain of the task suite ({what})")
-    parser.add_argument("--task", default="swingup" if default else None,
+    parser.add_argument("--task", default=DEFAULT_TASK[1] if default else None,
                         help=f"task of the domain ({what})")
 
 
@@ -151,7 +153,7 @@ def _parser() -> argparse.ArgumentParser:
 
     reproduce = command("reproduce", "run the paper's comparison (section 6): learning curves, summary, "
                                      "Fig. 2, snapshots")
-    _add_task_options(reproduce, True, "default: the paper's dc_pendulum/swingup")
+    _add_task_options(reproduce, True, "default: the paper's swing-up")
     reproduce.add_argument("--experiments", type=_positive_int, default=40,
                            metavar="N", help="learning experiments per learner (default: 40, the "
                                              "paper's)")
@@ -181,7 +183,7 @@ def _parser() -> argparse.ArgumentParser:
                            help="Fig. 2: running mean over N trials (1: none)")
     reproduce.add_argument("--prior", default=None, metavar="DEMONSTRATOR|FILE.npz",
                            help="seed every learner before its first trial with prior knowledge: "
-                                "trials of a demonstrator of the task ('demo', 'poor-demo') or "
+                                "trials of a demonstrator the task declares (e.g. 'demo') or "
                                 "recorded transitions (docs/prior-knowledge.md gives the format)")
     reproduce.add_argument("--prior-trials", type=_positive_int, default=None,
                            help="demonstrator trials recorded per experiment (default 5)")
@@ -244,10 +246,9 @@ def _parser() -> argparse.ArgumentParser:
                         help="do not draw the greedy trial from the start state over the maps")
     _add_task_options(policy, False, "default: the snapshot's own")
 
-    optimal = command("optimal", "near-optimal return of a task (cached): dynamic programming "
-                               "for dc_pendulum/swingup, trajectory optimisation for two_link_arm/reach")
-    optimal.add_argument("--domain", default="dc_pendulum", help="domain")
-    optimal.add_argument("--task", default="swingup", help="task")
+    optimal = command("optimal", "near-optimal return of a task (cached), by the method the task "
+                                 "declares (dynamic programming, trajectory optimisation)")
+    _add_task_options(optimal, True, "default: the paper's swing-up")
     optimal.add_argument("--refresh", action="store_true", help="recompute, ignoring the cache")
 
     render = command("render", "render greedy episodes off-screen to MP4 or GIF")
@@ -265,44 +266,16 @@ def _parser() -> argparse.ArgumentParser:
     render.add_argument("--no-overlay", action="store_true", help="no text overlay")
     render.add_argument("--frames-per-step", type=_positive_int, default=1, metavar="N",
                         help="frames per control step, from physics substeps (a divisor of their "
-                             "number, e.g. 1 or 3 for dc_pendulum)")
+                             "number, e.g. 1 or 3 for the pendulum's 3)")
     _add_task_options(render, False, "default: the one each snapshot learned on")
 
     bench = command("bench", "microseconds per step, against the raw physics step")
     bench.add_argument("--json", type=pathlib.Path, default=None, help="also write the figures here")
     bench.add_argument("--quick", action="store_true", help="fewer repeats and a shorter experiment")
-    _add_task_options(bench, True, "default: dc_pendulum/swingup")
+    _add_task_options(bench, True, "default: the paper's swing-up")
     bench.add_argument("--markdown", action="store_true",
                        help="print the table as Markdown (the README's speed table)")
     return parser
-
-
-def _optimal_for(protocol) -> float | None:
-    """The near-optimal return of the protocol's task, when it has one (default task_kwargs only)."""
-    from rmac_mj.experiments import reference
-
-    if protocol.task_kwargs or not reference.has_reference(protocol.domain, protocol.task):
-        return None
-    return reference.reference_return(protocol.domain, protocol.task, announce=_say)
-
-
-def _exploration_floor_for(protocol, algorithm: str) -> float | None:
-    """The exploration floor of ``algorithm``'s exploration on the paper's swing-up, else None.
-
-    A decaying exploration is taken at its last trial's noise level (the final return averages the
-    last trials); exploration only where the model is uncertain has no floor (how often it explores
-    depends on the learner), so None."""
-    if (protocol.domain, protocol.task, protocol.task_kwargs) != ("dc_pendulum", "swingup", {}):
-        return None
-    from rmac_mj.agents import config_class, config_from_dict
-    from rmac_mj.experiments import optimal
-    config = config_from_dict(config_class(algorithm), protocol.agent_configs.get(algorithm, {}))
-    exploration = getattr(config, "exploration", None)
-    if exploration is None or exploration.where != "always":
-        return None
-    return float(optimal.exploration_floor(exploration.sigma_at(protocol.trials - 1),
-                                           exploration.period, exploration.phase,
-                                           announce=_say).mean)
 
 
 def parse_overrides(assignments: Sequence[str]) -> dict[str, dict]:
@@ -388,9 +361,8 @@ def _reproduce(args) -> int:
     try:
         summary = runner.run_protocol(protocol, out, jobs=args.jobs, resume=args.resume,
                                       scheduler=args.scheduler, progress=not args.no_progress,
-                                      optimal=None if args.no_optimal else _optimal_for,
-                                      floor=None if args.no_optimal else _exploration_floor_for,
-                                      smooth=args.smooth, log=_say, started=_STARTED)
+                                      references=not args.no_optimal, smooth=args.smooth, log=_say,
+                                      started=_STARTED)
     except KeyboardInterrupt:
         saved = runner.finished_experiments(out, protocol)
         if saved:
@@ -445,9 +417,7 @@ def _sweep(args) -> int:
           flush=True)
     try:
         rows = sweep.run_sweep(plan, out, jobs=args.jobs, scheduler=args.scheduler, resume=args.resume,
-                               progress=not args.no_progress,
-                               optimal=None if args.no_optimal else _optimal_for,
-                               floor=None if args.no_optimal else _exploration_floor_for,
+                               progress=not args.no_progress, references=not args.no_optimal,
                                log=_say, started=_STARTED)
     except KeyboardInterrupt:
         raise _Interrupted(f"finished experiments are saved in {out}, run again with --resume") from None
@@ -534,6 +504,7 @@ def _policy(args) -> int:
 
 
 def _optimal(args) -> int:
+    from rmac_mj.agents.base import Exploration
     from rmac_mj.experiments import reference
 
     with _user_input():
@@ -541,9 +512,11 @@ def _optimal(args) -> int:
             reference.reference(args.domain, args.task)  # raises, naming the tasks that have one
     result = reference.reference(args.domain, args.task, refresh=args.refresh, announce=_say)
     print(result.describe())
-    if (args.domain, args.task) == ("dc_pendulum", "swingup"):  # the floor is of the pendulum's DP
-        from rmac_mj.experiments import optimal
-        print(optimal.exploration_floor(refresh=args.refresh, announce=_say).describe())
+    paper = Exploration()  # the learners' default exploration (section 6.1)
+    floor = reference.exploration_floor(args.domain, args.task, paper.sigma, paper.period,
+                                        paper.phase, refresh=args.refresh, announce=_say)
+    if floor is not None:  # a reference with a policy to explore with (the dynamic programme)
+        print(floor.describe())
     return 0
 
 

@@ -12,7 +12,7 @@ from typing import Any
 
 from dm_control.rl import control
 
-from rmac_mj.tasks import dc_pendulum, two_link_arm
+from rmac_mj.tasks import common, dc_pendulum, two_link_arm
 
 _DOMAINS = {name: module for name, module in [("dc_pendulum", dc_pendulum),
                                               ("two_link_arm", two_link_arm)]}
@@ -26,6 +26,17 @@ TASKS_BY_DOMAIN = {domain: tuple(sorted(module.SUITE)) for domain, module in _DO
 
 #: Domain name -> its ``containers.TaggedTasks`` registry.
 SUITE = {domain: module.SUITE for domain, module in _DOMAINS.items()}
+
+#: The suite's default task: the paper's swing-up (what ``rmac-mj`` runs when no task is named).
+DEFAULT_TASK = ("dc_pendulum", "swingup")
+
+
+def knowledge(domain_name: str, task_name: str) -> common.TaskKnowledge:
+    """What ``domain_name``/``task_name`` declares beyond its environment: its near-optimal reference,
+    its demonstrators and its plot hints (:class:`~rmac_mj.tasks.common.TaskKnowledge`; a task that
+    declares nothing has none of them)."""
+    _check_names(domain_name, task_name)
+    return getattr(_DOMAINS[domain_name], "KNOWLEDGE", {}).get(task_name, common.NOTHING_KNOWN)
 
 
 def load(domain_name: str, task_name: str, task_kwargs: dict[str, Any] | None = None,
@@ -46,13 +57,8 @@ def load(domain_name: str, task_name: str, task_kwargs: dict[str, Any] | None = 
 def build_environment(domain_name: str, task_name: str, task_kwargs: dict[str, Any] | None = None,
                       environment_kwargs: dict[str, Any] | None = None) -> control.Environment:
     """Like :func:`load`; kept for parity with ``dm_control.suite.build_environment``."""
-    if domain_name not in _DOMAINS:
-        raise ValueError(f"unknown domain_name {domain_name!r}; available: {sorted(_DOMAINS)}")
-    registry = _DOMAINS[domain_name].SUITE
-    if task_name not in registry:
-        raise ValueError(f"unknown task_name {task_name!r} for domain {domain_name!r}; "
-                         f"available: {sorted(registry)}")
-    factory = registry[task_name]
+    _check_names(domain_name, task_name)
+    factory = _DOMAINS[domain_name].SUITE[task_name]
     task_kwargs = dict(task_kwargs or {})
     accepted = set(inspect.signature(factory).parameters) - {"environment_kwargs"}
     unknown = sorted(set(task_kwargs) - accepted)
@@ -60,6 +66,14 @@ def build_environment(domain_name: str, task_name: str, task_kwargs: dict[str, A
         raise ValueError(f"unknown task_kwargs {unknown} for {domain_name}/{task_name}; "
                          f"accepted: {sorted(accepted)}")
     return factory(environment_kwargs=environment_kwargs, **task_kwargs)
+
+
+def _check_names(domain_name: str, task_name: str) -> None:
+    if domain_name not in _DOMAINS:
+        raise ValueError(f"unknown domain_name {domain_name!r}; available: {sorted(_DOMAINS)}")
+    if task_name not in _DOMAINS[domain_name].SUITE:
+        raise ValueError(f"unknown task_name {task_name!r} for domain {domain_name!r}; "
+                         f"available: {sorted(_DOMAINS[domain_name].SUITE)}")
 
 
 # Every task above as a Gymnasium environment, rmac_mj/<Domain>-<Task>-v0 (see gymnasium_env), when

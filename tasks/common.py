@@ -1,9 +1,10 @@
-"""What every task of the suite shares: the learner's view of a task, checks, environment assembly."""
+"""What every task of the suite shares: the learner's view of a task, checks, environment assembly, and
+what a task declares beyond its dynamics (its reference, demonstrators, plot hints: :class:`TaskKnowledge`)."""
 
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
+from typing import Any, Callable, Mapping, Protocol
 
 import numpy as np
 from dm_control.rl import control
@@ -140,3 +141,76 @@ def check_action(action, n: int) -> np.ndarray:
     if not np.all(np.isfinite(action)):
         raise ValueError(f"action must be finite, got {action!r}")
     return action.reshape(n)
+
+
+# --------------------------------------------------------------------------------------------------
+# What a task knows beyond its dynamics and reward: declared by the task, asked by the experiments.
+
+class Demonstrator(Protocol):
+    """A scripted controller of a task, whose closed loop can be recorded as prior knowledge."""
+
+    action_noise: float
+    """Standard deviation of the Gaussian noise added to every recorded action (so that a recording
+    excites the input); in the action's unit."""
+
+    def controller(self, env: control.Environment) -> Callable[[np.ndarray], np.ndarray]:
+        """The control law x -> u for the environment ``env`` (built from its model)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Reference:
+    """How a task's near-optimal reference return is computed.
+
+    Attributes:
+      method: the name of a solver of ``rmac_mj.experiments.reference`` ("dynamic programming",
+        "trajectory optimisation").
+      settings: the solver's settings this task needs (e.g. the DP's grid), by name.
+    """
+
+    method: str
+    settings: Mapping[str, Any] = dataclasses.field(default_factory=dict)
+
+
+@dataclasses.dataclass(frozen=True)
+class PlotHints:
+    """How a task's results are drawn well.
+
+    Attributes:
+      return_margin: the least margin around the curves on a learning-curve axis, in the task's
+        return units: about the smallest difference of returns per trial worth seeing.
+    """
+
+    return_margin: float = 10.0
+
+    def __post_init__(self) -> None:
+        check_positive("PlotHints.return_margin", self.return_margin)
+
+
+@dataclasses.dataclass(frozen=True)
+class TaskKnowledge:
+    """What a task of the suite declares beyond its environment; an environment from elsewhere has
+    none of it (:data:`NOTHING_KNOWN`).
+
+    Attributes:
+      reference: how its near-optimal reference is computed, or None (with its default settings:
+        a reference is for the task as declared).
+      demonstrators: name -> a scripted :class:`Demonstrator` ('demo' is the one ``--prior demo``
+        records).
+      plot_hints: see :class:`PlotHints`.
+    """
+
+    reference: Reference | None = None
+    demonstrators: Mapping[str, Demonstrator] = dataclasses.field(default_factory=dict)
+    plot_hints: PlotHints = PlotHints()
+
+    def demonstrator(self, name: str, where: str = "this task") -> Demonstrator:
+        """Demonstrator ``name``; ValueError listing the available ones."""
+        if name not in self.demonstrators:
+            raise ValueError(f"no demonstrator {name!r} for {where}; available: "
+                             f"{', '.join(self.demonstrators) or 'none'} (or give recorded data, "
+                             "FILE.npz)")
+        return self.demonstrators[name]
+
+
+#: The knowledge of an environment that declares none.
+NOTHING_KNOWN = TaskKnowledge()

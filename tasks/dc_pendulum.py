@@ -28,6 +28,7 @@ from dm_control.utils import containers
 
 from rmac_mj.models import model_path
 from rmac_mj.tasks import common
+from rmac_mj.tasks.energy_swingup import EnergySwingUp
 
 DEFAULT_TIME_LIMIT = 3.0        # s, one trial (section 6)
 CONTROL_TIMESTEP = 0.03         # s; the paper leaves it open, its group's follow-up work uses 0.03 s
@@ -49,6 +50,25 @@ MAX_SPEED = 57.5
 NOMINAL_SPEED = 8 * np.pi
 
 SUITE = containers.TaggedTasks()
+
+#: The demonstrators of both tasks: 'demo' is the one ``--prior demo`` records; 'poor-demo' pumps with
+#: half the voltage and balances with half the LQR gains (it still swings up).
+DEMONSTRATORS = {"demo": EnergySwingUp(),
+                 "poor-demo": EnergySwingUp(pump_voltage=1.5, balance_scale=0.5)}
+
+#: What each task declares beyond its environment (``rmac_mj.tasks.knowledge``). The swing-up's
+#: near-optimal reference is the dynamic programme of docs/optimal.md on a grid of 361 x 241 states
+#: (1 deg, 0.17 rad/s apart) over speeds up to 20 rad/s (the optimal swing-up peaks at 11.5); balance
+#: starts at random, so it has none. Returns of order -1000 per trial: differences under 10 are noise.
+KNOWLEDGE = {
+    "swingup": common.TaskKnowledge(
+        reference=common.Reference("dynamic programming", {
+            "n_phi": 361, "n_phi_dot": 241, "max_phi_dot": 20.0, "n_actions": 25,
+            "lookahead_actions": 121}),
+        demonstrators=DEMONSTRATORS, plot_hints=common.PlotHints(return_margin=10.0)),
+    "balance": common.TaskKnowledge(demonstrators=DEMONSTRATORS,
+                                    plot_hints=common.PlotHints(return_margin=10.0)),
+}
 
 _TWO_PI = 2.0 * math.pi
 _RK4 = int(_mujoco.mjtIntegrator.mjINT_RK4)
@@ -235,6 +255,16 @@ class SwingUp(base.Task):
         self._start_noise = float(start_noise)
         self._reward = 0.0
         super().__init__(random=random)
+
+    @property
+    def state_weights(self) -> np.ndarray:
+        """Q, the reward's state weighting: ndarray of shape (2, 2) (a copy)."""
+        return self._q.copy()
+
+    @property
+    def action_weight(self) -> float:
+        """P, the reward's action weighting."""
+        return self._p
 
     def initialize_episode(self, physics: Physics) -> None:
         phi, phi_dot = self._start_state

@@ -56,6 +56,14 @@ NOMINAL_SPEED = 4 * np.pi
 
 SUITE = containers.TaggedTasks()
 
+#: What each task declares beyond its environment (``rmac_mj.tasks.knowledge``): reach's near-optimal
+#: reference is found by trajectory optimisation (iLQR from several starts, docs/optimal.md: -37.65
+#: per trial); returns near the end are of order -40, so differences of about 1 are worth seeing.
+KNOWLEDGE = {
+    "reach": common.TaskKnowledge(reference=common.Reference("trajectory optimisation"),
+                                  plot_hints=common.PlotHints(return_margin=1.0)),
+}
+
 
 def get_model_and_assets() -> tuple[str, dict[str, Any]]:
     """The scene XML string (the arm with floor, light and camera) and its assets (the arm's XML)."""

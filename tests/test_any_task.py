@@ -57,10 +57,12 @@ def test_sac_tiles_the_four_dimensional_box(toy):
     assert np.isfinite(first) and np.any(agent.actor_ != 0)
 
 
-def test_runner_summary_and_figure_use_the_tasks_trial_length(toy, tmp_path):
+def test_runner_summary_and_figure_use_the_tasks_trial_length(toy, tmp_path, monkeypatch):
+    from rmac_mj.experiments import reference
+
+    monkeypatch.setattr(reference, "run_reference", lambda protocol, log=None: -1.0)
     protocol = Protocol(**TINY)
-    summary = runner.run_protocol(protocol, tmp_path, jobs=1, progress=False,
-                                  optimal=lambda p: -1.0)
+    summary = runner.run_protocol(protocol, tmp_path, jobs=1, progress=False, references=True)
     on_disk = json.loads((tmp_path / "summary.json").read_text())
     assert on_disk["trial_seconds"] == pytest.approx(0.2)
     for algorithm in ("rmac", "s-ac"):
@@ -79,6 +81,21 @@ def test_runner_summary_and_figure_use_the_tasks_trial_length(toy, tmp_path):
     env = protocol.make_environment()
     outcome_greedy = np.load(ResultStore(tmp_path).curve_path("rmac", 1))["greedy_returns"][-1]
     assert run_trial(env, agent, learn=False) == pytest.approx(outcome_greedy, abs=1e-9)
+
+
+def test_the_runner_asks_the_task_for_what_it_declares(toy, tmp_path):
+    """A new task declares its demonstrators and plot hints in its own module (toy_domain.KNOWLEDGE)
+    and the experiments use them without naming it; it declares no reference, so none is computed."""
+    protocol = Protocol(domain="toy", task="settle", algorithms=("rmac",), experiments=1, trials=2,
+                        prior="demo", prior_trials=2)
+    summary = runner.run_protocol(protocol, tmp_path, jobs=1, progress=False, figures=False,
+                                  references=True)
+    assert summary["plot_hints"] == {"return_margin": 0.5}
+    assert summary["optimal_return"] is None and summary["exploration_floor"] is None
+    curves = ResultStore(tmp_path).load_curves("rmac", 1)
+    assert curves.demonstration_returns.shape == (1, 2)  # two trials of the toy's own demonstrator
+    with pytest.raises(ValueError, match="no demonstrator 'expert' for toy/settle; available: demo"):
+        Protocol(domain="toy", task="settle", algorithms=("rmac",), prior="expert")
 
 
 def test_protocol_refuses_an_unknown_task(toy):

@@ -9,14 +9,25 @@ import numpy as np
 import pytest
 
 from rmac_mj import tasks
-from rmac_mj.experiments import optimal
+from rmac_mj.experiments import optimal, reference
 from rmac_mj.experiments.optimal import OptimalConfig
 
 # Coarse enough for a unit test; the converged default is about -748 (docs/optimal.md).
 _COARSE = OptimalConfig(n_phi=91, n_phi_dot=61, n_actions=7, lookahead_actions=13, check_convergence=False)
 _FINER = OptimalConfig(n_phi=121, n_phi_dot=81, n_actions=13, lookahead_actions=25, check_convergence=False)
-_TINY = OptimalConfig(n_phi=24, n_phi_dot=15, n_actions=3, lookahead_actions=3, horizon=10,
-                      check_convergence=False)
+_TINY = OptimalConfig(n_phi=24, n_phi_dot=15, n_actions=3, lookahead_actions=3, check_convergence=False)
+
+
+def swingup(steps: int | None = None, **task_kwargs):
+    """The swing-up (``steps`` control steps per trial: a shorter problem) and its cache identity."""
+    if steps is not None:
+        task_kwargs["time_limit"] = steps * 0.03
+    return (tasks.load("dc_pendulum", "swingup", task_kwargs=task_kwargs),
+            reference.problem_identity("dc_pendulum", "swingup", task_kwargs))
+
+
+def problem(steps: int | None = None) -> optimal.Problem:
+    return optimal.Problem(swingup(steps)[0])
 
 #: Stated tolerance of the grid-convergence test: the simulated returns of _COARSE and _FINER agree within
 #: 1% (measured: -752.98 vs -749.41, 0.5%), and both lie within 1.5% of the default grid's -748.1.
@@ -25,7 +36,8 @@ _REL_TOL = 0.01
 
 @pytest.fixture(scope="module")
 def coarse_and_finer():
-    return optimal.solve(_COARSE), optimal.solve(_FINER)
+    env = swingup()[0]
+    return optimal.solve(env, _COARSE), optimal.solve(env, _FINER)
 
 
 def test_coarse_grid_agrees_with_finer_grid_within_tolerance(coarse_and_finer):
@@ -57,15 +69,14 @@ def test_greedy_actions_replayed_in_the_task_give_the_same_return(coarse_and_fin
         timestep = env.step(np.array([u]))
         total += timestep.reward
         steps += 1
-    assert timestep.last() and steps == result.config.horizon
+    assert timestep.last() and steps == result.problem["horizon"] == 100
     np.testing.assert_allclose(np.sum(result.rewards), result.simulated_return, rtol=0, atol=1e-9)
     np.testing.assert_allclose(total, result.simulated_return, rtol=0, atol=1e-9)
 
 
 def test_one_step_horizon_is_exact():
     """V_0([pi, 0]) = max_u -5 pi^2 - u^2 = -5 pi^2: on a grid node, no interpolation error."""
-    config = dataclasses.replace(_TINY, horizon=1)
-    result = optimal.solve(config)
+    result = optimal.solve(swingup(steps=1)[0], _TINY)
     assert result.dp_value == pytest.approx(-5 * np.pi**2, abs=1e-4)  # V is stored as float32
     assert result.simulated_return == pytest.approx(-5 * np.pi**2, abs=1e-12)
     assert result.actions[0] == 0.0
@@ -73,7 +84,8 @@ def test_one_step_horizon_is_exact():
 
 def test_interpolation_is_bilinear_periodic_in_phi_and_clipped_in_phi_dot():
     config = OptimalConfig(n_phi=8, n_phi_dot=5, max_phi_dot=2.0)
-    phi, phi_dot = optimal.state_grid(config)
+    grid = problem()
+    phi, phi_dot = optimal.state_grid(config, grid)
     assert phi[0] == -np.pi and phi[-1] < np.pi
     rng = np.random.default_rng(0)
     g = rng.normal(size=8)
@@ -87,15 +99,16 @@ def test_interpolation_is_bilinear_periodic_in_phi_and_clipped_in_phi_dot():
         [phi[1], 5.0],                                     # beyond the phi_dot edge: clipped to 2
     ])
     expected = [g[2] + 2.1, 0.75 * g[2] + 0.25 * g[3] - 3.9, 0.5 * (g[7] + g[0]), g[1], g[1] + 6.0]
-    np.testing.assert_allclose(optimal.interpolate_value(config, value, points), expected, atol=1e-12)
-    weights = optimal.interpolation_matrix(config, points)
+    np.testing.assert_allclose(optimal.interpolate_value(config, grid, value, points), expected,
+                               atol=1e-12)
+    weights = optimal.interpolation_matrix(config, grid, points)
     assert weights.shape == (5, 40) and np.all(weights.data >= 0)
     np.testing.assert_allclose(np.asarray(weights.sum(axis=1)).ravel(), 1.0)
 
 
 def test_batched_transitions_match_stepping_one_state_at_a_time():
     import mujoco
-    model = mujoco.MjModel.from_xml_path(str(optimal.model_path("dc_pendulum")))
+    model = problem().model
     rng = np.random.default_rng(1)
     phi, phi_dot, u = rng.uniform(-np.pi, np.pi, 6), rng.uniform(-15, 15, 6), rng.uniform(-3, 3, 6)
     batched = optimal.simulate_transitions(model, phi, phi_dot, u, n_substeps=3, n_threads=2, chunk=4)
@@ -111,28 +124,31 @@ def test_batched_transitions_match_stepping_one_state_at_a_time():
 
 
 def test_cache_round_trip_refresh_and_key(tmp_path):
-    first = optimal.optimal_return(_TINY, cache_dir=tmp_path)
+    env, identity = swingup(steps=10)
+    first = optimal.optimal_return(env, identity, _TINY, cache_dir=tmp_path)
     assert not first.from_cache
     files = list(tmp_path.glob("optimal-*.json"))
     assert len(files) == 1
     json.loads(files[0].read_text())  # plain JSON, readable without this package
-    second = optimal.optimal_return(_TINY, cache_dir=tmp_path)
+    second = optimal.optimal_return(env, identity, _TINY, cache_dir=tmp_path)
     assert second.from_cache
     assert second.simulated_return == first.simulated_return and second.dp_value == first.dp_value
-    assert second.config == first.config
+    assert second.config == first.config and second.problem == first.problem
     np.testing.assert_array_equal(second.states, first.states)
-    assert not optimal.optimal_return(_TINY, cache_dir=tmp_path, refresh=True).from_cache
+    assert not optimal.optimal_return(env, identity, _TINY, cache_dir=tmp_path, refresh=True).from_cache
     # Threads change the speed, never the numbers: same entry. Anything else: a new one.
-    assert optimal.optimal_return(dataclasses.replace(_TINY, n_threads=1), cache_dir=tmp_path).from_cache
-    other = optimal.optimal_return(dataclasses.replace(_TINY, action_weight=2.0), cache_dir=tmp_path)
+    assert optimal.optimal_return(env, identity, dataclasses.replace(_TINY, n_threads=1),
+                                  cache_dir=tmp_path).from_cache
+    other = optimal.optimal_return(*swingup(steps=10, action_weight=2.0), _TINY, cache_dir=tmp_path)
     assert not other.from_cache and len(list(tmp_path.glob("optimal-*.json"))) == 2
-    xml = optimal.model_path("dc_pendulum").read_text().replace('damping="3e-6"', 'damping="4e-6"')
-    assert optimal.cache_key(_TINY, xml) != files[0].name[len("optimal-"):-len(".json")]
+    assert other.simulated_return < first.simulated_return  # the task's reward: P = 2 costs more
+    env.physics.model.dof_damping[:] *= 1.5  # another model: another key
+    assert optimal.cache_key(env, identity, _TINY) != files[0].name[len("optimal-"):-len(".json")]
 
 
 def test_convergence_check_reports_a_coarser_solve():
     config = dataclasses.replace(_TINY, check_convergence=True)
-    result = optimal.solve(config)
+    result = optimal.solve(swingup(steps=10)[0], config)
     assert result.coarse is not None
     assert (result.coarse.n_phi, result.coarse.n_phi_dot, result.coarse.n_actions) == (12, 8, 2)
     assert result.convergence_gap == abs(result.fine.simulated_return - result.coarse.simulated_return)
@@ -141,19 +157,23 @@ def test_convergence_check_reports_a_coarser_solve():
 
 
 @pytest.mark.parametrize("field, value", [
-    ("n_phi", 3), ("n_phi_dot", 2), ("n_actions", 1), ("lookahead_actions", 1), ("horizon", 0),
-    ("max_phi_dot", -1.0), ("max_phi_dot", float("nan")), ("control_timestep", 0.0),
-    ("state_weights", (5.0,)), ("state_weights", (5.0, -0.1)), ("action_weight", -1.0),
-    ("start_state", (np.pi, 50.0)), ("n_threads", -1),
+    ("n_phi", 3), ("n_phi_dot", 2), ("n_actions", 1), ("lookahead_actions", 1),
+    ("max_phi_dot", -1.0), ("max_phi_dot", float("nan")), ("n_threads", -1),
 ])
 def test_bad_config_raises_value_error_naming_the_field(field, value):
     with pytest.raises(ValueError, match=field):
         OptimalConfig(**{field: value})
 
 
-def test_control_timestep_must_be_a_whole_number_of_physics_steps():
-    with pytest.raises(ValueError, match="control_timestep"):
-        optimal.solve(dataclasses.replace(_TINY, control_timestep=0.025))
+def test_the_problem_comes_from_the_environment():
+    """Horizon, action range and start are the task's; a random start has no single optimum."""
+    grid = problem(steps=10)
+    assert (grid.horizon, grid.n_substeps, grid.low, grid.high) == (10, 3, -3.0, 3.0)
+    np.testing.assert_array_equal(grid.start_z, [np.pi, 0.0])
+    with pytest.raises(ValueError, match="start state is random"):
+        optimal.Problem(tasks.load("dc_pendulum", "balance", task_kwargs={"random": 0}))
+    with pytest.raises(ValueError, match="one-joint model"):
+        optimal.Problem(tasks.load("two_link_arm", "reach"))
 
 
 def test_non_int_grid_size_raises_type_error():
@@ -161,33 +181,36 @@ def test_non_int_grid_size_raises_type_error():
         OptimalConfig(n_phi=100.0)
 
 
-_SMALL = OptimalConfig(n_phi=61, n_phi_dot=41, n_actions=5, lookahead_actions=9, horizon=40,
-                       check_convergence=False)
+_SMALL = OptimalConfig(n_phi=61, n_phi_dot=41, n_actions=5, lookahead_actions=9, check_convergence=False)
 
 
 def test_noisy_rollouts_without_noise_are_the_greedy_rollout():
-    model = optimal._load_model(optimal.model_path("dc_pendulum").read_text())
-    values = optimal.solve_values(_SMALL, model)
-    _, _, rewards = optimal.greedy_rollout(_SMALL, model, values)
-    quiet = optimal.noisy_rollouts(_SMALL, model, values, 0.0, 3, 0, 3, np.random.default_rng(0))
+    grid = problem(steps=40)
+    values = optimal.solve_values(_SMALL, grid)
+    _, _, rewards = optimal.greedy_rollout(_SMALL, grid, values)
+    quiet = optimal.noisy_rollouts(_SMALL, grid, values, 0.0, 3, 0, 3, np.random.default_rng(0))
     np.testing.assert_allclose(quiet, np.sum(rewards), rtol=0, atol=1e-9)
-    noisy = optimal.noisy_rollouts(_SMALL, model, values, 1.0, 3, 0, 20, np.random.default_rng(0))
+    noisy = optimal.noisy_rollouts(_SMALL, grid, values, 1.0, 3, 0, 20, np.random.default_rng(0))
     # Noise on a third of the steps makes every trial differ and costs reward on average.
     assert len(set(noisy.round(6))) == 20 and noisy.mean() < np.sum(rewards)
-    every_step = optimal.noisy_rollouts(_SMALL, model, values, 1.0, 1, 0, 20, np.random.default_rng(0))
+    every_step = optimal.noisy_rollouts(_SMALL, grid, values, 1.0, 1, 0, 20, np.random.default_rng(0))
     assert every_step.mean() < noisy.mean()
 
 
 def test_exploration_floor_is_cached_per_schedule(tmp_path):
-    first = optimal.exploration_floor(sigma=1.0, period=3, rollouts=8, config=_SMALL, cache_dir=tmp_path)
-    again = optimal.exploration_floor(sigma=1.0, period=3, rollouts=8, config=_SMALL, cache_dir=tmp_path)
+    env, identity = swingup(steps=40)
+
+    def floor(**kwargs):
+        return optimal.exploration_floor(env, identity, **{"sigma": 1.0, "period": 3, "rollouts": 8,
+                                                           **kwargs}, config=_SMALL, cache_dir=tmp_path)
+    first, again = floor(), floor()
     assert not first.from_cache and again.from_cache
     assert again.mean == first.mean and np.array_equal(again.returns, first.returns)
     assert first.std == pytest.approx(np.std(first.returns, ddof=1))
     assert first.ci95[0] < first.mean < first.ci95[1]
-    other = optimal.exploration_floor(sigma=2.0, period=3, rollouts=8, config=_SMALL, cache_dir=tmp_path)
+    other = floor(sigma=2.0)
     assert not other.from_cache and other.mean != first.mean
     assert "every 3rd step" in first.describe() and "8 noisy trials" in first.describe()
     for bad in ({"sigma": -1.0}, {"period": 0}, {"phase": 3}, {"rollouts": 1}):
         with pytest.raises(ValueError, match=next(iter(bad))):
-            optimal.exploration_floor(**bad, config=_SMALL, cache_dir=tmp_path)
+            floor(**bad)

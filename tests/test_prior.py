@@ -5,12 +5,13 @@ import json
 import numpy as np
 import pytest
 
-from rmac_mj import tasks
 from rmac_mj.agents import make_agent
 from rmac_mj.agents.base import discounted_returns
 from rmac_mj.agents.rmac import RMACConfig
 from rmac_mj.errors import MissingInputError, UserInputError
-from rmac_mj.experiments import demonstrators, prior, runner
+from rmac_mj import tasks
+from rmac_mj.experiments import prior, runner
+from rmac_mj.tasks.energy_swingup import lqr_gains
 from rmac_mj.experiments.protocol import Protocol, demonstration_for, experiment_seeds
 from rmac_mj.experiments.store import ResumeRefused
 from rmac_mj.experiments.episode import action_space_of, run_trial, state_space_of
@@ -162,7 +163,7 @@ def test_seeding_inside_a_trial_is_refused(env):
 
 @pytest.mark.parametrize("name", ["demo", "poor-demo"])
 def test_demonstrator_swings_the_model_up_from_hanging(env, name):
-    controller = demonstrators.get("dc_pendulum", "swingup", name).controller(env)
+    controller = tasks.knowledge("dc_pendulum", "swingup").demonstrator(name).controller(env)
     demo = prior.record(env, controller, trials=1)
     np.testing.assert_allclose(np.abs(demo.states[0]), [np.pi, 0.0], atol=1e-12)  # x_0 = [pi, 0]
     last_second = demo.next_states[-34:, 0]  # the last 1.02 s
@@ -173,9 +174,9 @@ def test_demonstrator_swings_the_model_up_from_hanging(env, name):
 
 
 def test_lqr_gains_stabilise_the_linearised_model(env):
-    gains = demonstrators.lqr_gains(env)
+    gains = lqr_gains(env)
     assert np.all(gains > 0)
-    controller = demonstrators.get("dc_pendulum", "swingup").controller(env)
+    controller = tasks.knowledge("dc_pendulum", "swingup").demonstrator("demo").controller(env)
     # Near upright the controller is the LQR: u = -K x.
     np.testing.assert_allclose(controller(np.array([0.1, -0.5])), [-(0.1 * gains[0] - 0.5 * gains[1])])
 
@@ -183,13 +184,13 @@ def test_lqr_gains_stabilise_the_linearised_model(env):
 def test_unknown_demonstrator_is_named():
     with pytest.raises(ValueError, match="no demonstrator 'expert' for dc_pendulum/swingup; "
                                          "available: demo, poor-demo"):
-        demonstrators.get("dc_pendulum", "swingup", "expert")
+        tasks.knowledge("dc_pendulum", "swingup").demonstrator("expert", "dc_pendulum/swingup")
 
 
 # -- recording and the file format ------------------------------------------------------------------
 
 def test_record_save_load_round_trip(env, tmp_path):
-    controller = demonstrators.get("dc_pendulum", "swingup").controller(env)
+    controller = tasks.knowledge("dc_pendulum", "swingup").demonstrator("demo").controller(env)
     demo = prior.record(env, controller, trials=2, seed=3, action_noise=0.5)
     assert demo.n_transitions == 200 and demo.n_trials == 2
     np.testing.assert_array_equal(demo.trial, np.repeat([0, 1], 100))

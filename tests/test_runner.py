@@ -25,10 +25,12 @@ def returns_of(out, protocol):
     return {a: ResultStore(out).load_curves(a, protocol.experiments).returns for a in protocol.algorithms}
 
 
-def test_tiny_protocol_end_to_end(tmp_path):
+def test_tiny_protocol_end_to_end(tmp_path, monkeypatch):
+    from rmac_mj.experiments import reference
+
+    monkeypatch.setattr(reference, "run_reference", lambda protocol, log=None: -900.0)
     protocol = Protocol(**TINY)
-    summary = runner.run_protocol(protocol, tmp_path, jobs=1, progress=False,
-                                  optimal=lambda p: -900.0)
+    summary = runner.run_protocol(protocol, tmp_path, jobs=1, progress=False, references=True)
     for name in ("config.json", "summary.json", "returns.csv", "fig2_learning_curves.png",
                  "fig2_learning_curves.pdf"):
         assert (tmp_path / name).is_file(), name

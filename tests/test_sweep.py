@@ -177,8 +177,13 @@ def test_tiny_sweep_killed_resumed_and_summarised(tmp_path):
 
     # The same sweep uninterrupted, all experiments through one pool of two workers.
     whole = tmp_path / "whole"
-    rows = sweep.run_sweep(sweep_file.load_sweep(path), whole, jobs=2, progress=False,
-                           optimal=lambda protocol: -748.0, floor=lambda protocol, algorithm: -870.0)
+    from rmac_mj.experiments import reference
+
+    with pytest.MonkeyPatch.context() as patch:  # the task's reference and floor, as if computed
+        patch.setattr(reference, "run_reference", lambda protocol, log=None: -748.0)
+        patch.setattr(reference, "run_exploration_floor", lambda protocol, algorithm, log=None: -870.0)
+        rows = sweep.run_sweep(sweep_file.load_sweep(path), whole, jobs=2, progress=False,
+                               references=True)
     resumed_curves, whole_curves = curves(killed), curves(whole)
     assert sorted(resumed_curves) == sorted(whole_curves) and len(whole_curves) == 2 * 2
     for key in whole_curves:

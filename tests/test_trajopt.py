@@ -115,17 +115,19 @@ def test_box_qp_against_a_dense_search(seed):
 
 
 def test_cache_round_trip_and_key(tmp_path):
-    first = trajopt.cached_optimise("two_link_arm", "reach", _TINY, cache_dir=tmp_path)
+    env = tasks.load("two_link_arm", "reach")
+    arm = reference.problem_identity("two_link_arm", "reach")
+    first = trajopt.cached_optimise(env, arm, _TINY, cache_dir=tmp_path)
     assert not first.from_cache and len(list(tmp_path.glob("trajopt-*.json"))) == 1
-    second = trajopt.cached_optimise("two_link_arm", "reach", _TINY, cache_dir=tmp_path)
+    second = trajopt.cached_optimise(env, arm, _TINY, cache_dir=tmp_path)
     assert second.from_cache and second.simulated_return == first.simulated_return
     np.testing.assert_array_equal(second.actions, first.actions)
     assert second.problem["domain"] == "two_link_arm" and second.starts == first.starts
-    env = tasks.load("two_link_arm", "reach")
-    key = trajopt.cache_key(env, "two_link_arm", "reach", _TINY)
-    assert key == trajopt.cache_key(env, "two_link_arm", "reach", dataclasses.replace(_TINY, n_threads=1))
-    assert key != trajopt.cache_key(env, "two_link_arm", "reach", dataclasses.replace(_TINY, seed=1))
-    assert key != trajopt.cache_key(tasks.load("dc_pendulum", "swingup"), "two_link_arm", "reach", _TINY)
+    key = trajopt.cache_key(env, arm, _TINY)
+    assert key == trajopt.cache_key(env, arm, dataclasses.replace(_TINY, n_threads=1))
+    assert key != trajopt.cache_key(env, arm, dataclasses.replace(_TINY, seed=1))
+    assert key != trajopt.cache_key(tasks.load("dc_pendulum", "swingup"), arm, _TINY)
+    assert key != trajopt.cache_key(env, {**arm, "task_kwargs": {"time_limit": 1.5}}, _TINY)
 
 
 @pytest.mark.parametrize("field, value", [("max_iterations", 0), ("tolerance", 0.0), ("fd_step", 2.0),
@@ -144,9 +146,9 @@ def test_reference_registry_dispatches_and_rejects_unknown_tasks(tmp_path, monke
     calls = []
     real = trajopt.cached_optimise
 
-    def tiny(domain, task, config=None, cache_dir=None, refresh=False, announce=None):
-        calls.append((domain, task))
-        return real(domain, task, _TINY, cache_dir=tmp_path, refresh=refresh)
+    def tiny(env, identity, config=None, cache_dir=None, refresh=False, announce=None):
+        calls.append((identity["domain"], identity["task"]))
+        return real(env, identity, _TINY, cache_dir=tmp_path, refresh=refresh)
     monkeypatch.setattr(trajopt, "cached_optimise", tiny)
     value = reference.reference_return("two_link_arm", "reach")
     assert calls == [("two_link_arm", "reach")] and np.isfinite(value)
@@ -155,9 +157,11 @@ def test_reference_registry_dispatches_and_rejects_unknown_tasks(tmp_path, monke
 def test_cli_optimal_takes_domain_and_task(tmp_path, monkeypatch, capsys):
     real = trajopt.cached_optimise
     monkeypatch.setattr(trajopt, "cached_optimise",
-                        lambda domain, task, config=None, cache_dir=None, refresh=False, announce=None:
-                        real(domain, task, _TINY, cache_dir=tmp_path, refresh=refresh))
+                        lambda env, identity, config=None, cache_dir=None, refresh=False, announce=None:
+                        real(env, identity, _TINY, cache_dir=tmp_path, refresh=refresh))
     assert cli.main(["optimal", "--domain", "two_link_arm", "--task", "reach"]) == 0
     assert "two_link_arm/reach: near-optimal return per trial" in capsys.readouterr().out
     assert cli.main(["optimal", "--domain", "two_link_arm", "--task", "spin"]) == 2
-    assert "no near-optimal reference for two_link_arm/spin" in capsys.readouterr().err
+    assert "unknown task_name 'spin' for domain 'two_link_arm'" in capsys.readouterr().err
+    assert cli.main(["optimal", "--domain", "dc_pendulum", "--task", "balance"]) == 2
+    assert "no near-optimal reference for dc_pendulum/balance" in capsys.readouterr().err

@@ -113,6 +113,20 @@ class Settle(base.Task):
             action_labels=("torque tau [N m]", "force f [N]"))
 
 
+class Brake:
+    """The toy's demonstrator: brake the bar and the cart (u = -[omega, 2 v], saturated)."""
+
+    action_noise = 0.1
+
+    def controller(self, env):
+        return lambda x: np.clip([-x[2], -2.0 * x[3]], [-1.0, -2.0], [1.0, 2.0])
+
+
+#: What the task declares beyond its environment, in its own module, as a task of the suite does.
+KNOWLEDGE = {TASK: common.TaskKnowledge(demonstrators={"demo": Brake()},
+                                        plot_hints=common.PlotHints(return_margin=0.5))}
+
+
 def register(monkeypatch) -> None:
     """Make ``toy``/``settle`` a task of ``rmac_mj.tasks`` until the test ends."""
     import sys

@@ -1,7 +1,7 @@
 """``rmac-mj bench``: where the microseconds of a control step go, as ratios to the raw physics.
 
 The unit is the *raw control step*: one control step of the task as its ``mujoco.mj_step`` calls
-from a Python loop (dc_pendulum/swingup: 3 calls of 10 ms per 0.03 s step), the least any
+from a Python loop (the paper's pendulum: 3 calls of 10 ms per 0.03 s step), the least any
 implementation of the task must spend. Every figure is measured on one task (``--domain/--task``,
 default the paper's swing-up). Everything else is reported in
 microseconds and as a multiple of it, measured in one process, as the median over repeats of the
@@ -43,6 +43,8 @@ from rmac_mj.approximators.llr import LLRMemory
 from rmac_mj.experiments.episode import (action_space_of, learner_state_of, n_sub_steps, run_trial,
                                          state_of, state_space_of, steps_per_trial)
 
+#: The suite's default task, which the benchmark measures unless told otherwise.
+_DOMAIN, _TASK = tasks.DEFAULT_TASK
 #: Targets as multiples of the raw control step (issue 12).
 TARGETS = {"env_step_us": 1.5, "sac_step_us": 1.0, "rmac_step_us": 2.0, "llr_query_insert_us": 0.7}
 #: Target of a real run's wall time, as a multiple of the raw physics time of its steps per worker.
@@ -78,8 +80,8 @@ def _random_actions(env, count: int, rng: np.random.Generator) -> np.ndarray:
     return rng.uniform(space.low, space.high, (count, space.dim))
 
 
-def step_costs(calls: int, repeats: int, domain: str = "dc_pendulum",
-               task: str = "swingup") -> dict[str, float]:
+def step_costs(calls: int, repeats: int, domain: str = _DOMAIN,
+               task: str = _TASK) -> dict[str, float]:
     """The raw control step, ``env.step`` and the glue per step (us), measured interleaved.
 
     Each repeat times, one after the other: ``calls`` raw control steps (``n_sub_steps`` x
@@ -150,19 +152,19 @@ def step_costs(calls: int, repeats: int, domain: str = "dc_pendulum",
             "glue_step_us": float(np.median(glue))}
 
 
-def physics_step_us(calls: int, repeats: int, domain: str = "dc_pendulum",
-                    task: str = "swingup") -> float:
+def physics_step_us(calls: int, repeats: int, domain: str = _DOMAIN,
+                    task: str = _TASK) -> float:
     """The raw control step of the task alone (see :func:`step_costs`)."""
     return step_costs(calls, repeats, domain, task)["physics_step_us"]
 
 
-def env_step_us(calls: int, repeats: int, domain: str = "dc_pendulum", task: str = "swingup") -> float:
+def env_step_us(calls: int, repeats: int, domain: str = _DOMAIN, task: str = _TASK) -> float:
     """``env.step`` of the task alone (see :func:`step_costs`)."""
     return step_costs(calls, repeats, domain, task)["env_step_us"]
 
 
-def llr_query_insert_us(calls: int, repeats: int, domain: str = "dc_pendulum",
-                        task: str = "swingup") -> float:
+def llr_query_insert_us(calls: int, repeats: int, domain: str = _DOMAIN,
+                        task: str = _TASK) -> float:
     """A query and an insertion on a full critic-like memory (N = 2000, K = 20) over the task's state:
     its dimensions, weights and periods, filled uniformly over its box."""
     space = state_space_of(tasks.load(domain, task))
@@ -181,11 +183,11 @@ def llr_query_insert_us(calls: int, repeats: int, domain: str = "dc_pendulum",
 
 
 def learner_step_us(algorithm: str, repeats: int, warmup_trials: int | None = None,
-                    domain: str = "dc_pendulum", task: str = "swingup") -> float:
+                    domain: str = _DOMAIN, task: str = _TASK) -> float:
     """One learner step (act + update) with full memories, the environment excluded.
 
     The agent first learns for ``warmup_trials`` trials (default: 2500 steps' worth, so that RMAC's
-    2000-sample memories are full; 25 trials of dc_pendulum); then the states and rewards of one more
+    2000-sample memories are full; 25 trials of the pendulum); then the states and rewards of one more
     trial are replayed through ``agent.step``.
     """
     env = tasks.load(domain, task)
@@ -213,8 +215,8 @@ def learner_step_us(algorithm: str, repeats: int, warmup_trials: int | None = No
     return float(np.median(samples))
 
 
-def experiment_s(algorithm: str, trials: int, domain: str = "dc_pendulum",
-                 task: str = "swingup") -> float:
+def experiment_s(algorithm: str, trials: int, domain: str = _DOMAIN,
+                 task: str = _TASK) -> float:
     """Seconds of one learning experiment of ``trials`` trials (environment included), in CPU time
     of this thread (its wall time on an idle core)."""
     env = tasks.load(domain, task)
@@ -238,7 +240,7 @@ def _process_cpu_s() -> float | None:
 
 
 def real_run(experiments: int, trials: int, jobs: int, physics_step_us: float,
-             domain: str = "dc_pendulum", task: str = "swingup") -> dict[str, Any]:
+             domain: str = _DOMAIN, task: str = _TASK) -> dict[str, Any]:
     """Run ``run_protocol`` (both learners, ``experiments`` x ``trials`` each, on ``jobs`` worker
     processes, into a temporary directory, no figures) and time it end to end.
 
@@ -299,7 +301,7 @@ ROWS = (("physics_step_us", "raw MuJoCo control step ({n_sub} x mj_step)"),
 
 
 def run(quick: bool = False, algorithms: tuple[str, ...] = ("s-ac", "rmac"), jobs: int = 2,
-        domain: str = "dc_pendulum", task: str = "swingup") -> dict[str, Any]:
+        domain: str = _DOMAIN, task: str = _TASK) -> dict[str, Any]:
     """Measure everything on ``domain``/``task``; return the report (the keys of ``--json``)."""
     calls, repeats = (200, 5) if quick else (1000, 9)
     trials = 30 if quick else PAPER_TRIALS
@@ -378,7 +380,7 @@ def format_table(report: dict[str, Any]) -> str:
 
 
 def _task_line(report: dict[str, Any]) -> str:
-    return (f"{report.get('domain', 'dc_pendulum')}/{report.get('task', 'swingup')}: control step "
+    return (f"{report.get('domain', _DOMAIN)}/{report.get('task', _TASK)}: control step "
             f"{report.get('control_timestep_s', float('nan')):g} s = {report.get('n_sub_steps', '?')} "
             f"physics steps, state n={report.get('state_dim', '?')}")
 

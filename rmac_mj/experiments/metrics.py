@@ -87,7 +87,7 @@ def trials_in(minutes: float, trial_seconds: float) -> int:
 def stuck_threshold(reference_return: float | None) -> float | None:
     """The final level below which an experiment counts as stuck: worse than the near-optimal
     reference by more than the reference's own magnitude (for a negative, cost-like return: more than
-    twice its cost; dc_pendulum/swingup: 2 x -748 = -1496). None without a reference."""
+    twice its cost; the paper's swing-up: 2 x -748 = -1496). None without a reference."""
     if reference_return is None:
         return None
     return float(reference_return - abs(reference_return))

@@ -27,6 +27,8 @@ _STYLES = {"rmac": {"color": "tab:blue"}, "s-ac": {"color": "tab:orange"},
            "mlac": {"color": "tab:green"}, "sb3-sac": {"color": "tab:red"},
            "sb3-td3": {"color": "tab:purple"}, "sb3-ppo": {"color": "tab:brown"}}
 _RUN_STYLES = ("-", "--", ":", "-.", (0, (5, 1, 1, 1)), (0, (1, 3)))
+#: The least margin around curves when a summary gives no plot hints (``tasks.common.PlotHints``).
+_RETURN_MARGIN = 10.0
 
 
 def _trial_seconds(label: str, summary: dict[str, Any]) -> float:
@@ -65,7 +67,7 @@ def _learners(summary: dict[str, Any]) -> list[str]:
     return [k for k in summary if isinstance(summary[k], dict) and "mean_return_per_trial" in summary[k]]
 
 
-def _padded(low: float, high: float, fraction: float = 0.05, minimum: float = 10.0):
+def _padded(low: float, high: float, fraction: float = 0.05, minimum: float = _RETURN_MARGIN):
     margin = max(minimum, fraction * (high - low))
     return low - margin, high + margin
 
@@ -127,16 +129,19 @@ def learning_curves_figure(summaries: dict[str, dict[str, Any]], optimal_return:
                                                                lambda t, s=lengths[0]: t * s / 60.0))
             trials_axis.set_xlabel("trial")
     # The axes follow the curves, not the bands: with few experiments a 95% band spans thousands.
+    # Their least margin is the task's (its plot hints): a return difference worth seeing.
+    margin = min((float(s.get("plot_hints", {}).get("return_margin", _RETURN_MARGIN))
+                  for s in summaries.values()), default=_RETURN_MARGIN)
     references = [r for r in (optimal_return, exploration_floor) if r is not None]
     values = np.concatenate([d[np.isfinite(d)] for d in drawn] + [np.array(references)])
     if values.size:
-        axes[0].set_ylim(*_padded(values.min(), values.max()))
+        axes[0].set_ylim(*_padded(values.min(), values.max(), minimum=margin))
     axes[0].set_title("Learning curves, mean and 95% confidence interval")
     if detail_ylim is None:  # the range of the curves' last trials, the optimum and the floor
         last = np.concatenate(ends + [np.array(references)])
         last = last[np.isfinite(last)]
         if last.size:
-            detail_ylim = _padded(last.min(), last.max(), fraction=0.1, minimum=25.0)
+            detail_ylim = _padded(last.min(), last.max(), fraction=0.1, minimum=2.5 * margin)
     if detail_ylim is not None:
         axes[1].set_ylim(*detail_ylim)
     axes[1].set_title("Detail: the levels reached")

@@ -5,8 +5,9 @@ samples, closed-loop behaviour for the reference model, value estimates for the 
 :class:`Demonstration` is such a recording, and ``Agent.seed_from`` (``rmac_mj.agents.base``) puts it
 into a learner::
 
-    from rmac_mj.experiments import demonstrators, prior
-    controller = demonstrators.get("dc_pendulum", "swingup", "demo").controller(env)  # x -> u
+    from rmac_mj import tasks
+    from rmac_mj.experiments import prior
+    controller = tasks.knowledge(domain, task).demonstrator("demo").controller(env)  # x -> u
     demo = prior.record(env, controller, trials=5, seed=0, action_noise=0.5)
     prior.save_demonstration("demo.npz", demo)            # or a user's own logs in the same format
     agent.seed_from(**prior.load_demonstration("demo.npz").arrays())
@@ -23,8 +24,8 @@ key             shape, dtype     meaning
 ``trial``       (T,) integer     which recorded trial transition t belongs to, non-decreasing
 =============== ================ ==============================================================
 
-The state is what the agents see (the task's ``learner_state``, ``episode.state_of``: for
-``dc_pendulum`` x = [phi, phi_dot] in rad and rad/s, phi = 0 upright; angles may be unwrapped), the
+The state is what the agents see (the task's ``learner_state``, ``episode.state_of``: for the
+DC-motor pendulum x = [phi, phi_dot] in rad and rad/s, phi = 0 upright; angles may be unwrapped), the
 action is in the task's units (V). Within a trial the transitions are consecutive in time, so
 ``next_states[t] == states[t + 1]`` there; the learners use each transition on its own (only the
 returns-to-go run along a trial), so logs with gaps between trials are fine.

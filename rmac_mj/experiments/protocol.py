@@ -32,7 +32,7 @@ from dm_control.rl import control
 from rmac_mj import constraints, tasks
 from rmac_mj.agents import ALGORITHMS, Agent, agent_class, config_class, config_from_dict, make_agent
 from rmac_mj.agents.base import PRIOR_PARTS, ActionSpace, StateSpace
-from rmac_mj.experiments import demonstrators, files, prior as prior_data
+from rmac_mj.experiments import files, prior as prior_data
 from rmac_mj.experiments.episode import action_space_of, run_trial, state_space_of
 from rmac_mj.experiments.snapshots import snapshot_arrays
 from rmac_mj.experiments.store import ExperimentResult, ResultStore, TrialLog
@@ -72,16 +72,16 @@ class Protocol:
         ``trials``, and with the final trial, which is always saved.
       agent_configs: per algorithm, overrides of its hyperparameters (e.g. for ablations).
       prior: prior knowledge seeded into every fresh agent before its first trial: None (none, the
-        paper's protocol), the name of a demonstrator of the task (``'demo'``, see
-        ``experiments.demonstrators``), or the path of a recorded ``.npz`` file
+        paper's protocol), the name of a demonstrator the task declares (``'demo'``, see
+        ``tasks.knowledge``), or the path of a recorded ``.npz`` file
         (``experiments.prior``). Every learner must take prior knowledge.
       prior_trials: trials of the demonstrator recorded per experiment (demonstrators only).
       prior_parts: which kinds of knowledge to seed (``base.PRIOR_PARTS``, e.g. ``('process',)`` for
         the recorded dynamics alone); empty: everything each learner takes.
     """
 
-    domain: str = "dc_pendulum"
-    task: str = "swingup"
+    domain: str = tasks.DEFAULT_TASK[0]
+    task: str = tasks.DEFAULT_TASK[1]
     task_kwargs: dict[str, Any] = dataclasses.field(default_factory=dict)
     algorithms: tuple[str, ...] = ("rmac", "s-ac")
     experiments: int = 40
@@ -147,7 +147,7 @@ class Protocol:
         if not self.prior:
             raise ValueError(f"prior must be a demonstrator name or a .npz path, got {self.prior!r}")
         if not self.prior.endswith(".npz"):
-            demonstrators.get(self.domain, self.task, self.prior)  # raises, naming what exists
+            self.knowledge.demonstrator(self.prior, self.environment_name)  # raises, naming what exists
         refusing = [a for a in self.algorithms if not agent_class(a).prior_parts]
         if refusing:
             taking = [a for a in ALGORITHMS if agent_class(a).prior_parts]
@@ -160,6 +160,12 @@ class Protocol:
             if lacking:
                 raise ValueError(f"{name} takes no {', '.join(lacking)} prior (it takes "
                                  f"{', '.join(agent_class(name).prior_parts)})")
+
+    @property
+    def knowledge(self) -> tasks.common.TaskKnowledge:
+        """What the protocol's task declares beyond its environment (reference, demonstrators, plot
+        hints: ``rmac_mj.tasks.knowledge``)."""
+        return tasks.knowledge(self.domain, self.task)
 
     @property
     def environment_name(self) -> str:
@@ -220,7 +226,7 @@ def demonstration_for(protocol: Protocol, index: int) -> prior_data.Demonstratio
     """``prior_trials`` trials of demonstrator ``protocol.prior`` for experiment ``index``, recorded
     deterministically from the sequence ``(index, 1)``: its child 0 seeds the recording's task, the
     sequence itself the demonstrator's action noise."""
-    demonstrator = demonstrators.get(protocol.domain, protocol.task, protocol.prior)
+    demonstrator = protocol.knowledge.demonstrator(protocol.prior, protocol.environment_name)
     sequence = np.random.SeedSequence(protocol.seed, spawn_key=(index, 1))
     task_seed = int(np.random.SeedSequence(protocol.seed, spawn_key=(index, 1, 0))
                     .generate_state(1)[0])

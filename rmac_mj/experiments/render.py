@@ -6,8 +6,8 @@ renders: the overlay reads the state and action labels from the task's ``learner
 
     from rmac_mj import tasks
     from rmac_mj.experiments import render, video
-    episode = render.render_episode(tasks.load("dc_pendulum", "swingup"), agent, frames_per_step=3)
-    video.write_video(episode.frames, "swingup.mp4", fps=episode.fps)
+    episode = render.render_episode(tasks.load(domain, task), agent, frames_per_step=3)
+    video.write_video(episode.frames, "episode.mp4", fps=episode.fps)
 
 Composing clips and writing files is :mod:`rmac_mj.experiments.video`'s; videos of a result
 directory's snapshots are :mod:`rmac_mj.experiments.result_videos`'.
@@ -208,8 +208,7 @@ def model_picture(domain: str, task: str, out_path: str | os.PathLike, qpos=None
     """Write a picture of a domain's model (e.g. the one in its ``models/<name>/README.md``).
 
     ``qpos`` (default: the task's start) poses the model; ``camera`` as in :func:`render_state`.
-    Example: ``model_picture("dc_pendulum", "swingup", "pendulum.png", qpos=2.3,
-    camera=free_camera(model, zoom=3))``.
+    Example: ``model_picture(domain, task, "model.png", qpos=2.3, camera=free_camera(model, zoom=3))``.
     """
     from rmac_mj import tasks
 
@@ -224,12 +223,13 @@ def model_picture(domain: str, task: str, out_path: str | os.PathLike, qpos=None
     return out_path
 
 
-def measure_fps(domain: str = "dc_pendulum", task: str = "swingup", width: int = 320,
+def measure_fps(domain: str | None = None, task: str | None = None, width: int = 320,
                 height: int = 240, frames: int = 200) -> float:
-    """Frames per second of the off-screen renderer here (scene update + render + read-back)."""
+    """Frames per second of the off-screen renderer here (scene update + render + read-back), on
+    ``domain``/``task`` (default: the suite's default task)."""
     from rmac_mj import tasks
 
-    physics = tasks.load(domain, task).physics
+    physics = tasks.load(domain or tasks.DEFAULT_TASK[0], task or tasks.DEFAULT_TASK[1]).physics
     import mujoco
 
     model, data = physics.model.ptr, physics.data.ptr

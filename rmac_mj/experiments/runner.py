@@ -20,7 +20,8 @@ import time
 from typing import Any, Callable, Iterable, Iterator
 
 from rmac_mj.agents import make_agent
-from rmac_mj.experiments import execution, files, metrics, prior as prior_data, statistics
+from rmac_mj.experiments import (execution, files, metrics, prior as prior_data, reference,
+                                  statistics)
 from rmac_mj.experiments.episode import action_space_of, run_trial, state_space_of, trial_seconds
 from rmac_mj.experiments.progress import Progress, TrialFeed
 from rmac_mj.experiments.protocol import ExperimentSpec, Protocol, run_experiment
@@ -136,10 +137,9 @@ class _Run:
 
 def run_protocol(protocol: Protocol, out: str | os.PathLike, jobs: int | None = None,
                  resume: bool = False, scheduler: str | None = None, progress: bool = True,
-                 optimal: Callable[[Protocol], float | None] | None = None,
-                 figures: bool = True, log: Callable[[str], None] | None = None,
-                 started: float | None = None, smooth: int = 1,
-                 floor: Callable[[Protocol, str], float | None] | None = None) -> dict[str, Any]:
+                 references: bool = False, figures: bool = True,
+                 log: Callable[[str], None] | None = None, started: float | None = None,
+                 smooth: int = 1) -> dict[str, Any]:
     """Run (or finish, with ``resume``) ``protocol`` into ``out``; return the summary document.
 
     Args:
@@ -147,26 +147,25 @@ def run_protocol(protocol: Protocol, out: str | os.PathLike, jobs: int | None = 
       scheduler: address of a Dask distributed scheduler to run the experiments on instead.
       progress: show progress (bars on a terminal, periodic plain lines otherwise) on stderr: the
         trials done overall and per learner, with each learner's recent mean return.
-      optimal: returns the near-optimal return for the summary and Fig. 2, or None.
+      references: ask the task for its near-optimal reference and each learner's exploration floor
+        (``reference.run_reference``, ``run_exploration_floor``; computed once, a minute or two,
+        then cached) for the summary and Fig. 2 (the command line's default; off here).
       log: called with a one-line message before anything slow that shows no progress (compiling the
         kernels the first time); None says nothing.
       started: ``time.perf_counter()`` when the caller started (default: now); the wall time in the
         summary counts from there, summed over every part of a resumed run.
       smooth: Fig. 2's running mean, in trials (1: none).
-      floor: returns a learner's exploration floor (the near-optimal policy's return under that
-        learner's exploration) for the summary and Fig. 2, or None.
     """
     return run_protocols([(protocol, out)], jobs=jobs, resume=resume, scheduler=scheduler,
-                         progress=progress, optimal=optimal, floor=floor, figures=figures, log=log,
+                         progress=progress, references=references, figures=figures, log=log,
                          started=started, smooth=smooth)[0]
 
 
 def run_protocols(runs: Iterable[tuple[Protocol, str | os.PathLike]], jobs: int | None = None,
                   resume: bool = False, scheduler: str | None = None, progress: bool = True,
-                  optimal: Callable[[Protocol], float | None] | None = None,
-                  floor: Callable[[Protocol, str], float | None] | None = None,
-                  figures: bool = True, log: Callable[[str], None] | None = None,
-                  started: float | None = None, smooth: int = 1) -> list[dict[str, Any]]:
+                  references: bool = False, figures: bool = True,
+                  log: Callable[[str], None] | None = None, started: float | None = None,
+                  smooth: int = 1) -> list[dict[str, Any]]:
     """Run several ``(protocol, out)`` pairs through ONE worker pool (or one Dask cluster).
 
     Each ``out`` becomes exactly what :func:`run_protocol` writes (config.json, curves, snapshots,
@@ -224,28 +223,29 @@ def run_protocols(runs: Iterable[tuple[Protocol, str | os.PathLike]], jobs: int 
                 display.experiment(key, result.returns)
                 run.clock.record(experiments=1)
                 if not run.left:
-                    run.summary = finalise(run.store, run.protocol, optimal=optimal, figures=figures,
-                                           floor=floor, clock=run.clock, smooth=smooth)
+                    run.summary = finalise(run.store, run.protocol, references=references,
+                                           figures=figures, clock=run.clock, smooth=smooth, log=log)
     finally:
         display.close()
     return [run.summary if run.summary is not None else
-            finalise(run.store, run.protocol, optimal=optimal, figures=figures, floor=floor,
-                     clock=run.clock, smooth=smooth)
+            finalise(run.store, run.protocol, references=references, figures=figures,
+                     clock=run.clock, smooth=smooth, log=log)
             for run in state]
 
 
 def finalise(store: ResultStore, protocol: Protocol, wall_time_s: float | None = None,
-             optimal: Callable[[Protocol], float | None] | None = None,
-             figures: bool = True, clock: WallClock | None = None, smooth: int = 1,
-             floor: Callable[[Protocol, str], float | None] | None = None) -> dict[str, Any]:
+             references: bool = False, figures: bool = True, clock: WallClock | None = None,
+             smooth: int = 1, log: Callable[[str], None] | None = None) -> dict[str, Any]:
     """Summarise the finished curves in ``store``: returns.csv, Fig. 2, then summary.json.
 
     The wall time in the summary is ``wall_time_s``, or with ``clock`` the total over every part of
-    the run up to the end of the figures (``wall_time_parts_s`` lists the parts). ``floor`` gives
-    each learner's exploration floor (or None).
+    the run up to the end of the figures (``wall_time_parts_s`` lists the parts). With
+    ``references``, the task's near-optimal reference and each learner's exploration floor are asked
+    for (``log`` hears about a first computation and its progress).
     """
-    optimal_return = optimal(protocol) if optimal is not None else None
-    floors = {a: floor(protocol, a) for a in protocol.algorithms} if floor is not None else {}
+    optimal_return = reference.run_reference(protocol, log) if references else None
+    floors = ({a: reference.run_exploration_floor(protocol, a, log) for a in protocol.algorithms}
+              if references else {})
     shared_floor = set(floors.values())  # one line in Fig. 2 when every learner explores alike
     seconds = trial_seconds(protocol.make_environment())
     summary: dict[str, Any] = {"paper_protocol": protocol.is_paper_protocol,
@@ -253,6 +253,7 @@ def finalise(store: ResultStore, protocol: Protocol, wall_time_s: float | None =
                                "exploration_floor": shared_floor.pop() if len(shared_floor) == 1
                                else None,
                                "trial_seconds": seconds,
+                               "plot_hints": dataclasses.asdict(protocol.knowledge.plot_hints),
                                "protocol": protocol.as_dict()}
     rows = []
     for algorithm in protocol.algorithms:

@@ -17,7 +17,6 @@ import pathlib
 from typing import Any, Callable
 
 from rmac_mj.experiments import files, runner
-from rmac_mj.experiments.protocol import Protocol
 from rmac_mj.experiments.store import ResumeRefused
 from rmac_mj.experiments.sweep_file import Sweep
 
@@ -56,21 +55,20 @@ def _prepare(out: pathlib.Path, sweep: Sweep, resume: bool) -> None:
 
 def run_sweep(sweep: Sweep, out: str | pathlib.Path, jobs: int | None = None,
               scheduler: str | None = None, resume: bool = False, progress: bool = True,
-              optimal: Callable[[Protocol], float | None] | None = None,
-              floor: Callable[[Protocol, str], float | None] | None = None,
-              figures: bool = True, log: Callable[[str], None] | None = None,
+              references: bool = False, figures: bool = True,
+              log: Callable[[str], None] | None = None,
               started: float | None = None) -> list[dict[str, Any]]:
     """Run (or finish, with ``resume``) every configuration of ``sweep`` into ``out``.
 
     Writes ``out/sweep.json`` (the index), one result directory per configuration, ``out/sweep.csv``
-    and, with ``figures``, ``out/sweep_<metric>.png``. Returns the csv's rows. ``log`` and
-    ``started`` mean what they mean for :func:`runner.run_protocol`.
+    and, with ``figures``, ``out/sweep_<metric>.png``. Returns the csv's rows. ``references``,
+    ``log`` and ``started`` mean what they mean for :func:`runner.run_protocol`.
     """
     out = pathlib.Path(out)
     _prepare(out, sweep, resume)
     runs = [(c.protocol, out / c.name) for c in sweep.configurations]
     summaries = runner.run_protocols(runs, jobs=jobs, resume=resume, scheduler=scheduler,
-                                     progress=progress, optimal=optimal, floor=floor, figures=figures,
+                                     progress=progress, references=references, figures=figures,
                                      log=log, started=started)
     rows = sweep_rows(sweep, summaries)
     write_csv(out / "sweep.csv", sweep, rows)

@@ -45,7 +45,7 @@ sequence on the actual model, hence a lower bound on the true optimum. Results a
 
     from rmac_mj import tasks
     from rmac_mj.experiments import trajopt
-    result = trajopt.optimise(tasks.load("two_link_arm", "reach"))
+    result = trajopt.optimise(tasks.load(domain, task))
     print(result.describe())
 """
 
@@ -53,7 +53,6 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-import inspect
 import itertools
 import json
 import os
@@ -537,7 +536,7 @@ def optimise(env: control.Environment, config: TrajoptConfig = TrajoptConfig()) 
 
     Args:
       env: a dm-control environment of this suite whose task has a fixed start (e.g.
-        ``tasks.load("two_link_arm", "reach")``); it is reset and stepped.
+        ``tasks.load(domain, task)``); it is reset and stepped.
       config: the search's settings.
     """
     if not isinstance(config, TrajoptConfig):
@@ -569,55 +568,47 @@ def optimise(env: control.Environment, config: TrajoptConfig = TrajoptConfig()) 
 # The cache
 
 
-def cache_key(env: control.Environment, domain: str, task: str, config: TrajoptConfig,
-              task_kwargs: dict[str, Any] | None = None) -> str:
-    """Hex digest identifying a result: the compiled model, the task's module source, its kwargs, the
-    config (but ``n_threads``) and the solver version.
+def cache_key(env: control.Environment, identity: dict[str, Any], config: TrajoptConfig) -> str:
+    """Hex digest identifying a result: the problem (``reference.problem_digest``: the compiled model,
+    the task's module source, ``identity``), the config (but ``n_threads``) and the solver version."""
+    from rmac_mj.experiments.reference import problem_digest
 
-    The task's module is hashed as a whole, so any change to the task (its reward, start, horizon)
-    computes afresh.
-    """
-    size = mujoco.mj_sizeModel(env.physics.model.ptr)
-    buffer = np.zeros(size, dtype=np.uint8)
-    mujoco.mj_saveModel(env.physics.model.ptr, None, buffer)
-    module = inspect.getmodule(type(env.task))
     fields = dataclasses.asdict(config)
     fields.pop("n_threads")  # changes the speed, never the numbers
-    blob = json.dumps({"domain": domain, "task": task, "task_kwargs": task_kwargs or {},
-                       "model": hashlib.sha256(buffer.tobytes()).hexdigest(),
-                       "task_source": hashlib.sha256(inspect.getsource(module).encode()).hexdigest(),
-                       "config": fields, "solver_version": SOLVER_VERSION}, sort_keys=True, default=repr)
+    blob = json.dumps({"problem": problem_digest(env, identity), "config": fields,
+                       "solver_version": SOLVER_VERSION}, sort_keys=True, default=repr)
     return hashlib.sha256(blob.encode()).hexdigest()[:20]
 
 
-def cached_optimise(domain: str, task: str, config: TrajoptConfig = TrajoptConfig(),
-                    cache_dir: str | os.PathLike | None = None, refresh: bool = False,
-                    announce=None) -> TrajoptResult:
-    """``optimise`` of ``domain``/``task`` with default task_kwargs, from the cache if there.
+def cached_optimise(env: control.Environment, identity: dict[str, Any],
+                    config: TrajoptConfig = TrajoptConfig(), cache_dir: str | os.PathLike | None = None,
+                    refresh: bool = False, announce=None) -> TrajoptResult:
+    """``optimise`` of ``env``, from the cache if there.
 
     Args:
-      domain, task: as for ``rmac_mj.tasks.load``.
+      env: the task's environment (it is reset and stepped).
+      identity: what names the problem (``reference.problem_identity``: domain, task, task_kwargs).
       config: the search's settings.
       cache_dir: directory of ``trajopt-<key>.json`` files; default ``optimal.default_cache_dir()``.
       refresh: solve again even if cached (and overwrite the entry).
       announce: called with a one-line message before a solve (not for a cache hit), e.g. ``print``.
     """
-    from rmac_mj import tasks
     from rmac_mj.experiments import files, optimal
 
     if not isinstance(config, TrajoptConfig):
         raise TypeError(f"cached_optimise: config must be a TrajoptConfig, got {type(config).__name__}")
-    env = tasks.load(domain, task)
     directory = pathlib.Path(cache_dir).expanduser() if cache_dir is not None else optimal.default_cache_dir()
-    path = directory / f"trajopt-{cache_key(env, domain, task, config)}.json"
+    path = directory / f"trajopt-{cache_key(env, identity, config)}.json"
+    name = f"{identity.get('domain')}/{identity.get('task')}"
 
     def compute() -> TrajoptResult:
         result = optimise(env, config)
-        return dataclasses.replace(result, problem={"domain": domain, "task": task, **result.problem})
+        return dataclasses.replace(result, problem={"domain": identity.get("domain"),
+                                                    "task": identity.get("task"), **result.problem})
     return files.cached_json(
         path, lambda document: TrajoptResult.from_json_dict(document, from_cache=True), compute,
         refresh=refresh, announce=announce,
-        message=(f"computing the near-optimal reference of {domain}/{task} by trajectory optimisation "
+        message=(f"computing the near-optimal reference of {name} by trajectory optimisation "
                  f"(iLQR, under a minute on 2 cores), cached in {directory}"))
 
 

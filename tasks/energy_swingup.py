@@ -1,17 +1,14 @@
-"""Scripted demonstrators: controllers whose closed loop is recorded as prior knowledge.
+"""The DC-motor pendulum's demonstrator: an energy-pumping swing-up with an LQR balancer.
 
-Task-specific by design (the learners are not): each entry of :data:`DEMONSTRATORS` is keyed by
-(domain, task) and names the demonstrators available for it. ``rmac-mj reproduce --prior NAME``
-records ``--prior-trials`` trials of demonstrator NAME for each experiment and seeds its learners.
-
-For ``dc_pendulum``: :class:`EnergySwingUp`, the textbook swing-up of an underactuated pendulum
-(Astrom and Furuta, "Swinging up a pendulum by energy control", Automatica 36, 2000): pump energy
-with the largest allowed voltage in the direction of motion until the pendulum has the energy of
-the upright rest state, coast, and hand over to a linear balance controller near upright. It is
-tuned on the model, not on the learners' reward: the energy uses the model's mass, centre of mass and
-inertia, and the balance gains are the discrete LQR of the model linearised about upright. It is
-deliberately not optimal: it pumps at full voltage until the energy suffices instead of planning
-the swing, so it needs one more swing than the near-optimal policy (docs/prior-knowledge.md).
+:class:`EnergySwingUp` is the textbook swing-up of an underactuated pendulum (Astrom and Furuta,
+"Swinging up a pendulum by energy control", Automatica 36, 2000): pump energy with the largest allowed
+voltage in the direction of motion until the pendulum has the energy of the upright rest state, coast,
+and hand over to a linear balance controller near upright. It is tuned on the model, not on the
+learners' reward: the energy uses the model's mass, centre of mass and inertia, and the balance gains
+are the discrete LQR of the model linearised about upright. It is deliberately not optimal: it pumps
+at full voltage until the energy suffices instead of planning the swing, so it needs one more swing
+than the near-optimal policy (docs/prior-knowledge.md). ``dc_pendulum`` declares two of them as its
+tasks' demonstrators ('demo' and a poorer 'poor-demo'), recorded by ``rmac-mj reproduce --prior NAME``.
 """
 
 from __future__ import annotations
@@ -24,7 +21,7 @@ import numpy as np
 import scipy.linalg
 from dm_control.rl import control
 
-from rmac_mj.tasks import dc_pendulum
+from rmac_mj.tasks import common
 
 
 @dataclasses.dataclass(frozen=True)
@@ -68,7 +65,7 @@ class EnergySwingUp:
         pump, capture = float(self.pump_voltage), float(self.capture_angle)
 
         def control_law(x: np.ndarray) -> np.ndarray:
-            phi, phi_dot = float(dc_pendulum.wrap_angle(x[0])), float(x[1])
+            phi, phi_dot = float(common.wrap_angle(x[0])), float(x[1])
             if abs(phi) < capture:
                 u = -(gains[0] * phi + gains[1] * phi_dot)
             else:
@@ -91,10 +88,11 @@ def _hinge_inertia(physics) -> float:
 
 
 def lqr_gains(env: control.Environment, epsilon: float = 1e-5) -> np.ndarray:
-    """Discrete LQR gains K (shape (2,), u = -K x) of ``dc_pendulum`` about upright at rest.
+    """Discrete LQR gains K (shape (2,), u = -K x) of the pendulum about upright at rest.
 
     The model is linearised by central differences of one control step of the environment's own
-    physics (a copy; ``env`` is not touched), with the task's default Q = diag(5, 0.1) and P = 1.
+    physics (a copy; ``env`` is not touched), with the task's own weights Q and P (``state_weights``,
+    ``action_weight``; Table 1's diag(5, 0.1) and 1 by default).
     """
     physics = env.physics.copy(share_model=True)
     n_sub_steps = int(round(env.control_timestep() / physics.timestep()))
@@ -113,30 +111,7 @@ def lqr_gains(env: control.Environment, epsilon: float = 1e-5) -> np.ndarray:
         e[i] = epsilon
         A[:, i] = (step(e, 0.0) - step(-e, 0.0)) / (2 * epsilon)
     B = ((step(np.zeros(2), epsilon) - step(np.zeros(2), -epsilon)) / (2 * epsilon))[:, None]
-    Q = np.diag(dc_pendulum.STATE_WEIGHTS)
-    R = np.array([[dc_pendulum.ACTION_WEIGHT]])
+    Q = np.asarray(env.task.state_weights, dtype=float)
+    R = np.array([[env.task.action_weight]])
     S = scipy.linalg.solve_discrete_are(A, B, Q, R)
     return np.linalg.solve(R + B.T @ S @ B, B.T @ S @ A).reshape(2)
-
-
-#: (domain, task) -> {demonstrator name: demonstrator}. 'demo' is the one ``--prior demo`` records;
-#: 'poor-demo' pumps with half the voltage and balances with half the LQR gains (still swings up).
-DEMONSTRATORS: dict[tuple[str, str], dict[str, EnergySwingUp]] = {
-    ("dc_pendulum", task): {"demo": EnergySwingUp(),
-                            "poor-demo": EnergySwingUp(pump_voltage=1.5, balance_scale=0.5)}
-    for task in ("swingup", "balance")
-}
-
-
-def names(domain: str, task: str) -> tuple[str, ...]:
-    """The demonstrators available for ``domain``/``task`` (possibly none)."""
-    return tuple(DEMONSTRATORS.get((domain, task), {}))
-
-
-def get(domain: str, task: str, name: str = "demo") -> EnergySwingUp:
-    """Demonstrator ``name`` of ``domain``/``task``; ValueError listing the available ones."""
-    available = DEMONSTRATORS.get((domain, task), {})
-    if name not in available:
-        raise ValueError(f"no demonstrator {name!r} for {domain}/{task}; available: "
-                         f"{', '.join(available) or 'none'} (or give recorded data, FILE.npz)")
-    return available[name]
