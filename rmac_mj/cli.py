@@ -504,7 +504,7 @@ def _policy(args) -> int:
 
 
 def _optimal(args) -> int:
-    from rmac_mj.agents.base import Exploration
+    from rmac_mj.agents import Exploration
     from rmac_mj.experiments import reference
 
     with _user_input():

@@ -54,8 +54,7 @@ import sys
 import numpy as np
 from scipy import stats
 
-from rmac_mj.agents import make_agent
-from rmac_mj.agents.base import ActionSpace, StateSpace
+from rmac_mj.agents import ActionSpace, StateSpace, make_agent
 from rmac_mj.experiments import episode
 from rmac_mj.experiments.metrics import confidence_interval
 from rmac_mj.experiments.snapshots import load_snapshot

@@ -6,8 +6,7 @@ import numpy as np
 import pytest
 from learners import quick_config
 
-from rmac_mj.agents import ALGORITHMS, config_class, make_agent
-from rmac_mj.agents.base import ActionSpace, Exploration, StateSpace
+from rmac_mj.agents import ALGORITHMS, ActionSpace, Exploration, StateSpace, config_class, make_agent
 
 STATES = StateSpace(low=[-np.pi, -25.0], high=[np.pi, 25.0], periodic=[True, False])
 ACTIONS = ActionSpace(low=[-3.0], high=[3.0], cost=[1.0])

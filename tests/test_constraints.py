@@ -7,8 +7,7 @@ import pathlib
 import pytest
 
 from rmac_mj import constraints
-from rmac_mj.agents import config_from_dict
-from rmac_mj.agents.base import Exploration
+from rmac_mj.agents import Exploration, config_from_dict
 from rmac_mj.agents.mlac import MLACConfig
 from rmac_mj.agents.rmac import RMACConfig
 from rmac_mj.agents.sac import SACConfig

@@ -8,7 +8,7 @@ import pytest
 
 import plain_pendulum
 
-from rmac_mj.agents.base import ActionSpace, Exploration, StateSpace, model_uncertainty
+from rmac_mj.agents import ActionSpace, Exploration, StateSpace, model_uncertainty
 from rmac_mj.agents.mlac import MLAC, MLACConfig
 from rmac_mj.agents.rmac import RMAC, RMACConfig
 from rmac_mj.agents.sac import SAC, SACConfig

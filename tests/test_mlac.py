@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from rmac_mj.agents.base import ActionSpace, Exploration, StateSpace
+from rmac_mj.agents import ActionSpace, Exploration, StateSpace
 from rmac_mj.agents.mlac import MLAC, MLACConfig
 
 BACKENDS = ("numba", "numpy")

@@ -122,7 +122,7 @@ class _MapAgent:
     """A stand-in with a given value function: V(x) = scale * cos(phi), u = clip(phi)."""
 
     def __init__(self, scale):
-        from rmac_mj.agents.base import ActionSpace
+        from rmac_mj.agents import ActionSpace
 
         self.scale = scale
         self.action_space = ActionSpace(low=[-3.0], high=[3.0])

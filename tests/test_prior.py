@@ -5,8 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from rmac_mj.agents import make_agent
-from rmac_mj.agents.base import discounted_returns
+from rmac_mj.agents import discounted_returns, make_agent
 from rmac_mj.agents.rmac import RMACConfig
 from rmac_mj.errors import MissingInputError, UserInputError
 from rmac_mj import tasks

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from rmac_mj import _gl, tasks
-from rmac_mj.agents.base import ActionSpace, PolicyAgent, StateSpace
+from rmac_mj.agents import ActionSpace, PolicyAgent, StateSpace
 from rmac_mj.experiments import render, result_videos, video
 from rmac_mj.experiments.episode import run_trial
 

@@ -7,7 +7,7 @@ import pytest
 
 import plain_pendulum
 
-from rmac_mj.agents.base import ActionSpace, Exploration, StateSpace
+from rmac_mj.agents import ActionSpace, Exploration, StateSpace
 from rmac_mj.agents.rmac import EXACT_TOLERANCE, RMAC, RMACConfig
 
 BACKENDS = ("numba", "numpy")

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from rmac_mj.agents.base import ActionSpace, Exploration, StateSpace
+from rmac_mj.agents import ActionSpace, Exploration, StateSpace
 from rmac_mj.agents.sac import SAC, SACConfig
 from rmac_mj.approximators.tile_coding import TileCodingConfig
 

@@ -17,7 +17,7 @@ import numpy as np
 
 from rmac_mj import tasks
 from rmac_mj.agents import rmac as rmac_module
-from rmac_mj.agents.base import Exploration, model_uncertainty
+from rmac_mj.agents import Exploration, model_uncertainty
 from rmac_mj.agents.rmac import RMAC, RMACConfig
 from rmac_mj.experiments.episode import action_space_of, run_trial, state_space_of
 from rmac_mj.experiments.protocol import experiment_seeds

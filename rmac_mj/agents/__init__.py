@@ -1,5 +1,17 @@
 """The learners: RMAC (Algorithm 2), the S-AC baseline (Algorithm 1) and MLAC (Grondman et al.,
-2012), behind one interface."""
+2012), behind one interface, and the registry that builds them by name.
+
+A learner is a module holding its config dataclass and its :class:`Agent` subclass; adding one is one
+line in ``_REGISTRY`` (key -> module, agent class, config class). The modules by concern:
+
+* ``base``: the Agent interface (the checked boundary, state dicts, task knowledge in configs);
+* ``spaces``: StateSpace and ActionSpace, what a learner sees of a task;
+* ``exploration``: the Exploration schedule (section 6.1);
+* ``prior_knowledge``: recorded transitions into memories (section 7);
+* ``random_state``: a generator's state as numbers, for snapshots;
+* ``scripted``: PolicyAgent, a fixed policy behind the same interface;
+* ``rmac``, ``sac``, ``mlac``: the learners.
+"""
 
 from __future__ import annotations
 
@@ -9,7 +21,13 @@ from typing import Any
 import numpy as np
 
 from rmac_mj import constraints
-from rmac_mj.agents.base import ActionSpace, Agent, Exploration, StateSpace
+from rmac_mj.agents.base import Agent
+from rmac_mj.agents.exploration import Exploration, model_uncertainty
+from rmac_mj.agents.prior_knowledge import (PRIOR_PARTS, check_transitions, discounted_returns,
+                                            seed_memory)
+from rmac_mj.agents.random_state import generator_state_array, set_generator_state
+from rmac_mj.agents.scripted import PolicyAgent
+from rmac_mj.agents.spaces import ActionSpace, StateSpace
 
 #: Algorithm key -> (module, agent class, config class). Imported lazily: numba kernels compile on use.
 _REGISTRY = {
@@ -92,5 +110,7 @@ def make_agent(name: str, state_space: StateSpace, action_space: ActionSpace,
     return agent_cls(state_space, action_space, config=config, seed=seed)
 
 
-__all__ = ["ALGORITHMS", "ActionSpace", "Agent", "Exploration", "StateSpace", "agent_class",
-           "config_class", "config_from_dict", "display_name", "make_agent"]
+__all__ = ["ALGORITHMS", "PRIOR_PARTS", "ActionSpace", "Agent", "Exploration", "PolicyAgent",
+           "StateSpace", "agent_class", "check_transitions", "config_class", "config_from_dict",
+           "discounted_returns", "display_name", "generator_state_array", "make_agent",
+           "model_uncertainty", "seed_memory", "set_generator_state"]

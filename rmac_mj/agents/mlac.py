@@ -46,8 +46,10 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from rmac_mj.agents.base import (ActionSpace, Agent, Exploration, StateSpace,
-                                 discounted_returns, model_uncertainty, seed_memory)
+from rmac_mj.agents.base import Agent
+from rmac_mj.agents.exploration import Exploration, model_uncertainty
+from rmac_mj.agents.prior_knowledge import discounted_returns, seed_memory
+from rmac_mj.agents.spaces import ActionSpace, StateSpace
 from rmac_mj.approximators.llr import SHARED_CONSTRAINTS, LLRMemory, memory_constraints, wrap
 from rmac_mj.constraints import WEIGHTS, InstanceOf, Interval, Options, check_config
 

@@ -41,7 +41,9 @@ from typing import ClassVar, Literal
 import numba
 import numpy as np
 
-from rmac_mj.agents.base import ActionSpace, Agent, Exploration, StateSpace
+from rmac_mj.agents.base import Agent
+from rmac_mj.agents.exploration import Exploration
+from rmac_mj.agents.spaces import ActionSpace, StateSpace
 from rmac_mj.approximators.tile_coding import Backend, TileCoder, TileCodingConfig
 from rmac_mj.constraints import InstanceOf, Interval, Options, TupleOf, check_config, invalid
 

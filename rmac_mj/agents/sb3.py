@@ -41,8 +41,9 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from rmac_mj.agents.base import (ActionSpace, Agent, StateSpace, generator_state_array,
-                                 set_generator_state)
+from rmac_mj.agents.base import Agent
+from rmac_mj.agents.random_state import generator_state_array, set_generator_state
+from rmac_mj.agents.spaces import ActionSpace, StateSpace
 from rmac_mj.constraints import Boolean, Interval, Options, TupleOf, check_config
 
 #: The algorithm keys of the baselines.

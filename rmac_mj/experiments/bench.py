@@ -37,8 +37,7 @@ import mujoco
 import numpy as np
 
 from rmac_mj import tasks
-from rmac_mj.agents import make_agent
-from rmac_mj.agents.base import PolicyAgent
+from rmac_mj.agents import PolicyAgent, make_agent
 from rmac_mj.approximators.llr import LLRMemory
 from rmac_mj.experiments.episode import (action_space_of, learner_state_of, n_sub_steps, run_trial,
                                          state_of, state_space_of, steps_per_trial)

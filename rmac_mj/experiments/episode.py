@@ -15,7 +15,7 @@ from typing import Callable, Sequence
 import numpy as np
 from dm_control.rl import control
 
-from rmac_mj.agents.base import ActionSpace, Agent, StateSpace
+from rmac_mj.agents import ActionSpace, Agent, StateSpace
 from rmac_mj.tasks.common import LearnerState
 
 

@@ -2,7 +2,7 @@
 
 The paper's conclusion says RMAC's memories may start from measurements instead of empty: process
 samples, closed-loop behaviour for the reference model, value estimates for the critic. A
-:class:`Demonstration` is such a recording, and ``Agent.seed_from`` (``rmac_mj.agents.base``) puts it
+:class:`Demonstration` is such a recording, and ``Agent.seed_from`` (``rmac_mj.agents``) puts it
 into a learner::
 
     from rmac_mj import tasks
@@ -42,7 +42,7 @@ from typing import Any, Callable
 import numpy as np
 from dm_control.rl import control
 
-from rmac_mj.agents.base import ActionSpace, StateSpace, check_transitions
+from rmac_mj.agents import ActionSpace, StateSpace, check_transitions
 from rmac_mj.errors import MissingInputError, UserInputError
 from rmac_mj.experiments import files
 from rmac_mj.experiments.episode import action_space_of, learner_state_of, state_of

@@ -30,8 +30,8 @@ import numpy as np
 from dm_control.rl import control
 
 from rmac_mj import constraints, tasks
-from rmac_mj.agents import ALGORITHMS, Agent, agent_class, config_class, config_from_dict, make_agent
-from rmac_mj.agents.base import PRIOR_PARTS, ActionSpace, StateSpace
+from rmac_mj.agents import (ALGORITHMS, PRIOR_PARTS, ActionSpace, Agent, StateSpace, agent_class,
+                            config_class, config_from_dict, make_agent)
 from rmac_mj.experiments import files, prior as prior_data
 from rmac_mj.experiments.episode import action_space_of, run_trial, state_space_of
 from rmac_mj.experiments.snapshots import snapshot_arrays

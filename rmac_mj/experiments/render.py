@@ -27,7 +27,7 @@ from dm_control.rl import control
 from PIL import Image
 
 from rmac_mj._gl import open_renderer
-from rmac_mj.agents.base import Agent
+from rmac_mj.agents import Agent
 from rmac_mj.experiments import video
 from rmac_mj.experiments.episode import learner_state_of, n_sub_steps, state_of
 

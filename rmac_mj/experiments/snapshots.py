@@ -16,9 +16,8 @@ from typing import Any
 import numpy as np
 from dm_control.rl import control
 
-from rmac_mj.agents import Agent, config_class, config_from_dict, make_agent
+from rmac_mj.agents import ActionSpace, Agent, StateSpace, config_class, config_from_dict, make_agent
 from rmac_mj.errors import MissingInputError, UserInputError
-from rmac_mj.agents.base import ActionSpace, StateSpace
 from rmac_mj.experiments.files import write_npz
 
 _PREFIX = "agent/"

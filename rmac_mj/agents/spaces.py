@@ -1,0 +1,109 @@
+"""The spaces a learner sees: a flat state box (:class:`StateSpace`) and a bounded action
+(:class:`ActionSpace`), with the task's default input weightings and its action cost. Agents know
+no particular task; everything they know of one comes through these two."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from rmac_mj.approximators.llr import wrap
+
+
+def _weights(owner: str, weights, n: int, name: str = "weights") -> np.ndarray:
+    """``weights`` as a float vector of shape (n,), ones for None; ValueError unless finite and >= 0."""
+    if weights is None:
+        return np.ones(n)
+    w = np.asarray(weights, dtype=float).reshape(-1)
+    if w.shape != (n,) or not np.all(np.isfinite(w) & (w >= 0)):
+        raise ValueError(f"{owner}: {name} must be {n} finite numbers >= 0 (one per dimension), "
+                         f"got {weights!r}")
+    return w
+
+
+@dataclasses.dataclass(frozen=True)
+class StateSpace:
+    """The box a flat state lives in, and how its dimensions compare.
+
+    Attributes:
+      low, high: ndarray of shape (n,), the nominal range of each state dimension (for a periodic
+        dimension, one period: ``high - low`` is the period).
+      periodic: ndarray of bool of shape (n,), True where a dimension wraps around (an angle).
+      input_weights: ndarray of shape (n,), the task's default weighting of each dimension in a
+        learner's input distances (RMAC's LLR memories; dc_pendulum: Table 2's (1, 0.1)). None: ones.
+    """
+
+    low: np.ndarray
+    high: np.ndarray
+    periodic: np.ndarray
+    input_weights: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        low = np.asarray(self.low, dtype=float).reshape(-1)
+        high = np.asarray(self.high, dtype=float).reshape(-1)
+        periodic = np.asarray(self.periodic, dtype=bool).reshape(-1)
+        if not (low.shape == high.shape == periodic.shape):
+            raise ValueError(
+                f"StateSpace: low, high and periodic must have one shape, got {low.shape}, "
+                f"{high.shape} and {periodic.shape}")
+        if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high)) and np.all(high > low)):
+            raise ValueError(f"StateSpace: need finite low < high, got low={low}, high={high}")
+        object.__setattr__(self, "low", low)
+        object.__setattr__(self, "high", high)
+        object.__setattr__(self, "periodic", periodic)
+        object.__setattr__(self, "input_weights",
+                           _weights("StateSpace", self.input_weights, low.shape[0], "input_weights"))
+
+    @property
+    def dim(self) -> int:
+        return int(self.low.shape[0])
+
+    @property
+    def period(self) -> np.ndarray:
+        """ndarray of shape (n,): the period of each periodic dimension, 0 for the others."""
+        return np.where(self.periodic, self.high - self.low, 0.0)
+
+    def canonical(self, x: np.ndarray) -> np.ndarray:
+        """x (shape (..., n)) with each periodic entry wrapped to [-period/2, period/2): the form in
+        which every learner stores and compares states (as ``LLRMemory`` wraps its inputs)."""
+        if not self.periodic.any():
+            return np.asarray(x, dtype=float)
+        return wrap(x, self.period)
+
+
+@dataclasses.dataclass(frozen=True)
+class ActionSpace:
+    """A bounded continuous action: ndarrays ``low`` and ``high`` of shape (m,).
+
+    ``input_weights`` (shape (m,)) is the task's default weighting of each action dimension in a
+    learner's input distances (RMAC's process model; dc_pendulum: Table 2's 1). None: ones.
+
+    ``cost`` (shape (m,)) is what the task's reward charges for an action, r containing
+    -sum_i cost_i u_i^2 (dc_pendulum: P = 1; two_link_arm: 0): the reward knowledge a learner may
+    use. None: the task does not say.
+    """
+
+    low: np.ndarray
+    high: np.ndarray
+    input_weights: np.ndarray | None = None
+    cost: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        low = np.asarray(self.low, dtype=float).reshape(-1)
+        high = np.asarray(self.high, dtype=float).reshape(-1)
+        if low.shape != high.shape or not np.all(np.isfinite(low) & np.isfinite(high) & (high > low)):
+            raise ValueError(f"ActionSpace: need finite low < high of one shape, got {low}, {high}")
+        object.__setattr__(self, "low", low)
+        object.__setattr__(self, "high", high)
+        object.__setattr__(self, "input_weights",
+                           _weights("ActionSpace", self.input_weights, low.shape[0], "input_weights"))
+        if self.cost is not None:
+            object.__setattr__(self, "cost", _weights("ActionSpace", self.cost, low.shape[0], "cost"))
+
+    @property
+    def dim(self) -> int:
+        return int(self.low.shape[0])
+
+    def clip(self, u: np.ndarray) -> np.ndarray:
+        return np.minimum(np.maximum(u, self.low), self.high)
