@@ -1,14 +1,44 @@
-"""The command line: bad arguments give one clear line and a non-zero exit, not a traceback."""
+"""The command line: bad arguments give one clear line and a non-zero exit, not a traceback.
 
+The commands run in this process (``rmac_mj.cli.main``), as a user's shell runs them but without
+paying a Python start-up each; ``python -m`` itself is tested once.
+"""
+
+import contextlib
+import dataclasses
+import io
+import json
+import os
 import subprocess
 import sys
 
 import pytest
 
+from rmac_mj.cli import main
 
-def rmac_mj(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "rmac_mj.cli", *args], capture_output=True,
-                          text=True, timeout=120, cwd=cwd)
+
+@dataclasses.dataclass
+class Result:
+    returncode: int
+    stdout: str
+    stderr: str
+
+
+def rmac_mj(*args, cwd=None) -> Result:
+    """``rmac-mj ARGS`` in this process (in ``cwd``): its exit status and what it printed."""
+    out, err = io.StringIO(), io.StringIO()
+    here = os.getcwd()
+    try:
+        if cwd is not None:
+            os.chdir(cwd)
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            try:
+                code = main(list(args))
+            except SystemExit as exit:  # argparse's own errors, --help, --version
+                code = exit.code
+    finally:
+        os.chdir(here)
+    return Result(code, out.getvalue(), err.getvalue())
 
 
 @pytest.mark.parametrize("args, message", [
@@ -51,7 +81,8 @@ def test_reproduce_and_compare_and_policy(tmp_path):
 
 
 def test_set_overrides_parse_into_nested_agent_configs():
-    from rmac_mj.cli import UsageError, parse_overrides
+    from rmac_mj.cli.common import UsageError
+    from rmac_mj.cli.runs import parse_overrides
 
     assert parse_overrides(["rmac.exploration.sigma=0.5", "s-ac.rate_split=actor",
                             "s-ac.tile_high=[null, 60]"]) == {
@@ -68,20 +99,15 @@ def test_unknown_hyperparameter_is_one_line(tmp_path):
     assert result.returncode == 2 and "SACConfig has no parameter 'bogus'" in result.stderr
 
 
-def test_a_bug_keeps_its_traceback(tmp_path):
+def test_a_bug_keeps_its_traceback(tmp_path, monkeypatch):
     """Only bad user input is shortened to one line; a ValueError from inside the code is a bug."""
-    script = (
-        "import sys\n"
-        "from rmac_mj.experiments import runner\n"
-        "def broken(*args, **kwargs):\n"
-        "    raise ValueError('deep inside a learner')\n"
-        "runner.run_protocol = broken\n"
-        "from rmac_mj.cli import main\n"
-        f"sys.exit(main(['reproduce', '--out', {str(tmp_path / 'x')!r}, '--no-progress']))\n")
-    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                            timeout=120)
-    assert result.returncode == 1
-    assert "Traceback" in result.stderr and "deep inside a learner" in result.stderr
+    from rmac_mj.experiments import runner
+
+    def broken(*args, **kwargs):
+        raise ValueError("deep inside a learner")
+    monkeypatch.setattr(runner, "run_protocol", broken)
+    with pytest.raises(ValueError, match="deep inside a learner"):  # not caught, not shortened
+        main(["reproduce", "--out", str(tmp_path / "x"), "--no-progress"])
 
 
 def test_bad_hyperparameter_value_is_one_line(tmp_path):
@@ -94,7 +120,8 @@ def test_bad_hyperparameter_value_is_one_line(tmp_path):
 def test_version_and_python_dash_m():
     from rmac_mj import __version__
 
-    result = rmac_mj("--version")
+    result = subprocess.run([sys.executable, "-m", "rmac_mj.cli", "--version"], capture_output=True,
+                            text=True, timeout=120)
     assert result.returncode == 0 and result.stdout.strip() == f"rmac-mj {__version__}"
     result = subprocess.run([sys.executable, "-m", "rmac_mj", "--help"], capture_output=True, text=True,
                             timeout=120)
@@ -112,9 +139,9 @@ def test_no_arguments_prints_the_usage_and_the_commands():
 def test_every_option_has_help_and_the_help_shows_defaults():
     import argparse
 
-    from rmac_mj.cli import _parser
+    from rmac_mj.cli.options import build_parser
 
-    parser = _parser()
+    parser = build_parser()
     subparsers = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     for name, command in subparsers.choices.items():
         for action in command._actions:
@@ -129,12 +156,12 @@ def test_every_option_has_help_and_the_help_shows_defaults():
 def test_set_without_algorithms_runs_only_the_learners_it_names(capsys):
     import argparse
 
-    from rmac_mj.cli import _algorithms
+    from rmac_mj.cli.runs import algorithms_to_run
 
-    assert _algorithms(argparse.Namespace(algorithms=None), {"rmac": {"gamma": 0.9}}) == ("rmac",)
+    assert algorithms_to_run(argparse.Namespace(algorithms=None), {"rmac": {"gamma": 0.9}}) == ("rmac",)
     assert "running it alone" in capsys.readouterr().err
-    assert _algorithms(argparse.Namespace(algorithms="rmac,s-ac"), {"rmac": {}}) == ("rmac", "s-ac")
-    assert _algorithms(argparse.Namespace(algorithms=None), {}) == ("rmac", "s-ac")
+    assert algorithms_to_run(argparse.Namespace(algorithms="rmac,s-ac"), {"rmac": {}}) == ("rmac", "s-ac")
+    assert algorithms_to_run(argparse.Namespace(algorithms=None), {}) == ("rmac", "s-ac")
 
 
 def _fake_run(directory, seed, agent_configs=None):
@@ -166,22 +193,57 @@ def test_compare_shows_same_named_directories_apart(tmp_path):
 def test_shortest_distinct_suffixes():
     import pathlib
 
-    from rmac_mj.cli import shortest_distinct_suffixes
+    from rmac_mj.cli.views import shortest_distinct_suffixes
 
     assert shortest_distinct_suffixes([pathlib.Path("/r/a/run"), pathlib.Path("/r/b/run")]) == ["a/run", "b/run"]
     assert shortest_distinct_suffixes([pathlib.Path("/r/ten"), pathlib.Path("/s/oldest")]) == ["ten", "oldest"]
     assert shortest_distinct_suffixes([pathlib.Path("/x/run"), pathlib.Path("/y/x/run")]) == ["/x/run", "y/x/run"]
 
 
-def test_an_interrupt_before_any_result_says_nothing_is_saved(tmp_path):
-    script = (
-        "import sys\n"
-        "from rmac_mj.experiments import runner\n"
-        "def interrupted(*args, **kwargs):\n"
-        "    raise KeyboardInterrupt\n"
-        "runner.run_protocol = interrupted\n"
-        "from rmac_mj.cli import main\n"
-        f"sys.exit(main(['reproduce', '--out', {str(tmp_path / 'x')!r}, '--no-progress']))\n")
-    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+def test_an_interrupt_before_any_result_says_nothing_is_saved(tmp_path, monkeypatch):
+    from rmac_mj.experiments import runner
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(runner, "run_protocol", interrupted)
+    result = rmac_mj("reproduce", "--out", str(tmp_path / "x"), "--no-progress")
     assert result.returncode == 130
     assert "nothing is saved" in result.stderr and "are saved" not in result.stderr
+
+
+def test_a_resume_takes_its_settings_from_the_directory(tmp_path, capsys):
+    out = tmp_path / "run"
+    args = ["reproduce", "--algorithms", "s-ac", "--experiments", "2", "--trials", "3", "--seed", "5",
+            "--evaluate-every", "3", "--set", "s-ac.alpha_a=0.02", "--jobs", "1", "--no-optimal",
+            "--no-progress", "--out", str(out)]
+    assert main(args) == 0
+    whole = json.loads((out / "summary.json").read_text())
+    (out / "curves" / "s-ac" / "exp_001.npz").unlink()  # as if interrupted before the last one
+    (out / "summary.json").unlink()
+    assert main(["reproduce", "--resume", "--out", str(out), "--no-optimal", "--no-progress"]) == 0
+    resumed = json.loads((out / "summary.json").read_text())
+    assert resumed["protocol"] == whole["protocol"]
+    assert resumed["s-ac"]["mean_return_per_trial"] == whole["s-ac"]["mean_return_per_trial"]
+    capsys.readouterr()
+    # Options given explicitly must agree with the directory's; what differs is named.
+    assert main(["reproduce", "--resume", "--out", str(out), "--trials", "4", "--no-optimal"]) == 2
+    error = capsys.readouterr().err
+    assert "trials: 3 in the directory, 4 now" in error and len(error.strip().splitlines()) == 1
+    assert main(["reproduce", "--resume", "--out", str(out), "--set", "s-ac.alpha_a=0.05"]) == 2
+    assert "agent_configs.s-ac.alpha_a: 0.02 in the directory, 0.05 now" in capsys.readouterr().err
+
+
+def test_running_a_finished_run_again_prints_its_summary(tmp_path, capsys):
+    out = tmp_path / "run"
+    args = ["reproduce", "--algorithms", "s-ac", "--experiments", "2", "--trials", "3", "--jobs", "1",
+            "--no-optimal", "--no-progress", "--out", str(out)]
+    assert main(args) == 0
+    first = capsys.readouterr().out
+    stamp = (out / "summary.json").stat().st_mtime_ns
+    assert main(args) == 0
+    captured = capsys.readouterr()
+    assert "already holds this run, finished" in captured.err
+    assert first.split("wall time")[0].strip() in captured.out  # the same table
+    assert (out / "summary.json").stat().st_mtime_ns == stamp  # nothing was run or rewritten
+    assert main([*args[:-1], str(out), "--seed", "1"]) == 2  # another run: refused, naming it
+    assert "seed: 0 in the directory, 1 now" in capsys.readouterr().err

@@ -70,7 +70,7 @@ def test_errors_exactly_when_dm_controls_step_does(counts):
         env = tasks.load("dc_pendulum", "swingup")
         env.reset()
         physics = env.physics
-        physics._warnings[:] = counts[:len(physics._warnings)]
+        physics.data.warning.number[:] = counts[:len(physics.data.warning.number)]
         physics.set_state_vector(0.0, np.nan)
         try:
             physics.step(3) if step == "fast" else engine.Physics.step(physics, 3)

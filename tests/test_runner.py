@@ -73,7 +73,10 @@ def test_serial_and_parallel_runs_are_identical(tmp_path):
 
 def test_resume_with_a_changed_config_is_refused(tmp_path):
     runner.run_protocol(Protocol(**TINY), tmp_path, jobs=1, progress=False, figures=False)
-    with pytest.raises(ResumeRefused, match="already holds a run"):
+    with pytest.raises(ResumeRefused, match="already holds this run, finished"):
+        runner.run_protocol(Protocol(**TINY), tmp_path, jobs=1, progress=False)
+    ResultStore(tmp_path).curve_path("s-ac", 1).unlink()
+    with pytest.raises(ResumeRefused, match="already holds this run, unfinished; pass --resume"):
         runner.run_protocol(Protocol(**TINY), tmp_path, jobs=1, progress=False)
     changed = Protocol(**{**TINY, "trials": 5})
     with pytest.raises(ResumeRefused, match="different config") as refusal:
@@ -181,10 +184,12 @@ def test_ctrl_c_stops_workers_and_says_how_to_resume(tmp_path):
     os.killpg(process.pid, signal.SIGINT)  # Ctrl-C reaches the driver and its workers
     _, stderr = process.communicate(timeout=60)
     assert process.returncode == 130
-    assert "run again with --resume" in stderr and "Traceback" not in stderr
+    assert f"finish it with: rmac-mj reproduce --resume --out {out}" in stderr and "Traceback" not in stderr
     curves = out / "curves" / "s-ac"
     assert len(list(curves.glob("exp_*.npz"))) == 1
-    resumed = subprocess.run([sys.executable, "-m", "rmac_mj.cli", *args, "--resume"],
+    # The command it prints finishes the run: the settings come from the directory.
+    resumed = subprocess.run([sys.executable, "-m", "rmac_mj.cli", "reproduce", "--resume", "--out",
+                              str(out), "--no-optimal", "--no-progress"],
                              capture_output=True, text=True, timeout=300)
     assert resumed.returncode == 0, resumed.stderr
     assert len(list(curves.glob("exp_*.npz"))) == 4

@@ -70,7 +70,7 @@ def test_dynamics_jacobians_predict_small_perturbations(arm_problem):
         dz, du = rng.normal(size=4) * 1e-4, rng.normal(size=2) * 1e-4
         moved = full[k].copy()
         moved[1:5] += dz
-        end = p._rollout(moved[None], np.tile(u[k] + du, (1, 5, 1)))[0, -1, 1:5]
+        end = p.rollout(moved[None], np.tile(u[k] + du, (1, 5, 1)))[0, -1, 1:5]
         predicted = z[k + 1] + a[k] @ dz + b[k] @ du
         assert np.max(np.abs(end - predicted)) < 1e-7        # second order: |d|^2 ~ 1e-8
 

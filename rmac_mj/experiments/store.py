@@ -178,6 +178,11 @@ class ResultStore:
             return None
         return json.loads(self.config_path.read_text())
 
+    def read_protocol(self) -> dict[str, Any] | None:
+        """The protocol (``Protocol.as_dict``) of the run in this directory, or None when there is none."""
+        config = self.read_config()
+        return None if config is None else config.get("protocol")
+
     def write_config(self, document: dict[str, Any]) -> None:
         self.root.mkdir(parents=True, exist_ok=True)
         files.write_json(self.config_path, document)
@@ -191,14 +196,21 @@ class ResultStore:
         if existing is None:
             self.write_config({**document, "provenance": files.provenance()})
             return
+        differences = _differences(existing.get("protocol", {}), document["protocol"])
+        if existing.get("prior_sha256") != document.get("prior_sha256"):
+            differences.append("the prior knowledge file's contents (sha256)")
         if not resume:
-            raise ResumeRefused(f"{self.root} already holds a run; pass --resume to finish it, or "
-                                "choose another --out")
-        if (existing.get("protocol"), existing.get("prior_sha256")) != (
-                document["protocol"], document.get("prior_sha256")):
-            differences = _differences(existing.get("protocol", {}), document["protocol"])
-            if existing.get("prior_sha256") != document.get("prior_sha256"):
-                differences.append("the prior knowledge file's contents (sha256)")
+            if differences:
+                raise ResumeRefused(f"{self.root} already holds another run ({'; '.join(differences)}); "
+                                    "choose another --out")
+            protocol = document["protocol"]
+            if self.summary_path.is_file() and all(set(range(protocol["experiments"])) <= self.finished(a)
+                                                   for a in protocol["algorithms"]):
+                raise ResumeRefused(f"{self.root} already holds this run, finished (summary.json); "
+                                    "choose another --out to repeat it")
+            raise ResumeRefused(f"{self.root} already holds this run, unfinished; pass --resume to "
+                                "finish it, or choose another --out")
+        if differences:
             raise ResumeRefused(f"{self.root} was written with a different config "
                                 f"({'; '.join(differences)}); refusing to mix results (give the same "
                                 "settings, or another --out)")
@@ -224,6 +236,13 @@ class ResultStore:
         except (FileNotFoundError, NotADirectoryError):
             return set()
         return {int(match.group(1)) for name in names if (match := _EXPERIMENT_FILE.fullmatch(name))}
+
+    def holds_finished(self, protocol) -> bool:
+        """Whether this directory holds ``protocol``'s run, finished: the same protocol, every
+        experiment saved and the summary written."""
+        if self.read_protocol() != protocol.as_dict() or not self.summary_path.is_file():
+            return False
+        return all(set(range(protocol.experiments)) <= self.finished(a) for a in protocol.algorithms)
 
     def save(self, result: ExperimentResult) -> None:
         """Write an experiment's snapshots, then its curve: the curve file marks the experiment done."""

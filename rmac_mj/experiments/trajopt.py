@@ -287,7 +287,9 @@ class Problem:
         """Sum of the rewards of a trajectory: z of shape (h + 1, nz), u of shape (h, m)."""
         return float(self.env.task.reward_of(self.state_of(z[:-1], wrap), u).sum())
 
-    def _rollout(self, initial: np.ndarray, control: np.ndarray) -> np.ndarray:
+    def rollout(self, initial: np.ndarray, control: np.ndarray) -> np.ndarray:
+        """``mujoco.rollout`` of full physics states ``initial`` (B, nstate) under ``control``
+        (B, steps, m), on this problem's threads: the states after every physics step."""
         datas = self._datas if len(self._datas) > 1 else self._datas[0]
         states, _ = rollout.rollout(self.model, datas, initial, control)
         return states
@@ -301,7 +303,7 @@ class Problem:
           states x_0..x_H of shape (B, H + 1, n) and rewards r_1..r_H of shape (B, H).
         """
         control = np.repeat(actions, self.n_substeps, axis=1)                # held over the substeps
-        ends = self._rollout(self.initial_state, control)[:, self.n_substeps - 1::self.n_substeps]
+        ends = self.rollout(self.initial_state, control)[:, self.n_substeps - 1::self.n_substeps]
         z0 = np.broadcast_to(self.initial_state[self._z], (actions.shape[0], 1, self.nz))
         states = self.state_of(np.concatenate([z0, ends[..., self._z]], axis=1))
         return states, self.env.task.reward_of(states[:, :-1], actions)
@@ -349,7 +351,7 @@ class Problem:
         controls = np.repeat(u[:, None, :], rows, axis=1)
         controls[:, 2 * nz:2 * nz + m] += du_up
         controls[:, 2 * nz + m:] += du_down
-        ends = self._rollout(initial.reshape(horizon * rows, -1),
+        ends = self.rollout(initial.reshape(horizon * rows, -1),
                              np.repeat(controls.reshape(horizon * rows, 1, m), self.n_substeps, axis=1))
         z_next = ends[:, -1, self._z].reshape(horizon, rows, nz)
         a = (z_next[:, :nz] - z_next[:, nz:2 * nz]).transpose(0, 2, 1) / (2 * step)

@@ -1,0 +1,167 @@
+"""The commands that run experiments: ``reproduce`` (one protocol) and ``sweep`` (a grid of them)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from typing import Any, Sequence
+
+from rmac_mj.cli.common import STARTED, Interrupted, UsageError, say, user_input, writable_dir
+from rmac_mj.cli.options import PROTOCOL_OPTIONS, build_parser
+
+
+def parse_overrides(assignments: Sequence[str]) -> dict[str, dict]:
+    """``["rmac.exploration.sigma=0.5", ...]`` -> ``{"rmac": {"exploration": {"sigma": 0.5}}}``."""
+    from rmac_mj.experiments.sweep_file import nest
+    flat: dict[str, Any] = {}
+    for assignment in assignments:
+        key, separator, text = assignment.partition("=")
+        path = key.strip().split(".")
+        if not separator or len(path) < 2 or not all(path):
+            raise UsageError(f"--set expects ALGO.FIELD=VALUE, got {assignment!r}")
+        try:
+            flat[".".join(path)] = json.loads(text)
+        except json.JSONDecodeError:
+            flat[".".join(path)] = text  # a bare word, e.g. rate_split=actor
+    return nest(flat)
+
+
+def algorithms_to_run(args, overrides: dict[str, dict]) -> tuple[str, ...]:
+    """--algorithms if given (by --config too); else the learners --set names (an ablation reruns only
+    them); else the paper's learners (``Protocol``'s default)."""
+    from rmac_mj.experiments.protocol import Protocol
+
+    if args.algorithms is not None:
+        return tuple(a.strip() for a in args.algorithms.split(",") if a.strip())
+    if overrides:
+        chosen = tuple(overrides)
+        others = [a for a in Protocol().algorithms if a not in chosen]
+        if others:
+            say(f"--set names only {', '.join(chosen)}: running {'it' if len(chosen) == 1 else 'them'} "
+                 f"alone (give --algorithms to run {', '.join(others)} too)")
+        return chosen
+    return Protocol().algorithms  # the paper's comparison: RMAC and S-AC
+
+
+def settings_from_files(argv: Sequence[str] | None, args: argparse.Namespace) -> argparse.Namespace:
+    """``reproduce``'s arguments with the protocol of the directory being resumed and of the
+    ``--config`` file as defaults: what the command line gives explicitly overrides them (and a
+    resumed directory then refuses what differs from its run, naming it). The file's settings that
+    ``reproduce`` has no option for travel in ``args.config_protocol``, its hyperparameters in
+    ``args.config_agent_configs`` (``--set`` applies on top)."""
+    from rmac_mj.experiments import sweep_file
+    from rmac_mj.experiments.store import ResultStore
+
+    layers: list[tuple[dict[str, Any], dict[str, dict]]] = []
+    if args.resume:
+        stored = ResultStore(args.out).read_protocol()
+        if stored is not None:
+            layers.append((stored, stored.get("agent_configs", {})))
+    if args.config is not None:
+        config = sweep_file.load_configuration(args.config)
+        layers.append((config.options, config.agent_configs))
+    if not layers:
+        return args
+    defaults: dict[str, Any] = {}
+    extra: dict[str, Any] = {}
+    agent_configs: dict[str, dict] = {}
+    for options, configs in layers:
+        for key, value in options.items():
+            if key == "agent_configs":
+                continue
+            if key in PROTOCOL_OPTIONS:
+                defaults[key] = ",".join(value) if key in ("algorithms", "prior_parts") else value
+            else:
+                extra[key] = value
+        agent_configs = sweep_file.merge(agent_configs, configs)
+    if defaults.get("prior") is None or str(defaults["prior"]).endswith(".npz"):
+        defaults.pop("prior_trials", None)  # a demonstrator's only
+    if not defaults.get("prior_parts"):
+        defaults.pop("prior_parts", None)  # none given: every part a learner takes
+    args = build_parser(defaults).parse_args(argv)
+    args.config_protocol, args.config_agent_configs = extra, agent_configs
+    return args
+
+
+def reproduce(args) -> int:
+    from rmac_mj.experiments import report, runner, sweep_file
+    from rmac_mj.experiments.protocol import Protocol
+    from rmac_mj.experiments.store import ResultStore
+
+    if args.prior is None and (args.prior_trials is not None or args.prior_parts is not None):
+        raise UsageError("--prior-trials and --prior-parts need --prior")
+    if args.prior is not None and args.prior.endswith(".npz") and args.prior_trials is not None:
+        raise UsageError("--prior-trials counts demonstrator trials; a recorded file is used whole")
+    prior = {}
+    if args.prior is not None:
+        prior["prior"] = args.prior
+        if args.prior_trials is not None:
+            prior["prior_trials"] = args.prior_trials
+        if args.prior_parts is not None:
+            prior["prior_parts"] = tuple(p.strip() for p in args.prior_parts.split(",") if p.strip())
+            if not prior["prior_parts"]:
+                raise UsageError("--prior-parts must name at least one part")
+    overrides = parse_overrides(args.set)
+    agent_configs = sweep_file.merge(getattr(args, "config_agent_configs", {}), overrides)
+    with user_input():
+        protocol = Protocol(
+            domain=args.domain, task=args.task,
+            algorithms=algorithms_to_run(args, overrides), experiments=args.experiments,
+            trials=args.trials, seed=args.seed, evaluate_every=args.evaluate_every,
+            agent_configs=agent_configs, **{**getattr(args, "config_protocol", {}), **prior})
+    out = writable_dir(args.out)
+    if args.jobs is not None and args.scheduler:
+        raise UsageError("--jobs and --scheduler exclude each other")
+    store = ResultStore(out)
+    if not args.resume and store.holds_finished(protocol):
+        say(f"{out} already holds this run, finished; its summary (run with another --out to "
+            "repeat it):")
+        print(report.summary_table(store.read_summary(), protocol.algorithms))
+        print(f"results in {out}/ (summary.json, returns.csv, fig2_learning_curves.png)")
+        return 0
+    try:
+        summary = runner.run_protocol(protocol, out, jobs=args.jobs, resume=args.resume,
+                                      scheduler=args.scheduler, progress=not args.no_progress,
+                                      references=not args.no_optimal, smooth=args.smooth, log=say,
+                                      started=STARTED)
+    except KeyboardInterrupt:
+        saved = runner.finished_experiments(out, protocol)
+        again = f"finish it with: rmac-mj reproduce --resume --out {out}"
+        if saved:
+            raise Interrupted(f"{saved} finished experiment{' is' if saved == 1 else 's are'} saved "
+                              f"in {out}; {again}") from None
+        raise Interrupted(f"no experiment had finished, nothing is saved; {again}") from None
+    print(report.summary_table(summary, protocol.algorithms))
+    parts = summary["wall_time_parts_s"]
+    total = summary["wall_time_s"]
+    detail = (f" over {len(parts)} parts ({' + '.join(f'{p:.1f}' for p in parts)} s)"
+              if len(parts) > 1 else "")
+    print(f"wall time {total:.1f} s{detail}, all included (start-up, compiling, experiments, "
+          f"reference, figures); results in {out}/ (summary.json, returns.csv, fig2_learning_curves.png)")
+    return 0
+
+
+def sweep(args) -> int:
+    from rmac_mj.experiments import sweep as sweeps, sweep_file
+
+    plan = sweep_file.load_sweep(args.file)  # the whole file is validated before anything runs
+    if args.jobs is not None and args.scheduler:
+        raise UsageError("--jobs and --scheduler exclude each other")
+    out = writable_dir(args.out)
+    runs = len(plan.configurations)
+    experiments = sum(c.protocol.experiments * len(c.protocol.algorithms) for c in plan.configurations)
+    print(f"{args.file}: {runs} configuration{'s' * (runs != 1)}, {experiments} experiments, into {out}/",
+          flush=True)
+    try:
+        rows = sweeps.run_sweep(plan, out, jobs=args.jobs, scheduler=args.scheduler, resume=args.resume,
+                               progress=not args.no_progress, references=not args.no_optimal,
+                               log=say, started=STARTED)
+    except KeyboardInterrupt:
+        raise Interrupted(f"finished experiments are saved in {out}; finish the sweep with: rmac-mj "
+                          f"sweep {args.file} --resume --out {out}") from None
+    print(sweeps.format_table(plan, rows))
+    print(f"results in {out}/ (sweep.csv, sweep_<metric>.png, sweep.json, one directory per "
+          "configuration)")
+    return 0
+
+

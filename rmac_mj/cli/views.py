@@ -1,0 +1,166 @@
+"""The commands that look at results, the task's reference or the code's speed: ``compare``,
+``policy``, ``render``, ``optimal``, ``bench``."""
+
+from __future__ import annotations
+
+import json
+import pathlib
+from typing import Sequence
+
+from rmac_mj.cli.common import UsageError, say, user_input
+
+
+def shortest_distinct_suffixes(paths: Sequence[pathlib.Path]) -> list[str]:
+    """Each path's shortest trailing run of components that no other (different) path ends with:
+    ``a/run`` and ``b/run`` stay ``a/run`` and ``b/run``; ``x/ten`` and ``y/oldest`` become ``ten``
+    and ``oldest``."""
+    parts = [pathlib.Path(p).resolve().parts for p in paths]
+    labels = []
+    for mine in parts:
+        others = [theirs for theirs in parts if theirs != mine]
+        for k in range(1, len(mine) + 1):
+            if all(theirs[-k:] != mine[-k:] for theirs in others):
+                break
+        labels.append(str(pathlib.PurePath(*mine[-k:])))
+    return labels
+
+
+def _settings_line(summary: dict) -> str:
+    """How a run was made: its size, seed and --set overrides."""
+    protocol = summary.get("protocol", {})
+    from rmac_mj.experiments.sweep_file import flatten
+    overrides = [f"{key}={json.dumps(value)}"
+                 for key, value in flatten(protocol.get("agent_configs") or {}).items()]
+    text = (f"{protocol.get('experiments', '?')} experiments of {protocol.get('trials', '?')} trials, "
+            f"seed {protocol.get('seed', '?')}")
+    return text + ("; --set " + " ".join(overrides) if overrides else "; default hyperparameters")
+def compare(args) -> int:
+    from rmac_mj.agents import ALGORITHMS
+    from rmac_mj.experiments import plots, report
+    from rmac_mj.experiments.store import ResultStore
+
+    directories = []
+    for directory in args.dirs:
+        if any(directory.resolve() == seen.resolve() for seen in directories):
+            say(f"{directory} is given twice; it is shown once")
+            continue
+        directories.append(directory)
+    summaries = {}
+    for directory, label in zip(directories, shortest_distinct_suffixes(directories)):
+        store = ResultStore(directory)
+        summaries[label] = store.read_summary()
+        if "trial_seconds" not in summaries[label]:
+            raise UsageError(f"{store.summary_path} has no trial_seconds (the task's trial length)")
+    optimal = next((s["optimal_return"] for s in summaries.values() if s.get("optimal_return")), None)
+    floors = {s.get("exploration_floor") for s in summaries.values()}
+    paths = plots.plot_learning_curves(summaries, args.out, optimal_return=optimal, smooth=args.smooth,
+                                       exploration_floor=floors.pop() if len(floors) == 1 else None)
+    for label, summary in summaries.items():
+        print(f"== {label}: {_settings_line(summary)}")
+        print(report.summary_table(summary))
+    if len(summaries) > 1:
+        print("== across the runs")
+        print("\n".join(report.across_runs(summaries)))
+    paths += plots.plot_performance_profiles(
+        {(label, a): s[a]["final_return_per_experiment"] for label, s in summaries.items()
+         for a in ALGORITHMS if a in s and "final_return_per_experiment" in s[a]},
+        args.out.with_name(args.out.name + "_profiles"))
+    print("figures:", ", ".join(map(str, paths)))
+    return 0
+
+
+def policy(args) -> int:
+    from rmac_mj.experiments import policy_plots
+    from rmac_mj.experiments.episode import learner_state_of, state_of
+    from rmac_mj.experiments.snapshots import load_snapshot, snapshot_environment
+
+    snapshots, envs = [], []
+    for path in args.snapshots:
+        with user_input(f"{path}: "):
+            agent, meta = load_snapshot(path)
+        snapshots.append((agent, meta))
+        envs.append(snapshot_environment(agent, meta, args.domain, args.task))
+    learner_state = learner_state_of(envs[0])
+    for path, env in zip(args.snapshots[1:], envs[1:]):
+        if learner_state_of(env) != learner_state:
+            raise UsageError(f"{path} learned on another state ({learner_state_of(env).labels}) than "
+                             f"{args.snapshots[0]} ({learner_state.labels}); draw them one by one")
+    meta = snapshots[0][1]
+    n = len(learner_state.low)
+    if args.at is not None:
+        if len(args.at) != n:
+            raise UsageError(f"--at needs {n} numbers (the state's dimensions), got {len(args.at)}")
+        anchor = args.at
+    else:
+        anchor = state_of(envs[0].reset().observation, learner_state)
+    if n < 2:
+        raise UsageError(f"policy maps need at least two state dimensions; {meta['domain']} has {n}")
+    i, j = args.dims
+    if not (0 <= i < n and 0 <= j < n and i != j):
+        raise UsageError(f"--dims must name two different state dimensions in [0, {n}), got {i},{j}")
+    limits = {d: lim for d, lim in ((i, args.xlim), (j, args.ylim)) if lim is not None}
+    for option, lim in (("--xlim", args.xlim), ("--ylim", args.ylim)):
+        if lim is not None and not lim[0] < lim[1]:
+            raise UsageError(f"{option} needs LO < HI, got {lim[0]:g},{lim[1]:g}")
+    first = args.snapshots[0]
+    stem = args.out or first.with_name(first.stem + ("_policy" if len(snapshots) == 1 else "_policies"))
+    paths = policy_plots.plot_policies(snapshots, stem, learner_state, anchor, dims=(i, j), limits=limits,
+                                resolution=args.resolution, envs=None if args.no_trajectory else envs)
+    print("figure:", ", ".join(map(str, paths)))
+    return 0
+
+
+def optimal(args) -> int:
+    from rmac_mj.agents import Exploration
+    from rmac_mj.experiments import reference
+
+    with user_input():
+        if not reference.has_reference(args.domain, args.task):
+            reference.reference(args.domain, args.task)  # raises, naming the tasks that have one
+    result = reference.reference(args.domain, args.task, refresh=args.refresh, announce=say)
+    print(result.describe())
+    paper = Exploration()  # the learners' default exploration (section 6.1)
+    floor = reference.exploration_floor(args.domain, args.task, paper.sigma, paper.period,
+                                        paper.phase, refresh=args.refresh, announce=say)
+    if floor is not None:  # a reference with a policy to explore with (the dynamic programme)
+        print(floor.describe())
+    return 0
+
+
+def render(args) -> int:
+    chosen = [x for x in (args.snapshot, args.progression, args.compare) if x is not None]
+    if len(chosen) != 1:
+        raise UsageError("give exactly one of SNAPSHOT, --progression DIR or --compare DIR")
+    from rmac_mj.experiments import result_videos
+
+    options = {"width": args.width, "height": args.height, "overlay": not args.no_overlay,
+               "frames_per_step": args.frames_per_step}
+    if args.snapshot is not None:
+        path = result_videos.render_snapshot(args.snapshot, args.out, domain=args.domain, task=args.task,
+                                      **options)
+    elif args.domain is not None or args.task is not None:
+        raise UsageError("--domain/--task apply to a single SNAPSHOT only")
+    elif args.progression is not None:
+        path = result_videos.render_progression(args.progression, args.out, experiment=args.experiment,
+                                         **options)
+    else:
+        path = result_videos.render_comparison(args.compare, args.out, experiment=args.experiment,
+                                        **options)
+    print("video:", path)
+    return 0
+
+
+def bench(args) -> int:
+    from rmac_mj.experiments import bench
+
+    with user_input():
+        bench.check_task(args.domain, args.task)
+    report = bench.run(quick=args.quick, domain=args.domain, task=args.task)
+    print(bench.format_markdown(report) if args.markdown else bench.format_table(report))
+    if args.json:
+        from rmac_mj.experiments.files import write_json
+        write_json(args.json, report)
+        print("json:", args.json)
+    return 0
+
+
