@@ -5,9 +5,9 @@ SB3's defaults update 256-transition batches through networks of 256 units at ev
 """
 
 QUICK = {
-    "sb3-sac": {"net_arch": [16, 16], "batch_size": 16, "learning_starts": 20, "train_freq": 10},
-    "sb3-td3": {"net_arch": [16, 16], "batch_size": 16, "learning_starts": 20, "train_freq": 10},
-    "sb3-ppo": {"net_arch": [16, 16], "n_steps": 64, "batch_size": 32, "n_epochs": 2},
+    "sb3-sac": {"net_arch": [16, 16], "batch_size": 16, "learning_starts": 20, "train_freq": 20},
+    "sb3-td3": {"net_arch": [16, 16], "batch_size": 16, "learning_starts": 20, "train_freq": 20},
+    "sb3-ppo": {"net_arch": [16, 16], "n_steps": 64, "batch_size": 32, "n_epochs": 1},
 }
 
 

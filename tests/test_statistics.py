@@ -111,7 +111,8 @@ def test_reproduce_and_compare_report_the_probability_of_improvement(tmp_path, c
     for seed in (0, 1):
         protocol = Protocol(algorithms=("s-ac", "rmac"), experiments=2, trials=3, seed=seed,
                             snapshot_trials=())
-        summary = runner.run_protocol(protocol, tmp_path / f"seed{seed}", jobs=1, progress=False)
+        summary = runner.run_protocol(protocol, tmp_path / f"seed{seed}", jobs=1, progress=False,
+                                      figures=seed == 1)
     pair = summary["probability_of_improvement"]["s-ac > rmac"]
     assert 0.0 <= pair["value"] <= 1.0 and pair["experiments"] == [2, 2]
     assert (tmp_path / "seed1" / "performance_profiles.png").is_file()
