@@ -303,20 +303,20 @@ def rmac_memories(agent, row: dict) -> dict:
     beta_u = beta[:, agent.n]
     values, slopes = [], []
     for phi in SLICE:
-        value, slope, _ = agent.critic.query([phi, 0.0])
+        value, slope, _ = agent.critic.memory.query([phi, 0.0])
         values.append(value[0])
         slopes.append(slope[0, :agent.n] @ beta_u)
     values, slopes = np.array(values), np.array(slopes)
     falling = np.flatnonzero((slopes[:-1] > 0) & (slopes[1:] <= 0))
     switch = (float("nan") if len(falling) == 0 else
               float(SLICE[falling][np.argmin(np.abs(SLICE[falling] - x_ss[0]))]))
-    X = agent.critic.X_[:agent.critic.n_samples_]
+    X = agent.critic.memory.X_[:agent.critic.memory.n_samples_]
     return {"critic_peak": float(SLICE[np.argmax(values)]), "critic_switch": switch,
-            "critic_gain": float(values.max() - agent.critic.query(x_ss)[0][0]),
-            "critic_points_back": int(np.sign(agent.critic.query(x_ss)[1][0, :agent.n] @ beta_u)
+            "critic_gain": float(values.max() - agent.critic.memory.query(x_ss)[0][0]),
+            "critic_points_back": int(np.sign(agent.critic.memory.query(x_ss)[1][0, :agent.n] @ beta_u)
                                       == -np.sign(x_ss[0])),
             "memory_near_upright": int(((np.abs(X[:, 0]) < 0.1) & (np.abs(X[:, 1]) < 1.0)).sum()),
-            "critic_span_at_upright": float(np.ptp(X[agent.critic.neighbours(np.zeros(agent.n)), 0]))}
+            "critic_span_at_upright": float(np.ptp(X[agent.critic.memory.neighbours(np.zeros(agent.n)), 0]))}
 
 
 def upright(row: dict) -> bool:

@@ -8,6 +8,8 @@ from learners import quick_config
 
 from rmac_mj.agents import ALGORITHMS, ActionSpace, Exploration, StateSpace, config_class, make_agent
 
+BACKENDS = ("numba", "numpy")
+
 STATES = StateSpace(low=[-np.pi, -25.0], high=[np.pi, 25.0], periodic=[True, False])
 ACTIONS = ActionSpace(low=[-3.0], high=[3.0], cost=[1.0])
 
@@ -155,3 +157,59 @@ def test_state_dict_is_numeric_and_refuses_foreign_state(algorithm):
     assert state["rng"].dtype == np.uint64 and state["in_trial"]
     with pytest.raises(ValueError, match="rng"):
         agent.load_state_dict({k: v for k, v in state.items() if k != "rng"})
+
+
+@pytest.mark.parametrize("learner", ["rmac", "mlac"])
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_learn_is_the_update_of_a_control_step(learner, backend):
+    """``learn(x, u, r, x')`` is what a control step learns (Algorithm 2 lines 13-28; MLAC's steps
+    1-3): a step acts, then learns its transition with V_{k-1}. ``model=False`` (a simulated
+    transition) leaves the process model as it was and learns the rest."""
+    rng = np.random.default_rng(0)
+    A, B, c = np.eye(2) + 0.1 * rng.normal(size=(2, 2)), rng.normal(size=(2, 1)), 0.1 * rng.normal(size=2)
+    S = StateSpace(low=-10 * np.ones(2), high=10 * np.ones(2), periodic=np.zeros(2, bool))
+    U = ActionSpace(low=-3.0 * np.ones(1), high=3.0 * np.ones(1), cost=np.ones(1))
+    small = (dict(critic_capacity=30, reference_capacity=25, process_capacity=12,
+                  critic_neighbours=5, reference_neighbours=4, process_neighbours=4)
+             if learner == "rmac" else
+             dict(critic_capacity=30, actor_capacity=25, process_capacity=12, critic_neighbours=5,
+                  actor_neighbours=4, process_neighbours=4))
+    agent = make_agent(learner, S, U, config=dict(backend=backend, **small), seed=1)
+    rng = np.random.default_rng(2)
+    for _ in range(3):  # fill (and overfill) the memories
+        x = rng.uniform(-1, 1, 2)
+        u = agent.start(x)
+        for _ in range(15):
+            x = A @ x + B @ u + c
+            u = agent.step(-float(x @ x), x)
+        agent.stop(-float(x @ x), A @ x + B @ u + c)
+    x0 = rng.uniform(-1, 1, 2)
+    u0 = agent.start(x0)
+    before = agent.state_dict()
+    x1 = A @ x0 + B @ u0 + c
+    agent.step(-1.5, x1)  # acts in x1, learns (x0, u0, -1.5, x1) with V_0
+    stepped = agent.state_dict()
+
+    twin = make_agent(learner, S, U, config=dict(backend=backend, **small), seed=1)
+    twin.load_state_dict(before)
+    v1 = twin.learn(x0, u0, -1.5, x1, v=float(before["v_prev"]))
+    assert v1 == float(stepped["v_prev"])  # V(x1), as the step's V_k
+    learned = twin.state_dict()
+    memories = [key for key in before if key.split(".")[0] in ("process", "reference", "critic",
+                                                                 "actor")]
+    for key in memories + ["traces"]:
+        np.testing.assert_array_equal(learned[key], stepped[key], err_msg=key)
+    assert not np.array_equal(learned["critic.Y"], before["critic.Y"])
+    for key in ("k", "x_prev", "u_prev", "v_prev", "rng"):  # the step's bookkeeping left alone
+        np.testing.assert_array_equal(learned[key], before[key], err_msg=key)
+
+    twin.load_state_dict(before)
+    twin.learn(x0, u0, -1.5, x1, model=False)  # V(x0): the critic's estimate now, V_0 itself
+    simulated = twin.state_dict()
+    for key in [k for k in memories if k.startswith("process.")]:
+        np.testing.assert_array_equal(simulated[key], before[key], err_msg=key)
+    assert not np.array_equal(simulated["critic.Y"], before["critic.Y"])
+    for bad in (dict(x=[np.nan, 0.0]), dict(u=[0.0, 1.0]), dict(reward=np.inf)):
+        args = dict(x=x0, u=u0, reward=-1.5, x_next=x1) | bad
+        with pytest.raises(ValueError):
+            twin.learn(**args)

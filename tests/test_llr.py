@@ -79,22 +79,20 @@ def test_neighbours_match_brute_force_with_weights_and_periodic_input(backend, n
 @pytest.mark.parametrize("norm", [1, 2])
 def test_compiled_search_orders_ties_like_a_stable_sort(norm):
     # Inputs on a coarse grid: many equal distances. The compiled search (bounded by lane minima
-    # when unseeded, by the seeds when seeded) must return what a stable argsort returns.
-    from rmac_mj.approximators.llr import llr_candidates, search_reference
+    # when unseeded, by the last list when seeded) must return what a stable argsort returns.
+    from rmac_mj.approximators.llr import llr_nearest, search_reference
     rng = np.random.default_rng(7)
     X = np.c_[rng.integers(-6, 6, 700) * 0.5, rng.integers(-10, 10, 700) * 2.0]
     memory = LLRMemory(2, 1, 700, 20, input_weights=[1.0, 0.25], input_period=[TWO_PI, 0.0],
                        norm=norm).fit(X, np.zeros((700, 1)))
-    idx, dist = np.empty(21, np.int64), np.empty(21)
-    seed, n_seed = np.empty(21, np.int64), 0
     for xq in np.c_[rng.integers(-6, 6, 40) * 0.5, rng.integers(-10, 10, 40) * 2.0]:
-        # (queries inside one period, so already wrapped, as llr_candidates wants them)
+        # (queries inside one period, so already wrapped, as llr_nearest wants them)
         expected = search_reference(memory.X_, xq, np.array([1.0, 0.25]), np.array([TWO_PI, 0.0]),
-                                    norm, 21)
-        np.testing.assert_array_equal(memory.neighbours(xq), expected[:20])
-        n = llr_candidates(memory.kernel_state, xq, idx, dist, seed, n_seed)
-        np.testing.assert_array_equal(idx[:n], expected)
-        seed[:], n_seed = idx, n  # the next search is seeded with this list
+                                    norm, 20)
+        np.testing.assert_array_equal(memory.neighbours(xq), expected)
+        idx, k = llr_nearest(memory.kernel_state, xq)  # seeded with the list searched before
+        np.testing.assert_array_equal(idx[:k], expected)
+
 
 
 def test_angles_near_plus_and_minus_pi_are_neighbours():
@@ -273,35 +271,34 @@ def test_kernel_state_is_the_memory_itself():
 
 @pytest.mark.parametrize("replacement", ["nearest", "oldest", "redundancy"])
 @pytest.mark.parametrize("norm", [1, 2])
-def test_a_neighbour_list_carried_across_an_insertion_equals_a_new_search(replacement, norm):
-    # What lets RMAC search a point once where Algorithm 2 searches it before and after an
-    # insertion: candidates (K+1 neighbours) + refresh == a search after the insertion, ties and
-    # replaced neighbours included. Inputs on a coarse grid make many distances equal.
-    # The first search is seeded (as RMAC seeds with the list of the previous state).
-    from rmac_mj.approximators.llr import llr_candidates, llr_insert, llr_refresh
+def test_kept_neighbour_lists_stay_exact_across_insertions(replacement, norm):
+    # What lets RMAC search a point once where Algorithm 2 asks for its neighbours before and after
+    # insertions: a kept list, carried across every insertion since its search (the replaced sample
+    # leaves, the new one is placed by its distance), is what a new search finds, ties and replaced
+    # neighbours included. Inputs on a coarse grid make many distances equal; the queries come
+    # back to the last few points after one to four insertions, as a learner's states do.
+    from rmac_mj.approximators.llr import llr_insert, llr_nearest, search_reference
     rng = np.random.default_rng(5)
     K = 4
-    memory = LLRMemory(2, 1, 25, K, input_weights=[1.0, 0.5], input_period=[TWO_PI, 0.0],
-                       norm=norm, replacement=replacement)
+    weights, period = np.array([1.0, 0.5]), np.array([TWO_PI, 0.0])
+    memory = LLRMemory(2, 1, 25, K, input_weights=weights, input_period=period, norm=norm,
+                       replacement=replacement)
     state = memory.kernel_state
-    idx, dist = np.empty(K + 1, np.int64), np.empty(K + 1)
-    fresh, fresh_dist = np.empty(K + 1, np.int64), np.empty(K + 1)
-    replaced_a_neighbour, n_fresh = 0, 0
-    for step in range(300):
-        xq = np.r_[rng.integers(-6, 6) * 0.5, rng.integers(-4, 4) * 0.5]
-        # Seeded with the last list (of another point): a seed speeds a search up, nothing else.
-        n = llr_candidates(state, xq, idx, dist, fresh.copy(), n_fresh)
-        before = idx[:n].copy()
-        x_new = xq + np.r_[rng.integers(-2, 3), rng.integers(-2, 3)] * 0.5
-        slot = llr_insert(state, x_new, np.zeros(1), idx[0] if step % 2 and n else -1)
-        replaced_a_neighbour += slot in before
-        n = llr_refresh(state, xq, idx, dist, n, slot)
-        nk = min(K, memory.n_samples_)
-        assert n >= nk
-        n_fresh = llr_candidates(state, xq, fresh, fresh_dist, fresh, 0)
-        assert n_fresh >= n
-        np.testing.assert_array_equal(idx[:n], fresh[:n])
-        np.testing.assert_array_equal(dist[:n], fresh_dist[:n])
+    points, replaced_a_neighbour = [], 0
+    for step in range(600):
+        if points and rng.random() < 0.6:  # back to a recent point
+            xq = points[-int(rng.integers(1, min(len(points), 4) + 1))]
+        else:
+            xq = np.r_[rng.integers(-6, 6) * 0.5, rng.integers(-4, 4) * 0.5]
+            points.append(xq)
+        idx, k = llr_nearest(state, xq)
+        before = idx[:k].copy()
+        np.testing.assert_array_equal(before, search_reference(
+            memory.X_[:memory.n_samples_], xq, weights, period, norm, K))
+        if rng.random() < 0.7:
+            x_new = xq + np.r_[rng.integers(-2, 3), rng.integers(-2, 3)] * 0.5
+            slot = llr_insert(state, x_new, np.zeros(1), before[0] if step % 2 and k else -1)
+            replaced_a_neighbour += slot in before
     assert memory.n_samples_ == 25 and replaced_a_neighbour > (5 if replacement == "redundancy"
                                                                else 20)
 

@@ -36,7 +36,7 @@ def _seed_linear_world(agent, u_policy, rng):
     Xc = rng.uniform(-5, 5, (300, 2))
     Xa = rng.uniform(-1, 1, (50, 2))
     agent.process.fit(np.c_[X, U], X @ A.T + U @ B.T + C)
-    agent.critic.fit(Xc, (Xc @ G + V0)[:, None])
+    agent.critic.memory.fit(Xc, (Xc @ G + V0)[:, None])
     agent.actor.fit(Xa, np.full((50, 1), u_policy))
 
 
@@ -71,13 +71,13 @@ def test_each_term_of_the_gradient_and_two_actions():
     X, U = rng.uniform(-1, 1, (100, 2)), rng.uniform(-3, 3, (100, 2))
     agent.process.fit(np.c_[X, U], X @ A.T + U @ B2.T + C)
     Xc = rng.uniform(-5, 5, (300, 2))
-    agent.critic.fit(Xc, (Xc @ G + V0)[:, None])
+    agent.critic.memory.fit(Xc, (Xc @ G + V0)[:, None])
     u = np.array([1.0, -2.0])
     np.testing.assert_allclose(agent.action_gradient(np.zeros(2), u), 0.9 * G @ B2, rtol=1e-9)
     # Only the reward's term (P = 2): dr/du = -2 P u, whatever the model says.
     agent = _agent(m=2, action_cost=2.0, gamma=0.0)
     agent.process.fit(np.c_[X, U], X @ A.T + U @ B2.T + C)
-    agent.critic.fit(Xc, (Xc @ G + V0)[:, None])
+    agent.critic.memory.fit(Xc, (Xc @ G + V0)[:, None])
     np.testing.assert_allclose(agent.action_gradient(np.zeros(2), u), -4.0 * u, rtol=1e-12)
 
 
@@ -120,7 +120,7 @@ def test_saturation_is_measured_from_the_middle_of_an_asymmetric_box():
 def test_actor_samples_stay_inside_the_action_bounds():
     agent = _agent(alpha_a=1.0, action_cost=0.0)
     _seed_linear_world(agent, 2.5, np.random.default_rng(3))
-    agent.critic.fit(np.array([[0.0, 0.0], [0.0, 1.0], [1.0, 0.0]]),
+    agent.critic.memory.fit(np.array([[0.0, 0.0], [0.0, 1.0], [1.0, 0.0]]),
                      np.array([[0.0], [100.0], [0.0]]))  # dV/dphi_dot = 100: push u up
     x0 = np.array([0.0, 0.0])
     agent.start(x0)

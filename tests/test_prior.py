@@ -57,7 +57,7 @@ def test_seeded_memories_hold_exactly_the_given_samples(env, backend):
     for memory, X, Y in (
             (agent.process, np.c_[x, data["actions"]], x_next),
             (agent.reference, x, x_next),
-            (agent.critic, x, discounted_returns(data["rewards"], data["trial"], 0.97)[:, None])):
+            (agent.critic.memory, x, discounted_returns(data["rewards"], data["trial"], 0.97)[:, None])):
         assert memory.n_samples_ == 30
         np.testing.assert_allclose(memory.X_[:30], X, atol=1e-12)
         np.testing.assert_allclose(memory.Y_[:30], Y, atol=1e-12)
@@ -74,7 +74,7 @@ def test_mlac_memories_hold_exactly_the_given_samples(env):
     for memory, X, Y in (
             (agent.actor, x, data["actions"]),
             (agent.process, np.c_[x, data["actions"]], x_next),
-            (agent.critic, x, discounted_returns(data["rewards"], data["trial"], gamma)[:, None])):
+            (agent.critic.memory, x, discounted_returns(data["rewards"], data["trial"], gamma)[:, None])):
         assert memory.n_samples_ == 30
         np.testing.assert_allclose(memory.X_[:30], X, atol=1e-12)
         np.testing.assert_allclose(memory.Y_[:30], Y, atol=1e-12)
@@ -94,9 +94,9 @@ def test_more_samples_than_capacity_pass_through_the_replacement_rule(env):
     order = np.argsort(agent.process.stamp_)
     np.testing.assert_allclose(agent.process.X_[order], X[50:], atol=1e-12)
     # 'nearest' (the critic): full, and every stored sample is one of the recorded ones.
-    assert agent.critic.n_samples_ == 40
+    assert agent.critic.memory.n_samples_ == 40
     given = wrapped(data["states"])
-    for row in agent.critic.X_[:40]:
+    for row in agent.critic.memory.X_[:40]:
         assert np.min(np.abs(given - row).sum(axis=1)) < 1e-12
 
 
@@ -110,12 +110,12 @@ def test_redundancy_replacement_scores_the_seeded_samples_and_keeps_recorded_one
                          critic_capacity=40, critic_neighbours=10, backend=backend)
         agent = make_agent("rmac", *spaces(env), config=cfg, seed=0)
         agent.seed_from(**data)
-        memories.append((agent.process, agent.critic))
-        assert agent.process.n_samples_ == 100 and agent.critic.n_samples_ == 40
+        memories.append((agent.process, agent.critic.memory))
+        assert agent.process.n_samples_ == 100 and agent.critic.memory.n_samples_ == 40
         X = np.c_[wrapped(data["states"]), data["actions"]]
         for row in agent.process.X_:
             assert np.min(np.abs(X - row).sum(axis=1)) < 1e-12
-        assert np.all(agent.process.redundancy_ <= 0) and np.all(agent.critic.redundancy_ < 0)
+        assert np.all(agent.process.redundancy_ <= 0) and np.all(agent.critic.memory.redundancy_ < 0)
         # Samples were replaced, and not only the last ones kept (as 'oldest' would).
         assert agent.process.stamp_.min() < 50
     for fast, slow in zip(*memories):
@@ -126,7 +126,7 @@ def test_redundancy_replacement_scores_the_seeded_samples_and_keeps_recorded_one
 def test_parts_select_what_is_seeded(env):
     agent = make_agent("rmac", *spaces(env), seed=0)
     agent.seed_from(**synthetic(), parts=["process"])
-    assert (agent.process.n_samples_, agent.reference.n_samples_, agent.critic.n_samples_) == (
+    assert (agent.process.n_samples_, agent.reference.n_samples_, agent.critic.memory.n_samples_) == (
         30, 0, 0)
     with pytest.raises(ValueError, match="parts must name some of"):
         agent.seed_from(**synthetic(), parts=["actor"])

@@ -69,7 +69,7 @@ def test_reference_target_is_best_vertex_under_a_linear_critic(backend, m):
     X, U = rng.uniform(-1, 1, (100, n)), rng.uniform(-3, 3, (100, m))
     agent.process.fit(np.c_[X, U], X @ A.T + U @ B.T + c)
     Xc = rng.uniform(-5, 5, (500, n))
-    agent.critic.fit(Xc, (Xc @ g + 3.0)[:, None])
+    agent.critic.memory.fit(Xc, (Xc @ g + 3.0)[:, None])
     x0 = np.array([0.2, -0.4])
     agent.reference.fit(x0[None], (A @ x0 + B @ np.full(m, 0.5) + c)[None])  # R(x0): reach u = 0.5
     u0 = agent.start(x0)
@@ -98,7 +98,7 @@ def test_reference_insert_rate_writes_the_target_or_the_moved_estimate(backend, 
     X, U = rng.uniform(-1, 1, (100, n)), rng.uniform(-3, 3, (100, m))
     agent.process.fit(np.c_[X, U], X @ A.T + U @ B.T + c)
     Xc = rng.uniform(-5, 5, (500, n))
-    agent.critic.fit(Xc, (Xc @ g + 3.0)[:, None])
+    agent.critic.memory.fit(Xc, (Xc @ g + 3.0)[:, None])
     D, e = np.array([[0.5, 0.1], [-0.2, 0.3]]), np.array([0.05, -0.1])
     Xr = rng.uniform(-1, 1, (60, n))
     agent.reference.fit(Xr, Xr @ D.T + e)
@@ -151,7 +151,7 @@ def test_the_critic_learns_at_the_scheduled_rate_of_each_trial(backend):
         agent = RMAC(S, U, RMACConfig(backend=backend, rate_decay_trials=1, **_SMALL_MEMORIES,
                                       **rates), seed=2)
         returns = _plain_pendulum_returns(agent, 2, steps=30)
-        return returns, agent.critic.Y_.copy()
+        return returns, agent.critic.memory.Y_.copy()
 
     constant = learned()
     same = learned(alpha_c_final=0.1, alpha_r_final=0.005)  # Table 2's rates as the final ones
@@ -178,7 +178,7 @@ def _lq_reachable_case(rule, backend, action_cost):
     X, U = rng.uniform(-2, 2, (100, 1)), rng.uniform(-3, 3, (100, 1))
     agent.process.fit(np.c_[X, U], a * X + b * U)
     Xc = (0.9 + 0.005 * np.arange(-400, 401))[:, None]
-    agent.critic.fit(Xc, -(Xc - xs) ** 2)
+    agent.critic.memory.fit(Xc, -(Xc - xs) ** 2)
     x0 = np.array([1.0])
     agent.reference.fit(x0[None], (a * x0 + b * -2.0)[None])
     np.testing.assert_allclose(agent.start(x0), [-2.0], atol=1e-9)
@@ -234,24 +234,24 @@ def test_traces_and_td_updates_on_a_hand_worked_example(backend):
     # k = 1: V_1 = V(1) = 0 (empty), insert [0 | 0] in slot 0, delta = -1, e = [1].
     agent.step(-1.0, np.array([1.0]))
     V = [-alpha]
-    np.testing.assert_allclose(agent.critic.Y_[:1, 0], V)
+    np.testing.assert_allclose(agent.critic.memory.Y_[:1, 0], V)
     # k = 2: V_2 = V(2) = -alpha (one neighbour, clipped to its value); K(x_1) = {slot 0};
     # insert [1 | V_1 = 0] in slot 1; delta = -2 + gamma V_2 - V_1; e = [1, 1].
     delta = -2.0 + gamma * (-alpha) - 0.0
     agent.step(-2.0, np.array([2.0]))
     V = [V[0] + alpha * delta, 0.0 + alpha * delta]
-    np.testing.assert_allclose(agent.critic.Y_[:2, 0], V)
+    np.testing.assert_allclose(agent.critic.memory.Y_[:2, 0], V)
     # k = 3: V_3 = V(10): nearest sample x = 1 (slot 1); K(x_2) = {slot 1};
     # insert [2 | V_2 = -alpha] in slot 2; e = [lam gamma, 1, 1].
     v3 = V[1]
     delta = -0.5 + gamma * v3 - (-alpha)
     agent.step(-0.5, np.array([10.0]))
     V = [V[0] + alpha * delta * lam * gamma, V[1] + alpha * delta, -alpha + alpha * delta]
-    np.testing.assert_allclose(agent.critic.Y_[:3, 0], V)
-    np.testing.assert_allclose(agent.traces[:3], [lam * gamma, 1.0, 1.0])
+    np.testing.assert_allclose(agent.critic.memory.Y_[:3, 0], V)
+    np.testing.assert_allclose(agent.critic.traces[:3], [lam * gamma, 1.0, 1.0])
     # A new trial resets the traces (line 3).
     agent.start(np.array([0.0]))
-    assert not agent.traces.any()
+    assert not agent.critic.traces.any()
 
 
 def _pendulum():
@@ -423,7 +423,7 @@ def test_back_ends_take_the_same_steps_for_every_option(options):
                 fast.stop(reward, x)
                 slow.stop(reward, x)
             _assert_same_state(fast, slow, f"after trial {trial} step {k}", tol)
-    assert fast.critic.n_samples_ == 30 and fast.reference.n_samples_ == 25  # full: replaced
+    assert fast.critic.memory.n_samples_ == 30 and fast.reference.n_samples_ == 25  # full: replaced
     states = np.column_stack([np.linspace(-3, 3, 7), np.linspace(-20, 20, 7)])
     np.testing.assert_allclose(fast.policy(states), slow.policy(states), atol=tol)
     for x in states:
@@ -456,9 +456,9 @@ def test_seeded_run_is_pinned_bit_for_bit(config, backend, trials):
     options = _SMALL_OPTIONS if config == "small" else {}
     agent = RMAC(S, U, RMACConfig(backend=backend, **options), seed=2024)
     returns = _plain_pendulum_returns(agent, trials)
-    got = (returns[0], returns[-1], sum(returns), float(agent.critic.Y_.sum()),
+    got = (returns[0], returns[-1], sum(returns), float(agent.critic.memory.Y_.sum()),
            float(agent.reference.Y_.sum()), float(agent.process.Y_.sum()),
-           float(agent.critic.X_.sum()))
+           float(agent.critic.memory.X_.sum()))
     assert got == _PINNED[(config, backend, trials)]
 
 
@@ -517,11 +517,12 @@ def test_each_memory_gets_its_redundancy_measure():
     U = ActionSpace(low=-np.ones(1), high=np.ones(1), cost=[1.0])
     agent = RMAC(S, U, RMACConfig(critic_replacement="redundancy", process_replacement="redundancy",
                                   reference_replacement="redundancy", redundancy_smoothing=0.3))
-    assert (agent.process.redundancy, agent.critic.redundancy, agent.reference.redundancy) == (
+    critic = agent.critic.memory
+    assert (agent.process.redundancy, critic.redundancy, agent.reference.redundancy) == (
         "misfit", "distance", "distance")
-    assert agent.process.replacement == "redundancy" and agent.critic.redundancy_smoothing == 0.3
+    assert agent.process.replacement == "redundancy" and critic.redundancy_smoothing == 0.3
     default = RMAC(S, U)
-    assert (default.process.replacement, default.critic.replacement) == ("nearest", "nearest")
+    assert (default.process.replacement, default.critic.memory.replacement) == ("nearest", "nearest")
 
 
 def test_weighting_must_match_the_task_dimensions():

@@ -1,65 +1,68 @@
-"""Compiled RMAC step (the fast back end of :class:`rmac_mj.agents.rmac.RMAC`).
+"""Compiled RMAC step (the fast back end of :class:`rmac_mj.agents.rmac.RMAC`), written after
+Algorithm 2 as the numpy reference in ``rmac.py`` is, so that one control step is one compiled call
+instead of a few dozen numpy ones. ``tests/test_rmac.py`` checks that both back ends take the same
+actions and leave the same memories, step by step, for every option.
 
-``step`` and ``stop`` follow ``RMAC._act`` and ``RMAC._update`` (the numpy reference, which cites
-Algorithm 2 line by line) statement by statement, so one control step is one compiled call instead
-of a few dozen numpy ones. ``tests/test_rmac.py`` checks that both back ends take the same actions
-and leave the same memories, step by step, for every option.
+:func:`step` is lines 8-29: act with the models as they are (lines 10-12), then :func:`learn` the
+transition (lines 13-28), one function of (x, u, r, x') and V(x): insert it in the process model
+(line 14), select the best reachable state (line 16, :func:`best_reachable`), move the reference
+model (lines 17-20, :func:`update_reference`) and make the critic's TD(lambda) step (lines 22-28,
+``critic.td_update``). A simulated transition is learned by the same function without line 14.
 
-The kernels take an :class:`RMACState`, a numba structref that names what a step reads and writes:
+The kernels take an :class:`RMACState`, a numba structref that names what a step reads and writes,
+made from the memories' states, the trial's bookkeeping and the named :class:`RMACSettings`:
 
 ======================  ============================================================================
-``process``             M^P, an :class:`~rmac_mj.approximators.llr.LLRState` over [x, u | x']
+``process``             M^P, an ``LLRState`` over [x, u | x']
 ``reference``           M^R over [x | x_hat]
-``critic``              M^C over [x | V]
-``traces``              (N_C,) eligibility traces of the critic's samples (line 26)
-``x_prev``, ``u_prev``  (n,), (m,): x_{k-1} and u_{k-1}, updated by ``step``
-``v_prev``              (1,): V_{k-1}, updated by ``step``
-``vertices``            (2^m, m) the combinations of action extremes that span the reachable set
-``period``              (n,) period of each periodic state dimension, 0 elsewhere
-``low``, ``high``       (m,) action bounds
-``gamma``, ``lam``      discount and trace decay
-``alpha_c``, ``alpha_r``  critic and reference learning rates
+``critic``              the critic, a ``CriticState`` (M^C over [x | V], its traces, gamma, lambda,
+                        alpha_c; :mod:`rmac_mj.agents.critic`)
+``x_prev``, ``u_prev``  (n,), (m,): x_{k-1} and u_{k-1}, advanced by ``step``
+``v_prev``              (1,): V_{k-1}, advanced by ``step``
+``gamma``, ``alpha_r``  discount and the reference's learning rate
 ``beta_u_zero``         beta_u counts as zero below this fraction of the state gains
 ``inverse_previous``    linearise the inverse at u_{k-1} (else at 0)
 ``gradient_at_next``    fit the critic's ranking model at x_k (else at x_{k-1})
-``rule``                index of ``RMACConfig.reachable_rule`` in ('vertices', 'vertices_value',
-                        'grid', 'exact')
+``rule``                index of ``RMACConfig.reachable_rule`` in ``rmac_config.REACHABLE_RULES``
 ``action_cost``         (m,) P of the score -sum_i P_i u_i^2 + gamma V(x') (rules other than
                         'vertices')
-``candidates``          (c, m) candidate actions of those rules (vertices or grid)
+``vertices``            (2^m, m) the combinations of action extremes that span the reachable set
+``candidates``          (c, m) candidate actions of the other rules (vertices or grid)
 ``refine_steps``        golden-section steps of rule 'exact' (0: none)
 ``insert_rate``         ``reference_insert_rate``: M^R gets R(x_{k-1}) + rate (x_r - R(x_{k-1}))
-``ref_idx``, ...        neighbour lists of the reference memory (``ref_*``) and of the critic
-                        (``crit_*``): two buffers each, one for x_k and one for x_{k-1}
-                        (``cur`` says which is x_k's): ``*_idx`` (2, K+1) samples, ``*_dist``
-                        (2, K+1) their distances, ``*_info`` (2, 2) [length (-1: none), memory
-                        version], ``*_point`` (2, n) where the list was searched
-``proc_idx``,           (K_P+1,) the process model's neighbour list at (x_{k-1}, u_{k-1})
-``proc_dist``
+``period``              (n,) period of each periodic state dimension, 0 elsewhere
+``low``, ``high``       (m,) action bounds
 ======================  ============================================================================
 
-Its arrays are the agent's own (and the memories'), so Python and compiled code see one state.
-The memories are used only through the compiled interface that ``rmac_mj.approximators.llr``
-exports.
-
-Fewer searches than statements. Algorithm 2 searches the same point more than once with one
-insertion in between: M^R and M^C at x_k (for R(x_k) and V_k) and again at x_{k-1} one step later
-(for the neighbours to update and the slot to replace), and M^P at (x_{k-1}, u_{k-1}) to insert
-and then to fit. Each such point is searched once for K+1 neighbours and the list is carried
-across the insertion (``llr_refresh``), which gives exactly the neighbours a second search would.
-A list is used only while its memory's version shows no other change, and only at the very point
-it was searched; otherwise the kernel searches again, as the reference does.
+Its arrays are the agent's own (and the memories'), so Python and compiled code see one state. The
+memories are used only through the compiled interface of ``rmac_mj.approximators.llr``: a neighbour
+list the algorithm asks for twice (K(x_k) when acting, K(x_{k-1}) one step later) is searched once
+there, invisibly to this module.
 """
 
 from __future__ import annotations
+
+import collections
 
 import numpy as np
 from numba import njit, types
 from numba.experimental import structref
 
-from rmac_mj.approximators.llr import (LLR_STATE_TYPE, llr_add_weighted, llr_candidates,
-                                       llr_canonical, llr_fit_at, llr_insert_among,
-                                       llr_move_outputs, llr_query, llr_refresh, wrap_scalar)
+from rmac_mj.agents.critic import CRITIC_STATE_TYPE, td_update, value_fit
+from rmac_mj.agents.rmac_config import REACHABLE_RULES
+from rmac_mj.approximators.llr import (LLR_STATE_TYPE, llr_canonical, llr_fit_at, llr_insert_among,
+                                       llr_local_fit, llr_move_outputs, llr_nearest, llr_query,
+                                       wrap_scalar)
+
+_RULE_VERTICES = REACHABLE_RULES.index("vertices")
+_RULE_EXACT = REACHABLE_RULES.index("exact")
+_INV_PHI = (5.0 ** 0.5 - 1.0) / 2.0
+
+#: The settings of a compiled RMAC step (fields: see the module docstring).
+RMACSettings = collections.namedtuple("RMACSettings", [
+    "gamma", "alpha_r", "beta_u_zero", "inverse_previous", "gradient_at_next", "rule",
+    "action_cost", "vertices", "candidates", "refine_steps", "insert_rate", "period", "low",
+    "high"])
 
 
 @structref.register
@@ -79,72 +82,48 @@ structref.define_boxing(RMACStateType, RMACState)
 
 _VECTOR = types.float64[::1]
 _MATRIX = types.float64[:, ::1]
-_INDICES = types.int64[:, ::1]
 RMAC_STATE_TYPE = RMACStateType([
-    ("process", LLR_STATE_TYPE), ("reference", LLR_STATE_TYPE), ("critic", LLR_STATE_TYPE),
-    ("traces", _VECTOR), ("x_prev", _VECTOR), ("u_prev", _VECTOR), ("v_prev", _VECTOR),
-    ("vertices", _MATRIX), ("period", _VECTOR), ("low", _VECTOR), ("high", _VECTOR),
-    ("gamma", types.float64), ("lam", types.float64), ("alpha_c", types.float64),
-    ("alpha_r", types.float64), ("beta_u_zero", types.float64), ("inverse_previous", types.boolean),
-    ("gradient_at_next", types.boolean), ("rule", types.int64), ("action_cost", _VECTOR),
-    ("candidates", _MATRIX), ("refine_steps", types.int64), ("insert_rate", types.float64),
-    ("ref_idx", _INDICES), ("ref_dist", _MATRIX), ("ref_info", _INDICES), ("ref_point", _MATRIX),
-    ("crit_idx", _INDICES), ("crit_dist", _MATRIX), ("crit_info", _INDICES),
-    ("crit_point", _MATRIX), ("cur", types.int64), ("proc_idx", types.int64[::1]),
-    ("proc_dist", _VECTOR)])
+    ("process", LLR_STATE_TYPE), ("reference", LLR_STATE_TYPE), ("critic", CRITIC_STATE_TYPE),
+    ("x_prev", _VECTOR), ("u_prev", _VECTOR), ("v_prev", _VECTOR),
+    ("gamma", types.float64), ("alpha_r", types.float64), ("beta_u_zero", types.float64),
+    ("inverse_previous", types.boolean), ("gradient_at_next", types.boolean), ("rule", types.int64),
+    ("action_cost", _VECTOR), ("vertices", _MATRIX), ("candidates", _MATRIX),
+    ("refine_steps", types.int64), ("insert_rate", types.float64), ("period", _VECTOR),
+    ("low", _VECTOR), ("high", _VECTOR)])
 
 
 @njit(cache=True)
-def set_rates(state, alpha_c, alpha_r):
-    """Set the critic's and the reference's learning rates (a trial's, when they decay)."""
-    state.alpha_c = alpha_c
-    state.alpha_r = alpha_r
+def new_state(process, reference, critic, x_prev, u_prev, v_prev, settings):
+    """An :class:`RMACState` over the memories' states, the critic's and the trial's arrays
+    x_{k-1}, u_{k-1}, V_{k-1} (none copied), with its :class:`RMACSettings`."""
+    s = structref.new(RMAC_STATE_TYPE)
+    s.process = process
+    s.reference = reference
+    s.critic = critic
+    s.x_prev = x_prev
+    s.u_prev = u_prev
+    s.v_prev = v_prev
+    s.gamma = settings.gamma
+    s.alpha_r = settings.alpha_r
+    s.beta_u_zero = settings.beta_u_zero
+    s.inverse_previous = settings.inverse_previous
+    s.gradient_at_next = settings.gradient_at_next
+    s.rule = settings.rule
+    s.action_cost = settings.action_cost
+    s.vertices = settings.vertices
+    s.candidates = settings.candidates
+    s.refine_steps = settings.refine_steps
+    s.insert_rate = settings.insert_rate
+    s.period = settings.period
+    s.low = settings.low
+    s.high = settings.high
+    return s
 
 
 @njit(cache=True)
-def new_state(process, reference, critic, traces, x_prev, u_prev, v_prev, vertices, period, low,
-              high, gamma, lam, alpha_c, alpha_r, beta_u_zero, inverse_previous, gradient_at_next,
-              ref_info, crit_info, rule, action_cost, candidates, refine_steps, insert_rate):
-    """An :class:`RMACState` over the given memory states and arrays (not copied). ``ref_info`` and
-    ``crit_info`` (2, 2) int64 mark the neighbour lists; set their [:, 0] to -1 to drop the lists
-    (at the start of a trial, after loading a state)."""
-    state = structref.new(RMAC_STATE_TYPE)
-    state.process = process
-    state.reference = reference
-    state.critic = critic
-    state.traces = traces
-    state.x_prev = x_prev
-    state.u_prev = u_prev
-    state.v_prev = v_prev
-    state.vertices = vertices
-    state.period = period
-    state.low = low
-    state.high = high
-    state.gamma = gamma
-    state.lam = lam
-    state.alpha_c = alpha_c
-    state.alpha_r = alpha_r
-    state.beta_u_zero = beta_u_zero
-    state.inverse_previous = inverse_previous
-    state.gradient_at_next = gradient_at_next
-    state.rule = rule
-    state.action_cost = action_cost
-    state.candidates = candidates
-    state.refine_steps = refine_steps
-    state.insert_rate = insert_rate
-    n = x_prev.shape[0]
-    state.ref_idx = np.zeros((2, reference.n_neighbours + 1), dtype=np.int64)
-    state.ref_dist = np.zeros((2, reference.n_neighbours + 1))
-    state.ref_info = ref_info
-    state.ref_point = np.zeros((2, n))
-    state.crit_idx = np.zeros((2, critic.n_neighbours + 1), dtype=np.int64)
-    state.crit_dist = np.zeros((2, critic.n_neighbours + 1))
-    state.crit_info = crit_info
-    state.crit_point = np.zeros((2, n))
-    state.cur = 0
-    state.proc_idx = np.zeros(process.n_neighbours + 1, dtype=np.int64)
-    state.proc_dist = np.zeros(process.n_neighbours + 1)
-    return state
+def set_reference_rate(s, alpha_r):
+    """alpha_r of the steps that follow (a trial's, when it decays; the critic has its own)."""
+    s.alpha_r = alpha_r
 
 
 @njit(cache=True)
@@ -156,52 +135,26 @@ def _canonical(x, period):
 
 
 @njit(cache=True)
-def _search_list(memory, x, idx, dist, info, point, b):
-    """Search a canonical x for K+1 neighbours into list buffer b, seeded with the other buffer's
-    list (a point one step away); returns K(x)'s length."""
-    other = 1 - b
-    n = llr_candidates(memory, x, idx[b], dist[b], idx[other], max(info[other, 0], 0))
-    info[b, 0] = n
-    info[b, 1] = memory.meta[2]
-    point[b, :] = x
-    return min(n, memory.n_neighbours)
+def _joined(x, u):
+    """[x, u], a new array."""
+    z = np.empty(x.shape[0] + u.shape[0])
+    z[:x.shape[0]] = x
+    z[x.shape[0]:] = u
+    return z
 
 
-@njit(cache=True)
-def _list_at(memory, x, info, point, b):
-    """Whether list buffer b holds K(x) of the memory as it is now."""
-    if info[b, 0] < 0 or info[b, 1] != memory.meta[2]:
-        return False
-    for j in range(x.shape[0]):
-        if point[b, j] != x[j]:
-            return False
-    return True
-
+# -- the policy: u = f^-1(x, R(x)) -------------------------------------------------------------------
 
 @njit(cache=True)
-def _carry(memory, idx, dist, info, point, b, version, slot):
-    """Carry list buffer b across the insertion into ``slot`` that changed the memory from
-    ``version``; a list of another version is dropped."""
-    if info[b, 0] >= 0 and info[b, 1] == version:
-        info[b, 0] = llr_refresh(memory, point[b], idx[b], dist[b], info[b, 0], slot)
-        info[b, 1] = memory.meta[2]
-    else:
-        info[b, 0] = -1
-
-
-@njit(cache=True)
-def _inverse(s, x, x_desired, u_query):
-    """f^-1(x, x_desired) linearised at (x, u_query); see RMAC._inverse."""
+def inverse(s, x, x_desired, u_query):
+    """f^-1(x, x_desired) linearised at (x, u_query); see ``RMAC._inverse``."""
     P = s.process
     n = x.shape[0]
     m = u_query.shape[0]
-    z = np.empty(n + m)
-    z[:n] = x
-    z[n:] = u_query
     idx = np.empty(P.n_neighbours, dtype=np.int64)
     beta = np.empty((n, n + m + 1))
     pred = np.empty(n)
-    llr_query(P, z, idx, beta, pred)
+    llr_query(P, _joined(x, u_query), idx, beta, pred)
     beta_u = np.ascontiguousarray(beta[:, n:n + m])
     u = np.zeros(m)
     if np.abs(beta_u).max() <= s.beta_u_zero * max(1.0, np.abs(beta[:, :n]).max()):
@@ -224,38 +177,29 @@ def _inverse(s, x, x_desired, u_query):
 
 
 @njit(cache=True)
-def _act(s, x):
-    """The greedy action in x (lines 10-11 without Delta u_k); leaves K+1 neighbours of x in the
-    reference's current list."""
-    n = x.shape[0]
-    R = s.reference
+def act(s, x):
+    """The greedy action in a canonical x: lines 10-11 without Delta u_k."""
     xq = _canonical(x, s.period)  # (as LLRMemory.query does)
-    nk = _search_list(R, xq, s.ref_idx, s.ref_dist, s.ref_info, s.ref_point, s.cur)
-    beta = np.empty((n, n + 1))
-    x_desired = np.empty(n)
-    llr_fit_at(R, xq, s.ref_idx[s.cur], nk, beta, x_desired)  # line 10
+    x_desired = llr_local_fit(s.reference, xq).prediction  # line 10: x_hat_{k+1} = R(x_k)
     u_query = s.u_prev.copy() if s.inverse_previous else np.zeros(s.u_prev.shape[0])
-    return _inverse(s, x, x_desired, u_query)  # line 11
+    return inverse(s, x, x_desired, u_query)  # line 11
 
 
-_RULE_VERTICES = 0
-_RULE_EXACT = 3
-_INV_PHI = (5.0 ** 0.5 - 1.0) / 2.0
-
+# -- line 16: the best reachable state ----------------------------------------------------------------
 
 @njit(cache=True)
-def _reachable_score(s, u, pred, beta_p, x_next):
-    """-sum_i P_i u_i^2 + gamma V(x'(u)), writing the canonical x'(u) to x_next; see
-    RMAC._reachable_score."""
+def _reachable_score(s, u, u_model, model, x_next):
+    """-sum_i P_i u_i^2 + gamma V(x'(u)) with x'(u) = f(x, u_model) + beta_u (u - u_model), writing
+    the canonical x'(u) to x_next; see ``RMAC._reachable_score``."""
+    pred, beta_p = model.prediction, model.beta
     n = pred.shape[0]
     m = u.shape[0]
-    u_prev = s.u_prev
     for j in range(n):
         r = pred[j]
         for i in range(m):
-            r += beta_p[j, n + i] * (u[i] - u_prev[i])
+            r += beta_p[j, n + i] * (u[i] - u_model[i])
         x_next[j] = wrap_scalar(r, s.period[j])
-    C = s.critic
+    C = s.critic.memory
     idx = np.empty(C.n_neighbours, dtype=np.int64)
     beta = np.empty((1, n + 1))
     v = np.empty(1)
@@ -267,9 +211,10 @@ def _reachable_score(s, u, pred, beta_p, x_next):
 
 
 @njit(cache=True)
-def _best_reachable(s, pred, beta_p):
-    """x_r for the rules other than 'vertices'; see RMAC._best_reachable."""
-    n = pred.shape[0]
+def _best_scored(s, u_model, model):
+    """x_r for the rules other than 'vertices': the candidate with the highest score, refined by
+    golden-section search for 'exact'; see ``RMAC._best_reachable``."""
+    n = model.prediction.shape[0]
     cands = s.candidates
     m = cands.shape[1]
     x_r = np.empty(n)
@@ -277,7 +222,7 @@ def _best_reachable(s, pred, beta_p):
     best_score = -np.inf
     best = 0
     for c in range(cands.shape[0]):
-        score = _reachable_score(s, cands[c], pred, beta_p, x_next)
+        score = _reachable_score(s, cands[c], u_model, model, x_next)
         if score > best_score:
             best_score = score
             best = c
@@ -293,8 +238,8 @@ def _best_reachable(s, pred, beta_p):
         xd = np.empty(n)
         uc[0] = b - _INV_PHI * (b - a)
         ud[0] = a + _INV_PHI * (b - a)
-        fc = _reachable_score(s, uc, pred, beta_p, xc)
-        fd = _reachable_score(s, ud, pred, beta_p, xd)
+        fc = _reachable_score(s, uc, u_model, model, xc)
+        fd = _reachable_score(s, ud, u_model, model, xd)
         for _ in range(s.refine_steps):
             if fc >= fd:  # the maximum lies in [a, d]
                 b = ud[0]
@@ -302,14 +247,14 @@ def _best_reachable(s, pred, beta_p):
                 fd = fc
                 xd[:] = xc
                 uc[0] = b - _INV_PHI * (b - a)
-                fc = _reachable_score(s, uc, pred, beta_p, xc)
+                fc = _reachable_score(s, uc, u_model, model, xc)
             else:         # in [c, b]
                 a = uc[0]
                 uc[0] = ud[0]
                 fc = fd
                 xc[:] = xd
                 ud[0] = a + _INV_PHI * (b - a)
-                fd = _reachable_score(s, ud, pred, beta_p, xd)
+                fd = _reachable_score(s, ud, u_model, model, xd)
         if fc >= fd:
             if fc > best_score:
                 x_r[:] = xc
@@ -319,111 +264,95 @@ def _best_reachable(s, pred, beta_p):
 
 
 @njit(cache=True)
-def _update(s, reward, x):
-    """Lines 13-28 for the transition (x_prev, u_prev, reward, x); returns V_k."""
-    P, R, C = s.process, s.reference, s.critic
-    x_prev, u_prev, period = s.x_prev, s.u_prev, s.period
-    cur = s.cur
-    prev = 1 - cur
-    n = x.shape[0]
-    m = u_prev.shape[0]
-    # Line 14: insert [x_{k-1}, u_{k-1} | x_k] in M^P; the neighbours of the insertion point,
-    # carried across the insertion, are those of the fit that follows.
-    z = np.empty(n + m)
-    z[:n] = x_prev
-    z[n:] = u_prev
-    zq = _canonical(z, P.in_period)
-    nc = llr_candidates(P, zq, s.proc_idx, s.proc_dist, s.proc_idx, 0)
-    slot = llr_insert_among(P, z, x, s.proc_idx, min(nc, P.n_neighbours))
-    nc = llr_refresh(P, zq, s.proc_idx, s.proc_dist, nc, slot)
-    # Line 16: best reachable state, X_R = beta^P U_R linearised at (x_{k-1}, u_{k-1}).
-    beta_p = np.empty((n, n + m + 1))
-    pred = np.empty(n)
-    llr_fit_at(P, zq, s.proc_idx, min(P.n_neighbours, P.meta[0]), beta_p, pred)
-    beta_c = np.empty((1, n + 1))
-    v_pred = np.empty(1)
-    xc = _canonical(x, period)  # (as LLRMemory.query does)
-    nk = _search_list(C, xc, s.crit_idx, s.crit_dist, s.crit_info, s.crit_point, cur)
-    llr_fit_at(C, xc, s.crit_idx[cur], nk, beta_c, v_pred)
-    v_k = v_pred[0]
-    if s.rule != _RULE_VERTICES:  # r + gamma V(x') with the full critic
-        x_r = _best_reachable(s, pred, beta_p)
-    else:
-        vertices = s.vertices
-        nv = vertices.shape[0]
-        reachable = np.empty((nv, n))
-        for v in range(nv):
-            for j in range(n):
-                r = pred[j]
-                for i in range(m):
-                    r += beta_p[j, n + i] * (vertices[v, i] - u_prev[i])
-                reachable[v, j] = r
-        slope = beta_c[0, :n].copy()
-        x_c = x
-        if not s.gradient_at_next:
-            xp = _canonical(x_prev, period)
-            if _list_at(C, xp, s.crit_info, s.crit_point, prev):
-                llr_fit_at(C, xp, s.crit_idx[prev], min(C.n_neighbours, C.meta[0]), beta_c,
-                           v_pred)
-            else:
-                idx = np.empty(C.n_neighbours, dtype=np.int64)
-                llr_query(C, x_prev, idx, beta_c, v_pred)
-            slope = beta_c[0, :n].copy()
-            x_c = x_prev
-        best = 0
-        best_value = -np.inf
-        for v in range(nv):
-            value = 0.0
-            for j in range(n):
-                value += slope[j] * wrap_scalar(reachable[v, j] - x_c[j], period[j])
-            if value > best_value:
-                best_value = value
-                best = v
-        x_r = np.empty(n)
+def _best_vertex(s, x, u, x_next, model, value):
+    """x_r of the paper's rule: the vertex of X_R = beta^P U_R (linearised at (x, u)) with the
+    highest value under the critic's local linear model, fitted at x' (``value``) or at x."""
+    pred, beta_p = model.prediction, model.beta
+    n = pred.shape[0]
+    m = u.shape[0]
+    vertices, period = s.vertices, s.period
+    nv = vertices.shape[0]
+    reachable = np.empty((nv, n))
+    for v in range(nv):
         for j in range(n):
-            x_r[j] = wrap_scalar(reachable[best, j], period[j])
-    # Lines 17-20: insert [x_{k-1} | x_r] in M^R, move K(x_{k-1}) towards x_r.
-    if _list_at(R, x_prev, s.ref_info, s.ref_point, prev):
-        nk = min(R.n_neighbours, R.meta[0])
-    else:
-        nk = _search_list(R, x_prev, s.ref_idx, s.ref_dist, s.ref_info, s.ref_point, prev)
-    near = s.ref_idx[prev]
+            r = pred[j]
+            for i in range(m):
+                r += beta_p[j, n + i] * (vertices[v, i] - u[i])
+            reachable[v, j] = r
+    # The critic's local linear model, V(y) = V(x_c) + beta^C_x wrap(y - x_c).
+    x_c = x_next
+    slope = value.beta[0, :n].copy()
+    if not s.gradient_at_next:
+        x_c = x
+        slope = value_fit(s.critic, x).beta[0, :n].copy()
+    best = 0
+    best_value = -np.inf
+    for v in range(nv):
+        score = 0.0
+        for j in range(n):
+            score += slope[j] * wrap_scalar(reachable[v, j] - x_c[j], period[j])
+        if score > best_value:
+            best_value = score
+            best = v
+    x_r = np.empty(n)
+    for j in range(n):
+        x_r[j] = wrap_scalar(reachable[best, j], period[j])
+    return x_r
+
+
+@njit(cache=True)
+def best_reachable(s, x, u, x_next, model, value):
+    """Line 16: x_r, the best state reachable from x under the process model's local fit at (x, u)
+    (``model``), with the critic's fit at x' (``value``) for the paper's rule."""
+    if s.rule == _RULE_VERTICES:
+        return _best_vertex(s, x, u, x_next, model, value)
+    return _best_scored(s, u, model)
+
+
+# -- lines 17-20: the reference model -------------------------------------------------------------------
+
+@njit(cache=True)
+def update_reference(s, x, x_r):
+    """Lines 17-20: insert [x | x_r] in M^R (or R(x) moved towards x_r: ``insert_rate``), then move
+    the samples K(x) of before the insertion towards x_r by alpha_r."""
+    R, period = s.reference, s.period
+    n = x.shape[0]
+    near, nk = llr_nearest(R, x)
+    near = near[:nk].copy()  # K(x) before the insertion
     inserted = x_r
-    if s.insert_rate < 1.0 and nk > 0:  # R(x_{k-1}) from K(x_{k-1}), moved towards x_r
+    if s.insert_rate < 1.0 and nk > 0:  # R(x) from K(x), moved towards x_r
         beta_r = np.empty((n, n + 1))
-        r_prev = np.empty(n)
-        llr_fit_at(R, x_prev, near, nk, beta_r, r_prev)
+        r_x = np.empty(n)
+        llr_fit_at(R, x, near, nk, beta_r, r_x)
         inserted = np.empty(n)
         for j in range(n):
             inserted[j] = wrap_scalar(
-                r_prev[j] + s.insert_rate * wrap_scalar(x_r[j] - r_prev[j], period[j]), period[j])
-    version = R.meta[2]
-    slot = llr_insert_among(R, x_prev, inserted, near, nk)
-    _carry(R, s.ref_idx, s.ref_dist, s.ref_info, s.ref_point, cur, version, slot)
-    llr_move_outputs(R, near, nk, x_r, s.alpha_r)
-    # Lines 22-28: TD(lambda) on the critic's samples; V_k computed above (line 22).
-    if _list_at(C, x_prev, s.crit_info, s.crit_point, prev):
-        nk = min(C.n_neighbours, C.meta[0])
-    else:
-        nk = _search_list(C, x_prev, s.crit_idx, s.crit_dist, s.crit_info, s.crit_point, prev)
-    near = s.crit_idx[prev]
-    v_in = np.empty(1)
-    v_in[0] = s.v_prev[0]
-    version = C.meta[2]
-    slot = llr_insert_among(C, x_prev, v_in, near, nk)  # line 23
-    _carry(C, s.crit_idx, s.crit_dist, s.crit_info, s.crit_point, cur, version, slot)
-    delta = reward + s.gamma * v_k - s.v_prev[0]  # line 24
-    decay = s.lam * s.gamma
-    traces = s.traces
-    for i in range(C.meta[0]):
-        traces[i] *= decay  # line 26
-    for a in range(nk):
-        traces[near[a]] = 1.0
-    traces[slot] = 1.0
-    step_size = np.empty(1)
-    step_size[0] = s.alpha_c * delta
-    llr_add_weighted(C, traces, step_size)  # line 27
-    return v_k
+                r_x[j] + s.insert_rate * wrap_scalar(x_r[j] - r_x[j], period[j]), period[j])
+    llr_insert_among(R, x, inserted, near, nk)  # line 17
+    llr_move_outputs(R, near, nk, x_r, s.alpha_r)  # lines 18-20
+
+
+# -- lines 13-28: one transition ------------------------------------------------------------------------
+
+@njit(cache=True)
+def learn(s, x, u, reward, x_next, v, model_learns):
+    """Lines 13-28 for the transition (x, u, r, x') from canonical states, with V(x) = ``v``;
+    returns V(x') (line 22, before the critic's update). ``model_learns``: line 14 inserts the
+    transition in M^P (a real one); False for a simulated transition, which the process model
+    predicted and must not learn from."""
+    P = s.process
+    z = _joined(x, u)
+    zq = _canonical(z, P.in_period)
+    if model_learns:  # line 14: insert [x, u | x'] in M^P
+        near, nk = llr_nearest(P, zq)
+        llr_insert_among(P, z, x_next, near, nk)
+    model = llr_local_fit(P, zq)       # the local process model at (x, u)
+    value = value_fit(s.critic, x_next)  # line 22: V(x') and its local model
+    v_next = value.prediction[0]
+    x_r = best_reachable(s, x, u, x_next, model, value)  # line 16
+    update_reference(s, x, x_r)        # lines 17-20
+    td_update(s.critic, x, v, reward, v_next)  # lines 23-28
+    return v_next
 
 
 @njit(cache=True)
@@ -432,19 +361,16 @@ def step(s, reward, x, du):
     here): u_k = sat(f^-1(x_k, R(x_k)) + Delta u_k) with the models as they are (lines 10-12), then
     lines 13-28; then x_prev, u_prev, v_prev advance to x_k, u_k, V_k. Returns u_k."""
     x = _canonical(x, s.period)
-    u = _act(s, x)
-    low, high = s.low, s.high
+    u = act(s, x)
     for i in range(u.shape[0]):
-        u[i] = min(max(u[i] + du[i], low[i]), high[i])
-    s.v_prev[0] = _update(s, reward, x)
+        u[i] = min(max(u[i] + du[i], s.low[i]), s.high[i])
+    s.v_prev[0] = learn(s, s.x_prev, s.u_prev, reward, x, s.v_prev[0], True)
     s.x_prev[:] = x
     s.u_prev[:] = u
-    s.cur = 1 - s.cur
     return u
 
 
 @njit(cache=True)
 def stop(s, reward, x):
     """The last transition of a trial (lines 13-28, no action) for a checked state x."""
-    s.ref_info[s.cur, 0] = -1  # no action, so no reference list at x
-    _update(s, reward, _canonical(x, s.period))
+    learn(s, s.x_prev, s.u_prev, reward, _canonical(x, s.period), s.v_prev[0], True)

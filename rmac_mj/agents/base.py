@@ -131,14 +131,25 @@ class Agent(abc.ABC):
             raise ValueError(f"{self.name}: {name} must be finite, got {x!r}")
         return v
 
-    def _checked_reward(self, reward: Any) -> float:
+    def _checked_reward(self, reward: Any, name: str = "reward") -> float:
+        """A finite number as a float; ValueError naming ``name`` otherwise."""
         try:
             r = float(reward)
         except (TypeError, ValueError):
-            raise ValueError(f"{self.name}: reward must be a finite number, got {reward!r}") from None
+            raise ValueError(f"{self.name}: {name} must be a finite number, got {reward!r}") from None
         if not math.isfinite(r):
-            raise ValueError(f"{self.name}: reward must be finite, got {reward!r}")
+            raise ValueError(f"{self.name}: {name} must be finite, got {reward!r}")
         return r
+
+    def _checked_action(self, u: Any, name: str = "u") -> np.ndarray:
+        """u as a new float64 vector of shape (m,); ValueError naming ``name`` if not finite or wrong."""
+        v = np.array(u, dtype=float).reshape(-1)
+        if v.shape != (self.action_space.dim,):
+            raise ValueError(f"{self.name}: {name} must have shape ({self.action_space.dim},), got "
+                             f"shape {np.shape(u)}")
+        if not np.all(np.isfinite(v)):
+            raise ValueError(f"{self.name}: {name} must be finite, got {u!r}")
+        return v
 
     def _check_in_trial(self, method: str) -> None:
         if not self._in_trial:
@@ -181,6 +192,34 @@ class Agent(abc.ABC):
     def value(self, x: Any) -> float:
         """The critic's estimate V(x)."""
         return float(self._value(self._checked_state(x)))
+
+    def learn(self, x: Any, u: Any, reward: Any, x_next: Any, v: Any = None,
+              model: bool = True) -> float:
+        """Learn one transition (x, u, r, x') as a control step does, with the running trial's traces
+        and learning rates; returns V(x') (before the update). The learner's step bookkeeping
+        (x_{k-1}, u_{k-1}, V_{k-1}) is left alone, so this also learns transitions the learner did
+        not make (planning and replay).
+
+        Args:
+          x, x_next: states of shape (n,), finite; u: an action of shape (m,), finite; reward: a
+            finite number.
+          v: V(x), what the critic's sample inserted at x gets (a control step passes the V_{k-1}
+            it computed one step before); None: the critic's estimate now.
+          model: False leaves the process model out: for a simulated transition, which the process
+            model predicted and must not learn from.
+        Raises:
+          NotImplementedError: the learner learns only from its own steps.
+          ValueError: naming the argument that is malformed.
+        """
+        x, x_next = self._checked_state(x), self._checked_state(x_next, "x_next")
+        u, reward = self._checked_action(u), self._checked_reward(reward)
+        v = self._value(x) if v is None else self._checked_reward(v, "v")
+        return float(self._learn_transition(x, u, reward, x_next, v, bool(model)))
+
+    def _learn_transition(self, x: np.ndarray, u: np.ndarray, reward: float, x_next: np.ndarray,
+                          v: float, model: bool) -> float:
+        """:meth:`learn` for checked arguments (learners that learn single transitions)."""
+        raise NotImplementedError(f"{self.name} learns only from its own steps")
 
     def begin_greedy_trial(self) -> None:
         """Forget what a previous greedy trial carried over (e.g. RMAC's last action); no learning."""

@@ -47,6 +47,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from rmac_mj.agents.base import Agent
+from rmac_mj.agents.critic import LLRCritic
 from rmac_mj.agents.exploration import Exploration, model_uncertainty
 from rmac_mj.agents.prior_knowledge import discounted_returns, seed_memory
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
@@ -175,8 +176,8 @@ class MLAC(Agent):
       config: hyperparameters; the weightings must have n (actor, critic) and n + m (process) entries.
       seed: seed or Generator of the exploration noise, the only randomness.
 
-    Learned state: ``actor``, ``critic`` and ``process`` (:class:`LLRMemory`) and ``traces``
-    (shape (critic_capacity,), one eligibility trace per critic sample).
+    Learned state: the memories ``actor`` and ``process`` (:class:`LLRMemory`) and the ``critic``
+    (:class:`LLRCritic`, shared with RMAC: its memory and one eligibility trace per sample).
     """
 
     name = "mlac"
@@ -199,17 +200,15 @@ class MLAC(Agent):
             n, m, config.actor_capacity, config.actor_neighbours, input_weights=config.actor_weights,
             input_period=self.period, clip=config.actor_clip,
             replacement=config.actor_replacement, **common)
-        self.critic = LLRMemory(
+        self.critic = LLRCritic(LLRMemory(
             n, 1, config.critic_capacity, config.critic_neighbours, input_weights=config.critic_weights,
             input_period=self.period, clip=config.critic_clip,
-            replacement=config.critic_replacement, **common)
+            replacement=config.critic_replacement, **common), config.gamma, config.lam, config.alpha_c)
         self.process = LLRMemory(
             n + m, n, config.process_capacity, config.process_neighbours,
             input_weights=config.process_weights, input_period=np.r_[self.period, np.zeros(m)],
             output_period=self.period, clip=config.process_clip,
             replacement=config.process_replacement, **common)
-        #: e(s_i): one eligibility trace per critic memory slot (RMAC paper, Alg. 2 line 26).
-        self.traces = np.zeros(config.critic_capacity)
         #: The middle and half-width of the action box, for the saturation rule.
         self._u_mid = 0.5 * (action_space.low + action_space.high)
         self._u_half = 0.5 * (action_space.high - action_space.low)
@@ -254,7 +253,7 @@ class MLAC(Agent):
         df_du = beta_p[:, n:n + self.m]                      # (n, m)
         # The critic's local fit at the predicted next state: its slope is dV/dx (x_hat is wrapped
         # by the query; the slope holds for wrapped offsets).
-        dv_dx = self.critic.query(x_hat)[1][0, :n]           # (n,)
+        dv_dx = self.critic.memory.query(x_hat)[1][0, :n]    # (n,)
         model_term = cfg.gamma * dv_dx @ df_du               # (m,), column j is df/du_j's share
         # The saturation rule: df/du_j = 0 where the policy's action is saturated ('zero'), or only
         # where the model term would push it further out ('outward').
@@ -265,13 +264,15 @@ class MLAC(Agent):
         dr_du = -2.0 * self._action_cost * u_pi              # reward term -sum_i P_i u_i^2
         return model_term + dr_du
 
-    def _improve_actor(self, x_prev: np.ndarray, u_prev: np.ndarray) -> None:
-        """Step 3: insert [x_{k-1} | pi(x_{k-1})], move it and K(x_{k-1}) along alpha_a dQ/du."""
-        # pi(x_{k-1}) and K(x_{k-1}) as found when u_{k-1} was chosen: the actor has not changed since.
-        u_pi, near = self._pi_prev if self._pi_prev is not None else self._pi(x_prev)
-        u_model = u_pi if self.config.model_action == "policy" else u_prev
-        step = self.config.alpha_a * self.action_gradient(x_prev, u_pi, u_model)
-        slot = self.actor.insert(x_prev, u_pi, nearest=int(near[0]) if len(near) else None)
+    def _improve_actor(self, x: np.ndarray, u: np.ndarray,
+                       policy: tuple[np.ndarray, np.ndarray] | None) -> None:
+        """Step 3: insert [x | pi(x)], move it and K(x) along alpha_a dQ/du. ``policy``: (pi(x),
+        K(x)) when known (found when u was chosen in x: the actor has not changed since), else
+        None."""
+        u_pi, near = policy if policy is not None else self._pi(x)
+        u_model = u_pi if self.config.model_action == "policy" else u
+        step = self.config.alpha_a * self.action_gradient(x, u_pi, u_model)
+        slot = self.actor.insert(x, u_pi, nearest=int(near[0]) if len(near) else None)
         # When the memory is full the new sample may take a neighbour's slot: move each sample once.
         moved = near if slot in near else np.append(near, slot)
         before = self.actor.outputs(moved)
@@ -292,10 +293,9 @@ class MLAC(Agent):
     def _start(self, x0: np.ndarray) -> np.ndarray:
         """A trial begins: traces reset, V_0, u_0 = pi(x_0) + Delta u_0."""
         x0 = self.state_space.canonical(x0)
-        self.traces[:] = 0.0
+        self.critic.begin_trial()
         self._k = 0
-        self._v_prev = (float(self.critic.query(x0)[0][0]) if self.config.initial_value == "critic"
-                        else 0.0)
+        self._v_prev = self.critic.value(x0) if self.config.initial_value == "critic" else 0.0
         u = self._act(x0)
         self._x_prev, self._u_prev = x0, u
         return u.copy()
@@ -304,34 +304,33 @@ class MLAC(Agent):
         """Learn from (x_{k-1}, u_{k-1}, r_k, x_k) (steps 1-3), then act in x_k (step 4)."""
         x = self.state_space.canonical(x)
         self._k += 1
-        self._v_prev = self._update(reward, x)
+        self._v_prev = self._learn(self._x_prev, self._u_prev, reward, x, self._v_prev, True,
+                                   self._pi_prev)
         u = self._act(x)
         self._x_prev, self._u_prev = x, u
         return u.copy()
 
     def _stop(self, reward: float, x: np.ndarray) -> None:
         """The trial's last transition is learned like any other (the trial ends on a time limit)."""
-        self._update(reward, self.state_space.canonical(x))
+        self._learn(self._x_prev, self._u_prev, reward, self.state_space.canonical(x),
+                    self._v_prev, True, self._pi_prev)
 
-    def _update(self, reward: float, x: np.ndarray) -> float:
-        """Steps 1-3 of the module docstring; returns V_k."""
-        cfg = self.config
-        x_prev, u_prev = self._x_prev, self._u_prev
-        # 1. The process model learns the transition.
-        self.process.insert(np.concatenate([x_prev, u_prev]), x)
+    def _learn_transition(self, x: np.ndarray, u: np.ndarray, reward: float, x_next: np.ndarray,
+                          v: float, model: bool) -> float:
+        """:meth:`Agent.learn`: steps 1-3 for one transition (``model=False``: without step 1)."""
+        x, x_next = self.state_space.canonical(x), self.state_space.canonical(x_next)
+        return self._learn(x, u, reward, x_next, v, model, None)
+
+    def _learn(self, x: np.ndarray, u: np.ndarray, reward: float, x_next: np.ndarray, v: float,
+               model: bool, policy: tuple[np.ndarray, np.ndarray] | None) -> float:
+        """Steps 1-3 of the module docstring for canonical states; returns V(x')."""
+        if model:  # 1. The process model learns the transition.
+            self.process.insert(np.concatenate([x, u]), x_next)
         # 2. TD(lambda) on the critic's samples (RMAC paper, Algorithm 2 lines 22-28).
-        v_k = float(self.critic.query(x)[0][0])                                  # line 22
-        near = self.critic.neighbours(x_prev)
-        slot = self.critic.insert(x_prev, [self._v_prev],
-                                  nearest=int(near[0]) if len(near) else None)   # line 23
-        delta = reward + cfg.gamma * v_k - self._v_prev                          # line 24
-        self.traces *= cfg.lam * cfg.gamma                                       # line 26
-        self.traces[near] = 1.0
-        self.traces[slot] = 1.0
-        self.critic.add_weighted(self.traces, [cfg.alpha_c * delta])  # line 27
+        v_next = self.critic.update(x, v, reward, x_next)
         # 3. The actor moves along the model-based gradient of the return.
-        self._improve_actor(x_prev, u_prev)
-        return v_k
+        self._improve_actor(x, u, policy)
+        return v_next
 
     def _greedy_action(self, x: np.ndarray) -> np.ndarray:
         """pi(x), saturated; no exploration, no learning, nothing carried between calls."""
@@ -339,7 +338,7 @@ class MLAC(Agent):
 
     def _value(self, x: np.ndarray) -> float:
         """V(x), the critic's LLR estimate."""
-        return float(self.critic.query(self.state_space.canonical(x))[0][0])
+        return self.critic.value(self.state_space.canonical(x))
 
     # -- prior knowledge ------------------------------------------------------------------------------
     #: What :meth:`Agent.seed_from` can initialise from recorded transitions.
@@ -365,18 +364,22 @@ class MLAC(Agent):
             raise ValueError("MLAC.seed_from: actions must lie inside the action bounds "
                              f"[{self.action_space.low}, {self.action_space.high}]")
         for name in parts:
-            seed_memory(getattr(self, name), *data[name])
+            seed_memory(self._memory(name), *data[name])
         self._pi_prev = None
         if "critic" in parts:
-            self.traces[:] = 0.0
+            self.critic.begin_trial()
 
     # -- state ----------------------------------------------------------------------------------------
+    def _memory(self, name: str) -> LLRMemory:
+        """The memory ``name`` of _MEMORIES ('actor', 'critic', 'process')."""
+        return self.critic.memory if name == "critic" else getattr(self, name)
+
     def _state(self) -> dict[str, np.ndarray]:
         """The three memories, the critic's traces and the running trial's bookkeeping."""
         state: dict[str, np.ndarray] = {}
         for name in _MEMORIES:
-            state.update(getattr(self, name).state_dict(prefix=f"{name}."))
-        state["traces"] = self.traces.copy()
+            state.update(self._memory(name).state_dict(prefix=f"{name}."))
+        state["traces"] = self.critic.traces.copy()
         state["k"] = np.array(self._k)
         state["x_prev"] = self._x_prev.copy()
         state["u_prev"] = self._u_prev.copy()
@@ -385,8 +388,8 @@ class MLAC(Agent):
 
     def _load_state(self, state: dict[str, np.ndarray]) -> None:
         for name in _MEMORIES:
-            getattr(self, name).load_state_dict(state, prefix=f"{name}.")
-        self.traces[:] = state["traces"]
+            self._memory(name).load_state_dict(state, prefix=f"{name}.")
+        self.critic.traces[:] = state["traces"]
         self._k = int(state["k"])
         self._x_prev = np.array(state["x_prev"], dtype=float)
         self._u_prev = np.array(state["u_prev"], dtype=float)

@@ -26,54 +26,37 @@ Where the paper is silent, the choice is a constructor parameter (defaults in br
   open (section 7); replacing the oldest made RMAC's critic forget all but the last ~20 trials and
   degrade late, replacing the nearest did not.
 * ``redundancy`` ['distance'] and ``redundancy_smoothing`` [0.1]: the score of
-  ``replacement='redundancy'``, the scheme issue 14 describes of the authors' code (a redundancy
-  score per sample, smoothed over updates; the squared model misfit for the process memory, the
-  distance for the others). Its details are our own choices, made precise here. Every sample i
-  carries a score rho_i (higher: more redundant). When a sample [x_* | y_*] is inserted, with K(x_*)
-  its K nearest stored samples (before the insertion), each neighbour's score is smoothed
-  exponentially towards a redundancy measure c_i,
-
-      rho_i <- (1 - eta) rho_i + eta c_i            for i in K(x_*),   eta = redundancy_smoothing,
-
-  and the new sample starts from its neighbourhood's level with one such step towards its own
-  measure, rho_* = (1 - eta) mean_{i in K(x_*)} rho_i + eta c_* (0 on an empty memory). The measures:
-
-  - 'distance': c_i = -d(x_i, x_*), the weighted distance of the memory (1- or 2-norm of
-    w * wrap(x_i - x_*)); c_* = -min_i d(x_i, x_*). A sample close to new samples is redundant.
-  - 'misfit': one affine model is fitted (as a query, unclipped) at x_* to the new sample and its
-    neighbours, and c_j = -e_j^2 with e_j^2 = |wrap(y_j - y_hat(x_j))|^2 its squared residual, for
-    the neighbours and for the new sample alike. A sample the local model of its neighbourhood
-    predicts well adds little and is redundant; one it misfits holds information (a bend of the
-    function, or noise: this measure keeps outliers, which the process memory's deterministic
-    dynamics make rare).
-
-  Once full, the new sample replaces the stored sample of highest score (first of equals), after
-  its neighbours' scores have been updated; the new sample itself is always stored. Our choices:
-  scores change only on insertion (a query leaves the memory unchanged, so greedy trials and
-  plots do not alter what is forgotten); the new sample's start above (a first version started it
-  at c_* itself: a new sample is then judged by its single nearest distance or its own misfit while
-  the others' scores are averages, so it was nearly always the most redundant, the next sample
-  replaced it, and the memories stopped taking in new states: RMAC got stuck in 5 of 10
-  experiments, docs/studies/memory-management.md); ``fit`` scores each given sample by its own
-  measure among the others (c_i as if inserted last). eta = 0.1 averages a score over roughly its
-  last ten neighbourhood events.
+  ``replacement='redundancy'``, the scheme issue 14 describes of the authors' code (a redundancy score
+  per sample, smoothed over the insertions near it; the squared model misfit for the process memory,
+  the distance for the others). Its equations and our choices in it are in
+  :mod:`rmac_mj.approximators.llr_reference`.
 * A query on an empty memory predicts 0 with beta = 0 (Algorithm 2 line 2: V_0 = 0, beta^P = 0).
 
-Two back ends give the same results: ``backend='numba'`` (compiled kernels in ``_llr_kernels``) and
-``backend='numpy'`` (the readable reference below). Compiled brute force finds the 20 nearest of
-2000 samples in about 3 us and needs nothing rebuilt when samples change; scipy's cKDTree took 32 us
-per query and 720 us per rebuild here (measured; a memory changes every control step).
+Two back ends give the same results: ``backend='numba'`` (compiled kernels in ``_llr_kernels``,
+``_llr_search`` and ``_llr_fit``) and ``backend='numpy'`` (the readable reference:
+:mod:`~rmac_mj.approximators.llr_reference` and this class's numpy paths). Compiled brute force finds
+the 20 nearest of 2000 samples in about 3 us and needs nothing rebuilt when samples change; scipy's
+cKDTree took 32 us per query and 720 us per rebuild here (measured; a memory changes every control
+step).
 
 Compiled interface. A learner whose own step is compiled with numba (RMAC) works on a memory through
 ``LLRMemory.kernel_state``, an :class:`LLRState` (a numba structref naming the memory's arrays and
-settings), and the compiled functions exported here: ``llr_query``, ``llr_neighbours``,
-``llr_insert``, ``llr_move_outputs`` and ``llr_add_weighted``, the compiled counterparts of
-``query``, ``neighbours``, ``insert``, ``move_outputs`` and ``add_weighted``; ``llr_insert_among``
-(an insertion given the new sample's neighbours, found by a search just made); ``llr_candidates``
-(K+1 neighbours with their distances), ``llr_refresh`` (carry such a list across one insertion) and
-``llr_fit_at`` (the local model from given neighbours) let a caller that queries a point before
-inserting there search only once. ``LLR_STATE_TYPE`` is the numba type of the state, for a
-learner's own structref fields.
+settings), and the compiled functions exported here, each taking the state first:
+
+* ``llr_nearest(state, xq) -> (indices, k)``: K(xq), kept for the learner's return to xq and carried
+  across insertions (``_llr_kernels`` explains the kept lists), so a point is searched once however
+  often the algorithm asks; ``llr_local_fit(state, xq) -> LocalFit``: the local model from it;
+* ``llr_query``: a one-shot search and fit that keeps nothing (a greedy action, a candidate's value);
+* ``llr_fit_at``: the local model from given neighbours; ``llr_insert`` and ``llr_insert_among`` (an
+  insertion given the new sample's neighbours); ``llr_move_outputs``, ``llr_add_weighted``;
+* ``llr_size``: the number of samples; ``llr_canonical`` and ``wrap_scalar``: wrapping.
+
+``LLR_STATE_TYPE`` is the numba type of the state, for a learner's own structref fields.
+
+This module is the one class a learner uses, with its constraints and its compiled interface; it
+runs past 400 lines because ``LLRMemory`` keeps every operation's checked boundary, its numpy
+reference and its dispatch to the kernels side by side, so that the two back ends can be read
+against each other.
 """
 
 from __future__ import annotations
@@ -84,106 +67,40 @@ from typing import Any
 import numpy as np
 
 from rmac_mj.approximators import _llr_kernels as _k
-from rmac_mj.approximators._llr_kernels import LLR_STATE_TYPE, LLRState
+from rmac_mj.approximators._llr_kernels import LLR_STATE_TYPE, LLRState, LocalFit
+from rmac_mj.approximators._llr_redundancy import MEASURE_DISTANCE, MEASURE_MISFIT
+from rmac_mj.approximators.llr_reference import (distance_reference, fit_reference, misfit_reference,
+                                                 search_reference, wrap)
 from rmac_mj.constraints import WEIGHTS, Boolean, Field, Interval, Options, TupleOf, check
 
 #: The compiled interface (see the module docstring): the functions take an LLRState first;
 #: ``wrap_scalar(d, period)`` is ``wrap`` for one number, for compiled callers.
+llr_nearest = _k.nearest
+llr_local_fit = _k.local_fit
 llr_query = _k.query
-llr_neighbours = _k.neighbours
+llr_fit_at = _k.fit_at
 llr_insert = _k.insert
 llr_insert_among = _k.insert_among
 llr_move_outputs = _k.move_outputs
 llr_add_weighted = _k.add_weighted
-llr_candidates = _k.candidates
-llr_refresh = _k.refresh
-llr_fit_at = _k.fit_at
-wrap_scalar = _k.wrap
+llr_size = _k.size
 llr_canonical = _k.canonical
+wrap_scalar = _k.wrap
 
-__all__ = ["LLRMemory", "LLRState", "LLR_STATE_TYPE", "fit_reference", "llr_add_weighted",
-           "llr_canonical", "llr_candidates", "llr_fit_at", "llr_insert", "llr_insert_among",
-           "llr_move_outputs", "llr_neighbours", "misfit_reference",
-           "llr_query", "llr_refresh", "search_reference", "wrap", "wrap_scalar"]
+__all__ = ["LLRMemory", "LLRState", "LLR_STATE_TYPE", "LocalFit", "SHARED_CONSTRAINTS",
+           "llr_add_weighted", "llr_canonical", "llr_fit_at", "llr_insert", "llr_insert_among",
+           "llr_local_fit", "llr_move_outputs", "llr_nearest", "llr_query", "llr_size",
+           "memory_constraints", "wrap", "wrap_scalar"]
 
 _CONDITIONINGS = ("svd", "ridge", "none")
 _REPLACEMENTS = {"oldest": _k.REPLACE_OLDEST, "nearest": _k.REPLACE_NEAREST,
                  "redundancy": _k.REPLACE_REDUNDANCY}
-_MEASURES = {"distance": _k.MEASURE_DISTANCE, "misfit": _k.MEASURE_MISFIT}
+_MEASURES = {"distance": MEASURE_DISTANCE, "misfit": MEASURE_MISFIT}
 _BACKENDS = ("numba", "numpy")
 #: Relative eigenvalue cutoff of G = A^T A used for 'none' and 'ridge' (a singular value ratio of
 #: about 3e-7): only numerically singular directions are dropped.
 _NUMERICAL_EIG_CUTOFF = 1e-13
 
-
-# --------------------------------------------------------------------------------------------------
-# Reference implementation (plain numpy). The numba kernels follow these line by line.
-
-def wrap(d: np.ndarray, period: np.ndarray) -> np.ndarray:
-    """Differences ``d`` (shape (..., n)) wrapped to [-period/2, period/2) where period > 0."""
-    d = np.asarray(d, dtype=float)
-    safe = np.where(period > 0, period, 1.0)
-    return np.where(period > 0, d - safe * np.floor(d / safe + 0.5), d)
-
-
-def search_reference(X: np.ndarray, xq: np.ndarray, weights: np.ndarray, period: np.ndarray,
-                     norm: int, k: int) -> np.ndarray:
-    """Indices of the min(k, len(X)) nearest rows of X (shape (N, n)) to xq (n,), nearest first."""
-    e = weights * wrap(X - xq, period)
-    d = np.abs(e).sum(axis=1) if norm == 1 else (e * e).sum(axis=1)
-    return np.argsort(d, kind="stable")[:k]
-
-
-def fit_reference(X: np.ndarray, Y: np.ndarray, xq: np.ndarray, weights: np.ndarray,
-                  in_period: np.ndarray, out_period: np.ndarray, eig_cutoff: float, ridge: float,
-                  clip: bool) -> tuple[np.ndarray, np.ndarray]:
-    """Local affine model of neighbours X (k, n) -> Y (k, m) around xq (n,).
-
-    Returns (prediction of shape (m,), beta of shape (m, n+1)) with beta @ [xq; 1] == prediction.
-    See ``_llr_kernels.fit`` for the method; this is the same computation in numpy.
-    """
-    k, n = X.shape
-    m = Y.shape[1]
-    if k == 0:
-        return np.zeros(m), np.zeros((m, n + 1))
-    A = np.hstack([weights * wrap(X - xq, in_period), np.ones((k, 1))])
-    Yn = Y.copy()
-    Yn[1:] = Y[0] + wrap(Y[1:] - Y[0], out_period)  # no-op for non-periodic outputs
-    G = A.T @ A + ridge * np.diag(np.r_[np.ones(n), 0.0])
-    evals, evecs = np.linalg.eigh(G)
-    keep = (evals > eig_cutoff * evals[-1]) & (evals > 0)
-    G_inv = (evecs[:, keep] / evals[keep]) @ evecs[:, keep].T
-    g = G_inv @ (A.T @ Yn)  # (n+1, m): slopes in weighted units, then the value at xq
-    pred = g[n].copy()
-    if clip:
-        pred = np.clip(pred, Yn.min(axis=0), Yn.max(axis=0))
-    beta = np.empty((m, n + 1))
-    beta[:, :n] = (g[:n] * weights[:, None]).T
-    beta[:, n] = pred - beta[:, :n] @ xq
-    return pred, beta
-
-
-def distance_reference(X: np.ndarray, xq: np.ndarray, weights: np.ndarray, period: np.ndarray,
-                       norm: int) -> np.ndarray:
-    """Weighted distances (shape (k,)) of the rows of X (k, n) to xq: the 1-norm or the 2-norm (not
-    squared) of w * wrap(x - xq)."""
-    e = weights * wrap(X - xq, period)
-    return np.abs(e).sum(axis=1) if norm == 1 else np.sqrt((e * e).sum(axis=1))
-
-
-def misfit_reference(X: np.ndarray, Y: np.ndarray, xq: np.ndarray, weights: np.ndarray,
-                     in_period: np.ndarray, out_period: np.ndarray, eig_cutoff: float,
-                     ridge: float) -> np.ndarray:
-    """Squared residuals (shape (k,)) of the samples X (k, n) -> Y (k, m) under their one affine
-    fit at xq (``fit_reference``, unclipped): |wrap(y - pred - beta_x wrap(x - xq))|^2."""
-    pred, beta = fit_reference(X, Y, xq, weights, in_period, out_period, eig_cutoff, ridge, False)
-    n = X.shape[1]
-    fitted = pred + wrap(X - xq, in_period) @ beta[:, :n].T
-    r = wrap(Y - fitted, out_period)
-    return (r * r).sum(axis=1)
-
-
-# --------------------------------------------------------------------------------------------------
 
 class LLRMemory:
     """A memory of at most ``capacity`` samples [x | y] with local linear regression queries.
@@ -235,23 +152,27 @@ class LLRMemory:
         self._validate()
         n, m, N = self.input_dim, self.output_dim, self.capacity
         self._Xt = np.zeros((n, N))  # inputs by dimension: see _llr_kernels
-        self._dist = np.empty(N)
         self.Y_ = np.zeros((N, m))
         self.stamp_ = np.zeros(N, dtype=np.int64)
         self.redundancy_ = np.zeros(N)
-        # [count, clock, version]: version counts changes to the inputs (see _llr_kernels).
-        self._meta = np.zeros(3, dtype=np.int64)
+        # [count, clock, version] (_llr_kernels.COUNT, CLOCK, VERSION): the version counts changes
+        # to the inputs, which tells compiled code whether a neighbour list is still current.
+        self._counters = np.zeros(3, dtype=np.int64)
         self._idx = np.empty(self.n_neighbours, dtype=np.int64)
         self._beta = np.empty((m, n + 1))
         self._pred = np.empty(m)
         self._state = self._new_kernel_state()
 
     def _new_kernel_state(self) -> LLRState:
-        return _k.new_state(
-            self._Xt, self.Y_, self.stamp_, self._meta, self._w, self._pin, self._pout, self._dist,
-            int(self.n_neighbours), int(self.norm), bool(self.clip), _REPLACEMENTS[self.replacement],
-            self._eig_cutoff, self._ridge, self.redundancy_, _MEASURES[self.redundancy],
-            float(self.redundancy_smoothing))
+        arrays = _k.LLRArrays(Xt=self._Xt, Y=self.Y_, stamp=self.stamp_, counters=self._counters,
+                              redundancy=self.redundancy_, weights=self._w, in_period=self._pin,
+                              out_period=self._pout)
+        settings = _k.LLRSettings(
+            n_neighbours=int(self.n_neighbours), norm=int(self.norm), clip=bool(self.clip),
+            replacement=_REPLACEMENTS[self.replacement], eig_cutoff=self._eig_cutoff,
+            ridge=self._ridge, measure=_MEASURES[self.redundancy],
+            smoothing=float(self.redundancy_smoothing))
+        return _k.new_state(arrays, settings)
 
     def __getstate__(self) -> dict[str, Any]:
         # The structref is a view of the arrays pickled here; it is made anew when unpickled.
@@ -342,12 +263,12 @@ class LLRMemory:
     # -- state --------------------------------------------------------------------------------------
     @property
     def n_samples_(self) -> int:
-        return int(self._meta[0])
+        return int(self._counters[_k.COUNT])
 
     def reset(self) -> None:
         """Forget every sample."""
-        self._meta[:2] = 0
-        self._meta[2] += 1
+        self._counters[:2] = 0
+        self._counters[_k.VERSION] += 1
         self.stamp_[:] = 0
         self.redundancy_[:] = 0.0
 
@@ -372,8 +293,8 @@ class LLRMemory:
         self.X_[:s] = self._canonical(X)
         self.Y_[:s] = Y
         self.stamp_[:s] = np.arange(s)
-        self._meta[:2] = (s, s)
-        self._meta[2] += 1
+        self._counters[:2] = (s, s)
+        self._counters[_k.VERSION] += 1
         if self.replacement == "redundancy":
             # Each sample scored as if inserted last, among the others (module docstring).
             X_, Y_ = self.X_[:s], self.Y_[:s]
@@ -399,7 +320,7 @@ class LLRMemory:
     def state_dict(self, prefix: str = "") -> dict[str, np.ndarray]:
         """Samples and bookkeeping as numeric arrays, keys prefixed with ``prefix``."""
         return {prefix + "X": self.X_.copy(), prefix + "Y": self.Y_.copy(),
-                prefix + "stamp": self.stamp_.copy(), prefix + "meta": self._meta[:2].copy(),
+                prefix + "stamp": self.stamp_.copy(), prefix + "meta": self._counters[:2].copy(),
                 prefix + "redundancy": self.redundancy_.copy()}
 
     def load_state_dict(self, state: dict[str, np.ndarray], prefix: str = "") -> None:
@@ -408,13 +329,13 @@ class LLRMemory:
         if prefix + "redundancy" not in state:
             state = dict(state, **{prefix + "redundancy": np.zeros(self.capacity)})
         for key, arr in (("X", self.X_), ("Y", self.Y_), ("stamp", self.stamp_),
-                         ("meta", self._meta[:2]), ("redundancy", self.redundancy_)):
+                         ("meta", self._counters[:2]), ("redundancy", self.redundancy_)):
             value = np.asarray(state[prefix + key])
             if value.shape != arr.shape:
                 raise ValueError(f"LLRMemory.load_state_dict: {prefix + key} has shape "
                                  f"{value.shape}, expected {arr.shape}")
             arr[...] = value
-        self._meta[2] += 1
+        self._counters[_k.VERSION] += 1
 
     # -- queries ------------------------------------------------------------------------------------
     def neighbours(self, x: Any) -> np.ndarray:
@@ -424,7 +345,7 @@ class LLRMemory:
 
     def _neighbours(self, xq: np.ndarray) -> np.ndarray:
         """Unvalidated K(xq) for a canonical xq (periodic entries in [-period/2, period/2))."""
-        count = int(self._meta[0])
+        count = int(self._counters[_k.COUNT])
         if self.backend == "numba":
             return self._idx[:_k.neighbours(self._state, xq, self._idx)]
         return search_reference(self.X_[:count], xq, self._w, self._pin, self.norm,
@@ -496,7 +417,7 @@ class LLRMemory:
     def _insert(self, x: np.ndarray, y: np.ndarray, nearest: int = -1) -> int:
         if self.backend == "numba":
             return int(_k.insert(self._state, x, y, nearest))
-        count = int(self._meta[0])
+        count = int(self._counters[_k.COUNT])
         x = self._canonical(x)
         own = 0.0
         if self.replacement == "redundancy":
@@ -513,7 +434,7 @@ class LLRMemory:
                 - eta * neg_c[0] if len(idx) else 0.0
         if count < self.capacity:
             slot = count
-            self._meta[0] += 1
+            self._counters[_k.COUNT] += 1
         elif self.replacement == "nearest":
             slot = nearest if nearest >= 0 else int(
                 search_reference(self.X_, x, self._w, self._pin, self.norm, 1)[0])
@@ -523,11 +444,11 @@ class LLRMemory:
             slot = int(np.argmin(self.stamp_))
         self.X_[slot] = x
         self.Y_[slot] = y
-        self.stamp_[slot] = self._meta[1]
+        self.stamp_[slot] = self._counters[_k.CLOCK]
         if self.replacement == "redundancy":
             self.redundancy_[slot] = own
-        self._meta[1] += 1
-        self._meta[2] += 1
+        self._counters[_k.CLOCK] += 1
+        self._counters[_k.VERSION] += 1
         return slot
 
     def adjust(self, indices: Any, delta: Any) -> None:
@@ -575,7 +496,7 @@ class LLRMemory:
 
     def _indices(self, method: str, indices: Any) -> np.ndarray:
         idx = np.asarray(indices, dtype=np.int64).reshape(-1)
-        if np.any((idx < 0) | (idx >= self._meta[0])):
+        if np.any((idx < 0) | (idx >= self._counters[_k.COUNT])):
             raise ValueError(f"LLRMemory.{method}: indices must be in [0, {self.n_samples_}), "
                              f"got {indices!r}")
         return idx

@@ -1,0 +1,182 @@
+"""The LLR critic RMAC and MLAC share: V(x) as an LLR memory of samples [x | V], learned by TD(lambda)
+with one eligibility trace per sample (Algorithm 2 lines 22-28 of the RMAC paper).
+
+One transition (x, r, x') with V(x) = v is learned as
+
+    V' = V(x')                                                       line 22
+    insert [x | v] in M^C                                            line 23
+    delta = r + gamma V' - v                                         line 24
+    e_i = 1 for i in K_+(x) (K(x) and the inserted sample), lambda gamma e_i otherwise   line 26
+    V_i <- V_i + alpha_c delta e_i for every sample i                line 27
+
+:class:`LLRCritic` does this in Python (``backend='numpy'``: the readable reference, through the
+memory's public methods) or in one compiled call (``backend='numba'``); RMAC's compiled step calls the
+compiled functions below directly, on a :class:`CriticState` (the memory's ``LLRState``, the traces and
+the TD settings, named).
+"""
+
+from __future__ import annotations
+
+import collections
+
+import numpy as np
+from numba import njit, types
+from numba.experimental import structref
+
+from rmac_mj.approximators.llr import (LLR_STATE_TYPE, LLRMemory, llr_add_weighted, llr_canonical,
+                                       llr_insert_among, llr_local_fit, llr_nearest, llr_size)
+
+#: The TD settings of a critic: discount gamma, trace decay lambda, learning rate alpha_c.
+CriticSettings = collections.namedtuple("CriticSettings", ["gamma", "lam", "alpha"])
+
+
+@structref.register
+class CriticStateType(types.StructRef):
+    """The numba type of :class:`CriticState`."""
+
+    def preprocess_fields(self, fields):
+        return tuple((name, types.unliteral(typ)) for name, typ in fields)
+
+
+class CriticState(structref.StructRefProxy):
+    """An LLR critic for compiled code: ``memory`` (the memory's LLRState), ``traces`` (N,) and the
+    settings ``gamma``, ``lam``, ``alpha``. Made by :func:`new_critic`; opaque to Python."""
+
+
+structref.define_boxing(CriticStateType, CriticState)
+
+CRITIC_STATE_TYPE = CriticStateType([
+    ("memory", LLR_STATE_TYPE), ("traces", types.float64[::1]), ("gamma", types.float64),
+    ("lam", types.float64), ("alpha", types.float64)])
+
+
+@njit(cache=True)
+def new_critic(memory, traces, settings):
+    """A :class:`CriticState` over a memory's state and a traces array (not copied), with its
+    :class:`CriticSettings`."""
+    critic = structref.new(CRITIC_STATE_TYPE)
+    critic.memory = memory
+    critic.traces = traces
+    critic.gamma = settings.gamma
+    critic.lam = settings.lam
+    critic.alpha = settings.alpha
+    return critic
+
+
+@njit(cache=True)
+def set_rate(critic, alpha):
+    """alpha_c of the updates that follow (a trial's, when it decays)."""
+    critic.alpha = alpha
+
+
+@njit(cache=True)
+def value_fit(critic, x):
+    """V(x) and its local linear model: a ``LocalFit`` (prediction (1,), beta (1, n+1)); periodic
+    entries of x are wrapped here (as ``LLRMemory.query`` does). K(x) is kept for the update at x
+    that follows one step later."""
+    memory = critic.memory
+    xq = np.empty(x.shape[0])
+    llr_canonical(x, memory.in_period, xq)
+    return llr_local_fit(memory, xq)
+
+
+@njit(cache=True)
+def td_update(critic, x, v, reward, v_next):
+    """Lines 23-27 for the transition from a canonical x with V(x) = ``v`` to x' with V(x') =
+    ``v_next``: insert [x | v], then the TD(lambda) step on every sample. Returns delta."""
+    memory, traces = critic.memory, critic.traces
+    near, nk = llr_nearest(memory, x)
+    near = near[:nk].copy()  # K(x) before the insertion
+    v_in = np.empty(1)
+    v_in[0] = v
+    slot = llr_insert_among(memory, x, v_in, near, nk)  # line 23
+    delta = reward + critic.gamma * v_next - v           # line 24
+    decay = critic.lam * critic.gamma
+    for i in range(llr_size(memory)):
+        traces[i] *= decay                               # line 26
+    for a in range(nk):
+        traces[near[a]] = 1.0
+    traces[slot] = 1.0
+    step = np.empty(1)
+    step[0] = critic.alpha * delta
+    llr_add_weighted(memory, traces, step)               # line 27
+    return delta
+
+
+class LLRCritic:
+    """V(x) by an LLR memory and TD(lambda) with one trace per sample (module docstring).
+
+    Args:
+      memory: the critic memory M^C, samples [x | V] (output_dim 1); its ``backend`` decides whether
+        the update runs compiled.
+      gamma, lam: discount and trace decay.
+      alpha: the learning rate alpha_c (``alpha`` may be changed between updates).
+
+    State: ``memory`` and ``traces`` (shape (capacity,), e(s_i) of line 26).
+    """
+
+    def __init__(self, memory: LLRMemory, gamma: float, lam: float, alpha: float) -> None:
+        if memory.output_dim != 1:
+            raise ValueError(f"LLRCritic: the memory must hold values (output_dim 1), got "
+                             f"output_dim={memory.output_dim}")
+        self.memory = memory
+        self.gamma, self.lam, self._alpha = float(gamma), float(lam), float(alpha)
+        self.traces = np.zeros(memory.capacity)
+        self.kernel_state = self._new_kernel_state()
+
+    def _new_kernel_state(self) -> CriticState | None:
+        if self.memory.backend != "numba":
+            return None
+        return new_critic(self.memory.kernel_state, self.traces,
+                          CriticSettings(gamma=self.gamma, lam=self.lam, alpha=self._alpha))
+
+    def __getstate__(self) -> dict:
+        # The structref is a view of the arrays pickled here; it is made anew when unpickled.
+        return {k: v for k, v in self.__dict__.items() if k != "kernel_state"}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self.kernel_state = self._new_kernel_state()
+
+    @property
+    def alpha(self) -> float:
+        """alpha_c, the learning rate of the updates that follow."""
+        return self._alpha
+
+    @alpha.setter
+    def alpha(self, value: float) -> None:
+        self._alpha = float(value)
+        if self.kernel_state is not None:
+            set_rate(self.kernel_state, self._alpha)
+
+    def begin_trial(self) -> None:
+        """Line 3: every trace 0."""
+        self.traces[:] = 0.0
+
+    def value(self, x: np.ndarray) -> float:
+        """V(x), the memory's LLR estimate (0 on an empty memory, line 2)."""
+        return float(self.memory.query(x)[0][0])
+
+    def update(self, x: np.ndarray, v: float, reward: float, x_next: np.ndarray) -> float:
+        """Lines 22-27 for the transition from the canonical x, with V(x) = ``v``, to the canonical
+        x_next with reward ``reward``; returns V(x_next), computed before the update (line 22)."""
+        if self.kernel_state is not None:
+            v_next = float(value_fit(self.kernel_state, x_next).prediction[0])
+            td_update(self.kernel_state, x, v, reward, v_next)
+            return v_next
+        v_next = self.value(x_next)  # line 22
+        self.td_update(x, v, reward, v_next)
+        return v_next
+
+    def td_update(self, x: np.ndarray, v: float, reward: float, v_next: float) -> float:
+        """Lines 23-27 (see :func:`td_update`); returns delta."""
+        if self.kernel_state is not None:
+            return float(td_update(self.kernel_state, x, v, reward, v_next))
+        near = self.memory.neighbours(x)
+        slot = self.memory.insert(x, [v], int(near[0]) if len(near) else None)  # line 23
+        delta = reward + self.gamma * v_next - v                                  # line 24
+        self.traces *= self.lam * self.gamma                                      # line 26
+        self.traces[near] = 1.0
+        self.traces[slot] = 1.0
+        self.memory.add_weighted(self.traces, [self._alpha * delta])              # line 27
+        return delta

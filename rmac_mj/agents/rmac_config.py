@@ -1,0 +1,200 @@
+"""The hyperparameters of RMAC (:class:`RMACConfig`): the paper's values (section 6.2, Table 2) as
+defaults, then every choice the paper leaves open as a named field (docs/rmac.md lists them with what
+was measured for each), their constraints declared once (:mod:`rmac_mj.constraints`)."""
+
+from __future__ import annotations
+
+import dataclasses
+from numbers import Integral, Real
+from typing import ClassVar
+
+from rmac_mj.agents.exploration import Exploration
+from rmac_mj.approximators.llr import SHARED_CONSTRAINTS, LLRMemory, memory_constraints
+from rmac_mj.constraints import WEIGHTS, InstanceOf, Interval, Options, check_config
+
+#: The rules that select line 16's best reachable state (``RMACConfig.reachable_rule``).
+REACHABLE_RULES = ("vertices", "vertices_value", "grid", "exact")
+
+
+@dataclasses.dataclass(frozen=True)
+class RMACConfig:
+    """Hyperparameters of RMAC. Defaults: section 6.2 and Table 2, then the documented choices."""
+
+    gamma: float = 0.97
+    """Discount factor (section 6.2)."""
+    lam: float = 0.65
+    """Trace decay lambda (section 6.2)."""
+    alpha_c: float = 0.1
+    """Critic learning rate (Table 2)."""
+    alpha_r: float = 0.005
+    """Reference model learning rate (Table 2)."""
+
+    alpha_c_final: float | None = None
+    """Where ``alpha_c`` decays to: linearly over the first ``rate_decay_trials`` learning trials
+    (trial t uses alpha_c + min(t / rate_decay_trials, 1) (alpha_c_final - alpha_c)), then constant.
+    None (the paper's): constant ``alpha_c``. Not in the paper: learning fast first and finely later
+    (docs/studies/rmac-best.md)."""
+    alpha_r_final: float | None = None
+    """Where ``alpha_r`` decays to, as ``alpha_c_final``; None: constant (the paper's)."""
+    rate_decay_trials: int = 200
+    """Learning trials over which ``alpha_c`` and ``alpha_r`` reach their final values."""
+
+    critic_capacity: int = 2000
+    """Critic memory size (Table 2)."""
+    critic_neighbours: int = 20
+    """Critic nearest neighbours K (Table 2)."""
+    critic_weights: tuple[float, ...] | None = None
+    """Critic input weighting over x; None: the task's (``StateSpace.input_weights``; dc_pendulum: Table 2's
+    (1, 0.1))."""
+    process_capacity: int = 100
+    """Process memory size (Table 2)."""
+    process_neighbours: int = 9
+    """Process nearest neighbours K (Table 2)."""
+    process_weights: tuple[float, ...] | None = None
+    """Process input weighting over [x, u]; None: the task's (``StateSpace.input_weights`` then
+    ``ActionSpace.input_weights``; dc_pendulum: Table 2's (1, 0.1, 1))."""
+    reference_capacity: int = 2000
+    """Reference memory size (Table 2)."""
+    reference_neighbours: int = 20
+    """Reference nearest neighbours K (Table 2)."""
+    reference_weights: tuple[float, ...] | None = None
+    """Reference input weighting over x; None: the task's (``StateSpace.input_weights``; dc_pendulum: Table
+    2's (1, 0.1))."""
+
+    exploration: Exploration = Exploration()
+    """Exploration Delta u_k. The paper says RMAC still needs it but not how; the default is the S-AC
+    schedule of section 6.1 (N(0, 1) every third step). Without it beta_u stays 0 and u = 0 forever.
+    With ``where='uncertain'`` the uncertainty is the process model's at the point the inverse of
+    line 11 linearises it, (x_k, u_{k-1}) (or (x_k, 0): ``inverse_query``), before line 14 inserts
+    the last transition (docs/studies/exploration-schedule.md)."""
+
+    norm: int = 1
+    """1- or 2-norm of the weighted input difference in all memories (section 4 allows both)."""
+    conditioning: str = "ridge"
+    """How the local least-squares fits are conditioned: 'ridge' (``ridge`` on the slopes, as GRL),
+    'svd' (truncated SVD, ``rcond``) or 'none' (pseudo-inverse). Measured (docs/rmac.md): the three
+    end within noise of each other; unclipped and unconditioned fits give outlier early trials."""
+    rcond: float = 0.01
+    """Relative singular value cutoff for conditioning='svd'."""
+    ridge: float = 1e-3
+    """Ridge term for conditioning='ridge', in weighted input units squared (1e-4 and 1e-2 were
+    measured no better)."""
+    critic_clip: bool = True
+    """Clip critic predictions to the range of the neighbours' values (as GRL does); keeps the values
+    sane when a fit extrapolates."""
+    reference_clip: bool = True
+    """Clip reference predictions to the range of the neighbours' desired states, so that no desired
+    state lies beyond those once found reachable. Measured no different within noise; kept as a
+    safeguard (docs/rmac.md)."""
+    process_clip: bool = False
+    """Clip process model predictions to the neighbours' next states."""
+    critic_replacement: str = "nearest"
+    """Critic memory management when full: 'nearest' (the sample most redundant with the new one),
+    'oldest', or 'redundancy' (the sample of highest smoothed redundancy score, measured by
+    ``critic_redundancy``; see :mod:`rmac_mj.approximators.llr` for the equations)."""
+    process_replacement: str = "nearest"
+    """Process memory management when full (same choices)."""
+    reference_replacement: str = "nearest"
+    """Reference memory management when full (same choices)."""
+    critic_redundancy: str = "distance"
+    """What the critic's redundancy score measures under critic_replacement='redundancy':
+    'distance' (a sample close to new samples is redundant) or 'misfit' (a sample its local model
+    predicts well is redundant). Issue 14's account of the authors' code: distance for the critic
+    and reference memories, whose outputs move while learning (a misfit measured now says little
+    about the sample later); the squared misfit for the process memory, whose samples are fixed
+    observations of the dynamics."""
+    process_redundancy: str = "misfit"
+    """What the process memory's redundancy score measures under process_replacement='redundancy'
+    (see critic_redundancy)."""
+    reference_redundancy: str = "distance"
+    """What the reference memory's redundancy score measures under
+    reference_replacement='redundancy' (see critic_redundancy)."""
+    redundancy_smoothing: float = 0.1
+    """eta in (0, 1], the exponential smoothing of every redundancy score,
+    rho_i <- (1 - eta) rho_i + eta c_i each time sample i is a neighbour of a new sample (our
+    choice: about the last ten such events count)."""
+    inverse_query: str = "previous"
+    """Where the process model is linearised for the inverse (Alg. 2 lines 5, 11): at (x_k, u_{k-1}),
+    the previously applied action ('previous'; u_{-1} = 0), or at (x_k, 0) ('zero')."""
+    critic_gradient_at: str = "next"
+    """Where the critic's local model that ranks the reachable states (line 16) is fitted: at x_k
+    ('next', the reached state, which lies among the vertices) or at x_{k-1} ('previous')."""
+    reachable_rule: str = "vertices"
+    """How x_r, the best reachable state of line 16, is chosen. Every rule predicts the next state of
+    a candidate action u with the process model's local linear fit at (x_{k-1}, u_{k-1}),
+    x'(u) = f(x_{k-1}, u_{k-1}) + beta_u (u - u_{k-1}), and x_r is the chosen candidate's x'(u):
+
+    * 'vertices' (the paper's): the 2^m combinations of action extremes, ranked by the critic's
+      *local linear* model (see ``critic_gradient_at``); the action cost is ignored;
+    * 'vertices_value': the same 2^m vertices ranked by r + gamma V(x'(u)) with the full LLR critic V;
+    * 'grid': ``reachable_grid`` actions per action dimension (their product), same score;
+    * 'exact' (m = 1 only): the maximum of r + gamma V(x'(u)) over u in the bounds, found on the
+      grid and refined by golden-section search (to ``EXACT_TOLERANCE``) between the grid point's
+      neighbours. "Exact" up to that tolerance and to the LLR critic itself, which is affine only
+      within one neighbour set, so the maximised function is piecewise affine (plus -P u^2): the
+      refinement finds the best point of the bracket when it is unimodal there.
+
+    The reward r(x_{k-1}, u) = -x^T Q x - P |u|^2 has the same state part for every candidate, so the
+    score is -sum_i P_i u_i^2 + gamma V(x'(u)) with P = ``action_cost``."""
+    action_cost: float | tuple[float, ...] | None = None
+    """P, the reward's action cost -sum_i P_i u_i^2, used only by the reachable rules other than
+    'vertices': the one piece of reward knowledge those rules use (MLAC uses the same). None: the
+    task's (``ActionSpace.cost``; dc_pendulum: its P = 1, two_link_arm: 0); a number: P in every
+    action dimension. ``agent.config.action_cost`` holds the resolved tuple (None when the rule does
+    not use it and the task does not say)."""
+    reachable_grid: int = 21
+    """Actions per action dimension for reachable_rule 'grid' and 'exact' (evenly spaced over the
+    bounds, both bounds included)."""
+    reference_insert_rate: float = 1.0
+    """What line 18 inserts in M^R for x_{k-1}: R(x_{k-1}) + rate wrap(x_r - R(x_{k-1})), the
+    reference's own estimate before the insertion (from K(x_{k-1}); x_r on an empty memory) moved
+    this far towards x_r; line 20 then moves it on with K(x_{k-1}) when it replaced the nearest
+    sample (a full memory). 1 (the paper's): x_r itself. With 1 every insertion near the goal writes a
+    raw vertex state (about +-2.6 rad/s on the pendulum) over the few samples there, so R near
+    upright is a fit to the last ~20 bang-bang targets and the greedy policy's resting angle is
+    redrawn every trial (docs/studies/upright-offset.md); below 1 each sample averages its targets,
+    as the critic inserts its estimate V_{k-1} (line 23) and lets TD move it. 0 inserts R(x_{k-1})
+    unmoved: measured, the reference then never learns a swing-up."""
+    initial_value: str = "critic"
+    """V_0 of a trial (line 2): the critic's estimate V(x_0) ('critic'; 0 on the empty memory) or the
+    literal 0 every trial ('zero')."""
+    backend: str = "numba"
+    """'numba' (compiled kernels) or 'numpy' (the readable reference); both give the same results."""
+
+    @property
+    def rates_decay(self) -> bool:
+        """Whether the learning rates depend on the trial (``alpha_c_final``/``alpha_r_final``)."""
+        return self.alpha_c_final is not None or self.alpha_r_final is not None
+
+    def rates_at(self, trial: int) -> tuple[float, float]:
+        """(alpha_c, alpha_r) of learning trial ``trial`` (0: the first); see ``alpha_c_final``."""
+        fraction = min(max(trial, 0) / self.rate_decay_trials, 1.0)
+        return tuple(float(start if final is None else start + fraction * (final - start))
+                     for start, final in ((self.alpha_c, self.alpha_c_final),
+                                          (self.alpha_r, self.alpha_r_final)))
+
+    parameter_constraints: ClassVar[dict[str, list]] = {
+        "gamma": [Interval(Real, 0, 1, closed="left")],
+        "lam": [Interval(Real, 0, 1)],
+        "alpha_c": [Interval(Real, 0, 1)],
+        "alpha_r": [Interval(Real, 0, 1)],
+        "alpha_c_final": [Interval(Real, 0, 1), None],
+        "alpha_r_final": [Interval(Real, 0, 1), None],
+        "rate_decay_trials": [Interval(Integral, 1, None)],
+        **memory_constraints("critic"), **memory_constraints("process"),
+        **memory_constraints("reference"),
+        "exploration": [InstanceOf(Exploration)],
+        **SHARED_CONSTRAINTS,
+        "redundancy_smoothing": LLRMemory.parameter_constraints["redundancy_smoothing"],
+        "inverse_query": [Options("previous", "zero")],
+        "critic_gradient_at": [Options("next", "previous")],
+        "reachable_rule": [Options(*REACHABLE_RULES)],
+        "action_cost": [Interval(Real, 0, None), WEIGHTS, None],
+        "reachable_grid": [Interval(Integral, 2, None)],
+        "reference_insert_rate": [Interval(Real, 0, 1)],
+        "initial_value": [Options("critic", "zero")],
+        "backend": [Options("numba", "numpy")],
+    }
+
+    def __post_init__(self) -> None:
+        check_config(self)
