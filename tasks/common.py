@@ -38,6 +38,11 @@ class LearnerState:
     and no other term in u (the diagonal of the reward's R; dc_pendulum: (P,) = (1,)). The one piece
     of reward knowledge a learner may use (RMAC's scored reachable rules, MLAC's dr/du). None: the
     task does not say (e.g. its R is not diagonal); a learner that needs it must then be told."""
+    state_cost: tuple[float, ...] | None = None
+    """What the reward charges for the state, per state dim: r holds -sum_i state_cost[i] x_i^2 (x as
+    the learner sees it, angles wrapped) and no other term in x (the diagonal of the reward's Q;
+    dc_pendulum: (5, 0.1)). With ``action_cost``, the whole reward: what a learner is given when
+    the task's reward is prior knowledge (planning's ``reward='task'``). None: the task does not say."""
 
     def __post_init__(self) -> None:
         if not self.keys or not all(isinstance(k, str) and k for k in self.keys):
@@ -58,7 +63,10 @@ class LearnerState:
         if self.action_cost is not None and len(self.action_cost) != len(self.action_labels):
             raise ValueError(f"LearnerState.action_cost must be None or have one entry per action dim "
                              f"({len(self.action_labels)}), got {self.action_cost!r}")
-        for name in ("input_weights", "action_input_weights", "action_cost"):
+        if self.state_cost is not None and len(self.state_cost) != n:
+            raise ValueError(f"LearnerState.state_cost must be None or have one entry per state dim "
+                             f"({n}), got {self.state_cost!r}")
+        for name in ("input_weights", "action_input_weights", "action_cost", "state_cost"):
             w = np.asarray(getattr(self, name) if getattr(self, name) is not None else (), dtype=float)
             if not (np.all(np.isfinite(w)) and np.all(w >= 0)):
                 raise ValueError(f"LearnerState.{name} must be finite and >= 0, got {getattr(self, name)!r}")
@@ -72,8 +80,9 @@ class LearnerState:
         object.__setattr__(self, "action_input_weights",
                            tuple(float(v) for v in self.action_input_weights))
         object.__setattr__(self, "action_labels", tuple(str(v) for v in self.action_labels))
-        if self.action_cost is not None:
-            object.__setattr__(self, "action_cost", tuple(float(v) for v in self.action_cost))
+        for name in ("action_cost", "state_cost"):
+            if getattr(self, name) is not None:
+                object.__setattr__(self, name, tuple(float(v) for v in getattr(self, name)))
 
 
 def wrap_angle(angle):

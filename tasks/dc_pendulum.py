@@ -325,9 +325,11 @@ class SwingUp(base.Task):
     @property
     def learner_state(self) -> common.LearnerState:
         """x = [phi, phi_dot]; the box is one period in phi and +-NOMINAL_SPEED; Table 2's weights; the
-        reward's action cost P."""
+        reward's action cost P and state cost (Q's diagonal; None for a full Q)."""
         return common.LearnerState(
             keys=("angle", "velocity"), low=(-np.pi, -NOMINAL_SPEED), high=(np.pi, NOMINAL_SPEED),
             periodic=(True, False), labels=("angle phi [rad]", "angular velocity phi_dot [rad/s]"),
             input_weights=(1.0, 0.1), action_input_weights=(1.0,), action_labels=("u [V]",),
-            action_cost=(self._p,))
+            action_cost=(self._p,),
+            state_cost=tuple(np.diag(self._q)) if np.array_equal(self._q, np.diag(np.diag(self._q)))
+            else None)

@@ -217,7 +217,7 @@ class Reach(base.Task):
         dimension the weighted span it has for the pendulum under Table 2's weights (1 per angle, 0.1
         per speed, 1 per voltage): angles 1 * 2 pi; speeds 0.2 * 8 pi = 5.0, as 0.1 * 16 pi for the
         pendulum's +-8 pi; torques 2 * 3 N m = 3 * 2 N m = 6, as 1 * 6 V. The action cost is R's
-        diagonal ((0, 0): the benchmark charges no torque), None for a full R.
+        diagonal ((0, 0): the benchmark charges no torque), None for a full R; the state cost Q's.
         """
         return common.LearnerState(
             keys=("shoulder", "elbow"),
@@ -229,4 +229,6 @@ class Reach(base.Task):
             input_weights=(1.0, 0.2, 1.0, 0.2), action_input_weights=(2.0, 3.0),
             action_labels=("tau1 [N m]", "tau2 [N m]"),
             action_cost=tuple(np.diag(self._r)) if np.array_equal(self._r, np.diag(np.diag(self._r)))
+            else None,
+            state_cost=tuple(np.diag(self._q)) if np.array_equal(self._q, np.diag(np.diag(self._q)))
             else None)

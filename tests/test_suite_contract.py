@@ -160,6 +160,27 @@ def test_the_declared_action_cost_is_what_the_reward_charges(domain, task):
             assert cost != load(domain, task).task.learner_state.action_cost
 
 
+@pytest.mark.parametrize("domain, task", tasks.ALL_TASKS)
+def test_the_declared_costs_are_the_whole_reward(domain, task):
+    """learner_state.state_cost and action_cost together are the reward, r(x, u) = -sum_i q_i x_i^2
+    - sum_j p_j u_j^2 (x as the learner sees it), for the defaults and a changed Q; what planning
+    with the task's reward (Planning(reward='task')) computes. A full Q declares no state cost."""
+    q = {"dc_pendulum": (2.0, 0.3), "two_link_arm": (0.5, 0.1, 2.0, 0.2)}[domain]
+    for task_kwargs in ({}, {"state_weights": q}):
+        env = tasks.load(domain, task, task_kwargs=task_kwargs)
+        hints = env.task.learner_state
+        assert hints.state_cost is not None and len(hints.state_cost) == len(hints.low)
+        rng = np.random.default_rng(1)
+        x = rng.uniform(hints.low, hints.high, (20, len(hints.low)))
+        u = rng.uniform(-2, 2, (20, len(hints.action_cost)))
+        declared = -(np.asarray(hints.state_cost) * x * x).sum(axis=1) - (
+            np.asarray(hints.action_cost) * u * u).sum(axis=1)
+        assert np.allclose(env.task.reward_of(x, u), declared, rtol=1e-12, atol=1e-12)
+    full = np.diag(q) + 0.1 * (np.ones((len(q), len(q))) - np.eye(len(q)))
+    assert tasks.load(domain, task, task_kwargs={"state_weights": full}).task.learner_state \
+        .state_cost is None
+
+
 def test_learner_state_rejects_inconsistent_hints():
     good = dict(keys=("a",), low=(-1.0,), high=(1.0,), periodic=(False,), labels=("a [m]",),
                 input_weights=(1.0,), action_input_weights=(1.0,), action_labels=("u [V]",))
@@ -169,6 +190,8 @@ def test_learner_state_rejects_inconsistent_hints():
                          ({"action_labels": ()}, "action_input_weights"),
                          ({"action_cost": (1.0, 2.0)}, "action_cost"),
                          ({"action_cost": (-1.0,)}, "action_cost"),
+                         ({"state_cost": (1.0, 2.0)}, "state_cost"),
+                         ({"state_cost": (-1.0,)}, "state_cost"),
                          ({"keys": ()}, "keys")]:
         with pytest.raises(ValueError, match=name):
             LearnerState(**{**good, **change})

@@ -356,21 +356,22 @@ def learn(s, x, u, reward, x_next, v, model_learns):
 
 
 @njit(cache=True)
-def step(s, reward, x, du):
+def step(s, reward, x, du, model_learns):
     """One control step in one compiled call, for a checked state x (periodic entries are wrapped
     here): u_k = sat(f^-1(x_k, R(x_k)) + Delta u_k) with the models as they are (lines 10-12), then
-    lines 13-28; then x_prev, u_prev, v_prev advance to x_k, u_k, V_k. Returns u_k."""
+    lines 13-28 (line 14 only if ``model_learns``: not in a simulated trial); then x_prev, u_prev,
+    v_prev advance to x_k, u_k, V_k. Returns u_k."""
     x = _canonical(x, s.period)
     u = act(s, x)
     for i in range(u.shape[0]):
         u[i] = min(max(u[i] + du[i], s.low[i]), s.high[i])
-    s.v_prev[0] = learn(s, s.x_prev, s.u_prev, reward, x, s.v_prev[0], True)
+    s.v_prev[0] = learn(s, s.x_prev, s.u_prev, reward, x, s.v_prev[0], model_learns)
     s.x_prev[:] = x
     s.u_prev[:] = u
     return u
 
 
 @njit(cache=True)
-def stop(s, reward, x):
+def stop(s, reward, x, model_learns):
     """The last transition of a trial (lines 13-28, no action) for a checked state x."""
-    learn(s, s.x_prev, s.u_prev, reward, _canonical(x, s.period), s.v_prev[0], True)
+    learn(s, s.x_prev, s.u_prev, reward, _canonical(x, s.period), s.v_prev[0], model_learns)

@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from rmac_mj.agents.planning import Rehearsal
 from rmac_mj.agents.prior_knowledge import check_transitions
 from rmac_mj.agents.random_state import generator_state_array, set_generator_state
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
@@ -73,6 +74,8 @@ class Agent(abc.ABC):
         self._in_trial = False
         #: Learning trials begun (``start`` calls); a decaying exploration reads the trial index.
         self.trials_ = 0
+        #: Planning and replay between trials (``config.planning``, ``config.replay``); None without.
+        self._rehearsal = Rehearsal.of(config, state_space, action_space)
 
     def _config_with_task_weights(self, config: Any, state_memories: tuple[str, ...],
                                   process_memories: tuple[str, ...] = ("process",)) -> Any:
@@ -161,18 +164,85 @@ class Agent(abc.ABC):
         self.trials_ += 1
         u = self._start(x0)
         self._in_trial = True
+        if self._rehearsal is not None:
+            self._rehearsal.begin(x0, u)
         return u
 
     def step(self, reward: Any, x: Any) -> np.ndarray:
         """Observe r_k and x_k, learn from the transition, return u_k (shape (m,))."""
         self._check_in_trial("step")
-        return self._step(self._checked_reward(reward), self._checked_state(x))
+        if self._rehearsal is None:
+            return self._step(self._checked_reward(reward), self._checked_state(x))
+        reward, x = self._checked_reward(reward), self._checked_state(x)
+        u = self._step(reward, x)
+        self._rehearsal.record(reward, x, u)
+        return u
 
     def stop(self, reward: Any, x: Any) -> None:
-        """Observe the trial's last r_k and x_k and learn from it; no action follows. Ends the trial."""
+        """Observe the trial's last r_k and x_k and learn from it; no action follows. Ends the trial
+        (then plans and replays, with ``config.planning`` and ``config.replay``)."""
         self._check_in_trial("stop")
-        self._stop(self._checked_reward(reward), self._checked_state(x))
+        reward, x = self._checked_reward(reward), self._checked_state(x)
+        self._stop(reward, x)
         self._in_trial = False
+        if self._rehearsal is not None:
+            self._rehearsal.record(reward, x, None)
+            self._rehearsal.after_trial(self)
+
+    def learn_from(self, states: Any, actions: Any, rewards: Any) -> None:
+        """Learn from a recorded trial as if this learner had run it with the recorded actions.
+
+        The learner's own updates run on every transition in time order, its traces included, with
+        the applied action u_k in place of the one it would have chosen: the same updates as a real
+        trial that applied those actions (and what ``Replay(order='forward')`` runs on stored
+        trials). Nothing is drawn from the generator and the trial counter does not move.
+
+        Args:
+          states: shape (K + 1, n), x_0 ... x_K; actions: shape (K, m), u_0 ... u_{K-1} as applied
+            (inside the action bounds); rewards: shape (K,), r_1 ... r_K. All finite, K >= 1.
+        """
+        if self._in_trial:
+            raise RuntimeError(f"{self.name}: learn_from() called inside a trial; call it between "
+                               f"trials")
+        n, m = self._state_dim, self.action_space.dim
+        states, actions, rewards = (np.array(a, dtype=float) for a in (states, actions, rewards))
+        K = rewards.shape[0] if rewards.ndim == 1 else -1
+        for name, a, shape in (("rewards", rewards, (K,)), ("states", states, (K + 1, n)),
+                               ("actions", actions, (K, m))):
+            if K < 1 or a.shape != shape:
+                raise ValueError(f"{self.name}: learn_from() needs states (K + 1, {n}), actions "
+                                 f"(K, {m}) and rewards (K,) with K >= 1; {name} has shape "
+                                 f"{a.shape}")
+            if not np.all(np.isfinite(a)):
+                raise ValueError(f"{self.name}: learn_from() {name} must be finite")
+        if np.any((actions < self.action_space.low) | (actions > self.action_space.high)):
+            raise ValueError(f"{self.name}: learn_from() actions must lie inside the action bounds "
+                             f"[{self.action_space.low}, {self.action_space.high}]")
+        self._learn_trial(states, actions, rewards)
+
+    def _learn_trial(self, states: np.ndarray, actions: np.ndarray, rewards: np.ndarray) -> None:
+        """The learner's updates along a recorded trial, with its applied actions (see learn_from)."""
+        K = len(rewards)
+        self._start(states[0], actions[0])
+        for k in range(K - 1):
+            self._step(float(rewards[k]), states[k + 1], actions[k + 1])
+        self._stop(float(rewards[K - 1]), states[K])
+
+    def _replay_transition(self, x: np.ndarray, u: np.ndarray, reward: float,
+                           x_next: np.ndarray) -> None:
+        """One recorded transition learned on its own, as a trial of one step (backward replay)."""
+        self._start(x, u)
+        self._stop(reward, x_next)
+
+    @property
+    def rehearsal(self) -> Rehearsal | None:
+        """What planning and replay keep (the learned model, the stored trials), or None without."""
+        return self._rehearsal
+
+    def _set_rehearsing(self, rehearsing: bool) -> None:
+        """Whether the transitions that follow are rehearsed (planning, replay) rather than real: a
+        learner that learns a model of the dynamics (RMAC's and MLAC's process model) must then
+        leave it unchanged, so that only real transitions enter it (``agents.planning``)."""
 
     @property
     def _uses_trial_counter(self) -> bool:
@@ -298,6 +368,8 @@ class Agent(abc.ABC):
         for key in ("rng", "in_trial", "trials"):
             if key in state:
                 raise KeyError(f"{type(self).__name__}._state() must not use the reserved key {key!r}")
+        if self._rehearsal is not None:
+            state.update(self._rehearsal.state_dict("rehearsal."))
         state["rng"] = generator_state_array(self.rng)
         state["in_trial"] = np.array(self._in_trial)
         state["trials"] = np.array(self.trials_, dtype=np.int64)
@@ -314,7 +386,9 @@ class Agent(abc.ABC):
             raise ValueError(f"{self.name}: state dict lacks 'trials', which a decaying "
                              f"exploration or learning rate needs; has {sorted(state)}")
         self._load_state({k: v for k, v in state.items()
-                          if k not in ("rng", "in_trial", "trials")})
+                          if k not in ("rng", "in_trial", "trials") and not k.startswith("rehearsal.")})
+        if self._rehearsal is not None:
+            self._rehearsal.load_state_dict(state, "rehearsal.")
         set_generator_state(self.rng, state["rng"])
         self._in_trial = bool(state["in_trial"])
         if "trials" in state:

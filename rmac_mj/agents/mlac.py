@@ -49,6 +49,7 @@ import numpy as np
 from rmac_mj.agents.base import Agent
 from rmac_mj.agents.critic import LLRCritic
 from rmac_mj.agents.exploration import Exploration, model_uncertainty
+from rmac_mj.agents.planning import Planning, Replay
 from rmac_mj.agents.prior_knowledge import discounted_returns, seed_memory
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
 from rmac_mj.approximators.llr import SHARED_CONSTRAINTS, LLRMemory, memory_constraints, wrap
@@ -141,6 +142,11 @@ class MLACConfig:
     """Critic memory management when full."""
     process_replacement: str = "nearest"
     """Process memory management when full."""
+    planning: Planning = Planning()
+    """Simulated transitions in learned models between trials (``agents.planning``, issue 23): the
+    rollouts run this algorithm, step 1 excepted. None by default."""
+    replay: Replay = Replay()
+    """Replay of stored real trials between trials (``agents.planning``). None by default."""
     backend: str = "numba"
     """Back end of the LLR memories: 'numba' (compiled) or 'numpy' (reference); same results."""
 
@@ -160,6 +166,8 @@ class MLACConfig:
         "model_action": [Options("policy", "applied")],
         "initial_value": [Options("critic", "zero")],
         **SHARED_CONSTRAINTS,
+        "planning": [InstanceOf(Planning)],
+        "replay": [InstanceOf(Replay)],
         "backend": [Options("numba", "numpy")],
     }
 
@@ -219,6 +227,12 @@ class MLAC(Agent):
         #: (pi(x_{k-1}), K(x_{k-1})) found when acting in x_{k-1}: saves one actor query per step.
         #: Derived state (None: recompute), so it is not part of the state dict.
         self._pi_prev: tuple[np.ndarray, np.ndarray] | None = None
+        #: Whether step 1 inserts a transition in M^P: False while rehearsing (planning, replay).
+        self._learns_model = True
+
+    def _set_rehearsing(self, rehearsing: bool) -> None:
+        """While rehearsing (planning, replay), step 1 leaves M^P unchanged."""
+        self._learns_model = not rehearsing
 
     # -- the policy -----------------------------------------------------------------------------------
     def _pi(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -279,9 +293,11 @@ class MLAC(Agent):
         self.actor.adjust(moved, self.action_space.clip(before + step) - before)
 
     # -- Agent interface ------------------------------------------------------------------------------
-    def _act(self, x: np.ndarray) -> np.ndarray:
-        """Step 4: u = pi(x) + Delta u_k, saturated."""
+    def _act(self, x: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
+        """Step 4: u = pi(x) + Delta u_k, saturated; a given u (replay) is taken as it is."""
         self._pi_prev = self._pi(x)  # kept for the next actor update (x becomes x_{k-1})
+        if u is not None:
+            return u.copy()
         exploration = self.config.exploration
         uncertainty = None
         if exploration.where == "uncertain":  # the process model where the policy acts: (x, pi(x))
@@ -290,30 +306,31 @@ class MLAC(Agent):
         du = exploration.sample(self._k, self.m, self.rng, self.trial, uncertainty)
         return self.action_space.clip(self._pi_prev[0] + du)
 
-    def _start(self, x0: np.ndarray) -> np.ndarray:
-        """A trial begins: traces reset, V_0, u_0 = pi(x_0) + Delta u_0."""
+    def _start(self, x0: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
+        """A trial begins: traces reset, V_0, u_0 = pi(x_0) + Delta u_0 (or the given u_0)."""
         x0 = self.state_space.canonical(x0)
         self.critic.begin_trial()
         self._k = 0
         self._v_prev = self.critic.value(x0) if self.config.initial_value == "critic" else 0.0
-        u = self._act(x0)
+        u = self._act(x0, u)
         self._x_prev, self._u_prev = x0, u
         return u.copy()
 
-    def _step(self, reward: float, x: np.ndarray) -> np.ndarray:
-        """Learn from (x_{k-1}, u_{k-1}, r_k, x_k) (steps 1-3), then act in x_k (step 4)."""
+    def _step(self, reward: float, x: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
+        """Learn from (x_{k-1}, u_{k-1}, r_k, x_k) (steps 1-3), then act in x_k (step 4; a given u_k
+        when replaying)."""
         x = self.state_space.canonical(x)
         self._k += 1
-        self._v_prev = self._learn(self._x_prev, self._u_prev, reward, x, self._v_prev, True,
-                                   self._pi_prev)
-        u = self._act(x)
+        self._v_prev = self._learn(self._x_prev, self._u_prev, reward, x, self._v_prev,
+                                   self._learns_model, self._pi_prev)
+        u = self._act(x, u)
         self._x_prev, self._u_prev = x, u
         return u.copy()
 
     def _stop(self, reward: float, x: np.ndarray) -> None:
         """The trial's last transition is learned like any other (the trial ends on a time limit)."""
         self._learn(self._x_prev, self._u_prev, reward, self.state_space.canonical(x),
-                    self._v_prev, True, self._pi_prev)
+                    self._v_prev, self._learns_model, self._pi_prev)
 
     def _learn_transition(self, x: np.ndarray, u: np.ndarray, reward: float, x_next: np.ndarray,
                           v: float, model: bool) -> float:

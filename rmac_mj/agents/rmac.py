@@ -128,7 +128,13 @@ class RMAC(Agent):
         self._u_prev = np.zeros(m)
         self._v_prev = np.zeros(1)
         self._u_greedy = np.zeros(m)
+        #: Whether line 14 inserts a transition in M^P: False while rehearsing (planning, replay).
+        self._learns_model = True
         self._kernel_state = self._new_kernel_state()
+
+    def _set_rehearsing(self, rehearsing: bool) -> None:
+        """While rehearsing (planning, replay), line 14 leaves M^P unchanged."""
+        self._learns_model = not rehearsing
 
     def _new_kernel_state(self) -> _rmac_kernels.RMACState | None:
         """The compiled step's view of this agent's arrays (numba back end), else None."""
@@ -212,14 +218,16 @@ class RMAC(Agent):
         return out
 
     # -- Agent interface --------------------------------------------------------------------------------
-    def _start(self, x0: np.ndarray) -> np.ndarray:
-        """Lines 1-6: reset the traces, u_0 = f^-1(x_0, R(x_0)) + Delta u_0."""
+    def _start(self, x0: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
+        """Lines 1-6: reset the traces, u_0 = f^-1(x_0, R(x_0)) + Delta u_0 (or the given u_0, when
+        replaying)."""
         x0 = self.state_space.canonical(x0)
         self.critic.begin_trial()  # line 3
         self._k = 0
         self._u_greedy = np.zeros(self.m)
         self._v_prev[0] = self.critic.value(x0) if self.config.initial_value == "critic" else 0.0
-        u = self._explore(self._act(x0, np.zeros(self.m)), x0, np.zeros(self.m))  # line 5
+        if u is None:
+            u = self._explore(self._act(x0, np.zeros(self.m)), x0, np.zeros(self.m))  # line 5
         self._x_prev[:] = x0
         self._u_prev[:] = u
         return u.copy()
@@ -237,19 +245,21 @@ class RMAC(Agent):
         du = self._noise(x, u_prev)  # line 8
         return np.minimum(np.maximum(u_greedy + du, self.action_space.low), self.action_space.high)
 
-    def _step(self, reward: float, x: np.ndarray) -> np.ndarray:
-        """Lines 8-29 for one control step: act with the current models, then learn."""
+    def _step(self, reward: float, x: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
+        """Lines 8-29 for one control step: act with the current models, then learn. A given u_k
+        (replay) is taken as the action: lines 13-28 only."""
         self._k += 1
         self._sync_rates()
-        if self._kernel_state is not None:
+        if u is None and self._kernel_state is not None:
             du = self._noise(x, self._u_prev)  # line 8
             # Lines 10-28 in one compiled call (x wrapped there), which also advances x_prev,
             # u_prev and v_prev; it returns a new array.
-            return _rmac_kernels.step(self._kernel_state, reward, x, du)
+            return _rmac_kernels.step(self._kernel_state, reward, x, du, self._learns_model)
         x = self.state_space.canonical(x)
-        u = self._explore(self._act(x, self._u_prev), x, self._u_prev)  # lines 10-12
+        if u is None:
+            u = self._explore(self._act(x, self._u_prev), x, self._u_prev)  # lines 10-12
         self._v_prev[0] = self._learn(self._x_prev, self._u_prev, reward, x,
-                                      float(self._v_prev[0]), True)  # lines 13-28
+                                      float(self._v_prev[0]), self._learns_model)  # lines 13-28
         self._x_prev[:] = x
         self._u_prev[:] = u
         return u.copy()
@@ -258,10 +268,10 @@ class RMAC(Agent):
         """The last transition of a trial: learn (lines 13-28), no action."""
         self._sync_rates()
         if self._kernel_state is not None:
-            _rmac_kernels.stop(self._kernel_state, reward, x)
+            _rmac_kernels.stop(self._kernel_state, reward, x, self._learns_model)
         else:
             self._learn(self._x_prev, self._u_prev, reward, self.state_space.canonical(x),
-                        float(self._v_prev[0]), True)
+                        float(self._v_prev[0]), self._learns_model)
         self._u_greedy = np.zeros(self.m)  # a greedy trial that follows starts from u_{-1} = 0
 
     # -- one transition: lines 13-28 --------------------------------------------------------------------

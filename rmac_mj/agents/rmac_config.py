@@ -9,6 +9,7 @@ from numbers import Integral, Real
 from typing import ClassVar
 
 from rmac_mj.agents.exploration import Exploration
+from rmac_mj.agents.planning import Planning, Replay
 from rmac_mj.approximators.llr import SHARED_CONSTRAINTS, LLRMemory, memory_constraints
 from rmac_mj.constraints import WEIGHTS, InstanceOf, Interval, Options, check_config
 
@@ -158,6 +159,11 @@ class RMACConfig:
     initial_value: str = "critic"
     """V_0 of a trial (line 2): the critic's estimate V(x_0) ('critic'; 0 on the empty memory) or the
     literal 0 every trial ('zero')."""
+    planning: Planning = Planning()
+    """Simulated transitions in learned models between trials (``agents.planning``, issue 23): the
+    rollouts run this algorithm, line 14 excepted. Paper: none."""
+    replay: Replay = Replay()
+    """Replay of stored real trials between trials (``agents.planning``). Paper: none."""
     backend: str = "numba"
     """'numba' (compiled kernels) or 'numpy' (the readable reference); both give the same results."""
 
@@ -193,6 +199,8 @@ class RMACConfig:
         "reachable_grid": [Interval(Integral, 2, None)],
         "reference_insert_rate": [Interval(Real, 0, 1)],
         "initial_value": [Options("critic", "zero")],
+        "planning": [InstanceOf(Planning)],
+        "replay": [InstanceOf(Replay)],
         "backend": [Options("numba", "numpy")],
     }
 

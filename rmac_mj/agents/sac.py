@@ -43,6 +43,7 @@ import numpy as np
 
 from rmac_mj.agents.base import Agent
 from rmac_mj.agents.exploration import Exploration
+from rmac_mj.agents.planning import Planning, Replay
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
 from rmac_mj.approximators.tile_coding import Backend, TileCoder, TileCodingConfig
 from rmac_mj.constraints import InstanceOf, Interval, Options, TupleOf, check_config, invalid
@@ -70,6 +71,9 @@ class SACConfig:
       exploration: Delta u schedule. Paper: sigma 1 every third step. A decay is supported;
         ``where`` must be 'always' (S-AC has no process model to measure its uncertainty).
       trace_cutoff: traces below this are dropped (set to 0); 0 keeps every nonzero trace.
+      planning: simulated transitions in learned models between trials (``agents.planning``;
+        S-AC learns the model only for this). Paper: none.
+      replay: replay of stored real trials between trials (``agents.planning``). Paper: none.
       backend: ``"numba"`` (compiled) or ``"numpy"`` (reference); same results.
     """
 
@@ -83,6 +87,8 @@ class SACConfig:
     tile_high: tuple[float, ...] | None = None
     exploration: Exploration = Exploration()
     trace_cutoff: float = 1e-5
+    planning: Planning = Planning()
+    replay: Replay = Replay()
     backend: Backend = "numba"
 
     #: Parameters renamed since earlier versions (read from snapshots those wrote): old -> new.
@@ -98,6 +104,8 @@ class SACConfig:
         "tile_high": [_TILE_BOUNDS, None],
         "exploration": [InstanceOf(Exploration)],
         "trace_cutoff": [Interval(Real, 0, 1, closed="left")],
+        "planning": [InstanceOf(Planning)],
+        "replay": [InstanceOf(Replay)],
         "backend": [Options("numba", "numpy")],
     }
 
@@ -238,20 +246,21 @@ class SAC(Agent):
         self.last_delta_ = 0.0
 
     # ----------------------------------------------------------------------------------- protocol
-    def _start(self, x0: np.ndarray) -> np.ndarray:
-        """Lines 1-4: reset the traces, apply u_0 = pi(x_0) + Delta u_0; returns shape (m,)."""
+    def _start(self, x0: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
+        """Lines 1-4: reset the traces, apply u_0 = pi(x_0) + Delta u_0 (or the given u_0, when
+        replaying); returns shape (m,)."""
         self._traces[self._trace_idx[:self._n_traces]] = 0.0
         self._n_traces = 0
         self._k = 0
         self._tiles_of(x0, self._prev_tiles)
-        u, self._prev_du = self._act(self._prev_tiles, 0)
+        u, self._prev_du = self._act(self._prev_tiles, 0, u)
         return u
 
-    def _step(self, reward: float, x: np.ndarray) -> np.ndarray:
-        """Lines 6-14 for r_k and x_k; returns u_k of shape (m,)."""
+    def _step(self, reward: float, x: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
+        """Lines 6-14 for r_k and x_k; returns u_k of shape (m,) (the given u_k, when replaying)."""
         self._k += 1
         self._tiles_of(x, self._tiles)
-        u, du = self._act(self._tiles, self._k)  # line 8 uses vartheta_{k-1}: act before learning
+        u, du = self._act(self._tiles, self._k, u)  # line 8 uses vartheta_{k-1}: act before learning
         self._learn(reward)
         self._prev_tiles, self._tiles = self._tiles, self._prev_tiles
         self._prev_du = du
@@ -320,8 +329,12 @@ class SAC(Agent):
                                  np.empty(self.action_space.dim))
         return np.clip(self.actor_[tiles].sum(axis=0), self._a_low, self._a_high)
 
-    def _act(self, tiles: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
-        """Lines 6 and 8: u_k = sat(pi(x_k) + Delta u_k) and the applied exploration u_k - pi(x_k)."""
+    def _act(self, tiles: np.ndarray, k: int,
+             u: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Lines 6 and 8: u_k = sat(pi(x_k) + Delta u_k) and the applied exploration u_k - pi(x_k);
+        a given u_k (replay) is taken as applied, its exploration relative to today's pi(x_k)."""
+        if u is not None:
+            return u.copy(), u - self._policy(tiles)
         noise = self.config.exploration.sample(k, self.action_space.dim, self.rng, self.trial)
         if self.config.backend == "numba":
             m = self.action_space.dim

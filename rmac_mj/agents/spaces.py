@@ -1,5 +1,5 @@
 """The spaces a learner sees: a flat state box (:class:`StateSpace`) and a bounded action
-(:class:`ActionSpace`), with the task's default input weightings and its action cost. Agents know
+(:class:`ActionSpace`), with the task's default input weightings and its reward's costs. Agents know
 no particular task; everything they know of one comes through these two."""
 
 from __future__ import annotations
@@ -32,12 +32,17 @@ class StateSpace:
       periodic: ndarray of bool of shape (n,), True where a dimension wraps around (an angle).
       input_weights: ndarray of shape (n,), the task's default weighting of each dimension in a
         learner's input distances (RMAC's LLR memories; dc_pendulum: Table 2's (1, 0.1)). None: ones.
+      cost: ndarray of shape (n,), what the task's reward charges for the state, r containing
+        -sum_i cost_i x_i^2 (x canonical; dc_pendulum: Q's diagonal (5, 0.1)): with
+        ``ActionSpace.cost``, the task's reward given as prior knowledge (planning's
+        ``reward='task'``). None: the task does not say.
     """
 
     low: np.ndarray
     high: np.ndarray
     periodic: np.ndarray
     input_weights: np.ndarray | None = None
+    cost: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         low = np.asarray(self.low, dtype=float).reshape(-1)
@@ -54,6 +59,8 @@ class StateSpace:
         object.__setattr__(self, "periodic", periodic)
         object.__setattr__(self, "input_weights",
                            _weights("StateSpace", self.input_weights, low.shape[0], "input_weights"))
+        if self.cost is not None:
+            object.__setattr__(self, "cost", _weights("StateSpace", self.cost, low.shape[0], "cost"))
 
     @property
     def dim(self) -> int:

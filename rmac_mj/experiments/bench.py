@@ -39,6 +39,7 @@ import numpy as np
 from rmac_mj import tasks
 from rmac_mj.agents import PolicyAgent, make_agent
 from rmac_mj.approximators.llr import LLRMemory
+from rmac_mj.experiments import bench_planning
 from rmac_mj.experiments.episode import (action_space_of, learner_state_of, n_sub_steps, run_trial,
                                          state_of, state_space_of, steps_per_trial)
 
@@ -327,6 +328,9 @@ def run(quick: bool = False, algorithms: tuple[str, ...] = ("s-ac", "rmac"), job
     # Experiments are independent and run one per core; the projection assumes perfect scaling.
     report["protocol_projected_min"] = PAPER_EXPERIMENTS * sum(walls.values()) / cores / 60.0
     report["run"] = real_run(1 if quick else 2, 10 if quick else 100, jobs, physics, **on)
+    report["rehearsal"] = bench_planning.rehearsal_costs(
+        repeats=3 if quick else 5, trials=1 if quick else 2,
+        steps=(0, 20) if quick else bench_planning.STEPS, **on)
     report["machine"] = {"cores": cores, "cpu": _cpu_name(), "python": platform.python_version(),
                          "mujoco": mujoco.__version__}
     return report
@@ -373,6 +377,8 @@ def format_table(report: dict[str, Any]) -> str:
     verdict = "met" if projected <= PROTOCOL_TARGET_MIN else "MISSED"
     lines.append(f"full protocol (40 + 40 experiments) on {report['machine']['cores']} cores: "
                  f"{projected:.1f} min projected (target <= {PROTOCOL_TARGET_MIN:g}: {verdict})")
+    if "rehearsal" in report:
+        lines.extend(bench_planning.format_lines(report["rehearsal"], physics))
     lines.append(f"machine: {report['machine']['cpu']}, {report['machine']['cores']} cores, "
                  f"Python {report['machine']['python']}, MuJoCo {report['machine']['mujoco']}")
     return "\n".join(lines)
@@ -409,4 +415,6 @@ def format_markdown(report: dict[str, Any]) -> str:
                  f"whole run: <= {RUN_TARGET:g} |")
     lines.append(f"| full protocol, projected | {report['protocol_projected_min']:.1f} min | | "
                  f"<= {PROTOCOL_TARGET_MIN:g} min |")
+    if "rehearsal" in report:
+        lines.extend(bench_planning.format_markdown(report["rehearsal"], physics))
     return "\n".join(lines)

@@ -42,10 +42,11 @@ def state_of(observation, learner_state: LearnerState | Sequence[str]) -> np.nda
 
 
 def state_space_of(env: control.Environment) -> StateSpace:
-    """The task's nominal state box, periodic dimensions and state weightings as a StateSpace."""
+    """The task's nominal state box, periodic dimensions, state weightings and state cost as a
+    StateSpace."""
     learner_state = learner_state_of(env)
     return StateSpace(low=learner_state.low, high=learner_state.high, periodic=learner_state.periodic,
-                      input_weights=learner_state.input_weights)
+                      input_weights=learner_state.input_weights, cost=learner_state.state_cost)
 
 
 def action_space_of(env: control.Environment) -> ActionSpace:
