@@ -4,6 +4,8 @@ what a task declares beyond its dynamics (its reference, demonstrators, plot hin
 from __future__ import annotations
 
 import dataclasses
+import math
+import numbers
 from typing import Any, Callable, Mapping, Protocol
 
 import numpy as np
@@ -90,10 +92,61 @@ def wrap_angle(angle):
     return (angle + np.pi) % (2.0 * np.pi) - np.pi
 
 
+#: The largest magnitude of a start state entry: MuJoCo's mjMAXVAL, beyond which it declares the
+#: simulation unstable and resets it (a start there would fail at the first reset, not at load).
+MAX_STATE = 1e10
+
+
+def is_real(value) -> bool:
+    """Whether ``value`` is one finite real number (a bool, a string or a complex is not)."""
+    return (isinstance(value, (numbers.Real, np.floating, np.integer))
+            and not isinstance(value, (bool, np.bool_)) and math.isfinite(value))
+
+
 def check_positive(name: str, value) -> None:
     """Raise ValueError naming ``name`` unless ``value`` is a positive finite number."""
-    if not (np.isscalar(value) and np.isfinite(value) and value > 0):
+    if not (is_real(value) and value > 0):
         raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+
+
+def check_in(name: str, value, low: float, high: float, unit: str = "") -> float:
+    """``value`` as a float; ValueError naming ``name`` unless it is a number in [low, high]."""
+    if not (is_real(value) and low <= value <= high):
+        raise ValueError(f"{name} must be a number in [{low:g}, {high:g}]{unit}, got {value!r}")
+    return float(value)
+
+
+def real_array(name: str, value, what: str) -> np.ndarray:
+    """``value`` as a float ndarray; ValueError naming ``name`` (and ``what`` was expected) unless
+    it holds finite real numbers only (no strings, no complex numbers, no NaN)."""
+    array = np.asarray(value)
+    if array.dtype.kind not in "iuf" or not np.all(np.isfinite(array)):
+        raise ValueError(f"{name} must be {what}, got {value!r}")
+    return array.astype(float)
+
+
+def check_start_state(value, n: int, what: str) -> np.ndarray:
+    """x_0 of ``n`` finite numbers within MuJoCo's range (:data:`MAX_STATE`); ValueError naming
+    ``start_state`` and ``what`` it is otherwise."""
+    x0 = real_array("start_state", value, f"finite {what}")
+    if x0.shape != (n,):
+        raise ValueError(f"start_state must be {what} ({n} numbers), got {value!r}")
+    if np.any(np.abs(x0) > MAX_STATE):
+        raise ValueError(f"start_state must lie within +-{MAX_STATE:g} (MuJoCo's range; beyond it a "
+                         f"reset fails), got {value!r}")
+    return x0
+
+
+def check_random(random) -> None:
+    """ValueError naming ``random`` unless it is what dm-control's tasks take: None, a seed (an
+    integer in [0, 2**32)) or a ``numpy.random.RandomState``."""
+    if random is None or isinstance(random, np.random.RandomState):
+        return
+    if isinstance(random, (int, np.integer)) and not isinstance(random, (bool, np.bool_)) \
+            and 0 <= random < 2**32:
+        return
+    raise ValueError(f"random must be None, a seed (an integer in [0, 2**32)) or a "
+                     f"numpy.random.RandomState, got {random!r}")
 
 
 def quadratic_weights(name: str, value, n: int) -> np.ndarray:
@@ -101,7 +154,9 @@ def quadratic_weights(name: str, value, n: int) -> np.ndarray:
 
     Raises ValueError naming ``name`` otherwise.
     """
-    w = np.asarray(value, dtype=float)
+    expected = (f"a diagonal of shape ({n},) or a symmetric positive semi-definite ({n}, {n}) "
+                "matrix of finite numbers")
+    w = real_array(name, value, expected)
     if w.shape == (n,):
         w = np.diag(w)
     if (w.shape != (n, n) or not np.all(np.isfinite(w)) or not np.allclose(w, w.T)
@@ -140,11 +195,15 @@ def make_environment(physics, task, time_limit: float, control_timestep: float,
 
 
 def check_action(action, n: int) -> np.ndarray:
-    """The action as a float ndarray of shape (n,); ValueError on another shape or a non-finite value.
+    """The action as a float ndarray of shape (n,); ValueError on another shape, a non-finite value
+    or anything but real numbers (a complex number is refused, not cut to its real part).
 
     A scalar is accepted when ``n == 1``.
     """
-    action = np.asarray(action, dtype=float)
+    action = np.asarray(action)
+    if action.dtype.kind not in "iuf":
+        raise ValueError(f"action must be real numbers, got {action!r}")
+    action = action.astype(float, copy=False)
     if action.shape != (n,) and not (n == 1 and action.shape == ()):
         raise ValueError(f"action must have shape ({n},), got shape {action.shape}")
     if not np.all(np.isfinite(action)):

@@ -241,13 +241,11 @@ class SwingUp(base.Task):
           random: int seed, ``numpy.random.RandomState`` or None (dm-control's convention).
         """
         q = common.quadratic_weights("state_weights", state_weights, 2)
-        if not (np.isscalar(action_weight) and np.isfinite(action_weight) and action_weight >= 0):
+        if not (common.is_real(action_weight) and action_weight >= 0):
             raise ValueError(f"action_weight must be a finite number >= 0, got {action_weight!r}")
-        x0 = np.asarray(start_state, dtype=float)
-        if x0.shape != (2,) or not np.all(np.isfinite(x0)):
-            raise ValueError(f"start_state must be finite [phi, phi_dot], got {start_state!r}")
-        if not (np.isscalar(start_noise) and np.isfinite(start_noise) and 0 <= start_noise <= np.pi):
-            raise ValueError(f"start_noise must be in [0, pi] rad, got {start_noise!r}")
+        x0 = common.check_start_state(start_state, 2, "[phi, phi_dot]")
+        common.check_in("start_noise", start_noise, 0.0, np.pi, " rad")
+        common.check_random(random)
         self._q = q
         self._p = float(action_weight)
         self._x = np.empty(2)  # scratch for x in the reward
@@ -279,10 +277,12 @@ class SwingUp(base.Task):
 
         A wrong shape or a NaN/inf voltage raises ``ValueError`` before anything is applied.
         """
-        action = np.asarray(action, dtype=float)
+        action = np.asarray(action)
         if action.shape != (1,) and action.shape != ():
             raise ValueError(f"action must have shape (1,) (one voltage), got shape {action.shape}")
-        u = action.item()
+        if action.dtype.kind not in "iuf":  # a complex voltage is refused, not cut to its real part
+            raise ValueError(f"action must be a real number, got {action!r}")
+        u = float(action.item())
         if not math.isfinite(u):
             raise ValueError(f"action must be finite, got {action!r}")
         physics.set_voltage(u)

@@ -158,12 +158,9 @@ class Reach(base.Task):
         """
         q = common.quadratic_weights("state_weights", state_weights, 4)
         r = common.quadratic_weights("action_weights", action_weights, 2)
-        x0 = np.asarray(start_state, dtype=float)
-        if x0.shape != (4,) or not np.all(np.isfinite(x0)):
-            raise ValueError(f"start_state must be finite [theta1, omega1, theta2, omega2], "
-                             f"got {start_state!r}")
-        if not (np.isscalar(start_noise) and np.isfinite(start_noise) and 0 <= start_noise <= np.pi):
-            raise ValueError(f"start_noise must be in [0, pi] rad, got {start_noise!r}")
+        x0 = common.check_start_state(start_state, 4, "[theta1, omega1, theta2, omega2]")
+        common.check_in("start_noise", start_noise, 0.0, np.pi, " rad")
+        common.check_random(random)
         self._q = q
         self._r = r
         self._start_state = x0

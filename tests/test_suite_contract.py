@@ -107,13 +107,38 @@ def test_bad_actions_raise_before_anything_is_stepped(domain, task):
     good = random_actions(env, 1)[0]
     time = env.physics.data.time
     bad = [np.full_like(good, np.nan), np.full_like(good, np.inf), np.zeros(good.size + 1),
-           np.zeros((2, good.size))]
+           np.zeros((2, good.size)), good + 1j,  # a complex action: refused, not cut to its real part
+           np.array(["1"] * good.size)]
     for action in bad:
         with pytest.raises(ValueError, match="action"):
             env.step(action)
         assert env.physics.data.time == time
     env.step(good)
     assert env.physics.data.time > time
+
+
+@pytest.mark.parametrize("domain, task", tasks.ALL_TASKS)
+@pytest.mark.parametrize("kwargs, named", [
+    ({"time_limit": "3"}, "time_limit must be a positive finite number, got '3'"),
+    ({"control_timestep": True}, "control_timestep must be a positive finite number"),
+    ({"random": "x"}, "random must be None, a seed"),
+    ({"random": -1}, "random must be None, a seed"),
+    ({"start_noise": "0.1"}, "start_noise must be a number in [0, 3.14159] rad"),
+    ({"state_weights": "x"}, "state_weights must be a diagonal"),
+    ({"start_state": "x"}, "start_state must be finite"),
+])
+def test_bad_task_kwargs_are_refused_at_load_naming_them(domain, task, kwargs, named):
+    with pytest.raises(ValueError) as refusal:
+        tasks.load(domain, task, task_kwargs=kwargs)
+    assert named in str(refusal.value)
+
+
+@pytest.mark.parametrize("domain, task", tasks.ALL_TASKS)
+def test_a_start_beyond_mujocos_range_is_refused_at_load_not_at_reset(domain, task):
+    start = np.zeros(len(tasks.load(domain, task).task.learner_state.low))
+    start[0] = 1e300
+    with pytest.raises(ValueError, match=r"start_state must lie within \+-1e\+10"):
+        tasks.load(domain, task, task_kwargs={"start_state": start.tolist()})
 
 
 @pytest.mark.parametrize("domain, task", tasks.ALL_TASKS)

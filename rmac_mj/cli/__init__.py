@@ -21,6 +21,7 @@ The options are declared in :mod:`rmac_mj.cli.options`, the commands that run ex
 from __future__ import annotations
 
 import contextlib
+import errno
 import signal
 import sys
 from typing import Sequence
@@ -77,5 +78,18 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"{prog}: error: {error}", file=sys.stderr)
             return 2
         raise
+    except OSError as error:
+        if error.errno not in _STORAGE_ERRORS:
+            raise
+        # The machine's storage, not a bug: what was saved is whole (every file is written
+        # atomically), and --resume finishes the run once there is room.
+        where = f" ({error.filename})" if error.filename else ""
+        print(f"{prog}: error: cannot write{where}: {error.strerror}; what was saved is whole: free "
+              "some space and run again with --resume", file=sys.stderr)
+        return 1
+
+
+#: Storage errors reported in one line (disk full, quota exceeded, read-only file system).
+_STORAGE_ERRORS = (errno.ENOSPC, errno.EDQUOT, errno.EROFS)
 
 

@@ -84,7 +84,7 @@ def settings_from_files(argv: Sequence[str] | None, args: argparse.Namespace) ->
 
 
 def reproduce(args) -> int:
-    from rmac_mj.experiments import report, runner, sweep_file
+    from rmac_mj.experiments import execution, report, runner, sweep_file
     from rmac_mj.experiments.protocol import Protocol
     from rmac_mj.experiments.store import ResultStore
 
@@ -124,6 +124,13 @@ def reproduce(args) -> int:
                                       scheduler=args.scheduler, progress=not args.no_progress,
                                       references=not args.no_optimal, smooth=args.smooth, log=say,
                                       started=STARTED)
+    except execution.BackendError as error:  # e.g. the scheduler lost: what finished is saved
+        saved = runner.finished_experiments(out, protocol)
+        if not saved:
+            raise
+        raise UsageError(f"{error}; {saved} finished experiment{'s' * (saved != 1)} saved in {out}: "
+                         f"finish with rmac-mj reproduce --resume --out {out} (with --scheduler or "
+                         "--jobs)") from None
     except KeyboardInterrupt:
         saved = runner.finished_experiments(out, protocol)
         again = f"finish it with: rmac-mj reproduce --resume --out {out}"
@@ -144,14 +151,12 @@ def reproduce(args) -> int:
 def sweep(args) -> int:
     from rmac_mj.experiments import sweep as sweeps, sweep_file
 
-    plan = sweep_file.load_sweep(args.file)  # the whole file is validated before anything runs
     if args.jobs is not None and args.scheduler:
         raise UsageError("--jobs and --scheduler exclude each other")
+    # the whole file is validated before anything runs; its size is said first
+    plan = sweep_file.load_sweep(args.file, announce=say)
     out = writable_dir(args.out)
-    runs = len(plan.configurations)
-    experiments = sum(c.protocol.experiments * len(c.protocol.algorithms) for c in plan.configurations)
-    print(f"{args.file}: {runs} configuration{'s' * (runs != 1)}, {experiments} experiments, into {out}/",
-          flush=True)
+    say(f"running into {out}/")
     try:
         rows = sweeps.run_sweep(plan, out, jobs=args.jobs, scheduler=args.scheduler, resume=args.resume,
                                progress=not args.no_progress, references=not args.no_optimal,

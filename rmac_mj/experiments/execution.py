@@ -12,19 +12,40 @@ from __future__ import annotations
 import collections
 import itertools
 import multiprocessing
+import os
 import queue
 import signal
+import threading
+import time
 from typing import Any, Callable, Iterable, Iterator
+
+from rmac_mj.errors import UserInputError
 
 #: Seconds between two calls of ``poll`` while the driver waits for a worker.
 POLL_SECONDS = 0.5
 #: Items handed to the workers beyond one each, so that none waits for the driver.
 _AHEAD = 1
+#: Seconds between a worker's looks at whether its driver is still there.
+WATCHDOG_SECONDS = 0.5
+#: Seconds to wait for a Dask scheduler to answer.
+DASK_CONNECT_SECONDS = 10.0
 
 
-def _ignore_interrupts() -> None:
-    """Worker initialiser: Ctrl-C reaches the whole process group; only the driver handles it."""
+class BackendError(UserInputError):
+    """The Dask scheduler cannot be reached, or was lost while experiments ran on it."""
+
+
+def _start_worker(driver: int) -> None:
+    """Worker initialiser. Ctrl-C reaches the whole process group; only the driver handles it. And a
+    worker whose driver is gone (killed with SIGKILL, which it cannot answer by stopping its
+    workers) stops too: a watchdog thread sees the parent change and ends the process."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+    def watch() -> None:
+        while os.getppid() == driver:
+            time.sleep(WATCHDOG_SECONDS)
+        os._exit(1)
+    threading.Thread(target=watch, name="rmac-mj driver watchdog", daemon=True).start()
 
 
 def _started(items: Iterable, on_start: Callable[[Any], None] | None) -> Iterator:
@@ -54,7 +75,8 @@ def local_outcomes(items: Iterable, run: Callable, jobs: int,
     # "spawn": workers start clean (no inherited GL contexts or numba state); the numba cache (filled
     # by the driver's warm-up) makes their start-up cheap.
     context = multiprocessing.get_context("spawn")
-    pool = context.Pool(processes=min(jobs, len(first)), initializer=_ignore_interrupts)
+    pool = context.Pool(processes=min(jobs, len(first)), initializer=_start_worker,
+                        initargs=(os.getpid(),))
     finished: queue.SimpleQueue = queue.SimpleQueue()
     pending = itertools.chain(first, items)
     in_flight = 0
@@ -83,21 +105,40 @@ def local_outcomes(items: Iterable, run: Callable, jobs: int,
         pool.join()
 
 
-def dask_outcomes(items: Iterable, run: Callable, scheduler: str, window: int | None = None,
+def connect_dask(address: str, timeout: float | None = None):
+    """A ``distributed.Client`` of the scheduler at ``address``; :class:`BackendError` in one line
+    when the address is not one or nothing answers within ``timeout`` seconds (default
+    :data:`DASK_CONNECT_SECONDS`)."""
+    try:
+        from distributed import Client
+        from distributed.comm import parse_address
+    except ImportError as error:  # pragma: no cover - depends on the optional extra
+        raise BackendError("--scheduler needs Dask: pip install 'rmac-mj[distributed]'") from error
+    try:
+        parse_address(address, strict=True)
+    except ValueError:
+        raise BackendError(f"--scheduler {address!r} is not a scheduler address (expected e.g. "
+                           "tcp://host:8786)") from None
+    try:
+        return Client(address, timeout=DASK_CONNECT_SECONDS if timeout is None else timeout)
+    except (OSError, TimeoutError) as error:
+        raise BackendError(f"cannot reach the Dask scheduler at {address} ({error}); is "
+                           "`dask scheduler` running there?") from None
+
+
+def dask_outcomes(items: Iterable, run: Callable, client, window: int | None = None,
                   on_start: Callable[[Any], None] | None = None) -> Iterator:
-    """``run(item)`` of every item on the Dask cluster at ``scheduler``, in the order they finish.
+    """``run(item)`` of every item on the Dask cluster of ``client``, in the order they finish.
 
     At most ``window`` items (default: twice the cluster's worker threads, at least 2) are submitted
-    at a time; closing the generator cancels those still pending."""
-    try:
-        from distributed import Client, as_completed
-    except ImportError as error:  # pragma: no cover - depends on the optional extra
-        raise RuntimeError("--scheduler needs Dask: pip install 'rmac-mj[distributed]'") from error
+    at a time; closing the generator cancels those still pending. A lost scheduler ends it with a
+    :class:`BackendError` (the results already yielded are the caller's to keep)."""
+    from distributed import as_completed
+
     items = _started(items, on_start)
-    with Client(scheduler) as client:
+    try:
         if window is None:
-            threads = sum(client.nthreads().values())
-            window = max(2, 2 * threads)
+            window = max(2, 2 * sum(client.nthreads().values()))
         futures = collections.deque(client.submit(run, item, pure=False)
                                     for item in itertools.islice(items, window))
         running = as_completed(futures)
@@ -110,4 +151,7 @@ def dask_outcomes(items: Iterable, run: Callable, scheduler: str, window: int | 
                     running.add(futures[-1])
                 yield outcome
         finally:
-            client.cancel(list(futures))
+            if client.status == "running":
+                client.cancel(list(futures))
+    except (OSError, TimeoutError) as error:
+        raise BackendError(f"lost the Dask scheduler at {client.scheduler.address} ({error})") from None

@@ -12,6 +12,7 @@ import dataclasses
 import importlib.metadata
 import io
 import json
+import math
 import os
 import pathlib
 import platform
@@ -142,4 +143,16 @@ def as_jsonable(value: Any) -> Any:
         return value.tolist()
     if isinstance(value, np.generic):
         return value.item()
+    return value
+
+
+def finite_or_none(value: Any) -> Any:
+    """``value`` (JSON data) with every non-finite float (NaN, inf) replaced by None, so that it can
+    be written as strict JSON."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {key: finite_or_none(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [finite_or_none(item) for item in value]
     return value

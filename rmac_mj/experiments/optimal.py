@@ -308,7 +308,8 @@ def state_grid(config: OptimalConfig, problem: Problem) -> tuple[np.ndarray, np.
 
 
 def simulate_transitions(model: mujoco.MjModel, phi: np.ndarray, phi_dot: np.ndarray, u: np.ndarray,
-                         n_substeps: int, n_threads: int = 1, chunk: int = 1 << 17) -> np.ndarray:
+                         n_substeps: int, n_threads: int = 1, chunk: int = 1 << 17,
+                         progress: Callable[[str], None] | None = None) -> np.ndarray:
     """One control step of a one-joint MuJoCo model from many states, batched with ``mujoco.rollout``.
 
     Args:
@@ -332,6 +333,8 @@ def simulate_transitions(model: mujoco.MjModel, phi: np.ndarray, phi_dot: np.nda
         states, _ = rollout.rollout(model, datas if len(datas) > 1 else datas[0], state0, control,
                                     nstep=n_substeps)
         out[start:stop] = states[:, -1, 1:3]
+        if progress is not None:
+            progress(f"simulated {stop:,} of {n:,} transitions")
     return out
 
 
@@ -384,9 +387,8 @@ def solve_values(config: OptimalConfig, problem: Problem,
     pp, dd, uu = np.meshgrid(phi, phi_dot, actions, indexing="ij")
     threads = config.n_threads or os.cpu_count() or 1
     ticker = _Ticker(announce)
-    ticker(f"simulating {pp.size:,} transitions")
     next_states = simulate_transitions(problem.model, pp.ravel(), dd.ravel(), uu.ravel(),
-                                       problem.n_substeps, threads)
+                                       problem.n_substeps, threads, progress=ticker)
     transition = interpolation_matrix(config, problem, next_states)
     rewards = problem.reward(np.stack([pp, dd], axis=-1), uu).reshape(n_states, n_act)
     values = np.zeros((problem.horizon + 1, n_states), dtype=np.float32)
@@ -398,11 +400,16 @@ def solve_values(config: OptimalConfig, problem: Problem,
     return values.reshape(problem.horizon + 1, config.n_phi, config.n_phi_dot)
 
 
-class _Ticker:
-    """Calls ``announce(what)`` at most every ``seconds`` (long computations say they are alive)."""
+#: Seconds between two progress lines of a long computation.
+PROGRESS_SECONDS = 10.0
 
-    def __init__(self, announce: Callable[[str], None] | None, seconds: float = 10.0):
-        self.announce, self.seconds = announce, seconds
+
+class _Ticker:
+    """Calls ``announce(what)`` at most every :data:`PROGRESS_SECONDS` (long computations say they
+    are alive)."""
+
+    def __init__(self, announce: Callable[[str], None] | None):
+        self.announce, self.seconds = announce, PROGRESS_SECONDS
         self.started = self.last = time.monotonic()
 
     def __call__(self, what: str) -> None:
@@ -618,7 +625,8 @@ def _ordinal(n: int) -> str:
 
 
 def noisy_rollouts(config: OptimalConfig, problem: Problem, values: np.ndarray, sigma: float,
-                   period: int, phase: int, rollouts: int, rng: np.random.Generator) -> np.ndarray:
+                   period: int, phase: int, rollouts: int, rng: np.random.Generator,
+                   announce: Callable[[str], None] | None = None) -> np.ndarray:
     """Returns of ``rollouts`` trials of the DP's greedy policy with exploration noise.
 
     Every trial starts at the task's start; at step k the greedy action is chosen exactly as in
@@ -637,7 +645,9 @@ def noisy_rollouts(config: OptimalConfig, problem: Problem, values: np.ndarray, 
     phi_dot = np.full(rollouts, start[1])
     total = np.zeros(rollouts)
     n_act = len(actions)
+    ticker = _Ticker(announce)
     for k in range(problem.horizon):
+        ticker(f"noisy trials, step {k}/{problem.horizon}")
         candidates = simulate_transitions(problem.model, np.repeat(phi, n_act), np.repeat(phi_dot, n_act),
                                           np.tile(actions, rollouts), problem.n_substeps, threads)
         z = np.stack([phi, phi_dot], axis=-1)
@@ -704,7 +714,7 @@ def exploration_floor(env: control.Environment, identity: dict[str, Any], sigma:
         start = time.perf_counter()
         problem, values = _solved(env, dp_key, config, announce)
         returns = noisy_rollouts(config, problem, values, sigma, period, phase, rollouts,
-                                 np.random.default_rng(seed))
+                                 np.random.default_rng(seed), announce)
         mean, low, high = confidence_interval(returns)
         return ExplorationFloor(mean=float(mean), std=float(returns.std(ddof=1)),
                                 ci95=(float(low), float(high)), returns=returns, sigma=sigma,

@@ -326,8 +326,13 @@ def plot_sweep(sweep: Sweep, rows: list[dict], out: pathlib.Path) -> list[pathli
             if any(series) and len(series) <= 12:
                 ax.legend(fontsize="x-small")
         fig.suptitle(f"{sweep.path.name}: {label}", fontsize="medium")
+        fewest = min(row["experiments"] for row in rows)
+        if fewest < FEW_EXPERIMENTS and low_column is not None:
+            fig.text(0.5, -0.02, f"{fewest} experiment{'s' if fewest != 1 else ''} per configuration: "
+                     f"95% intervals from fewer than {FEW_EXPERIMENTS} mean little", ha="center",
+                     va="top", fontsize="small", color="firebrick")
         path = out / f"sweep_{metric}.png"
-        fig.savefig(path, dpi=120)
+        fig.savefig(path, dpi=120, bbox_inches="tight")
         plt.close(fig)
         paths.append(path)
     return paths

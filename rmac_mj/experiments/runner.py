@@ -13,16 +13,15 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import datetime
-import hashlib
 import itertools
+import json
 import os
 import time
 from typing import Any, Callable, Iterable, Iterator
 
-from rmac_mj.agents import make_agent
-from rmac_mj.experiments import (execution, files, metrics, prior as prior_data, reference,
-                                  statistics)
-from rmac_mj.experiments.episode import action_space_of, run_trial, state_space_of, trial_seconds
+from rmac_mj.experiments import (admission, execution, files, metrics, prior as prior_data,
+                                  reference, statistics)
+from rmac_mj.experiments.episode import trial_seconds
 from rmac_mj.experiments.progress import Progress, TrialFeed
 from rmac_mj.experiments.protocol import ExperimentSpec, Protocol, run_experiment
 from rmac_mj.experiments.store import ExperimentResult, ResultStore
@@ -58,47 +57,6 @@ def finished_experiments(out: str | os.PathLike, protocol: Protocol) -> int:
                for a in protocol.algorithms)
 
 
-def warm_up(protocol: Protocol) -> None:
-    """Compile the kernels ``protocol``'s learners use, or load them from numba's disk cache: one
-    learning and one greedy trial of a throw-away agent of each learner, in this process.
-
-    Run before the worker processes start, so that they load the compiled kernels from the cache
-    instead of each compiling them at once (tens of seconds the first time, about a second after).
-    """
-    env = protocol.make_environment(task_seed=0)
-    for algorithm in protocol.algorithms:
-        agent = make_agent(algorithm, state_space_of(env), action_space_of(env),
-                           config=protocol.agent_configs.get(algorithm), seed=0)
-        run_trial(env, agent, learn=True)
-        run_trial(env, agent, learn=False)
-
-
-def _warm_up_announced(protocols: list[Protocol], log: Callable[[str], None] | None) -> None:
-    """:func:`warm_up` every protocol, saying so when numba really compiles (the first run only)."""
-    from rmac_mj import _cache
-
-    def compiling() -> None:
-        if log is not None:
-            log(f"compiling kernels, first run only (cached in {_cache.numba_cache_location()})")
-    compile_started = time.perf_counter()
-    with _cache.on_first_compile(compiling):
-        for protocol in protocols:
-            warm_up(protocol)
-    if log is not None and _cache.kernel_stats()["compiled"]:
-        log(f"kernels compiled in {time.perf_counter() - compile_started:.0f} s")
-
-
-def _read_prior_file(protocol: Protocol) -> tuple[prior_data.Demonstration | None, str | None]:
-    """The protocol's recorded prior knowledge, checked against its task, and the file's SHA-256
-    (stored in config.json, so that ``resume`` refuses a file that changed); (None, None) without."""
-    path = protocol.prior_file
-    if path is None:
-        return None, None
-    env = protocol.make_environment()
-    demonstration = prior_data.load_demonstration(path, state_space_of(env), action_space_of(env))
-    return demonstration, hashlib.sha256(path.read_bytes()).hexdigest()
-
-
 def run_tagged(item: tuple[Any, ExperimentSpec],
                on_trial: Callable[..., None] | None = None) -> tuple[Any, ExperimentResult]:
     """``(tag, run_experiment(spec))`` for ``item = (tag, spec)``: lets one pool serve several runs.
@@ -110,16 +68,41 @@ def run_tagged(item: tuple[Any, ExperimentSpec],
     return tag, run_experiment(spec, report if on_trial is not None else None)
 
 
-@dataclasses.dataclass
 class _Run:
-    """One protocol being run into one directory."""
+    """One protocol being run into one directory. It is begun (its directory locked, checked or made,
+    its config written, on a resume its saved experiments checked) before its first experiment
+    starts: at once when the directory exists, else when its first experiment is handed out."""
 
-    protocol: Protocol
-    store: ResultStore
-    clock: WallClock
-    finished: dict[str, set[int]]
-    demonstration: prior_data.Demonstration | None
-    summary: dict[str, Any] | None = None
+    def __init__(self, protocol: Protocol, out: str | os.PathLike, document: dict[str, Any],
+                 demonstration: prior_data.Demonstration | None, resume: bool):
+        self.protocol, self.store = protocol, ResultStore(out)
+        self.document, self.demonstration, self.resume = document, demonstration, resume
+        self.finished: dict[str, set[int]] = {a: set() for a in protocol.algorithms}
+        self.clock: WallClock | None = None
+        self.summary: dict[str, Any] | None = None
+
+    @property
+    def begun(self) -> bool:
+        return self.clock is not None
+
+    def begin(self, started: float, log: Callable[[str], None] | None) -> None:
+        """Lock the directory, write or check its config and, resuming, trust only the saved
+        experiments whose files are whole and agree with the config (the others run again)."""
+        if self.begun:
+            return
+        self.store.lock().acquire()
+        self.store.begin(self.document, self.resume)
+        protocol = self.protocol
+        for algorithm in protocol.algorithms:
+            for index in sorted(i for i in self.store.finished(algorithm) if i < protocol.experiments):
+                problem = self.store.experiment_problem(protocol, algorithm, index)
+                if problem is None:
+                    self.finished[algorithm].add(index)
+                    continue
+                if log is not None:
+                    log(f"{algorithm} experiment {index} is run again: {problem}")
+                self.store.discard(algorithm, index)
+        self.clock = WallClock(self.store, started, self.resume)
 
     @property
     def left(self) -> int:
@@ -133,6 +116,16 @@ class _Run:
                 if index not in self.finished[algorithm]:
                     yield tag, ExperimentSpec(self.protocol, algorithm, index, stream_to=stream_to,
                                               demonstration=self.demonstration)
+
+    def finalise(self, **options) -> dict[str, Any]:
+        """Summarise the run (:func:`finalise`) and let go of its directory."""
+        self.begin(options["started"], options["log"])  # a run with nothing left may not be begun
+        del options["started"]
+        try:
+            self.summary = finalise(self.store, self.protocol, clock=self.clock, **options)
+        finally:
+            self.store.lock().release()
+        return self.summary
 
 
 def run_protocol(protocol: Protocol, out: str | os.PathLike, jobs: int | None = None,
@@ -178,21 +171,40 @@ def run_protocols(runs: Iterable[tuple[Protocol, str | os.PathLike]], jobs: int 
     jobs = (os.cpu_count() or 1) if jobs is None else jobs
     if jobs < 1:
         raise ValueError(f"jobs must be a positive integer, got {jobs!r}")
-    state: list[_Run] = []
+    spaces, code, state = admission.TaskSpaces(), files.code_version(), []
+    resolved: dict[str, dict[str, Any]] = {}
     for protocol, out in runs:
-        store = ResultStore(out)
-        demonstration, prior_sha256 = _read_prior_file(protocol)
-        document = {"protocol": protocol.as_dict(), "code": files.code_version()}
+        demonstration, prior_sha256 = admission.read_prior_file(protocol, spaces)
+        planned = sum(protocol.experiments for _ in protocol.algorithms)
+        admission.check_memory([protocol], 1 if scheduler else min(jobs, planned), spaces)
+        key = json.dumps(protocol.as_dict(), sort_keys=True)
+        if key not in resolved:
+            resolved[key] = admission.resolve_agents(protocol, spaces)
+        document = {"protocol": protocol.as_dict(), "code": code, "agents": resolved[key]}
         if prior_sha256 is not None:
             document["prior_sha256"] = prior_sha256
-        store.begin(document, resume)
-        finished = {a: {i for i in store.finished(a) if i < protocol.experiments}
-                    for a in protocol.algorithms}
-        state.append(_Run(protocol, store, WallClock(store, started, resume), finished, demonstration))
-    local = not scheduler
+        state.append(_Run(protocol, out, document, demonstration, resume))
+    client = execution.connect_dask(scheduler) if scheduler else None
+    try:
+        for run in state:  # what exists is begun now: locked, checked (a sweep's others as they start)
+            if run.store.root.exists() and any(run.store.root.iterdir()):
+                run.begin(started, log)
+        return _run_all(state, client, jobs, progress, started, log,
+                        dict(references=references, figures=figures, smooth=smooth, log=log,
+                             started=started))
+    finally:
+        for run in state:
+            run.store.lock().release()
+        if client is not None:
+            client.close()
+
+
+def _run_all(state: list[_Run], client, jobs: int, progress: bool, started: float,
+             log: Callable[[str], None] | None, options: dict[str, Any]) -> list[dict[str, Any]]:
+    local = client is None
     busy = [run for run in state if run.left]
     if busy and local:
-        _warm_up_announced([run.protocol for run in busy], log)
+        admission.warm_up_announced([run.protocol for run in busy], log)
     display = Progress([run.protocol for run in state],
                        [{a: len(run.finished[a]) for a in run.finished} for run in state],
                        progress and bool(busy))
@@ -200,6 +212,7 @@ def run_protocols(runs: Iterable[tuple[Protocol, str | os.PathLike]], jobs: int 
 
     def on_start(item: tuple[int, ExperimentSpec]) -> None:
         k, spec = item
+        state[k].begin(started, log)  # its directory is made as its first experiment starts
         if spec.stream_to is not None:  # a trial log left by an interrupted run is rewritten
             path = state[k].store.progress_path(spec.algorithm, spec.index)
             path.unlink(missing_ok=True)
@@ -207,11 +220,10 @@ def run_protocols(runs: Iterable[tuple[Protocol, str | os.PathLike]], jobs: int 
 
     # the workers stream their trials to progress/ (a Dask worker may not see the directory)
     pending = itertools.chain.from_iterable(run.pending(k, stream=local) for k, run in enumerate(state))
-    outcomes = (execution.dask_outcomes(pending, run_tagged, scheduler, on_start=on_start)
-                if scheduler else
-                execution.local_outcomes(pending, run_tagged, jobs, on_trial=display.trial,
+    outcomes = (execution.local_outcomes(pending, run_tagged, jobs, on_trial=display.trial,
                                          poll=feed.poll if display.enabled else None,
-                                         on_start=on_start))
+                                         on_start=on_start)
+                if local else execution.dask_outcomes(pending, run_tagged, client, on_start=on_start))
     try:
         with contextlib.closing(outcomes):  # on an interrupt, stop the workers at once
             for k, result in outcomes:
@@ -223,14 +235,10 @@ def run_protocols(runs: Iterable[tuple[Protocol, str | os.PathLike]], jobs: int 
                 display.experiment(key, result.returns)
                 run.clock.record(experiments=1)
                 if not run.left:
-                    run.summary = finalise(run.store, run.protocol, references=references,
-                                           figures=figures, clock=run.clock, smooth=smooth, log=log)
+                    run.finalise(**options)
     finally:
         display.close()
-    return [run.summary if run.summary is not None else
-            finalise(run.store, run.protocol, references=references, figures=figures,
-                     clock=run.clock, smooth=smooth, log=log)
-            for run in state]
+    return [run.summary if run.summary is not None else run.finalise(**options) for run in state]
 
 
 def finalise(store: ResultStore, protocol: Protocol, wall_time_s: float | None = None,
@@ -243,6 +251,7 @@ def finalise(store: ResultStore, protocol: Protocol, wall_time_s: float | None =
     ``references``, the task's near-optimal reference and each learner's exploration floor are asked
     for (``log`` hears about a first computation and its progress).
     """
+    store.summary_path.unlink(missing_ok=True)  # until the new one is written: not finished
     optimal_return = reference.run_reference(protocol, log) if references else None
     floors = ({a: reference.run_exploration_floor(protocol, a, log) for a in protocol.algorithms}
               if references else {})

@@ -10,7 +10,9 @@
 :class:`ResultStore` owns this layout: the runner, the sweep, rendering, ``compare`` and the scripts
 read and write through it, never by building paths themselves. Files are written atomically
 (:mod:`rmac_mj.experiments.files`), an experiment's snapshots before its curve, so a killed run leaves
-only whole files and an experiment counts as done only once everything it wrote is in place.
+only whole files and an experiment counts as done only once everything it wrote is in place. A run
+holds the directory's lock while it writes (``OUT/.lock``), and a resumed run checks every saved
+experiment against the config before trusting it (:mod:`rmac_mj.experiments.integrity`).
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ from typing import Any, Iterator
 import numpy as np
 
 from rmac_mj.errors import MissingInputError, UserInputError
-from rmac_mj.experiments import files
+from rmac_mj.experiments import files, integrity
 
 _EXPERIMENT_FILE = re.compile(r"exp_(\d{3,})\.npz")
 _TRIAL_FILE = re.compile(r"trial_(\d+)\.npz")
@@ -33,6 +35,10 @@ _TRIAL_FILE = re.compile(r"trial_(\d+)\.npz")
 
 class ResumeRefused(UserInputError):
     """The result directory holds a different run; its results must not be mixed with this one's."""
+
+
+class DamagedDirectory(ResumeRefused):
+    """The result directory's config cannot be read: what run it holds cannot be told."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -126,6 +132,7 @@ class ResultStore:
 
     def __init__(self, root: str | os.PathLike):
         self.root = pathlib.Path(root)
+        self._lock: integrity.DirectoryLock | None = None
 
     def __repr__(self) -> str:
         return f"ResultStore({str(self.root)!r})"
@@ -173,27 +180,54 @@ class ResultStore:
 
     # -- config --------------------------------------------------------------------------------------
     def read_config(self) -> dict[str, Any] | None:
-        """The directory's ``config.json``, or None when there is none."""
-        if not self.config_path.exists():
+        """The directory's ``config.json``, or None when there is none; :class:`DamagedDirectory`
+        when it cannot be read as a run's config (a JSON object with a ``protocol`` object)."""
+        try:
+            text = self.config_path.read_text()
+        except FileNotFoundError:
             return None
-        return json.loads(self.config_path.read_text())
+        except (OSError, UnicodeDecodeError) as error:
+            raise DamagedDirectory(f"{self.config_path} cannot be read ({error})") from None
+        try:
+            document = json.loads(text)
+        except ValueError as error:
+            raise DamagedDirectory(f"{self.config_path} is damaged (not JSON: {error}); the directory's "
+                                   "run cannot be told, so nothing in it is trusted: choose another "
+                                   "--out") from None
+        if not isinstance(document, dict) or not isinstance(document.get("protocol"), dict):
+            raise DamagedDirectory(f"{self.config_path} is damaged (not a run's config: no protocol "
+                                   "object); choose another --out")
+        return document
 
     def read_protocol(self) -> dict[str, Any] | None:
         """The protocol (``Protocol.as_dict``) of the run in this directory, or None when there is none."""
         config = self.read_config()
-        return None if config is None else config.get("protocol")
+        return None if config is None else config["protocol"]
 
     def write_config(self, document: dict[str, Any]) -> None:
         self.root.mkdir(parents=True, exist_ok=True)
         files.write_json(self.config_path, document)
 
+    def lock(self) -> integrity.DirectoryLock:
+        """The directory's exclusive lock (held while a run writes here; see
+        :class:`~rmac_mj.experiments.integrity.DirectoryLock`)."""
+        if self._lock is None:
+            self._lock = integrity.DirectoryLock(self.root)
+        return self._lock
+
     def begin(self, document: dict[str, Any], resume: bool) -> None:
         """Start a run described by ``document`` (``protocol``, ``code`` and optionally
-        ``prior_sha256``) here, writing ``config.json``; or, with ``resume``, check that the directory
-        holds this very run (same protocol, prior file and code version) and clear what a killed run
-        left half written. Raises :class:`ResumeRefused` naming the settings that differ."""
+        ``prior_sha256`` and ``agents``) here, writing ``config.json``; or, with ``resume``, check that
+        the directory holds this very run (same protocol, prior file and code version) and clear what
+        a killed run left half written. Raises :class:`ResumeRefused` naming the settings that differ,
+        and refuses a directory holding results that no config describes. Call it under :meth:`lock`."""
         existing = self.read_config()
         if existing is None:
+            orphans = [name for name in ("curves", "snapshots") if (self.root / name).exists()]
+            if orphans:
+                raise ResumeRefused(f"{self.root} holds {' and '.join(orphans)} but no config.json: "
+                                    "which run they belong to cannot be told; refusing to mix "
+                                    "results (move them away, or choose another --out)")
             self.write_config({**document, "provenance": files.provenance()})
             return
         differences = _differences(existing.get("protocol", {}), document["protocol"])
@@ -203,9 +237,7 @@ class ResultStore:
             if differences:
                 raise ResumeRefused(f"{self.root} already holds another run ({'; '.join(differences)}); "
                                     "choose another --out")
-            protocol = document["protocol"]
-            if self.summary_path.is_file() and all(set(range(protocol["experiments"])) <= self.finished(a)
-                                                   for a in protocol["algorithms"]):
+            if self._complete(document["protocol"]):
                 raise ResumeRefused(f"{self.root} already holds this run, finished (summary.json); "
                                     "choose another --out to repeat it")
             raise ResumeRefused(f"{self.root} already holds this run, unfinished; pass --resume to "
@@ -237,12 +269,41 @@ class ResultStore:
             return set()
         return {int(match.group(1)) for name in names if (match := _EXPERIMENT_FILE.fullmatch(name))}
 
+    def _complete(self, protocol: dict[str, Any]) -> bool:
+        """Every experiment of the protocol (as data) saved, and the summary written."""
+        return self.summary_path.is_file() and all(
+            sum(1 for i in self.finished(a) if i < protocol["experiments"]) == protocol["experiments"]
+            for a in protocol["algorithms"])
+
     def holds_finished(self, protocol) -> bool:
         """Whether this directory holds ``protocol``'s run, finished: the same protocol, every
         experiment saved and the summary written."""
-        if self.read_protocol() != protocol.as_dict() or not self.summary_path.is_file():
-            return False
-        return all(set(range(protocol.experiments)) <= self.finished(a) for a in protocol.algorithms)
+        stored = self.read_protocol()
+        return stored == protocol.as_dict() and self._complete(stored)
+
+    def experiment_problem(self, protocol, algorithm: str, index: int) -> str | None:
+        """None when experiment ``index`` of ``algorithm`` is saved whole and as ``protocol`` says
+        (its curve: the trials and greedy trials; every snapshot the protocol lists); else what is
+        wrong, naming the file."""
+        every = protocol.evaluate_every
+        greedy = [t for t in range(every, protocol.trials + 1, every)] if every else []
+        path = self.curve_path(algorithm, index)
+        problem = integrity.curve_problem(path, protocol.trials, greedy)
+        if problem is not None:
+            return f"{path.relative_to(self.root)}: {problem}"
+        for trial in protocol.snapshot_trials:
+            path = self.snapshot_path(algorithm, index, trial)
+            problem = integrity.snapshot_problem(path, algorithm, trial)
+            if problem is not None:
+                return f"{path.relative_to(self.root)}: {problem}"
+        return None
+
+    def discard(self, algorithm: str, index: int) -> None:
+        """Remove an experiment's curve and snapshots (before it is run again)."""
+        self.curve_path(algorithm, index).unlink(missing_ok=True)
+        folder = self.snapshot_dir(algorithm, index)
+        for path in folder.glob("*.npz") if folder.is_dir() else ():
+            path.unlink()
 
     def save(self, result: ExperimentResult) -> None:
         """Write an experiment's snapshots, then its curve: the curve file marks the experiment done."""
@@ -295,7 +356,8 @@ class ResultStore:
         files.write_csv(self.returns_path, ["algorithm", "experiment", "trial", "return"], rows)
 
     def write_summary(self, summary: dict[str, Any]) -> None:
-        files.write_json(self.summary_path, summary)
+        """``summary.json``; non-finite numbers (a learner that diverged) are written as null."""
+        files.write_json(self.summary_path, files.finite_or_none(summary))
 
     def read_summary(self) -> dict[str, Any]:
         """The run's ``summary.json``; MissingInputError when the run has none (not finished)."""

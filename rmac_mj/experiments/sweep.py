@@ -16,8 +16,8 @@ import math
 import pathlib
 from typing import Any, Callable
 
-from rmac_mj.experiments import files, runner
-from rmac_mj.experiments.store import ResumeRefused
+from rmac_mj.experiments import files, metrics, report, runner
+from rmac_mj.experiments.store import ResultStore, ResumeRefused
 from rmac_mj.experiments.sweep_file import Sweep
 
 #: sweep.csv's columns after the configuration, the swept parameters and the learner.
@@ -65,11 +65,12 @@ def run_sweep(sweep: Sweep, out: str | pathlib.Path, jobs: int | None = None,
     ``log`` and ``started`` mean what they mean for :func:`runner.run_protocol`.
     """
     out = pathlib.Path(out)
-    _prepare(out, sweep, resume)
-    runs = [(c.protocol, out / c.name) for c in sweep.configurations]
-    summaries = runner.run_protocols(runs, jobs=jobs, resume=resume, scheduler=scheduler,
-                                     progress=progress, references=references, figures=figures,
-                                     log=log, started=started)
+    with ResultStore(out).lock():  # one sweep at a time in a directory (each run also locks its own)
+        _prepare(out, sweep, resume)
+        runs = [(c.protocol, out / c.name) for c in sweep.configurations]
+        summaries = runner.run_protocols(runs, jobs=jobs, resume=resume, scheduler=scheduler,
+                                         progress=progress, references=references, figures=figures,
+                                         log=log, started=started)
     rows = sweep_rows(sweep, summaries)
     write_csv(out / "sweep.csv", sweep, rows)
     if figures:
@@ -147,4 +148,11 @@ def format_table(sweep: Sweep, rows: list[dict]) -> str:
                      f"{'' if greedy is None else f'{greedy:.1f}':>7} "
                      f"{row['minutes_to_90pct']:>10.1f} {row['mean_return_first_5min']:>11.1f} "
                      f"{'' if stuck is None else stuck:>5}")
+    windows = sorted({row["final_window"] for row in rows})
+    lines.append(f"final return: mean of the last {', '.join(map(str, windows))} trials per experiment; "
+                 f"first 5 min: of the trials within the first {metrics.FIRST_MINUTES:g} simulated "
+                 "minutes")
+    fewest = min(row["experiments"] for row in rows)
+    if fewest < metrics.FEW_EXPERIMENTS:
+        lines.append(report.few_experiments_note(fewest))
     return "\n".join(lines)

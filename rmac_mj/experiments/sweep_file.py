@@ -32,10 +32,11 @@ import difflib
 import hashlib
 import itertools
 import json
+import math
 import pathlib
 import re
 import sys
-from typing import Any, Iterable
+from typing import Any, Callable, Iterable
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -137,8 +138,11 @@ def read_toml(path: str | pathlib.Path) -> dict[str, Any]:
         raise SweepFileError(f"{path}: not valid TOML: not UTF-8 text") from None
 
 
-def load_sweep(path: str | pathlib.Path) -> Sweep:
-    """Read and validate a sweep file; raise :class:`SweepFileError` naming the first bad key."""
+def load_sweep(path: str | pathlib.Path, announce: Callable[[str], None] | None = None) -> Sweep:
+    """Read and validate a sweep file; raise :class:`SweepFileError` naming the first bad key.
+
+    ``announce`` hears the sweep's size (configurations, experiments) as soon as it is known, before
+    every configuration is built and checked (seconds for a large grid)."""
     path = pathlib.Path(path)
     document = read_toml(path)
     check = _Checker(path)
@@ -161,6 +165,12 @@ def load_sweep(path: str | pathlib.Path) -> Sweep:
             raise check.error(where, "is also set in [protocol]; set it in one place")
         grid[key] = values
     variants = check.variants(document, algorithms, fixed, grid)
+    if announce is not None:
+        count = max(1, len(variants)) * math.prod(len(values) for values in grid.values())
+        per = options.get("experiments", Protocol().experiments) * len(algorithms)
+        announce(f"{path}: {count} configuration{'s' * (count != 1)} x {per} experiments = "
+                 f"{count * per} experiments of {options.get('trials', Protocol().trials)} trials; "
+                 "checking every configuration")
     configurations = _configurations(check, options, fixed, grid, variants)
     return Sweep(path=path, options=options, fixed=fixed, grid=grid, variants=variants,
                  configurations=configurations)

@@ -1,0 +1,155 @@
+"""What is checked and prepared before a run's first experiment: nothing runs that cannot finish.
+
+- :func:`resolve_agents`: every learner is built once on the task's spaces, in the driver, so that a
+  bad hyperparameter (input weights of the wrong length) is refused in one line before anything
+  runs, and the resolved configs (None: the task's) are recorded in ``config.json``.
+- :func:`check_memory`: each learner's memory, estimated from its config before anything is
+  allocated, must fit the machine's memory with as many experiments at once as there are workers.
+- :func:`warm_up`: the compiled kernels are compiled (or loaded from numba's cache) in the driver
+  before the workers start, which then load them in about a second.
+
+Each task is asked once per purpose (:class:`TaskSpaces` caches its spaces per distinct task).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import time
+from typing import Any, Callable, Iterable
+
+from rmac_mj.agents import agent_class, config_class, config_from_dict, make_agent
+from rmac_mj.agents.spaces import ActionSpace, StateSpace
+from rmac_mj.errors import UserInputError
+from rmac_mj.experiments import prior as prior_data
+from rmac_mj.experiments.episode import action_space_of, run_trial, state_space_of
+from rmac_mj.experiments.protocol import Protocol
+
+
+class TaskSpaces:
+    """The state and action spaces of each distinct task (domain, task, task_kwargs), built once."""
+
+    def __init__(self) -> None:
+        self._spaces: dict[str, tuple[StateSpace, ActionSpace]] = {}
+
+    def of(self, protocol: Protocol) -> tuple[StateSpace, ActionSpace]:
+        key = json.dumps([protocol.domain, protocol.task, protocol.task_kwargs], sort_keys=True,
+                         default=repr)
+        if key not in self._spaces:
+            env = protocol.make_environment()
+            self._spaces[key] = state_space_of(env), action_space_of(env)
+        return self._spaces[key]
+
+
+def read_prior_file(protocol: Protocol, spaces: TaskSpaces
+                    ) -> tuple[prior_data.Demonstration | None, str | None]:
+    """The protocol's recorded prior knowledge, checked against its task, and the file's SHA-256
+    (stored in config.json, so that ``resume`` refuses a file that changed); (None, None) without."""
+    path = protocol.prior_file
+    if path is None:
+        return None, None
+    demonstration = prior_data.load_demonstration(path, *spaces.of(protocol))
+    return demonstration, hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def resolve_agents(protocol: Protocol, spaces: TaskSpaces) -> dict[str, dict[str, Any]]:
+    """Each learner's resolved hyperparameters (``Agent.config_dict``) on the protocol's task; a
+    learner its config cannot build there is refused as a :class:`UserInputError` naming it."""
+    state_space, action_space = spaces.of(protocol)
+    resolved = {}
+    for algorithm in protocol.algorithms:
+        try:
+            agent = make_agent(algorithm, state_space, action_space,
+                               config=protocol.agent_configs.get(algorithm), seed=0)
+        except (ValueError, TypeError) as error:
+            raise UserInputError(f"{algorithm} on {protocol.environment_name}: {error}") from None
+        resolved[algorithm] = agent.config_dict()
+    return resolved
+
+
+def memory_estimate(protocol: Protocol, algorithm: str, spaces: TaskSpaces) -> int | None:
+    """Bytes one experiment of ``algorithm`` needs, estimated from its config before anything is
+    allocated (the learner class's ``memory_estimate(config, state_space, action_space)``), or None
+    when the learner gives no estimate."""
+    estimate = getattr(agent_class(algorithm), "memory_estimate", None)
+    if estimate is None:
+        return None
+    config = config_from_dict(config_class(algorithm), protocol.agent_configs.get(algorithm, {}))
+    return int(estimate(config, *spaces.of(protocol)))
+
+
+def machine_memory() -> int | None:
+    """The machine's physical memory in bytes (None where the system does not say)."""
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def _gb(size: float) -> str:
+    return f"{size / 1e9:.1f} GB"
+
+
+def check_memory(protocols: Iterable[Protocol], workers: int, spaces: TaskSpaces,
+                 available: int | None = None) -> None:
+    """Refuse, in one line, learners that cannot fit: ``workers`` experiments of the largest at once
+    (plus this driver's one of it, for the warm-up) must fit the machine's memory (``available``,
+    default :func:`machine_memory`)."""
+    available = machine_memory() if available is None else available
+    if available is None:
+        return
+    largest, name = 0, None
+    for protocol in protocols:
+        for algorithm in protocol.algorithms:
+            size = memory_estimate(protocol, algorithm, spaces)
+            if size is not None and size > largest:
+                largest, name = size, (algorithm, protocol)
+    if name is None or (workers + 1) * largest <= available:
+        return
+    algorithm, protocol = name
+    overrides = protocol.agent_configs.get(algorithm)
+    raise UserInputError(
+        f"{algorithm}{f' with {json.dumps(overrides)}' if overrides else ''} needs about "
+        f"{_gb(largest)} per experiment; {workers} worker{'s' * (workers != 1)} and the driver need "
+        f"{_gb((workers + 1) * largest)}, more than this machine's {_gb(available)}: use smaller "
+        "memories or fewer --jobs")
+
+
+def warm_up(protocol: Protocol) -> None:
+    """Compile the kernels ``protocol``'s learners use, or load them from numba's disk cache: one
+    learning and one greedy trial of a throw-away agent of each learner, in this process.
+
+    Run before the worker processes start, so that they load the compiled kernels from the cache
+    instead of each compiling them at once (tens of seconds the first time, about a second after).
+    """
+    env = protocol.make_environment(task_seed=0)
+    for algorithm in protocol.algorithms:
+        agent = make_agent(algorithm, state_space_of(env), action_space_of(env),
+                           config=protocol.agent_configs.get(algorithm), seed=0)
+        run_trial(env, agent, learn=True)
+        run_trial(env, agent, learn=False)
+
+
+def warm_up_announced(protocols: Iterable[Protocol], log: Callable[[str], None] | None) -> None:
+    """:func:`warm_up` once per distinct task, learner and back end (the kernels do not depend on
+    the other settings), saying so when numba really compiles (the first run only)."""
+    from rmac_mj import _cache
+
+    def compiling() -> None:
+        if log is not None:
+            log(f"compiling kernels, first run only (cached in {_cache.numba_cache_location()})")
+    seen, chosen = set(), []
+    for protocol in protocols:
+        key = json.dumps([protocol.domain, protocol.task, protocol.task_kwargs, protocol.algorithms,
+                          [protocol.agent_configs.get(a, {}).get("backend") for a in protocol.algorithms]],
+                         sort_keys=True, default=repr)
+        if key not in seen:
+            seen.add(key)
+            chosen.append(protocol)
+    compile_started = time.perf_counter()
+    with _cache.on_first_compile(compiling):
+        for protocol in chosen:
+            warm_up(protocol)
+    if log is not None and _cache.kernel_stats()["compiled"]:
+        log(f"kernels compiled in {time.perf_counter() - compile_started:.0f} s")

@@ -1,0 +1,343 @@
+"""A result directory that never lies (issue 20): locked while a run writes, refused when no config
+describes it, every damaged file found and its experiment redone equal to an undamaged run, the
+summary written last, and the run bounded before it starts."""
+
+from __future__ import annotations
+
+import errno
+import json
+import pathlib
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from rmac_mj.cli import main
+from rmac_mj.experiments import admission, files, runner
+from rmac_mj.experiments.protocol import Protocol, experiment_seeds
+from rmac_mj.experiments.store import ResultStore
+
+TINY = dict(algorithms=("s-ac",), experiments=2, trials=4, snapshot_trials=(1, 2), evaluate_every=2)
+CLI = ["--algorithms", "s-ac", "--experiments", "2", "--trials", "4", "--evaluate-every", "2",
+       "--jobs", "1", "--no-optimal", "--no-progress"]
+
+
+def arrays_of(out: pathlib.Path) -> dict[str, dict[str, np.ndarray]]:
+    """Every array of every .npz under ``out`` (wall and CPU times left out: they are timings)."""
+    found = {}
+    for path in sorted(out.rglob("*.npz")):
+        with np.load(path, allow_pickle=False) as data:
+            found[str(path.relative_to(out))] = {k: data[k] for k in data.files
+                                                 if k not in ("wall_time_s", "cpu_time_s")}
+    return found
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory) -> pathlib.Path:
+    """One finished tiny run, copied by the tests that damage it."""
+    out = tmp_path_factory.mktemp("finished") / "run"
+    runner.run_protocol(Protocol(**TINY), out, jobs=1, progress=False, figures=False)
+    return out
+
+
+# -- the lock ----------------------------------------------------------------------------------------
+
+def test_a_directory_in_use_is_refused_naming_the_run_that_holds_it(tmp_path, capsys):
+    out = tmp_path / "run"
+    holder = subprocess.Popen(
+        [sys.executable, "-c", "import sys, time\nfrom rmac_mj.experiments.store import ResultStore\n"
+         "lock = ResultStore(sys.argv[1]).lock()\nlock.acquire()\nprint('held', flush=True)\n"
+         "time.sleep(120)",
+         str(out)], stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        assert main(["reproduce", *CLI, "--out", str(out)]) == 2
+        error = capsys.readouterr().err
+        assert f"is in use by another run (pid {holder.pid} on " in error
+        assert len(error.strip().splitlines()) == 1 and not (out / "config.json").exists()
+    finally:
+        holder.kill()
+        holder.wait()
+    assert main(["reproduce", *CLI, "--out", str(out)]) == 0  # the lock died with its holder
+
+
+def test_two_runs_started_at_once_on_one_directory_never_mix(tmp_path):
+    """The issue's reproduction: two reproduce runs with different seeds on one --out at once. One
+    runs; the other is refused naming it (or, if the first already finished, naming the setting
+    that differs); the directory holds one run's files only."""
+    out = tmp_path / "mix"
+    command = [sys.executable, "-m", "rmac_mj.cli", "reproduce", *CLI, "--out", str(out)]
+    first = subprocess.Popen([*command, "--seed", "1"], stderr=subprocess.PIPE, text=True)
+    second = subprocess.Popen([*command, "--seed", "0"], stderr=subprocess.PIPE, text=True)
+    results = [(p.wait(timeout=300), p.stderr.read()) for p in (first, second)]
+    assert sorted(code for code, _ in results) == [0, 2], results
+    refusal = next(text for code, text in results if code == 2)
+    assert "in use by another run" in refusal or "already holds another run (seed:" in refusal
+    seed = json.loads((out / "config.json").read_text())["protocol"]["seed"]
+    assert json.loads((out / "summary.json").read_text())["protocol"]["seed"] == seed
+    for index in (0, 1):  # every curve is of that run
+        with np.load(out / f"curves/s-ac/exp_{index:03d}.npz") as curve:
+            assert int(curve["task_seed"]) == experiment_seeds(seed, index)[1]
+
+
+# -- what no config describes ------------------------------------------------------------------------
+
+def test_results_without_a_config_are_refused(finished, tmp_path, capsys):
+    out = tmp_path / "run"
+    shutil.copytree(finished, out)
+    (out / "config.json").unlink()
+    assert main(["reproduce", *CLI[:4], "--trials", "8", *CLI[6:], "--out", str(out)]) == 2
+    error = capsys.readouterr().err
+    assert "holds curves and snapshots but no config.json" in error
+    assert not (out / "config.json").exists()
+
+
+@pytest.mark.parametrize("text, named", [
+    ('{"protocol": {"experiments": 2', "config.json is damaged (not JSON"),
+    ("[1, 2]", "config.json is damaged (not a run's config"),
+    ('{"code": {}}', "config.json is damaged (not a run's config"),
+])
+def test_a_damaged_config_is_one_line_not_a_traceback(finished, tmp_path, capsys, text, named):
+    out = tmp_path / "run"
+    shutil.copytree(finished, out)
+    (out / "config.json").write_text(text)
+    assert main(["reproduce", *CLI, "--out", str(out), "--resume"]) == 2
+    error = capsys.readouterr().err
+    assert named in error and len(error.strip().splitlines()) == 1
+
+
+# -- damaged files: detected, redone, equal to an undamaged run --------------------------------------
+
+def _resave(path: pathlib.Path, **changes) -> None:
+    with np.load(path, allow_pickle=False) as data:
+        arrays = {k: data[k] for k in data.files}
+    arrays.update(changes)
+    np.savez(path, **{k: v for k, v in arrays.items() if v is not None})
+
+
+DAMAGE = {
+    "truncated curve": lambda out: (out / "curves/s-ac/exp_001.npz").write_bytes(
+        (out / "curves/s-ac/exp_001.npz").read_bytes()[:200]),
+    "empty curve": lambda out: (out / "curves/s-ac/exp_001.npz").write_bytes(b""),
+    "wrong trial count": lambda out: _resave(out / "curves/s-ac/exp_001.npz",
+                                             returns=np.zeros(3)),
+    "missing key": lambda out: _resave(out / "curves/s-ac/exp_001.npz", greedy_returns=None),
+    "object array": lambda out: np.savez(out / "curves/s-ac/exp_001.npz",
+                                         returns=np.array([[1.0], [1.0, 2.0]], dtype=object)),
+    "NaN in a curve": lambda out: _resave(out / "curves/s-ac/exp_001.npz",
+                                          returns=np.array([np.nan, 1.0, 2.0, 3.0])),
+    "truncated snapshot": lambda out: (out / "snapshots/s-ac/exp_001/trial_0002.npz").write_bytes(
+        (out / "snapshots/s-ac/exp_001/trial_0002.npz").read_bytes()[:300]),
+    "missing snapshot": lambda out: (out / "snapshots/s-ac/exp_001/trial_0004.npz").unlink(),
+}
+
+
+@pytest.mark.parametrize("damage", list(DAMAGE))
+def test_a_damaged_file_is_found_and_its_experiment_redone_equal(finished, tmp_path, damage):
+    out = tmp_path / "run"
+    shutil.copytree(finished, out)
+    DAMAGE[damage](out)
+    said = []
+    summary = runner.run_protocol(Protocol(**TINY), out, jobs=1, resume=True, progress=False,
+                                  figures=False, log=said.append)
+    redone = [line for line in said if "run again" in line]  # (a first run also says it compiles)
+    assert len(redone) == 1 and redone[0].startswith("s-ac experiment 1 is run again: "), said
+    assert arrays_of(out).keys() == arrays_of(finished).keys()
+    for name, arrays in arrays_of(finished).items():
+        for key, value in arrays.items():
+            np.testing.assert_array_equal(arrays_of(out)[name][key], value, err_msg=f"{name} {key}")
+    assert summary["s-ac"]["mean_return_per_trial"] == json.loads(
+        (finished / "summary.json").read_text())["s-ac"]["mean_return_per_trial"]
+
+
+def test_a_failure_while_summarising_leaves_no_summary_to_trust(finished, tmp_path, monkeypatch):
+    """The summary is written last and removed first: a run that fails while summarising has none
+    (it counts as unfinished), and a resume writes it."""
+    out = tmp_path / "run"
+    shutil.copytree(finished, out)
+    from rmac_mj.experiments import plots
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("the figure failed")
+    monkeypatch.setattr(plots, "plot_learning_curves", broken)
+    with pytest.raises(RuntimeError, match="the figure failed"):
+        runner.run_protocol(Protocol(**TINY), out, jobs=1, resume=True, progress=False)
+    assert not (out / "summary.json").exists()
+    monkeypatch.undo()
+    runner.run_protocol(Protocol(**TINY), out, jobs=1, resume=True, progress=False, figures=False)
+    assert (out / "summary.json").exists()
+
+
+def test_a_non_finite_summary_value_is_written_as_null(tmp_path):
+    store = ResultStore(tmp_path)
+    store.write_summary({"s-ac": {"final_return_mean": float("nan"), "ci": [float("inf"), 1.0]}})
+    assert json.loads(store.summary_path.read_text()) == {"s-ac": {"final_return_mean": None,
+                                                                   "ci": [None, 1.0]}}
+
+
+# -- bounded before it starts ------------------------------------------------------------------------
+
+def test_learners_that_cannot_fit_in_memory_are_refused_before_anything_is_allocated(
+        tmp_path, monkeypatch, capsys):
+    from rmac_mj.agents import agent_class
+
+    monkeypatch.setattr(agent_class("s-ac"), "memory_estimate",
+                        classmethod(lambda cls, config, state_space, action_space: 10**15),
+                        raising=False)
+
+    def allocate(*args, **kwargs):
+        raise AssertionError("a learner was built")
+    monkeypatch.setattr(admission, "make_agent", allocate)
+    out = tmp_path / "run"
+    assert main(["reproduce", *CLI, "--jobs", "2", "--out", str(out)]) == 2
+    error = capsys.readouterr().err
+    assert "s-ac needs about 1000000.0 GB per experiment; 2 workers and the driver need" in error
+    assert len(error.strip().splitlines()) == 1 and not (out / "config.json").exists()
+
+
+def test_the_resolved_hyperparameters_of_every_learner_are_in_the_config(tmp_path):
+    protocol = Protocol(algorithms=("rmac",), experiments=1, trials=1)
+    runner.run_protocol(protocol, tmp_path, jobs=1, progress=False, figures=False)
+    agents = json.loads((tmp_path / "config.json").read_text())["agents"]
+    assert agents["rmac"]["critic_weights"] == [1.0, 0.1]  # None in the config: the task's
+
+
+from test_runner import _hooked_cli as _hooked, _wait_for  # noqa: E402  (tests/ is on sys.path)
+
+
+def test_sigterm_is_answered_within_a_second_on_a_huge_plan(tmp_path):
+    """10^8 experiments planned: nothing is O(planned), so the interrupt is answered at once and
+    the bookkeeping (what was saved) counts what finished."""
+    config = tmp_path / "huge.toml"
+    config.write_text('[protocol]\nalgorithms = ["s-ac"]\nexperiments = 100000000\ntrials = 1\n')
+    marker, out = tmp_path / "saved-one", tmp_path / "run"
+    process = subprocess.Popen([*_hooked(marker), "reproduce", "--config", str(config), "--jobs", "1",
+                                "--no-optimal", "--no-progress", "--out", str(out)],
+                               stderr=subprocess.PIPE, text=True)
+    _wait_for(marker, process)
+    sent = time.monotonic()
+    process.send_signal(signal.SIGTERM)
+    answer = process.stderr.readline()
+    while answer and "interrupted" not in answer:
+        answer = process.stderr.readline()
+    answered = time.monotonic() - sent  # the answer printed (the interpreter then tears down)
+    assert process.wait(timeout=30) == 130
+    assert "1 finished experiment is saved" in answer and answered < 1.0, (answer, answered)
+
+
+def test_a_sweep_says_its_size_first_and_makes_directories_as_experiments_start(tmp_path):
+    sweep = tmp_path / "grid.toml"
+    values = ", ".join(str(0.001 * (k + 1)) for k in range(100))
+    sweep.write_text(f'[protocol]\nalgorithms = ["s-ac"]\nexperiments = 1\ntrials = 1\n'
+                     f'[grid]\n"s-ac.alpha_a" = [{values}]\n')
+    marker, out = tmp_path / "saved-one", tmp_path / "sweep"
+    process = subprocess.Popen([*_hooked(marker), "sweep", str(sweep), "--jobs", "1", "--no-optimal",
+                                "--no-progress", "--out", str(out)], stderr=subprocess.PIPE, text=True)
+    _wait_for(marker, process)
+    process.send_signal(signal.SIGTERM)
+    _, stderr = process.communicate(timeout=30)
+    assert stderr.splitlines()[0].endswith("100 configurations x 1 experiments = 100 experiments of "
+                                           "1 trials; checking every configuration")
+    made = [p for p in out.iterdir() if p.is_dir()]
+    assert 1 <= len(made) <= 2, made  # the started configurations only, not 100
+
+
+def _children(pid: int) -> list[int]:
+    found = []
+    for stat in pathlib.Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid:
+            found.append(int(stat.parent.name))
+    return found
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = pathlib.Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+@pytest.mark.skipif(not pathlib.Path("/proc/self/stat").exists(), reason="reads /proc")
+def test_workers_stop_when_the_driver_is_killed(tmp_path):
+    out = tmp_path / "run"
+    process = subprocess.Popen([sys.executable, "-m", "rmac_mj.cli", "reproduce", "--algorithms", "s-ac",
+                                "--experiments", "4", "--trials", "100000", "--jobs", "2",
+                                "--no-optimal", "--no-progress", "--out", str(out)],
+                               stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.time() + 240
+        while len(list((out / "progress").rglob("*.csv"))) < 2:  # both workers are in experiments
+            assert process.poll() is None and time.time() < deadline
+            time.sleep(0.1)
+        workers = [pid for pid in _children(process.pid) if _alive(pid)]
+        assert len(workers) >= 2
+    finally:
+        process.send_signal(signal.SIGKILL)
+        process.wait()
+    deadline = time.time() + 10
+    while any(_alive(pid) for pid in workers) and time.time() < deadline:
+        time.sleep(0.1)
+    assert not any(_alive(pid) for pid in workers)
+
+
+# -- one line, not a traceback -----------------------------------------------------------------------
+
+def test_a_full_disk_is_one_line(tmp_path, monkeypatch, capsys):
+    def full(path, write):
+        raise OSError(errno.ENOSPC, "No space left on device", str(path))
+    monkeypatch.setattr(files, "write_atomic", full)
+    assert main(["reproduce", *CLI, "--out", str(tmp_path / "run")]) == 1
+    error = capsys.readouterr().err
+    assert "cannot write" in error and "No space left on device" in error
+    assert "Traceback" not in error and len([line for line in error.splitlines()
+                                             if line.startswith("rmac-mj: error")]) == 1
+
+
+@pytest.mark.parametrize("address, named", [
+    ("not-an-address", "is not a scheduler address"),
+    ("tcp://127.0.0.1:1", "cannot reach the Dask scheduler at tcp://127.0.0.1:1"),
+])
+def test_a_bad_or_unreachable_scheduler_is_one_line_and_writes_nothing(tmp_path, monkeypatch, capsys,
+                                                                       address, named):
+    pytest.importorskip("distributed")
+    from rmac_mj.experiments import execution
+
+    monkeypatch.setattr(execution, "DASK_CONNECT_SECONDS", 2.0)
+    out = tmp_path / "run"
+    started = time.monotonic()
+    assert main(["reproduce", *CLI[:-4], "--no-optimal", "--no-progress", "--scheduler", address,
+                 "--out", str(out)]) == 2
+    error = capsys.readouterr().err
+    assert named in error and len(error.strip().splitlines()) == 1
+    assert not (out / "config.json").exists() and time.monotonic() - started < 20
+
+
+def test_a_hyperparameter_the_task_cannot_take_is_one_line_before_anything_runs(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["reproduce", "--algorithms", "rmac", "--experiments", "1", "--trials", "1",
+                 "--set", "rmac.critic_weights=[1]", "--no-optimal", "--out", str(out)]) == 2
+    error = capsys.readouterr().err
+    assert "rmac on dc_pendulum/swingup: " in error and "critic_weights" in error
+    assert len(error.strip().splitlines()) == 1 and not (out / "config.json").exists()
+
+
+def test_long_computations_say_they_are_alive(monkeypatch):
+    from rmac_mj import tasks
+    from rmac_mj.experiments import optimal
+
+    monkeypatch.setattr(optimal, "PROGRESS_SECONDS", 0.0)
+    said = []
+    optimal.solve(tasks.load("dc_pendulum", "swingup", task_kwargs={"time_limit": 0.3}),
+                  optimal.OptimalConfig(n_phi=24, n_phi_dot=15, n_actions=3, lookahead_actions=3,
+                                        check_convergence=False), announce=said.append)
+    assert any("simulated" in line and "transitions" in line for line in said)
+    assert any("backup 10/10" in line for line in said)
