@@ -1,6 +1,9 @@
 """What every learner shares: construction, validation and the registry."""
 
 import dataclasses
+import re
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -213,3 +216,130 @@ def test_learn_is_the_update_of_a_control_step(learner, backend):
         args = dict(x=x0, u=u0, reward=-1.5, x_next=x1) | bad
         with pytest.raises(ValueError):
             twin.learn(**args)
+
+
+# -- issue 20: learner boundaries ---------------------------------------------------------------
+
+PAPER_LEARNERS = ("rmac", "s-ac", "mlac")
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("algorithm", PAPER_LEARNERS)
+def test_a_state_that_overflows_the_arithmetic_is_refused_before_anything_changes(algorithm, backend):
+    # Issue 20: agent.step(-1., [0.5, 1e300]) made RMAC's actions NaN and its memories hold NaN.
+    agent = make_agent(algorithm, STATES, ACTIONS, config=dict(backend=backend), seed=0)
+    agent.start(np.array([0.5, 0.0]))
+    agent.step(-1.0, np.array([0.4, 1.0]))
+    before = agent.state_dict()
+    for x in ([0.5, 1e300], [1e300, 0.0], [0.5, -3e9]):
+        with pytest.raises(ValueError, match=r"x\[\d\] = .* beyond what a learner accepts"):
+            agent.step(-1.0, np.array(x))
+        with pytest.raises(ValueError, match="beyond what a learner accepts"):
+            agent.greedy_action(np.array(x))
+    after = agent.state_dict()
+    for key in before:
+        np.testing.assert_array_equal(after[key], before[key], err_msg=key)
+    # The limit is far beyond any state of a task: a million box widths.
+    low, high = STATES.limit
+    assert high[1] == pytest.approx(1e6 * 50.0) and low[0] == pytest.approx(-1e6 * 2 * np.pi)
+    agent.step(-1.0, np.array([0.5, 1e6]))  # out of the box, within the limit: a state
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("algorithm", PAPER_LEARNERS)
+def test_a_transition_that_overflows_is_refused_and_nothing_non_finite_is_stored(algorithm, backend):
+    # Finite rewards near the largest float drive the TD error past it: refused, never stored.
+    agent = make_agent(algorithm, STATES, ACTIONS, config=dict(backend=backend), seed=0)
+    agent.start(np.array([0.5, 0.0]))
+    with pytest.raises(ValueError, match="overflows the learner's arithmetic"), \
+            np.errstate(over="ignore", invalid="ignore"):  # the numpy reference meets the overflow
+        for k in range(1, 50):
+            agent.step(1.7e308, np.array([0.5, 0.01 * k]))
+    for key, value in agent.state_dict().items():
+        assert value.dtype.kind != "f" or np.all(np.isfinite(value)), key
+
+
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+def test_restore_names_what_is_wrong_before_anything_changes(algorithm):
+    # Issue 20: NaN arrays were accepted by RMAC and MLAC; another learner's dict gave KeyError.
+    agent = make_agent(algorithm, STATES, ACTIONS, config=quick_config(algorithm), seed=0)
+    agent.start(np.array([0.5, 0.0]))
+    for k in range(1, 6):
+        agent.step(-1.0, np.array([0.5, 0.1 * k]))
+    good = agent.state_dict()
+    twin = make_agent(algorithm, STATES, ACTIONS, config=quick_config(algorithm), seed=1)
+    fresh = twin.state_dict()
+    key = next(k for k, v in good.items() if v.dtype.kind == "f" and v.size > 1)
+    bad_cases = [
+        ({**good, key: np.full_like(good[key], np.nan)}, f"{key!r} must be finite"),
+        ({**good, key: good[key][..., :1]}, f"{key!r} must have shape"),
+        ({**good, key: good[key].astype(object)}, f"{key!r} must hold"),
+        ({k: v for k, v in good.items() if k != key}, f"lacks {key!r}"),
+        ({**good, "bogus": np.zeros(1)}, "has 'bogus'"),
+    ]
+    other = "mlac" if algorithm == "rmac" else "rmac"
+    foreign = make_agent(other, STATES, ACTIONS, seed=0).state_dict()
+    bad_cases.append((foreign, "another learner"))
+    for state, named in bad_cases:
+        with pytest.raises((ValueError, TypeError), match=re.escape(named)):
+            twin.load_state_dict(state)
+        after = twin.state_dict()
+        for k in fresh:  # a refused restore changed nothing
+            np.testing.assert_array_equal(after[k], fresh[k], err_msg=k)
+    twin.load_state_dict(good)
+
+
+def test_restore_checks_the_learners_own_rules():
+    agent = make_agent("rmac", STATES, ACTIONS, seed=0)
+    state = agent.state_dict()
+    for change, named in ((("critic.meta", np.array([3000, 3000])), "'critic.meta'"),
+                          (("traces", np.full_like(state["traces"], 2.0)), "'traces'"),
+                          (("k", np.array(-1)), "'k'")):
+        with pytest.raises(ValueError, match=named):
+            agent.load_state_dict({**state, change[0]: change[1]})
+    sac = make_agent("s-ac", STATES, ACTIONS, seed=0)
+    state = sac.state_dict()
+    with pytest.raises(ValueError, match="'tiles'"):
+        sac.load_state_dict({**state, "tiles": state["tiles"] + 10 ** 6})
+
+
+@pytest.mark.parametrize("algorithm", PAPER_LEARNERS)
+def test_memory_estimate_is_what_the_learner_allocates(algorithm):
+    """The estimate from the config alone matches what building the learner and taking two copies
+    of its state (a snapshot) allocate."""
+    import tracemalloc
+    from rmac_mj.agents import memory_estimate
+    big = {"rmac": dict(critic_capacity=60000, reference_capacity=50000, process_capacity=20000),
+           "mlac": dict(critic_capacity=60000, actor_capacity=50000, process_capacity=20000),
+           "s-ac": dict(tile_coding={"num_tilings": 64, "tiles": 60})}[algorithm]
+    estimate = memory_estimate(algorithm, STATES, ACTIONS, big)
+    tracemalloc.start()
+    agent = make_agent(algorithm, STATES, ACTIONS, config=big, seed=0)
+    copies = [agent.state_dict(), agent.state_dict()]
+    allocated, _ = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    assert len(copies) == 2 and 0.9 * allocated <= estimate <= 1.15 * allocated
+    small = memory_estimate(algorithm, STATES, ACTIONS)
+    assert 0 < small < estimate
+
+
+def test_memory_estimate_needs_no_memory_for_what_cannot_fit(tmp_path):
+    """Issue 20: critic_capacity=1e9 grew to 21 GB before the OOM killer stopped it. The estimate
+    says so from the config, under an address-space limit of 2 GB, while building the learner
+    there fails."""
+    script = (
+        "import resource, numpy as np\n"
+        "resource.setrlimit(resource.RLIMIT_AS, (2 * 2**30, 2 * 2**30))\n"
+        "from rmac_mj.agents import ActionSpace, StateSpace, make_agent, memory_estimate\n"
+        "S = StateSpace(low=[-3.2, -25.0], high=[3.2, 25.0], periodic=[True, False])\n"
+        "U = ActionSpace(low=[-3.0], high=[3.0], cost=[1.0])\n"
+        "big = {'critic_capacity': 10**9}\n"
+        "print(memory_estimate('rmac', S, U, big))\n"
+        "try:\n"
+        "    make_agent('rmac', S, U, config=big)\n"
+        "except MemoryError:\n"
+        "    print('MemoryError')\n")
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                            timeout=300)
+    estimate, outcome = result.stdout.split()
+    assert int(estimate) > 24 * 2**30 and outcome == "MemoryError", result.stderr

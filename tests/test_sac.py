@@ -151,8 +151,10 @@ def test_state_dict_round_trip():
     for x in ([np.pi, 0.0], [1.0, 5.0], [-0.5, -3.0]):
         assert clone.value(x) == agent.value(x)
         np.testing.assert_array_equal(clone.greedy_action(x), agent.greedy_action(x))
-    with pytest.raises(ValueError, match="actor"):
-        clone.load_state_dict({"critic": state["critic"], "actor": state["actor"][:-1]})
+    with pytest.raises(ValueError, match="state 'actor' must have shape"):
+        clone.load_state_dict({**state, "actor": state["actor"][:-1]})
+    with pytest.raises(ValueError, match="lacks 'in_trial', 'k'"):
+        clone.load_state_dict({"critic": state["critic"], "actor": state["actor"]})
 
 
 def test_generic_dimensions():

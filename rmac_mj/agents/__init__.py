@@ -4,13 +4,16 @@
 A learner is a module holding its config dataclass and its :class:`Agent` subclass; adding one is one
 line in ``_REGISTRY`` (key -> module, agent class, config class). The modules by concern:
 
-* ``base``: the Agent interface (the checked boundary, state dicts, task knowledge in configs);
+* ``base``: the Agent interface (the checked boundary, checked state dicts, one transition's
+  ``learn``, the memory estimate, task knowledge in configs);
 * ``spaces``: StateSpace and ActionSpace, what a learner sees of a task;
 * ``exploration``: the Exploration schedule (section 6.1);
 * ``prior_knowledge``: recorded transitions into memories (section 7);
 * ``random_state``: a generator's state as numbers, for snapshots;
 * ``scripted``: PolicyAgent, a fixed policy behind the same interface;
-* ``rmac``, ``sac``, ``mlac``: the learners.
+* ``critic``: the LLR critic (memory, traces, TD(lambda)) RMAC and MLAC share;
+* ``rmac`` (with ``rmac_config`` and the compiled ``_rmac_kernels``), ``sac``, ``mlac``: the
+  learners; ``sb3``: the Stable-Baselines3 baselines.
 """
 
 from __future__ import annotations
@@ -93,6 +96,13 @@ def config_from_dict(cls: type, values: dict[str, Any], stored: bool = False):
     return cls(**kwargs)
 
 
+def memory_estimate(name: str, state_space: StateSpace, action_space: ActionSpace,
+                    config: Any = None) -> int:
+    """Bytes of RAM the learner ``name`` needs with ``config`` on these spaces, computed without
+    building it (:meth:`Agent.memory_estimate`)."""
+    return _lookup(name)[0].memory_estimate(config, state_space, action_space)
+
+
 def make_agent(name: str, state_space: StateSpace, action_space: ActionSpace,
                config: Any = None, seed: int | np.random.Generator | None = None) -> Agent:
     """Build the learner ``name`` (one of :data:`ALGORITHMS`: ``"rmac"``, ``"s-ac"``, ``"mlac"``).
@@ -113,4 +123,4 @@ def make_agent(name: str, state_space: StateSpace, action_space: ActionSpace,
 __all__ = ["ALGORITHMS", "PRIOR_PARTS", "ActionSpace", "Agent", "Exploration", "PolicyAgent",
            "StateSpace", "agent_class", "check_transitions", "config_class", "config_from_dict",
            "discounted_returns", "display_name", "generator_state_array", "make_agent",
-           "model_uncertainty", "seed_memory", "set_generator_state"]
+           "memory_estimate", "model_uncertainty", "seed_memory", "set_generator_state"]

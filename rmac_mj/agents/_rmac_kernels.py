@@ -339,7 +339,8 @@ def learn(s, x, u, reward, x_next, v, model_learns):
     """Lines 13-28 for the transition (x, u, r, x') from canonical states, with V(x) = ``v``;
     returns V(x') (line 22, before the critic's update). ``model_learns``: line 14 inserts the
     transition in M^P (a real one); False for a simulated transition, which the process model
-    predicted and must not learn from."""
+    predicted and must not learn from. Returns NaN, with M^R and M^C unchanged, when the target x_r
+    or the TD error is not finite (the arithmetic overflowed)."""
     P = s.process
     z = _joined(x, u)
     zq = _canonical(z, P.in_period)
@@ -350,6 +351,8 @@ def learn(s, x, u, reward, x_next, v, model_learns):
     value = value_fit(s.critic, x_next)  # line 22: V(x') and its local model
     v_next = value.prediction[0]
     x_r = best_reachable(s, x, u, x_next, model, value)  # line 16
+    if not (np.all(np.isfinite(x_r)) and np.isfinite(reward + s.critic.gamma * v_next - v)):
+        return np.nan  # overflow: refused before M^R and M^C change (the caller says so)
     update_reference(s, x, x_r)        # lines 17-20
     td_update(s.critic, x, v, reward, v_next)  # lines 23-28
     return v_next
@@ -360,12 +363,17 @@ def step(s, reward, x, du, model_learns):
     """One control step in one compiled call, for a checked state x (periodic entries are wrapped
     here): u_k = sat(f^-1(x_k, R(x_k)) + Delta u_k) with the models as they are (lines 10-12), then
     lines 13-28 (line 14 only if ``model_learns``: not in a simulated trial); then x_prev, u_prev,
-    v_prev advance to x_k, u_k, V_k. Returns u_k."""
+    v_prev advance to x_k, u_k, V_k. Returns u_k, or NaN when the transition was refused
+    (``learn``)."""
     x = _canonical(x, s.period)
     u = act(s, x)
     for i in range(u.shape[0]):
         u[i] = min(max(u[i] + du[i], s.low[i]), s.high[i])
-    s.v_prev[0] = learn(s, s.x_prev, s.u_prev, reward, x, s.v_prev[0], model_learns)
+    v_next = learn(s, s.x_prev, s.u_prev, reward, x, s.v_prev[0], model_learns)
+    if np.isnan(v_next):
+        u[:] = np.nan  # refused (see ``learn``): the step does not advance
+        return u
+    s.v_prev[0] = v_next
     s.x_prev[:] = x
     s.u_prev[:] = u
     return u
@@ -373,5 +381,6 @@ def step(s, reward, x, du, model_learns):
 
 @njit(cache=True)
 def stop(s, reward, x, model_learns):
-    """The last transition of a trial (lines 13-28, no action) for a checked state x."""
-    learn(s, s.x_prev, s.u_prev, reward, _canonical(x, s.period), s.v_prev[0], model_learns)
+    """The last transition of a trial (lines 13-28, no action) for a checked state x; returns V_K
+    (NaN: refused, see ``learn``)."""
+    return learn(s, s.x_prev, s.u_prev, reward, _canonical(x, s.period), s.v_prev[0], model_learns)

@@ -24,14 +24,14 @@ from __future__ import annotations
 import abc
 import dataclasses
 import math
-from typing import Any
+from typing import Any, Mapping
 
 import numpy as np
 
 from rmac_mj.agents.planning import Rehearsal
 from rmac_mj.agents.prior_knowledge import check_transitions
 from rmac_mj.agents.random_state import generator_state_array, set_generator_state
-from rmac_mj.agents.spaces import ActionSpace, StateSpace
+from rmac_mj.agents.spaces import STATE_LIMIT_WIDTHS, ActionSpace, StateSpace
 
 
 class Agent(abc.ABC):
@@ -119,6 +119,28 @@ class Agent(abc.ABC):
         return dataclasses.replace(
             config, action_cost=None if cost is None else tuple(float(c) for c in cost))
 
+    @classmethod
+    def memory_estimate(cls, config: Any, state_space: StateSpace, action_space: ActionSpace) -> int:
+        """Bytes of RAM a learner of this class needs with ``config`` (its config dataclass, a dict
+        of overrides, or None for the defaults) on these spaces, computed without building it: its
+        arrays (memories, weights, traces) and two copies of its state (``state_dict``, and the
+        snapshot or restore made from it). The interpreter and compiled code a process needs
+        besides are not counted. A runner checks a run against the machine's memory with it.
+        """
+        if config is None:
+            config = cls.config_class()
+        elif isinstance(config, dict):
+            from rmac_mj.agents import config_from_dict
+            config = config_from_dict(cls.config_class, config)
+        arrays, state = cls._memory_parts(config, state_space, action_space)
+        return int(arrays + 2 * state)
+
+    @classmethod
+    def _memory_parts(cls, config: Any, state_space: StateSpace,
+                      action_space: ActionSpace) -> tuple[int, int]:
+        """(bytes of the learner's arrays, bytes of one state dict) for :meth:`memory_estimate`."""
+        raise NotImplementedError(f"{cls.name} gives no memory estimate")
+
     # -- the boundary -------------------------------------------------------------------------------
     def _checked_state(self, x: Any, name: str = "x") -> np.ndarray:
         """x as a new float64 vector of shape (n,); ValueError naming ``name`` if not finite or wrong."""
@@ -128,10 +150,19 @@ class Agent(abc.ABC):
                 raise ValueError(f"{self.name}: {name} must have shape ({self._state_dim},), got "
                                  f"shape {np.shape(x)}")
             v = v.reshape(self._state_dim)
-        # Called once per control step on a few numbers: Python's isfinite over a list is several
-        # times cheaper than numpy's isfinite + all on a short vector.
-        if not all(map(math.isfinite, v.tolist())):
-            raise ValueError(f"{self.name}: {name} must be finite, got {x!r}")
+        # Called once per control step on a few numbers: Python over a list is several times
+        # cheaper than numpy on a short vector. A NaN fails every comparison, so this one check
+        # refuses non-finite states too.
+        values = v.tolist()
+        if not self.state_space.accepts(values):
+            if not all(map(math.isfinite, values)):
+                raise ValueError(f"{self.name}: {name} must be finite, got {x!r}")
+            low, high = self.state_space.limit
+            i = int(np.argmax((v < low) | (v > high)))
+            raise ValueError(
+                f"{self.name}: {name}[{i}] = {values[i]:g} is beyond what a learner accepts, "
+                f"[{low[i]:g}, {high[i]:g}] ({STATE_LIMIT_WIDTHS:g} widths of the state box around "
+                f"it); a state that far out overflows the learner's arithmetic")
         return v
 
     def _checked_reward(self, reward: Any, name: str = "reward") -> float:
@@ -153,6 +184,14 @@ class Agent(abc.ABC):
         if not np.all(np.isfinite(v)):
             raise ValueError(f"{self.name}: {name} must be finite, got {u!r}")
         return v
+
+    def _overflow(self, what: Any) -> ValueError:
+        """The error of a transition whose learning overflows (``what``: the quantity, or the
+        reward): refused before anything non-finite is stored."""
+        if not isinstance(what, str):
+            what = f"the transition with reward {what!r}"
+        return ValueError(f"{self.name}: {what} overflows the learner's arithmetic (not finite); "
+                          f"refused, nothing non-finite was stored")
 
     def _check_in_trial(self, method: str) -> None:
         if not self._in_trial:
@@ -375,25 +414,81 @@ class Agent(abc.ABC):
         state["trials"] = np.array(self.trials_, dtype=np.int64)
         return state
 
-    def load_state_dict(self, state: dict[str, np.ndarray]) -> None:
-        """Restore what :meth:`state_dict` returned; the agent then acts exactly as the original."""
-        missing = sorted({"rng", "in_trial"} - set(state))
-        if missing:
-            raise ValueError(f"{self.name}: state dict lacks {missing}; has {sorted(state)}")
+    def load_state_dict(self, state: Mapping[str, Any]) -> None:
+        """Restore what :meth:`state_dict` returned; the agent then acts exactly as the original.
+
+        One checked restore for every learner, made before anything changes: the keys (none
+        missing, none foreign: a state dict of another learner is called one), each array's shape
+        and dtype against this learner's own state dict, every float finite, then the learner's
+        own rules (``_check_state``: counts and indices in range). ValueError names what is wrong.
+        """
+        if not isinstance(state, Mapping):
+            raise TypeError(f"{self.name}: a state dict must be a mapping of names to arrays, got "
+                            f"{type(state).__name__}")
+        own = self.state_dict()
+        missing = sorted(k for k in own if k not in state and not self._may_lack(k))
+        foreign = sorted(k for k in state if k not in own and not self._may_lack(k))
+        if missing or foreign:
+            parts = [f"lacks {_listed(missing)}"] * bool(missing) + \
+                [f"has {_listed(foreign)}, which {self.name} does not"] * bool(foreign)
+            hint = " (a state dict of another learner?)" if missing and foreign else ""
+            raise ValueError(f"{self.name}: the state dict {' and '.join(parts)}{hint}")
+        arrays = {key: self._checked_entry(key, value, own.get(key)) for key, value in state.items()}
         # Snapshots written before the trial counter existed lack ``trials``; they load unless the
         # agent's exploration decays, which would then start again from the first trial's noise.
-        if "trials" not in state and self._uses_trial_counter:
-            raise ValueError(f"{self.name}: state dict lacks 'trials', which a decaying "
-                             f"exploration or learning rate needs; has {sorted(state)}")
-        self._load_state({k: v for k, v in state.items()
+        if "trials" not in arrays and self._uses_trial_counter:
+            raise ValueError(f"{self.name}: the state dict lacks 'trials', which a decaying "
+                             f"exploration or learning rate needs")
+        if "trials" in arrays and int(arrays["trials"]) < 0:
+            raise ValueError(f"{self.name}: state 'trials' must be >= 0, got {int(arrays['trials'])}")
+        self._check_state(arrays)
+        self._load_state({k: v for k, v in arrays.items()
                           if k not in ("rng", "in_trial", "trials") and not k.startswith("rehearsal.")})
         if self._rehearsal is not None:
-            self._rehearsal.load_state_dict(state, "rehearsal.")
-        set_generator_state(self.rng, state["rng"])
-        self._in_trial = bool(state["in_trial"])
-        if "trials" in state:
-            self.trials_ = int(state["trials"])
+            self._rehearsal.load_state_dict(arrays, "rehearsal.")
+        set_generator_state(self.rng, arrays["rng"])
+        self._in_trial = bool(arrays["in_trial"])
+        if "trials" in arrays:
+            self.trials_ = int(arrays["trials"])
+
+    def _checked_entry(self, key: str, value: Any, own: np.ndarray | None) -> np.ndarray:
+        """One entry of a state dict to restore, checked against the learner's own (``own``; None
+        for an entry the learner holds only at some moments: its dtype and values are checked)."""
+        array = np.asarray(value)
+        kinds = {"f": "f", "i": "iu", "u": "iu", "b": "b"}
+        expected = kinds.get(own.dtype.kind, own.dtype.kind) if own is not None else "fiub"
+        if array.dtype.kind not in expected or (key == "rng" and array.dtype != np.uint64):
+            want = own.dtype if own is not None else "numbers"
+            raise ValueError(f"{self.name}: state {key!r} must hold {want}, got dtype {array.dtype}")
+        if own is not None and array.shape != own.shape and not self._shape_varies(key):
+            raise ValueError(f"{self.name}: state {key!r} must have shape {own.shape}, got "
+                             f"{array.shape}")
+        if array.dtype.kind == "f" and not np.all(np.isfinite(array)):
+            raise ValueError(f"{self.name}: state {key!r} must be finite; "
+                             f"{int(np.size(array) - np.count_nonzero(np.isfinite(array)))} of "
+                             f"{np.size(array)} entries are not")
+        return array
+
+    def _may_lack(self, key: str) -> bool:
+        """Whether a state dict may lack ``key`` (or hold it though this agent does not now): an
+        entry written only by some versions or at some moments."""
+        return key == "trials"
+
+    def _shape_varies(self, key: str) -> bool:
+        """Whether the shape of state entry ``key`` depends on the moment (e.g. a filling buffer,
+        planning's or replay's stored transitions)."""
+        return key.startswith("rehearsal.")
+
+    def _check_state(self, state: dict[str, np.ndarray]) -> None:
+        """The learner's own rules on a state dict to restore (counts and indices in range), checked
+        before anything changes; ValueError naming the entry."""
 
     def config_dict(self) -> dict[str, Any]:
         """The hyperparameters as JSON-ready data (a dataclass's fields)."""
         return dataclasses.asdict(self.config)  # type: ignore[attr-defined]
+
+
+def _listed(keys: list[str], most: int = 4) -> str:
+    """A few keys for a message: 'a', 'b' (+3 more)."""
+    shown = ", ".join(repr(k) for k in keys[:most])
+    return shown + (f" (+{len(keys) - most} more)" if len(keys) > most else "")

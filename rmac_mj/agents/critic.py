@@ -18,6 +18,7 @@ the TD settings, named).
 from __future__ import annotations
 
 import collections
+import math
 
 import numpy as np
 from numba import njit, types
@@ -83,14 +84,17 @@ def value_fit(critic, x):
 @njit(cache=True)
 def td_update(critic, x, v, reward, v_next):
     """Lines 23-27 for the transition from a canonical x with V(x) = ``v`` to x' with V(x') =
-    ``v_next``: insert [x | v], then the TD(lambda) step on every sample. Returns delta."""
+    ``v_next``: insert [x | v], then the TD(lambda) step on every sample. Returns delta; a delta
+    that is not finite (arithmetic overflow) is returned without anything stored."""
     memory, traces = critic.memory, critic.traces
+    delta = reward + critic.gamma * v_next - v           # line 24
+    if not np.isfinite(delta):
+        return delta  # refused: nothing is stored (the caller says so)
     near, nk = llr_nearest(memory, x)
     near = near[:nk].copy()  # K(x) before the insertion
     v_in = np.empty(1)
     v_in[0] = v
     slot = llr_insert_among(memory, x, v_in, near, nk)  # line 23
-    delta = reward + critic.gamma * v_next - v           # line 24
     decay = critic.lam * critic.gamma
     for i in range(llr_size(memory)):
         traces[i] *= decay                               # line 26
@@ -101,6 +105,15 @@ def td_update(critic, x, v, reward, v_next):
     step[0] = critic.alpha * delta
     llr_add_weighted(memory, traces, step)               # line 27
     return delta
+
+
+def _check_traces(owner: str, state: dict[str, np.ndarray]) -> None:
+    """ValueError unless a learner's state to restore holds traces in [0, 1] and a step k >= 0."""
+    traces = state["traces"]
+    if np.any((traces < 0) | (traces > 1)):
+        raise ValueError(f"{owner}: state 'traces' must lie in [0, 1] (eligibility traces)")
+    if int(state["k"]) < 0:
+        raise ValueError(f"{owner}: state 'k' must be >= 0, got {int(state['k'])}")
 
 
 class LLRCritic:
@@ -157,24 +170,27 @@ class LLRCritic:
         """V(x), the memory's LLR estimate (0 on an empty memory, line 2)."""
         return float(self.memory.query(x)[0][0])
 
-    def update(self, x: np.ndarray, v: float, reward: float, x_next: np.ndarray) -> float:
+    def update(self, x: np.ndarray, v: float, reward: float,
+               x_next: np.ndarray) -> tuple[float, float]:
         """Lines 22-27 for the transition from the canonical x, with V(x) = ``v``, to the canonical
-        x_next with reward ``reward``; returns V(x_next), computed before the update (line 22)."""
+        x_next with reward ``reward``; returns V(x_next), computed before the update (line 22), and
+        delta (not finite: the update was refused, nothing stored)."""
         if self.kernel_state is not None:
             v_next = float(value_fit(self.kernel_state, x_next).prediction[0])
-            td_update(self.kernel_state, x, v, reward, v_next)
-            return v_next
-        v_next = self.value(x_next)  # line 22
-        self.td_update(x, v, reward, v_next)
-        return v_next
+        else:
+            v_next = self.value(x_next)  # line 22
+        return v_next, self.td_update(x, v, reward, v_next)
 
     def td_update(self, x: np.ndarray, v: float, reward: float, v_next: float) -> float:
-        """Lines 23-27 (see :func:`td_update`); returns delta."""
+        """Lines 23-27 (see :func:`td_update`); returns delta. A delta that is not finite (the
+        values overflow) is returned with nothing stored."""
         if self.kernel_state is not None:
             return float(td_update(self.kernel_state, x, v, reward, v_next))
+        delta = reward + self.gamma * v_next - v                                  # line 24
+        if not math.isfinite(delta):
+            return delta
         near = self.memory.neighbours(x)
         slot = self.memory.insert(x, [v], int(near[0]) if len(near) else None)  # line 23
-        delta = reward + self.gamma * v_next - v                                  # line 24
         self.traces *= self.lam * self.gamma                                      # line 26
         self.traces[near] = 1.0
         self.traces[slot] = 1.0

@@ -47,7 +47,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from rmac_mj.agents.base import Agent
-from rmac_mj.agents.critic import LLRCritic
+from rmac_mj.agents.critic import LLRCritic, _check_traces
 from rmac_mj.agents.exploration import Exploration, model_uncertainty
 from rmac_mj.agents.planning import Planning, Replay
 from rmac_mj.agents.prior_knowledge import discounted_returns, seed_memory
@@ -234,6 +234,18 @@ class MLAC(Agent):
         """While rehearsing (planning, replay), step 1 leaves M^P unchanged."""
         self._learns_model = not rehearsing
 
+    @classmethod
+    def _memory_parts(cls, config: MLACConfig, state_space: StateSpace,
+                      action_space: ActionSpace) -> tuple[int, int]:
+        """The three memories and the critic's traces (see :meth:`Agent.memory_estimate`)."""
+        n, m = state_space.dim, action_space.dim
+        memories = ((n, m, config.actor_capacity, config.actor_neighbours),
+                    (n, 1, config.critic_capacity, config.critic_neighbours),
+                    (n + m, n, config.process_capacity, config.process_neighbours))
+        traces = 8 * config.critic_capacity
+        return (sum(LLRMemory.memory_estimate(*memory) for memory in memories) + traces,
+                sum(LLRMemory.state_estimate(*memory[:3]) for memory in memories) + traces)
+
     # -- the policy -----------------------------------------------------------------------------------
     def _pi(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """pi(x), saturated to the action bounds, and the actor's neighbours K(x) (nearest first)."""
@@ -286,6 +298,8 @@ class MLAC(Agent):
         u_pi, near = policy if policy is not None else self._pi(x)
         u_model = u_pi if self.config.model_action == "policy" else u
         step = self.config.alpha_a * self.action_gradient(x, u_pi, u_model)
+        if not np.all(np.isfinite(step)):
+            raise self._overflow("the actor's step along dQ/du")
         slot = self.actor.insert(x, u_pi, nearest=int(near[0]) if len(near) else None)
         # When the memory is full the new sample may take a neighbour's slot: move each sample once.
         moved = near if slot in near else np.append(near, slot)
@@ -344,7 +358,9 @@ class MLAC(Agent):
         if model:  # 1. The process model learns the transition.
             self.process.insert(np.concatenate([x, u]), x_next)
         # 2. TD(lambda) on the critic's samples (RMAC paper, Algorithm 2 lines 22-28).
-        v_next = self.critic.update(x, v, reward, x_next)
+        v_next, delta = self.critic.update(x, v, reward, x_next)
+        if not np.isfinite(delta):
+            raise self._overflow(f"the TD error with reward {reward!r}")
         # 3. The actor moves along the model-based gradient of the return.
         self._improve_actor(x, u, policy)
         return v_next
@@ -402,6 +418,14 @@ class MLAC(Agent):
         state["u_prev"] = self._u_prev.copy()
         state["v_prev"] = np.array(self._v_prev)
         return state
+
+    def _may_lack(self, key: str) -> bool:
+        return super()._may_lack(key) or key.endswith(".redundancy")  # older snapshots
+
+    def _check_state(self, state: dict[str, np.ndarray]) -> None:
+        for name in _MEMORIES:
+            self._memory(name).check_state_dict(state, prefix=f"{name}.")
+        _check_traces(self.name, state)
 
     def _load_state(self, state: dict[str, np.ndarray]) -> None:
         for name in _MEMORIES:

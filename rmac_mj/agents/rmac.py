@@ -18,18 +18,23 @@ docs/rmac.md lists them with what was measured for each. Two back ends compute t
 ``backend='numba'`` runs the same steps in the compiled kernels of :mod:`rmac_mj.agents._rmac_kernels`
 (the learner must cost at most about two ``env.step`` calls). ``learn`` (:meth:`Agent.learn`) is one
 transition's update (lines 13-28), the same for a real transition and a simulated one (which leaves
-the process model alone). The memories are used only through their public interface: ``LLRMemory``'s methods
-here, its compiled counterparts (``llr_nearest``, ...) on ``LLRMemory.kernel_state`` there.
+the process model alone). The memories are used only through their public interface:
+``LLRMemory``'s methods here, its compiled counterparts (``llr_nearest``, ...) on
+``LLRMemory.kernel_state`` there.
+
+The module runs past 400 lines because it keeps the readable reference of every step of Algorithm 2
+(act, learn, the reachable rules) beside the dispatch to the compiled twin, to be read against it.
 """
 
 from __future__ import annotations
 
 import itertools
+
 import numpy as np
 
 from rmac_mj.agents import _rmac_kernels
 from rmac_mj.agents.base import Agent
-from rmac_mj.agents.critic import LLRCritic
+from rmac_mj.agents.critic import LLRCritic, _check_traces
 from rmac_mj.agents.exploration import model_uncertainty
 from rmac_mj.agents.prior_knowledge import discounted_returns, seed_memory
 from rmac_mj.agents.rmac_config import REACHABLE_RULES, RMACConfig
@@ -135,6 +140,18 @@ class RMAC(Agent):
     def _set_rehearsing(self, rehearsing: bool) -> None:
         """While rehearsing (planning, replay), line 14 leaves M^P unchanged."""
         self._learns_model = not rehearsing
+
+    @classmethod
+    def _memory_parts(cls, config: RMACConfig, state_space: StateSpace,
+                      action_space: ActionSpace) -> tuple[int, int]:
+        """The three memories and the critic's traces (see :meth:`Agent.memory_estimate`)."""
+        n, m = state_space.dim, action_space.dim
+        memories = ((n + m, n, config.process_capacity, config.process_neighbours),
+                    (n, n, config.reference_capacity, config.reference_neighbours),
+                    (n, 1, config.critic_capacity, config.critic_neighbours))
+        traces = 8 * config.critic_capacity
+        return (sum(LLRMemory.memory_estimate(*memory) for memory in memories) + traces,
+                sum(LLRMemory.state_estimate(*memory[:3]) for memory in memories) + traces)
 
     def _new_kernel_state(self) -> _rmac_kernels.RMACState | None:
         """The compiled step's view of this agent's arrays (numba back end), else None."""
@@ -254,7 +271,10 @@ class RMAC(Agent):
             du = self._noise(x, self._u_prev)  # line 8
             # Lines 10-28 in one compiled call (x wrapped there), which also advances x_prev,
             # u_prev and v_prev; it returns a new array.
-            return _rmac_kernels.step(self._kernel_state, reward, x, du, self._learns_model)
+            u = _rmac_kernels.step(self._kernel_state, reward, x, du, self._learns_model)
+            if u[0] != u[0]:
+                raise self._overflow(reward)
+            return u
         x = self.state_space.canonical(x)
         if u is None:
             u = self._explore(self._act(x, self._u_prev), x, self._u_prev)  # lines 10-12
@@ -268,7 +288,8 @@ class RMAC(Agent):
         """The last transition of a trial: learn (lines 13-28), no action."""
         self._sync_rates()
         if self._kernel_state is not None:
-            _rmac_kernels.stop(self._kernel_state, reward, x, self._learns_model)
+            if np.isnan(_rmac_kernels.stop(self._kernel_state, reward, x, self._learns_model)):
+                raise self._overflow(reward)
         else:
             self._learn(self._x_prev, self._u_prev, reward, self.state_space.canonical(x),
                         float(self._v_prev[0]), self._learns_model)
@@ -281,7 +302,10 @@ class RMAC(Agent):
         x, x_next = self.state_space.canonical(x), self.state_space.canonical(x_next)
         self._sync_rates()
         if self._kernel_state is not None:
-            return _rmac_kernels.learn(self._kernel_state, x, u, reward, x_next, v, model)
+            v_next = _rmac_kernels.learn(self._kernel_state, x, u, reward, x_next, v, model)
+            if np.isnan(v_next):
+                raise self._overflow(reward)
+            return v_next
         return self._learn(x, u, reward, x_next, v, model)
 
     def _learn(self, x: np.ndarray, u: np.ndarray, reward: float, x_next: np.ndarray, v: float,
@@ -306,6 +330,8 @@ class RMAC(Agent):
             x_r = self.state_space.canonical(reachable[int(np.argmax(values))])
         else:  # the other rules: r + gamma V(x') with the full critic (RMACConfig.reachable_rule)
             x_r = self._best_scored(pred, beta_u, u)
+        if not (np.all(np.isfinite(x_r)) and np.isfinite(reward + cfg.gamma * v_next - v)):
+            raise self._overflow(reward)  # before M^R and M^C change
         # Lines 17-20: insert [x | x_r] in M^R and move K(x) towards x_r.
         near = self.reference.neighbours(x)
         inserted = x_r
@@ -417,6 +443,15 @@ class RMAC(Agent):
         state["v_prev"] = np.array(self._v_prev[0])
         state["u_greedy"] = self._u_greedy.copy()
         return state
+
+    def _may_lack(self, key: str) -> bool:
+        return super()._may_lack(key) or key.endswith(".redundancy")  # older snapshots
+
+    def _check_state(self, state: dict[str, np.ndarray]) -> None:
+        for name, memory in (("process", self.process), ("reference", self.reference),
+                             ("critic", self.critic.memory)):
+            memory.check_state_dict(state, prefix=f"{name}.")
+        _check_traces(self.name, state)
 
     def _load_state(self, state: dict[str, np.ndarray]) -> None:
         for name, memory in (("process", self.process), ("reference", self.reference),

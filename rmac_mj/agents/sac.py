@@ -150,6 +150,8 @@ def _learn_numba(critic, actor, traces, trace_idx, n_traces, prev_tiles, tiles, 
     for t in tiles:
         v_next += critic[t]
     delta = reward + gamma * v_next - v_prev
+    if not np.isfinite(delta):
+        return delta, n_traces  # overflow: refused, nothing changed (the caller says so)
     # Line 11: decay the live traces, drop the ones below the cutoff, replace those of x_{k-1}.
     live = 0
     for i in range(n_traces):
@@ -245,6 +247,16 @@ class SAC(Agent):
         self._k = 0  # control step within the trial
         self.last_delta_ = 0.0
 
+    @classmethod
+    def _memory_parts(cls, config: SACConfig, state_space: StateSpace,
+                      action_space: ActionSpace) -> tuple[int, int]:
+        """theta, vartheta (one weight per tile, times m), the traces and their index (see
+        :meth:`Agent.memory_estimate`)."""
+        coder = TileCoder(state_space.low, state_space.high, state_space.periodic, config.tile_coding,
+                          config.backend)  # small: the layout, no weights
+        features = coder.num_features * (3 + action_space.dim)
+        return 8 * features, 8 * features
+
     # ----------------------------------------------------------------------------------- protocol
     def _start(self, x0: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
         """Lines 1-4: reset the traces, apply u_0 = pi(x_0) + Delta u_0 (or the given u_0, when
@@ -280,10 +292,6 @@ class SAC(Agent):
         return float(self.critic_[self.coder.active_tiles(x)].sum())
 
     # ------------------------------------------------------------------------------------- state
-    #: Keys of :meth:`_state`: theta, vartheta, and the trial's traces and bookkeeping.
-    _STATE_KEYS = ("critic", "actor", "traces", "trace_idx", "n_traces", "prev_tiles", "tiles",
-                   "prev_du", "k", "last_delta")
-
     def _state(self) -> dict[str, np.ndarray]:
         """theta, vartheta, the eligibility traces and the running trial's bookkeeping."""
         return {"critic": self.critic_.copy(), "actor": self.actor_.copy(),
@@ -292,25 +300,25 @@ class SAC(Agent):
                 "tiles": self._tiles.copy(), "prev_du": self._prev_du.copy(),
                 "k": np.array(self._k), "last_delta": np.array(self.last_delta_)}
 
+    def _check_state(self, state: dict[str, np.ndarray]) -> None:
+        features, n_traces = self.coder.num_features, int(state["n_traces"])
+        if not 0 <= n_traces <= features:
+            raise ValueError(f"s-ac: state 'n_traces' must lie in [0, {features}], got {n_traces}")
+        for key, entries in (("trace_idx", state["trace_idx"][:n_traces]),
+                             ("prev_tiles", state["prev_tiles"]), ("tiles", state["tiles"])):
+            if np.any((entries < 0) | (entries >= features)):
+                raise ValueError(f"s-ac: state {key!r} must hold tile indices in [0, {features})")
+        if np.any((state["traces"] < 0) | (state["traces"] > 1)) or int(state["k"]) < 0:
+            raise ValueError("s-ac: state 'traces' must lie in [0, 1] and 'k' be >= 0")
+
     def _load_state(self, state: dict[str, np.ndarray]) -> None:
-        missing = [key for key in self._STATE_KEYS if key not in state]
-        if missing:
-            raise ValueError(f"s-ac: state dict lacks {missing}; has {sorted(state)}")
-        arrays = {}
-        for key, ref, dtype in (("critic", self.critic_, float), ("actor", self.actor_, float),
-                                ("traces", self._traces, float),
-                                ("trace_idx", self._trace_idx, np.int64),
-                                ("prev_tiles", self._prev_tiles, np.int64),
-                                ("tiles", self._tiles, np.int64), ("prev_du", self._prev_du, float)):
-            value = np.array(state[key], dtype=dtype)
-            if value.shape != ref.shape or (dtype is float and not np.all(np.isfinite(value))):
-                raise ValueError(f"s-ac: state[{key!r}] must be finite of shape {ref.shape}, "
-                                 f"got shape {value.shape}")
-            arrays[key] = value
-        self.critic_, self.actor_ = arrays["critic"], arrays["actor"]
-        self._traces, self._trace_idx = arrays["traces"], arrays["trace_idx"]
-        self._prev_tiles, self._tiles = arrays["prev_tiles"], arrays["tiles"]
-        self._prev_du = arrays["prev_du"]
+        self.critic_ = np.array(state["critic"], dtype=float)
+        self.actor_ = np.array(state["actor"], dtype=float)
+        self._traces = np.array(state["traces"], dtype=float)
+        self._trace_idx = np.array(state["trace_idx"], dtype=np.int64)
+        self._prev_tiles = np.array(state["prev_tiles"], dtype=np.int64)
+        self._tiles = np.array(state["tiles"], dtype=np.int64)
+        self._prev_du = np.array(state["prev_du"], dtype=float)
         self._n_traces = int(state["n_traces"])
         self._k = int(state["k"])
         self.last_delta_ = float(state["last_delta"])
@@ -349,10 +357,13 @@ class SAC(Agent):
         """Lines 10-13 for the transition x_{k-1} -> x_k (tiles in _prev_tiles and _tiles)."""
         c = self.config
         if c.backend == "numba":
-            self.last_delta_, self._n_traces = _learn_numba(
+            delta, n_traces = _learn_numba(
                 self.critic_, self.actor_, self._traces, self._trace_idx, self._n_traces,
                 self._prev_tiles, self._tiles, reward, c.gamma, self._decay, c.trace_cutoff,
                 self.rate_c, self.rate_a, self._prev_du, self._a_low, self._a_high)
+            if not np.isfinite(delta):
+                raise self._overflow(f"the TD error with reward {reward!r}")
+            self.last_delta_, self._n_traces = delta, n_traces
         else:
             self._learn_numpy(reward)
 
@@ -361,6 +372,8 @@ class SAC(Agent):
         c, prev, tiles = self.config, self._prev_tiles, self._tiles
         # Line 10 (eq. 2).
         delta = reward + c.gamma * self.critic_[tiles].sum() - self.critic_[prev].sum()
+        if not np.isfinite(delta):
+            raise self._overflow(f"the TD error with reward {reward!r}")
         # Line 11: replacing traces; the trace of x_{k-1}, whose value is being corrected, is set.
         self._traces *= self._decay
         self._traces[self._traces < c.trace_cutoff] = 0.0

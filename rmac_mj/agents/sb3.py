@@ -400,6 +400,16 @@ class SB3Agent(Agent):
             state["last_observation"] = np.array(self.model._last_obs)
         return state
 
+    def _may_lack(self, key: str) -> bool:
+        """Entries SB3 holds only at some moments: in a trial, with a pending action, after an
+        optimizer's first update."""
+        return super()._may_lack(key) or "optimizer." in key or key in (
+            "last_observation", "buffer_action", "pending_action", "pending_value",
+            "pending_log_prob")
+
+    def _shape_varies(self, key: str) -> bool:
+        return key.startswith(("replay.", "rollout."))  # buffers that fill
+
     def _load_state(self, state: dict[str, np.ndarray]) -> None:
         _load_module("policy.", self.model.policy, state)
         position, has_gauss = (int(v) for v in state["numpy_rng_position"])

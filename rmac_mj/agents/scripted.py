@@ -28,6 +28,11 @@ class PolicyAgent(Agent):
         super().__init__(state_space, action_space, config=None, seed=seed)
         self.policy_function = policy
 
+    @classmethod
+    def _memory_parts(cls, config: Any, state_space: StateSpace,
+                      action_space: ActionSpace) -> tuple[int, int]:
+        return 0, 0
+
     def _act(self, x: np.ndarray) -> np.ndarray:
         return np.asarray(self.policy_function(x), dtype=float).reshape(self.action_space.dim)
 

@@ -11,6 +11,14 @@ import numpy as np
 from rmac_mj.approximators.llr import wrap
 
 
+#: How far from its box a learner accepts a state, in box widths. Far beyond any state a task
+#: produces (the pendulum's box is +-8 pi rad/s wide; 1e6 widths are 5e7 rad/s), and near enough that
+#: every learner's arithmetic stays finite and accurate: squared weighted distances, the normal
+#: equations of a local fit, an angle wrapped into one period (to 1e-9 rad), tile indices. A state
+#: beyond it is a fault (a corrupted measurement, a unit error) and is refused at the boundary.
+STATE_LIMIT_WIDTHS = 1e6
+
+
 def _weights(owner: str, weights, n: int, name: str = "weights") -> np.ndarray:
     """``weights`` as a float vector of shape (n,), ones for None; ValueError unless finite and >= 0."""
     if weights is None:
@@ -61,6 +69,20 @@ class StateSpace:
                            _weights("StateSpace", self.input_weights, low.shape[0], "input_weights"))
         if self.cost is not None:
             object.__setattr__(self, "cost", _weights("StateSpace", self.cost, low.shape[0], "cost"))
+        # The accepted region (see ``limit``), as Python floats for the per-step check.
+        object.__setattr__(self, "_centre", ((low + high) / 2).tolist())
+        object.__setattr__(self, "_reach", (STATE_LIMIT_WIDTHS * (high - low)).tolist())
+
+    @property
+    def limit(self) -> tuple[np.ndarray, np.ndarray]:
+        """(lowest, highest) states a learner accepts, each of shape (n,): ``STATE_LIMIT_WIDTHS`` box
+        widths beyond the box on either side (module docstring)."""
+        centre, reach = np.array(self._centre), np.array(self._reach)
+        return centre - reach, centre + reach
+
+    def accepts(self, values: list[float]) -> bool:
+        """Whether the state ``values`` (n Python floats) is finite and within :attr:`limit`."""
+        return all(abs(v - c) <= r for v, c, r in zip(values, self._centre, self._reach))
 
     @property
     def dim(self) -> int:

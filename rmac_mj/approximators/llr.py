@@ -163,6 +163,20 @@ class LLRMemory:
         self._pred = np.empty(m)
         self._state = self._new_kernel_state()
 
+    @staticmethod
+    def memory_estimate(input_dim: int, output_dim: int, capacity: int, n_neighbours: int) -> int:
+        """Bytes of the arrays a memory of these sizes allocates (computed, nothing allocated):
+        per sample its input (n floats), output (m), stamp, redundancy score, distance and search
+        flag; per neighbour the kept lists and search buffers."""
+        per_sample = 8 * (input_dim + output_dim + 3) + 1
+        per_neighbour = 8 * (2 * _k.KEPT + 4)
+        return int(capacity) * per_sample + (int(n_neighbours) + 1) * per_neighbour + 4096
+
+    @staticmethod
+    def state_estimate(input_dim: int, output_dim: int, capacity: int) -> int:
+        """Bytes of one :meth:`state_dict` of a memory of these sizes."""
+        return int(capacity) * 8 * (input_dim + output_dim + 2) + 16
+
     def _new_kernel_state(self) -> LLRState:
         arrays = _k.LLRArrays(Xt=self._Xt, Y=self.Y_, stamp=self.stamp_, counters=self._counters,
                               redundancy=self.redundancy_, weights=self._w, in_period=self._pin,
@@ -323,18 +337,41 @@ class LLRMemory:
                 prefix + "stamp": self.stamp_.copy(), prefix + "meta": self._counters[:2].copy(),
                 prefix + "redundancy": self.redundancy_.copy()}
 
+    def check_state_dict(self, state: dict[str, np.ndarray], prefix: str = "") -> None:
+        """ValueError naming the entry unless ``state`` holds a state dict of this memory under
+        ``prefix``: the keys, shapes, finite numbers, the sample count within the capacity and the
+        clock past it, every stored input in its period. A state saved before the redundancy scores
+        existed (no ``redundancy`` key) is accepted."""
+        for key, arr in self.state_dict(prefix).items():
+            if key not in state:
+                if key == prefix + "redundancy":
+                    continue
+                raise ValueError(f"LLRMemory: the state dict lacks {key!r}")
+            value = np.asarray(state[key])
+            if value.dtype.kind not in ("iu" if arr.dtype.kind in "iu" else "f") or \
+                    value.shape != arr.shape:
+                raise ValueError(f"LLRMemory: state {key!r} must be {arr.dtype} of shape "
+                                 f"{arr.shape}, got {value.dtype} of shape {value.shape}")
+            if value.dtype.kind == "f" and not np.all(np.isfinite(value)):
+                raise ValueError(f"LLRMemory: state {key!r} must be finite")
+        count, clock = (int(v) for v in state[prefix + "meta"])
+        if not (0 <= count <= self.capacity and clock >= count):
+            raise ValueError(f"LLRMemory: state {prefix + 'meta'!r} = [count {count}, clock "
+                             f"{clock}] needs 0 <= count <= {self.capacity} (the capacity) and "
+                             f"clock >= count")
+        X = np.asarray(state[prefix + "X"])[:count]
+        if np.any((self._pin > 0) & (np.abs(X) > self._pin * (0.5 + 1e-9))):
+            raise ValueError(f"LLRMemory: state {prefix + 'X'!r} holds periodic inputs outside "
+                             f"[-period/2, period/2)")
+
     def load_state_dict(self, state: dict[str, np.ndarray], prefix: str = "") -> None:
-        """Restore a ``state_dict``. A state saved before the redundancy scores existed (no
-        ``redundancy`` key) loads with scores 0."""
+        """Restore a ``state_dict`` (checked first: :meth:`check_state_dict`)."""
+        self.check_state_dict(state, prefix)
         if prefix + "redundancy" not in state:
             state = dict(state, **{prefix + "redundancy": np.zeros(self.capacity)})
         for key, arr in (("X", self.X_), ("Y", self.Y_), ("stamp", self.stamp_),
                          ("meta", self._counters[:2]), ("redundancy", self.redundancy_)):
-            value = np.asarray(state[prefix + key])
-            if value.shape != arr.shape:
-                raise ValueError(f"LLRMemory.load_state_dict: {prefix + key} has shape "
-                                 f"{value.shape}, expected {arr.shape}")
-            arr[...] = value
+            arr[...] = state[prefix + key]
         self._counters[_k.VERSION] += 1
 
     # -- queries ------------------------------------------------------------------------------------
