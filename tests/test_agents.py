@@ -343,3 +343,20 @@ def test_memory_estimate_needs_no_memory_for_what_cannot_fit(tmp_path):
                             timeout=300)
     estimate, outcome = result.stdout.split()
     assert int(estimate) > 24 * 2**30 and outcome == "MemoryError", result.stderr
+
+
+#: Per learner, the hyperparameter its memory grows with, at two sizes.
+_SIZES = {"rmac": ("critic_capacity", 2000, 20000), "mlac": ("actor_capacity", 2000, 20000),
+          "s-ac": ("tile_coding", {"tiles": 7}, {"tiles": 70}),
+          "sb3-sac": ("buffer_size", 10 ** 4, 10 ** 6), "sb3-td3": ("buffer_size", 10 ** 4, 10 ** 6),
+          "sb3-ppo": ("n_steps", 256, 8192)}
+
+
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+def test_every_learner_estimates_its_memory_from_its_config(algorithm):
+    # What a runner asks before it starts workers: an answer for every registered learner.
+    from rmac_mj.agents import memory_estimate
+    name, small, large = _SIZES[algorithm]
+    at_small = memory_estimate(algorithm, STATES, ACTIONS, {name: small})
+    at_large = memory_estimate(algorithm, STATES, ACTIONS, {name: large})
+    assert isinstance(at_small, int) and 0 < at_small < at_large

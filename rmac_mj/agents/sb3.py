@@ -423,6 +423,12 @@ class SB3Agent(Agent):
             self.model._last_obs = np.array(state["last_observation"], dtype=np.float32)
 
 
+def _network_bytes(inputs: int, net_arch: tuple[int, ...], outputs: int) -> int:
+    """float32 parameters of a fully connected network (weights and biases)."""
+    sizes = [inputs, *net_arch, outputs]
+    return 4 * sum((a + 1) * b for a, b in zip(sizes[:-1], sizes[1:]))
+
+
 class _OffPolicyAgent(SB3Agent):
     """SAC and TD3: act, store the transition, and update every ``train_freq`` steps (SB3's
     ``OffPolicyAlgorithm.learn``: ``collect_rollouts`` of ``train_freq`` steps, then ``train``)."""
@@ -482,6 +488,18 @@ class _OffPolicyAgent(SB3Agent):
 
     def _greedy_scaled_action(self, observation):
         raise NotImplementedError
+
+    @classmethod
+    def _memory_parts(cls, config: Any, state_space: StateSpace,
+                      action_space: ActionSpace) -> tuple[int, int]:
+        """An upper estimate (see :meth:`Agent.memory_estimate`): the actor and two critics, each
+        with a target copy and Adam's two moments, and a full replay buffer of float32 transitions
+        (observation, next observation, action, reward, done, timeout)."""
+        n, m = state_space.dim, action_space.dim
+        networks = 4 * (_network_bytes(n, config.net_arch, 2 * m)
+                        + 2 * _network_bytes(n + m, config.net_arch, 1))
+        buffer = 4 * config.buffer_size * (2 * n + m + 3)
+        return networks + buffer, networks + buffer
 
     def _optimizers(self) -> dict[str, Any]:
         return {"actor_optimizer.": self.model.actor.optimizer,
@@ -588,6 +606,17 @@ class SB3PPO(SB3Agent):
     display_name = "PPO (SB3)"
     config_class = SB3PPOConfig
     sb3_class = "PPO"
+
+    @classmethod
+    def _memory_parts(cls, config: Any, state_space: StateSpace,
+                      action_space: ActionSpace) -> tuple[int, int]:
+        """An upper estimate (see :meth:`Agent.memory_estimate`): the policy and value networks
+        with Adam's two moments, and a full rollout of float32 entries (observation, action,
+        reward, return, advantage, value, log probability, episode start)."""
+        n, m = state_space.dim, action_space.dim
+        networks = 3 * (_network_bytes(n, config.net_arch, m) + _network_bytes(n, config.net_arch, 1))
+        rollout = 4 * config.n_steps * (n + m + 6)
+        return networks + rollout, networks + rollout
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
