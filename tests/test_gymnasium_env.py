@@ -22,11 +22,24 @@ def test_every_task_of_the_suite_is_registered():
         assert name in gymnasium.registry
 
 
+#: What Gymnasium's checker may advise and the suite declines: the tasks keep their own action units
+#: (volts, newton-metres), and speeds have no hard bound.
+ADVICE = ("symmetric and normalized space", "minimum value is -infinity",
+          "maximum value is infinity")
+
+
 @pytest.mark.parametrize("name", IDS)
 def test_gymnasiums_checker_passes(name):
+    """No error, and no warning but the known advice (the checker reports real problems, e.g. an
+    observation outside its space or a seed that does not repeat the reset, as warnings)."""
+    import warnings
+
     env = gymnasium.make(name)
-    with pytest.warns(UserWarning):  # advice only: the task's own action units, unbounded speeds
-        check_env(env.unwrapped, skip_render_check=True)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        check_env(env.unwrapped, skip_render_check=True)  # rendering: its own test below
+    unexpected = [str(w.message) for w in caught if not any(a in str(w.message) for a in ADVICE)]
+    assert not unexpected
 
 
 @pytest.mark.parametrize("domain, task", tasks.ALL_TASKS)
