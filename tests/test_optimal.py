@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from rmac_mj import tasks
-from rmac_mj.experiments import optimal, reference
+from rmac_mj.experiments import exploration_floor, optimal, reference
 from rmac_mj.experiments.optimal import OptimalConfig
 
 # Coarse enough for a unit test; the converged default is about -748 (docs/optimal.md).
@@ -188,12 +188,12 @@ def test_noisy_rollouts_without_noise_are_the_greedy_rollout():
     grid = problem(steps=40)
     values = optimal.solve_values(_SMALL, grid)
     _, _, rewards = optimal.greedy_rollout(_SMALL, grid, values)
-    quiet = optimal.noisy_rollouts(_SMALL, grid, values, 0.0, 3, 0, 3, np.random.default_rng(0))
+    quiet = exploration_floor.noisy_rollouts(_SMALL, grid, values, 0.0, 3, 0, 3, np.random.default_rng(0))
     np.testing.assert_allclose(quiet, np.sum(rewards), rtol=0, atol=1e-9)
-    noisy = optimal.noisy_rollouts(_SMALL, grid, values, 1.0, 3, 0, 20, np.random.default_rng(0))
+    noisy = exploration_floor.noisy_rollouts(_SMALL, grid, values, 1.0, 3, 0, 20, np.random.default_rng(0))
     # Noise on a third of the steps makes every trial differ and costs reward on average.
     assert len(set(noisy.round(6))) == 20 and noisy.mean() < np.sum(rewards)
-    every_step = optimal.noisy_rollouts(_SMALL, grid, values, 1.0, 1, 0, 20, np.random.default_rng(0))
+    every_step = exploration_floor.noisy_rollouts(_SMALL, grid, values, 1.0, 1, 0, 20, np.random.default_rng(0))
     assert every_step.mean() < noisy.mean()
 
 
@@ -201,7 +201,7 @@ def test_exploration_floor_is_cached_per_schedule(tmp_path):
     env, identity = swingup(steps=40)
 
     def floor(**kwargs):
-        return optimal.exploration_floor(env, identity, **{"sigma": 1.0, "period": 3, "rollouts": 8,
+        return exploration_floor.exploration_floor(env, identity, **{"sigma": 1.0, "period": 3, "rollouts": 8,
                                                            **kwargs}, config=_SMALL, cache_dir=tmp_path)
     first, again = floor(), floor()
     assert not first.from_cache and again.from_cache

@@ -125,16 +125,16 @@ def exploration_floor(domain: str, task: str, sigma: float, period: int, phase: 
                       cache_dir: str | os.PathLike | None = None, refresh: bool = False,
                       announce: Announce | None = None):
     """The near-optimal policy's return while exploring with N(0, sigma^2) every ``period``-th step
-    (``optimal.ExplorationFloor``), or None when the task's reference method gives none (only the
+    (``exploration_floor.ExplorationFloor``), or None when the task's reference method gives none (only the
     dynamic programme has a policy to explore with)."""
     declared = tasks.knowledge(domain, task).reference
     if declared is None or declared.method != "dynamic programming":
         return None
-    from rmac_mj.experiments import optimal
-    return optimal.exploration_floor(tasks.load(domain, task), problem_identity(domain, task),
-                                     sigma, period, phase,
-                                     config=optimal.OptimalConfig(**declared.settings),
-                                     cache_dir=cache_dir, refresh=refresh, announce=announce)
+    from rmac_mj.experiments import exploration_floor as floors, optimal
+    return floors.exploration_floor(tasks.load(domain, task), problem_identity(domain, task),
+                                    sigma, period, phase,
+                                    config=optimal.OptimalConfig(**declared.settings),
+                                    cache_dir=cache_dir, refresh=refresh, announce=announce)
 
 
 def run_reference(protocol, announce: Announce | None = None) -> float | None:

@@ -23,6 +23,9 @@ naming the key).
 
 Each configuration (variant x grid point) is a Protocol, named after its swept values
 (``alpha_r=0.01__critic_weights=1,0.1``); a ``--config`` file is the same tables with single values.
+
+Most of the module is the checker (:class:`_Checker`), whose every message names the file and the
+key; it and the file's reading are one concern, which is why the module runs past 400 lines.
 """
 
 from __future__ import annotations

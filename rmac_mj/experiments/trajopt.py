@@ -47,6 +47,10 @@ sequence on the actual model, hence a lower bound on the true optimum. Results a
     from rmac_mj.experiments import trajopt
     result = trajopt.optimise(tasks.load(domain, task))
     print(result.describe())
+
+Like a CleanRL file, the solver reads top to bottom in one module (config, result, the problem read
+from the environment, derivatives, the box QP, the backward and forward passes, starts, cache), which
+is why it runs past 400 lines.
 """
 
 from __future__ import annotations
