@@ -126,12 +126,11 @@ def test_killed_run_resumed_equals_uninterrupted(tmp_path):
     assert len(done) == 1
     np.load(done[0], allow_pickle=False)["returns"]  # what was renamed into place is complete
     assert not (killed / "summary.json").exists()
-    command = [sys.executable, "-m", "rmac_mj.cli", *args]
-    resumed = subprocess.run([*command, "--out", str(killed), "--resume"], capture_output=True,
-                             text=True, timeout=300)
-    assert resumed.returncode == 0, resumed.stderr
+    from rmac_mj.cli import main  # the rest in this process: the same commands, no start-up
+
+    assert main([*args, "--out", str(killed), "--resume"]) == 0
     whole = tmp_path / "whole"
-    subprocess.run([*command, "--out", str(whole)], check=True, capture_output=True, timeout=300)
+    assert main([*args, "--out", str(whole)]) == 0
     protocol = Protocol(algorithms=("s-ac",), experiments=4, trials=10)
     np.testing.assert_array_equal(returns_of(killed, protocol)["s-ac"],
                                   returns_of(whole, protocol)["s-ac"])
@@ -188,10 +187,9 @@ def test_ctrl_c_stops_workers_and_says_how_to_resume(tmp_path):
     curves = out / "curves" / "s-ac"
     assert len(list(curves.glob("exp_*.npz"))) == 1
     # The command it prints finishes the run: the settings come from the directory.
-    resumed = subprocess.run([sys.executable, "-m", "rmac_mj.cli", "reproduce", "--resume", "--out",
-                              str(out), "--no-optimal", "--no-progress"],
-                             capture_output=True, text=True, timeout=300)
-    assert resumed.returncode == 0, resumed.stderr
+    from rmac_mj.cli import main
+
+    assert main(["reproduce", "--resume", "--out", str(out), "--no-optimal", "--no-progress"]) == 0
     assert len(list(curves.glob("exp_*.npz"))) == 4
 
 

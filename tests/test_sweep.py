@@ -156,7 +156,7 @@ trials = 5
 from test_runner import _hooked_cli  # noqa: E402  (tests/ is on sys.path, as pytest imports it)
 
 
-def test_tiny_sweep_killed_resumed_and_summarised(tmp_path):
+def test_tiny_sweep_killed_resumed_and_summarised(tmp_path, capsys):
     path = write(tmp_path, TINY)
     killed, marker = tmp_path / "killed", tmp_path / "saved-one"
     args = ["sweep", str(path), "--jobs", "1", "--no-optimal", "--no-progress", "--out", str(killed)]
@@ -170,10 +170,8 @@ def test_tiny_sweep_killed_resumed_and_summarised(tmp_path):
     process.send_signal(signal.SIGKILL)
     process.wait()
     assert len(curves(killed)) == 1 and not (killed / "sweep.csv").exists()
-    resumed = subprocess.run([sys.executable, "-m", "rmac_mj.cli", *args, "--resume"],
-                             capture_output=True, text=True, timeout=300)
-    assert resumed.returncode == 0, resumed.stderr
-    assert "alpha_a=0.02" in resumed.stdout
+    assert cli.main([*args, "--resume"]) == 0  # in this process: the same command, no start-up
+    assert "alpha_a=0.02" in capsys.readouterr().out
 
     # The same sweep uninterrupted, all experiments through one pool of two workers.
     whole = tmp_path / "whole"
