@@ -10,7 +10,9 @@ results on every back end: an experiment's randomness comes from its own seed se
 from __future__ import annotations
 
 import collections
+import concurrent.futures
 import itertools
+import logging
 import multiprocessing
 import os
 import queue
@@ -119,6 +121,9 @@ def connect_dask(address: str, timeout: float | None = None):
     except ValueError:
         raise BackendError(f"--scheduler {address!r} is not a scheduler address (expected e.g. "
                            "tcp://host:8786)") from None
+    # A lost scheduler is reported once, in one line (dask_outcomes), not by the client's own
+    # tracebacks of its reconnection attempts.
+    logging.getLogger("distributed.client").setLevel(logging.CRITICAL)
     try:
         return Client(address, timeout=DASK_CONNECT_SECONDS if timeout is None else timeout)
     except (OSError, TimeoutError) as error:
@@ -153,5 +158,7 @@ def dask_outcomes(items: Iterable, run: Callable, client, window: int | None = N
         finally:
             if client.status == "running":
                 client.cancel(list(futures))
-    except (OSError, TimeoutError) as error:
-        raise BackendError(f"lost the Dask scheduler at {client.scheduler.address} ({error})") from None
+    except (OSError, TimeoutError, concurrent.futures.CancelledError) as error:
+        # a dropped connection cancels every pending future ("scheduler-connection-lost")
+        reason = str(error).splitlines()[0] if str(error) else type(error).__name__
+        raise BackendError(f"lost the Dask scheduler at {client.scheduler.address} ({reason})") from None
