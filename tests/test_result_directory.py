@@ -199,6 +199,16 @@ def test_learners_that_cannot_fit_in_memory_are_refused_before_anything_is_alloc
     assert len(error.strip().splitlines()) == 1 and not (out / "config.json").exists()
 
 
+def test_a_memory_no_machine_holds_is_refused_from_its_estimate(tmp_path, capsys):
+    """The issue's case: the learner's own estimate (no monkeypatching), one line, in seconds."""
+    out = tmp_path / "run"
+    assert main(["reproduce", "--algorithms", "rmac", "--set", "rmac.critic_capacity=1000000000",
+                 "--no-optimal", "--no-progress", "--out", str(out)]) == 2
+    error = capsys.readouterr().err
+    assert "rmac with {\"critic_capacity\": 1000000000} needs about" in error
+    assert "more than this machine's" in error and not (out / "config.json").exists()
+
+
 def test_the_resolved_hyperparameters_of_every_learner_are_in_the_config(tmp_path):
     protocol = Protocol(algorithms=("rmac",), experiments=1, trials=1)
     runner.run_protocol(protocol, tmp_path, jobs=1, progress=False, figures=False)

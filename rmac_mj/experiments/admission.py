@@ -19,7 +19,8 @@ import os
 import time
 from typing import Any, Callable, Iterable
 
-from rmac_mj.agents import agent_class, config_class, config_from_dict, make_agent
+from rmac_mj import agents
+from rmac_mj.agents import make_agent
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
 from rmac_mj.errors import UserInputError
 from rmac_mj.experiments import prior as prior_data
@@ -68,15 +69,11 @@ def resolve_agents(protocol: Protocol, spaces: TaskSpaces) -> dict[str, dict[str
     return resolved
 
 
-def memory_estimate(protocol: Protocol, algorithm: str, spaces: TaskSpaces) -> int | None:
+def memory_estimate(protocol: Protocol, algorithm: str, spaces: TaskSpaces) -> int:
     """Bytes one experiment of ``algorithm`` needs, estimated from its config before anything is
-    allocated (the learner class's ``memory_estimate(config, state_space, action_space)``), or None
-    when the learner gives no estimate."""
-    estimate = getattr(agent_class(algorithm), "memory_estimate", None)
-    if estimate is None:
-        return None
-    config = config_from_dict(config_class(algorithm), protocol.agent_configs.get(algorithm, {}))
-    return int(estimate(config, *spaces.of(protocol)))
+    allocated (``rmac_mj.agents.memory_estimate``: the learner class's own estimate)."""
+    return int(agents.memory_estimate(algorithm, *spaces.of(protocol),
+                                      config=protocol.agent_configs.get(algorithm)))
 
 
 def machine_memory() -> int | None:
@@ -103,7 +100,7 @@ def check_memory(protocols: Iterable[Protocol], workers: int, spaces: TaskSpaces
     for protocol in protocols:
         for algorithm in protocol.algorithms:
             size = memory_estimate(protocol, algorithm, spaces)
-            if size is not None and size > largest:
+            if size > largest:
                 largest, name = size, (algorithm, protocol)
     if name is None or (workers + 1) * largest <= available:
         return
