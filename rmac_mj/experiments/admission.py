@@ -8,7 +8,7 @@
 - :func:`warm_up`: the compiled kernels are compiled (or loaded from numba's cache) in the driver
   before the workers start, which then load them in about a second.
 
-Each task is asked once per purpose (:class:`TaskSpaces` caches its spaces per distinct task).
+Each task is asked once per purpose (:class:`TaskFacts` caches what is asked of each distinct task).
 """
 
 from __future__ import annotations
@@ -24,26 +24,35 @@ from rmac_mj.agents import make_agent
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
 from rmac_mj.errors import UserInputError
 from rmac_mj.experiments import prior as prior_data
-from rmac_mj.experiments.episode import action_space_of, run_trial, state_space_of
+from rmac_mj.experiments.episode import action_space_of, run_trial, state_space_of, trial_seconds
 from rmac_mj.experiments.protocol import Protocol
 
 
-class TaskSpaces:
-    """The state and action spaces of each distinct task (domain, task, task_kwargs), built once."""
+class TaskFacts:
+    """What the driver asks of each distinct task (domain, task, task_kwargs), its environment built
+    once for all: the spaces the learners see and the trial's length."""
 
     def __init__(self) -> None:
-        self._spaces: dict[str, tuple[StateSpace, ActionSpace]] = {}
+        self._facts: dict[str, tuple[StateSpace, ActionSpace, float]] = {}
 
-    def of(self, protocol: Protocol) -> tuple[StateSpace, ActionSpace]:
+    def _of(self, protocol: Protocol) -> tuple[StateSpace, ActionSpace, float]:
         key = json.dumps([protocol.domain, protocol.task, protocol.task_kwargs], sort_keys=True,
                          default=repr)
-        if key not in self._spaces:
+        if key not in self._facts:
             env = protocol.make_environment()
-            self._spaces[key] = state_space_of(env), action_space_of(env)
-        return self._spaces[key]
+            self._facts[key] = state_space_of(env), action_space_of(env), trial_seconds(env)
+        return self._facts[key]
+
+    def of(self, protocol: Protocol) -> tuple[StateSpace, ActionSpace]:
+        """The learner's state and action spaces on the protocol's task."""
+        return self._of(protocol)[:2]
+
+    def trial_seconds(self, protocol: Protocol) -> float:
+        """Simulated seconds of one trial of the protocol's task."""
+        return self._of(protocol)[2]
 
 
-def read_prior_file(protocol: Protocol, spaces: TaskSpaces
+def read_prior_file(protocol: Protocol, spaces: TaskFacts
                     ) -> tuple[prior_data.Demonstration | None, str | None]:
     """The protocol's recorded prior knowledge, checked against its task, and the file's SHA-256
     (stored in config.json, so that ``resume`` refuses a file that changed); (None, None) without."""
@@ -54,7 +63,7 @@ def read_prior_file(protocol: Protocol, spaces: TaskSpaces
     return demonstration, hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def resolve_agents(protocol: Protocol, spaces: TaskSpaces) -> dict[str, dict[str, Any]]:
+def resolve_agents(protocol: Protocol, spaces: TaskFacts) -> dict[str, dict[str, Any]]:
     """Each learner's resolved hyperparameters (``Agent.config_dict``) on the protocol's task; a
     learner its config cannot build there is refused as a :class:`UserInputError` naming it."""
     state_space, action_space = spaces.of(protocol)
@@ -69,7 +78,7 @@ def resolve_agents(protocol: Protocol, spaces: TaskSpaces) -> dict[str, dict[str
     return resolved
 
 
-def memory_estimate(protocol: Protocol, algorithm: str, spaces: TaskSpaces) -> int:
+def memory_estimate(protocol: Protocol, algorithm: str, spaces: TaskFacts) -> int:
     """Bytes one experiment of ``algorithm`` needs, estimated from its config before anything is
     allocated (``rmac_mj.agents.memory_estimate``: the learner class's own estimate)."""
     return int(agents.memory_estimate(algorithm, *spaces.of(protocol),
@@ -88,7 +97,7 @@ def _gb(size: float) -> str:
     return f"{size / 1e9:.1f} GB"
 
 
-def check_memory(protocols: Iterable[Protocol], workers: int, spaces: TaskSpaces,
+def check_memory(protocols: Iterable[Protocol], workers: int, spaces: TaskFacts,
                  available: int | None = None) -> None:
     """Refuse, in one line, learners that cannot fit: ``workers`` experiments of the largest at once
     (plus this driver's one of it, for the warm-up) must fit the machine's memory (``available``,

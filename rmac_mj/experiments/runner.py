@@ -21,7 +21,6 @@ from typing import Any, Callable, Iterable, Iterator
 
 from rmac_mj.experiments import (admission, execution, files, metrics, prior as prior_data,
                                   reference, statistics)
-from rmac_mj.experiments.episode import trial_seconds
 from rmac_mj.experiments.progress import Progress, TrialFeed
 from rmac_mj.experiments.protocol import ExperimentSpec, Protocol, run_experiment
 from rmac_mj.experiments.store import ExperimentResult, ResultStore
@@ -171,7 +170,7 @@ def run_protocols(runs: Iterable[tuple[Protocol, str | os.PathLike]], jobs: int 
     jobs = (os.cpu_count() or 1) if jobs is None else jobs
     if jobs < 1:
         raise ValueError(f"jobs must be a positive integer, got {jobs!r}")
-    spaces, code, state = admission.TaskSpaces(), files.code_version(), []
+    spaces, code, state = admission.TaskFacts(), files.code_version(), []
     resolved: dict[str, dict[str, Any]] = {}
     for protocol, out in runs:
         demonstration, prior_sha256 = admission.read_prior_file(protocol, spaces)
@@ -191,7 +190,7 @@ def run_protocols(runs: Iterable[tuple[Protocol, str | os.PathLike]], jobs: int 
                 run.begin(started, log)
         return _run_all(state, client, jobs, progress, started, log,
                         dict(references=references, figures=figures, smooth=smooth, log=log,
-                             started=started))
+                             started=started, facts=spaces))
     finally:
         for run in state:
             run.store.lock().release()
@@ -243,20 +242,22 @@ def _run_all(state: list[_Run], client, jobs: int, progress: bool, started: floa
 
 def finalise(store: ResultStore, protocol: Protocol, wall_time_s: float | None = None,
              references: bool = False, figures: bool = True, clock: WallClock | None = None,
-             smooth: int = 1, log: Callable[[str], None] | None = None) -> dict[str, Any]:
+             smooth: int = 1, log: Callable[[str], None] | None = None,
+             facts: admission.TaskFacts | None = None) -> dict[str, Any]:
     """Summarise the finished curves in ``store``: returns.csv, Fig. 2, then summary.json.
 
     The wall time in the summary is ``wall_time_s``, or with ``clock`` the total over every part of
-    the run up to the end of the figures (``wall_time_parts_s`` lists the parts). With
-    ``references``, the task's near-optimal reference and each learner's exploration floor are asked
-    for (``log`` hears about a first computation and its progress).
+    the run up to the end of the figures (``wall_time_parts_s`` lists the parts); ``facts`` are the
+    tasks' facts already asked (:class:`admission.TaskFacts`). With ``references``, the task's
+    near-optimal reference and each learner's exploration floor are asked for (``log`` hears about a
+    first computation and its progress).
     """
     store.summary_path.unlink(missing_ok=True)  # until the new one is written: not finished
     optimal_return = reference.run_reference(protocol, log) if references else None
     floors = ({a: reference.run_exploration_floor(protocol, a, log) for a in protocol.algorithms}
               if references else {})
     shared_floor = set(floors.values())  # one line in Fig. 2 when every learner explores alike
-    seconds = trial_seconds(protocol.make_environment())
+    seconds = (facts or admission.TaskFacts()).trial_seconds(protocol)
     summary: dict[str, Any] = {"paper_protocol": protocol.is_paper_protocol,
                                "optimal_return": optimal_return,
                                "exploration_floor": shared_floor.pop() if len(shared_floor) == 1
