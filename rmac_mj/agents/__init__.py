@@ -7,6 +7,7 @@ line in ``_REGISTRY`` (key -> module, agent class, config class). The modules by
 * ``base``: the Agent interface (the checked boundary, checked state dicts, one transition's
   ``learn``, the memory estimate, task knowledge in configs);
 * ``spaces``: StateSpace and ActionSpace, what a learner sees of a task;
+* ``task_knowledge``: what a config left None takes from the task (weightings, action cost);
 * ``exploration``: the Exploration schedule (section 6.1);
 * ``prior_knowledge``: recorded transitions into memories (section 7);
 * ``random_state``: a generator's state as numbers, for snapshots;

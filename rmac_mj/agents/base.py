@@ -17,6 +17,9 @@ snapshots are written with ``numpy.savez`` and read back with ``allow_pickle=Fal
 
 ``seed_from`` initialises a learner's memories from recorded transitions before it learns (prior
 knowledge, section 7, :mod:`rmac_mj.agents.prior_knowledge`); learners that take none refuse it.
+
+The module is the one boundary every learner shares (the checks on the way in and on a restore, the
+hooks learners, planning and replay implement), which is why it runs past 400 lines.
 """
 
 from __future__ import annotations
@@ -76,48 +79,6 @@ class Agent(abc.ABC):
         self.trials_ = 0
         #: Planning and replay between trials (``config.planning``, ``config.replay``); None without.
         self._rehearsal = Rehearsal.of(config, state_space, action_space)
-
-    def _config_with_task_weights(self, config: Any, state_memories: tuple[str, ...],
-                                  process_memories: tuple[str, ...] = ("process",)) -> Any:
-        """``config`` with every ``<memory>_weights`` left None taken from the task's hints: the
-        StateSpace's ``weights`` for a memory over x, those then the ActionSpace's for one over
-        [x, u]; every weighting checked against n or n + m. The learner keeps the result as
-        ``self.config``, so results record the weightings actually used."""
-        n, m = self.state_space.dim, self.action_space.dim
-        hints = {name: self.state_space.input_weights for name in state_memories}
-        hints.update({name: np.r_[self.state_space.input_weights, self.action_space.input_weights]
-                      for name in process_memories})
-        config = dataclasses.replace(config, **{
-            f"{name}_weights": tuple(float(w) for w in weights)
-            for name, weights in hints.items() if getattr(config, f"{name}_weights") is None})
-        for name in hints:
-            size = n + m if name in process_memories else n
-            weights = getattr(config, f"{name}_weights")
-            if len(weights) != size:
-                raise ValueError(f"{self.name.upper()}: config.{name}_weights has {len(weights)} "
-                                 f"entries, this task needs {size} "
-                                 f"({'[x, u]' if name in process_memories else 'x'})")
-        return config
-
-    def _config_with_task_action_cost(self, config: Any, used_by: str | None) -> Any:
-        """``config`` with its ``action_cost`` resolved against the task, as a tuple of m numbers: None
-        takes the task's (``ActionSpace.cost``), a number P stands for P in every action dimension.
-        ``used_by`` says what reads it; None when nothing does, and then a cost the task does not
-        declare stays None. The learner keeps the result as ``self.config``."""
-        m, cost = self.action_space.dim, config.action_cost
-        if cost is None:
-            cost = self.action_space.cost
-            if cost is None and used_by is not None:
-                raise ValueError(f"{self.name.upper()}: {used_by} uses the reward's action cost, "
-                                 f"which this task does not declare (learner_state.action_cost); "
-                                 f"set config.action_cost (0: the reward does not depend on u)")
-        elif np.ndim(cost) == 0:
-            cost = (cost,) * m
-        if cost is not None and len(cost) != m:
-            raise ValueError(f"{self.name.upper()}: config.action_cost has {len(cost)} entries, "
-                             f"this task has {m} action dimensions")
-        return dataclasses.replace(
-            config, action_cost=None if cost is None else tuple(float(c) for c in cost))
 
     @classmethod
     def memory_estimate(cls, config: Any, state_space: StateSpace, action_space: ActionSpace) -> int:

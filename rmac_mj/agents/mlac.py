@@ -52,6 +52,7 @@ from rmac_mj.agents.exploration import Exploration, model_uncertainty
 from rmac_mj.agents.planning import Planning, Replay
 from rmac_mj.agents.prior_knowledge import discounted_returns, seed_memory
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
+from rmac_mj.agents.task_knowledge import with_task_action_cost, with_task_weights
 from rmac_mj.approximators.llr import SHARED_CONSTRAINTS, LLRMemory, memory_constraints, wrap
 from rmac_mj.constraints import WEIGHTS, InstanceOf, Interval, Options, check_config
 
@@ -199,8 +200,9 @@ class MLAC(Agent):
         n, m = state_space.dim, action_space.dim
         self.n, self.m = n, m
         self.period = state_space.period  # (n,), 0 for non-periodic dimensions
-        config = self._config_with_task_weights(config, ("actor", "critic"))
-        self.config = config = self._config_with_task_action_cost(config, "the actor's gradient")
+        config = with_task_weights("MLAC", config, state_space, action_space, ("actor", "critic"))
+        self.config = config = with_task_action_cost("MLAC", config, action_space,
+                                                     "the actor's gradient")
         self._action_cost = np.array(config.action_cost)  # P, shape (m,)
         common = dict(norm=config.norm, conditioning=config.conditioning, rcond=config.rcond,
                       ridge=config.ridge, backend=config.backend)

@@ -39,6 +39,7 @@ from rmac_mj.agents.exploration import model_uncertainty
 from rmac_mj.agents.prior_knowledge import discounted_returns, seed_memory
 from rmac_mj.agents.rmac_config import REACHABLE_RULES, RMACConfig
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
+from rmac_mj.agents.task_knowledge import with_task_action_cost, with_task_weights
 from rmac_mj.approximators.llr import LLRMemory, wrap
 
 __all__ = ["RMAC", "RMACConfig"]
@@ -78,9 +79,10 @@ class RMAC(Agent):
                  seed: int | np.random.Generator | None = None) -> None:
         super().__init__(state_space, action_space, config, seed)
         n, m = state_space.dim, action_space.dim
-        config = self._config_with_task_weights(config, ("critic", "reference"))
-        self.config = config = self._config_with_task_action_cost(
-            config, None if config.reachable_rule == "vertices" else
+        config = with_task_weights("RMAC", config, state_space, action_space,
+                                   ("critic", "reference"))
+        self.config = config = with_task_action_cost(
+            "RMAC", config, action_space, None if config.reachable_rule == "vertices" else
             f"reachable_rule={config.reachable_rule!r}")
         #: P of the reachable rules' score (zeros when the rule does not use it), shape (m,).
         self._action_cost = np.array(config.action_cost or np.zeros(action_space.dim), dtype=float)
