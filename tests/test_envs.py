@@ -275,3 +275,79 @@ def test_action_repeat_sums_the_rewards():
     repeated = [two.step(np.array([0.5])).reward for _ in range(2)]
     np.testing.assert_allclose(repeated, [rewards[0] + rewards[1], rewards[2] + rewards[3]])
     assert two.control_timestep() == pytest.approx(0.2)
+
+
+# ----------------------------------------------------------------------------------------------------
+# The runner: a protocol on an outside environment, its snapshots, its sweep file.
+
+def tiny_protocol(**fields):
+    from rmac_mj.experiments.protocol import Protocol
+
+    return Protocol(**{"algorithms": ("s-ac",), "experiments": 1, "trials": 2, "evaluate_every": 1,
+                       "snapshot_trials": (), "agent_configs": {"s-ac": {"backend": "numpy"}},
+                       **fields})
+
+
+def test_a_protocol_runs_an_outside_environment_and_its_snapshot_acts_in_it(tmp_path):
+    from rmac_mj.experiments import runner
+    from rmac_mj.experiments.snapshots import load_snapshot, snapshot_environment
+
+    protocol = tiny_protocol(env="gymnasium:Pendulum-v1", task_kwargs={"max_episode_steps": 10},
+                             learner_state={"action_cost": [0.001]}, evaluate_starts=3)
+    assert (protocol.domain, protocol.task) == (None, None)
+    assert protocol.environment_name == "gymnasium:Pendulum-v1"
+    summary = runner.run_protocol(protocol, tmp_path, jobs=1, progress=False, figures=False)
+    assert summary["trial_seconds"] == pytest.approx(0.5)
+    assert list(summary["learner_state"]["keys"]) == ["atan2(observation[1], observation[0])",
+                                                      "observation[2]"]
+    assert list(summary["learner_state"]["action_cost"]) == [0.001]
+    agent, meta = load_snapshot(tmp_path / "snapshots" / "s-ac" / "exp_000" / "trial_0002.npz")
+    env = snapshot_environment(agent, meta)
+    assert env.learner_state.keys == tuple(summary["learner_state"]["keys"])
+    assert np.isfinite(run_trial(env, agent, learn=False))
+
+
+def test_an_evaluation_is_the_mean_over_the_same_seeded_starts():
+    from rmac_mj.experiments.protocol import build_experiment, evaluation
+
+    protocol = tiny_protocol(env="gymnasium:Pendulum-v1", task_kwargs={"max_episode_steps": 10},
+                             evaluate_starts=4)
+    experiment = build_experiment(protocol, "s-ac", 0)
+    evaluate = evaluation(protocol, 0)
+    first = evaluate(experiment.env, experiment.agent)
+    assert evaluate(experiment.env, experiment.agent) == first  # the same starts, nothing learned
+    assert evaluation(protocol, 1)(experiment.env, experiment.agent) != first  # another experiment's
+
+
+def test_env_fields_need_env_and_exclude_a_suite_task():
+    with pytest.raises(ValueError, match="action_repeat, trial_steps describe an outside environment"):
+        tiny_protocol(action_repeat=2, trial_steps=5)
+    with pytest.raises(ValueError, match="name two environments"):
+        tiny_protocol(env="gymnasium:Pendulum-v1", domain="two_link_arm", task="reach")
+
+
+def test_a_sweep_file_takes_env_and_a_learner_state_table(tmp_path):
+    from rmac_mj.experiments.sweep_file import SweepFileError, load_sweep
+
+    path = tmp_path / "cartpole.toml"
+    path.write_text(textwrap.dedent("""
+        [protocol]
+        env = "dm_control:cartpole/swingup"
+        action_repeat = 2
+        trial_steps = 5
+        algorithms = ["s-ac"]
+        experiments = 1
+        [learner_state]
+        bounds = { "position[0]" = [-1.8, 1.8], "velocity[0]" = [-5, 5], "velocity[1]" = [-20, 20] }
+        [grid]
+        "s-ac.alpha_a" = [0.005, 0.02]
+    """))
+    sweep = load_sweep(path)
+    protocol = sweep.configurations[0].protocol
+    assert protocol.env == "dm_control:cartpole/swingup" and protocol.action_repeat == 2
+    env = protocol.make_environment(0)
+    assert env.learner_state.keys[1] == "atan2(position[2], position[1])"
+    assert steps_per_trial(env) == 5
+    path.write_text(path.read_text().replace(', "velocity[1]" = [-20, 20]', ""))
+    with pytest.raises(SweepFileError, match=r"no finite bounds for velocity\[1\]"):
+        load_sweep(path)

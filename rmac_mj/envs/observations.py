@@ -371,21 +371,25 @@ def infer_learner_state(layout: ObservationLayout, samples: np.ndarray, action_l
         example = ", ".join(f'"{name}" = [LOW, HIGH]' for name in missing)
         raise ValueError(f"{owner}: no finite bounds for {', '.join(missing)} (the observation spec "
                          f"gives none); declare them: learner_state.bounds = {{{example}}}")
-    periodic = declared.get("periodic", mapping.periodic())
-    labels = declared.get("labels", tuple(
-        f"{name} [rad]" if p else name for name, p in zip(mapping.dimension_names(),
-                                                          mapping.periodic())))
-    weights = declared.get("input_weights", tuple(default_weights(low, high)))
     action_low = np.asarray(action_low, dtype=float).reshape(-1)
     action_high = np.asarray(action_high, dtype=float).reshape(-1)
-    action_weights = declared.get("action_input_weights",
-                                  tuple(default_weights(action_low, action_high)))
-    action_labels = declared.get("action_labels",
-                                 tuple(f"u[{i}]" for i in range(action_low.size)))
+    inferred = {
+        "keys": tuple(entries), "low": tuple(low), "high": tuple(high),
+        "periodic": mapping.periodic(),
+        "labels": tuple(f"{name} [rad]" if p else name
+                        for name, p in zip(names, mapping.periodic())),
+        "input_weights": tuple(default_weights(low, high)),
+        "action_input_weights": tuple(default_weights(action_low, action_high)),
+        "action_labels": tuple(f"u[{i}]" for i in range(action_low.size)),
+        # What the reward charges for the action cannot be read from the specs: only declared.
+        "action_cost": None,
+    }
+    given = {name: (tuple(value) if isinstance(value, list) else value)
+             for name, value in declared.items() if name in _FIELDS and name not in ("low", "high")}
+    if given.get("action_cost") is not None and len(given["action_cost"]) != action_low.size:
+        raise ValueError(f"{owner}: learner_state.action_cost needs {action_low.size} values, one per "
+                         f"action dimension, got {declared['action_cost']!r}")
     try:
-        return LearnerState(keys=tuple(entries), low=tuple(low), high=tuple(high),
-                            periodic=tuple(periodic), labels=tuple(labels), input_weights=tuple(weights),
-                            action_input_weights=tuple(action_weights),
-                            action_labels=tuple(action_labels))
+        return LearnerState(**{**inferred, **given})
     except ValueError as error:
         raise ValueError(f"{owner}: {error}") from None

@@ -24,23 +24,26 @@ from rmac_mj.agents import make_agent
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
 from rmac_mj.errors import UserInputError
 from rmac_mj.experiments import prior as prior_data
-from rmac_mj.experiments.episode import action_space_of, run_trial, state_space_of, trial_seconds
+from rmac_mj.experiments.episode import (action_space_of, learner_state_of, run_trial,
+                                         state_space_of, trial_seconds)
 from rmac_mj.experiments.protocol import Protocol
+from tasks.common import LearnerState
 
 
 class TaskFacts:
     """What the driver asks of each distinct task (domain, task, task_kwargs), its environment built
-    once for all: the spaces the learners see and the trial's length."""
+    once for all: the spaces the learners see, the trial's length and the learner's state."""
 
     def __init__(self) -> None:
-        self._facts: dict[str, tuple[StateSpace, ActionSpace, float]] = {}
+        self._facts: dict[str, tuple[StateSpace, ActionSpace, float, LearnerState]] = {}
 
-    def _of(self, protocol: Protocol) -> tuple[StateSpace, ActionSpace, float]:
+    def _of(self, protocol: Protocol) -> tuple[StateSpace, ActionSpace, float, LearnerState]:
         key = json.dumps([protocol.domain, protocol.task, protocol.task_kwargs], sort_keys=True,
                          default=repr)
         if key not in self._facts:
             env = protocol.make_environment()
-            self._facts[key] = state_space_of(env), action_space_of(env), trial_seconds(env)
+            self._facts[key] = (state_space_of(env), action_space_of(env), trial_seconds(env),
+                                learner_state_of(env))
         return self._facts[key]
 
     def of(self, protocol: Protocol) -> tuple[StateSpace, ActionSpace]:
@@ -50,6 +53,10 @@ class TaskFacts:
     def trial_seconds(self, protocol: Protocol) -> float:
         """Simulated seconds of one trial of the protocol's task."""
         return self._of(protocol)[2]
+
+    def learner_state(self, protocol: Protocol) -> LearnerState:
+        """What the learner's state x is on the protocol's task (inferred for an outside one)."""
+        return self._of(protocol)[3]
 
 
 def read_prior_file(protocol: Protocol, spaces: TaskFacts

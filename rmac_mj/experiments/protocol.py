@@ -21,6 +21,8 @@ recorded file (``experiments.prior``) that the driver reads and checks once.
 from __future__ import annotations
 
 import dataclasses
+import functools
+import json
 import numbers
 import pathlib
 import time
@@ -29,7 +31,7 @@ from typing import Any, Callable, ClassVar
 import numpy as np
 from dm_control.rl import control
 
-from rmac_mj import constraints, tasks
+from rmac_mj import constraints, envs, tasks
 from rmac_mj.agents import (ALGORITHMS, PRIOR_PARTS, ActionSpace, Agent, StateSpace, agent_class,
                             config_class, config_from_dict, make_agent)
 from rmac_mj.experiments import files, prior as prior_data
@@ -60,8 +62,9 @@ class Protocol:
 
     Attributes:
       domain, task: the environment, loaded with ``rmac_mj.tasks.load`` (see :meth:`make_environment`,
-        the one place an experiment's environment is built).
-      task_kwargs: task arguments (not ``random``, which comes from the seed).
+        the one place an experiment's environment is built); None with ``env``.
+      task_kwargs: task arguments (not ``random``, which comes from the seed); with ``env``, the outside
+        environment's kwargs (``rmac_mj.envs.EnvSpec.kwargs``).
       algorithms: algorithm keys, from ``rmac_mj.agents.ALGORITHMS``.
       experiments: learning experiments per algorithm.
       trials: consecutive learning trials per experiment.
@@ -78,6 +81,19 @@ class Protocol:
       prior_trials: trials of the demonstrator recorded per experiment (demonstrators only).
       prior_parts: which kinds of knowledge to seed (``base.PRIOR_PARTS``, e.g. ``('process',)`` for
         the recorded dynamics alone); empty: everything each learner takes.
+      evaluate_starts: what an evaluation is: 0, one greedy trial from the experiment's next start
+        (the task's own stream; right for a task that always starts alike); N, the mean of N greedy
+        trials from N starts drawn once per experiment by an environment of its own (seeded from
+        ``(i, 2)``), the same N at every evaluation, so that the curve follows the policy and not the
+        starts (Gymnasium's Pendulum-v1 starts anywhere).
+      env: an outside environment by SPEC (``rmac_mj.envs``: ``dm_control:DOMAIN/TASK``,
+        ``gymnasium:ID``, ``package.module:factory``, ``path/file.py:factory``) instead of
+        ``domain``/``task``. With it, and only with it:
+      learner_state: what x is where it cannot be inferred: some of LearnerState's fields, or
+        ``bounds`` per dimension (a ``[learner_state]`` table; ``rmac_mj.envs.EnvSpec``).
+      action_repeat: environment steps per learner step, the same action held (rewards summed).
+      trial_steps: learner steps after which a trial is truncated; None: the environment's limit.
+      control_timestep: seconds per environment step, for an environment that does not say.
     """
 
     domain: str = tasks.DEFAULT_TASK[0]
@@ -93,12 +109,18 @@ class Protocol:
     prior: str | None = None
     prior_trials: int = 5
     prior_parts: tuple[str, ...] = ()
+    evaluate_starts: int = 0
+    env: str | None = None
+    learner_state: dict[str, Any] | None = None
+    action_repeat: int = 1
+    trial_steps: int | None = None
+    control_timestep: float | None = None
 
     #: The type and range of every field (:mod:`rmac_mj.constraints`); the sweep file's [protocol]
     #: table is checked against the same rules.
     parameter_constraints: ClassVar[dict[str, list]] = {
-        "domain": [constraints.InstanceOf(str)],
-        "task": [constraints.InstanceOf(str)],
+        "domain": [constraints.InstanceOf(str), None],
+        "task": [constraints.InstanceOf(str), None],
         "task_kwargs": [constraints.InstanceOf(dict)],
         "algorithms": [constraints.TupleOf(constraints.InstanceOf(str),
                                            what="a list of one or more algorithm names")],
@@ -112,7 +134,16 @@ class Protocol:
         "prior": [constraints.InstanceOf(str), None],
         "prior_trials": [constraints.Interval(numbers.Integral, 1, None)],
         "prior_parts": [constraints.TupleOf(constraints.Options(*PRIOR_PARTS)), _EMPTY],
+        "evaluate_starts": [constraints.Interval(numbers.Integral, 0, None)],
+        "env": [constraints.InstanceOf(str), None],
+        "learner_state": [constraints.InstanceOf(dict), None],
+        "action_repeat": [constraints.Interval(numbers.Integral, 1, None)],
+        "trial_steps": [constraints.Interval(numbers.Integral, 1, None), None],
+        "control_timestep": [constraints.Interval(numbers.Real, 0, None, closed="neither"), None],
     }
+    #: The fields that describe an outside environment (``env``); they mean nothing without it.
+    ENV_FIELDS: ClassVar[tuple[str, ...]] = ("learner_state", "action_repeat", "trial_steps",
+                                              "control_timestep")
 
     def __post_init__(self) -> None:
         if isinstance(self.algorithms, (tuple, list)):
@@ -125,6 +156,21 @@ class Protocol:
         object.__setattr__(self, "snapshot_trials",
                            tuple(sorted({t for t in self.snapshot_trials if t <= self.trials}
                                         | {self.trials})))
+        if self.env is not None:
+            self._check_env()
+        else:
+            self._check_suite_task()
+        for name, overrides in self.agent_configs.items():
+            if name not in ALGORITHMS:
+                raise ValueError(f"agent_configs names unknown algorithm {name!r}")
+            config_from_dict(config_class(name), overrides)  # raises on unknown or bad values
+        self._check_prior()
+
+    def _check_suite_task(self) -> None:
+        given = [name for name in self.ENV_FIELDS
+                 if getattr(self, name) != _FIELD_DEFAULTS[name]]
+        if given:
+            raise ValueError(f"{', '.join(given)} describe an outside environment: give env too")
         if self.domain not in tasks.TASKS_BY_DOMAIN:
             raise ValueError(f"unknown domain {self.domain!r}; available: "
                              f"{', '.join(sorted(tasks.TASKS_BY_DOMAIN))}")
@@ -133,11 +179,16 @@ class Protocol:
                              f"{', '.join(tasks.TASKS_BY_DOMAIN[self.domain])}")
         if "random" in self.task_kwargs:
             raise ValueError("task_kwargs must not set 'random': the task's seed comes from `seed`")
-        for name, overrides in self.agent_configs.items():
-            if name not in ALGORITHMS:
-                raise ValueError(f"agent_configs names unknown algorithm {name!r}")
-            config_from_dict(config_class(name), overrides)  # raises on unknown or bad values
-        self._check_prior()
+
+    def _check_env(self) -> None:
+        """An outside environment: domain/task give way (None); the spec is resolved now, so that a
+        learner state that cannot be inferred is refused before anything runs."""
+        if (self.domain, self.task) not in ((None, None), tasks.DEFAULT_TASK):
+            raise ValueError(f"env {self.env!r} and domain/task {self.domain}/{self.task} name two "
+                             f"environments: give one")
+        object.__setattr__(self, "domain", None)
+        object.__setattr__(self, "task", None)
+        _resolved(self.environment_spec)
 
     def _check_prior(self) -> None:
         if self.prior is None:
@@ -164,17 +215,37 @@ class Protocol:
     @property
     def knowledge(self) -> tasks.common.TaskKnowledge:
         """What the protocol's task declares beyond its environment (reference, demonstrators, plot
-        hints: ``rmac_mj.tasks.knowledge``)."""
+        hints: ``rmac_mj.tasks.knowledge``); an outside environment declares none."""
+        if self.env is not None:
+            return tasks.common.NOTHING_KNOWN
         return tasks.knowledge(self.domain, self.task)
 
     @property
     def environment_name(self) -> str:
-        """The environment, as people read it: ``domain/task``."""
-        return f"{self.domain}/{self.task}"
+        """The environment, as people read it: ``domain/task``, or an outside one's SPEC."""
+        return self.env if self.env is not None else f"{self.domain}/{self.task}"
+
+    @property
+    def environment_spec(self) -> envs.EnvSpec | None:
+        """The outside environment as declared (``rmac_mj.envs.EnvSpec``), None for the suite's."""
+        if self.env is None:
+            return None
+        return envs.EnvSpec(self.env, kwargs=self.task_kwargs, learner_state=self.learner_state,
+                            action_repeat=self.action_repeat, trial_steps=self.trial_steps,
+                            control_timestep=self.control_timestep)
+
+    def environment_description(self) -> dict[str, Any]:
+        """What a snapshot records to rebuild the environment: the suite's ``domain``, ``task`` and
+        ``task_kwargs``, or an outside environment's resolved spec under ``environment``."""
+        if self.env is not None:
+            return {"environment": _resolved(self.environment_spec).as_dict()}
+        return {"domain": self.domain, "task": self.task, "task_kwargs": self.task_kwargs}
 
     def make_environment(self, task_seed: int | None = None) -> control.Environment:
         """The protocol's environment, its task's random state seeded with ``task_seed`` (None:
         unseeded). Every environment of a run is built here."""
+        if self.env is not None:
+            return _resolved(self.environment_spec).make(task_seed)
         kwargs = dict(self.task_kwargs)
         if task_seed is not None:
             kwargs["random"] = task_seed
@@ -189,9 +260,9 @@ class Protocol:
     def is_paper_protocol(self) -> bool:
         """True when the paper's protocol is run unchanged (both learners, default settings)."""
         default = Protocol()
-        return (self.domain, self.task, self.task_kwargs, set(self.algorithms), self.experiments,
-                self.trials, self.agent_configs, self.prior) == (
-            default.domain, default.task, default.task_kwargs, set(default.algorithms),
+        return (self.env, self.domain, self.task, self.task_kwargs, set(self.algorithms),
+                self.experiments, self.trials, self.agent_configs, self.prior) == (
+            default.env, default.domain, default.task, default.task_kwargs, set(default.algorithms),
             default.experiments, default.trials, default.agent_configs, default.prior)
 
     def as_dict(self) -> dict[str, Any]:
@@ -213,6 +284,20 @@ class Protocol:
             if isinstance(values.get(name), list):
                 values[name] = tuple(values[name])
         return cls(**values)
+
+
+_FIELD_DEFAULTS = {field.name: field.default for field in dataclasses.fields(Protocol)}
+
+
+@functools.lru_cache(maxsize=32)
+def _resolved_from(document: str) -> envs.EnvSpec:
+    return envs.EnvSpec(**json.loads(document)).resolve()
+
+
+def _resolved(spec: envs.EnvSpec) -> envs.EnvSpec:
+    """``spec`` with its full learner state, resolved once per process (inference probes an instance
+    of the environment); ValueError naming what is missing or ambiguous."""
+    return _resolved_from(json.dumps(spec.as_dict(), sort_keys=True))
 
 
 def experiment_seeds(seed: int, index: int) -> tuple[np.random.SeedSequence, int]:
@@ -278,6 +363,21 @@ def build_experiment(protocol: Protocol, algorithm: str, index: int,
                       demonstration=demonstration if protocol.prior is not None else None)
 
 
+def evaluation(protocol: Protocol, index: int) -> Callable[[control.Environment, Agent], float]:
+    """How experiment ``index`` evaluates its agent (``Protocol.evaluate_starts``): a function
+    ``(env, agent) -> greedy return``."""
+    if protocol.evaluate_starts == 0:
+        return lambda env, agent: run_trial(env, agent, learn=False)
+    seed = int(np.random.SeedSequence(protocol.seed, spawn_key=(index, 2)).generate_state(1)[0])
+
+    def evaluate(env: control.Environment, agent: Agent) -> float:
+        starts = protocol.make_environment(seed)  # the same starts at every evaluation
+        return float(np.mean([run_trial(starts, agent, learn=False)
+                              for _ in range(protocol.evaluate_starts)]))
+
+    return evaluate
+
+
 @dataclasses.dataclass(frozen=True)
 class ExperimentSpec:
     """One learning experiment to run: ``algorithm`` number ``index`` of ``protocol``.
@@ -305,8 +405,8 @@ def run_experiment(spec: ExperimentSpec,
     protocol = spec.protocol
     experiment = build_experiment(protocol, spec.algorithm, spec.index, spec.demonstration)
     env, agent = experiment.env, experiment.agent
-    meta = {"domain": protocol.domain, "task": protocol.task, "task_kwargs": protocol.task_kwargs,
-            "experiment": spec.index, "seed": protocol.seed}
+    meta = {**protocol.environment_description(), "experiment": spec.index, "seed": protocol.seed}
+    evaluate = evaluation(protocol, spec.index)
     returns = np.empty(protocol.trials)
     greedy_trials, greedy_returns, snapshots = [], [], {}
     snapshot_trials = set(protocol.snapshot_trials) | {protocol.trials}
@@ -318,7 +418,7 @@ def run_experiment(spec: ExperimentSpec,
             returns[trial - 1] = run_trial(env, agent, learn=True)
             greedy = None
             if protocol.evaluate_every and trial % protocol.evaluate_every == 0:
-                greedy = run_trial(env, agent, learn=False)
+                greedy = evaluate(env, agent)
                 greedy_trials.append(trial)
                 greedy_returns.append(greedy)
             if trial in snapshot_trials:

@@ -140,7 +140,7 @@ def exploration_floor(domain: str, task: str, sigma: float, period: int, phase: 
 def run_reference(protocol, announce: Announce | None = None) -> float | None:
     """The near-optimal return of a run's task (its ``domain``, ``task`` and ``task_kwargs``), or
     None when it has none (non-default task_kwargs, no declared reference)."""
-    if protocol.task_kwargs or not has_reference(protocol.domain, protocol.task):
+    if protocol.task_kwargs or protocol.knowledge.reference is None:
         return None
     return reference_return(protocol.domain, protocol.task, announce=announce)
 
@@ -152,7 +152,7 @@ def run_exploration_floor(protocol, algorithm: str, announce: Announce | None = 
     A decaying exploration is taken at its last trial's noise level (the final return averages the
     last trials); exploration only where the model is uncertain has no floor (how often it explores
     depends on the learner), nor has a learner without an ``Exploration`` schedule."""
-    if protocol.task_kwargs or not has_reference(protocol.domain, protocol.task):
+    if protocol.task_kwargs or protocol.knowledge.reference is None:
         return None
     from rmac_mj.agents import config_class, config_from_dict
     config = config_from_dict(config_class(algorithm), protocol.agent_configs.get(algorithm, {}))

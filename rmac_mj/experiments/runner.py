@@ -257,13 +257,16 @@ def finalise(store: ResultStore, protocol: Protocol, wall_time_s: float | None =
     floors = ({a: reference.run_exploration_floor(protocol, a, log) for a in protocol.algorithms}
               if references else {})
     shared_floor = set(floors.values())  # one line in Fig. 2 when every learner explores alike
-    seconds = (facts or admission.TaskFacts()).trial_seconds(protocol)
+    facts = facts or admission.TaskFacts()
+    seconds = facts.trial_seconds(protocol)
     summary: dict[str, Any] = {"paper_protocol": protocol.is_paper_protocol,
                                "optimal_return": optimal_return,
                                "exploration_floor": shared_floor.pop() if len(shared_floor) == 1
                                else None,
                                "trial_seconds": seconds,
                                "plot_hints": dataclasses.asdict(protocol.knowledge.plot_hints),
+                               # What x was (inferred, for an outside environment): its provenance.
+                               "learner_state": dataclasses.asdict(facts.learner_state(protocol)),
                                "protocol": protocol.as_dict()}
     rows = []
     for algorithm in protocol.algorithms:

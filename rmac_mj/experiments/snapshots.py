@@ -27,8 +27,9 @@ def snapshot_arrays(agent: Agent, state_space: StateSpace, action_space: ActionS
                     **meta: Any) -> dict[str, np.ndarray]:
     """The arrays of a snapshot of ``agent`` (what :func:`save_snapshot` writes).
 
-    ``meta`` (JSON-ready) conventionally holds ``domain``, ``task``, ``task_kwargs``, ``experiment``,
-    ``seed`` and ``trial`` (the number of learning trials done).
+    ``meta`` (JSON-ready) conventionally holds ``domain``, ``task``, ``task_kwargs`` (or, for an outside
+    environment, its resolved spec as ``environment``: ``rmac_mj.envs.EnvSpec.as_dict``),
+    ``experiment``, ``seed`` and ``trial`` (the number of learning trials done).
     """
     document = {
         "algorithm": agent.name,
@@ -80,17 +81,24 @@ def load_snapshot(path: str | os.PathLike) -> tuple[Agent, dict[str, Any]]:
 def snapshot_environment(agent: Agent, meta: dict, domain: str | None = None,
                          task: str | None = None) -> control.Environment:
     """The environment a snapshot's agent acts in: the one it learned on (its domain, task and
-    task_kwargs), or ``domain``/``task`` with their defaults; UserInputError if its state or action
+    task_kwargs, or the outside environment its meta records under ``environment``), or
+    ``domain``/``task`` of the suite with their defaults; UserInputError if its state or action
     dimensions differ from the agent's."""
-    from rmac_mj import tasks
+    from rmac_mj import envs, tasks
     from rmac_mj.experiments.episode import action_space_of, state_space_of
 
-    domain = domain or meta["domain"]
-    task = task or (meta["task"] if domain == meta["domain"] else None)
+    learned_on = (envs.EnvSpec(**meta["environment"]) if "environment" in meta else None)
+    name = learned_on.env if learned_on is not None else f"{meta['domain']}/{meta['task']}"
+    if learned_on is not None and domain is None and task is None:
+        try:
+            return learned_on.make()
+        except ValueError as error:
+            raise UserInputError(f"cannot rebuild {name}, the snapshot's environment: {error}") from None
+    domain = domain or meta.get("domain")
+    task = task or (meta.get("task") if domain == meta.get("domain") else None)
     if task is None:
-        raise UserInputError(f"give the task of domain {domain!r} too (the snapshot learned "
-                             f"{meta['domain']}/{meta['task']})")
-    own = (domain, task) == (meta["domain"], meta["task"])
+        raise UserInputError(f"give the task of domain {domain!r} too (the snapshot learned {name})")
+    own = learned_on is None and (domain, task) == (meta["domain"], meta["task"])
     try:
         env = tasks.load(domain, task, task_kwargs=meta.get("task_kwargs") if own else None)
     except ValueError as error:
@@ -100,6 +108,6 @@ def snapshot_environment(agent: Agent, meta: dict, domain: str | None = None,
     n, m = state_space_of(env).dim, action_space_of(env).dim
     if (n, m) != (agent.state_space.dim, agent.action_space.dim):
         raise UserInputError(f"{domain}/{task} has {n} state and {m} action dimensions, the agent "
-                             f"(learned on {meta['domain']}/{meta['task']}) "
-                             f"{agent.state_space.dim} and {agent.action_space.dim}")
+                             f"(learned on {name}) {agent.state_space.dim} and "
+                             f"{agent.action_space.dim}")
     return env

@@ -52,8 +52,9 @@ from rmac_mj.errors import MissingInputError, UserInputError
 from rmac_mj.experiments import files
 from rmac_mj.experiments.protocol import Protocol
 
-#: The tables a sweep file may have.
-SECTIONS = ("protocol", "grid", "variant")
+#: The tables a sweep file may have. [learner_state] is the Protocol option of that name written as a
+#: table of its own: what x is in an outside environment (``env``) where it cannot be inferred.
+SECTIONS = ("protocol", "grid", "variant", "learner_state")
 #: Protocol options a [protocol] table may set: the fields of Protocol but agent_configs.
 PROTOCOL_KEYS = tuple(field.name for field in dataclasses.fields(Protocol) if field.name != "agent_configs")
 
@@ -288,7 +289,8 @@ class _Checker:
                 close = difflib.get_close_matches(section, SECTIONS, n=1)
                 hint = f" (did you mean [{close[0]}]?)" if close else ""
                 raise self.error(f"[{section}]", f"unknown section{hint}; a sweep file has "
-                                                 "[protocol], [grid] and [[variant]]")
+                                                 "[protocol], [grid], [[variant]] and "
+                                                 "[learner_state]")
         if "variant" in document and not (isinstance(document["variant"], list) and
                                           all(isinstance(v, dict) for v in document["variant"])):
             raise self.error("[variant]", "variants are an array of tables: write [[variant]]")
@@ -303,6 +305,11 @@ class _Checker:
                 hint = f" (did you mean {close[0]}?)" if close else ""
                 raise self.error(f"[protocol] {key}", f"unknown key{hint}; known: "
                                  f"{', '.join(PROTOCOL_KEYS)}, or a hyperparameter \"ALGO.FIELD\"")
+        if "learner_state" in document:
+            if "learner_state" in options:
+                raise self.error("[learner_state]", "is also set in [protocol]; set it in one place")
+            options["learner_state"] = self.option("learner_state",
+                                                   self.table(document, "learner_state"))
         algorithms = options.get("algorithms", Protocol().algorithms)
         for key, value in hyper.items():
             where = f'[protocol] "{key}"'
@@ -332,12 +339,14 @@ class _Checker:
 
         domain = options.get("domain", Protocol().domain)
         task = options.get("task", Protocol().task)
-        if domain not in tasks.TASKS_BY_DOMAIN:
-            raise self.error("[protocol] domain", f"unknown domain {domain!r}; available: "
-                                                  f"{', '.join(tasks.TASKS_BY_DOMAIN)}")
-        if task not in tasks.TASKS_BY_DOMAIN[domain]:
-            raise self.error("[protocol] task", f"unknown task {task!r} of {domain}; available: "
-                                                f"{', '.join(tasks.TASKS_BY_DOMAIN[domain])}")
+        # An outside environment (env) is checked by Protocol, with no domain/task beside it.
+        if options.get("env") is None:
+            if domain not in tasks.TASKS_BY_DOMAIN:
+                raise self.error("[protocol] domain", f"unknown domain {domain!r}; available: "
+                                                      f"{', '.join(tasks.TASKS_BY_DOMAIN)}")
+            if task not in tasks.TASKS_BY_DOMAIN[domain]:
+                raise self.error("[protocol] task", f"unknown task {task!r} of {domain}; "
+                                                    f"available: {', '.join(tasks.TASKS_BY_DOMAIN[domain])}")
         try:
             return Protocol(**options, agent_configs=agent_configs)
         except (ValueError, TypeError) as error:
@@ -349,7 +358,7 @@ class _Checker:
         from rmac_mj.agents import make_agent
         from rmac_mj.experiments.episode import action_space_of, state_space_of
 
-        key = json.dumps([protocol.domain, protocol.task, protocol.task_kwargs], sort_keys=True)
+        key = json.dumps([protocol.environment_description(), protocol.task_kwargs], sort_keys=True)
         if key not in self._spaces:
             env = protocol.make_environment(task_seed=0)
             self._spaces[key] = (state_space_of(env), action_space_of(env))
