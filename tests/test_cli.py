@@ -51,7 +51,9 @@ def rmac_mj(*args, cwd=None) -> Result:
     (["render", "--out", "{tmp}/x.mp4"], "exactly one of"),
     (["reproduce", "--domain", "cartpole", "--out", "{tmp}/x"], "unknown domain 'cartpole'"),
     (["reproduce", "--task", "spin", "--out", "{tmp}/x"], "unknown task 'spin'"),
-    (["bench", "--domain", "cartpole"], "unknown domain_name 'cartpole'"),
+    (["bench", "--domain", "cartpole"], "unknown domain 'cartpole'; available: dc_pendulum, "
+                                        "two_link_arm; dm-control has 'cartpole', an outside "
+                                        "environment: env dm_control:cartpole/"),
     (["policy", "{tmp}/missing.npz", "--dims", "1"], "two state dimensions"),
     (["render", "--progression", "{tmp}", "--task", "swingup", "--out", "{tmp}/x.mp4"],
      "single SNAPSHOT"),

@@ -351,3 +351,80 @@ def test_a_sweep_file_takes_env_and_a_learner_state_table(tmp_path):
     path.write_text(path.read_text().replace(', "velocity[1]" = [-20, 20]', ""))
     with pytest.raises(SweepFileError, match=r"no finite bounds for velocity\[1\]"):
         load_sweep(path)
+
+
+# ----------------------------------------------------------------------------------------------------
+# The command line.
+
+def test_cli_config_reproduce_policy_resume_on_a_users_factory(tmp_path, capsys):
+    from rmac_mj.cli import main
+
+    config = tmp_path / "slider.toml"
+    config.write_text(textwrap.dedent(f"""
+        [protocol]
+        env = "{HERE}:make_slider"
+        task_kwargs = {{ start = 0.5 }}
+        trial_steps = 6
+        control_timestep = 0.1
+        algorithms = ["s-ac"]
+        "s-ac.backend" = "numpy"
+        [learner_state]
+        labels = ["position x [m]", "velocity v [m/s]"]
+    """))
+    out = tmp_path / "slider"
+    assert main(["reproduce", "--config", str(config), "--experiments", "1", "--trials", "2",
+                 "--evaluate-every", "1", "--evaluate-starts", "2", "--jobs", "1", "--no-progress",
+                 "--out", str(out)]) == 0
+    assert "one trial = 0.6 s of simulated time" in capsys.readouterr().out
+    snapshot = out / "snapshots" / "s-ac" / "exp_000" / "trial_0002.npz"
+    assert main(["policy", str(snapshot), "--out", str(tmp_path / "map")]) == 0
+    assert (tmp_path / "map.png").is_file()
+    # A resume takes the outside environment's settings from the directory's config.json.
+    assert main(["reproduce", "--resume", "--out", str(out), "--no-progress"]) == 0
+    assert "one trial = 0.6 s of simulated time" in capsys.readouterr().out
+
+
+def test_render_a_dm_control_environment_between_its_control_steps():
+    from rmac_mj.experiments.render import render_episode
+
+    env = envs.load("dm_control:cartpole/swingup", seed=0, action_repeat=5, trial_steps=6,
+                    learner_state={"bounds": {"position[0]": [-1.8, 1.8], "velocity[0]": [-5, 5],
+                                              "velocity[1]": [-20, 20]}})
+    episode = render_episode(env, policy=lambda x: np.array([0.5]), width=64, height=48,
+                             frames_per_step=5)
+    assert episode.frames.shape == (6 * 5 + 1, 48, 64, 3) and episode.fps == pytest.approx(100)
+    # The frames between control steps come from a scratch physics: the episode is env.step's own.
+    again = envs.load("dm_control:cartpole/swingup", seed=0, action_repeat=5, trial_steps=6,
+                      learner_state=env.learner_state)
+    again.reset()
+    assert episode.returns[-1] == pytest.approx(sum(again.step(np.array([0.5])).reward
+                                                    for _ in range(6)))
+
+
+def test_cli_optimal_and_bench_on_an_outside_environment(capsys):
+    from rmac_mj.cli import main
+    from rmac_mj.experiments import bench
+
+    assert main(["optimal", "--env", "gymnasium:Pendulum-v1"]) == 2
+    assert "no near-optimal reference for gymnasium:Pendulum-v1" in capsys.readouterr().err
+    costs = bench.step_costs(20, 1, env="gymnasium:Pendulum-v1")
+    assert costs["raw_step"] == "the environment's own step (Gymnasium)"
+    assert 0 < costs["physics_step_us"] < costs["env_step_us"]
+
+
+def test_the_readmes_worked_example_runs_as_it_stands(tmp_path, monkeypatch, capsys):
+    import pathlib
+    import re
+
+    readme = (pathlib.Path(__file__).parents[1] / "README.md").read_text()
+    section = readme[readme.index("## Your own task"):]
+    section = section[:section.index("\n## ", 1)]
+    task_file, usage = re.findall(r"```python\n(.*?)```", section, re.S)[:2]
+    assert task_file.startswith("# my_task.py")
+    (tmp_path / "my_task.py").write_text(task_file)
+    monkeypatch.chdir(tmp_path)
+    namespace: dict = {}
+    exec(compile(usage, "README.md", "exec"), namespace)
+    printed = capsys.readouterr().out.splitlines()
+    assert printed == ["('atan2(observation[1], observation[0])', 'observation[2]')", "3.0"]
+    assert len(namespace["returns"]) == 30 and all(np.isfinite(namespace["returns"]))

@@ -15,7 +15,8 @@ DESCRIPTION = "The rmac-mj command: reproduce the paper's comparison, draw its f
 #: The Protocol fields ``reproduce`` has an option for (the option's dest is the field's name);
 #: ``algorithms`` and ``prior_parts`` are given comma-separated.
 PROTOCOL_OPTIONS = ("domain", "task", "algorithms", "experiments", "trials", "seed", "evaluate_every",
-                    "prior", "prior_trials", "prior_parts")
+                    "prior", "prior_trials", "prior_parts", "env", "learner_state", "action_repeat",
+                    "evaluate_starts")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -74,14 +75,43 @@ def _dims(text: str) -> tuple[int, int]:
     return i, j
 
 
+def _json_object(text: str) -> dict:
+    """An argparse type: a JSON object, e.g. '{"bounds": {"velocity": [-10, 10]}}'."""
+    import json
+
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError as error:
+        raise argparse.ArgumentTypeError(f"expected a JSON object, got {text!r} ({error})") from None
+    if not isinstance(value, dict):
+        raise argparse.ArgumentTypeError(f"expected a JSON object {{...}}, got {text!r}")
+    return value
+
+
 def _add_task_options(parser: argparse.ArgumentParser, default: bool, what: str) -> None:
-    """--domain and --task; with ``default`` the suite's default task, else None (``what``)."""
+    """--domain and --task; with ``default`` the suite's default task, else None (``what``); and
+    --env, an outside environment instead."""
     from rmac_mj.tasks import DEFAULT_TASK
 
     parser.add_argument("--domain", default=DEFAULT_TASK[0] if default else None,
                         help=f"domain of the task suite ({what})")
     parser.add_argument("--task", default=DEFAULT_TASK[1] if default else None,
                         help=f"task of the domain ({what})")
+    parser.add_argument("--env", default=None, metavar="SPEC",
+                        help="an outside environment instead: dm_control:DOMAIN/TASK, gymnasium:ID, "
+                             "package.module:factory or path/file.py:factory (README, 'Your own "
+                             "task')")
+
+
+def _add_outside_options(parser: argparse.ArgumentParser) -> None:
+    """What an outside environment (--env) may need beside its SPEC."""
+    parser.add_argument("--learner-state", type=_json_object, default=None, metavar="JSON",
+                        help="with --env: what the learners' state is where it cannot be inferred, "
+                             "some of LearnerState's fields or per-dimension bounds, e.g. "
+                             "'{\"bounds\": {\"velocity\": [-10, 10]}}' (a --config file's "
+                             "[learner_state] table)")
+    parser.add_argument("--action-repeat", type=_positive_int, default=1, metavar="N",
+                        help="with --env: environment steps per learner step, the action held")
 
 
 def build_parser(reproduce_defaults: Mapping[str, Any] | None = None) -> argparse.ArgumentParser:
@@ -138,6 +168,11 @@ def build_parser(reproduce_defaults: Mapping[str, Any] | None = None) -> argpars
     reproduce.add_argument("--prior-parts", default=None, metavar="PART,...",
                            help="seed only these kinds of knowledge: process, reference, critic, "
                                 "actor (default: all a learner takes)")
+    _add_outside_options(reproduce)
+    reproduce.add_argument("--evaluate-starts", type=_non_negative_int, default=0, metavar="N",
+                           help="an evaluation is the mean of greedy trials from N starts drawn "
+                                "once per experiment (0: one greedy trial from the task's next "
+                                "start); for a task that starts anywhere, e.g. Pendulum-v1")
     reproduce.add_argument("--no-optimal", action="store_true",
                            help="skip the near-optimal reference (dynamic programming, about a "
                                 "minute the first time, then cached)")
@@ -222,6 +257,7 @@ def build_parser(reproduce_defaults: Mapping[str, Any] | None = None) -> argpars
     bench.add_argument("--json", type=pathlib.Path, default=None, help="also write the figures here")
     bench.add_argument("--quick", action="store_true", help="fewer repeats and a shorter experiment")
     _add_task_options(bench, True, "default: the paper's swing-up")
+    _add_outside_options(bench)
     bench.add_argument("--markdown", action="store_true",
                        help="print the table as Markdown (the README's speed table)")
     return parser

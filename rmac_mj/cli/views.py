@@ -79,7 +79,7 @@ def policy(args) -> int:
         with user_input(f"{path}: "):
             agent, meta = load_snapshot(path)
         snapshots.append((agent, meta))
-        envs.append(snapshot_environment(agent, meta, args.domain, args.task))
+        envs.append(snapshot_environment(agent, meta, args.domain, args.task, args.env))
     learner_state = learner_state_of(envs[0])
     for path, env in zip(args.snapshots[1:], envs[1:]):
         if learner_state_of(env) != learner_state:
@@ -94,7 +94,7 @@ def policy(args) -> int:
     else:
         anchor = state_of(envs[0].reset().observation, learner_state)
     if n < 2:
-        raise UsageError(f"policy maps need at least two state dimensions; {meta['domain']} has {n}")
+        raise UsageError(f"policy maps need at least two state dimensions; the state has {n}")
     i, j = args.dims
     if not (0 <= i < n and 0 <= j < n and i != j):
         raise UsageError(f"--dims must name two different state dimensions in [0, {n}), got {i},{j}")
@@ -114,6 +114,11 @@ def optimal(args) -> int:
     from rmac_mj.agents import Exploration
     from rmac_mj.experiments import reference
 
+    if args.env is not None:
+        from rmac_mj import tasks
+        having = ", ".join(f"{d}/{t}" for d, t in tasks.ALL_TASKS if reference.has_reference(d, t))
+        raise UsageError(f"no near-optimal reference for {args.env}: an outside environment declares "
+                         f"none (the suite's tasks that do: {having})")
     with user_input():
         if not reference.has_reference(args.domain, args.task):
             reference.reference(args.domain, args.task)  # raises, naming the tasks that have one
@@ -137,9 +142,9 @@ def render(args) -> int:
                "frames_per_step": args.frames_per_step}
     if args.snapshot is not None:
         path = result_videos.render_snapshot(args.snapshot, args.out, domain=args.domain, task=args.task,
-                                      **options)
-    elif args.domain is not None or args.task is not None:
-        raise UsageError("--domain/--task apply to a single SNAPSHOT only")
+                                      env=args.env, **options)
+    elif args.domain is not None or args.task is not None or args.env is not None:
+        raise UsageError("--domain/--task and --env apply to a single SNAPSHOT only")
     elif args.progression is not None:
         path = result_videos.render_progression(args.progression, args.out, experiment=args.experiment,
                                          **options)
@@ -153,14 +158,15 @@ def render(args) -> int:
 def bench(args) -> int:
     from rmac_mj.experiments import bench
 
+    where = ({"domain": args.domain, "task": args.task} if args.env is None else
+             {"domain": args.domain, "task": args.task, "env": args.env,
+              "learner_state": args.learner_state, "action_repeat": args.action_repeat})
     with user_input():
-        bench.check_task(args.domain, args.task)
-    report = bench.run(quick=args.quick, domain=args.domain, task=args.task)
+        bench.check_task(**where)
+    report = bench.run(quick=args.quick, **where)
     print(bench.format_markdown(report) if args.markdown else bench.format_table(report))
     if args.json:
         from rmac_mj.experiments.files import write_json
         write_json(args.json, report)
         print("json:", args.json)
     return 0
-
-

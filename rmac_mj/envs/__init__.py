@@ -39,5 +39,17 @@ def load(env: str, kwargs: Mapping[str, Any] | None = None, *, seed: int | None 
     return spec.make(seed)
 
 
+def hint_for(domain: str) -> str:
+    """Where a domain the suite does not have may be found outside it, as the end of a message
+    (dm-control's ``pendulum``: ``"; dm-control has it: env dm_control:pendulum/swingup (...)"``)."""
+    from dm_control import suite
+
+    if not isinstance(domain, str) or domain not in suite.TASKS_BY_DOMAIN:
+        return ""
+    names = suite.TASKS_BY_DOMAIN[domain]
+    return (f"; dm-control has {domain!r}, an outside environment: env dm_control:{domain}/"
+            f"{names[0]} (its tasks: {', '.join(names)})")
+
+
 __all__ = ["EnvSpec", "Environment", "LearnerState", "ObservationMap", "infer_learner_state",
-           "load", "parse"]
+           "hint_for", "load", "parse"]

@@ -18,6 +18,7 @@ import numpy as np
 from dm_env import specs
 
 from rmac_mj.envs.observations import ObservationLayout, ObservationMap
+from rmac_mj.errors import UserInputError
 from rmac_mj.tasks.common import LearnerState
 
 
@@ -117,6 +118,30 @@ class Environment(dm_env.Environment):
         if physics is None:
             raise AttributeError(f"{self.name or type(self.base).__name__} has no physics")
         return physics
+
+    def observation_at(self, physics: Any) -> dict[str, np.ndarray]:
+        """The observation (learner entries) a dm-control base would give in ``physics``, e.g. a
+        scratch copy stepped to draw the frames between two control steps."""
+        return self.map.entries(self.base.task.get_observation(physics))
+
+    def render_frame(self, width: int = 320, height: int = 240) -> np.ndarray:
+        """The current picture, uint8 of shape (H, W, 3): a MuJoCo physics' from its first camera
+        at ``width`` x ``height``; a Gymnasium environment's own ``render()`` (its size; made with
+        ``render_mode="rgb_array"``, see ``EnvSpec.make(render=True)``)."""
+        physics = getattr(self.base, "physics", None)
+        if physics is not None:
+            return physics.render(height, width, camera_id=0 if physics.model.ncam > 0 else -1)
+        gymnasium_env = getattr(self.base, "env", None)
+        if gymnasium_env is None:
+            raise UserInputError(f"{self.name}: a dm_env without a MuJoCo physics cannot be rendered")
+        if gymnasium_env.render_mode != "rgb_array":
+            raise UserInputError(f"{self.name}: made without render_mode='rgb_array' (EnvSpec.make("
+                                 f"render=True), or a factory that takes render_mode)")
+        try:
+            frame = gymnasium_env.render()
+        except Exception as error:  # e.g. gymnasium's DependencyNotInstalled (pygame)
+            raise UserInputError(f"{self.name} cannot render: {error}") from None
+        return np.asarray(frame, dtype=np.uint8)
 
     def __repr__(self) -> str:
         return (f"Environment({self.name!r}, x=[{', '.join(self.learner_state.keys)}], "

@@ -376,7 +376,9 @@ def infer_learner_state(layout: ObservationLayout, samples: np.ndarray, action_l
     inferred = {
         "keys": tuple(entries), "low": tuple(low), "high": tuple(high),
         "periodic": mapping.periodic(),
-        "labels": tuple(f"{name} [rad]" if p else name
+        # The suite's label convention is "description symbol [unit]" (the overlay of a video shows
+        # the last word): an entry without spaces is its own symbol.
+        "labels": tuple(name.replace(" ", "") + (" [rad]" if p else "")
                         for name, p in zip(names, mapping.periodic())),
         "input_weights": tuple(default_weights(low, high)),
         "action_input_weights": tuple(default_weights(action_low, action_high)),

@@ -147,8 +147,10 @@ class EnvSpec:
         return parse(self.env)[0]
 
     # ------------------------------------------------------------------------------- building
-    def build_base(self, seed: int | None = None) -> dm_env.Environment:
-        """The environment itself as a ``dm_env.Environment`` (Gymnasium's adapted), seeded."""
+    def build_base(self, seed: int | None = None, render: bool = False) -> dm_env.Environment:
+        """The environment itself as a ``dm_env.Environment`` (Gymnasium's adapted), seeded; with
+        ``render``, a Gymnasium environment (or a factory that takes ``render_mode``) is made with
+        ``render_mode="rgb_array"``."""
         source, target = parse(self.env)
         kwargs = dict(self.kwargs)
         if source == "dm_control":
@@ -167,14 +169,19 @@ class EnvSpec:
                 import gymnasium
             except ImportError:
                 raise ValueError(f"env {self.env!r} needs Gymnasium: pip install gymnasium") from None
+            if render:
+                kwargs["render_mode"] = "rgb_array"
             try:
                 env = gymnasium.make(target, **kwargs)
             except gymnasium.error.Error as error:
                 raise ValueError(f"env {self.env!r}: {error}") from None
             return GymnasiumEnvironment(env, seed=seed, name=self.env)
         factory = load_factory(target)
-        if seed is not None and "seed" in inspect.signature(factory).parameters:
+        parameters = inspect.signature(factory).parameters
+        if seed is not None and "seed" in parameters:
             kwargs["seed"] = seed
+        if render and "render_mode" in parameters:
+            kwargs["render_mode"] = "rgb_array"
         made = factory(**kwargs)
         if isinstance(made, dm_env.Environment):
             return made
@@ -183,10 +190,11 @@ class EnvSpec:
         raise ValueError(f"env {self.env!r}: the factory returned a {type(made).__name__}, not a "
                          f"dm_env.Environment or a gymnasium.Env")
 
-    def make(self, seed: int | None = None) -> Environment:
+    def make(self, seed: int | None = None, render: bool = False) -> Environment:
         """The environment the learners run on, seeded with ``seed`` (an int, or None for fresh
-        entropy): x as :meth:`resolve` says, trials as long as its time limit or ``trial_steps``."""
-        base = self.build_base(seed)
+        entropy): x as :meth:`resolve` says, trials as long as its time limit or ``trial_steps``.
+        ``render``: able to draw its frames (:meth:`Environment.render_frame`)."""
+        base = self.build_base(seed, render)
         spec = self
         if not isinstance(self.learner_state, LearnerState) or (
                 self.trial_steps is None and _step_limit(base) is None):

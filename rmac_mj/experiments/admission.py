@@ -27,7 +27,7 @@ from rmac_mj.experiments import prior as prior_data
 from rmac_mj.experiments.episode import (action_space_of, learner_state_of, run_trial,
                                          state_space_of, trial_seconds)
 from rmac_mj.experiments.protocol import Protocol
-from tasks.common import LearnerState
+from rmac_mj.tasks.common import LearnerState
 
 
 class TaskFacts:

@@ -3,7 +3,9 @@
 The unit is the *raw control step*: one control step of the task as its ``mujoco.mj_step`` calls
 from a Python loop (the paper's pendulum: 3 calls of 10 ms per 0.03 s step), the least any
 implementation of the task must spend. Every figure is measured on one task (``--domain/--task``,
-default the paper's swing-up). Everything else is reported in
+default the paper's swing-up), or on an outside environment (``--env``, ``rmac_mj.envs``), whose unit
+is its MuJoCo physics' steps where it has one (dm-control's) and else its own ``step`` (Gymnasium's):
+what using the learners on it costs beyond the environment itself. Everything else is reported in
 microseconds and as a multiple of it, measured in one process, as the median over repeats of the
 mean time per call in a batch, after a warm-up (numba compilation included in the warm-up).
 
@@ -69,9 +71,64 @@ def _median_us(call: Callable[[int], None], calls: int, repeats: int) -> float:
     return float(np.median(samples))
 
 
-def check_task(domain: str, task: str) -> None:
-    """ValueError naming the choices unless ``domain``/``task`` is a task of the suite."""
-    tasks.load(domain, task)
+def check_task(**where: Any) -> None:
+    """ValueError naming the choices unless ``where`` is a task of the suite (``domain``/``task``)
+    or an outside environment whose learner state is known (``env``, see :func:`_where`)."""
+    _load(**where)
+
+
+def _where(domain: str = _DOMAIN, task: str = _TASK, env: str | None = None,
+           learner_state: dict | None = None, action_repeat: int = 1):
+    """What is measured, as a Protocol (the one place environments are built): a task of the suite
+    (``domain``/``task``) or an outside environment (``env``, a SPEC, with its ``learner_state``
+    declaration and ``action_repeat``, see ``rmac_mj.envs``)."""
+    from rmac_mj.experiments.protocol import Protocol
+
+    if env is not None:  # (domain/task other than the default are refused beside it)
+        return Protocol(env=env, learner_state=learner_state, action_repeat=action_repeat,
+                        domain=domain, task=task)
+    return Protocol(domain=domain, task=task)
+
+
+def _load(**where):
+    return _where(**where).make_environment(0)
+
+
+def _raw_step(env, rng: np.random.Generator, calls: int) -> tuple[Callable[[], float], str]:
+    """A batch of the environment's own steps, timed (us per step), and what it is called.
+
+    For a MuJoCo physics (the suite, dm-control): ``n_sub_steps`` x ``mj_step`` from a Python loop.
+    For an outside environment without one (Gymnasium's): its own ``step``, under everything this
+    package adds (the dm_env adapter, the learner's x)."""
+    controls = _random_actions(env, calls, rng)
+    physics = getattr(env, "physics", None)
+    if physics is not None:
+        model, data = physics.model.ptr, physics.data.ptr
+        n_sub = n_sub_steps(env)
+
+        def raw_batch() -> float:
+            start = _clock_ns()
+            for i in range(calls):
+                data.ctrl[:] = controls[i]
+                for _ in range(n_sub):
+                    mujoco.mj_step(model, data)
+            return (_clock_ns() - start) / calls / 1e3
+        return raw_batch, f"raw MuJoCo control step ({n_sub} x mj_step)"
+    own = env.base.env  # a Gymnasium environment (rmac_mj.envs.GymnasiumEnvironment.env)
+    space = own.action_space
+    actions = controls.astype(space.dtype).reshape((calls,) + space.shape)
+
+    def own_batch() -> float:
+        elapsed = 0
+        own.reset(seed=0)
+        for i in range(calls):
+            start = _clock_ns()
+            _, _, terminated, truncated, _ = own.step(actions[i])
+            elapsed += _clock_ns() - start
+            if terminated or truncated:
+                own.reset()
+        return elapsed / calls / 1e3
+    return own_batch, "the environment's own step (Gymnasium)"
 
 
 def _random_actions(env, count: int, rng: np.random.Generator) -> np.ndarray:
@@ -80,8 +137,7 @@ def _random_actions(env, count: int, rng: np.random.Generator) -> np.ndarray:
     return rng.uniform(space.low, space.high, (count, space.dim))
 
 
-def step_costs(calls: int, repeats: int, domain: str = _DOMAIN,
-               task: str = _TASK) -> dict[str, float]:
+def step_costs(calls: int, repeats: int, **where: Any) -> dict[str, Any]:
     """The raw control step, ``env.step`` and the glue per step (us), measured interleaved.
 
     Each repeat times, one after the other: ``calls`` raw control steps (``n_sub_steps`` x
@@ -90,24 +146,15 @@ def step_costs(calls: int, repeats: int, domain: str = _DOMAIN,
     the same number of episodes once through ``run_trial`` with a constant-action agent and once
     through ``env.reset`` and ``env.step`` alone. Returns medians over the repeats:
     ``physics_step_us``, ``env_step_us`` and ``glue_step_us`` (the median of the per-repeat
-    difference between the two episode loops, per step).
+    difference between the two episode loops, per step), and ``raw_step`` (what the raw step is,
+    see :func:`_raw_step`). ``where``: see :func:`_where`.
     """
-    physics_env = tasks.load(domain, task)
+    physics_env = _load(**where)
     physics_env.reset()
-    model, data = physics_env.physics.model.ptr, physics_env.physics.data.ptr
-    n_sub = n_sub_steps(physics_env)
     rng = np.random.default_rng(0)
-    controls = _random_actions(physics_env, calls, rng)
+    raw_batch, raw_label = _raw_step(physics_env, rng, calls)
 
-    def raw_batch() -> float:
-        start = _clock_ns()
-        for i in range(calls):
-            data.ctrl[:] = controls[i]
-            for _ in range(n_sub):
-                mujoco.mj_step(model, data)
-        return (_clock_ns() - start) / calls / 1e3
-
-    env = tasks.load(domain, task)
+    env = _load(**where)
     per_trial = steps_per_trial(env)
     episodes = max(1, round(calls / per_trial))
     actions = _random_actions(env, per_trial, rng)
@@ -149,25 +196,23 @@ def step_costs(calls: int, repeats: int, domain: str = _DOMAIN,
         env_step.append(env_batch())
         glue.append(trial_batch() - episode_batch())
     return {"physics_step_us": float(np.median(raw)), "env_step_us": float(np.median(env_step)),
-            "glue_step_us": float(np.median(glue))}
+            "glue_step_us": float(np.median(glue)), "raw_step": raw_label}
 
 
-def physics_step_us(calls: int, repeats: int, domain: str = _DOMAIN,
-                    task: str = _TASK) -> float:
+def physics_step_us(calls: int, repeats: int, **where: Any) -> float:
     """The raw control step of the task alone (see :func:`step_costs`)."""
-    return step_costs(calls, repeats, domain, task)["physics_step_us"]
+    return step_costs(calls, repeats, **where)["physics_step_us"]
 
 
-def env_step_us(calls: int, repeats: int, domain: str = _DOMAIN, task: str = _TASK) -> float:
+def env_step_us(calls: int, repeats: int, **where: Any) -> float:
     """``env.step`` of the task alone (see :func:`step_costs`)."""
-    return step_costs(calls, repeats, domain, task)["env_step_us"]
+    return step_costs(calls, repeats, **where)["env_step_us"]
 
 
-def llr_query_insert_us(calls: int, repeats: int, domain: str = _DOMAIN,
-                        task: str = _TASK) -> float:
+def llr_query_insert_us(calls: int, repeats: int, **where: Any) -> float:
     """A query and an insertion on a full critic-like memory (N = 2000, K = 20) over the task's state:
     its dimensions, weights and periods, filled uniformly over its box."""
-    space = state_space_of(tasks.load(domain, task))
+    space = state_space_of(_load(**where))
     memory = LLRMemory(input_dim=space.dim, output_dim=1, capacity=2000, n_neighbours=20,
                        input_weights=space.input_weights, input_period=space.period)
     rng = np.random.default_rng(0)
@@ -183,17 +228,17 @@ def llr_query_insert_us(calls: int, repeats: int, domain: str = _DOMAIN,
 
 
 def learner_step_us(algorithm: str, repeats: int, warmup_trials: int | None = None,
-                    domain: str = _DOMAIN, task: str = _TASK) -> float:
+                    **where: Any) -> float:
     """One learner step (act + update) with full memories, the environment excluded.
 
     The agent first learns for ``warmup_trials`` trials (default: 2500 steps' worth, so that RMAC's
     2000-sample memories are full; 25 trials of the pendulum); then the states and rewards of one more
     trial are replayed through ``agent.step``.
     """
-    env = tasks.load(domain, task)
+    env = _load(**where)
     if warmup_trials is None:
         warmup_trials = math.ceil(2500 / steps_per_trial(env))
-    agent = make_agent(algorithm, state_space_of(env), action_space_of(env), seed=0)
+    agent = _timing_agent(algorithm, env, seed=0)
     for _ in range(warmup_trials):
         run_trial(env, agent, learn=True)
     learner_state = learner_state_of(env)
@@ -215,14 +260,22 @@ def learner_step_us(algorithm: str, repeats: int, warmup_trials: int | None = No
     return float(np.median(samples))
 
 
-def experiment_s(algorithm: str, trials: int, domain: str = _DOMAIN,
-                 task: str = _TASK) -> float:
+def _timing_agent(algorithm: str, env, seed: int):
+    """``algorithm`` with its defaults on ``env``; where the environment does not declare the
+    reward's action cost (an outside one) and the learner needs it (MLAC), with 0, which costs the
+    same time."""
+    space = action_space_of(env)
+    config = {"action_cost": 0.0} if (space.cost is None and algorithm == "mlac") else None
+    return make_agent(algorithm, state_space_of(env), space, config=config, seed=seed)
+
+
+def experiment_s(algorithm: str, trials: int, **where: Any) -> float:
     """Seconds of one learning experiment of ``trials`` trials (environment included), in CPU time
     of this thread (its wall time on an idle core)."""
-    env = tasks.load(domain, task)
-    agent = make_agent(algorithm, state_space_of(env), action_space_of(env), seed=0)
+    env = _load(**where)
+    agent = _timing_agent(algorithm, env, seed=0)
     run_trial(env, agent, learn=True)  # compile outside the timing
-    agent = make_agent(algorithm, state_space_of(env), action_space_of(env), seed=1)
+    agent = _timing_agent(algorithm, env, seed=1)
     start = _clock_ns()
     for _ in range(trials):
         run_trial(env, agent, learn=True)
@@ -240,7 +293,7 @@ def _process_cpu_s() -> float | None:
 
 
 def real_run(experiments: int, trials: int, jobs: int, physics_step_us: float,
-             domain: str = _DOMAIN, task: str = _TASK) -> dict[str, Any]:
+             **where: Any) -> dict[str, Any]:
     """Run ``run_protocol`` (both learners, ``experiments`` x ``trials`` each, on ``jobs`` worker
     processes, into a temporary directory, no figures) and time it end to end.
 
@@ -252,12 +305,13 @@ def real_run(experiments: int, trials: int, jobs: int, physics_step_us: float,
       - ``in_experiments_s``: the time the workers spent inside experiments (per worker), so that
         ``wall_s - in_experiments_s`` is what starting workers, importing and writing cost.
     """
-    from rmac_mj.experiments.protocol import Protocol
+    import dataclasses
+
     from rmac_mj.experiments.runner import run_protocol
 
-    protocol = Protocol(domain=domain, task=task, experiments=experiments, trials=trials)
+    protocol = dataclasses.replace(_where(**where), experiments=experiments, trials=trials)
     steps = experiments * len(protocol.algorithms) * trials * steps_per_trial(
-        tasks.load(protocol.domain, protocol.task))
+        protocol.make_environment(0))
     workers = min(jobs, experiments * len(protocol.algorithms))
     with tempfile.TemporaryDirectory(prefix="rmac-mj-bench-") as out:
         cpu_before = _process_cpu_s()
@@ -289,8 +343,8 @@ def _cpu_name() -> str:
 
 #: The per-step figures of the report, in table order, with their labels ({n_sub}: physics steps per
 #: control step of the measured task).
-ROWS = (("physics_step_us", "raw MuJoCo control step ({n_sub} x mj_step)"),
-        ("env_step_us", "env.step (dm-control Environment + task)"),
+ROWS = (("physics_step_us", "{raw_step}"),
+        ("env_step_us", "{env_step}"),
         ("env_overhead_us", "  of which outside the physics"),
         ("glue_step_us", "glue per step (run_trial, agent boundary)"),
         ("outside_physics_learner_us", "overhead outside physics and learner"),
@@ -301,14 +355,18 @@ ROWS = (("physics_step_us", "raw MuJoCo control step ({n_sub} x mj_step)"),
 
 
 def run(quick: bool = False, algorithms: tuple[str, ...] = ("s-ac", "rmac"), jobs: int = 2,
-        domain: str = _DOMAIN, task: str = _TASK) -> dict[str, Any]:
-    """Measure everything on ``domain``/``task``; return the report (the keys of ``--json``)."""
+        **where: Any) -> dict[str, Any]:
+    """Measure everything on a task of the suite or an outside environment (``where``: ``domain``
+    and ``task``, or ``env`` with its ``learner_state`` and ``action_repeat``, see :func:`_where`);
+    return the report (the keys of ``--json``)."""
     calls, repeats = (200, 5) if quick else (1000, 9)
     trials = 30 if quick else PAPER_TRIALS
-    on = {"domain": domain, "task": task}
-    env = tasks.load(domain, task)
-    report: dict[str, Any] = {**on, "control_timestep_s": env.control_timestep(),
-                              "n_sub_steps": n_sub_steps(env), "state_dim": state_space_of(env).dim}
+    on = dict(where)
+    env = _load(**where)
+    report: dict[str, Any] = {**on, "environment": _where(**where).environment_name,
+                              "control_timestep_s": env.control_timestep(),
+                              "n_sub_steps": n_sub_steps(env) if hasattr(env, "physics") else None,
+                              "state_dim": state_space_of(env).dim}
     report.update(step_costs(calls, repeats, **on))
     report.update({
         "llr_query_insert_us": llr_query_insert_us(calls, repeats, **on),
@@ -350,7 +408,7 @@ def format_table(report: dict[str, Any]) -> str:
              "-" * 90]
     for key, label in ROWS:
         value = report[key]
-        label = label.format(n_sub=report.get("n_sub_steps", "?"))
+        label = label.format(raw_step=_raw_label(report), env_step=_env_step_label(report))
         lines.append(f"{label:<44} {value:>8.1f} {value / physics:>10.2f} {value / env:>10.2f}  "
                      f"{_verdict(value / physics, TARGETS.get(key))}")
     lines.append("")
@@ -384,10 +442,24 @@ def format_table(report: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def _raw_label(report: dict[str, Any]) -> str:
+    """What the unit of a report is (reports written before it was recorded: MuJoCo's steps)."""
+    return report.get("raw_step", f"raw MuJoCo control step ({report.get('n_sub_steps', '?')} x "
+                                  "mj_step)")
+
+
+def _env_step_label(report: dict[str, Any]) -> str:
+    if report.get("env") is not None:
+        return "env.step (the environment + rmac_mj.envs)"
+    return "env.step (dm-control Environment + task)"
+
+
 def _task_line(report: dict[str, Any]) -> str:
-    return (f"{report.get('domain', _DOMAIN)}/{report.get('task', _TASK)}: control step "
-            f"{report.get('control_timestep_s', float('nan')):g} s = {report.get('n_sub_steps', '?')} "
-            f"physics steps, state n={report.get('state_dim', '?')}")
+    name = report.get("environment") or f"{report.get('domain', _DOMAIN)}/{report.get('task', _TASK)}"
+    substeps = (f" = {report['n_sub_steps']} physics steps" if report.get("n_sub_steps") is not None
+                else "")
+    return (f"{name}: control step {report.get('control_timestep_s', float('nan')):g} s{substeps}, "
+            f"state n={report.get('state_dim', '?')}")
 
 
 def format_markdown(report: dict[str, Any]) -> str:
@@ -399,7 +471,7 @@ def format_markdown(report: dict[str, Any]) -> str:
              "| what | us | x raw control step | target |", "|---|---|---|---|"]
     for key, label in ROWS:
         value = report[key]
-        label = label.format(n_sub=report.get("n_sub_steps", "?"))
+        label = label.format(raw_step=_raw_label(report), env_step=_env_step_label(report))
         lines.append(f"| {label.strip()} | {value:.1f} | {value / physics:.2f} | "
                      f"{_verdict(value / physics, TARGETS.get(key))} |")
     per_trial = report["steps_per_trial"]

@@ -173,7 +173,7 @@ class Protocol:
             raise ValueError(f"{', '.join(given)} describe an outside environment: give env too")
         if self.domain not in tasks.TASKS_BY_DOMAIN:
             raise ValueError(f"unknown domain {self.domain!r}; available: "
-                             f"{', '.join(sorted(tasks.TASKS_BY_DOMAIN))}")
+                             f"{', '.join(sorted(tasks.TASKS_BY_DOMAIN))}{envs.hint_for(self.domain)}")
         if self.task not in tasks.TASKS_BY_DOMAIN[self.domain]:
             raise ValueError(f"unknown task {self.task!r} of domain {self.domain!r}; available: "
                              f"{', '.join(tasks.TASKS_BY_DOMAIN[self.domain])}")

@@ -98,9 +98,16 @@ def render_episode(env: control.Environment, agent: Agent | None = None, policy:
 
     Intermediate frames come from a scratch copy of the physics stepped with the same control, so the
     episode itself is exactly ``env.step``'s (the same return as ``run_trial(env, agent, learn=False)``).
+    An outside environment without a MuJoCo physics (``rmac_mj.envs``, e.g. a Gymnasium one made to
+    render) draws its own frames, one per control step, at its own size.
     """
     act = _acting_function(agent, policy)
-    physics = env.physics
+    physics = getattr(env, "physics", None)
+    if physics is None:
+        if frames_per_step != 1:
+            raise ValueError(f"frames_per_step must be 1 for an environment that draws its own "
+                             f"frames, got {frames_per_step!r}")
+        return _render_own_frames(env, act, overlay, label)
     learner_state = learner_state_of(env)
     n_sub = n_sub_steps(env)
     if (not isinstance(frames_per_step, (int, np.integer)) or isinstance(frames_per_step, bool)
@@ -128,6 +135,8 @@ def render_episode(env: control.Environment, agent: Agent | None = None, policy:
         timestep = env.reset()
         record(physics, state_of(timestep.observation, learner_state), np.zeros(spec.shape))
         scratch = physics.copy(share_model=True) if frames_per_step > 1 else None
+        # The observation of the scratch physics: the task's, or an outside environment's (rmac_mj.envs)
+        observe = getattr(env, "observation_at", None) or env.task.get_observation
         while not timestep.last():
             u = act(state_of(timestep.observation, learner_state))
             if scratch is not None:
@@ -140,14 +149,42 @@ def render_episode(env: control.Environment, agent: Agent | None = None, policy:
                     mujoco.mj_step(scratch.model.ptr, scratch.data.ptr)
                     if substep % substeps_per_frame == 0:
                         mujoco.mj_forward(scratch.model.ptr, scratch.data.ptr)  # positions for drawing
-                        record(scratch, state_of(env.task.get_observation(scratch), learner_state),
-                               applied)
+                        record(scratch, state_of(observe(scratch), learner_state), applied)
             total += float(timestep.reward)
             record(physics, state_of(timestep.observation, learner_state), applied)
     episode = RenderedEpisode(frames=np.stack(frames), times=np.array(times), states=np.array(states),
                               actions=np.array(actions).reshape(len(frames), -1),
                               returns=np.array(returns), fps=frames_per_step / env.control_timestep(),
                               state_labels=learner_state.labels,
+                              action_labels=learner_state.action_labels)
+    if overlay:
+        episode = dataclasses.replace(episode, frames=draw_overlay(episode, label=label))
+    return episode
+
+
+def _render_own_frames(env, act: Policy, overlay: bool, label: str | None) -> RenderedEpisode:
+    """A greedy episode of an environment that draws its own frames (``env.render_frame()``)."""
+    learner_state = learner_state_of(env)
+    spec = env.action_spec()
+    a_low, a_high = np.broadcast_to(spec.minimum, spec.shape), np.broadcast_to(spec.maximum, spec.shape)
+    frames, states, actions, returns = [], [], [], []
+    total, u = 0.0, np.zeros(spec.shape)
+    timestep = env.reset()
+    while True:
+        x = state_of(timestep.observation, learner_state)
+        frames.append(env.render_frame())
+        states.append(x)
+        actions.append(u)
+        returns.append(total)
+        if timestep.last():
+            break
+        u = np.clip(np.asarray(act(x), dtype=float).reshape(spec.shape), a_low, a_high)
+        timestep = env.step(u)
+        total += float(timestep.reward)
+    dt = env.control_timestep()
+    episode = RenderedEpisode(frames=np.stack(frames), times=dt * np.arange(len(frames)),
+                              states=np.array(states), actions=np.array(actions).reshape(len(frames), -1),
+                              returns=np.array(returns), fps=1.0 / dt, state_labels=learner_state.labels,
                               action_labels=learner_state.action_labels)
     if overlay:
         episode = dataclasses.replace(episode, frames=draw_overlay(episode, label=label))

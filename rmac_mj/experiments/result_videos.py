@@ -22,15 +22,17 @@ from rmac_mj.experiments.store import ResultStore
 def render_snapshot_episode(snapshot_path: str | os.PathLike, width: int = 320, height: int = 240,
                             camera: Camera = None, frames_per_step: int = 1,
                             overlay: bool = True, label: str | None = None,
-                            domain: str | None = None, task: str | None = None) -> RenderedEpisode:
+                            domain: str | None = None, task: str | None = None,
+                            env: str | None = None) -> RenderedEpisode:
     """Render the greedy episode of the agent saved at ``snapshot_path``.
 
     The episode runs on the task the agent learned on, or on ``domain``/``task`` when given (with
-    their default task_kwargs; the learner's state and action must have the same dimensions there).
+    their default task_kwargs), or on the outside environment ``env`` (a SPEC); the learner's state
+    and action must have the same dimensions there.
     ``label`` defaults to e.g. "RMAC, trial 600" from the snapshot's meta data.
     """
     agent, meta = load_snapshot(snapshot_path)
-    env = snapshot_environment(agent, meta, domain, task)
+    env = snapshot_environment(agent, meta, domain, task, env, render=True)
     if label is None:
         label = display_name(meta["algorithm"])
         if meta.get("trial") is not None:
@@ -42,12 +44,13 @@ def render_snapshot_episode(snapshot_path: str | os.PathLike, width: int = 320, 
 def render_snapshot(snapshot_path: str | os.PathLike, out_path: str | os.PathLike, width: int = 320,
                     height: int = 240, camera: Camera = None, frames_per_step: int = 1,
                     overlay: bool = True, scale: float = 1.0, frame_step: int = 1,
-                    domain: str | None = None, task: str | None = None) -> pathlib.Path:
+                    domain: str | None = None, task: str | None = None,
+                    env: str | None = None) -> pathlib.Path:
     """Render a snapshot's greedy episode to ``out_path`` (.mp4 or .gif) at real-time speed (on
-    ``domain``/``task`` when given, see :func:`render_snapshot_episode`)."""
+    ``domain``/``task`` or ``env`` when given, see :func:`render_snapshot_episode`)."""
     video.check_video_path(out_path)
     episode = render_snapshot_episode(snapshot_path, width, height, camera, frames_per_step, overlay,
-                                      domain=domain, task=task)
+                                      domain=domain, task=task, env=env)
     return video.write_video(episode.frames, out_path, episode.fps, scale=scale,
                              frame_step=frame_step)
 

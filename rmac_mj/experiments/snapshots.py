@@ -79,21 +79,35 @@ def load_snapshot(path: str | os.PathLike) -> tuple[Agent, dict[str, Any]]:
 
 
 def snapshot_environment(agent: Agent, meta: dict, domain: str | None = None,
-                         task: str | None = None) -> control.Environment:
+                         task: str | None = None, env: str | None = None,
+                         render: bool = False) -> control.Environment:
     """The environment a snapshot's agent acts in: the one it learned on (its domain, task and
     task_kwargs, or the outside environment its meta records under ``environment``), or
-    ``domain``/``task`` of the suite with their defaults; UserInputError if its state or action
-    dimensions differ from the agent's."""
+    ``domain``/``task`` of the suite with their defaults, or the outside environment ``env`` (a
+    SPEC, its learner state inferred); UserInputError if its state or action dimensions differ from
+    the agent's. ``render``: an outside environment made to draw its frames."""
     from rmac_mj import envs, tasks
     from rmac_mj.experiments.episode import action_space_of, state_space_of
 
     learned_on = (envs.EnvSpec(**meta["environment"]) if "environment" in meta else None)
     name = learned_on.env if learned_on is not None else f"{meta['domain']}/{meta['task']}"
-    if learned_on is not None and domain is None and task is None:
+    if env is not None and (domain is not None or task is not None):
+        raise UserInputError("give an outside environment (env) or a suite task (domain/task), "
+                             "not both")
+    if (learned_on is not None and domain is None and task is None) or env is not None:
+        spec = learned_on if env is None else envs.EnvSpec(env)
         try:
-            return learned_on.make()
+            made = spec.make(render=render)
         except ValueError as error:
-            raise UserInputError(f"cannot rebuild {name}, the snapshot's environment: {error}") from None
+            raise UserInputError(f"cannot build {spec.env}: {error}") from None
+        if env is None:
+            return made
+        n, m = state_space_of(made).dim, action_space_of(made).dim
+        if (n, m) != (agent.state_space.dim, agent.action_space.dim):
+            raise UserInputError(f"{env} has {n} state and {m} action dimensions, the agent "
+                                 f"(learned on {name}) {agent.state_space.dim} and "
+                                 f"{agent.action_space.dim}")
+        return made
     domain = domain or meta.get("domain")
     task = task or (meta.get("task") if domain == meta.get("domain") else None)
     if task is None:
