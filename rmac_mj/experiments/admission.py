@@ -31,15 +31,14 @@ from rmac_mj.tasks.common import LearnerState
 
 
 class TaskFacts:
-    """What the driver asks of each distinct task (domain, task, task_kwargs), its environment built
+    """What the driver asks of each distinct task (its environment's description), its environment built
     once for all: the spaces the learners see, the trial's length and the learner's state."""
 
     def __init__(self) -> None:
         self._facts: dict[str, tuple[StateSpace, ActionSpace, float, LearnerState]] = {}
 
     def _of(self, protocol: Protocol) -> tuple[StateSpace, ActionSpace, float, LearnerState]:
-        key = json.dumps([protocol.domain, protocol.task, protocol.task_kwargs], sort_keys=True,
-                         default=repr)
+        key = json.dumps(protocol.environment_description(), sort_keys=True, default=repr)
         if key not in self._facts:
             env = protocol.make_environment()
             self._facts[key] = (state_space_of(env), action_space_of(env), trial_seconds(env),
@@ -154,7 +153,7 @@ def warm_up_announced(protocols: Iterable[Protocol], log: Callable[[str], None] 
             log(f"compiling kernels, first run only (cached in {_cache.numba_cache_location()})")
     seen, chosen = set(), []
     for protocol in protocols:
-        key = json.dumps([protocol.domain, protocol.task, protocol.task_kwargs, protocol.algorithms,
+        key = json.dumps([protocol.environment_description(), protocol.algorithms,
                           [protocol.agent_configs.get(a, {}).get("backend") for a in protocol.algorithms]],
                          sort_keys=True, default=repr)
         if key not in seen:

@@ -100,28 +100,24 @@ def snapshot_environment(agent: Agent, meta: dict, domain: str | None = None,
             made = spec.make(render=render)
         except ValueError as error:
             raise UserInputError(f"cannot build {spec.env}: {error}") from None
-        if env is None:
-            return made
-        n, m = state_space_of(made).dim, action_space_of(made).dim
-        if (n, m) != (agent.state_space.dim, agent.action_space.dim):
-            raise UserInputError(f"{env} has {n} state and {m} action dimensions, the agent "
-                                 f"(learned on {name}) {agent.state_space.dim} and "
-                                 f"{agent.action_space.dim}")
-        return made
-    domain = domain or meta.get("domain")
-    task = task or (meta.get("task") if domain == meta.get("domain") else None)
-    if task is None:
-        raise UserInputError(f"give the task of domain {domain!r} too (the snapshot learned {name})")
-    own = learned_on is None and (domain, task) == (meta["domain"], meta["task"])
-    try:
-        env = tasks.load(domain, task, task_kwargs=meta.get("task_kwargs") if own else None)
-    except ValueError as error:
-        raise UserInputError(str(error)) from None
+        own, where = env is None, spec.env
+    else:
+        domain = domain or meta.get("domain")
+        task = task or (meta.get("task") if domain == meta.get("domain") else None)
+        if task is None:
+            raise UserInputError(f"give the task of domain {domain!r} too (the snapshot learned "
+                                 f"{name})")
+        own = learned_on is None and (domain, task) == (meta["domain"], meta["task"])
+        try:
+            made = tasks.load(domain, task, task_kwargs=meta.get("task_kwargs") if own else None)
+        except ValueError as error:
+            raise UserInputError(str(error)) from None
+        where = f"{domain}/{task}"
     if own:
-        return env
-    n, m = state_space_of(env).dim, action_space_of(env).dim
+        return made
+    n, m = state_space_of(made).dim, action_space_of(made).dim
     if (n, m) != (agent.state_space.dim, agent.action_space.dim):
-        raise UserInputError(f"{domain}/{task} has {n} state and {m} action dimensions, the agent "
+        raise UserInputError(f"{where} has {n} state and {m} action dimensions, the agent "
                              f"(learned on {name}) {agent.state_space.dim} and "
                              f"{agent.action_space.dim}")
-    return env
+    return made
