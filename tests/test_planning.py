@@ -233,3 +233,17 @@ def test_settings_are_checked_by_name():
     undeclared = (StateSpace(low=[-1], high=[1], periodic=[False]), ActionSpace(low=[-1], high=[1]))
     with pytest.raises(ValueError, match="state and action costs"):
         make_agent("s-ac", *undeclared, config=dict(planning=Planning(steps=1, reward="task")))
+
+
+def test_the_bench_prices_planning_and_replay_for_every_learner():
+    """``rmac-mj bench`` restores one warm state (planning and replay memories filled) into learners
+    configured with either or neither; each keeps the parts it holds and is priced."""
+    from rmac_mj.experiments import bench_planning
+
+    report = bench_planning.rehearsal_costs("dc_pendulum", "swingup", repeats=1, trials=1, steps=(0, 5))
+    assert set(report) == {"s-ac", "rmac", "mlac"}
+    for figures in report.values():
+        assert figures["planning_update_us"] > 0 and figures["replay_update_us"] > 0
+        for kind in bench_planning.KINDS:
+            per_minute = figures["cpu_per_simulated_minute"][kind]
+            assert set(per_minute) == {0, 5} and all(np.isfinite(v) and v > 0 for v in per_minute.values())

@@ -29,6 +29,8 @@ def test_tiny_protocol_end_to_end(tmp_path, monkeypatch):
     from rmac_mj.experiments import reference
 
     monkeypatch.setattr(reference, "run_reference", lambda protocol, log=None: -900.0)
+    monkeypatch.setattr(reference, "run_exploration_floor",
+                        lambda protocol, algorithm, log=None: -950.0)
     protocol = Protocol(**TINY)
     summary = runner.run_protocol(protocol, tmp_path, jobs=1, progress=False, references=True)
     for name in ("config.json", "summary.json", "returns.csv", "fig2_learning_curves.png",
@@ -36,6 +38,7 @@ def test_tiny_protocol_end_to_end(tmp_path, monkeypatch):
         assert (tmp_path / name).is_file(), name
     on_disk = json.loads((tmp_path / "summary.json").read_text())
     assert on_disk["paper_protocol"] is False and on_disk["optimal_return"] == -900.0
+    assert on_disk["exploration_floor"] == -950.0
     row = on_disk["s-ac"]
     for key in ("experiments", "trials", "mean_return_per_trial", "ci95_low_per_trial",
                 "ci95_high_per_trial", "final_return_mean", "final_return_ci95", "minutes_to_90pct",

@@ -47,9 +47,12 @@ def _warm_state(algorithm: str, env) -> dict:
 
 
 def _agent_from(algorithm: str, env, state: dict, kind: str, steps: int):
+    """A learner configured for ``steps`` of ``kind`` holding the warm state's memories: the parts
+    of the state its configuration keeps (a learner without replay keeps no stored trials)."""
     agent = make_agent(algorithm, state_space_of(env), action_space_of(env), seed=1,
                        config=_config(kind, steps))
-    agent.load_state_dict(state)
+    own = agent.state_dict()
+    agent.load_state_dict({key: value for key, value in state.items() if key in own})
     return agent
 
 
