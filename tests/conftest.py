@@ -18,13 +18,13 @@ def toy(monkeypatch):
 def pytest_collection_modifyitems(config, items):
     """Tests run for a deep-RL baseline (a parameter naming one) are skipped, with the reason, when
     its [baselines] extra is not installed."""
-    from rmac_mj.agents import sb3
+    from rmac_mj.agents import sb3_config
 
-    if sb3.available():
+    if sb3_config.available():
         return
-    skip = pytest.mark.skip(reason=sb3.INSTALL_HINT)
+    skip = pytest.mark.skip(reason=sb3_config.INSTALL_HINT)
     for item in items:
         callspec = getattr(item, "callspec", None)
-        if callspec is not None and any(isinstance(value, str) and value in sb3.BASELINES
+        if callspec is not None and any(isinstance(value, str) and value in sb3_config.BASELINES
                                         for value in callspec.params.values()):
             item.add_marker(skip)

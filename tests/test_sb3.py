@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 from learners import quick_config
 
-from rmac_mj.agents import agent_class, config_class, make_agent, sb3
+from rmac_mj.agents import agent_class, config_class, make_agent, sb3, sb3_config
 
-pytestmark = pytest.mark.skipif(not sb3.available(), reason=sb3.INSTALL_HINT)
+pytestmark = pytest.mark.skipif(not sb3_config.available(), reason=sb3_config.INSTALL_HINT)
 
 ENV_ID = "rmac_mj/DCPendulum-Swingup-v0"
 
@@ -88,7 +88,7 @@ def _pendulum_spaces():
     return state_space_of(env), action_space_of(env)
 
 
-@pytest.mark.parametrize("algorithm", sb3.BASELINES)
+@pytest.mark.parametrize("algorithm", sb3_config.BASELINES)
 def test_the_defaults_are_sb3s(algorithm):
     """Every hyperparameter SB3's constructor takes defaults to SB3's value, and the networks to SB3's
     default architecture; the one exception is TD3's exploration noise (its config says why)."""

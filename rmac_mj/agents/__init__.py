@@ -38,7 +38,7 @@ _REGISTRY = {
     "rmac": ("rmac_mj.agents.rmac", "RMAC", "RMACConfig"),
     "s-ac": ("rmac_mj.agents.sac", "SAC", "SACConfig"),
     "mlac": ("rmac_mj.agents.mlac", "MLAC", "MLACConfig"),
-    # Deep-RL baselines (Stable-Baselines3; the [baselines] extra), rmac_mj/agents/sb3.py.
+    # Deep-RL baselines (Stable-Baselines3; the [baselines] extra), rmac_mj/agents/sb3.py (their configs: sb3_config.py).
     "sb3-sac": ("rmac_mj.agents.sb3", "SB3SAC", "SB3SACConfig"),
     "sb3-td3": ("rmac_mj.agents.sb3", "SB3TD3", "SB3TD3Config"),
     "sb3-ppo": ("rmac_mj.agents.sb3", "SB3PPO", "SB3PPOConfig"),

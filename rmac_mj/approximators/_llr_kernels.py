@@ -55,6 +55,9 @@ memory changed otherwise (a fit, a reset, a load), is searched again. So a calle
 wherever the algorithm needs it and never sees the caching. :func:`query` is the one-shot search and
 fit (a greedy action, a candidate's value), which keeps nothing; :func:`insert` takes the nearest
 sample from the last search when that was made at the same point on the memory as it is.
+
+The kernels run a little past 400 lines because the kept lists and the searches they replace
+must be read together to see that they give the same neighbours.
 """
 
 from __future__ import annotations
