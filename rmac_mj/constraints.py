@@ -243,6 +243,16 @@ class InstanceOf(Constraint):
 #: Input weightings of an LLR memory: finite numbers >= 0, one per input dimension.
 WEIGHTS = TupleOf(Interval(numbers.Real, 0, None), what="a list of finite numbers >= 0")
 
+#: What every TD(lambda) learner here declares alike (Table 2): the discount gamma in [0, 1), the
+#: trace decay lambda and the critic's learning rate alpha_c in [0, 1].
+TD_LAMBDA = {
+    "gamma": [Interval(numbers.Real, 0, 1, closed="left")],
+    "lam": [Interval(numbers.Real, 0, 1)],
+    "alpha_c": [Interval(numbers.Real, 0, 1)],
+}
+#: A learner's compute back end: compiled kernels or their numpy reference (the same results).
+BACKEND = [Options("numba", "numpy")]
+
 
 def _alternatives(constraints: Sequence[Any], context: Mapping[str, Any] | None = None) -> str:
     """What a list of constraints expects, e.g. "a number in [0, 1] or None"."""

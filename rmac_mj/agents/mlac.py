@@ -52,12 +52,12 @@ import numpy as np
 from rmac_mj.agents.base import Agent
 from rmac_mj.agents.critic import LLRCritic, _check_traces
 from rmac_mj.agents.exploration import Exploration, model_uncertainty
-from rmac_mj.agents.planning import Planning, Replay
+from rmac_mj.agents.planning import REHEARSAL, Planning, Replay
 from rmac_mj.agents.prior_knowledge import discounted_returns, seed_memory
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
 from rmac_mj.agents.task_knowledge import with_task_action_cost, with_task_weights
 from rmac_mj.approximators.llr import SHARED_CONSTRAINTS, LLRMemory, memory_constraints, wrap
-from rmac_mj.constraints import WEIGHTS, InstanceOf, Interval, Options, check_config
+from rmac_mj.constraints import BACKEND, TD_LAMBDA, WEIGHTS, InstanceOf, Interval, Options, check_config
 
 _MEMORIES = ("actor", "critic", "process")
 
@@ -157,10 +157,8 @@ class MLACConfig:
     #: Parameters renamed since earlier versions (read from snapshots those wrote): old -> new.
     former_names: ClassVar[dict[str, str]] = {"alpha_actor": "alpha_a", "alpha_critic": "alpha_c"}
     parameter_constraints: ClassVar[dict[str, list]] = {
-        "gamma": [Interval(Real, 0, 1, closed="left")],
-        "lam": [Interval(Real, 0, 1)],
+        **TD_LAMBDA,
         "alpha_a": [Interval(Real, 0, 1)],
-        "alpha_c": [Interval(Real, 0, 1)],
         **{name: constraints for memory in _MEMORIES for name, constraints in
            memory_constraints(memory, ("nearest", "oldest"), redundancy=False).items()},
         "exploration": [InstanceOf(Exploration)],
@@ -170,9 +168,8 @@ class MLACConfig:
         "model_action": [Options("policy", "applied")],
         "initial_value": [Options("critic", "zero")],
         **SHARED_CONSTRAINTS,
-        "planning": [InstanceOf(Planning)],
-        "replay": [InstanceOf(Replay)],
-        "backend": [Options("numba", "numpy")],
+        **REHEARSAL,
+        "backend": BACKEND,
     }
 
     def __post_init__(self) -> None:

@@ -49,7 +49,7 @@ import numpy as np
 from numba import njit
 
 from rmac_mj.approximators.llr import LLRMemory, llr_query, wrap, wrap_scalar
-from rmac_mj.constraints import Boolean, Interval, Options, check_config, invalid
+from rmac_mj.constraints import Boolean, InstanceOf, Interval, Options, check_config, invalid
 
 if TYPE_CHECKING:  # pragma: no cover
     from rmac_mj.agents.base import ActionSpace, Agent, StateSpace
@@ -113,6 +113,10 @@ class Replay:
 
     def __post_init__(self) -> None:
         check_config(self)
+
+
+#: The constraints of a learner config's ``planning`` and ``replay`` fields (every learner has both).
+REHEARSAL = {"planning": [InstanceOf(Planning)], "replay": [InstanceOf(Replay)]}
 
 
 # --------------------------------------------------------------------------------------------------

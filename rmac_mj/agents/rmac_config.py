@@ -9,9 +9,9 @@ from numbers import Integral, Real
 from typing import ClassVar
 
 from rmac_mj.agents.exploration import Exploration
-from rmac_mj.agents.planning import Planning, Replay
+from rmac_mj.agents.planning import REHEARSAL, Planning, Replay
 from rmac_mj.approximators.llr import SHARED_CONSTRAINTS, LLRMemory, memory_constraints
-from rmac_mj.constraints import WEIGHTS, InstanceOf, Interval, Options, check_config
+from rmac_mj.constraints import BACKEND, TD_LAMBDA, WEIGHTS, InstanceOf, Interval, Options, check_config
 
 #: The rules that select line 16's best reachable state (``RMACConfig.reachable_rule``).
 REACHABLE_RULES = ("vertices", "vertices_value", "grid", "exact")
@@ -180,9 +180,7 @@ class RMACConfig:
                                           (self.alpha_r, self.alpha_r_final)))
 
     parameter_constraints: ClassVar[dict[str, list]] = {
-        "gamma": [Interval(Real, 0, 1, closed="left")],
-        "lam": [Interval(Real, 0, 1)],
-        "alpha_c": [Interval(Real, 0, 1)],
+        **TD_LAMBDA,
         "alpha_r": [Interval(Real, 0, 1)],
         "alpha_c_final": [Interval(Real, 0, 1), None],
         "alpha_r_final": [Interval(Real, 0, 1), None],
@@ -199,9 +197,8 @@ class RMACConfig:
         "reachable_grid": [Interval(Integral, 2, None)],
         "reference_insert_rate": [Interval(Real, 0, 1)],
         "initial_value": [Options("critic", "zero")],
-        "planning": [InstanceOf(Planning)],
-        "replay": [InstanceOf(Replay)],
-        "backend": [Options("numba", "numpy")],
+        **REHEARSAL,
+        "backend": BACKEND,
     }
 
     def __post_init__(self) -> None:

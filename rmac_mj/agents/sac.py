@@ -43,10 +43,11 @@ import numpy as np
 
 from rmac_mj.agents.base import Agent
 from rmac_mj.agents.exploration import Exploration
-from rmac_mj.agents.planning import Planning, Replay
+from rmac_mj.agents.planning import REHEARSAL, Planning, Replay
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
 from rmac_mj.approximators.tile_coding import Backend, TileCoder, TileCodingConfig
-from rmac_mj.constraints import InstanceOf, Interval, Options, TupleOf, check_config, invalid
+from rmac_mj.constraints import (BACKEND, TD_LAMBDA, InstanceOf, Interval, Options, TupleOf, check_config,
+                                 invalid)
 
 
 #: tile_low/tile_high: a bound per state dimension, None keeping the StateSpace's.
@@ -94,19 +95,16 @@ class SACConfig:
     #: Parameters renamed since earlier versions (read from snapshots those wrote): old -> new.
     former_names: ClassVar[dict[str, str]] = {"alpha_actor": "alpha_a", "alpha_critic": "alpha_c"}
     parameter_constraints: ClassVar[dict[str, list]] = {
-        "gamma": [Interval(Real, 0, 1, closed="left")],
-        "lam": [Interval(Real, 0, 1)],
+        **TD_LAMBDA,
         "alpha_a": [Interval(Real, 0, 1)],
-        "alpha_c": [Interval(Real, 0, 1)],
         "rate_split": [Options("both", "actor", "none")],
         "tile_coding": [InstanceOf(TileCodingConfig)],
         "tile_low": [_TILE_BOUNDS, None],
         "tile_high": [_TILE_BOUNDS, None],
         "exploration": [InstanceOf(Exploration)],
         "trace_cutoff": [Interval(Real, 0, 1, closed="left")],
-        "planning": [InstanceOf(Planning)],
-        "replay": [InstanceOf(Replay)],
-        "backend": [Options("numba", "numpy")],
+        **REHEARSAL,
+        "backend": BACKEND,
     }
 
     def __post_init__(self) -> None:
