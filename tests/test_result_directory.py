@@ -46,15 +46,21 @@ def finished(tmp_path_factory) -> pathlib.Path:
 
 # -- the lock ----------------------------------------------------------------------------------------
 
-def test_a_directory_in_use_is_refused_naming_the_run_that_holds_it(tmp_path, capsys):
-    out = tmp_path / "run"
+def _lock_holder(out: pathlib.Path) -> subprocess.Popen:
+    """Another process that holds ``out``'s lock (as a run writing there does) until killed."""
     holder = subprocess.Popen(
         [sys.executable, "-c", "import sys, time\nfrom rmac_mj.experiments.store import ResultStore\n"
          "lock = ResultStore(sys.argv[1]).lock()\nlock.acquire()\nprint('held', flush=True)\n"
          "time.sleep(120)",
          str(out)], stdout=subprocess.PIPE, text=True)
+    assert holder.stdout.readline().strip() == "held"
+    return holder
+
+
+def test_a_directory_in_use_is_refused_naming_the_run_that_holds_it(tmp_path, capsys):
+    out = tmp_path / "run"
+    holder = _lock_holder(out)
     try:
-        assert holder.stdout.readline().strip() == "held"
         assert main(["reproduce", *CLI, "--out", str(out)]) == 2
         error = capsys.readouterr().err
         assert f"is in use by another run (pid {holder.pid} on " in error
@@ -63,6 +69,25 @@ def test_a_directory_in_use_is_refused_naming_the_run_that_holds_it(tmp_path, ca
         holder.kill()
         holder.wait()
     assert main(["reproduce", *CLI, "--out", str(out)]) == 0  # the lock died with its holder
+
+
+def test_a_sweep_directory_in_use_is_refused_before_anything_is_written(tmp_path, capsys):
+    """Issue 20 asks the lock of a sweep too: a second sweep on one --out is refused in one line
+    naming the holder, and writes neither the index nor a configuration's directory."""
+    grid = tmp_path / "grid.toml"
+    grid.write_text('[protocol]\nalgorithms = ["s-ac"]\nexperiments = 1\ntrials = 1\n'
+                    '[grid]\n"s-ac.alpha_a" = [0.01, 0.02]\n')
+    out = tmp_path / "sweep"
+    holder = _lock_holder(out)
+    try:
+        assert main(["sweep", str(grid), "--jobs", "1", "--no-optimal", "--no-progress",
+                     "--out", str(out)]) == 2
+        errors = [line for line in capsys.readouterr().err.splitlines() if "error" in line]
+        assert len(errors) == 1 and f"is in use by another run (pid {holder.pid} on " in errors[0]
+        assert not (out / "sweep.json").exists() and not any(p.is_dir() for p in out.iterdir())
+    finally:
+        holder.kill()
+        holder.wait()
 
 
 def test_two_runs_started_at_once_on_one_directory_never_mix(tmp_path):
