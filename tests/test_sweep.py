@@ -216,6 +216,50 @@ def test_tiny_sweep_killed_resumed_and_summarised(tmp_path, capsys):
         sweep.run_sweep(sweep_file.load_sweep(other), whole, jobs=1, resume=True, progress=False)
 
 
+def test_a_small_sweep_says_its_final_window_and_that_few_experiments_mean_little(tmp_path,
+                                                                                   monkeypatch):
+    """Issue 20: sweep tables and figures said "the last 50 trials" of a 5-trial run and drew 95%
+    intervals of 2 experiments without a word; they carry reproduce's small-n note."""
+    from rmac_mj.experiments import plots
+
+    plan = sweep_file.load_sweep(write(tmp_path, TINY))
+
+    def rows(experiments):
+        return [{"configuration": c.name, **c.values, "algorithm": "s-ac", "experiments": experiments,
+                 "final_return_mean": -900.0, "final_return_ci95_low": -2600.0,
+                 "final_return_ci95_high": 800.0, "minutes_to_90pct": 0.1,
+                 "mean_return_first_5min": -900.0, "first_5min_ci95_low": -2600.0,
+                 "first_5min_ci95_high": 800.0, "stuck_experiments": None, "wall_time_s": 1.0,
+                 "final_window": 3, "stuck_below": None} for c in plan.configurations]
+
+    few, enough = sweep.format_table(plan, rows(2)), sweep.format_table(plan, rows(5))
+    assert "final return: mean of the last 3 trials per experiment" in few
+    assert "final return: mean of the last 3 trials per experiment" in enough
+    assert "note: 2 experiments per learner: too few to rank the learners" in few
+    assert "note:" not in enough
+
+    close, drawn = plots.plt.close, []
+    monkeypatch.setattr(plots.plt, "close", drawn.append)  # keep the figures to read their texts
+    try:
+        notes = {}
+        for experiments in (2, 5):
+            drawn.clear()
+            plots.plot_sweep(plan, rows(experiments), tmp_path)
+            texts = {fig.axes[0].get_ylabel(): [t.get_text() for t in fig.texts] for fig in drawn}
+            assert "final return (mean of the last 3 trials)" in texts
+            notes[experiments] = texts
+            for fig in drawn:
+                close(fig)
+    finally:
+        monkeypatch.undo()
+    interval = "2 experiments per configuration: 95% intervals from fewer than 5 mean little"
+    assert interval in notes[2]["final return (mean of the last 3 trials)"]
+    assert interval in notes[2]["mean return of the first 5 simulated minutes"]
+    wall_time = notes[2]["wall time of its experiments, summed [s]"]  # no interval drawn, no note
+    assert not any("per configuration" in text for text in wall_time)
+    assert not any("per configuration" in text for texts in notes[5].values() for text in texts)
+
+
 def test_reproduce_config_equals_the_same_set_overrides(tmp_path, capsys):
     path = write(tmp_path, """
 [protocol]
