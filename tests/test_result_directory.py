@@ -356,6 +356,37 @@ def test_a_bad_or_unreachable_scheduler_is_one_line_and_writes_nothing(tmp_path,
     assert not (out / "config.json").exists() and time.monotonic() - started < 20
 
 
+def test_a_scheduler_lost_mid_run_is_one_line_naming_what_is_saved(tmp_path, monkeypatch, capsys):
+    """The scheduler goes away once the first experiment is saved: one line naming what is saved
+    and how to finish, the saved experiments whole, and a resume without it completes the run."""
+    distributed = pytest.importorskip("distributed")
+    cluster = distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                                       dashboard_address=None)
+    save = ResultStore.save
+
+    def save_then_lose_the_scheduler(store, result):
+        save(store, result)
+        cluster.close()
+    monkeypatch.setattr(ResultStore, "save", save_then_lose_the_scheduler)
+    out = tmp_path / "run"
+    try:
+        assert main(["reproduce", *CLI[:-4], "--experiments", "4", "--no-optimal", "--no-progress",
+                     "--scheduler", cluster.scheduler_address, "--out", str(out)]) == 2
+    finally:
+        cluster.close()
+    monkeypatch.undo()
+    error = capsys.readouterr().err
+    saved = sorted((out / "curves" / "s-ac").glob("exp_*.npz"))
+    assert len(error.strip().splitlines()) == 1 and "Traceback" not in error
+    assert "lost the Dask scheduler at" in error
+    assert (f"{len(saved)} finished experiment{'s' * (len(saved) != 1)} saved in {out}: finish "
+            f"with rmac-mj reproduce --resume --out {out}") in error
+    assert 1 <= len(saved) < 4 and not (out / "summary.json").exists()
+    assert main(["reproduce", "--resume", "--out", str(out), "--jobs", "1", "--no-optimal",
+                 "--no-progress"]) == 0
+    assert len(list((out / "curves" / "s-ac").glob("exp_*.npz"))) == 4
+
+
 def test_a_hyperparameter_the_task_cannot_take_is_one_line_before_anything_runs(tmp_path, capsys):
     out = tmp_path / "run"
     assert main(["reproduce", "--algorithms", "rmac", "--experiments", "1", "--trials", "1",
