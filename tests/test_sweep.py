@@ -260,6 +260,19 @@ def test_a_small_sweep_says_its_final_window_and_that_few_experiments_mean_littl
     assert not any("per configuration" in text for texts in notes[5].values() for text in texts)
 
 
+@pytest.mark.parametrize("text, named", [('{"sweep": {"protocol"', "is damaged (Expecting ':' delimiter"),
+                                         ("[1, 2]", "is damaged (not a sweep's index")])
+def test_a_damaged_sweep_index_is_one_line_not_a_traceback(tmp_path, capsys, text, named):
+    out = tmp_path / "sweep"
+    out.mkdir()
+    (out / "sweep.json").write_text(text)
+    assert cli.main(["sweep", str(write(tmp_path, TINY)), "--resume", "--jobs", "1", "--no-optimal",
+                     "--no-progress", "--out", str(out)]) == 2
+    errors = [line for line in capsys.readouterr().err.splitlines() if "error" in line]
+    assert len(errors) == 1 and named in errors[0] and "sweep.json" in errors[0]
+    assert not any(p.is_dir() for p in out.iterdir())  # nothing ran
+
+
 def test_reproduce_config_equals_the_same_set_overrides(tmp_path, capsys):
     path = write(tmp_path, """
 [protocol]

@@ -42,7 +42,14 @@ def _prepare(out: pathlib.Path, sweep: Sweep, resume: bool) -> None:
         if not resume:
             raise SweepResumeRefused(f"{out} already holds a sweep; pass --resume to finish it, or "
                                      "choose another --out")
-        existing = json.loads(index.read_text())
+        try:
+            existing = json.loads(index.read_text())
+        except (OSError, ValueError) as error:  # unreadable, not UTF-8, not JSON
+            raise SweepResumeRefused(f"{index} is damaged ({error}); which sweep {out} holds cannot "
+                                     "be told: choose another --out") from None
+        if not isinstance(existing, dict):
+            raise SweepResumeRefused(f"{index} is damaged (not a sweep's index: no JSON object); "
+                                     "choose another --out")
         if {k: existing.get(k) for k in document} != document:
             raise SweepResumeRefused(f"{out} holds a sweep of a different file; refusing to mix "
                                      "results (use another --out)")
