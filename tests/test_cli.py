@@ -249,3 +249,13 @@ def test_running_a_finished_run_again_prints_its_summary(tmp_path, capsys):
     assert (out / "summary.json").stat().st_mtime_ns == stamp  # nothing was run or rewritten
     assert main([*args[:-1], str(out), "--seed", "1"]) == 2  # another run: refused, naming it
     assert "seed: 0 in the directory, 1 now" in capsys.readouterr().err
+    # A summary damaged since: one line saying how to write it again, and that command does.
+    summary = (out / "summary.json").read_text()
+    (out / "summary.json").write_text(summary[:40])
+    assert main(args) == 2
+    error = capsys.readouterr().err
+    assert "summary.json: not a JSON document" in error and "already holds" not in error
+    assert f"rmac-mj reproduce --resume --out {out} writes it again" in error
+    assert len(error.strip().splitlines()) == 1
+    assert main([*args, "--resume"]) == 0
+    assert json.loads((out / "summary.json").read_text())["s-ac"] == json.loads(summary)["s-ac"]

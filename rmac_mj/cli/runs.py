@@ -8,6 +8,7 @@ from typing import Any, Sequence
 
 from rmac_mj.cli.common import STARTED, Interrupted, UsageError, say, user_input, writable_dir
 from rmac_mj.cli.options import PROTOCOL_OPTIONS, build_parser
+from rmac_mj.errors import UserInputError
 
 
 def parse_overrides(assignments: Sequence[str]) -> dict[str, dict]:
@@ -116,9 +117,14 @@ def reproduce(args) -> int:
         raise UsageError("--jobs and --scheduler exclude each other")
     store = ResultStore(out)
     if not args.resume and store.holds_finished(protocol):
+        try:
+            finished = store.read_summary()
+        except UserInputError as error:  # damaged since it was written: --resume writes it again
+            raise UsageError(f"{error}; rmac-mj reproduce --resume --out {out} writes it "
+                             "again") from None
         say(f"{out} already holds this run, finished; its summary (run with another --out to "
             "repeat it):")
-        print(report.summary_table(store.read_summary(), protocol.algorithms))
+        print(report.summary_table(finished, protocol.algorithms))
         print(f"results in {out}/ (summary.json, returns.csv, fig2_learning_curves.png)")
         return 0
     try:
