@@ -211,6 +211,7 @@ def test_an_interrupt_before_any_result_says_nothing_is_saved(tmp_path, monkeypa
     result = rmac_mj("reproduce", "--out", str(tmp_path / "x"), "--no-progress")
     assert result.returncode == 130
     assert "nothing is saved" in result.stderr and "are saved" not in result.stderr
+    assert result.stderr.endswith(f"finish it with: rmac-mj reproduce --resume --out {tmp_path / 'x'}\n")
 
 
 def test_a_resume_takes_its_settings_from_the_directory(tmp_path, capsys):
@@ -255,7 +256,7 @@ def test_running_a_finished_run_again_prints_its_summary(tmp_path, capsys):
     assert main(args) == 2
     error = capsys.readouterr().err
     assert "summary.json: not a JSON document" in error and "already holds" not in error
-    assert f"rmac-mj reproduce --resume --out {out} writes it again" in error
+    assert f"rmac-mj reproduce --resume --out {out} --no-optimal writes it again" in error
     assert len(error.strip().splitlines()) == 1
     assert main([*args, "--resume"]) == 0
     assert json.loads((out / "summary.json").read_text())["s-ac"] == json.loads(summary)["s-ac"]

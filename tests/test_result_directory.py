@@ -279,6 +279,8 @@ def test_a_sweep_says_its_size_first_and_makes_directories_as_experiments_start(
                                            "1 trials; checking every configuration")
     made = [p for p in out.iterdir() if p.is_dir()]
     assert 1 <= len(made) <= 2, made  # the started configurations only, not 100
+    assert stderr.rstrip().endswith(f"finish the sweep with: rmac-mj sweep {sweep} --resume --out "
+                                    f"{out} --no-optimal")  # as it was started
 
 
 def _children(pid: int) -> list[int]:
@@ -380,7 +382,7 @@ def test_a_scheduler_lost_mid_run_is_one_line_naming_what_is_saved(tmp_path, mon
     assert len(error.strip().splitlines()) == 1 and "Traceback" not in error
     assert "lost the Dask scheduler at" in error
     assert (f"{len(saved)} finished experiment{'s' * (len(saved) != 1)} saved in {out}: finish "
-            f"with rmac-mj reproduce --resume --out {out}") in error
+            f"with rmac-mj reproduce --resume --out {out} --no-optimal (with --scheduler or --jobs)") in error
     assert 1 <= len(saved) < 4 and not (out / "summary.json").exists()
     assert main(["reproduce", "--resume", "--out", str(out), "--jobs", "1", "--no-optimal",
                  "--no-progress"]) == 0

@@ -116,12 +116,13 @@ def reproduce(args) -> int:
     if args.jobs is not None and args.scheduler:
         raise UsageError("--jobs and --scheduler exclude each other")
     store = ResultStore(out)
+    # What finishes this run as it was started (a run without the reference stays without it).
+    resume = f"rmac-mj reproduce --resume --out {out}{' --no-optimal' if args.no_optimal else ''}"
     if not args.resume and store.holds_finished(protocol):
         try:
             finished = store.read_summary()
         except UserInputError as error:  # damaged since it was written: --resume writes it again
-            raise UsageError(f"{error}; rmac-mj reproduce --resume --out {out} writes it "
-                             "again") from None
+            raise UsageError(f"{error}; {resume} writes it again") from None
         say(f"{out} already holds this run, finished; its summary (run with another --out to "
             "repeat it):")
         print(report.summary_table(finished, protocol.algorithms))
@@ -137,11 +138,10 @@ def reproduce(args) -> int:
         if not saved:
             raise
         raise UsageError(f"{error}; {saved} finished experiment{'s' * (saved != 1)} saved in {out}: "
-                         f"finish with rmac-mj reproduce --resume --out {out} (with --scheduler or "
-                         "--jobs)") from None
+                         f"finish with {resume} (with --scheduler or --jobs)") from None
     except KeyboardInterrupt:
         saved = runner.finished_experiments(out, protocol)
-        again = f"finish it with: rmac-mj reproduce --resume --out {out}"
+        again = f"finish it with: {resume}"
         if saved:
             raise Interrupted(f"{saved} finished experiment{' is' if saved == 1 else 's are'} saved "
                               f"in {out}; {again}") from None
@@ -170,8 +170,9 @@ def sweep(args) -> int:
                                progress=not args.no_progress, references=not args.no_optimal,
                                log=say, started=STARTED)
     except KeyboardInterrupt:
-        raise Interrupted(f"finished experiments are saved in {out}; finish the sweep with: rmac-mj "
-                          f"sweep {args.file} --resume --out {out}") from None
+        again = f"rmac-mj sweep {args.file} --resume --out {out}"
+        raise Interrupted(f"finished experiments are saved in {out}; finish the sweep with: {again}"
+                          f"{' --no-optimal' if args.no_optimal else ''}") from None
     print(sweeps.format_table(plan, rows))
     print(f"results in {out}/ (sweep.csv, sweep_<metric>.png, sweep.json, one directory per "
           "configuration)")
