@@ -53,6 +53,25 @@ def test_summary_keys_shapes_and_stuck_count():
     json.dumps(summary, allow_nan=False)  # valid JSON, no NaN
 
 
+def test_greedy_trial_within_reaches_the_levels_of_issue_23():
+    # -748 is the swing-up's near-optimal return: within 20% is -897.6, within 10% -822.8
+    assert metrics.within_optimal(-748.0, 0.2) == pytest.approx(-897.6)
+    assert metrics.within_optimal(-748.0, 0.1) == pytest.approx(-822.8)
+    greedy = np.array([[-1000.0, -870.0, -850.0, -700.0], [-900.0, -860.0, -800.0, -940.0]])
+    trials = [2, 4, 6, 8]
+    # mean greedy -950, -865, -825, -820: -897.6 first at trial 4, -822.8 first at trial 8 (the
+    # single experiment above -822.8 at trial 6 does not count: the mean does)
+    assert metrics.first_reaching(greedy.mean(axis=0), trials, -897.6) == 4
+    assert metrics.first_reaching(greedy.mean(axis=0), trials, -822.8) == 8
+    assert metrics.first_reaching(greedy.mean(axis=0), trials, -825.0) == 6  # at the level counts
+    assert metrics.first_reaching(greedy.mean(axis=0), trials, -800.0) is None
+    summary = metrics.summarise(np.full((2, 8), -1000.0), greedy, trials, optimal_return=-748.0,
+                                trial_seconds=3.0)
+    assert summary["greedy_trial_within_20pct"] == 4 and summary["greedy_trial_within_10pct"] == 8
+    assert "greedy_trial_within_10pct" not in metrics.summarise(np.full((2, 8), -1000.0), greedy,
+                                                                trials, trial_seconds=3.0)
+
+
 def test_first_minutes_and_stuck_follow_the_task_and_the_reference():
     returns = np.tile(np.arange(1.0, 401.0), (2, 1)) * -1.0
     # 6 s trials: the first 10 minutes are 100 trials; 0.05 s x 60 = 3 s trials: 200.

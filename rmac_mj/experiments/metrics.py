@@ -24,6 +24,9 @@ FINAL_WINDOW = 50
 EARLY_MINUTES = 10.0
 #: A shorter early window, for the studies of how fast learning starts (sweeps report it).
 FIRST_MINUTES = 5.0
+#: Fractions of the near-optimal return the mean greedy curve is timed to (``summarise``:
+#: ``greedy_trial_within_20pct`` and ``_10pct``; issue 23: -898 and -823 on the swing-up).
+GREEDY_WITHIN = (0.2, 0.1)
 #: Significance level of the end-of-run comparison of learners (two-sided).
 SIGNIFICANCE_LEVEL = 0.05
 #: With fewer experiments than this per learner, 95% intervals are too wide to read (the Student t
@@ -75,6 +78,18 @@ def minutes_to_within(curve: np.ndarray, fraction: float = 0.1, window: int = FI
     close = np.abs(curve - final) <= fraction * abs(final)
     first = int(np.argmax(close)) + 1  # close[-1] may be False, but the window mean lies inside it
     return first * trial_seconds / 60.0
+
+
+def first_reaching(curve: np.ndarray, trials: Sequence[int], level: float) -> int | None:
+    """The first of ``trials`` (1-based trial numbers, shape (t,)) at which ``curve`` (shape (t,),
+    e.g. the mean greedy return after those trials) is at or above ``level``; None if it never is."""
+    above = np.asarray(curve, dtype=float) >= level
+    return int(np.asarray(trials)[int(np.argmax(above))]) if above.any() else None
+
+
+def within_optimal(optimal_return: float, fraction: float) -> float:
+    """The return within ``fraction`` of a (negative) near-optimal return: -748 and 0.1 give -822.8."""
+    return optimal_return - fraction * abs(optimal_return)
 
 
 def trials_in(minutes: float, trial_seconds: float) -> int:
@@ -184,6 +199,10 @@ def summarise(returns: np.ndarray, greedy: np.ndarray | None = None,
         last_mean, last_low, last_high = interval(greedy[:, -1])
         summary["greedy_return_last_mean"] = last_mean
         summary["greedy_return_last_ci95"] = [last_low, last_high]
+        if optimal_return is not None:  # how soon the mean greedy policy is near-optimal
+            for fraction in GREEDY_WITHIN:
+                summary[f"greedy_trial_within_{round(100 * fraction)}pct"] = first_reaching(
+                    greedy.mean(axis=0), greedy_trials, within_optimal(optimal_return, fraction))
     if wall_times is not None:
         summary["experiment_wall_s_mean"] = float(np.mean(wall_times))
         summary["experiment_wall_s_total"] = float(np.sum(wall_times))
