@@ -266,6 +266,50 @@ def test_termination_and_truncation_reach_the_trial_loop():
     assert timestep.last() and timestep.discount == 1.0
 
 
+def test_run_trial_tells_the_learner_a_termination_from_a_time_limit(monkeypatch):
+    from rmac_mj.agents.base import Agent
+
+    told, stop = [], Agent.stop
+    monkeypatch.setattr(Agent, "stop", lambda self, reward, x, terminal=False: (
+        told.append(terminal), stop(self, reward, x, terminal))[1])
+    slider = envs.load(f"{HERE}:make_slider", {"start": 0.95}, seed=0, trial_steps=50,
+                       control_timestep=0.1)
+    wheel = envs.load(f"{HERE}:make_wheel", seed=0)
+    for env in (slider, wheel):
+        agent = make_agent("s-ac", state_space_of(env), action_space_of(env), config=SMALL_SAC,
+                           seed=0)
+        while not told or (env is wheel and len(told) < 2):
+            run_trial(env, agent)
+            if env is slider and not told[-1]:
+                told.clear()  # this trial stayed on the rail until its time limit: try again
+    assert told[0] is True and told[-1] is False
+
+
+@pytest.mark.parametrize("name", ["rmac", "s-ac", "mlac"])
+def test_a_terminal_states_value_is_not_bootstrapped(name):
+    """Two identical learners whose critic holds V(x_1) well below 0 learn x_0 -> x_1 with reward 0.
+    Told x_1 is terminal, the TD error is 0 - V(x_0); told it is a time limit, gamma V(x_1) - V(x_0):
+    the terminal one ends with the higher V(x_0), by about alpha_c gamma |V(x_1)|."""
+    env = envs.load(f"{HERE}:make_slider", seed=0, trial_steps=10, control_timestep=0.1)
+    x0, x1 = np.array([-0.8, 0.0]), np.array([0.8, 0.0])
+    config = {"action_cost": 0.0} if name == "mlac" else {}
+
+    def learner_that_fears_x1():
+        agent = make_agent(name, state_space_of(env), action_space_of(env), config=config, seed=0)
+        for _ in range(40):  # V(x_1) -> -10: x_1 is followed by -10 and a terminal state
+            agent.start(x1)
+            agent.stop(-10.0, x1 + np.array([0.0, 0.5]), terminal=True)
+        return agent
+
+    terminal, time_limit = learner_that_fears_x1(), learner_that_fears_x1()
+    v1 = terminal.value(x1)
+    assert v1 < -3.0 and time_limit.value(x1) == v1 and time_limit.value(x0) == terminal.value(x0)
+    for agent, is_terminal in ((terminal, True), (time_limit, False)):
+        agent.start(x0)
+        agent.stop(0.0, x1, terminal=is_terminal)
+    assert terminal.value(x0) > time_limit.value(x0) + 0.01 * abs(v1)
+
+
 def test_action_repeat_sums_the_rewards():
     one = envs.load(f"{HERE}:make_slider", seed=2, trial_steps=4, control_timestep=0.1)
     two = envs.load(f"{HERE}:make_slider", seed=2, trial_steps=2, control_timestep=0.1,

@@ -81,7 +81,7 @@ class _ScriptedAgent(PolicyAgent):
         self.seen.append([reward, *x.tolist()])
         return self._act_randomly()
 
-    def _stop(self, reward, x):
+    def _stop(self, reward, x, terminal):
         self.seen.append([reward, *x.tolist()])
 
     def _greedy_action(self, x):

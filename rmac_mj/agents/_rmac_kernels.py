@@ -335,11 +335,12 @@ def update_reference(s, x, x_r):
 # -- lines 13-28: one transition ------------------------------------------------------------------------
 
 @njit(cache=True)
-def learn(s, x, u, reward, x_next, v, model_learns):
+def learn(s, x, u, reward, x_next, v, model_learns, terminal):
     """Lines 13-28 for the transition (x, u, r, x') from canonical states, with V(x) = ``v``;
     returns V(x') (line 22, before the critic's update). ``model_learns``: line 14 inserts the
     transition in M^P (a real one); False for a simulated transition, which the process model
-    predicted and must not learn from. Returns NaN, with M^R and M^C unchanged, when the target x_r
+    predicted and must not learn from. ``terminal``: x' is a terminal state, whose value is 0 in the
+    TD error (no bootstrap). Returns NaN, with M^R and M^C unchanged, when the target x_r
     or the TD error is not finite (the arithmetic overflowed)."""
     P = s.process
     z = _joined(x, u)
@@ -354,7 +355,7 @@ def learn(s, x, u, reward, x_next, v, model_learns):
     if not (np.all(np.isfinite(x_r)) and np.isfinite(reward + s.critic.gamma * v_next - v)):
         return np.nan  # overflow: refused before M^R and M^C change (the caller says so)
     update_reference(s, x, x_r)        # lines 17-20
-    td_update(s.critic, x, v, reward, v_next)  # lines 23-28
+    td_update(s.critic, x, v, reward, 0.0 if terminal else v_next)  # lines 23-28
     return v_next
 
 
@@ -369,7 +370,7 @@ def step(s, reward, x, du, model_learns):
     u = act(s, x)
     for i in range(u.shape[0]):
         u[i] = min(max(u[i] + du[i], s.low[i]), s.high[i])
-    v_next = learn(s, s.x_prev, s.u_prev, reward, x, s.v_prev[0], model_learns)
+    v_next = learn(s, s.x_prev, s.u_prev, reward, x, s.v_prev[0], model_learns, False)
     if np.isnan(v_next):
         u[:] = np.nan  # refused (see ``learn``): the step does not advance
         return u
@@ -380,7 +381,8 @@ def step(s, reward, x, du, model_learns):
 
 
 @njit(cache=True)
-def stop(s, reward, x, model_learns):
-    """The last transition of a trial (lines 13-28, no action) for a checked state x; returns V_K
-    (NaN: refused, see ``learn``)."""
-    return learn(s, s.x_prev, s.u_prev, reward, _canonical(x, s.period), s.v_prev[0], model_learns)
+def stop(s, reward, x, model_learns, terminal):
+    """The last transition of a trial (lines 13-28, no action) for a checked state x (``terminal``:
+    V(x) = 0 in the TD error); returns V_K (NaN: refused, see ``learn``)."""
+    return learn(s, s.x_prev, s.u_prev, reward, _canonical(x, s.period), s.v_prev[0], model_learns,
+                 terminal)

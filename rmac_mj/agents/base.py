@@ -9,6 +9,7 @@ Algorithms 1 and 2::
     for k in 1, 2, ...:
         u = agent.step(r_k, x_k)   # lines 6-14 (Alg. 1) / 8-29 (Alg. 2): learn, return u_k
     agent.stop(r_K, x_K)           # the last transition of a trial: learn, no action
+                                   # (terminal=True: x_K is terminal, V(x_K) = 0)
 
 ``greedy_action`` and ``value`` evaluate the current policy and critic without exploring or learning;
 a greedy trial begins with ``begin_greedy_trial()``.
@@ -178,12 +179,17 @@ class Agent(abc.ABC):
         self._rehearsal.record(reward, x, u)
         return u
 
-    def stop(self, reward: Any, x: Any) -> None:
+    def stop(self, reward: Any, x: Any, terminal: bool = False) -> None:
         """Observe the trial's last r_k and x_k and learn from it; no action follows. Ends the trial
-        (then plans and replays, with ``config.planning`` and ``config.replay``)."""
+        (then plans and replays, with ``config.planning`` and ``config.replay``).
+
+        ``terminal``: x_k is a terminal state (the environment ended the trial: a dm_env discount of
+        0, Gymnasium's ``terminated``), whose value is 0, so the last TD error is r_k - V(x_{k-1})
+        with no bootstrap. False (the default): the trial ends on a time limit or a truncation and
+        the last TD error bootstraps from V(x_k) like every other."""
         self._check_in_trial("stop")
         reward, x = self._checked_reward(reward), self._checked_state(x)
-        self._stop(reward, x)
+        self._stop(reward, x, bool(terminal))
         self._in_trial = False
         if self._rehearsal is not None:
             self._rehearsal.record(reward, x, None)
@@ -226,13 +232,13 @@ class Agent(abc.ABC):
         self._start(states[0], actions[0])
         for k in range(K - 1):
             self._step(float(rewards[k]), states[k + 1], actions[k + 1])
-        self._stop(float(rewards[K - 1]), states[K])
+        self._stop(float(rewards[K - 1]), states[K], False)
 
     def _replay_transition(self, x: np.ndarray, u: np.ndarray, reward: float,
                            x_next: np.ndarray) -> None:
         """One recorded transition learned on its own, as a trial of one step (backward replay)."""
         self._start(x, u)
-        self._stop(reward, x_next)
+        self._stop(reward, x_next, False)
 
     @property
     def rehearsal(self) -> Rehearsal | None:
@@ -340,8 +346,8 @@ class Agent(abc.ABC):
         """One control step: learn from (x_{k-1}, u_{k-1}, r_k, x_k), return u_k."""
 
     @abc.abstractmethod
-    def _stop(self, reward: float, x: np.ndarray) -> None:
-        """The last transition of a trial."""
+    def _stop(self, reward: float, x: np.ndarray, terminal: bool) -> None:
+        """The last transition of a trial (``terminal``: x is terminal, V(x) = 0; see ``stop``)."""
 
     @abc.abstractmethod
     def _greedy_action(self, x: np.ndarray) -> np.ndarray:

@@ -343,10 +343,11 @@ class MLAC(Agent):
         self._x_prev, self._u_prev = x, u
         return u.copy()
 
-    def _stop(self, reward: float, x: np.ndarray) -> None:
-        """The trial's last transition is learned like any other (the trial ends on a time limit)."""
+    def _stop(self, reward: float, x: np.ndarray, terminal: bool) -> None:
+        """The trial's last transition is learned like any other (a time limit), or with V(x_K) = 0
+        when x_K is terminal."""
         self._learn(self._x_prev, self._u_prev, reward, self.state_space.canonical(x),
-                    self._v_prev, self._learns_model, self._pi_prev)
+                    self._v_prev, self._learns_model, self._pi_prev, terminal)
 
     def _learn_transition(self, x: np.ndarray, u: np.ndarray, reward: float, x_next: np.ndarray,
                           v: float, model: bool) -> float:
@@ -355,12 +356,17 @@ class MLAC(Agent):
         return self._learn(x, u, reward, x_next, v, model, None)
 
     def _learn(self, x: np.ndarray, u: np.ndarray, reward: float, x_next: np.ndarray, v: float,
-               model: bool, policy: tuple[np.ndarray, np.ndarray] | None) -> float:
-        """Steps 1-3 of the module docstring for canonical states; returns V(x')."""
+               model: bool, policy: tuple[np.ndarray, np.ndarray] | None,
+               terminal: bool = False) -> float:
+        """Steps 1-3 of the module docstring for canonical states; returns V(x') (0 for a
+        ``terminal`` x', whose value the TD error then does not bootstrap from)."""
         if model:  # 1. The process model learns the transition.
             self.process.insert(np.concatenate([x, u]), x_next)
         # 2. TD(lambda) on the critic's samples (RMAC paper, Algorithm 2 lines 22-28).
-        v_next, delta = self.critic.update(x, v, reward, x_next)
+        if terminal:
+            v_next, delta = 0.0, self.critic.td_update(x, v, reward, 0.0)
+        else:
+            v_next, delta = self.critic.update(x, v, reward, x_next)
         if not np.isfinite(delta):
             raise self._overflow(f"the TD error with reward {reward!r}")
         # 3. The actor moves along the model-based gradient of the return.

@@ -333,7 +333,7 @@ class Rehearsal:
             for k in range(H):
                 x, r = model.predict(x, np.minimum(np.maximum(u, self._low), self._high))
                 if k == H - 1:
-                    agent._stop(r, x)
+                    agent._stop(r, x, False)
                 else:
                     u = agent._step(r, x)
             budget -= H

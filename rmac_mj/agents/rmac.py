@@ -286,15 +286,17 @@ class RMAC(Agent):
         self._u_prev[:] = u
         return u.copy()
 
-    def _stop(self, reward: float, x: np.ndarray) -> None:
-        """The last transition of a trial: learn (lines 13-28), no action."""
+    def _stop(self, reward: float, x: np.ndarray, terminal: bool) -> None:
+        """The last transition of a trial: learn (lines 13-28; a ``terminal`` x has V(x) = 0 in
+        the TD error), no action."""
         self._sync_rates()
         if self._kernel_state is not None:
-            if np.isnan(_rmac_kernels.stop(self._kernel_state, reward, x, self._learns_model)):
+            if np.isnan(_rmac_kernels.stop(self._kernel_state, reward, x, self._learns_model,
+                                           terminal)):
                 raise self._overflow(reward)
         else:
             self._learn(self._x_prev, self._u_prev, reward, self.state_space.canonical(x),
-                        float(self._v_prev[0]), self._learns_model)
+                        float(self._v_prev[0]), self._learns_model, terminal)
         self._u_greedy = np.zeros(self.m)  # a greedy trial that follows starts from u_{-1} = 0
 
     # -- one transition: lines 13-28 --------------------------------------------------------------------
@@ -304,15 +306,16 @@ class RMAC(Agent):
         x, x_next = self.state_space.canonical(x), self.state_space.canonical(x_next)
         self._sync_rates()
         if self._kernel_state is not None:
-            v_next = _rmac_kernels.learn(self._kernel_state, x, u, reward, x_next, v, model)
+            v_next = _rmac_kernels.learn(self._kernel_state, x, u, reward, x_next, v, model, False)
             if np.isnan(v_next):
                 raise self._overflow(reward)
             return v_next
         return self._learn(x, u, reward, x_next, v, model)
 
     def _learn(self, x: np.ndarray, u: np.ndarray, reward: float, x_next: np.ndarray, v: float,
-               model: bool) -> float:
-        """Lines 13-28 (reference implementation) for canonical states; returns V(x')."""
+               model: bool, terminal: bool = False) -> float:
+        """Lines 13-28 (reference implementation) for canonical states; returns V(x') (line 22).
+        ``terminal``: x' is terminal, its value 0 in the TD error (no bootstrap)."""
         cfg, n = self.config, self.n
         if model:  # line 14: insert [x, u | x'] in M^P
             self.process.insert(np.concatenate([x, u]), x_next)
@@ -344,7 +347,7 @@ class RMAC(Agent):
         self.reference.insert(x, inserted, int(near[0]) if len(near) else None)
         self.reference.move_outputs(near, x_r, self._alpha_r)
         # Lines 22-28: TD(lambda) on the critic's samples, V(x') from above (line 22).
-        self.critic.td_update(x, v, reward, v_next)
+        self.critic.td_update(x, v, reward, 0.0 if terminal else v_next)
         return v_next
 
     def _reachable_score(self, u: np.ndarray, pred: np.ndarray, beta_u: np.ndarray,

@@ -25,8 +25,9 @@ and measured in docs/sac.md):
   saturation: noise that the bounds cut off was not tried, so it is not credited.
 * **The actor's output stays within the action bounds**: pi(x) is read saturated, and an actor update
   never pushes pi(x_{k-1}) beyond a bound (it may move it back inside).
-* **End of a trial** (``stop``): the trial ends on a time limit, not in a terminal state, so the last
-  TD error bootstraps from V(x_K) like every other.
+* **End of a trial** (``stop``): a trial that ends on a time limit bootstraps its last TD error
+  from V(x_K) like every other; one that ends in a terminal state (``stop(..., terminal=True)``, an
+  environment's termination) takes V(x_K) = 0.
 * **Finite traces** (paper footnote 1): traces are kept only for tiles whose trace is at least
   ``trace_cutoff``; the others are exactly 0. With lambda gamma = 0.63 and the default 1e-5 that is the
   last ~25 states.
@@ -271,15 +272,16 @@ class SAC(Agent):
         self._k += 1
         self._tiles_of(x, self._tiles)
         u, du = self._act(self._tiles, self._k, u)  # line 8 uses vartheta_{k-1}: act before learning
-        self._learn(reward)
+        self._learn(reward, self.config.gamma)
         self._prev_tiles, self._tiles = self._tiles, self._prev_tiles
         self._prev_du = du
         return u
 
-    def _stop(self, reward: float, x: np.ndarray) -> None:
-        """Learn from the trial's last transition (bootstrapping from V(x_K))."""
+    def _stop(self, reward: float, x: np.ndarray, terminal: bool) -> None:
+        """Learn from the trial's last transition: bootstrapping from V(x_K), or, when x_K is
+        terminal, from its value 0 (the discount of that one update is 0)."""
         self._tiles_of(x, self._tiles)
-        self._learn(reward)
+        self._learn(reward, 0.0 if terminal else self.config.gamma)
 
     def _greedy_action(self, x: np.ndarray) -> np.ndarray:
         """pi(x) saturated to the action bounds, shape (m,); no exploration, no learning."""
@@ -351,25 +353,26 @@ class SAC(Agent):
         u = np.clip(pi + noise, self._a_low, self._a_high)
         return u, u - pi
 
-    def _learn(self, reward: float) -> None:
-        """Lines 10-13 for the transition x_{k-1} -> x_k (tiles in _prev_tiles and _tiles)."""
+    def _learn(self, reward: float, gamma: float) -> None:
+        """Lines 10-13 for the transition x_{k-1} -> x_k (tiles in _prev_tiles and _tiles), with
+        the discount ``gamma`` of V(x_k) in the TD error (0 for a terminal x_k)."""
         c = self.config
         if c.backend == "numba":
             delta, n_traces = _learn_numba(
                 self.critic_, self.actor_, self._traces, self._trace_idx, self._n_traces,
-                self._prev_tiles, self._tiles, reward, c.gamma, self._decay, c.trace_cutoff,
+                self._prev_tiles, self._tiles, reward, gamma, self._decay, c.trace_cutoff,
                 self.rate_c, self.rate_a, self._prev_du, self._a_low, self._a_high)
             if not np.isfinite(delta):
                 raise self._overflow(f"the TD error with reward {reward!r}")
             self.last_delta_, self._n_traces = delta, n_traces
         else:
-            self._learn_numpy(reward)
+            self._learn_numpy(reward, gamma)
 
-    def _learn_numpy(self, reward: float) -> None:
+    def _learn_numpy(self, reward: float, gamma: float) -> None:
         """Reference implementation of lines 10-13 (dense traces, same cutoff)."""
         c, prev, tiles = self.config, self._prev_tiles, self._tiles
         # Line 10 (eq. 2).
-        delta = reward + c.gamma * self.critic_[tiles].sum() - self.critic_[prev].sum()
+        delta = reward + gamma * self.critic_[tiles].sum() - self.critic_[prev].sum()
         if not np.isfinite(delta):
             raise self._overflow(f"the TD error with reward {reward!r}")
         # Line 11: replacing traces; the trace of x_{k-1}, whose value is being corrected, is set.

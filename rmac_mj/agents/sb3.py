@@ -179,8 +179,9 @@ class SB3Agent(Agent):
         """The action in the observation SB3 holds as its last (``_last_obs``)."""
         raise NotImplementedError
 
-    def _record(self, reward: float, x: np.ndarray, last: bool) -> None:
-        """Store the step's transition to x (``last``: the trial ends, a time-out) and learn."""
+    def _record(self, reward: float, x: np.ndarray, last: bool, terminal: bool = False) -> None:
+        """Store the step's transition to x (``last``: the trial ends, a time-out unless
+        ``terminal``: x is a terminal state, not bootstrapped) and learn."""
         raise NotImplementedError
 
     def _start(self, x0: np.ndarray) -> np.ndarray:
@@ -192,8 +193,8 @@ class SB3Agent(Agent):
         self._record(reward, x, last=False)
         return self._act()
 
-    def _stop(self, reward: float, x: np.ndarray) -> None:
-        self._record(reward, x, last=True)
+    def _stop(self, reward: float, x: np.ndarray, terminal: bool) -> None:
+        self._record(reward, x, last=True, terminal=terminal)
 
     @property
     def timesteps_(self) -> int:
@@ -273,12 +274,14 @@ class _OffPolicyAgent(SB3Agent):
                                                                model.action_noise, 1)
         return action[0].astype(float)
 
-    def _record(self, reward: float, x: np.ndarray, last: bool) -> None:
+    def _record(self, reward: float, x: np.ndarray, last: bool, terminal: bool = False) -> None:
         """What ``collect_rollouts`` does after ``env.step``, then ``learn``'s update when due."""
         model = self.model
         observation = self._observation(x)
-        # A trial ends on its time limit: SB3 stores it as a time-out, whose value is bootstrapped.
-        infos = [{"terminal_observation": observation[0], "TimeLimit.truncated": True}] if last else [{}]
+        # A trial that ends on its time limit is stored as a time-out, whose value is bootstrapped;
+        # one that ends in a terminal state as a done, whose value is 0.
+        infos = [{"terminal_observation": observation[0], "TimeLimit.truncated": not terminal}] \
+            if last else [{}]
         model.num_timesteps += 1
         model._store_transition(model.replay_buffer, self._buffer_action, observation,
                                 np.array([reward], dtype=np.float32), np.array([last]), infos)
@@ -463,20 +466,20 @@ class SB3PPO(SB3Agent):
         clipped = np.clip(actions, model.action_space.low, model.action_space.high)
         return clipped[0].astype(float)
 
-    def _record(self, reward: float, x: np.ndarray, last: bool) -> None:
-        """The rest of that step (a time-out's reward bootstrapped with gamma V(x_K)), then, with a
-        full rollout, its advantages and the update."""
+    def _record(self, reward: float, x: np.ndarray, last: bool, terminal: bool = False) -> None:
+        """The rest of that step (a time-out's reward bootstrapped with gamma V(x_K), a terminal
+        state's not), then, with a full rollout, its advantages and the update."""
         model, torch = self.model, self._torch
         from stable_baselines3.common.utils import obs_as_tensor
 
         observation = self._observation(x)
         rewards = np.array([reward], dtype=np.float32)
         model.num_timesteps += 1
-        if last:
-            terminal = model.policy.obs_to_tensor(observation[0])[0]
+        if last and not terminal:
+            final = model.policy.obs_to_tensor(observation[0])[0]
             with torch.no_grad():
-                terminal_value = model.policy.predict_values(terminal)[0]
-            rewards[0] += model.gamma * terminal_value
+                final_value = model.policy.predict_values(final)[0]
+            rewards[0] += model.gamma * final_value
         actions, values, log_probs = self._pending
         model.rollout_buffer.add(model._last_obs, actions, rewards, model._last_episode_starts,
                                  values, log_probs)

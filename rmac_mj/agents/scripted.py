@@ -42,7 +42,7 @@ class PolicyAgent(Agent):
     def _step(self, reward: float, x: np.ndarray) -> np.ndarray:
         return self._act(x)
 
-    def _stop(self, reward: float, x: np.ndarray) -> None:
+    def _stop(self, reward: float, x: np.ndarray, terminal: bool) -> None:
         pass
 
     def _greedy_action(self, x: np.ndarray) -> np.ndarray:

@@ -114,7 +114,7 @@ def run_trial(env: control.Environment, agent: Agent, learn: bool = True,
             on_step(env, u, reward)
         x = state_of(timestep.observation, keys)
         if timestep.last():
-            if learn:
-                agent.stop(reward, x)
+            if learn:  # a termination (discount 0) is a terminal state; a time limit is not
+                agent.stop(reward, x, terminal=timestep.discount == 0.0)
             return total
         u = agent.step(reward, x) if learn else agent.greedy_action(x)
