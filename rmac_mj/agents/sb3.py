@@ -13,8 +13,8 @@ What the learner sees and does (the same for the three):
   SB3's default, no observation normalisation, is kept. The suite's Gymnasium environments
   (``rmac_mj.tasks.gymnasium_env``) observe exactly this vector.
 * **Trial end is a truncation.** ``stop(r, x_K)`` stores the last transition as a time-out, as SB3
-  does for a Gymnasium ``truncated`` episode: SAC and TD3 bootstrap from x_K (``handle_timeout_termination``),
-  PPO adds gamma V(x_K) to the last reward.
+  does for a Gymnasium ``truncated`` episode: SAC and TD3 bootstrap from x_K (SB3's
+  ``handle_timeout_termination``), PPO adds gamma V(x_K) to the last reward.
 * **Randomness.** SB3 draws from the process-wide numpy and torch generators (and the action space's
   own one for SAC's and TD3's first random steps). Each learner seeds them through SB3 from its
   ``rng`` at construction, keeps their states as its own and swaps them in around every call into
