@@ -86,8 +86,8 @@ def fmt(estimate: statistics.Estimate, digits: int = 0) -> str:
 def table(task: Task) -> list[str]:
     rows = ["| learner | experiments (of planned) | trials (simulated min) | min to within 10% of its "
             "final level | first 5 min, IQM [95% CI] | final return, IQM [95% CI] | greedy at 10 min, "
-            "IQM [95% CI] | greedy at its end, IQM | CPU s per simulated min |",
-            "|---|---|---|---|---|---|---|---|---|"]
+            "IQM [95% CI] | greedy at its end, IQM | stuck | CPU s per simulated min |",
+            "|---|---|---|---|---|---|---|---|---|---|"]
     for learner in task.learners():
         c, s = task.curves[learner], task.summary(learner)
         n, trials = c.returns.shape
@@ -97,7 +97,33 @@ def table(task: Task) -> list[str]:
         rows.append(f"| {display_name(learner)} | {n} ({task.planned[learner]}) | {trials} "
                     f"({trials * task.seconds / 60:g}) | {s['minutes_to_90pct']:.1f} | {fmt(first)} | "
                     f"{fmt(final)} | {fmt(greedy10)} | {statistics.iqm(c.greedy_returns[:, -1]):.0f} | "
-                    f"{s['cpu_s_per_simulated_minute']:.3g} |")
+                    f"{s['stuck_experiments']}/{n} | {s['cpu_s_per_simulated_minute']:.3g} |")
+    return rows
+
+
+def headline(loaded: dict[str, Task]) -> list[str]:
+    """The README's table: per learner, over the tasks (a column each, values joined by " / "): the
+    experiments x trials, the final return (IQM, interval), the greedy return at 10 simulated minutes
+    (IQM), the minutes to within 10% of the final level, and the CPU cost."""
+    names = " / ".join(task.name.split("/")[0] for task in loaded.values())
+    rows = [f"| learner ({names}) | experiments x trials | final return, IQM [95% CI] | greedy at 10 "
+            "min, IQM | min to within 10% of final | CPU s per simulated min |",
+            "|---|---|---|---|---|---|"]
+    for learner in LEARNERS:
+        cells: list[list[str]] = [[], [], [], [], []]
+        for task in loaded.values():
+            if learner not in task.curves:
+                for column in cells:
+                    column.append("-")
+                continue
+            s, (n, trials) = task.summary(learner), task.curves[learner].returns.shape
+            final = statistics.Estimate(s["final_return_iqm"], *s["final_return_iqm_ci95"])
+            for column, value in zip(cells, (f"{n} x {trials}", fmt(final),
+                                             f"{statistics.iqm(task.greedy_at(learner)):.0f}",
+                                             f"{s['minutes_to_90pct']:.1f}",
+                                             f"{s['cpu_s_per_simulated_minute']:.2g}")):
+                column.append(value)
+        rows.append(f"| {display_name(learner)} | " + " | ".join(" / ".join(c) for c in cells) + " |")
     return rows
 
 
@@ -191,6 +217,7 @@ def main() -> None:
         figures(key, task, args.out)
     if len(loaded) > 1:
         print("\n" + "\n".join(aggregate(loaded)))
+    print("\nThe README's headline:\n\n" + "\n".join(headline(loaded)))
 
 
 if __name__ == "__main__":
