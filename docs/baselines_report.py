@@ -3,13 +3,13 @@
     python docs/baselines_report.py RUNS [--out docs]
 
 RUNS holds, per task (``pendulum``, ``arm``), the ``rmac-mj reproduce`` directories ``paper`` (RMAC,
-S-AC, MLAC), optionally ``mlac`` (MLAC again, replacing ``paper``'s), ``ppo`` and ``offpolicy`` (SAC,
-TD3) and the learning-rate check ``rates/<learner>-lr<rate>`` (the commands are in docs/baselines.md).
-A directory may be unfinished: every experiment whose curves are saved counts, and the tables say how
-many of those planned there are. Prints the markdown tables; draws ``baselines_fig2_<task>.png``
-(Fig. 2 of every learner) and ``baselines_profiles_<task>.png`` (performance profiles of the greedy
-return at 10 simulated minutes). Everything is recomputed from the saved curves with the package's
-metrics, statistics and figures, so nothing is retrained.
+S-AC, MLAC), ``ppo`` and ``offpolicy`` (SAC, TD3) and the learning-rate check
+``rates/<learner>-lr<rate>`` (the commands are in docs/baselines.md). A directory may be unfinished:
+every experiment whose curves are saved counts, and the tables say how many of those planned there
+are. Prints the markdown tables; draws ``baselines_fig2_<task>.png`` (Fig. 2 of every learner) and
+``baselines_profiles_<task>.png`` (performance profiles of the greedy return at 10 simulated
+minutes). Everything is recomputed from the saved curves with the package's metrics, statistics and
+figures, so nothing is retrained.
 """
 
 from __future__ import annotations
@@ -26,10 +26,8 @@ from rmac_mj.experiments import metrics, plots, statistics
 from rmac_mj.experiments.store import Curves, ResultStore
 
 TASKS = ("pendulum", "arm")
-#: Run directory -> its learners. A later directory's learner replaces an earlier one's: ``mlac`` holds
-#: MLAC re-run on the arm after the fix of its action cost (docs/baselines.md, "What was run").
-RUNS = {"paper": ("rmac", "s-ac", "mlac"), "mlac": ("mlac",), "ppo": ("sb3-ppo",),
-        "offpolicy": ("sb3-sac", "sb3-td3")}
+#: Run directory -> its learners.
+RUNS = {"paper": ("rmac", "s-ac", "mlac"), "ppo": ("sb3-ppo",), "offpolicy": ("sb3-sac", "sb3-td3")}
 LEARNERS = ("rmac", "s-ac", "mlac", "sb3-sac", "sb3-td3", "sb3-ppo")
 #: The budget every learner has: 10 simulated minutes (200 trials of 3 s on both tasks).
 COMMON_MINUTES = 10.0
