@@ -107,6 +107,16 @@ def test_a_malformed_file_names_the_key(tmp_path, text, named):
     assert "\n" not in message
 
 
+STUDIES = sorted((pathlib.Path(__file__).parents[1] / "docs" / "studies").glob("*.toml"))
+
+
+@pytest.mark.parametrize("path", STUDIES, ids=[path.stem for path in STUDIES])
+def test_every_study_in_docs_loads(path):
+    # The studies' files are commands the docs quote: a renamed config field must not leave one
+    # that is refused when a reader runs it.
+    assert sweep_file.load_sweep(path).configurations
+
+
 def test_a_variant_sets_fields_that_depend_on_each_other(tmp_path):
     # Each key is checked with the variant's other values: where='uncertain' needs its threshold.
     plan = sweep_file.load_sweep(write(tmp_path, """
