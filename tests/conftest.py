@@ -1,6 +1,18 @@
-"""Test-wide set-up: the GL back end must be chosen before mujoco is first imported."""
+"""Test-wide set-up, before numpy and mujoco are first imported: one BLAS kernel, the GL back end."""
 
-import rmac_mj  # noqa: F401  (rmac_mj/__init__.py selects the back end; see rmac_mj._gl)
+import os
+import sys
+
+# The pinned results (tests/test_rmac.py, tests/test_trajectory_pin.py) are exact to the last bit,
+# and the last bit depends on the kernels OpenBLAS picks for the CPU it finds (a Zen 4 and a Zen 5
+# EPYC differ in rewards and learned values). The tests fix the kernel to one every x86-64 CPU with
+# AVX2 runs, so they mean the same on every such machine; subprocesses inherit it.
+if "numpy" in sys.modules and os.environ.get("OPENBLAS_CORETYPE") != "Haswell":
+    raise RuntimeError("numpy was imported before tests/conftest.py could set OPENBLAS_CORETYPE: "
+                       "run the tests with OPENBLAS_CORETYPE=Haswell")
+os.environ["OPENBLAS_CORETYPE"] = "Haswell"
+
+import rmac_mj  # noqa: E402,F401  (rmac_mj/__init__.py selects the GL back end; see rmac_mj._gl)
 
 import pytest  # noqa: E402
 

@@ -275,20 +275,22 @@ _SMALL_OPTIONS = dict(critic_capacity=150, reference_capacity=120, process_capac
 #: critic's values, the reference's and the process model's outputs and the critic's inputs after
 #: the run. Recorded before the LLR memory got its named interface (issue 10) and unchanged by it
 #: and by the faster kernels since: any change in what the learner computes, down to the last bit,
-#: shows here. The default run fills the 2000-sample memories (replacement happens).
+#: shows here. The default run fills the 2000-sample memories (replacement happens). Recorded again
+#: with OpenBLAS's Haswell kernels (tests/conftest.py) from the same code, which still gave the
+#: first recording's values with the SkylakeX kernels they were recorded with.
 _PINNED = {
-    ("default", "numba", 25): (-3852.3085695860086, -2459.9124911226695, -87413.68888802434,
-                               -1010144.3458538813, -3256.5431207134206, 3.558575869944409,
-                               -3018.76421288006),
-    ("default", "numpy", 2): (-3934.3550661947766, -4470.676122866277, -8405.031189061054,
-                              -52997.66079334065, 325.1571957834704, -100.18020268219087,
-                              502.7296286710607),
+    ("default", "numba", 25): (-3852.3085695860086, -1926.797841599581, -86257.97051901842,
+                               -1006801.2101008773, -3273.165089873761, -14.406799630153984,
+                               -3029.9321243398745),
+    ("default", "numpy", 2): (-3852.308569586835, -5754.821613864886, -9607.130183451722,
+                              -61510.91043067245, 471.3051990901476, -144.30932134808728,
+                              676.685419191281),
     ("small", "numba", 6): (-3897.65121712942, -3793.5328728836425, -24178.158577071645,
-                            -36760.53678396075, 111.75487047688269, 19.941037979490368,
+                            -36760.53678396107, 111.75487047688269, 19.941037979490368,
                             253.55920392095513),
-    ("small", "numpy", 6): (-3897.6512146646514, -3673.3351405158123, -23659.13444060682,
-                            -39885.017264207825, 438.03327572644224, 48.70063768872285,
-                            217.6430345686441),
+    ("small", "numpy", 6): (-3897.6512191713628, -4155.501607301423, -23846.701110284725,
+                            -32482.635606523312, 282.6681154009117, -49.12430378755677,
+                            69.61788029151825),
 }
 
 

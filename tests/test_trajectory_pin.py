@@ -6,6 +6,9 @@ tests/test_trajectory_pin.py``) from the commit before the fast paths of ``env.s
 reward, discount and step type, and for ``run_trial`` every state and reward an agent was shown and
 every return. Floats are stored by ``repr``, which round-trips exactly; the tests compare with ``==``.
 Regenerate it only for a change that is *meant* to change trajectories, and say so in the commit.
+It was regenerated once with the code unchanged, with OpenBLAS's Haswell kernels (tests/conftest.py:
+the last bit of a reward depends on the BLAS kernel), after that code had reproduced the first file
+with the SkylakeX kernels it was written with.
 """
 
 from __future__ import annotations
