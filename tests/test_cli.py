@@ -223,8 +223,12 @@ def test_a_resume_takes_its_settings_from_the_directory(tmp_path, capsys):
     whole = json.loads((out / "summary.json").read_text())
     (out / "curves" / "s-ac" / "exp_001.npz").unlink()  # as if interrupted before the last one
     (out / "summary.json").unlink()
-    assert main(["reproduce", "--resume", "--out", str(out), "--no-optimal", "--no-progress"]) == 0
+    # The bare command: --no-optimal too comes from the directory (no reference computed, minutes
+    # on a cold cache, and no reference in a summary whose uninterrupted run had none).
+    assert main(["reproduce", "--resume", "--out", str(out), "--no-progress"]) == 0
     resumed = json.loads((out / "summary.json").read_text())
+    assert whole["optimal_return"] is None and resumed["optimal_return"] is None
+    assert resumed["s-ac"].keys() == whole["s-ac"].keys()
     assert resumed["protocol"] == whole["protocol"]
     assert resumed["s-ac"]["mean_return_per_trial"] == whole["s-ac"]["mean_return_per_trial"]
     capsys.readouterr()

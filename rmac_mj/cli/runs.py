@@ -49,15 +49,20 @@ def settings_from_files(argv: Sequence[str] | None, args: argparse.Namespace) ->
     ``--config`` file as defaults: what the command line gives explicitly overrides them (and a
     resumed directory then refuses what differs from its run, naming it). The file's settings that
     ``reproduce`` has no option for travel in ``args.config_protocol``, its hyperparameters in
-    ``args.config_agent_configs`` (``--set`` applies on top)."""
+    ``args.config_agent_configs`` (``--set`` applies on top). A resumed run started with
+    ``--no-optimal`` is finished without the reference too."""
     from rmac_mj.experiments import sweep_file
     from rmac_mj.experiments.store import ResultStore
 
     layers: list[tuple[dict[str, Any], dict[str, dict]]] = []
+    without_references = False
     if args.resume:
-        stored = ResultStore(args.out).read_protocol()
-        if stored is not None:
+        config = ResultStore(args.out).read_config()
+        if config is not None:
+            stored = config["protocol"]
             layers.append((stored, stored.get("agent_configs", {})))
+            # a run started with --no-optimal is finished without the reference too
+            without_references = config.get("references") is False
     if args.config is not None:
         config = sweep_file.load_configuration(args.config)
         layers.append((config.options, config.agent_configs))
@@ -80,6 +85,7 @@ def settings_from_files(argv: Sequence[str] | None, args: argparse.Namespace) ->
     if not defaults.get("prior_parts"):
         defaults.pop("prior_parts", None)  # none given: every part a learner takes
     args = build_parser(defaults).parse_args(argv)
+    args.no_optimal = args.no_optimal or without_references
     args.config_protocol, args.config_agent_configs = extra, agent_configs
     return args
 

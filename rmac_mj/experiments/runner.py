@@ -179,7 +179,8 @@ def run_protocols(runs: Iterable[tuple[Protocol, str | os.PathLike]], jobs: int 
         key = json.dumps(protocol.as_dict(), sort_keys=True)
         if key not in resolved:
             resolved[key] = admission.resolve_agents(protocol, spaces)
-        document = {"protocol": protocol.as_dict(), "code": code, "agents": resolved[key]}
+        document = {"protocol": protocol.as_dict(), "code": code, "agents": resolved[key],
+                    "references": references}  # a resume computes them only if the run did
         if prior_sha256 is not None:
             document["prior_sha256"] = prior_sha256
         state.append(_Run(protocol, out, document, demonstration, resume))
