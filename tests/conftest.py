@@ -4,9 +4,10 @@ import os
 import sys
 
 # The pinned results (tests/test_rmac.py, tests/test_trajectory_pin.py) are exact to the last bit,
-# and the last bit depends on the kernels OpenBLAS picks for the CPU it finds (a Zen 4 and a Zen 5
-# EPYC differ in rewards and learned values). The tests fix the kernel to one every x86-64 CPU with
-# AVX2 runs, so they mean the same on every such machine; subprocesses inherit it.
+# and the last bit depends on the kernels OpenBLAS runs: by default those it picks for the CPU it
+# finds (SkylakeX on an AVX-512 EPYC), or those OPENBLAS_CORETYPE names (Haswell on some machines
+# here). The tests fix the kernel to one every x86-64 CPU with AVX2 runs, so they mean the same on
+# every such machine; subprocesses inherit it.
 if "numpy" in sys.modules and os.environ.get("OPENBLAS_CORETYPE") != "Haswell":
     raise RuntimeError("numpy was imported before tests/conftest.py could set OPENBLAS_CORETYPE: "
                        "run the tests with OPENBLAS_CORETYPE=Haswell")
