@@ -238,6 +238,13 @@ def test_a_resume_takes_its_settings_from_the_directory(tmp_path, capsys):
     assert "trials: 3 in the directory, 4 now" in error and len(error.strip().splitlines()) == 1
     assert main(["reproduce", "--resume", "--out", str(out), "--set", "s-ac.alpha_a=0.05"]) == 2
     assert "agent_configs.s-ac.alpha_a: 0.02 in the directory, 0.05 now" in capsys.readouterr().err
+    # A finished run grows by more experiments (the settings from the directory, the count given).
+    assert main(["reproduce", "--resume", "--out", str(out), "--experiments", "3",
+                 "--no-progress"]) == 0
+    grown = json.loads((out / "summary.json").read_text())
+    assert grown["s-ac"]["experiments"] == 3 and grown["protocol"]["seed"] == 5
+    assert grown["protocol"]["agent_configs"] == whole["protocol"]["agent_configs"]
+    assert grown["optimal_return"] is None
 
 
 def test_running_a_finished_run_again_prints_its_summary(tmp_path, capsys):

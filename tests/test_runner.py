@@ -88,6 +88,27 @@ def test_resume_with_a_changed_config_is_refused(tmp_path):
     assert "snapshot_trials: [1, 2, 4] in the directory, [1, 2, 5] now" in str(refusal.value)
 
 
+def test_a_resume_adds_experiments_and_never_drops_any(tmp_path):
+    grown, fresh = tmp_path / "grown", tmp_path / "fresh"
+    small, large = Protocol(**TINY), Protocol(**{**TINY, "experiments": 3})
+    runner.run_protocol(small, grown, jobs=1, progress=False, figures=False)
+    first = ResultStore(grown).curve_path("s-ac", 0).stat().st_mtime_ns
+    with pytest.raises(ResumeRefused, match="already holds another run"):  # growing needs --resume
+        runner.run_protocol(large, grown, jobs=1, progress=False, figures=False)
+    summary = runner.run_protocol(large, grown, jobs=1, resume=True, progress=False, figures=False)
+    assert ResultStore(grown).curve_path("s-ac", 0).stat().st_mtime_ns == first  # kept, not re-run
+    config = json.loads((grown / "config.json").read_text())
+    assert config["protocol"]["experiments"] == 3 and config["experiments_grown_from"] == [2]
+    whole = runner.run_protocol(large, fresh, jobs=1, progress=False, figures=False)
+    np.testing.assert_array_equal(returns_of(grown, large)["s-ac"], returns_of(fresh, large)["s-ac"])
+    assert summary["s-ac"]["final_return_mean"] == whole["s-ac"]["final_return_mean"]
+    with pytest.raises(ResumeRefused, match="never drops any"):
+        runner.run_protocol(small, grown, jobs=1, resume=True, progress=False)
+    with pytest.raises(ResumeRefused, match="trials: 4 in the directory, 5 now"):  # and nothing else
+        runner.run_protocol(Protocol(**{**TINY, "experiments": 4, "trials": 5}), grown, jobs=1,
+                            resume=True, progress=False)
+
+
 def _hooked_cli(marker: pathlib.Path) -> list[str]:
     """``python -c`` running the CLI with one change: after the driver saves its first experiment it
     touches ``marker`` and blocks, so a signal sent once ``marker`` exists lands with exactly one

@@ -226,6 +226,34 @@ def test_tiny_sweep_killed_resumed_and_summarised(tmp_path, capsys):
         sweep.run_sweep(sweep_file.load_sweep(other), whole, jobs=1, resume=True, progress=False)
 
 
+def test_a_resumed_sweep_adds_experiments_to_every_configuration(tmp_path):
+    out = tmp_path / "out"
+    sweep.run_sweep(sweep_file.load_sweep(write(tmp_path, TINY)), out, jobs=1, progress=False,
+                    figures=False)
+    larger = write(tmp_path, TINY.replace("experiments = 2", "experiments = 3"), "larger.toml")
+    with pytest.raises(UserInputError, match="already holds a sweep"):
+        sweep.run_sweep(sweep_file.load_sweep(larger), out, jobs=1, progress=False, figures=False)
+    rows = sweep.run_sweep(sweep_file.load_sweep(larger), out, jobs=1, resume=True, progress=False,
+                           figures=False)
+    assert [r["experiments"] for r in rows] == [3, 3] and len(curves(out)) == 2 * 3
+    index = json.loads((out / "sweep.json").read_text())
+    assert index["sweep"]["protocol"]["experiments"] == 3 and index["experiments_grown_from"] == [2]
+    assert (out / "sweep.toml").read_text() == larger.read_text()
+    fresh = tmp_path / "fresh"
+    sweep.run_sweep(sweep_file.load_sweep(larger), fresh, jobs=1, progress=False, figures=False)
+    grown_curves, fresh_curves = curves(out), curves(fresh)
+    for key in fresh_curves:
+        np.testing.assert_array_equal(grown_curves[key], fresh_curves[key])
+    smaller = write(tmp_path, TINY, "smaller.toml")  # a resume never drops experiments
+    with pytest.raises(UserInputError, match="a resume may only add experiments"):
+        sweep.run_sweep(sweep_file.load_sweep(smaller), out, jobs=1, resume=True, progress=False)
+    both = write(tmp_path, TINY.replace("experiments = 2", "experiments = 4").replace("trials = 3",
+                                                                                      "trials = 4"),
+                 "both.toml")
+    with pytest.raises(UserInputError, match="a different file"):
+        sweep.run_sweep(sweep_file.load_sweep(both), out, jobs=1, resume=True, progress=False)
+
+
 def test_a_small_sweep_says_its_final_window_and_that_few_experiments_mean_little(tmp_path,
                                                                                    monkeypatch):
     """Issue 20: sweep tables and figures said "the last 50 trials" of a 5-trial run and drew 95%

@@ -147,7 +147,8 @@ def build_parser(reproduce_defaults: Mapping[str, Any] | None = None) -> argpars
     reproduce.add_argument("--out", type=pathlib.Path, default=pathlib.Path("results/reproduce"),
                            help="result directory")
     reproduce.add_argument("--resume", action="store_true",
-                           help="finish an interrupted run in --out (same settings)")
+                           help="finish an interrupted run in --out (same settings; a larger "
+                           "--experiments adds experiments to it)")
     reproduce.add_argument("--evaluate-every", type=_non_negative_int, default=0, metavar="N",
                            help="a greedy trial after every N learning trials (0: none)")
     reproduce.add_argument("--scheduler", default=None, metavar="ADDRESS",
@@ -193,7 +194,9 @@ def build_parser(reproduce_defaults: Mapping[str, Any] | None = None) -> argpars
                        help="worker processes shared by all configurations (default: all cores)")
     sweep.add_argument("--scheduler", default=None,
                        help="Dask scheduler address (tcp://host:8786) to run experiments on")
-    sweep.add_argument("--resume", action="store_true", help="finish an interrupted sweep in --out")
+    sweep.add_argument("--resume", action="store_true",
+                       help="finish an interrupted sweep in --out (a file that only raises "
+                       "experiments adds them)")
     sweep.add_argument("--no-optimal", action="store_true",
                        help="skip the near-optimal reference and exploration floor")
     sweep.add_argument("--no-progress", action="store_true", help="no progress display")

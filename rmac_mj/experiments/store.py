@@ -219,8 +219,10 @@ class ResultStore:
         """Start a run described by ``document`` (``protocol``, ``code`` and optionally
         ``prior_sha256`` and ``agents``) here, writing ``config.json``; or, with ``resume``, check that
         the directory holds this very run (same protocol, prior file and code version) and clear what
-        a killed run left half written. Raises :class:`ResumeRefused` naming the settings that differ,
-        and refuses a directory holding results that no config describes. Call it under :meth:`lock`."""
+        a killed run left half written. A resume may add experiments and nothing else (config.json then
+        records the count it grew from in ``experiments_grown_from``). Raises :class:`ResumeRefused`
+        naming the settings that differ, and refuses a directory holding results that no config
+        describes. Call it under :meth:`lock`."""
         existing = self.read_config()
         if existing is None:
             orphans = [name for name in ("curves", "snapshots") if (self.root / name).exists()]
@@ -230,9 +232,16 @@ class ResultStore:
                                     "results (move them away, or choose another --out)")
             self.write_config({**document, "provenance": files.provenance()})
             return
-        differences = _differences(existing.get("protocol", {}), document["protocol"])
+        stored = existing.get("protocol", {})
+        differences = _differences(stored, document["protocol"])
         if existing.get("prior_sha256") != document.get("prior_sha256"):
             differences.append("the prior knowledge file's contents (sha256)")
+        more = _added_experiments(stored, document["protocol"]) or 0
+        if resume and more > 0 and len(differences) == 1:  # only the count grows: same seeds, more
+            differences = []
+        elif resume and more < 0 and len(differences) == 1:
+            differences[0] += (" (a resume adds experiments, whose seeds do not depend on the count; "
+                               "it never drops any)")
         if not resume:
             if differences:
                 raise ResumeRefused(f"{self.root} already holds another run ({'; '.join(differences)}); "
@@ -251,6 +260,10 @@ class ResultStore:
             raise ResumeRefused(f"{self.root} was written by another code version "
                                 f"({old.get('commit')}, now {new.get('commit')}); refusing to mix "
                                 "results")
+        if resume and more > 0:
+            grown = {**stored, "experiments": document["protocol"]["experiments"]}
+            self.write_config({**existing, "protocol": grown, "experiments_grown_from":
+                               [*existing.get("experiments_grown_from", []), stored["experiments"]]})
         self.remove_temporaries()
 
     def remove_temporaries(self) -> None:
@@ -377,6 +390,18 @@ class ResultStore:
 
     def write_wall_times(self, parts: list[dict[str, Any]]) -> None:
         files.write_json(self.wall_times_path, {"parts": parts})
+
+
+def _added_experiments(stored: Any, protocol: dict[str, Any]) -> int | None:
+    """How many experiments ``protocol`` adds to the ``stored`` protocol when it differs from it in
+    nothing else (negative: it has fewer); None when anything else differs. Experiment i's seeds do
+    not depend on the count (:func:`~rmac_mj.experiments.protocol.experiment_seeds`), so a run of N
+    experiments grown to M holds exactly what a fresh run of M would."""
+    if not isinstance(stored, dict) or not isinstance(stored.get("experiments"), int):
+        return None
+    if _differences({**stored, "experiments": 0}, {**protocol, "experiments": 0}):
+        return None
+    return protocol["experiments"] - stored["experiments"]
 
 
 def _differences(old: Any, new: Any, path: str = "") -> list[str]:

@@ -50,14 +50,41 @@ def _prepare(out: pathlib.Path, sweep: Sweep, resume: bool) -> None:
         if not isinstance(existing, dict):
             raise SweepResumeRefused(f"{index} is damaged (not a sweep's index: no JSON object); "
                                      "choose another --out")
-        if {k: existing.get(k) for k in document} != document:
+        stored = {k: existing.get(k) for k in document}
+        if stored == document:
+            return
+        before, after = _experiments(stored), _experiments(document)
+        if (before is None or after is None or before >= after
+                or stored != _with_experiments(document, before)):
             raise SweepResumeRefused(f"{out} holds a sweep of a different file; refusing to mix "
-                                     "results (use another --out)")
+                                     "results (use another --out; a resume may only add experiments)")
+        # the file adds experiments and changes nothing else: each configuration's run grows too
+        grown = [*existing.get("experiments_grown_from", []), before]
+        _write_index(out, sweep, {**existing, **document, "experiments_grown_from": grown})
         return
     out.mkdir(parents=True, exist_ok=True)
-    files.write_json(index, {**document, "source": str(sweep.path), "provenance": files.provenance()})
+    _write_index(out, sweep, {**document, "provenance": files.provenance()})
+
+
+def _write_index(out: pathlib.Path, sweep: Sweep, document: dict[str, Any]) -> None:
+    """``out/sweep.json`` (``document`` and the file's path) and ``out/sweep.toml``, the file's copy."""
+    files.write_json(out / "sweep.json", {**document, "source": str(sweep.path)})
     text = sweep.path.read_bytes()
     files.write_atomic(out / "sweep.toml", lambda handle: handle.write(text))
+
+
+def _experiments(index: dict[str, Any]) -> int | None:
+    """The experiments per configuration an index's sweep file asks for (None: not readable)."""
+    try:
+        count = index["sweep"]["protocol"]["experiments"]
+    except (KeyError, TypeError):
+        return None
+    return count if isinstance(count, int) else None
+
+
+def _with_experiments(index: dict[str, Any], experiments: int) -> dict[str, Any]:
+    sweep = {**index["sweep"], "protocol": {**index["sweep"]["protocol"], "experiments": experiments}}
+    return {**index, "sweep": sweep}
 
 
 def run_sweep(sweep: Sweep, out: str | pathlib.Path, jobs: int | None = None,
