@@ -3,8 +3,8 @@
 Usage: python docs/studies/planning_summary.py DIR ... [--experiments N] [--plot FILE.png]
     [--curves FILE.png]
 
-Each DIR is an `rmac-mj sweep --out` directory (docs/studies/planning.toml, planning-10.toml,
-planning-200.toml, planning-mlac.toml, fastest.toml) or a run directory of `reproduce` with
+Each DIR is an `rmac-mj sweep --out` directory (docs/studies/planning.toml, planning-to-100.toml,
+planning-200.toml, planning-mlac*.toml, fastest.toml) or a run directory of `reproduce` with
 `--evaluate-every`; unfinished runs are left out (named on stderr). Prints one markdown row per learner and run, named
 by the learner's config overrides (planning or replay steps first), with ``--experiments N`` over
 only the first N experiments of each: the mean greedy return after trials 20 and 100 with 95%
