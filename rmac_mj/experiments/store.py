@@ -236,7 +236,7 @@ class ResultStore:
         differences = _differences(stored, document["protocol"])
         if existing.get("prior_sha256") != document.get("prior_sha256"):
             differences.append("the prior knowledge file's contents (sha256)")
-        more = _added_experiments(stored, document["protocol"]) or 0
+        more = added_experiments(stored, document["protocol"]) or 0
         if resume and more > 0 and len(differences) == 1:  # only the count grows: same seeds, more
             differences = []
         elif resume and more < 0 and len(differences) == 1:
@@ -392,12 +392,14 @@ class ResultStore:
         files.write_json(self.wall_times_path, {"parts": parts})
 
 
-def _added_experiments(stored: Any, protocol: dict[str, Any]) -> int | None:
-    """How many experiments ``protocol`` adds to the ``stored`` protocol when it differs from it in
-    nothing else (negative: it has fewer); None when anything else differs. Experiment i's seeds do
-    not depend on the count (:func:`~rmac_mj.experiments.protocol.experiment_seeds`), so a run of N
-    experiments grown to M holds exactly what a fresh run of M would."""
-    if not isinstance(stored, dict) or not isinstance(stored.get("experiments"), int):
+def added_experiments(stored: Any, protocol: Any) -> int | None:
+    """How many experiments ``protocol`` adds to the ``stored`` protocol (both as data) when it
+    differs from it in nothing else (negative: it has fewer); None when anything else differs or a
+    count is missing. Experiment i's seeds do not depend on the count
+    (:func:`~rmac_mj.experiments.protocol.experiment_seeds`), so a run of N experiments grown to M
+    holds exactly what a fresh run of M would. The runner's and the sweep's resume both ask it."""
+    if not all(isinstance(p, dict) and isinstance(p.get("experiments"), int)
+               for p in (stored, protocol)):
         return None
     if _differences({**stored, "experiments": 0}, {**protocol, "experiments": 0}):
         return None

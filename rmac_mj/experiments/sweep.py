@@ -17,7 +17,7 @@ import pathlib
 from typing import Any, Callable
 
 from rmac_mj.experiments import files, metrics, report, runner
-from rmac_mj.experiments.store import ResultStore, ResumeRefused
+from rmac_mj.experiments.store import ResultStore, ResumeRefused, added_experiments
 from rmac_mj.experiments.sweep_file import Sweep
 
 #: sweep.csv's columns after the configuration, the swept parameters and the learner.
@@ -53,12 +53,11 @@ def _prepare(out: pathlib.Path, sweep: Sweep, resume: bool) -> None:
         stored = {k: existing.get(k) for k in document}
         if stored == document:
             return
-        before, after = _experiments(stored), _experiments(document)
-        if (before is None or after is None or before >= after
-                or stored != _with_experiments(document, before)):
+        if not (_added_experiments(stored, document) or 0) > 0:
             raise SweepResumeRefused(f"{out} holds a sweep of a different file; refusing to mix "
                                      "results (use another --out; a resume may only add experiments)")
         # the file adds experiments and changes nothing else: each configuration's run grows too
+        before = stored["sweep"]["protocol"]["experiments"]
         grown = [*existing.get("experiments_grown_from", []), before]
         _write_index(out, sweep, {**existing, **document, "experiments_grown_from": grown})
         return
@@ -73,18 +72,16 @@ def _write_index(out: pathlib.Path, sweep: Sweep, document: dict[str, Any]) -> N
     files.write_atomic(out / "sweep.toml", lambda handle: handle.write(text))
 
 
-def _experiments(index: dict[str, Any]) -> int | None:
-    """The experiments per configuration an index's sweep file asks for (None: not readable)."""
-    try:
-        count = index["sweep"]["protocol"]["experiments"]
-    except (KeyError, TypeError):
+def _added_experiments(stored: dict[str, Any], document: dict[str, Any]) -> int | None:
+    """The experiments per configuration the sweep ``document`` adds to the ``stored`` index when it
+    differs in nothing else (:func:`~rmac_mj.experiments.store.added_experiments`)."""
+    before, now = stored.get("sweep"), document["sweep"]
+    if not isinstance(before, dict):
         return None
-    return count if isinstance(count, int) else None
-
-
-def _with_experiments(index: dict[str, Any], experiments: int) -> dict[str, Any]:
-    sweep = {**index["sweep"], "protocol": {**index["sweep"]["protocol"], "experiments": experiments}}
-    return {**index, "sweep": sweep}
+    if ({**stored, "sweep": {**before, "protocol": None}}
+            != {**document, "sweep": {**now, "protocol": None}}):
+        return None
+    return added_experiments(before.get("protocol"), now["protocol"])
 
 
 def run_sweep(sweep: Sweep, out: str | pathlib.Path, jobs: int | None = None,
