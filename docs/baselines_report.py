@@ -22,8 +22,9 @@ from typing import Any
 import numpy as np
 
 from rmac_mj.agents import config_class, display_name
-from rmac_mj.experiments import metrics, plots, statistics
-from rmac_mj.experiments.store import Curves, ResultStore
+from rmac_mj.evaluation import metrics, statistics
+from rmac_mj.figures import plots
+from rmac_mj.results.store import Curves, ResultStore
 
 TASKS = ("pendulum", "arm")
 #: Run directory -> its learners.

@@ -20,8 +20,8 @@ import numpy as np  # noqa: E402
 
 from rmac_mj import envs  # noqa: E402
 from rmac_mj.agents import display_name  # noqa: E402
-from rmac_mj.experiments.episode import steps_per_trial  # noqa: E402
-from rmac_mj.experiments.metrics import confidence_interval  # noqa: E402
+from rmac_mj.rollout import steps_per_trial  # noqa: E402
+from rmac_mj.evaluation.metrics import confidence_interval  # noqa: E402
 
 #: Published deep-RL levels (docs/external-benchmarks.md cites them): a label and the returns drawn.
 PUBLISHED = {

@@ -10,7 +10,7 @@ every learner refuses the same bad value the same way, with one kind of message:
     LLRMemory.n_neighbours must be an integer in [1, capacity=100], got 200
     RMACConfig has no parameter 'alpha_x' (did you mean 'alpha_r'?)
 
-The sweep file checker (``rmac_mj.experiments.sweep``) reads the same tables (:func:`lookup`,
+The sweep file checker (``rmac_mj.sweeps.sweep``) reads the same tables (:func:`lookup`,
 :func:`unmet`), so a TOML value is judged by the rule the config applies.
 
 The constraints:

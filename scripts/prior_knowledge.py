@@ -17,11 +17,11 @@ import numpy as np
 from scipy import stats
 
 from rmac_mj.agents import make_agent
-from rmac_mj.experiments.episode import run_trial
-from rmac_mj.experiments.metrics import (FIRST_MINUTES, confidence_interval, early_returns,
+from rmac_mj.rollout import run_trial
+from rmac_mj.evaluation.metrics import (FIRST_MINUTES, confidence_interval, early_returns,
                                          final_returns, stuck_threshold)
 from rmac_mj.experiments.protocol import Protocol, build_experiment, demonstration_for
-from rmac_mj.experiments.store import ResultStore
+from rmac_mj.results.store import ResultStore
 
 #: A learning trial counts as "worse than the demonstrator" below its mean return minus this.
 MARGIN = 500.0

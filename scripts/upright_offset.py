@@ -55,9 +55,9 @@ import numpy as np
 from scipy import stats
 
 from rmac_mj.agents import ActionSpace, StateSpace, make_agent
-from rmac_mj.experiments import episode
-from rmac_mj.experiments.metrics import confidence_interval
-from rmac_mj.experiments.snapshots import load_snapshot
+from rmac_mj import rollout as episode
+from rmac_mj.evaluation.metrics import confidence_interval
+from rmac_mj.results.snapshots import load_snapshot
 from rmac_mj import tasks
 
 SETTLE_ANGLE = 0.05   # rad, |phi - phi_ss| from the settle step on
@@ -207,7 +207,7 @@ class OracleInverse:
     the dc_pendulum only: it reads the MuJoCo model)."""
 
     def __init__(self, agent, env, n_actions: int = 601):
-        from rmac_mj.experiments import optimal
+        from rmac_mj.solvers import dynamic_programming as optimal
         self.agent = agent
         self.model = env.physics.model.ptr
         self.n_sub = episode.n_sub_steps(env)

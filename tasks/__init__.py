@@ -79,6 +79,6 @@ def _check_names(domain_name: str, task_name: str) -> None:
 # Every task above as a Gymnasium environment, rmac_mj/<Domain>-<Task>-v0 (see gymnasium_env), when
 # Gymnasium is installed (the [gymnasium] extra).
 if importlib.util.find_spec("gymnasium") is not None:
-    from rmac_mj.tasks import gymnasium_env
+    from rmac_mj.tasks import to_gymnasium as gymnasium_env
 
     gymnasium_env.register_suite()

@@ -230,7 +230,7 @@ class Reference:
     """How a task's near-optimal reference return is computed.
 
     Attributes:
-      method: the name of a solver of ``rmac_mj.experiments.reference`` ("dynamic programming",
+      method: the name of a solver of ``rmac_mj.solvers.optimum`` ("dynamic programming",
         "trajectory optimisation").
       settings: the solver's settings this task needs (e.g. the DP's grid), by name.
     """

@@ -117,7 +117,7 @@ def _state(timestep):
 def test_a_copy_restored_mid_trial_continues_exactly_like_the_original(algorithm):
     """state_dict holds everything that decides what the agent does next: memories, weights, traces,
     the trial's bookkeeping and the random generator."""
-    from rmac_mj.experiments.episode import action_space_of, run_trial, state_space_of
+    from rmac_mj.rollout import action_space_of, run_trial, state_space_of
 
     env = _pendulum_env()
     S, U = state_space_of(env), action_space_of(env)

@@ -11,12 +11,16 @@ import pytest
 
 from rmac_mj import tasks
 from rmac_mj.agents import make_agent
-from rmac_mj.experiments import bench, plots, policy_plots, render, report, runner
+from rmac_mj.bench import bench
+from rmac_mj.figures import plots, policy_plots
+from rmac_mj.videos import render
+from rmac_mj.evaluation import report
+from rmac_mj.experiments import runner
 from rmac_mj.experiments.protocol import Protocol
-from rmac_mj.experiments.store import ResultStore
-from rmac_mj.experiments.episode import (action_space_of, n_sub_steps, run_trial, state_of,
+from rmac_mj.results.store import ResultStore
+from rmac_mj.rollout import (action_space_of, n_sub_steps, run_trial, state_of,
                                          state_space_of, steps_per_trial, trial_seconds)
-from rmac_mj.experiments.snapshots import load_snapshot
+from rmac_mj.results.snapshots import load_snapshot
 
 TINY = dict(domain="toy", task="settle", task_kwargs={"start_noise": 0.0}, experiments=2, trials=3,
             snapshot_trials=(1,), evaluate_every=1)
@@ -58,7 +62,7 @@ def test_sac_tiles_the_four_dimensional_box(toy):
 
 
 def test_runner_summary_and_figure_use_the_tasks_trial_length(toy, tmp_path, monkeypatch):
-    from rmac_mj.experiments import reference
+    from rmac_mj.solvers import optimum as reference
 
     monkeypatch.setattr(reference, "run_reference", lambda protocol, log=None: -1.0)
     protocol = Protocol(**TINY)

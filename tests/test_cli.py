@@ -171,7 +171,7 @@ def _fake_run(directory, seed, agent_configs=None):
 
     import numpy as np
 
-    from rmac_mj.experiments import metrics
+    from rmac_mj.evaluation import metrics
 
     rng = np.random.default_rng(seed)
     directory.mkdir(parents=True)

@@ -10,11 +10,11 @@ from rmac_mj import constraints
 from rmac_mj.agents import Exploration, config_from_dict
 from rmac_mj.agents.mlac import MLACConfig
 from rmac_mj.agents.rmac import RMACConfig
-from rmac_mj.agents.sac import SACConfig
+from rmac_mj.agents.standard_ac import SACConfig
 from rmac_mj.approximators.llr import LLRMemory
 from rmac_mj.approximators.tile_coding import TileCodingConfig
 from rmac_mj.errors import UserInputError
-from rmac_mj.experiments import sweep_file
+from rmac_mj.sweeps import sweep_file
 
 CONFIGS = (RMACConfig, SACConfig, MLACConfig, Exploration, TileCodingConfig)
 LEARNERS = (RMACConfig, SACConfig, MLACConfig)

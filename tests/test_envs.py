@@ -14,9 +14,9 @@ from dm_env import specs
 
 from rmac_mj import envs
 from rmac_mj.agents import make_agent
-from rmac_mj.agents.sac import SACConfig
+from rmac_mj.agents.standard_ac import SACConfig
 from rmac_mj.envs.observations import ObservationMap, inferred_entries, layout_of_dm_env
-from rmac_mj.experiments.episode import (action_space_of, run_trial, state_of, state_space_of,
+from rmac_mj.rollout import (action_space_of, run_trial, state_of, state_space_of,
                                          steps_per_trial, trial_seconds)
 
 SMALL_SAC = SACConfig(backend="numpy")
@@ -334,7 +334,7 @@ def tiny_protocol(**fields):
 
 def test_a_protocol_runs_an_outside_environment_and_its_snapshot_acts_in_it(tmp_path):
     from rmac_mj.experiments import runner
-    from rmac_mj.experiments.snapshots import load_snapshot, snapshot_environment
+    from rmac_mj.results.snapshots import load_snapshot, snapshot_environment
 
     protocol = tiny_protocol(env="gymnasium:Pendulum-v1", task_kwargs={"max_episode_steps": 10},
                              learner_state={"action_cost": [0.001]}, evaluate_starts=3)
@@ -371,7 +371,7 @@ def test_env_fields_need_env_and_exclude_a_suite_task():
 
 
 def test_a_sweep_file_takes_env_and_a_learner_state_table(tmp_path):
-    from rmac_mj.experiments.sweep_file import SweepFileError, load_sweep
+    from rmac_mj.sweeps.sweep_file import SweepFileError, load_sweep
 
     path = tmp_path / "cartpole.toml"
     path.write_text(textwrap.dedent("""
@@ -429,7 +429,7 @@ def test_cli_config_reproduce_policy_resume_on_a_users_factory(tmp_path, capsys)
 
 
 def test_render_a_dm_control_environment_between_its_control_steps():
-    from rmac_mj.experiments.render import render_episode
+    from rmac_mj.videos.render import render_episode
 
     env = envs.load("dm_control:cartpole/swingup", seed=0, action_repeat=5, trial_steps=6,
                     learner_state={"bounds": {"position[0]": [-1.8, 1.8], "velocity[0]": [-5, 5],
@@ -447,7 +447,7 @@ def test_render_a_dm_control_environment_between_its_control_steps():
 
 def test_cli_optimal_and_bench_on_an_outside_environment(capsys):
     from rmac_mj.cli import main
-    from rmac_mj.experiments import bench
+    from rmac_mj.bench import bench
 
     assert main(["optimal", "--env", "gymnasium:Pendulum-v1"]) == 2
     assert "no near-optimal reference for gymnasium:Pendulum-v1" in capsys.readouterr().err

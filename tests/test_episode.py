@@ -6,9 +6,9 @@ from learners import quick_config
 
 from rmac_mj import tasks
 from rmac_mj.agents import ALGORITHMS, make_agent
-from rmac_mj.experiments.episode import (action_space_of, run_trial, state_of, state_space_of,
+from rmac_mj.rollout import (action_space_of, run_trial, state_of, state_space_of,
                                          steps_per_trial, trial_seconds)
-from rmac_mj.experiments.policy_plots import policy_actions, policy_slice
+from rmac_mj.figures.policy_plots import policy_actions, policy_slice
 
 
 @pytest.fixture(scope="module", params=ALGORITHMS)

@@ -11,7 +11,7 @@ import plain_pendulum
 from rmac_mj.agents import ActionSpace, Exploration, StateSpace, model_uncertainty
 from rmac_mj.agents.mlac import MLAC, MLACConfig
 from rmac_mj.agents.rmac import RMAC, RMACConfig
-from rmac_mj.agents.sac import SAC, SACConfig
+from rmac_mj.agents.standard_ac import SAC, SACConfig
 from rmac_mj.approximators.llr import LLRMemory
 
 PENDULUM = StateSpace(low=[-np.pi, -8 * np.pi], high=[np.pi, 8 * np.pi], periodic=[True, False],

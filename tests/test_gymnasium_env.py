@@ -9,8 +9,8 @@ gymnasium = pytest.importorskip("gymnasium", reason="needs the [gymnasium] extra
 from gymnasium.utils.env_checker import check_env  # noqa: E402
 
 from rmac_mj import tasks  # noqa: E402
-from rmac_mj.experiments.episode import state_of, steps_per_trial  # noqa: E402
-from rmac_mj.tasks import gymnasium_env  # noqa: E402
+from rmac_mj.rollout import state_of, steps_per_trial  # noqa: E402
+from rmac_mj.tasks import to_gymnasium as gymnasium_env
 
 IDS = [gymnasium_env.env_id(domain, task) for domain, task in tasks.ALL_TASKS]
 

@@ -5,7 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from rmac_mj.experiments import files, metrics, report
+from rmac_mj.results import files
+from rmac_mj.evaluation import metrics, report
 
 
 def test_confidence_interval_by_hand():

@@ -131,13 +131,13 @@ def test_actor_samples_stay_inside_the_action_bounds():
 
 def _pendulum():
     from rmac_mj import tasks
-    from rmac_mj.experiments.episode import action_space_of, state_space_of
+    from rmac_mj.rollout import action_space_of, state_space_of
     env = tasks.load("dc_pendulum", "swingup")
     return env, state_space_of(env), action_space_of(env)
 
 
 def test_back_ends_follow_the_same_trajectory():
-    from rmac_mj.experiments.episode import run_trial
+    from rmac_mj.rollout import run_trial
     env, S, U = _pendulum()
     returns, actors = {}, {}
     for backend in BACKENDS:
@@ -150,7 +150,7 @@ def test_back_ends_follow_the_same_trajectory():
 
 
 def test_mlac_improves_on_pendulum_swingup():
-    from rmac_mj.experiments.episode import run_trial
+    from rmac_mj.rollout import run_trial
     env, S, U = _pendulum()
     seed = np.random.SeedSequence(11).spawn(1)[0]
     agent = MLAC(S, U, seed=np.random.default_rng(seed))
@@ -214,7 +214,7 @@ def test_mlac_on_the_arm_follows_the_arms_reward_which_charges_no_torque():
     """Issue 19.1: two_link_arm/reach charges no torque (R = 0), so MLAC's actor gradient has no
     -2 P u term there (it had, with a default P = 1 copied from the pendulum)."""
     from rmac_mj import tasks
-    from rmac_mj.experiments.episode import action_space_of, run_trial, state_space_of
+    from rmac_mj.rollout import action_space_of, run_trial, state_space_of
 
     env = tasks.load("two_link_arm", "reach")
     agent = MLAC(state_space_of(env), action_space_of(env), seed=0)

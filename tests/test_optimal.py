@@ -1,4 +1,4 @@
-"""Tests of the near-optimal reference (rmac_mj.experiments.optimal). All grids are coarse: a few seconds."""
+"""Tests of the near-optimal reference (rmac_mj.solvers.dynamic_programming). All grids are coarse: a few seconds."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from rmac_mj import tasks
-from rmac_mj.experiments import exploration_floor, optimal, reference
-from rmac_mj.experiments.optimal import OptimalConfig
+from rmac_mj.solvers import exploration_floor, dynamic_programming as optimal, optimum as reference
+from rmac_mj.solvers.dynamic_programming import OptimalConfig
 
 # Coarse enough for a unit test; the converged default is about -748 (docs/optimal.md).
 _COARSE = OptimalConfig(n_phi=91, n_phi_dot=61, n_actions=7, lookahead_actions=13, check_convergence=False)

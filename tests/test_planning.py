@@ -238,7 +238,7 @@ def test_settings_are_checked_by_name():
 def test_the_bench_prices_planning_and_replay_for_every_learner():
     """``rmac-mj bench`` restores one warm state (planning and replay memories filled) into learners
     configured with either or neither; each keeps the parts it holds and is priced."""
-    from rmac_mj.experiments import bench_planning
+    from rmac_mj.bench import planning as bench_planning
 
     report = bench_planning.rehearsal_costs("dc_pendulum", "swingup", repeats=1, trials=1, steps=(0, 5))
     assert set(report) == {"s-ac", "rmac", "mlac"}

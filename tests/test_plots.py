@@ -5,7 +5,8 @@ scales with the greedy trajectory."""
 import numpy as np
 import pytest
 
-from rmac_mj.experiments import metrics, plots, policy_plots, report
+from rmac_mj.evaluation import metrics, report
+from rmac_mj.figures import plots, policy_plots
 
 
 def old_summary(trial_seconds: float, trials: int = 4) -> dict:
@@ -137,7 +138,7 @@ class _MapAgent:
 
 def _pendulum():
     from rmac_mj import tasks
-    from rmac_mj.experiments.episode import learner_state_of
+    from rmac_mj.rollout import learner_state_of
 
     env = tasks.load("dc_pendulum", "swingup", task_kwargs={"time_limit": 0.3})
     return env, learner_state_of(env)

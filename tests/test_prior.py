@@ -9,11 +9,11 @@ from rmac_mj.agents import discounted_returns, make_agent
 from rmac_mj.agents.rmac import RMACConfig
 from rmac_mj.errors import MissingInputError, UserInputError
 from rmac_mj import tasks
-from rmac_mj.experiments import prior, runner
+from rmac_mj.experiments import prior_transitions as prior, runner
 from rmac_mj.tasks.energy_swingup import lqr_gains
 from rmac_mj.experiments.protocol import Protocol, demonstration_for, experiment_seeds
-from rmac_mj.experiments.store import ResumeRefused
-from rmac_mj.experiments.episode import action_space_of, run_trial, state_space_of
+from rmac_mj.results.store import ResumeRefused
+from rmac_mj.rollout import action_space_of, run_trial, state_space_of
 
 
 @pytest.fixture(scope="module")

@@ -9,8 +9,8 @@ import pytest
 
 from rmac_mj import _gl, tasks
 from rmac_mj.agents import ActionSpace, PolicyAgent, StateSpace
-from rmac_mj.experiments import render, result_videos, video
-from rmac_mj.experiments.episode import run_trial
+from rmac_mj.videos import render, result_videos, encode as video
+from rmac_mj.rollout import run_trial
 
 SHORT = {"time_limit": 0.3}  # 10 control steps: enough to see motion, quick to render
 

@@ -17,9 +17,10 @@ import numpy as np
 import pytest
 
 from rmac_mj.cli import main
-from rmac_mj.experiments import admission, files, runner
+from rmac_mj.experiments import admission, runner
+from rmac_mj.results import files
 from rmac_mj.experiments.protocol import Protocol, experiment_seeds
-from rmac_mj.experiments.store import ResultStore
+from rmac_mj.results.store import ResultStore
 
 TINY = dict(algorithms=("s-ac",), experiments=2, trials=4, snapshot_trials=(1, 2), evaluate_every=2)
 CLI = ["--algorithms", "s-ac", "--experiments", "2", "--trials", "4", "--evaluate-every", "2",
@@ -49,7 +50,7 @@ def finished(tmp_path_factory) -> pathlib.Path:
 def _lock_holder(out: pathlib.Path) -> subprocess.Popen:
     """Another process that holds ``out``'s lock (as a run writing there does) until killed."""
     holder = subprocess.Popen(
-        [sys.executable, "-c", "import sys, time\nfrom rmac_mj.experiments.store import ResultStore\n"
+        [sys.executable, "-c", "import sys, time\nfrom rmac_mj.results.store import ResultStore\n"
          "lock = ResultStore(sys.argv[1]).lock()\nlock.acquire()\nprint('held', flush=True)\n"
          "time.sleep(120)",
          str(out)], stdout=subprocess.PIPE, text=True)
@@ -184,7 +185,7 @@ def test_a_failure_while_summarising_leaves_no_summary_to_trust(finished, tmp_pa
     (it counts as unfinished), and a resume writes it."""
     out = tmp_path / "run"
     shutil.copytree(finished, out)
-    from rmac_mj.experiments import plots
+    from rmac_mj.figures import plots
 
     def broken(*args, **kwargs):
         raise RuntimeError("the figure failed")
@@ -400,7 +401,7 @@ def test_a_hyperparameter_the_task_cannot_take_is_one_line_before_anything_runs(
 
 def test_long_computations_say_they_are_alive(monkeypatch):
     from rmac_mj import tasks
-    from rmac_mj.experiments import optimal
+    from rmac_mj.solvers import dynamic_programming as optimal
 
     monkeypatch.setattr(optimal, "PROGRESS_SECONDS", 0.0)
     said = []

@@ -256,7 +256,7 @@ def test_traces_and_td_updates_on_a_hand_worked_example(backend):
 
 def _pendulum():
     from rmac_mj import tasks
-    from rmac_mj.experiments.episode import action_space_of, state_space_of
+    from rmac_mj.rollout import action_space_of, state_space_of
     env = tasks.load("dc_pendulum", "swingup")
     return env, state_space_of(env), action_space_of(env)
 
@@ -465,7 +465,7 @@ def test_seeded_run_is_pinned_bit_for_bit(config, backend, trials):
 
 
 def test_same_seed_same_curve_and_state_dict_round_trip():
-    from rmac_mj.experiments.episode import run_trial
+    from rmac_mj.rollout import run_trial
     env, S, U = _pendulum()
     a, b = RMAC(S, U, seed=7), RMAC(S, U, seed=7)
     assert [run_trial(env, a) for _ in range(3)] == [run_trial(env, b) for _ in range(3)]
@@ -478,7 +478,7 @@ def test_same_seed_same_curve_and_state_dict_round_trip():
 
 
 def test_rmac_improves_on_pendulum_swingup():
-    from rmac_mj.experiments.episode import run_trial
+    from rmac_mj.rollout import run_trial
     env, S, U = _pendulum()
     for seed in np.random.SeedSequence(11).spawn(2):
         agent = RMAC(S, U, seed=np.random.default_rng(seed))

@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 
 from rmac_mj.experiments import runner
-from rmac_mj.experiments.episode import run_trial
+from rmac_mj.rollout import run_trial
 from rmac_mj.experiments.progress import Progress, TrialFeed
 from rmac_mj.experiments.protocol import ExperimentSpec, Protocol, run_experiment
-from rmac_mj.experiments.snapshots import load_snapshot
-from rmac_mj.experiments.store import ResultStore, ResumeRefused
+from rmac_mj.results.snapshots import load_snapshot
+from rmac_mj.results.store import ResultStore, ResumeRefused
 
 TINY = dict(algorithms=("s-ac",), experiments=2, trials=4, snapshot_trials=(1, 2), evaluate_every=2)
 
@@ -26,7 +26,7 @@ def returns_of(out, protocol):
 
 
 def test_tiny_protocol_end_to_end(tmp_path, monkeypatch):
-    from rmac_mj.experiments import reference
+    from rmac_mj.solvers import optimum as reference
 
     monkeypatch.setattr(reference, "run_reference", lambda protocol, log=None: -900.0)
     monkeypatch.setattr(reference, "run_exploration_floor",
@@ -116,7 +116,7 @@ def _hooked_cli(marker: pathlib.Path) -> list[str]:
     script = (
         "import pathlib, sys, time\n"
         "from rmac_mj.experiments import runner\n"
-        "from rmac_mj.experiments.store import ResultStore\n"
+        "from rmac_mj.results.store import ResultStore\n"
         "save = ResultStore.save\n"
         "def save_then_wait(store, result):\n"
         "    save(store, result)\n"

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from rmac_mj.agents import ActionSpace, Exploration, StateSpace
-from rmac_mj.agents.sac import SAC, SACConfig
+from rmac_mj.agents.standard_ac import SAC, SACConfig
 from rmac_mj.approximators.tile_coding import TileCodingConfig
 
 PENDULUM = StateSpace(low=[-np.pi, -60.0], high=[np.pi, 60.0], periodic=[True, False])
@@ -207,7 +207,7 @@ def test_boundary_errors_and_config_round_trip():
 def test_improves_on_swingup():
     """A short run (150 trials, ~2 s): S-AC leaves the hanging-down return (about -4900) behind."""
     from rmac_mj import tasks
-    from rmac_mj.experiments.episode import action_space_of, run_trial, state_space_of
+    from rmac_mj.rollout import action_space_of, run_trial, state_space_of
 
     env = tasks.load("dc_pendulum", "swingup", task_kwargs={"random": 0})
     agent = SAC(state_space_of(env), action_space_of(env), seed=np.random.default_rng(11))

@@ -18,7 +18,7 @@ def _drive(agent, steps: int, seed: int) -> None:
     """The runner's loop on the dm-control task for ``steps`` control steps (the last trial may be
     left unfinished: SB3's learn() stops there too)."""
     from rmac_mj import tasks
-    from rmac_mj.experiments.episode import state_of
+    from rmac_mj.rollout import state_of
 
     env = tasks.load("dc_pendulum", "swingup", task_kwargs={"random": seed})
     keys = env.task.learner_state.keys
@@ -56,7 +56,7 @@ def test_learning_step_by_step_equals_sb3s_own_learn(algorithm, overrides, steps
     from stable_baselines3.common.noise import NormalActionNoise
 
     from rmac_mj import tasks  # noqa: F401  (registers the Gymnasium ids)
-    from rmac_mj.experiments.episode import action_space_of, state_space_of
+    from rmac_mj.rollout import action_space_of, state_space_of
 
     env = tasks.load("dc_pendulum", "swingup")
     agent = make_agent(algorithm, state_space_of(env), action_space_of(env), config=overrides,
@@ -82,7 +82,7 @@ def test_learning_step_by_step_equals_sb3s_own_learn(algorithm, overrides, steps
 
 def _pendulum_spaces():
     from rmac_mj import tasks
-    from rmac_mj.experiments.episode import action_space_of, state_space_of
+    from rmac_mj.rollout import action_space_of, state_space_of
 
     env = tasks.load("dc_pendulum", "swingup")
     return state_space_of(env), action_space_of(env)
@@ -119,7 +119,7 @@ def test_network_input_is_the_gymnasium_observation():
     import gymnasium
 
     from rmac_mj import tasks
-    from rmac_mj.experiments.episode import state_of
+    from rmac_mj.rollout import state_of
 
     env = gymnasium.make("rmac_mj/TwoLinkArm-Reach-v0")
     observation, _ = env.reset(seed=1)
@@ -147,10 +147,10 @@ def test_reproduce_runs_a_baseline_and_resumes_it_alike(tmp_path):
     an uninterrupted one (serial equals parallel: tests/test_runner.py), and the last snapshot
     rebuilds the learner."""
     from rmac_mj.experiments import runner
-    from rmac_mj.experiments.episode import run_trial
+    from rmac_mj.rollout import run_trial
     from rmac_mj.experiments.protocol import Protocol, build_experiment
-    from rmac_mj.experiments.snapshots import load_snapshot
-    from rmac_mj.experiments.store import ResultStore
+    from rmac_mj.results.snapshots import load_snapshot
+    from rmac_mj.results.store import ResultStore
 
     protocol, store = Protocol(**TINY), ResultStore(tmp_path)
     summary = runner.run_protocol(protocol, tmp_path, jobs=1, progress=False, figures=False)

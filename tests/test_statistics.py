@@ -4,7 +4,7 @@ samples whose answers are known by hand."""
 import numpy as np
 import pytest
 
-from rmac_mj.experiments import statistics
+from rmac_mj.evaluation import statistics
 
 
 def test_iqm_is_the_mean_of_the_middle_half_and_ignores_outliers():
@@ -90,7 +90,7 @@ def test_bad_scores_are_refused(bad):
 # -- in the results: summary.json, the end-of-run table, compare ----------------------------------
 
 def test_summary_has_the_iqm_of_final_and_first_returns_and_the_cpu_per_simulated_minute():
-    from rmac_mj.experiments import metrics
+    from rmac_mj.evaluation import metrics
 
     # 5 experiments of 40 three-second trials (2 simulated minutes); experiment i returns -100 i
     # in every trial, so its final and first-5-minute returns are -100 i.

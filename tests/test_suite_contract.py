@@ -16,7 +16,7 @@ from dm_env import test_utils
 
 import toy_domain
 from rmac_mj import tasks
-from rmac_mj.experiments.episode import state_of, steps_per_trial, trial_seconds
+from rmac_mj.rollout import state_of, steps_per_trial, trial_seconds
 from rmac_mj.tasks.common import LearnerState
 
 TOY = (toy_domain.DOMAIN, toy_domain.TASK)

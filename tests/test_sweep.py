@@ -14,7 +14,7 @@ import pytest
 
 from rmac_mj import cli
 from rmac_mj.errors import UserInputError
-from rmac_mj.experiments import sweep, sweep_file
+from rmac_mj.sweeps import sweep, sweep_file
 
 TINY = """
 [protocol]
@@ -185,7 +185,7 @@ def test_tiny_sweep_killed_resumed_and_summarised(tmp_path, capsys):
 
     # The same sweep uninterrupted, all experiments through one pool of two workers.
     whole = tmp_path / "whole"
-    from rmac_mj.experiments import reference
+    from rmac_mj.solvers import optimum as reference
 
     with pytest.MonkeyPatch.context() as patch:  # the task's reference and floor, as if computed
         patch.setattr(reference, "run_reference", lambda protocol, log=None: -748.0)
@@ -258,7 +258,7 @@ def test_a_small_sweep_says_its_final_window_and_that_few_experiments_mean_littl
                                                                                    monkeypatch):
     """Issue 20: sweep tables and figures said "the last 50 trials" of a 5-trial run and drew 95%
     intervals of 2 experiments without a word; they carry reproduce's small-n note."""
-    from rmac_mj.experiments import plots
+    from rmac_mj.figures import plots
 
     plan = sweep_file.load_sweep(write(tmp_path, TINY))
 

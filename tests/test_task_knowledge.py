@@ -7,7 +7,7 @@ import pathlib
 import pytest
 
 from rmac_mj import tasks
-from rmac_mj.experiments import reference
+from rmac_mj.solvers import optimum as reference
 from rmac_mj.tasks import common
 
 PACKAGE = pathlib.Path(__file__).resolve().parents[1] / "rmac_mj"

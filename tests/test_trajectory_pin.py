@@ -20,7 +20,7 @@ import numpy as np
 
 from rmac_mj import tasks
 from rmac_mj.agents import PolicyAgent
-from rmac_mj.experiments.episode import action_space_of, run_trial, state_space_of
+from rmac_mj.rollout import action_space_of, run_trial, state_space_of
 
 PINNED = pathlib.Path(__file__).parent / "data" / "dc_pendulum_trajectories.json"
 

@@ -1,4 +1,4 @@
-"""The trajectory-optimisation reference (rmac_mj.experiments.trajopt) and the per-task reference registry."""
+"""The trajectory-optimisation reference (rmac_mj.solvers.trajopt) and the per-task reference registry."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from rmac_mj import cli, tasks
-from rmac_mj.experiments import reference, trajopt
-from rmac_mj.experiments.trajopt import TrajoptConfig
+from rmac_mj.solvers import optimum as reference, trajopt
+from rmac_mj.solvers.trajopt import TrajoptConfig
 
 #: The pendulum's DP reference (docs/optimal.md): the greedy policy's return on the default grid.
 PENDULUM_DP = -748.14

@@ -26,10 +26,10 @@ import sys
 import numpy as np
 
 from rmac_mj.agents import display_name
-from rmac_mj.experiments.metrics import (GREEDY_WITHIN, confidence_interval, first_reaching,
+from rmac_mj.evaluation.metrics import (GREEDY_WITHIN, confidence_interval, first_reaching,
                                          stuck_threshold, within_optimal)
-from rmac_mj.experiments import sweep_file
-from rmac_mj.experiments.store import ResultStore
+from rmac_mj.sweeps import sweep_file
+from rmac_mj.results.store import ResultStore
 
 #: Trials after which the greedy return is tabulated (issue 23: one simulated minute, five).
 AT_TRIALS = (20, 100)

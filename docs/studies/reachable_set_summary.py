@@ -9,10 +9,10 @@ import pathlib
 
 import numpy as np
 
-from rmac_mj.experiments.metrics import (compare_final_returns, confidence_interval, final_returns,
+from rmac_mj.evaluation.metrics import (compare_final_returns, confidence_interval, final_returns,
                                          minutes_to_within)
-from rmac_mj.experiments.report import describe_test
-from rmac_mj.experiments.store import ResultStore
+from rmac_mj.evaluation.report import describe_test
+from rmac_mj.results.store import ResultStore
 
 TRIAL_SECONDS, STUCK_BELOW = 3.0, -1496.0
 

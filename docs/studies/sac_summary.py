@@ -22,7 +22,7 @@ import sys
 import numpy as np
 
 import goal_report
-from rmac_mj.experiments.metrics import confidence_interval
+from rmac_mj.evaluation.metrics import confidence_interval
 
 
 def metrics(directory: pathlib.Path) -> dict:

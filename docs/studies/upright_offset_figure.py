@@ -19,7 +19,7 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "scripts"))
 import upright_offset as uo  # noqa: E402
 
 from rmac_mj import tasks  # noqa: E402
-from rmac_mj.experiments import episode  # noqa: E402
+from rmac_mj import rollout as episode
 
 
 RATE = 0.3

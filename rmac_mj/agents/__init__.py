@@ -27,7 +27,7 @@ import numpy as np
 from rmac_mj import constraints
 from rmac_mj.agents.base import Agent
 from rmac_mj.agents.exploration import Exploration, model_uncertainty
-from rmac_mj.agents.prior_knowledge import (PRIOR_PARTS, check_transitions, discounted_returns,
+from rmac_mj.agents.seeding import (PRIOR_PARTS, check_transitions, discounted_returns,
                                             seed_memory)
 from rmac_mj.agents.random_state import generator_state_array, set_generator_state
 from rmac_mj.agents.scripted import PolicyAgent
@@ -36,7 +36,7 @@ from rmac_mj.agents.spaces import ActionSpace, StateSpace
 #: Algorithm key -> (module, agent class, config class). Imported lazily: numba kernels compile on use.
 _REGISTRY = {
     "rmac": ("rmac_mj.agents.rmac", "RMAC", "RMACConfig"),
-    "s-ac": ("rmac_mj.agents.sac", "SAC", "SACConfig"),
+    "s-ac": ("rmac_mj.agents.standard_ac", "SAC", "SACConfig"),
     "mlac": ("rmac_mj.agents.mlac", "MLAC", "MLACConfig"),
     # Deep-RL baselines (Stable-Baselines3; the [baselines] extra), rmac_mj/agents/sb3.py (their configs: sb3_config.py).
     "sb3-sac": ("rmac_mj.agents.sb3", "SB3SAC", "SB3SACConfig"),

@@ -17,7 +17,7 @@ a greedy trial begins with ``begin_greedy_trial()``.
 snapshots are written with ``numpy.savez`` and read back with ``allow_pickle=False``.
 
 ``seed_from`` initialises a learner's memories from recorded transitions before it learns (prior
-knowledge, section 7, :mod:`rmac_mj.agents.prior_knowledge`); learners that take none refuse it.
+knowledge, section 7, :mod:`rmac_mj.agents.seeding`); learners that take none refuse it.
 
 The module is the one boundary every learner shares (the checks on the way in and on a restore, the
 hooks learners, planning and replay implement), which is why it runs past 400 lines.
@@ -33,7 +33,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from rmac_mj.agents.planning import Rehearsal
-from rmac_mj.agents.prior_knowledge import check_transitions
+from rmac_mj.agents.seeding import check_transitions
 from rmac_mj.agents.random_state import generator_state_array, set_generator_state
 from rmac_mj.agents.spaces import STATE_LIMIT_WIDTHS, ActionSpace, StateSpace
 

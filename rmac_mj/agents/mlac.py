@@ -53,7 +53,7 @@ from rmac_mj.agents.base import Agent
 from rmac_mj.agents.critic import LLRCritic, _check_traces
 from rmac_mj.agents.exploration import Exploration, model_uncertainty
 from rmac_mj.agents.planning import REHEARSAL, Planning, Replay
-from rmac_mj.agents.prior_knowledge import discounted_returns, seed_memory
+from rmac_mj.agents.seeding import discounted_returns, seed_memory
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
 from rmac_mj.agents.task_knowledge import with_task_action_cost, with_task_weights
 from rmac_mj.approximators.llr import SHARED_CONSTRAINTS, LLRMemory, memory_constraints, wrap

@@ -36,7 +36,7 @@ from rmac_mj.agents import _rmac_kernels
 from rmac_mj.agents.base import Agent
 from rmac_mj.agents.critic import LLRCritic, _check_traces
 from rmac_mj.agents.exploration import model_uncertainty
-from rmac_mj.agents.prior_knowledge import discounted_returns, seed_memory
+from rmac_mj.agents.seeding import discounted_returns, seed_memory
 from rmac_mj.agents.rmac_config import REACHABLE_RULES, RMACConfig
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
 from rmac_mj.agents.task_knowledge import with_task_action_cost, with_task_weights

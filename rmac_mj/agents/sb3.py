@@ -11,7 +11,7 @@ What the learner sees and does (the same for the three):
 * **Network input.** The learner state ``x`` with every periodic dimension as (cos, sin) and the others
   unscaled, in order: ``[cos phi, sin phi, phi_dot]`` on the pendulum, as Gymnasium's Pendulum-v1;
   SB3's default, no observation normalisation, is kept. The suite's Gymnasium environments
-  (``rmac_mj.tasks.gymnasium_env``) observe exactly this vector.
+  (``rmac_mj.tasks.to_gymnasium``) observe exactly this vector.
 * **Trial end is a truncation.** ``stop(r, x_K)`` stores the last transition as a time-out, as SB3
   does for a Gymnasium ``truncated`` episode: SAC and TD3 bootstrap from x_K (SB3's
   ``handle_timeout_termination``), PPO adds gamma V(x_K) to the last reward.

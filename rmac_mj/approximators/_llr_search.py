@@ -1,6 +1,6 @@
 """Numba kernels of LLR's geometry: wrapping periodic inputs, weighted distances and the selection
 of the K nearest samples (the fast path of ``search_reference`` in
-:mod:`rmac_mj.approximators.llr_reference`, which these follow step by step: same distance, same
+:mod:`rmac_mj.approximators.llr_numpy`, which these follow step by step: same distance, same
 tie-breaking by index, as a stable sort).
 
 Inputs are stored by dimension (``Xt``, shape (n, N)) so that the distance loop runs over contiguous

@@ -29,12 +29,12 @@ Where the paper is silent, the choice is a constructor parameter (defaults in br
   ``replacement='redundancy'``, the scheme issue 14 describes of the authors' code (a redundancy score
   per sample, smoothed over the insertions near it; the squared model misfit for the process memory,
   the distance for the others). Its equations and our choices in it are in
-  :mod:`rmac_mj.approximators.llr_reference`.
+  :mod:`rmac_mj.approximators.llr_numpy`.
 * A query on an empty memory predicts 0 with beta = 0 (Algorithm 2 line 2: V_0 = 0, beta^P = 0).
 
 Two back ends give the same results: ``backend='numba'`` (compiled kernels in ``_llr_kernels``,
 ``_llr_search`` and ``_llr_fit``) and ``backend='numpy'`` (the readable reference:
-:mod:`~rmac_mj.approximators.llr_reference` and this class's numpy paths). Compiled brute force finds
+:mod:`~rmac_mj.approximators.llr_numpy` and this class's numpy paths). Compiled brute force finds
 the 20 nearest of 2000 samples in about 3 us and needs nothing rebuilt when samples change; scipy's
 cKDTree took 32 us per query and 720 us per rebuild here (measured; a memory changes every control
 step).
@@ -69,7 +69,7 @@ import numpy as np
 from rmac_mj.approximators import _llr_kernels as _k
 from rmac_mj.approximators._llr_kernels import LLR_STATE_TYPE, LLRState, LocalFit
 from rmac_mj.approximators._llr_redundancy import MEASURE_DISTANCE, MEASURE_MISFIT
-from rmac_mj.approximators.llr_reference import (distance_reference, fit_reference, misfit_reference,
+from rmac_mj.approximators.llr_numpy import (distance_reference, fit_reference, misfit_reference,
                                                  search_reference, wrap)
 from rmac_mj.constraints import WEIGHTS, Boolean, Field, Interval, Options, TupleOf, check
 

@@ -13,7 +13,7 @@ from rmac_mj.errors import UserInputError
 
 def parse_overrides(assignments: Sequence[str]) -> dict[str, dict]:
     """``["rmac.exploration.sigma=0.5", ...]`` -> ``{"rmac": {"exploration": {"sigma": 0.5}}}``."""
-    from rmac_mj.experiments.sweep_file import nest
+    from rmac_mj.sweeps.sweep_file import nest
     flat: dict[str, Any] = {}
     for assignment in assignments:
         key, separator, text = assignment.partition("=")
@@ -51,8 +51,8 @@ def settings_from_files(argv: Sequence[str] | None, args: argparse.Namespace) ->
     ``reproduce`` has no option for travel in ``args.config_protocol``, its hyperparameters in
     ``args.config_agent_configs`` (``--set`` applies on top). A resumed run started with
     ``--no-optimal`` is finished without the reference too."""
-    from rmac_mj.experiments import sweep_file
-    from rmac_mj.experiments.store import ResultStore
+    from rmac_mj.sweeps import sweep_file
+    from rmac_mj.results.store import ResultStore
 
     layers: list[tuple[dict[str, Any], dict[str, dict]]] = []
     without_references = False
@@ -91,9 +91,11 @@ def settings_from_files(argv: Sequence[str] | None, args: argparse.Namespace) ->
 
 
 def reproduce(args) -> int:
-    from rmac_mj.experiments import execution, report, runner, sweep_file
+    from rmac_mj.experiments import execution, runner
+    from rmac_mj.evaluation import report
+    from rmac_mj.sweeps import sweep_file
     from rmac_mj.experiments.protocol import Protocol
-    from rmac_mj.experiments.store import ResultStore
+    from rmac_mj.results.store import ResultStore
 
     if args.prior is None and (args.prior_trials is not None or args.prior_parts is not None):
         raise UsageError("--prior-trials and --prior-parts need --prior")
@@ -163,7 +165,7 @@ def reproduce(args) -> int:
 
 
 def sweep(args) -> int:
-    from rmac_mj.experiments import sweep as sweeps, sweep_file
+    from rmac_mj.sweeps import sweep as sweeps, sweep_file
 
     if args.jobs is not None and args.scheduler:
         raise UsageError("--jobs and --scheduler exclude each other")

@@ -28,7 +28,7 @@ def shortest_distinct_suffixes(paths: Sequence[pathlib.Path]) -> list[str]:
 def _settings_line(summary: dict) -> str:
     """How a run was made: its size, seed and --set overrides."""
     protocol = summary.get("protocol", {})
-    from rmac_mj.experiments.sweep_file import flatten
+    from rmac_mj.sweeps.sweep_file import flatten
     overrides = [f"{key}={json.dumps(value)}"
                  for key, value in flatten(protocol.get("agent_configs") or {}).items()]
     text = (f"{protocol.get('experiments', '?')} experiments of {protocol.get('trials', '?')} trials, "
@@ -36,8 +36,9 @@ def _settings_line(summary: dict) -> str:
     return text + ("; --set " + " ".join(overrides) if overrides else "; default hyperparameters")
 def compare(args) -> int:
     from rmac_mj.agents import ALGORITHMS
-    from rmac_mj.experiments import plots, report
-    from rmac_mj.experiments.store import ResultStore
+    from rmac_mj.figures import plots
+    from rmac_mj.evaluation import report
+    from rmac_mj.results.store import ResultStore
 
     directories = []
     for directory in args.dirs:
@@ -70,9 +71,9 @@ def compare(args) -> int:
 
 
 def policy(args) -> int:
-    from rmac_mj.experiments import policy_plots
-    from rmac_mj.experiments.episode import learner_state_of, state_of
-    from rmac_mj.experiments.snapshots import load_snapshot, snapshot_environment
+    from rmac_mj.figures import policy_plots
+    from rmac_mj.rollout import learner_state_of, state_of
+    from rmac_mj.results.snapshots import load_snapshot, snapshot_environment
 
     snapshots, envs = [], []
     for path in args.snapshots:
@@ -112,7 +113,7 @@ def policy(args) -> int:
 
 def optimal(args) -> int:
     from rmac_mj.agents import Exploration
-    from rmac_mj.experiments import reference
+    from rmac_mj.solvers import optimum as reference
 
     if args.env is not None:
         from rmac_mj import tasks
@@ -136,7 +137,7 @@ def render(args) -> int:
     chosen = [x for x in (args.snapshot, args.progression, args.compare) if x is not None]
     if len(chosen) != 1:
         raise UsageError("give exactly one of SNAPSHOT, --progression DIR or --compare DIR")
-    from rmac_mj.experiments import result_videos
+    from rmac_mj.videos import result_videos
 
     options = {"width": args.width, "height": args.height, "overlay": not args.no_overlay,
                "frames_per_step": args.frames_per_step}
@@ -156,7 +157,7 @@ def render(args) -> int:
 
 
 def bench(args) -> int:
-    from rmac_mj.experiments import bench
+    from rmac_mj.bench import bench
 
     where = ({"domain": args.domain, "task": args.task} if args.env is None else
              {"domain": args.domain, "task": args.task, "env": args.env,
@@ -166,7 +167,7 @@ def bench(args) -> int:
     report = bench.run(quick=args.quick, **where)
     print(bench.format_markdown(report) if args.markdown else bench.format_table(report))
     if args.json:
-        from rmac_mj.experiments.files import write_json
+        from rmac_mj.results.files import write_json
         write_json(args.json, report)
         print("json:", args.json)
     return 0

@@ -7,7 +7,7 @@
     env = envs.load("my_package.tasks:make_env", kwargs={"mass": 2.0})
 
 The result is a ``dm_env.Environment`` (:class:`Environment`) that the trial loop
-(:func:`rmac_mj.experiments.episode.run_trial`) and the learners use as they use a task of the suite:
+(:func:`rmac_mj.rollout.run_trial`) and the learners use as they use a task of the suite:
 its observation holds the entries of ``env.learner_state.keys``. What x is comes from the
 environment's specs where they say enough (finite bounds; a (cos, sin) pair folded into one periodic
 angle; the trial length from the time limit), otherwise from the user (``learner_state``: a

@@ -28,7 +28,7 @@ import dm_env
 import numpy as np
 
 from rmac_mj.envs.environment import Environment, trial_steps
-from rmac_mj.envs.gymnasium_env import GymnasiumEnvironment
+from rmac_mj.envs.from_gymnasium import GymnasiumEnvironment
 from rmac_mj.envs.observations import (ObservationLayout, ObservationMap, check_declaration,
                                        infer_learner_state, layout_of_dm_env)
 from rmac_mj.tasks.common import LearnerState

@@ -23,8 +23,8 @@ from rmac_mj import agents
 from rmac_mj.agents import make_agent
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
 from rmac_mj.errors import UserInputError
-from rmac_mj.experiments import prior as prior_data
-from rmac_mj.experiments.episode import (action_space_of, learner_state_of, run_trial,
+from rmac_mj.experiments import prior_transitions as prior_data
+from rmac_mj.rollout import (action_space_of, learner_state_of, run_trial,
                                          state_space_of, trial_seconds)
 from rmac_mj.experiments.protocol import Protocol
 from rmac_mj.tasks.common import LearnerState

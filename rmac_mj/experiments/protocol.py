@@ -38,10 +38,11 @@ from dm_control.rl import control
 from rmac_mj import constraints, envs, tasks
 from rmac_mj.agents import (ALGORITHMS, PRIOR_PARTS, ActionSpace, Agent, StateSpace, agent_class,
                             config_class, config_from_dict, make_agent)
-from rmac_mj.experiments import files, prior as prior_data
-from rmac_mj.experiments.episode import action_space_of, run_trial, state_space_of
-from rmac_mj.experiments.snapshots import snapshot_arrays
-from rmac_mj.experiments.store import ExperimentResult, ResultStore, TrialLog
+from rmac_mj.results import files
+from rmac_mj.experiments import prior_transitions as prior_data
+from rmac_mj.rollout import action_space_of, run_trial, state_space_of
+from rmac_mj.results.snapshots import snapshot_arrays
+from rmac_mj.results.store import ExperimentResult, ResultStore, TrialLog
 
 
 class _Empty(constraints.Constraint):

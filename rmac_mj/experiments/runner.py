@@ -2,10 +2,10 @@
 
 Experiments are independent, so they run in worker processes or on a Dask cluster
 (:mod:`rmac_mj.experiments.execution`); each returns its results and the driver saves them as they
-arrive (:class:`~rmac_mj.experiments.store.ResultStore`), so an interrupted run loses only the
+arrive (:class:`~rmac_mj.results.store.ResultStore`), so an interrupted run loses only the
 experiments in flight and ``resume`` finishes the rest with identical results. Several runs (a sweep)
 share one pool. Once a run's last experiment is saved it is summarised: ``returns.csv``, Fig. 2 and
-``summary.json`` (:mod:`rmac_mj.experiments.metrics`).
+``summary.json`` (:mod:`rmac_mj.evaluation.metrics`).
 """
 
 from __future__ import annotations
@@ -19,11 +19,13 @@ import os
 import time
 from typing import Any, Callable, Iterable, Iterator
 
-from rmac_mj.experiments import (admission, execution, files, metrics, prior as prior_data,
-                                  reference, statistics)
+from rmac_mj.experiments import admission, execution, prior_transitions as prior_data
+from rmac_mj.results import files
+from rmac_mj.evaluation import metrics, statistics
+from rmac_mj.solvers import optimum as reference
 from rmac_mj.experiments.progress import Progress, TrialFeed
 from rmac_mj.experiments.protocol import ExperimentSpec, Protocol, run_experiment
-from rmac_mj.experiments.store import ExperimentResult, ResultStore
+from rmac_mj.results.store import ExperimentResult, ResultStore
 
 
 class WallClock:
@@ -285,7 +287,7 @@ def finalise(store: ResultStore, protocol: Protocol, wall_time_s: float | None =
 
     store.write_returns(rows)
     if figures:
-        from rmac_mj.experiments import plots
+        from rmac_mj.figures import plots
         plots.plot_learning_curves({store.root.name or str(store.root): summary}, store.figure_stem,
                                    optimal_return=optimal_return, smooth=smooth,
                                    exploration_floor=summary["exploration_floor"])

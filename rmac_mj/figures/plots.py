@@ -2,7 +2,7 @@
 
 Figures are drawn from saved results (``summary.json``, ``sweep.csv``'s rows), never by retraining.
 Nothing here knows a particular task: the trial length comes from the summary, learner names from the
-agents. The policy and critic maps (Figs. 3, 4) are in :mod:`rmac_mj.experiments.policy_plots`.
+agents. The policy and critic maps (Figs. 3, 4) are in :mod:`rmac_mj.figures.policy_plots`.
 """
 
 from __future__ import annotations
@@ -19,8 +19,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from rmac_mj.agents import display_name  # noqa: E402
-from rmac_mj.experiments.metrics import FEW_EXPERIMENTS, FINAL_WINDOW, FIRST_MINUTES  # noqa: E402
-from rmac_mj.experiments.sweep_file import Sweep, is_number, short_names, value_label  # noqa: E402
+from rmac_mj.evaluation.metrics import FEW_EXPERIMENTS, FINAL_WINDOW, FIRST_MINUTES  # noqa: E402
+from rmac_mj.sweeps.sweep_file import Sweep, is_number, short_names, value_label  # noqa: E402
 
 #: Colour per learner (in every figure); in a comparison of runs the line style tells the runs apart.
 _STYLES = {"rmac": {"color": "tab:blue"}, "s-ac": {"color": "tab:orange"},
@@ -191,7 +191,7 @@ def plot_learning_curves(summaries: dict[str, dict[str, Any]], stem: str | os.Pa
 def performance_profiles_figure(scores: dict[tuple[str, str], Any],
                                 what: str = "final return (mean of the last trials)"):
     """The figure of :func:`plot_performance_profiles` (see it), not yet saved."""
-    from rmac_mj.experiments import statistics
+    from rmac_mj.evaluation import statistics
 
     everything = np.concatenate([np.asarray(v, dtype=float) for v in scores.values()])
     low, high = _padded(everything.min(), everything.max())

@@ -1,6 +1,6 @@
 """What people read at the end of a run: the summary table, the tests between learners, the notes.
 
-The numbers come from :mod:`rmac_mj.experiments.metrics` (through ``summary.json``); this module only
+The numbers come from :mod:`rmac_mj.evaluation.metrics` (through ``summary.json``); this module only
 words them, the same way for ``reproduce``, ``compare`` and ``sweep``.
 """
 
@@ -9,7 +9,7 @@ from __future__ import annotations
 from typing import Any, Iterable
 
 from rmac_mj.agents import ALGORITHMS
-from rmac_mj.experiments import metrics
+from rmac_mj.evaluation import metrics
 
 
 def describe_test(test: dict[str, Any]) -> str:
@@ -55,7 +55,7 @@ def across_runs(summaries: dict[str, dict[str, Any]]) -> list[str]:
     """The probability of improvement of the final returns between every pair of (run, learner)
     of several runs (``rmac-mj compare``), one line each: a comparison across runs, not only within
     one."""
-    from rmac_mj.experiments import statistics
+    from rmac_mj.evaluation import statistics
 
     finals = {f"{label}: {algorithm}": summary[algorithm]["final_return_per_experiment"]
               for label, summary in summaries.items() for algorithm in ALGORITHMS

@@ -1,8 +1,8 @@
 """Videos of a result directory's snapshots: one snapshot's greedy episode, an experiment's
 progression over its snapshots, learners side by side after the same trial (``rmac-mj render``).
 
-The snapshots are found through the directory's :class:`~rmac_mj.experiments.store.ResultStore`,
-rendered by :mod:`rmac_mj.experiments.render` and written by :mod:`rmac_mj.experiments.video`.
+The snapshots are found through the directory's :class:`~rmac_mj.results.store.ResultStore`,
+rendered by :mod:`rmac_mj.videos.render` and written by :mod:`rmac_mj.videos.encode`.
 """
 
 from __future__ import annotations
@@ -13,10 +13,10 @@ from typing import Sequence
 
 from rmac_mj.agents import display_name
 from rmac_mj.errors import MissingInputError, UserInputError
-from rmac_mj.experiments import video
-from rmac_mj.experiments.render import Camera, RenderedEpisode, render_episode
-from rmac_mj.experiments.snapshots import load_snapshot, snapshot_environment
-from rmac_mj.experiments.store import ResultStore
+from rmac_mj.videos import encode as video
+from rmac_mj.videos.render import Camera, RenderedEpisode, render_episode
+from rmac_mj.results.snapshots import load_snapshot, snapshot_environment
+from rmac_mj.results.store import ResultStore
 
 
 def render_snapshot_episode(snapshot_path: str | os.PathLike, width: int = 320, height: int = 240,

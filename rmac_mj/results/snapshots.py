@@ -18,7 +18,7 @@ from dm_control.rl import control
 
 from rmac_mj.agents import ActionSpace, Agent, StateSpace, config_class, config_from_dict, make_agent
 from rmac_mj.errors import MissingInputError, UserInputError
-from rmac_mj.experiments.files import write_npz
+from rmac_mj.results.files import write_npz
 
 _PREFIX = "agent/"
 
@@ -87,7 +87,7 @@ def snapshot_environment(agent: Agent, meta: dict, domain: str | None = None,
     SPEC, its learner state inferred); UserInputError if its state or action dimensions differ from
     the agent's. ``render``: an outside environment made to draw its frames."""
     from rmac_mj import envs, tasks
-    from rmac_mj.experiments.episode import action_space_of, state_space_of
+    from rmac_mj.rollout import action_space_of, state_space_of
 
     learned_on = (envs.EnvSpec(**meta["environment"]) if "environment" in meta else None)
     name = learned_on.env if learned_on is not None else f"{meta['domain']}/{meta['task']}"

@@ -9,10 +9,10 @@
 
 :class:`ResultStore` owns this layout: the runner, the sweep, rendering, ``compare`` and the scripts
 read and write through it, never by building paths themselves. Files are written atomically
-(:mod:`rmac_mj.experiments.files`), an experiment's snapshots before its curve, so a killed run leaves
+(:mod:`rmac_mj.results.files`), an experiment's snapshots before its curve, so a killed run leaves
 only whole files and an experiment counts as done only once everything it wrote is in place. A run
 holds the directory's lock while it writes (``OUT/.lock``), and a resumed run checks every saved
-experiment against the config before trusting it (:mod:`rmac_mj.experiments.integrity`).
+experiment against the config before trusting it (:mod:`rmac_mj.results.integrity`).
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from typing import Any, Iterator
 import numpy as np
 
 from rmac_mj.errors import MissingInputError, UserInputError
-from rmac_mj.experiments import files, integrity
+from rmac_mj.results import files, integrity
 
 _EXPERIMENT_FILE = re.compile(r"exp_(\d{3,})\.npz")
 _TRIAL_FILE = re.compile(r"trial_(\d+)\.npz")
@@ -210,7 +210,7 @@ class ResultStore:
 
     def lock(self) -> integrity.DirectoryLock:
         """The directory's exclusive lock (held while a run writes here; see
-        :class:`~rmac_mj.experiments.integrity.DirectoryLock`)."""
+        :class:`~rmac_mj.results.integrity.DirectoryLock`)."""
         if self._lock is None:
             self._lock = integrity.DirectoryLock(self.root)
         return self._lock

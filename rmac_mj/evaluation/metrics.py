@@ -156,7 +156,7 @@ def summarise(returns: np.ndarray, greedy: np.ndarray | None = None,
     have the interquartile mean with its stratified-bootstrap interval (:mod:`statistics`, the
     field's estimate since Agarwal et al. 2021: robust to a few stuck experiments).
     """
-    from rmac_mj.experiments import statistics
+    from rmac_mj.evaluation import statistics
 
     returns = np.asarray(returns, dtype=float)
     n_experiments, n_trials = returns.shape

@@ -28,7 +28,7 @@ interpolation. Why this choice:
   state interpolation and the finite action set, which the convergence check measures.
 
 The same greedy policy run with the learners' exploration noise gives the *exploration floor*
-(:mod:`rmac_mj.experiments.exploration_floor`).
+(:mod:`rmac_mj.solvers.exploration_floor`).
 
 The DP value is an approximation; the number to report is the return of its greedy policy simulated on the
 MuJoCo model from x_0 (one-step look-ahead on V_{t+1} from the exact, off-grid state). Being the return of
@@ -36,7 +36,7 @@ an actual admissible policy on the actual model, it is a lower bound on the true
 next to it is its check. Results are cached as JSON keyed by the problem (the compiled model, the task's
 source and settings), the grid and the solver version, so ``rmac-mj optimal`` and Fig. 2 reuse them.
 
-    from rmac_mj.experiments import optimal, reference
+    from rmac_mj.solvers import dynamic_programming as optimal, optimum as reference
     env = protocol.make_environment()
     result = optimal.optimal_return(env, reference.problem_identity(protocol))
     print(result.simulated_return, result.dp_value)
@@ -62,7 +62,7 @@ from dm_control.rl import control
 from mujoco import rollout
 
 from rmac_mj._cache import user_cache_dir
-from rmac_mj.experiments.episode import learner_state_of, steps_per_trial
+from rmac_mj.rollout import learner_state_of, steps_per_trial
 
 #: Bumped whenever a change to this module changes the numbers it computes: old cache entries are ignored.
 #: 2: the problem is read from the environment (the task's own reward_of instead of a copy of it).
@@ -514,7 +514,7 @@ def default_cache_dir() -> pathlib.Path:
 def cache_key(env: control.Environment, identity: dict[str, Any], config: OptimalConfig) -> str:
     """Hex digest identifying a result: the problem (:func:`reference.problem_digest`), every config
     field but ``n_threads``, the solver version."""
-    from rmac_mj.experiments.reference import problem_digest
+    from rmac_mj.solvers.optimum import problem_digest
 
     fields = dataclasses.asdict(config)
     fields.pop("n_threads")  # changes the speed, never the numbers
@@ -546,7 +546,7 @@ def optimal_return(env: control.Environment, identity: dict[str, Any],
         raise TypeError(f"optimal_return: config must be an OptimalConfig, got {type(config).__name__}")
     directory = cache_directory(cache_dir)
     path = directory / f"optimal-{cache_key(env, identity, config)}.json"
-    from rmac_mj.experiments.files import cached_json
+    from rmac_mj.results.files import cached_json
     return cached_json(
         path, lambda document: OptimalResult.from_json_dict(document, from_cache=True),
         lambda: solve(env, config, announce), refresh=refresh, announce=announce,

@@ -5,12 +5,12 @@ machine without a display); it is closed after every episode so nothing is left 
 renders: the overlay reads the state and action labels from the task's ``learner_state``.
 
     from rmac_mj import tasks
-    from rmac_mj.experiments import render, video
+    from rmac_mj.videos import render, encode as video
     episode = render.render_episode(tasks.load(domain, task), agent, frames_per_step=3)
     video.write_video(episode.frames, "episode.mp4", fps=episode.fps)
 
-Composing clips and writing files is :mod:`rmac_mj.experiments.video`'s; videos of a result
-directory's snapshots are :mod:`rmac_mj.experiments.result_videos`'.
+Composing clips and writing files is :mod:`rmac_mj.videos.encode`'s; videos of a result
+directory's snapshots are :mod:`rmac_mj.videos.result_videos`'.
 """
 
 from __future__ import annotations
@@ -28,8 +28,8 @@ from PIL import Image
 
 from rmac_mj._gl import open_renderer
 from rmac_mj.agents import Agent
-from rmac_mj.experiments import video
-from rmac_mj.experiments.episode import learner_state_of, n_sub_steps, state_of
+from rmac_mj.videos import encode as video
+from rmac_mj.rollout import learner_state_of, n_sub_steps, state_of
 
 if TYPE_CHECKING:  # mujoco is imported after the GL back end is chosen (rmac_mj._gl)
     import mujoco

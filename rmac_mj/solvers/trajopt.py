@@ -44,7 +44,7 @@ sequence on the actual model, hence a lower bound on the true optimum. Results a
 ``optimal.py``'s (JSON keyed by the model, the task's source, the config and ``SOLVER_VERSION``).
 
     from rmac_mj import tasks
-    from rmac_mj.experiments import trajopt
+    from rmac_mj.solvers import trajopt
     result = trajopt.optimise(tasks.load(domain, task))
     print(result.describe())
 
@@ -577,7 +577,7 @@ def optimise(env: control.Environment, config: TrajoptConfig = TrajoptConfig()) 
 def cache_key(env: control.Environment, identity: dict[str, Any], config: TrajoptConfig) -> str:
     """Hex digest identifying a result: the problem (``reference.problem_digest``: the compiled model,
     the task's module source, ``identity``), the config (but ``n_threads``) and the solver version."""
-    from rmac_mj.experiments.reference import problem_digest
+    from rmac_mj.solvers.optimum import problem_digest
 
     fields = dataclasses.asdict(config)
     fields.pop("n_threads")  # changes the speed, never the numbers
@@ -599,7 +599,8 @@ def cached_optimise(env: control.Environment, identity: dict[str, Any],
       refresh: solve again even if cached (and overwrite the entry).
       announce: called with a one-line message before a solve (not for a cache hit), e.g. ``print``.
     """
-    from rmac_mj.experiments import files, optimal
+    from rmac_mj.results import files
+    from rmac_mj.solvers import dynamic_programming as optimal
 
     if not isinstance(config, TrajoptConfig):
         raise TypeError(f"cached_optimise: config must be a TrajoptConfig, got {type(config).__name__}")

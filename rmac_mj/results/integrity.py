@@ -1,6 +1,6 @@
 """Whether a result directory can be trusted: its lock, and the checks of what it holds.
 
-:class:`~rmac_mj.experiments.store.ResultStore` uses these: a run holds an exclusive lock on its
+:class:`~rmac_mj.results.store.ResultStore` uses these: a run holds an exclusive lock on its
 directory for as long as it writes there (:class:`DirectoryLock`: ``flock`` on ``OUT/.lock``, released
 by the system when the process ends, however it ends), and a resumed run trusts a saved experiment only
 when its files are whole and are what the directory's config says they are (:func:`curve_problem`,

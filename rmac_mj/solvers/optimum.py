@@ -4,16 +4,16 @@ A task declares how its reference is computed (``rmac_mj.tasks.knowledge(domain,
 ``tasks.common.Reference``: a solver's name and the settings the task needs); this module holds the
 solvers by name, computes a reference once and caches it:
 
-- ``"dynamic programming"``: a grid DP of a one-joint task (:mod:`rmac_mj.experiments.optimal`), which
+- ``"dynamic programming"``: a grid DP of a one-joint task (:mod:`rmac_mj.solvers.dynamic_programming`), which
   also gives the *exploration floor*, the near-optimal policy's return while exploring as a learner does;
-- ``"trajectory optimisation"``: iLQR from several starts (:mod:`rmac_mj.experiments.trajopt`), for any
+- ``"trajectory optimisation"``: iLQR from several starts (:mod:`rmac_mj.solvers.trajopt`), for any
   deterministic task of the suite.
 
 Both read the whole problem (model, horizon, reward, start) from the task's environment. A run's
 reference is the task's with its default task_kwargs: a changed reward or start is another problem,
 and an environment from outside the suite declares none.
 
-    from rmac_mj.experiments.reference import reference_return
+    from rmac_mj.solvers.optimum import reference_return
     reference_return(domain, task)    # solves once, then reads the cache
 """
 
@@ -63,13 +63,13 @@ def problem_digest(env: control.Environment, identity: dict[str, Any]) -> str:
 
 
 def _dynamic_programming(env, identity, settings, cache_dir, refresh, announce) -> Reference:
-    from rmac_mj.experiments import optimal
+    from rmac_mj.solvers import dynamic_programming as optimal
     return optimal.optimal_return(env, identity, optimal.OptimalConfig(**settings),
                                   cache_dir=cache_dir, refresh=refresh, announce=announce)
 
 
 def _trajectory_optimisation(env, identity, settings, cache_dir, refresh, announce) -> Reference:
-    from rmac_mj.experiments import trajopt
+    from rmac_mj.solvers import trajopt
     return trajopt.cached_optimise(env, identity, trajopt.TrajoptConfig(**settings),
                                    cache_dir=cache_dir, refresh=refresh, announce=announce)
 
@@ -130,7 +130,7 @@ def exploration_floor(domain: str, task: str, sigma: float, period: int, phase: 
     declared = tasks.knowledge(domain, task).reference
     if declared is None or declared.method != "dynamic programming":
         return None
-    from rmac_mj.experiments import exploration_floor as floors, optimal
+    from rmac_mj.solvers import exploration_floor as floors, dynamic_programming as optimal
     return floors.exploration_floor(tasks.load(domain, task), problem_identity(domain, task),
                                     sigma, period, phase,
                                     config=optimal.OptimalConfig(**declared.settings),

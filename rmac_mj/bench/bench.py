@@ -45,8 +45,8 @@ import numpy as np
 from rmac_mj import tasks
 from rmac_mj.agents import PolicyAgent, make_agent
 from rmac_mj.approximators.llr import LLRMemory
-from rmac_mj.experiments import bench_planning
-from rmac_mj.experiments.episode import (action_space_of, learner_state_of, n_sub_steps, run_trial,
+from rmac_mj.bench import planning as bench_planning
+from rmac_mj.rollout import (action_space_of, learner_state_of, n_sub_steps, run_trial,
                                          state_of, state_space_of, steps_per_trial)
 
 #: The suite's default task, which the benchmark measures unless told otherwise.

@@ -49,7 +49,7 @@ else:  # pragma: no cover - Python 3.10
 from rmac_mj import constraints
 from rmac_mj.agents import ALGORITHMS, config_class, config_from_dict
 from rmac_mj.errors import MissingInputError, UserInputError
-from rmac_mj.experiments import files
+from rmac_mj.results import files
 from rmac_mj.experiments.protocol import Protocol
 
 #: The tables a sweep file may have. [learner_state] is the Protocol option of that name written as a
@@ -356,7 +356,7 @@ class _Checker:
         """Build each learner of ``protocol`` on its task: catches what only the task's spaces
         reveal (e.g. input weights of the wrong length) before anything runs."""
         from rmac_mj.agents import make_agent
-        from rmac_mj.experiments.episode import action_space_of, state_space_of
+        from rmac_mj.rollout import action_space_of, state_space_of
 
         key = json.dumps([protocol.environment_description(), protocol.task_kwargs], sort_keys=True)
         if key not in self._spaces:

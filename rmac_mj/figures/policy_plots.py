@@ -17,7 +17,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from rmac_mj.agents import display_name  # noqa: E402
-from rmac_mj.experiments.plots import save_figure  # noqa: E402
+from rmac_mj.figures.plots import save_figure  # noqa: E402
 
 
 def policy_actions(agent, states: np.ndarray) -> np.ndarray:
@@ -82,7 +82,7 @@ def _check_dims(dims, n: int) -> tuple[int, int]:
 def greedy_trajectory(env, agent) -> tuple[np.ndarray, float]:
     """A greedy trial (no exploration, no learning) of ``agent`` on ``env`` from the task's start
     state: the learner's states, ndarray of shape (T, n), and the trial's return."""
-    from rmac_mj.experiments.episode import learner_state_of, state_of
+    from rmac_mj.rollout import learner_state_of, state_of
 
     keys = learner_state_of(env).keys
     timestep = env.reset()

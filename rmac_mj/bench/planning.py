@@ -24,7 +24,7 @@ from typing import Any
 
 from rmac_mj import tasks
 from rmac_mj.agents import make_agent
-from rmac_mj.experiments.episode import (action_space_of, run_trial, state_space_of,
+from rmac_mj.rollout import (action_space_of, run_trial, state_space_of,
                                          steps_per_trial, trial_seconds)
 
 #: Planning and replay steps per real step at which the CPU per simulated minute is measured.

@@ -1,12 +1,12 @@
-"""Sweeps: every configuration of a sweep file (:mod:`rmac_mj.experiments.sweep_file`) run as a
+"""Sweeps: every configuration of a sweep file (:mod:`rmac_mj.sweeps.sweep_file`) run as a
 ``reproduce`` result directory, all through one worker pool or Dask cluster.
 
 Configuration ``name`` is run into ``OUT/<name>/``; ``OUT/sweep.json`` is the index (file,
 configurations, directories). Every configuration uses the same seeds, so configurations differ only
 by their settings (common random numbers: differences between them are paired). ``OUT/sweep.csv`` has
 one row per configuration and learner (:data:`COLUMNS`, every number from the configuration's
-``summary.json``, see :mod:`rmac_mj.experiments.metrics`) and ``OUT/sweep_<metric>.png`` plots each
-metric against each swept parameter (:func:`rmac_mj.experiments.plots.plot_sweep`).
+``summary.json``, see :mod:`rmac_mj.evaluation.metrics`) and ``OUT/sweep_<metric>.png`` plots each
+metric against each swept parameter (:func:`rmac_mj.figures.plots.plot_sweep`).
 """
 
 from __future__ import annotations
@@ -16,9 +16,11 @@ import math
 import pathlib
 from typing import Any, Callable
 
-from rmac_mj.experiments import files, metrics, report, runner
-from rmac_mj.experiments.store import ResultStore, ResumeRefused, added_experiments
-from rmac_mj.experiments.sweep_file import Sweep
+from rmac_mj.results import files
+from rmac_mj.evaluation import metrics, report
+from rmac_mj.experiments import runner
+from rmac_mj.results.store import ResultStore, ResumeRefused, added_experiments
+from rmac_mj.sweeps.sweep_file import Sweep
 
 #: sweep.csv's columns after the configuration, the swept parameters and the learner.
 COLUMNS = ("experiments", "final_return_mean", "final_return_ci95_low", "final_return_ci95_high",
@@ -74,7 +76,7 @@ def _write_index(out: pathlib.Path, sweep: Sweep, document: dict[str, Any]) -> N
 
 def _added_experiments(stored: dict[str, Any], document: dict[str, Any]) -> int | None:
     """The experiments per configuration the sweep ``document`` adds to the ``stored`` index when it
-    differs in nothing else (:func:`~rmac_mj.experiments.store.added_experiments`)."""
+    differs in nothing else (:func:`~rmac_mj.results.store.added_experiments`)."""
     before, now = stored.get("sweep"), document["sweep"]
     if not isinstance(before, dict):
         return None
@@ -105,7 +107,7 @@ def run_sweep(sweep: Sweep, out: str | pathlib.Path, jobs: int | None = None,
     rows = sweep_rows(sweep, summaries)
     write_csv(out / "sweep.csv", sweep, rows)
     if figures:
-        from rmac_mj.experiments import plots
+        from rmac_mj.figures import plots
         plots.plot_sweep(sweep, rows, out)
     return rows
 

@@ -6,7 +6,7 @@ samples, closed-loop behaviour for the reference model, value estimates for the 
 into a learner::
 
     from rmac_mj import tasks
-    from rmac_mj.experiments import prior
+    from rmac_mj.experiments import prior_transitions as prior
     controller = tasks.knowledge(domain, task).demonstrator("demo").controller(env)  # x -> u
     demo = prior.record(env, controller, trials=5, seed=0, action_noise=0.5)
     prior.save_demonstration("demo.npz", demo)            # or a user's own logs in the same format
@@ -44,8 +44,8 @@ from dm_control.rl import control
 
 from rmac_mj.agents import ActionSpace, StateSpace, check_transitions
 from rmac_mj.errors import MissingInputError, UserInputError
-from rmac_mj.experiments import files
-from rmac_mj.experiments.episode import action_space_of, learner_state_of, state_of
+from rmac_mj.results import files
+from rmac_mj.rollout import action_space_of, learner_state_of, state_of
 
 #: The keys of a demonstration file, in order.
 FIELDS = ("states", "actions", "rewards", "next_states", "trial")

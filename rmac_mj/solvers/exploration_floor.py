@@ -2,7 +2,7 @@
 
 During learning every ``period``-th step gets N(0, sigma^2) noise added to the action (section 6.1:
 sigma = 1 V every third step). Even the near-optimal policy (the dynamic programme's greedy policy,
-:mod:`rmac_mj.experiments.optimal`) loses reward under that noise, so an exploring learning curve is
+:mod:`rmac_mj.solvers.dynamic_programming`) loses reward under that noise, so an exploring learning curve is
 judged against this floor, a greedy trial against the near-optimal return. Cached like the optimum,
 keyed by the DP's key and the schedule.
 """
@@ -19,7 +19,7 @@ from typing import Any, Callable
 import numpy as np
 from dm_control.rl import control
 
-from rmac_mj.experiments import optimal
+from rmac_mj.solvers import dynamic_programming as optimal
 
 
 @dataclasses.dataclass(frozen=True)
@@ -187,8 +187,8 @@ def exploration_floor(env: control.Environment, identity: dict[str, Any], sigma:
                                 ci95=(float(low), float(high)), returns=returns, sigma=sigma,
                                 period=period, phase=phase, rollouts=rollouts, seed=seed,
                                 config=config, runtime_s=time.perf_counter() - start)
-    from rmac_mj.experiments.files import cached_json
-    from rmac_mj.experiments.metrics import confidence_interval
+    from rmac_mj.results.files import cached_json
+    from rmac_mj.evaluation.metrics import confidence_interval
     return cached_json(
         directory / f"exploration-floor-{key}.json",
         lambda document: ExplorationFloor.from_json_dict(document, from_cache=True), compute,
