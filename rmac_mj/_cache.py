@@ -1,6 +1,6 @@
-"""Where rmac-mj caches what is expensive to compute: compiled kernels and the near-optimal reference.
+"""Where rmac-mj caches what is expensive to compute: compiled kernels and the near-optimal return.
 
-- The near-optimal reference (``rmac_mj.solvers.dynamic_programming``) is cached in :func:`user_cache_dir`:
+- The near-optimal return (``rmac_mj.solvers.dynamic_programming``) is cached in :func:`user_cache_dir`:
   ``$RMAC_MJ_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/rmac-mj``, else ``~/.cache/rmac-mj``.
 - The numba kernels (``@njit(cache=True)``) are compiled once (tens of seconds) and reused by every later
   process and worker, from ``user_cache_dir() / "numba" / <hash of the kernel sources>``

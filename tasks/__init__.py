@@ -32,7 +32,7 @@ DEFAULT_TASK = ("dc_pendulum", "swingup")
 
 
 def knowledge(domain_name: str, task_name: str) -> common.TaskKnowledge:
-    """What ``domain_name``/``task_name`` declares beyond its environment: its near-optimal reference,
+    """What ``domain_name``/``task_name`` declares beyond its environment: its near-optimal return,
     its demonstrators and its plot hints (:class:`~rmac_mj.tasks.common.TaskKnowledge`; a task that
     declares nothing has none of them)."""
     _check_names(domain_name, task_name)

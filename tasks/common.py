@@ -226,8 +226,8 @@ class Demonstrator(Protocol):
 
 
 @dataclasses.dataclass(frozen=True)
-class Reference:
-    """How a task's near-optimal reference return is computed.
+class Optimum:
+    """How a task's near-optimal return is computed (the line the learners are measured against).
 
     Attributes:
       method: the name of a solver of ``rmac_mj.solvers.optimum`` ("dynamic programming",
@@ -237,6 +237,10 @@ class Reference:
 
     method: str
     settings: Mapping[str, Any] = dataclasses.field(default_factory=dict)
+
+
+#: The older name of :class:`Optimum` ("reference" is the paper's reference model M^R).
+Reference = Optimum
 
 
 @dataclasses.dataclass(frozen=True)
@@ -260,16 +264,24 @@ class TaskKnowledge:
     none of it (:data:`NOTHING_KNOWN`).
 
     Attributes:
-      reference: how its near-optimal reference is computed, or None (with its default settings:
-        a reference is for the task as declared).
+      optimum: how its near-optimal return is computed (:class:`Optimum`), or None (with its
+        default settings: the optimum is for the task as declared). ``reference=`` and
+        ``.reference`` are its older name.
       demonstrators: name -> a scripted :class:`Demonstrator` ('demo' is the one ``--prior demo``
         records).
       plot_hints: see :class:`PlotHints`.
     """
 
-    reference: Reference | None = None
+    optimum: Optimum | None = None
     demonstrators: Mapping[str, Demonstrator] = dataclasses.field(default_factory=dict)
     plot_hints: PlotHints = PlotHints()
+    reference: dataclasses.InitVar[Optimum | None] = None
+
+    def __post_init__(self, reference: Optimum | None) -> None:
+        if reference is not None:
+            if self.optimum is not None:
+                raise TypeError("TaskKnowledge: give optimum= (reference= is its older name), not both")
+            object.__setattr__(self, "optimum", reference)
 
     def demonstrator(self, name: str, where: str = "this task") -> Demonstrator:
         """Demonstrator ``name``; ValueError listing the available ones."""
@@ -279,6 +291,10 @@ class TaskKnowledge:
                              "FILE.npz)")
         return self.demonstrators[name]
 
+
+# The older name, read: ``knowledge.reference`` is ``knowledge.optimum``.
+TaskKnowledge.reference = property(lambda self: self.optimum,  # type: ignore[assignment]
+                                   doc="The older name of ``optimum``.")
 
 #: The knowledge of an environment that declares none.
 NOTHING_KNOWN = TaskKnowledge()

@@ -57,12 +57,12 @@ DEMONSTRATORS = {"demo": EnergySwingUp(),
                  "poor-demo": EnergySwingUp(pump_voltage=1.5, balance_scale=0.5)}
 
 #: What each task declares beyond its environment (``rmac_mj.tasks.knowledge``). The swing-up's
-#: near-optimal reference is the dynamic programme of docs/optimal.md on a grid of 361 x 241 states
+#: near-optimal return is the dynamic programme of docs/optimal.md on a grid of 361 x 241 states
 #: (1 deg, 0.17 rad/s apart) over speeds up to 20 rad/s (the optimal swing-up peaks at 11.5); balance
 #: starts at random, so it has none. Returns of order -1000 per trial: differences under 10 are noise.
 KNOWLEDGE = {
     "swingup": common.TaskKnowledge(
-        reference=common.Reference("dynamic programming", {
+        optimum=common.Optimum("dynamic programming", {
             "n_phi": 361, "n_phi_dot": 241, "max_phi_dot": 20.0, "n_actions": 25,
             "lookahead_actions": 121}),
         demonstrators=DEMONSTRATORS, plot_hints=common.PlotHints(return_margin=10.0)),

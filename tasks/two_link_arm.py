@@ -60,7 +60,7 @@ SUITE = containers.TaggedTasks()
 #: reference is found by trajectory optimisation (iLQR from several starts, docs/optimal.md: -37.65
 #: per trial); returns near the end are of order -40, so differences of about 1 are worth seeing.
 KNOWLEDGE = {
-    "reach": common.TaskKnowledge(reference=common.Reference("trajectory optimisation"),
+    "reach": common.TaskKnowledge(optimum=common.Optimum("trajectory optimisation"),
                                   plot_hints=common.PlotHints(return_margin=1.0)),
 }
 

@@ -62,9 +62,9 @@ def test_sac_tiles_the_four_dimensional_box(toy):
 
 
 def test_runner_summary_and_figure_use_the_tasks_trial_length(toy, tmp_path, monkeypatch):
-    from rmac_mj.solvers import optimum as reference
+    from rmac_mj.solvers import optimum
 
-    monkeypatch.setattr(reference, "run_reference", lambda protocol, log=None: -1.0)
+    monkeypatch.setattr(optimum, "run_optimum", lambda protocol, log=None: -1.0)
     protocol = Protocol(**TINY)
     summary = runner.run_protocol(protocol, tmp_path, jobs=1, progress=False, references=True)
     on_disk = json.loads((tmp_path / "summary.json").read_text())

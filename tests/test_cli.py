@@ -98,7 +98,7 @@ def test_set_overrides_parse_into_nested_agent_configs():
 def test_unknown_hyperparameter_is_one_line(tmp_path):
     result = rmac_mj("reproduce", "--algorithms", "s-ac", "--out", str(tmp_path / "x"),
                      "--set", "s-ac.bogus=1")
-    assert result.returncode == 2 and "SACConfig has no parameter 'bogus'" in result.stderr
+    assert result.returncode == 2 and "StandardACConfig has no parameter 'bogus'" in result.stderr
 
 
 def test_a_bug_keeps_its_traceback(tmp_path, monkeypatch):

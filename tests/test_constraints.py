@@ -10,14 +10,14 @@ from rmac_mj import constraints
 from rmac_mj.agents import Exploration, config_from_dict
 from rmac_mj.agents.mlac import MLACConfig
 from rmac_mj.agents.rmac import RMACConfig
-from rmac_mj.agents.standard_ac import SACConfig
+from rmac_mj.agents.standard_ac import StandardACConfig
 from rmac_mj.approximators.llr import LLRMemory
 from rmac_mj.approximators.tile_coding import TileCodingConfig
 from rmac_mj.errors import UserInputError
 from rmac_mj.sweeps import sweep_file
 
-CONFIGS = (RMACConfig, SACConfig, MLACConfig, Exploration, TileCodingConfig)
-LEARNERS = (RMACConfig, SACConfig, MLACConfig)
+CONFIGS = (RMACConfig, StandardACConfig, MLACConfig, Exploration, TileCodingConfig)
+LEARNERS = (RMACConfig, StandardACConfig, MLACConfig)
 
 
 def refusal(cls, **kwargs) -> str:
@@ -34,7 +34,7 @@ def test_every_field_has_constraints_and_the_defaults_meet_them(cls):
 
 @pytest.mark.parametrize("cls", LEARNERS)
 def test_a_bool_is_no_learning_rate_in_any_learner(cls):
-    # Was: SACConfig(alpha_critic=True) accepted while RMAC and MLAC refused a bool. Every
+    # Was: StandardACConfig(alpha_critic=True) accepted while RMAC and MLAC refused a bool. Every
     # learner's critic rate is now alpha_c, the paper's name (the actor's alpha_a, RMAC's alpha_r).
     assert refusal(cls, alpha_c=True) == f"{cls.__name__}.alpha_c must be a number in [0, 1], got True"
 
@@ -96,7 +96,7 @@ def test_an_unknown_name_suggests_the_closest_known_one():
 def test_sequences_are_kept_as_tuples_of_floats():
     config = RMACConfig(critic_weights=[1, 0.1])
     assert config.critic_weights == (1.0, 0.1) and hash(config)
-    assert SACConfig(tile_low=[None, -5]).tile_low == (None, -5.0)
+    assert StandardACConfig(tile_low=[None, -5]).tile_low == (None, -5.0)
     assert refusal(RMACConfig, critic_weights=()) == \
         "RMACConfig.critic_weights must be a list of finite numbers >= 0 or None, got ()"
 
@@ -113,7 +113,7 @@ def test_invalid_parameter_error_is_a_value_and_a_type_error():
     ("rmac.alpha_r", "fast", RMACConfig, "alpha_r"),
     ("rmac.norm", True, RMACConfig, "norm"),
     ("rmac.exploration.period", 3.5, Exploration, "period"),
-    ("s-ac.alpha_c", True, SACConfig, "alpha_c"),
+    ("s-ac.alpha_c", True, StandardACConfig, "alpha_c"),
     ("mlac.critic_clip", "no", MLACConfig, "critic_clip"),
 ])
 def test_the_sweep_checker_expects_what_the_config_expects(tmp_path, key, value, cls, field):
@@ -132,7 +132,7 @@ def test_the_sweep_checker_expects_what_the_config_expects(tmp_path, key, value,
 def test_renamed_parameters_are_read_from_stored_configs_only():
     # Snapshots written before the learning rates took the paper's names still load; a user
     # writing an old name is told the new one.
-    assert config_from_dict(SACConfig, {"alpha_actor": 0.01}, stored=True).alpha_a == 0.01
+    assert config_from_dict(StandardACConfig, {"alpha_actor": 0.01}, stored=True).alpha_a == 0.01
     assert config_from_dict(MLACConfig, {"alpha_critic": 0.2}, stored=True).alpha_c == 0.2
     with pytest.raises(constraints.InvalidParameterError, match="has no parameter 'alpha_critic'"):
-        config_from_dict(SACConfig, {"alpha_critic": 0.2})
+        config_from_dict(StandardACConfig, {"alpha_critic": 0.2})

@@ -14,12 +14,12 @@ from dm_env import specs
 
 from rmac_mj import envs
 from rmac_mj.agents import make_agent
-from rmac_mj.agents.standard_ac import SACConfig
+from rmac_mj.agents.standard_ac import StandardACConfig
 from rmac_mj.envs.observations import ObservationMap, inferred_entries, layout_of_dm_env
 from rmac_mj.rollout import (action_space_of, run_trial, state_of, state_space_of,
                                          steps_per_trial, trial_seconds)
 
-SMALL_SAC = SACConfig(backend="numpy")
+SMALL_SAC = StandardACConfig(backend="numpy")
 
 
 # ----------------------------------------------------------------------------------------------------
@@ -450,7 +450,7 @@ def test_cli_optimal_and_bench_on_an_outside_environment(capsys):
     from rmac_mj.bench import bench
 
     assert main(["optimal", "--env", "gymnasium:Pendulum-v1"]) == 2
-    assert "no near-optimal reference for gymnasium:Pendulum-v1" in capsys.readouterr().err
+    assert "no near-optimal return for gymnasium:Pendulum-v1" in capsys.readouterr().err
     costs = bench.step_costs(20, 1, env="gymnasium:Pendulum-v1")
     assert costs["raw_step"] == "the environment's own step (Gymnasium)"
     assert all(0 < costs[key] < float("inf") for key in ("physics_step_us", "env_step_us"))

@@ -11,7 +11,7 @@ import plain_pendulum
 from rmac_mj.agents import ActionSpace, Exploration, StateSpace, model_uncertainty
 from rmac_mj.agents.mlac import MLAC, MLACConfig
 from rmac_mj.agents.rmac import RMAC, RMACConfig
-from rmac_mj.agents.standard_ac import SAC, SACConfig
+from rmac_mj.agents.standard_ac import StandardActorCritic, StandardACConfig
 from rmac_mj.approximators.llr import LLRMemory
 
 PENDULUM = StateSpace(low=[-np.pi, -8 * np.pi], high=[np.pi, 8 * np.pi], periodic=[True, False],
@@ -77,8 +77,8 @@ def test_bad_exploration_names_the_field(kwargs, name):
 
 
 def test_sac_refuses_uncertain_exploration_by_name():
-    with pytest.raises(ValueError, match="SACConfig.exploration.where must be 'always'"):
-        SACConfig(exploration=Exploration(where="uncertain", uncertainty_threshold=1.0))
+    with pytest.raises(ValueError, match="StandardACConfig.exploration.where must be 'always'"):
+        StandardACConfig(exploration=Exploration(where="uncertain", uncertainty_threshold=1.0))
 
 
 # -- the uncertainty measure and the 'uncertain' rule ------------------------------------------------
@@ -178,7 +178,7 @@ class _CountingGenerator:
 def test_trial_counter_round_trips_and_drives_the_decay(learner):
     exploration = Exploration(decay="exponential", decay_rate=0.5, sigma_min=0.05)
     cls, config_class = {"rmac": (RMAC, RMACConfig), "mlac": (MLAC, MLACConfig),
-                         "sac": (SAC, SACConfig)}[learner]
+                         "sac": (StandardActorCritic, StandardACConfig)}[learner]
     make = lambda seed: cls(PENDULUM, VOLTS, config_class(exploration=exploration), seed=seed)  # noqa
     a = make(1)
     assert a.trial == -1

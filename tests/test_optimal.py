@@ -1,4 +1,4 @@
-"""Tests of the near-optimal reference (rmac_mj.solvers.dynamic_programming). All grids are coarse: a few seconds."""
+"""Tests of the near-optimal return (rmac_mj.solvers.dynamic_programming). All grids are coarse: a few seconds."""
 
 from __future__ import annotations
 
@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from rmac_mj import tasks
-from rmac_mj.solvers import exploration_floor, dynamic_programming as optimal, optimum as reference
+from rmac_mj.solvers import dynamic_programming as optimal, exploration_floor
+from rmac_mj.solvers.problem import problem_identity
 from rmac_mj.solvers.dynamic_programming import OptimalConfig
 
 # Coarse enough for a unit test; the converged default is about -748 (docs/optimal.md).
@@ -23,7 +24,7 @@ def swingup(steps: int | None = None, **task_kwargs):
     if steps is not None:
         task_kwargs["time_limit"] = steps * 0.03
     return (tasks.load("dc_pendulum", "swingup", task_kwargs=task_kwargs),
-            reference.problem_identity("dc_pendulum", "swingup", task_kwargs))
+            problem_identity("dc_pendulum", "swingup", task_kwargs))
 
 
 def problem(steps: int | None = None) -> optimal.Problem:

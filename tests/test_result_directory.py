@@ -401,9 +401,9 @@ def test_a_hyperparameter_the_task_cannot_take_is_one_line_before_anything_runs(
 
 def test_long_computations_say_they_are_alive(monkeypatch):
     from rmac_mj import tasks
-    from rmac_mj.solvers import dynamic_programming as optimal
+    from rmac_mj.solvers import dynamic_programming as optimal, problem
 
-    monkeypatch.setattr(optimal, "PROGRESS_SECONDS", 0.0)
+    monkeypatch.setattr(problem, "PROGRESS_SECONDS", 0.0)
     said = []
     optimal.solve(tasks.load("dc_pendulum", "swingup", task_kwargs={"time_limit": 0.3}),
                   optimal.OptimalConfig(n_phi=24, n_phi_dot=15, n_actions=3, lookahead_actions=3,

@@ -26,10 +26,10 @@ def returns_of(out, protocol):
 
 
 def test_tiny_protocol_end_to_end(tmp_path, monkeypatch):
-    from rmac_mj.solvers import optimum as reference
+    from rmac_mj.solvers import optimum
 
-    monkeypatch.setattr(reference, "run_reference", lambda protocol, log=None: -900.0)
-    monkeypatch.setattr(reference, "run_exploration_floor",
+    monkeypatch.setattr(optimum, "run_optimum", lambda protocol, log=None: -900.0)
+    monkeypatch.setattr(optimum, "run_exploration_floor",
                         lambda protocol, algorithm, log=None: -950.0)
     protocol = Protocol(**TINY)
     summary = runner.run_protocol(protocol, tmp_path, jobs=1, progress=False, references=True)

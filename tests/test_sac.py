@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from rmac_mj.agents import ActionSpace, Exploration, StateSpace
-from rmac_mj.agents.standard_ac import SAC, SACConfig
+from rmac_mj.agents.standard_ac import StandardActorCritic, StandardACConfig
 from rmac_mj.approximators.tile_coding import TileCodingConfig
 
 PENDULUM = StateSpace(low=[-np.pi, -60.0], high=[np.pi, 60.0], periodic=[True, False])
@@ -19,7 +19,7 @@ def line_agent(backend="numba", **kwargs):
                   tile_coding=TileCodingConfig(num_tilings=1, tiles=2), exploration=NO_EXPLORATION,
                   backend=backend)
     config.update(kwargs)
-    return SAC(LINE, VOLTS, SACConfig(**config), seed=0)
+    return StandardActorCritic(LINE, VOLTS, StandardACConfig(**config), seed=0)
 
 
 @pytest.mark.parametrize("backend", ["numba", "numpy"])
@@ -56,8 +56,8 @@ def test_traces_reset_each_trial():
 
 @pytest.mark.parametrize("rate_split, v_change", [("both", -0.1), ("actor", -1.6), ("none", -1.6)])
 def test_rate_split(rate_split, v_change):
-    config = SACConfig(rate_split=rate_split, exploration=NO_EXPLORATION)
-    agent = SAC(PENDULUM, VOLTS, config, seed=0)
+    config = StandardACConfig(rate_split=rate_split, exploration=NO_EXPLORATION)
+    agent = StandardActorCritic(PENDULUM, VOLTS, config, seed=0)
     x0 = np.array([np.pi, 0.0])
     agent.start(x0)
     agent.step(-1.0, [0.0, 30.0])  # delta = -1; 16 active weights each move by alpha(_c / 16)
@@ -68,8 +68,8 @@ def test_rate_split(rate_split, v_change):
 @pytest.mark.parametrize("backend", ["numba", "numpy"])
 @pytest.mark.parametrize("reward, toward", [(10.0, True), (-10.0, False)])
 def test_actor_follows_rewarded_perturbation(backend, reward, toward):
-    config = SACConfig(exploration=Exploration(sigma=1.0), backend=backend)
-    agent = SAC(PENDULUM, VOLTS, config, seed=3)
+    config = StandardACConfig(exploration=Exploration(sigma=1.0), backend=backend)
+    agent = StandardActorCritic(PENDULUM, VOLTS, config, seed=3)
     x0 = np.array([np.pi, 0.0])
     u0 = agent.start(x0)  # step 0 explores; pi(x0) = 0, so u0 is the perturbation
     assert u0[0] != 0.0
@@ -83,8 +83,8 @@ def test_actor_follows_rewarded_perturbation(backend, reward, toward):
 
 
 def test_actor_output_stays_within_bounds():
-    config = SACConfig(alpha_a=1.0, rate_split="none", exploration=Exploration(sigma=1.0))
-    agent = SAC(PENDULUM, VOLTS, config, seed=3)
+    config = StandardACConfig(alpha_a=1.0, rate_split="none", exploration=Exploration(sigma=1.0))
+    agent = StandardActorCritic(PENDULUM, VOLTS, config, seed=3)
     x0 = np.array([np.pi, 0.0])
     u0 = agent.start(x0)
     agent.step(1e3, [np.pi, 0.0])  # a huge positive delta pushes pi(x0) far past the bound
@@ -97,7 +97,7 @@ def test_saturated_exploration_is_not_credited():
     x0 = np.array([np.pi, 0.0])
     for seed in range(6):
         draw = np.random.default_rng(seed).normal(0.0, 1.0, size=1)[0]  # the agent's first Delta u
-        agent = SAC(PENDULUM, VOLTS, SACConfig(exploration=Exploration(sigma=1.0)), seed=seed)
+        agent = StandardActorCritic(PENDULUM, VOLTS, StandardACConfig(exploration=Exploration(sigma=1.0)), seed=seed)
         state = agent.state_dict()
         state["actor"][agent.coder.active_tiles(x0)] = 3.0 / 16
         agent.load_state_dict(state)
@@ -117,7 +117,7 @@ def test_backends_agree_and_seed_reproduces():
     rs = rng.normal(-20, 10, size=300)
 
     def run(backend, seed):
-        agent = SAC(PENDULUM, VOLTS, SACConfig(backend=backend), seed=seed)
+        agent = StandardActorCritic(PENDULUM, VOLTS, StandardACConfig(backend=backend), seed=seed)
         us = [agent.start(xs[0])]
         for k in range(1, 300):
             if k % 100 == 0:
@@ -140,13 +140,13 @@ def test_backends_agree_and_seed_reproduces():
 
 
 def test_state_dict_round_trip():
-    agent = SAC(PENDULUM, VOLTS, seed=0)
+    agent = StandardActorCritic(PENDULUM, VOLTS, seed=0)
     agent.start([np.pi, 0.0])
     for k in range(30):
         agent.step(-5.0, [np.pi - 0.05 * k, 0.5 * k])
     state = agent.state_dict()
     assert all(isinstance(v, np.ndarray) and v.dtype.kind in "fiub" for v in state.values())
-    clone = SAC(PENDULUM, VOLTS, seed=1)
+    clone = StandardActorCritic(PENDULUM, VOLTS, seed=1)
     clone.load_state_dict(state)
     for x in ([np.pi, 0.0], [1.0, 5.0], [-0.5, -3.0]):
         assert clone.value(x) == agent.value(x)
@@ -161,8 +161,8 @@ def test_generic_dimensions():
     """Three state dimensions (one periodic) and two actions: every dimension is coded and learned."""
     space = StateSpace(low=[-np.pi, -1.0, 0.0], high=[np.pi, 1.0, 2.0], periodic=[True, False, False])
     actions = ActionSpace(low=[-1.0, 0.0], high=[1.0, 5.0])
-    config = SACConfig(tile_coding=TileCodingConfig(num_tilings=8, tiles=4))
-    agent = SAC(space, actions, config, seed=0)
+    config = StandardACConfig(tile_coding=TileCodingConfig(num_tilings=8, tiles=4))
+    agent = StandardActorCritic(space, actions, config, seed=0)
     rng = np.random.default_rng(0)  # one stream: every step sees a new state
     states = rng.uniform([-4, -1.5, -0.5], [4, 1.5, 2.5], size=(60, 3))
     u = agent.start(states[0])
@@ -188,20 +188,20 @@ def test_generic_dimensions():
     ("exploration", 1.0), ("tile_coding", 16),
 ])
 def test_config_validation(field, value):
-    with pytest.raises(ValueError, match=f"SACConfig.{field}"):
-        SACConfig(**{field: value})
+    with pytest.raises(ValueError, match=f"StandardACConfig.{field}"):
+        StandardACConfig(**{field: value})
 
 
 def test_boundary_errors_and_config_round_trip():
     with pytest.raises(ValueError, match="tile_high"):
-        SAC(PENDULUM, VOLTS, SACConfig(tile_high=(1.0,)))
+        StandardActorCritic(PENDULUM, VOLTS, StandardACConfig(tile_high=(1.0,)))
     from rmac_mj.agents import config_from_dict
-    config = SACConfig(alpha_c=0.2, rate_split="actor", tile_high=(None, 30.0),
+    config = StandardACConfig(alpha_c=0.2, rate_split="actor", tile_high=(None, 30.0),
                        exploration=Exploration(sigma=0.5, period=2),
                        tile_coding=TileCodingConfig(num_tilings=8, tiles=5))
-    agent = SAC(PENDULUM, VOLTS, config, seed=0)
+    agent = StandardActorCritic(PENDULUM, VOLTS, config, seed=0)
     # The JSON form of the config (what results and snapshots store) rebuilds the same config.
-    assert config_from_dict(SACConfig, agent.config_dict()) == config
+    assert config_from_dict(StandardACConfig, agent.config_dict()) == config
 
 
 def test_improves_on_swingup():
@@ -210,7 +210,7 @@ def test_improves_on_swingup():
     from rmac_mj.rollout import action_space_of, run_trial, state_space_of
 
     env = tasks.load("dc_pendulum", "swingup", task_kwargs={"random": 0})
-    agent = SAC(state_space_of(env), action_space_of(env), seed=np.random.default_rng(11))
+    agent = StandardActorCritic(state_space_of(env), action_space_of(env), seed=np.random.default_rng(11))
     untrained = run_trial(env, agent, learn=False)
     returns = [run_trial(env, agent) for _ in range(150)]
     assert np.mean(returns[-20:]) > untrained + 1000.0, (untrained, np.mean(returns[-20:]))

@@ -185,11 +185,11 @@ def test_tiny_sweep_killed_resumed_and_summarised(tmp_path, capsys):
 
     # The same sweep uninterrupted, all experiments through one pool of two workers.
     whole = tmp_path / "whole"
-    from rmac_mj.solvers import optimum as reference
+    from rmac_mj.solvers import optimum
 
     with pytest.MonkeyPatch.context() as patch:  # the task's reference and floor, as if computed
-        patch.setattr(reference, "run_reference", lambda protocol, log=None: -748.0)
-        patch.setattr(reference, "run_exploration_floor", lambda protocol, algorithm, log=None: -870.0)
+        patch.setattr(optimum, "run_optimum", lambda protocol, log=None: -748.0)
+        patch.setattr(optimum, "run_exploration_floor", lambda protocol, algorithm, log=None: -870.0)
         rows = sweep.run_sweep(sweep_file.load_sweep(path), whole, jobs=2, progress=False,
                                references=True)
     resumed_curves, whole_curves = curves(killed), curves(whole)
@@ -258,7 +258,7 @@ def test_a_small_sweep_says_its_final_window_and_that_few_experiments_mean_littl
                                                                                    monkeypatch):
     """Issue 20: sweep tables and figures said "the last 50 trials" of a 5-trial run and drew 95%
     intervals of 2 experiments without a word; they carry reproduce's small-n note."""
-    from rmac_mj.figures import plots
+    from rmac_mj.sweeps import figure as plots
 
     plan = sweep_file.load_sweep(write(tmp_path, TINY))
 

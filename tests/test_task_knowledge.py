@@ -7,7 +7,7 @@ import pathlib
 import pytest
 
 from rmac_mj import tasks
-from rmac_mj.solvers import optimum as reference
+from rmac_mj.solvers import optimum
 from rmac_mj.tasks import common
 
 PACKAGE = pathlib.Path(__file__).resolve().parents[1] / "rmac_mj"
@@ -40,8 +40,8 @@ def test_nothing_outside_the_tasks_names_a_task_of_the_suite():
 def test_every_task_declares_what_the_experiments_can_use(domain, task):
     knowledge = tasks.knowledge(domain, task)
     assert isinstance(knowledge, common.TaskKnowledge)
-    if knowledge.reference is not None:
-        assert knowledge.reference.method in reference.SOLVERS
+    if knowledge.optimum is not None:
+        assert knowledge.optimum.method in optimum.SOLVERS
     env = tasks.load(domain, task, task_kwargs={"random": 0})
     for name, demonstrator in knowledge.demonstrators.items():
         controller = demonstrator.controller(env)
@@ -53,10 +53,10 @@ def test_every_task_declares_what_the_experiments_can_use(domain, task):
 
 def test_the_default_task_and_a_task_without_knowledge():
     assert tasks.DEFAULT_TASK in tasks.ALL_TASKS
-    assert tasks.knowledge(*tasks.DEFAULT_TASK).reference is not None  # the paper's: -748.1
-    assert tasks.knowledge("dc_pendulum", "balance").reference is None  # random starts
+    assert tasks.knowledge(*tasks.DEFAULT_TASK).optimum is not None  # the paper's: -748.1
+    assert tasks.knowledge("dc_pendulum", "balance").optimum is None  # random starts
     with pytest.raises(ValueError, match="unknown task_name"):
         tasks.knowledge("dc_pendulum", "spin")
-    assert common.NOTHING_KNOWN.demonstrators == {} and common.NOTHING_KNOWN.reference is None
+    assert common.NOTHING_KNOWN.demonstrators == {} and common.NOTHING_KNOWN.optimum is None
     with pytest.raises(ValueError, match="no demonstrator 'demo' for x; available: none"):
         common.NOTHING_KNOWN.demonstrator("demo", "x")

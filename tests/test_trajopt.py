@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from rmac_mj import cli, tasks
-from rmac_mj.solvers import optimum as reference, trajopt
+from rmac_mj.solvers import optimum, problem, trajopt
 from rmac_mj.solvers.trajopt import TrajoptConfig
 
 #: The pendulum's DP reference (docs/optimal.md): the greedy policy's return on the default grid.
@@ -116,7 +116,7 @@ def test_box_qp_against_a_dense_search(seed):
 
 def test_cache_round_trip_and_key(tmp_path):
     env = tasks.load("two_link_arm", "reach")
-    arm = reference.problem_identity("two_link_arm", "reach")
+    arm = problem.problem_identity("two_link_arm", "reach")
     first = trajopt.cached_optimise(env, arm, _TINY, cache_dir=tmp_path)
     assert not first.from_cache and len(list(tmp_path.glob("trajopt-*.json"))) == 1
     second = trajopt.cached_optimise(env, arm, _TINY, cache_dir=tmp_path)
@@ -138,11 +138,11 @@ def test_bad_config_names_the_field(field, value):
 
 
 def test_reference_registry_dispatches_and_rejects_unknown_tasks(tmp_path, monkeypatch):
-    assert reference.has_reference("dc_pendulum", "swingup")
-    assert reference.has_reference("two_link_arm", "reach")
-    assert not reference.has_reference("dc_pendulum", "balance")
-    with pytest.raises(ValueError, match="no near-optimal reference for dc_pendulum/balance"):
-        reference.reference("dc_pendulum", "balance")
+    assert optimum.has_optimum("dc_pendulum", "swingup")
+    assert optimum.has_optimum("two_link_arm", "reach")
+    assert not optimum.has_optimum("dc_pendulum", "balance")
+    with pytest.raises(ValueError, match="no near-optimal return for dc_pendulum/balance"):
+        optimum.optimum("dc_pendulum", "balance")
     calls = []
     real = trajopt.cached_optimise
 
@@ -150,7 +150,7 @@ def test_reference_registry_dispatches_and_rejects_unknown_tasks(tmp_path, monke
         calls.append((identity["domain"], identity["task"]))
         return real(env, identity, _TINY, cache_dir=tmp_path, refresh=refresh)
     monkeypatch.setattr(trajopt, "cached_optimise", tiny)
-    value = reference.reference_return("two_link_arm", "reach")
+    value = optimum.optimum_return("two_link_arm", "reach")
     assert calls == [("two_link_arm", "reach")] and np.isfinite(value)
 
 
@@ -164,4 +164,4 @@ def test_cli_optimal_takes_domain_and_task(tmp_path, monkeypatch, capsys):
     assert cli.main(["optimal", "--domain", "two_link_arm", "--task", "spin"]) == 2
     assert "unknown task_name 'spin' for domain 'two_link_arm'" in capsys.readouterr().err
     assert cli.main(["optimal", "--domain", "dc_pendulum", "--task", "balance"]) == 2
-    assert "no near-optimal reference for dc_pendulum/balance" in capsys.readouterr().err
+    assert "no near-optimal return for dc_pendulum/balance" in capsys.readouterr().err

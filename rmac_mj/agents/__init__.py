@@ -9,11 +9,11 @@ line in ``_REGISTRY`` (key -> module, agent class, config class). The modules by
 * ``spaces``: StateSpace and ActionSpace, what a learner sees of a task;
 * ``task_knowledge``: what a config left None takes from the task (weightings, action cost);
 * ``exploration``: the Exploration schedule (section 6.1);
-* ``prior_knowledge``: recorded transitions into memories (section 7);
+* ``seeding``: recorded transitions into memories (prior knowledge, section 7);
 * ``random_state``: a generator's state as numbers, for snapshots;
 * ``scripted``: PolicyAgent, a fixed policy behind the same interface;
 * ``critic``: the LLR critic (memory, traces, TD(lambda)) RMAC and MLAC share;
-* ``rmac`` (with ``rmac_config`` and the compiled ``_rmac_kernels``), ``sac``, ``mlac``: the
+* ``rmac`` (with ``rmac_config`` and the compiled ``_rmac_kernels``), ``standard_ac`` (S-AC), ``mlac``: the
   learners; ``sb3``: the Stable-Baselines3 baselines.
 """
 
@@ -27,8 +27,7 @@ import numpy as np
 from rmac_mj import constraints
 from rmac_mj.agents.base import Agent
 from rmac_mj.agents.exploration import Exploration, model_uncertainty
-from rmac_mj.agents.seeding import (PRIOR_PARTS, check_transitions, discounted_returns,
-                                            seed_memory)
+from rmac_mj.agents.seeding import PRIOR_PARTS, check_transitions, discounted_returns, seed_memory
 from rmac_mj.agents.random_state import generator_state_array, set_generator_state
 from rmac_mj.agents.scripted import PolicyAgent
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
@@ -36,7 +35,7 @@ from rmac_mj.agents.spaces import ActionSpace, StateSpace
 #: Algorithm key -> (module, agent class, config class). Imported lazily: numba kernels compile on use.
 _REGISTRY = {
     "rmac": ("rmac_mj.agents.rmac", "RMAC", "RMACConfig"),
-    "s-ac": ("rmac_mj.agents.standard_ac", "SAC", "SACConfig"),
+    "s-ac": ("rmac_mj.agents.standard_ac", "StandardActorCritic", "StandardACConfig"),
     "mlac": ("rmac_mj.agents.mlac", "MLAC", "MLACConfig"),
     # Deep-RL baselines (Stable-Baselines3; the [baselines] extra), rmac_mj/agents/sb3.py (their configs: sb3_config.py).
     "sb3-sac": ("rmac_mj.agents.sb3", "SB3SAC", "SB3SACConfig"),
@@ -47,10 +46,21 @@ _REGISTRY = {
 #: The algorithm keys, as used on the command line and in results.
 ALGORITHMS = tuple(_REGISTRY)
 
+#: Names users may type for a learner that has another key ("sac": in RL, Soft Actor-Critic).
+_DID_YOU_MEAN = {"sac": "s-ac (the paper's standard actor-critic) or sb3-sac (Soft Actor-Critic)",
+                 "sb3": "sb3-sac, sb3-td3 or sb3-ppo", "standard-ac": "s-ac"}
+
+
+def unknown_algorithm(name: str, what: str = "unknown algorithm") -> ValueError:
+    """The error for an algorithm key that is not one of :data:`ALGORITHMS`, with a "did you mean"."""
+    hint = _DID_YOU_MEAN.get(str(name).lower())
+    mean = f"; did you mean {hint}?" if hint else ""
+    return ValueError(f"{what} {name!r}{mean} (available: {', '.join(ALGORITHMS)})")
+
 
 def _lookup(name: str):
     if name not in _REGISTRY:
-        raise ValueError(f"unknown algorithm {name!r}; available: {', '.join(ALGORITHMS)}")
+        raise unknown_algorithm(name)
     module_name, agent_name, config_name = _REGISTRY[name]
     module = importlib.import_module(module_name)
     return getattr(module, agent_name), getattr(module, config_name)
@@ -124,4 +134,5 @@ def make_agent(name: str, state_space: StateSpace, action_space: ActionSpace,
 __all__ = ["ALGORITHMS", "PRIOR_PARTS", "ActionSpace", "Agent", "Exploration", "PolicyAgent",
            "StateSpace", "agent_class", "check_transitions", "config_class", "config_from_dict",
            "discounted_returns", "display_name", "generator_state_array", "make_agent",
-           "memory_estimate", "model_uncertainty", "seed_memory", "set_generator_state"]
+           "memory_estimate", "model_uncertainty", "seed_memory", "set_generator_state",
+           "unknown_algorithm"]

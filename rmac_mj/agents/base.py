@@ -240,6 +240,28 @@ class Agent(abc.ABC):
         self._start(x, u)
         self._stop(reward, x_next, False)
 
+    # -- what planning and replay use (``planning.RehearsedLearner``) ------------------------------
+    def set_rehearsing(self, rehearsing: bool) -> None:
+        """Tell the learner whether the transitions that follow are rehearsed (see
+        ``_set_rehearsing``)."""
+        self._set_rehearsing(bool(rehearsing))
+
+    def rehearse_start(self, x0: np.ndarray) -> np.ndarray:
+        return self._start(x0)
+
+    def rehearse_step(self, reward: float, x: np.ndarray) -> np.ndarray:
+        return self._step(reward, x)
+
+    def rehearse_stop(self, reward: float, x: np.ndarray, terminal: bool) -> None:
+        self._stop(reward, x, terminal)
+
+    def replay_transition(self, x: np.ndarray, u: np.ndarray, reward: float,
+                          x_next: np.ndarray) -> None:
+        self._replay_transition(x, u, reward, x_next)
+
+    def replay_trial(self, states: np.ndarray, actions: np.ndarray, rewards: np.ndarray) -> None:
+        self._learn_trial(states, actions, rewards)
+
     @property
     def rehearsal(self) -> Rehearsal | None:
         """What planning and replay keep (the learned model, the stored trials), or None without."""

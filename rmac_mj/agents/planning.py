@@ -23,7 +23,7 @@ planning or replay it also *rehearses* after every real trial, through the same 
 
 What keeps model errors from being learned as truth: simulated transitions never enter any model
 (the learner's own process model included: the learner is told it is rehearsing, see
-``Agent._set_rehearsing``), so the models hold only what the process did; and a predicted state
+``RehearsedLearner.set_rehearsing``), so the models hold only what the process did; and a predicted state
 is kept inside the task's nominal box (``Planning.clip``), where an extrapolating local fit
 cannot carry a rollout off to speeds no real trial reached. docs/planning.md has the
 measurements behind each default.
@@ -43,16 +43,14 @@ from __future__ import annotations
 
 import dataclasses
 from numbers import Integral
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import Any, ClassVar, Protocol
 
 import numpy as np
 from numba import njit
 
+from rmac_mj.agents.spaces import ActionSpace, StateSpace
 from rmac_mj.approximators.llr import LLRMemory, llr_query, wrap, wrap_scalar
 from rmac_mj.constraints import Boolean, InstanceOf, Interval, Options, check_config, invalid
-
-if TYPE_CHECKING:  # pragma: no cover
-    from rmac_mj.agents.base import ActionSpace, Agent, StateSpace
 
 
 @dataclasses.dataclass(frozen=True)
@@ -160,7 +158,7 @@ class TransitionModel:
     Learned state: ``memory`` (:class:`LLRMemory`).
     """
 
-    def __init__(self, planning: Planning, state_space: "StateSpace", action_space: "ActionSpace",
+    def __init__(self, planning: Planning, state_space: StateSpace, action_space: ActionSpace,
                  backend: str = "numba") -> None:
         n, m = state_space.dim, action_space.dim
         self.n, self.m = n, m
@@ -228,19 +226,45 @@ class TransitionModel:
 # --------------------------------------------------------------------------------------------------
 # The rehearsal between real trials.
 
+class RehearsedLearner(Protocol):
+    """What a rehearsal needs of a learner (``Agent`` implements it): its generator, a switch that
+    tells it the transitions that follow are rehearsed, and its own updates, unchecked."""
+
+    rng: np.random.Generator
+
+    def set_rehearsing(self, rehearsing: bool) -> None:
+        """Rehearsed transitions follow (True) or real ones again (False)."""
+
+    def rehearse_start(self, x0: np.ndarray) -> np.ndarray:
+        """Begin a simulated trial in x0 (shape (n,)); return u_0 (shape (m,))."""
+
+    def rehearse_step(self, reward: float, x: np.ndarray) -> np.ndarray:
+        """Learn from a simulated step (r_k, x_k); return u_k."""
+
+    def rehearse_stop(self, reward: float, x: np.ndarray, terminal: bool) -> None:
+        """The last simulated transition of a rollout."""
+
+    def replay_transition(self, x: np.ndarray, u: np.ndarray, reward: float,
+                          x_next: np.ndarray) -> None:
+        """One stored transition learned on its own (backward replay)."""
+
+    def replay_trial(self, states: np.ndarray, actions: np.ndarray, rewards: np.ndarray) -> None:
+        """A stored trial learned with its applied actions (forward replay)."""
+
+
 class Rehearsal:
     """What a learner with planning or replay keeps, and the rehearsal it runs after each trial.
 
     The learner's boundary (``Agent.start/step/stop``) shows it every real transition
     (:meth:`begin`, :meth:`record`); after the trial, :meth:`after_trial` replays and plans through
-    the learner's own ``_start``/``_step``/``_stop`` (module docstring).
+    the learner's :class:`RehearsedLearner` interface (module docstring).
 
     Learned state: the :class:`TransitionModel` (``model``, with planning), the stored trials
     (with replay) and the running trial's record.
     """
 
-    def __init__(self, planning: Planning, replay: Replay, state_space: "StateSpace",
-                 action_space: "ActionSpace", backend: str = "numba") -> None:
+    def __init__(self, planning: Planning, replay: Replay, state_space: StateSpace,
+                 action_space: ActionSpace, backend: str = "numba") -> None:
         self.planning, self.replay = planning, replay
         self.n, self.m = state_space.dim, action_space.dim
         self.period = state_space.period
@@ -255,7 +279,7 @@ class Rehearsal:
         self._low, self._high = action_space.low, action_space.high
 
     @staticmethod
-    def of(config: Any, state_space: "StateSpace", action_space: "ActionSpace") -> "Rehearsal | None":
+    def of(config: Any, state_space: StateSpace, action_space: ActionSpace) -> "Rehearsal | None":
         """The rehearsal a learner's config asks for, or None (no planning and no replay)."""
         planning = getattr(config, "planning", None) or Planning()
         replay = getattr(config, "replay", None) or Replay()
@@ -281,13 +305,13 @@ class Rehearsal:
             self._actions.append(np.minimum(np.maximum(u, self._low), self._high))
 
     # -- between trials ----------------------------------------------------------------------------
-    def after_trial(self, agent: "Agent") -> None:
+    def after_trial(self, agent: RehearsedLearner) -> None:
         """Replay, then plan, with the real trial just ended (module docstring)."""
         steps = len(self._rewards)
         if steps == 0:
             return
         trial = (np.array(self._states), np.array(self._actions), np.array(self._rewards))
-        agent._set_rehearsing(True)
+        agent.set_rehearsing(True)
         try:
             if self.replay.steps:
                 self._store(trial)
@@ -295,7 +319,7 @@ class Rehearsal:
             if self.planning.steps:
                 self._plan(agent, self.planning.steps * steps, trial, steps)
         finally:
-            agent._set_rehearsing(False)
+            agent.set_rehearsing(False)
 
     def _store(self, trial) -> None:
         self.trials_.append(trial)
@@ -303,20 +327,20 @@ class Rehearsal:
         while len(self.trials_) > 1 and total > self.replay.capacity:
             total -= len(self.trials_.pop(0)[2])
 
-    def _replay(self, agent: "Agent", budget: int) -> None:
+    def _replay(self, agent: RehearsedLearner, budget: int) -> None:
         """``budget`` updates from stored trials drawn uniformly, each replayed whole (or cut)."""
         while budget > 0:
             states, actions, rewards = self.trials_[int(agent.rng.integers(len(self.trials_)))]
             K = min(len(rewards), budget)
             if self.replay.order == "backward":
                 for k in range(len(rewards) - 1, len(rewards) - 1 - K, -1):
-                    agent._replay_transition(states[k], actions[k], float(rewards[k]),
+                    agent.replay_transition(states[k], actions[k], float(rewards[k]),
                                              states[k + 1])
             else:
-                agent._learn_trial(states[:K + 1], actions[:K], rewards[:K])
+                agent.replay_trial(states[:K + 1], actions[:K], rewards[:K])
             budget -= K
 
-    def _plan(self, agent: "Agent", budget: int, trial, steps: int) -> None:
+    def _plan(self, agent: RehearsedLearner, budget: int, trial, steps: int) -> None:
         """``budget`` simulated transitions in rollouts of ``horizon`` steps (the last one cut)."""
         model, planning = self.model, self.planning
         horizon = planning.horizon or steps
@@ -329,13 +353,13 @@ class Rehearsal:
             else:
                 x = model.memory.X_[int(agent.rng.integers(model.memory.n_samples_)), :self.n].copy()
             H = min(horizon, budget)
-            u = agent._start(x)
+            u = agent.rehearse_start(x)
             for k in range(H):
                 x, r = model.predict(x, np.minimum(np.maximum(u, self._low), self._high))
                 if k == H - 1:
-                    agent._stop(r, x, False)
+                    agent.rehearse_stop(r, x, False)
                 else:
-                    u = agent._step(r, x)
+                    u = agent.rehearse_step(r, x)
             budget -= H
 
     # -- state ----------------------------------------------------------------------------------------

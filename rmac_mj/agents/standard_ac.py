@@ -10,8 +10,8 @@ Critic V(x, theta) and actor pi(x, vartheta) are both linear in tile-coding feat
 * line 12: theta_k = theta_{k-1} + alpha_c delta_k sum_x dV/dtheta(x) e_k(x)                  (eq. 3);
 * line 13: vartheta_k = vartheta_{k-1} + alpha_a delta_k Delta u_{k-1} dpi/dvartheta(x_{k-1}) (eq. 4).
 
-Choices where the paper is silent or ambiguous (each a :class:`SACConfig` field or documented here,
-and measured in docs/sac.md):
+Choices where the paper is silent or ambiguous (each a :class:`StandardACConfig` field or documented here,
+and measured in docs/standard-ac.md):
 
 * **Whose trace is set (line 11).** Algorithm 1 writes e_k(x_k) = 1, but delta_k is the TD error of
   x_{k-1} (eq. 2) and eq. 3 updates V at x_{k-1}; setting the trace of x_k would credit a state for an
@@ -56,7 +56,7 @@ _TILE_BOUNDS = TupleOf([Interval(Real), None], what="a list of finite numbers or
 
 
 @dataclasses.dataclass(frozen=True)
-class SACConfig:
+class StandardACConfig:
     """Hyperparameters of S-AC; defaults are the paper's (section 6.1) unless noted.
 
     Attributes:
@@ -65,7 +65,7 @@ class SACConfig:
       alpha_a: actor learning rate (eq. 4). Paper: 0.005.
       alpha_c: critic learning rate (eq. 3). Paper: 0.1.
       rate_split: which learning rates are divided over the ``num_tilings`` active weights:
-        ``"both"``, ``"actor"`` or ``"none"`` (not in the paper; measured in docs/sac.md).
+        ``"both"``, ``"actor"`` or ``"none"`` (not in the paper; measured in docs/standard-ac.md).
       tile_coding: the tiling layout of actor and critic. Paper: 16 tilings of 7 x 7 tiles.
       tile_low, tile_high: range of the tile coder per state dimension, overriding the agent's
         StateSpace where given (e.g. a velocity range narrower than the task's nominal box; states
@@ -111,12 +111,12 @@ class SACConfig:
     def __post_init__(self) -> None:
         check_config(self)
         if self.exploration.where != "always":
-            raise invalid("SACConfig", "exploration.where", self.exploration.where,
+            raise invalid("StandardACConfig", "exploration.where", self.exploration.where,
                           "'always': S-AC learns no process model to be uncertain about")
 
 
 # --------------------------------------------------------------------------------------------------
-# Compiled kernels. Each mirrors a numpy method of SAC below (the reference), operation for operation.
+# Compiled kernels. Each mirrors a numpy method of StandardActorCritic below (the numpy version), operation for operation.
 
 @numba.njit(cache=True)
 def _policy_numba(actor, tiles, low, high, out):
@@ -189,7 +189,7 @@ def _learn_numba(critic, actor, traces, trace_idx, n_traces, prev_tiles, tiles, 
     return delta, live
 
 
-class SAC(Agent):
+class StandardActorCritic(Agent):
     """Standard actor-critic (Algorithm 1) with tile-coded actor and critic.
 
     Args:
@@ -206,10 +206,10 @@ class SAC(Agent):
 
     name = "s-ac"
     display_name = "S-AC"
-    config_class = SACConfig
+    config_class = StandardACConfig
 
     def __init__(self, state_space: StateSpace, action_space: ActionSpace,
-                 config: SACConfig = SACConfig(),
+                 config: StandardACConfig = StandardACConfig(),
                  seed: int | np.random.Generator | None = None) -> None:
         super().__init__(state_space, action_space, config, seed)
 
@@ -219,7 +219,7 @@ class SAC(Agent):
             if override is None:
                 continue
             if len(override) != state_space.dim:
-                raise ValueError(f"SACConfig.{name} has {len(override)} entries, the state has "
+                raise ValueError(f"StandardACConfig.{name} has {len(override)} entries, the state has "
                                  f"{state_space.dim} dimensions")
             for d, v in enumerate(override):
                 if v is not None:
@@ -247,7 +247,7 @@ class SAC(Agent):
         self.last_delta_ = 0.0
 
     @classmethod
-    def _memory_parts(cls, config: SACConfig, state_space: StateSpace,
+    def _memory_parts(cls, config: StandardACConfig, state_space: StateSpace,
                       action_space: ActionSpace) -> tuple[int, int]:
         """theta, vartheta (one weight per tile, times m), the traces and their index (see
         :meth:`Agent.memory_estimate`)."""

@@ -175,7 +175,7 @@ def build_parser(reproduce_defaults: Mapping[str, Any] | None = None) -> argpars
                                 "once per experiment (0: one greedy trial from the task's next "
                                 "start); for a task that starts anywhere, e.g. Pendulum-v1")
     reproduce.add_argument("--no-optimal", action="store_true",
-                           help="skip the near-optimal reference (dynamic programming, about a "
+                           help="skip the near-optimal return (dynamic programming, about a "
                                 "minute the first time, then cached)")
     reproduce.add_argument("--no-progress", action="store_true",
                            help="no progress display (bars on a terminal, periodic lines otherwise)")
@@ -198,7 +198,7 @@ def build_parser(reproduce_defaults: Mapping[str, Any] | None = None) -> argpars
                        help="finish an interrupted sweep in --out (a file that only raises "
                        "experiments adds them)")
     sweep.add_argument("--no-optimal", action="store_true",
-                       help="skip the near-optimal reference and exploration floor")
+                       help="skip the near-optimal return and exploration floor")
     sweep.add_argument("--no-progress", action="store_true", help="no progress display")
 
     compare = command("compare", "overlay the learning curves of result directories and tabulate them")

@@ -113,20 +113,20 @@ def policy(args) -> int:
 
 def optimal(args) -> int:
     from rmac_mj.agents import Exploration
-    from rmac_mj.solvers import optimum as reference
+    from rmac_mj.solvers import optimum
 
     if args.env is not None:
         from rmac_mj import tasks
-        having = ", ".join(f"{d}/{t}" for d, t in tasks.ALL_TASKS if reference.has_reference(d, t))
-        raise UsageError(f"no near-optimal reference for {args.env}: an outside environment declares "
+        having = ", ".join(f"{d}/{t}" for d, t in tasks.ALL_TASKS if optimum.has_optimum(d, t))
+        raise UsageError(f"no near-optimal return for {args.env}: an outside environment declares "
                          f"none (the suite's tasks that do: {having})")
     with user_input():
-        if not reference.has_reference(args.domain, args.task):
-            reference.reference(args.domain, args.task)  # raises, naming the tasks that have one
-    result = reference.reference(args.domain, args.task, refresh=args.refresh, announce=say)
+        if not optimum.has_optimum(args.domain, args.task):
+            optimum.optimum(args.domain, args.task)  # raises, naming the tasks that have one
+    result = optimum.optimum(args.domain, args.task, refresh=args.refresh, announce=say)
     print(result.describe())
     paper = Exploration()  # the learners' default exploration (section 6.1)
-    floor = reference.exploration_floor(args.domain, args.task, paper.sigma, paper.period,
+    floor = optimum.exploration_floor(args.domain, args.task, paper.sigma, paper.period,
                                         paper.phase, refresh=args.refresh, announce=say)
     if floor is not None:  # a reference with a policy to explore with (the dynamic programme)
         print(floor.describe())

@@ -37,7 +37,7 @@ from dm_control.rl import control
 
 from rmac_mj import constraints, envs, tasks
 from rmac_mj.agents import (ALGORITHMS, PRIOR_PARTS, ActionSpace, Agent, StateSpace, agent_class,
-                            config_class, config_from_dict, make_agent)
+                            config_class, config_from_dict, make_agent, unknown_algorithm)
 from rmac_mj.results import files
 from rmac_mj.experiments import prior_transitions as prior_data
 from rmac_mj.rollout import action_space_of, run_trial, state_space_of
@@ -154,7 +154,7 @@ class Protocol:
         if isinstance(self.algorithms, (tuple, list)):
             for name in self.algorithms:
                 if name not in ALGORITHMS:
-                    raise ValueError(f"unknown algorithm {name!r}; available: {', '.join(ALGORITHMS)}")
+                    raise unknown_algorithm(name)
         constraints.check_config(self)
         if len(set(self.algorithms)) != len(self.algorithms):
             raise ValueError(f"algorithms must not repeat, got {self.algorithms}")
@@ -167,7 +167,7 @@ class Protocol:
             self._check_suite_task()
         for name, overrides in self.agent_configs.items():
             if name not in ALGORITHMS:
-                raise ValueError(f"agent_configs names unknown algorithm {name!r}")
+                raise unknown_algorithm(name, "agent_configs names unknown algorithm")
             config_from_dict(config_class(name), overrides)  # raises on unknown or bad values
         self._check_prior()
 

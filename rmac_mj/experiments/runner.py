@@ -22,7 +22,7 @@ from typing import Any, Callable, Iterable, Iterator
 from rmac_mj.experiments import admission, execution, prior_transitions as prior_data
 from rmac_mj.results import files
 from rmac_mj.evaluation import metrics, statistics
-from rmac_mj.solvers import optimum as reference
+from rmac_mj.solvers import optimum
 from rmac_mj.experiments.progress import Progress, TrialFeed
 from rmac_mj.experiments.protocol import ExperimentSpec, Protocol, run_experiment
 from rmac_mj.results.store import ExperimentResult, ResultStore
@@ -30,7 +30,7 @@ from rmac_mj.results.store import ExperimentResult, ResultStore
 
 class WallClock:
     """The wall time of this part of a run, counted from ``started`` (the process's start: compilation,
-    the near-optimal reference and the figures included), kept in ``wall_times.json`` beside the earlier
+    the near-optimal return and the figures included), kept in ``wall_times.json`` beside the earlier
     parts, so that a resumed run reports the total over all of them. It is written after every saved
     experiment; a killed part loses only the time since its last one."""
 
@@ -141,8 +141,8 @@ def run_protocol(protocol: Protocol, out: str | os.PathLike, jobs: int | None = 
       scheduler: address of a Dask distributed scheduler to run the experiments on instead.
       progress: show progress (bars on a terminal, periodic plain lines otherwise) on stderr: the
         trials done overall and per learner, with each learner's recent mean return.
-      references: ask the task for its near-optimal reference and each learner's exploration floor
-        (``reference.run_reference``, ``run_exploration_floor``; computed once, a minute or two,
+      references: ask the task for its near-optimal return and each learner's exploration floor
+        (``optimum.run_optimum``, ``run_exploration_floor``; computed once, a minute or two,
         then cached) for the summary and Fig. 2 (the command line's default; off here).
       log: called with a one-line message before anything slow that shows no progress (compiling the
         kernels the first time); None says nothing.
@@ -252,12 +252,12 @@ def finalise(store: ResultStore, protocol: Protocol, wall_time_s: float | None =
     The wall time in the summary is ``wall_time_s``, or with ``clock`` the total over every part of
     the run up to the end of the figures (``wall_time_parts_s`` lists the parts); ``facts`` are the
     tasks' facts already asked (:class:`admission.TaskFacts`). With ``references``, the task's
-    near-optimal reference and each learner's exploration floor are asked for (``log`` hears about a
+    near-optimal return and each learner's exploration floor are asked for (``log`` hears about a
     first computation and its progress).
     """
     store.summary_path.unlink(missing_ok=True)  # until the new one is written: not finished
-    optimal_return = reference.run_reference(protocol, log) if references else None
-    floors = ({a: reference.run_exploration_floor(protocol, a, log) for a in protocol.algorithms}
+    optimal_return = optimum.run_optimum(protocol, log) if references else None
+    floors = ({a: optimum.run_exploration_floor(protocol, a, log) for a in protocol.algorithms}
               if references else {})
     shared_floor = set(floors.values())  # one line in Fig. 2 when every learner explores alike
     facts = facts or admission.TaskFacts()

@@ -1,4 +1,4 @@
-"""A near-optimal reference for a one-joint swing-up: the best sum of rewards per trial, by dynamic programming.
+"""A near-optimal return for a one-joint swing-up: the best sum of rewards per trial, by dynamic programming.
 
 The learners are scored by the undiscounted sum of the H rewards of a trial from a fixed start x_0
 (section 6). For a deterministic, time-invariant system and a fixed horizon the best such sum is the
@@ -48,10 +48,7 @@ cache), which is why it runs past 400 lines; its one separable use, the explorat
 from __future__ import annotations
 
 import dataclasses
-import hashlib
-import json
 import os
-import pathlib
 import time
 from typing import Any, Callable
 
@@ -61,8 +58,10 @@ import scipy.sparse
 from dm_control.rl import control
 from mujoco import rollout
 
-from rmac_mj._cache import user_cache_dir
+from rmac_mj.results.files import cached_json
 from rmac_mj.rollout import learner_state_of, steps_per_trial
+from rmac_mj.solvers.problem import Ticker, TrialProblem, cache_directory, versions
+from rmac_mj.solvers.problem import cache_key as problem_cache_key
 
 #: Bumped whenever a change to this module changes the numbers it computes: old cache entries are ignored.
 #: 2: the problem is read from the environment (the task's own reward_of instead of a copy of it).
@@ -126,7 +125,7 @@ class OptimalConfig:
                                    check_convergence=False)
 
 
-class Problem:
+class Problem(TrialProblem):
     """The trial of a one-joint task as the DP sees it, read from its environment.
 
     Attributes:
@@ -138,14 +137,11 @@ class Problem:
       describe: a few words on the problem, for people.
     """
 
+    owner = "optimal"
+
     def __init__(self, env: control.Environment):
-        task, physics = env.task, env.physics
-        for owner, name in ((task, "reward_of"), (physics, "state_of")):
-            if not callable(getattr(owner, name, None)):
-                raise ValueError(f"optimal: {type(owner).__name__} has no {name}(); the DP needs the "
-                                 "task's reward of batched states and actions")
-        self.env = env
-        self.model = model = physics.model.ptr
+        super().__init__(env)
+        model, physics = self.model, env.physics
         if model.nq != 1 or model.nv != 1 or model.na != 0 or model.nu != 1:
             raise ValueError(f"optimal: the DP needs a one-joint model with one actuator and no "
                              f"activation state (x = [angle, speed]), got nq={model.nq}, nv={model.nv}, "
@@ -158,22 +154,12 @@ class Problem:
         self.period = float(learner_state.high[0]) - self.angle_low
         spec = env.action_spec()
         self.low, self.high = float(np.min(spec.minimum)), float(np.max(spec.maximum))
-        self.n_substeps = int(round(env.control_timestep() / physics.timestep()))
-        self.control_timestep = float(env.control_timestep())
         self.horizon = steps_per_trial(env)
         env.reset()
         self.start = self._full_state(physics.data.ptr)
-        env.reset()
-        if not np.array_equal(self._full_state(physics.data.ptr), self.start):
-            raise ValueError("optimal: the task's start state is random (two resets differ); the "
-                             "reference is for a deterministic task (start_noise=0)")
+        self._check_deterministic_start(self.start)
         self.describe = (f"horizon {self.horizon} of {self.control_timestep:g} s, actions in "
                          f"[{self.low:g}, {self.high:g}]")
-
-    def _full_state(self, data) -> np.ndarray:
-        state = np.empty(mujoco.mj_stateSize(self.model, mujoco.mjtState.mjSTATE_FULLPHYSICS))
-        mujoco.mj_getState(self.model, data, state, mujoco.mjtState.mjSTATE_FULLPHYSICS)
-        return state
 
     @property
     def start_z(self) -> np.ndarray:
@@ -211,7 +197,7 @@ class SolveSummary:
 
 @dataclasses.dataclass(frozen=True)
 class OptimalResult:
-    """The near-optimal reference.
+    """The near-optimal return.
 
     Attributes:
       simulated_return: the number to report: return of the DP's greedy policy, simulated on the model.
@@ -406,25 +392,6 @@ def solve_values(config: OptimalConfig, problem: Problem,
     return values.reshape(problem.horizon + 1, config.n_phi, config.n_phi_dot)
 
 
-#: Seconds between two progress lines of a long computation.
-PROGRESS_SECONDS = 10.0
-
-
-class Ticker:
-    """Calls ``announce(what)`` at most every :data:`PROGRESS_SECONDS` (long computations say they
-    are alive)."""
-
-    def __init__(self, announce: Callable[[str], None] | None):
-        self.announce, self.seconds = announce, PROGRESS_SECONDS
-        self.started = self.last = time.monotonic()
-
-    def __call__(self, what: str) -> None:
-        now = time.monotonic()
-        if self.announce is not None and now - self.last >= self.seconds:
-            self.announce(f"  ... {what} ({now - self.started:.0f} s)")
-            self.last = now
-
-
 def interpolate_value(config: OptimalConfig, problem: Problem, value: np.ndarray,
                       states: np.ndarray) -> np.ndarray:
     """Bilinear interpolation of one grid function ``value`` (n_phi, n_phi_dot) at ``states`` (m, 2);
@@ -488,43 +455,52 @@ def _solve_once(config: OptimalConfig, problem: Problem, values: np.ndarray | No
 
 
 def solve(env: control.Environment, config: OptimalConfig = OptimalConfig(),
-          announce: Callable[[str], None] | None = None) -> OptimalResult:
-    """Solve the trial of ``env`` without the cache (see :func:`optimal_return`)."""
+          announce: Callable[[str], None] | None = None, key: str | None = None) -> OptimalResult:
+    """Solve the trial of ``env`` without the cache (see :func:`optimal_return`); with ``key`` (its
+    :func:`cache_key`), the values are kept for :func:`solved_values`."""
     start = time.perf_counter()
     problem = Problem(env)
     values = solve_values(config, problem, announce)
+    if key is not None:
+        _remember(key, problem, values)
     fine, states, actions, rewards = _solve_once(config, problem, values)
     coarse = (_solve_once(config.coarser(), problem, announce=announce)[0]
               if config.check_convergence else None)
     return OptimalResult(simulated_return=fine.simulated_return, dp_value=fine.dp_value, config=config,
                          fine=fine, coarse=coarse, states=states, actions=actions, rewards=rewards,
                          problem=problem.identity(), runtime_s=time.perf_counter() - start,
-                         versions=_versions())
+                         versions=versions())
+
+
+#: The last solved DP (its values are 35 MB at the default grid and not cached on disk, only its
+#: answer), by cache key: the exploration floor explores with the greedy policy of the DP that the
+#: near-optimal return just solved, and a sweep asks for several floors of one DP.
+_SOLVED: dict[str, tuple[Problem, np.ndarray]] = {}
+
+
+def _remember(key: str, problem: Problem, values: np.ndarray) -> None:
+    _SOLVED.clear()
+    _SOLVED[key] = problem, values
+
+
+def solved_values(env: control.Environment, identity: dict[str, Any], config: OptimalConfig,
+                  announce: Callable[[str], None] | None = None) -> tuple[Problem, np.ndarray]:
+    """The problem of ``env`` and its DP values V_t (:func:`solve_values`): those this process
+    last solved for the same :func:`cache_key` if any, else solved now (and kept)."""
+    key = cache_key(env, identity, config)
+    if key not in _SOLVED:
+        problem = Problem(env)
+        _remember(key, problem, solve_values(config, problem, announce))
+    return _SOLVED[key]
 
 
 # --------------------------------------------------------------------------------------------------
 # The cache
 
 
-def default_cache_dir() -> pathlib.Path:
-    """``$RMAC_MJ_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/rmac-mj``, else ``~/.cache/rmac-mj``."""
-    return user_cache_dir()
-
-
 def cache_key(env: control.Environment, identity: dict[str, Any], config: OptimalConfig) -> str:
-    """Hex digest identifying a result: the problem (:func:`reference.problem_digest`), every config
-    field but ``n_threads``, the solver version."""
-    from rmac_mj.solvers.optimum import problem_digest
-
-    fields = dataclasses.asdict(config)
-    fields.pop("n_threads")  # changes the speed, never the numbers
-    blob = json.dumps({"problem": problem_digest(env, identity), "config": fields,
-                       "solver_version": SOLVER_VERSION}, sort_keys=True)
-    return hashlib.sha256(blob.encode()).hexdigest()[:20]
-
-
-def cache_directory(cache_dir: str | os.PathLike | None) -> pathlib.Path:
-    return pathlib.Path(cache_dir).expanduser() if cache_dir is not None else default_cache_dir()
+    """Hex digest identifying a result (:func:`rmac_mj.solvers.problem.cache_key` of this solver)."""
+    return problem_cache_key(env, identity, config, SOLVER_VERSION)
 
 
 def optimal_return(env: control.Environment, identity: dict[str, Any],
@@ -535,27 +511,20 @@ def optimal_return(env: control.Environment, identity: dict[str, Any],
 
     Args:
       env: the task's environment (reset and stepped only on copies of its physics).
-      identity: what names the problem for the cache (``reference.problem_identity``): the task
+      identity: what names the problem for the cache (``problem.problem_identity``): the task
         and its settings.
       config: grid and actions.
-      cache_dir: directory of ``optimal-<key>.json`` files; default ``default_cache_dir()``.
+      cache_dir: directory of ``optimal-<key>.json`` files; default ``problem.default_cache_dir()``.
       refresh: solve again even if cached (and overwrite the entry).
       announce: called with a one-line message before a solve and with its progress, e.g. ``print``.
     """
     if not isinstance(config, OptimalConfig):
         raise TypeError(f"optimal_return: config must be an OptimalConfig, got {type(config).__name__}")
     directory = cache_directory(cache_dir)
-    path = directory / f"optimal-{cache_key(env, identity, config)}.json"
-    from rmac_mj.results.files import cached_json
+    key = cache_key(env, identity, config)
     return cached_json(
-        path, lambda document: OptimalResult.from_json_dict(document, from_cache=True),
-        lambda: solve(env, config, announce), refresh=refresh, announce=announce,
-        message=(f"computing the near-optimal reference by dynamic programming (about a minute on 2 "
+        directory / f"optimal-{key}.json",
+        lambda document: OptimalResult.from_json_dict(document, from_cache=True),
+        lambda: solve(env, config, announce, key=key), refresh=refresh, announce=announce,
+        message=(f"computing the near-optimal return by dynamic programming (about a minute on 2 "
                  f"idle cores; cached after, in {directory})"))
-
-
-def _versions() -> dict[str, str]:
-    import scipy
-    import rmac_mj
-    return {"rmac_mj": rmac_mj.__version__, "mujoco": mujoco.__version__, "numpy": np.__version__,
-            "scipy": scipy.__version__}

@@ -19,7 +19,10 @@ from typing import Any, Callable
 import numpy as np
 from dm_control.rl import control
 
+from rmac_mj.evaluation.metrics import confidence_interval
+from rmac_mj.results.files import cached_json
 from rmac_mj.solvers import dynamic_programming as optimal
+from rmac_mj.solvers.problem import Ticker, cache_directory
 
 
 @dataclasses.dataclass(frozen=True)
@@ -109,7 +112,7 @@ def noisy_rollouts(config: optimal.OptimalConfig, problem: optimal.Problem, valu
     phi_dot = np.full(rollouts, start[1])
     total = np.zeros(rollouts)
     n_act = len(actions)
-    ticker = optimal.Ticker(announce)
+    ticker = Ticker(announce)
     for k in range(problem.horizon):
         ticker(f"noisy trials, step {k}/{problem.horizon}")
         candidates = optimal.simulate_transitions(problem.model, np.repeat(phi, n_act),
@@ -129,20 +132,6 @@ def noisy_rollouts(config: optimal.OptimalConfig, problem: optimal.Problem, valu
     return total
 
 
-#: The last solved DP (its values are 35 MB at the default grid and not cached on disk), kept for the
-#: next floor: a sweep over exploration settings asks for several floors of one DP.
-_SOLVED: dict[str, tuple[optimal.Problem, np.ndarray]] = {}
-
-
-def _solved(env: control.Environment, key: str, config: optimal.OptimalConfig,
-            announce: Callable[[str], None] | None) -> tuple[optimal.Problem, np.ndarray]:
-    if key not in _SOLVED:
-        _SOLVED.clear()
-        problem = optimal.Problem(env)
-        _SOLVED[key] = problem, optimal.solve_values(config, problem, announce)
-    return _SOLVED[key]
-
-
 def exploration_floor(env: control.Environment, identity: dict[str, Any], sigma: float = 1.0,
                       period: int = 3, phase: int = 0, rollouts: int = 100, seed: int = 0,
                       config: optimal.OptimalConfig = optimal.OptimalConfig(),
@@ -150,8 +139,8 @@ def exploration_floor(env: control.Environment, identity: dict[str, Any], sigma:
                       announce: Callable[[str], None] | None = None) -> ExplorationFloor:
     """The near-optimal policy's return under exploration, from the cache if there, else computed.
 
-    The DP of :func:`optimal_return` is solved again unless this process just solved it (its values
-    are not cached on disk, only its answer), then ``rollouts`` noisy trials are simulated
+    The DP's values come from :func:`optimal.solved_values` (those this process solved for the
+    near-optimal return if it did, else solved now), then ``rollouts`` noisy trials are simulated
     (:func:`noisy_rollouts`). Defaults: the paper's exploration (section 6.1), 100 trials.
 
     Args:
@@ -175,11 +164,11 @@ def exploration_floor(env: control.Environment, identity: dict[str, Any], sigma:
     dp_key = optimal.cache_key(env, identity, config)
     key = hashlib.sha256(json.dumps([dp_key, sigma, period, phase, rollouts, seed])
                          .encode()).hexdigest()[:20]
-    directory = optimal.cache_directory(cache_dir)
+    directory = cache_directory(cache_dir)
 
     def compute() -> ExplorationFloor:
         start = time.perf_counter()
-        problem, values = _solved(env, dp_key, config, announce)
+        problem, values = optimal.solved_values(env, identity, config, announce)
         returns = noisy_rollouts(config, problem, values, sigma, period, phase, rollouts,
                                  np.random.default_rng(seed), announce)
         mean, low, high = confidence_interval(returns)
@@ -187,8 +176,6 @@ def exploration_floor(env: control.Environment, identity: dict[str, Any], sigma:
                                 ci95=(float(low), float(high)), returns=returns, sigma=sigma,
                                 period=period, phase=phase, rollouts=rollouts, seed=seed,
                                 config=config, runtime_s=time.perf_counter() - start)
-    from rmac_mj.results.files import cached_json
-    from rmac_mj.evaluation.metrics import confidence_interval
     return cached_json(
         directory / f"exploration-floor-{key}.json",
         lambda document: ExplorationFloor.from_json_dict(document, from_cache=True), compute,

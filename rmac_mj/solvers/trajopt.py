@@ -1,4 +1,4 @@
-"""A near-optimal reference by trajectory optimisation: the best return of a trial from a fixed x_0.
+"""A near-optimal return by trajectory optimisation: the best return of a trial from a fixed x_0.
 
 For a deterministic task (a fixed start state, no noise) the best sum of rewards per trial is the maximum
 over the action sequence u_0..u_{H-1} (inside the action box) of
@@ -56,11 +56,9 @@ is why it runs past 400 lines.
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import itertools
 import json
 import os
-import pathlib
 import time
 from typing import Any
 
@@ -68,6 +66,10 @@ import mujoco
 import numpy as np
 from dm_control.rl import control
 from mujoco import rollout
+
+from rmac_mj.results.files import cached_json
+from rmac_mj.solvers.problem import TrialProblem, cache_directory, versions
+from rmac_mj.solvers.problem import cache_key as problem_cache_key
 
 #: Bumped whenever a change to this module changes the numbers it computes: old cache entries are ignored.
 SOLVER_VERSION = 1
@@ -208,7 +210,7 @@ class TrajoptResult:
 # The problem, read from the environment
 
 
-class Problem:
+class Problem(TrialProblem):
     """The trial of a deterministic dm-control environment as an optimal-control problem on its model.
 
     The task must provide ``reward_of(x, u)`` and its physics ``state_of(qpos, qvel)`` (both batched),
@@ -222,14 +224,12 @@ class Problem:
       initial_state: the model's full physics state at the start (``mj_getState``, FULLPHYSICS).
     """
 
+    owner = "trajopt"
+
     def __init__(self, env: control.Environment, n_threads: int = 0):
-        task, physics = env.task, env.physics
-        for owner, name in ((task, "reward_of"), (physics, "state_of")):
-            if not callable(getattr(owner, name, None)):
-                raise ValueError(f"trajopt: {type(owner).__name__} has no {name}(); the task must give its "
-                                 f"reward of batched states and actions")
-        self.env = env
-        self.model = model = physics.model.ptr
+        super().__init__(env)
+        physics = env.physics
+        model = self.model
         if model.nq != model.nv or model.na != 0:
             raise ValueError(f"trajopt: needs hinge or slide joints and no activation state, got "
                              f"nq={model.nq}, nv={model.nv}, na={model.na}")
@@ -242,7 +242,6 @@ class Problem:
                              f"({model.nu},), got {spec}")
         if model.nu > MAX_ACTION_DIM:
             raise ValueError(f"trajopt: at most {MAX_ACTION_DIM} actions, got {model.nu}")
-        self.n_substeps = int(round(env.control_timestep() / physics.timestep()))
         # The trial's length from the environment itself: run it once with the box's centre.
         timestep = env.reset()
         self.initial_state = self._full_state(physics.data.ptr)
@@ -252,10 +251,7 @@ class Problem:
             timestep = env.step(centre)
             self.centre_return += float(timestep.reward)
             self.horizon += 1
-        env.reset()
-        if not np.array_equal(self._full_state(physics.data.ptr), self.initial_state):
-            raise ValueError("trajopt: the task's start state is random (two resets differ); the reference "
-                             "is for a deterministic task (start_noise=0)")
+        self._check_deterministic_start(self.initial_state)
         self.nz = model.nq + model.nv
         self._z = slice(1, 1 + self.nz)  # the full physics state is [time, qpos, qvel, ...]
         # state_of is linear in z = [qpos, qvel] up to the wrapping of angles: its Jacobian, read at
@@ -270,11 +266,6 @@ class Problem:
         threads = n_threads or os.cpu_count() or 1
         self._datas = [mujoco.MjData(model) for _ in range(threads)]
         self._data = mujoco.MjData(model)
-
-    def _full_state(self, data) -> np.ndarray:
-        state = np.empty(mujoco.mj_stateSize(self.model, _FULL))
-        mujoco.mj_getState(self.model, data, state, _FULL)
-        return state
 
     def state_of(self, z: np.ndarray, wrap: bool = True) -> np.ndarray:
         """The task's x of physics states z = [qpos, qvel] of shape (..., nz); shape (..., n).
@@ -567,7 +558,7 @@ def optimise(env: control.Environment, config: TrajoptConfig = TrajoptConfig()) 
                     "action_high": problem.high.tolist()}
     return TrajoptResult(simulated_return=float(rewards[0].sum()), actions=best_u, states=states[0],
                          rewards=rewards[0], starts=tuple(summaries), config=config, problem=problem_info,
-                         runtime_s=time.perf_counter() - start_time, versions=_versions())
+                         runtime_s=time.perf_counter() - start_time, versions=versions())
 
 
 # --------------------------------------------------------------------------------------------------
@@ -575,15 +566,8 @@ def optimise(env: control.Environment, config: TrajoptConfig = TrajoptConfig()) 
 
 
 def cache_key(env: control.Environment, identity: dict[str, Any], config: TrajoptConfig) -> str:
-    """Hex digest identifying a result: the problem (``reference.problem_digest``: the compiled model,
-    the task's module source, ``identity``), the config (but ``n_threads``) and the solver version."""
-    from rmac_mj.solvers.optimum import problem_digest
-
-    fields = dataclasses.asdict(config)
-    fields.pop("n_threads")  # changes the speed, never the numbers
-    blob = json.dumps({"problem": problem_digest(env, identity), "config": fields,
-                       "solver_version": SOLVER_VERSION}, sort_keys=True, default=repr)
-    return hashlib.sha256(blob.encode()).hexdigest()[:20]
+    """Hex digest identifying a result (:func:`rmac_mj.solvers.problem.cache_key` of this solver)."""
+    return problem_cache_key(env, identity, config, SOLVER_VERSION)
 
 
 def cached_optimise(env: control.Environment, identity: dict[str, Any],
@@ -593,18 +577,15 @@ def cached_optimise(env: control.Environment, identity: dict[str, Any],
 
     Args:
       env: the task's environment (it is reset and stepped).
-      identity: what names the problem (``reference.problem_identity``: domain, task, task_kwargs).
+      identity: what names the problem (``problem.problem_identity``: domain, task, task_kwargs).
       config: the search's settings.
-      cache_dir: directory of ``trajopt-<key>.json`` files; default ``optimal.default_cache_dir()``.
+      cache_dir: directory of ``trajopt-<key>.json`` files; default ``problem.default_cache_dir()``.
       refresh: solve again even if cached (and overwrite the entry).
       announce: called with a one-line message before a solve (not for a cache hit), e.g. ``print``.
     """
-    from rmac_mj.results import files
-    from rmac_mj.solvers import dynamic_programming as optimal
-
     if not isinstance(config, TrajoptConfig):
         raise TypeError(f"cached_optimise: config must be a TrajoptConfig, got {type(config).__name__}")
-    directory = pathlib.Path(cache_dir).expanduser() if cache_dir is not None else optimal.default_cache_dir()
+    directory = cache_directory(cache_dir)
     path = directory / f"trajopt-{cache_key(env, identity, config)}.json"
     name = f"{identity.get('domain')}/{identity.get('task')}"
 
@@ -612,15 +593,8 @@ def cached_optimise(env: control.Environment, identity: dict[str, Any],
         result = optimise(env, config)
         return dataclasses.replace(result, problem={"domain": identity.get("domain"),
                                                     "task": identity.get("task"), **result.problem})
-    return files.cached_json(
+    return cached_json(
         path, lambda document: TrajoptResult.from_json_dict(document, from_cache=True), compute,
         refresh=refresh, announce=announce,
-        message=(f"computing the near-optimal reference of {name} by trajectory optimisation "
+        message=(f"computing the near-optimal return of {name} by trajectory optimisation "
                  f"(iLQR, under a minute on 2 cores), cached in {directory}"))
-
-
-def _versions() -> dict[str, str]:
-    import scipy
-    import rmac_mj
-    return {"rmac_mj": rmac_mj.__version__, "mujoco": mujoco.__version__, "numpy": np.__version__,
-            "scipy": scipy.__version__}

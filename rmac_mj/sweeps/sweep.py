@@ -6,7 +6,7 @@ configurations, directories). Every configuration uses the same seeds, so config
 by their settings (common random numbers: differences between them are paired). ``OUT/sweep.csv`` has
 one row per configuration and learner (:data:`COLUMNS`, every number from the configuration's
 ``summary.json``, see :mod:`rmac_mj.evaluation.metrics`) and ``OUT/sweep_<metric>.png`` plots each
-metric against each swept parameter (:func:`rmac_mj.figures.plots.plot_sweep`).
+metric against each swept parameter (:func:`rmac_mj.sweeps.figure.plot_sweep`).
 """
 
 from __future__ import annotations
@@ -107,8 +107,8 @@ def run_sweep(sweep: Sweep, out: str | pathlib.Path, jobs: int | None = None,
     rows = sweep_rows(sweep, summaries)
     write_csv(out / "sweep.csv", sweep, rows)
     if figures:
-        from rmac_mj.figures import plots
-        plots.plot_sweep(sweep, rows, out)
+        from rmac_mj.sweeps import figure
+        figure.plot_sweep(sweep, rows, out)
     return rows
 
 

@@ -1,0 +1,133 @@
+"""What every near-optimal solver shares: the trial read from the environment, the cache's keys and
+directory, and progress lines.
+
+A solver's problem is the task's own trial (model, horizon, reward, start: :class:`TrialProblem`),
+named for the caches by :func:`problem_identity` and hashed by :func:`problem_digest`; a result is
+cached under :func:`cache_key` (the problem, the solver's settings, the solver's version).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import inspect
+import json
+import os
+import pathlib
+import time
+from typing import Any, Callable
+
+import mujoco
+import numpy as np
+from dm_control.rl import control
+
+from rmac_mj._cache import user_cache_dir
+
+Announce = Callable[[str], None]
+
+_FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
+
+
+class TrialProblem:
+    """The trial of a deterministic task as a solver sees it, read from its environment.
+
+    The task must give ``reward_of(x, u)`` and its physics ``state_of(qpos, qvel)`` (both batched).
+
+    Attributes:
+      env: the environment; model: its compiled MuJoCo model.
+      n_substeps: physics steps per control step; control_timestep: seconds per control step.
+    """
+
+    #: Who speaks in error messages ("optimal", "trajopt").
+    owner = "solver"
+
+    def __init__(self, env: control.Environment):
+        task, physics = env.task, env.physics
+        for owner, name in ((task, "reward_of"), (physics, "state_of")):
+            if not callable(getattr(owner, name, None)):
+                raise ValueError(f"{self.owner}: {type(owner).__name__} has no {name}(); the task "
+                                 "must give its reward of batched states and actions")
+        self.env = env
+        self.model = physics.model.ptr
+        self.n_substeps = int(round(env.control_timestep() / physics.timestep()))
+        self.control_timestep = float(env.control_timestep())
+
+    def _full_state(self, data) -> np.ndarray:
+        state = np.empty(mujoco.mj_stateSize(self.model, _FULL))
+        mujoco.mj_getState(self.model, data, state, _FULL)
+        return state
+
+    def _check_deterministic_start(self, start: np.ndarray) -> None:
+        """Reset once more and refuse a start that differs from ``start`` (a random start)."""
+        self.env.reset()
+        if not np.array_equal(self._full_state(self.env.physics.data.ptr), start):
+            raise ValueError(f"{self.owner}: the task's start state is random (two resets differ); "
+                             "the near-optimal return is for a deterministic task (start_noise=0)")
+
+
+def problem_identity(domain: str, task: str, task_kwargs: dict[str, Any] | None = None
+                     ) -> dict[str, Any]:
+    """What names a task's problem for the caches: domain, task and task_kwargs."""
+    return {"domain": domain, "task": task, "task_kwargs": dict(task_kwargs or {})}
+
+
+def problem_digest(env: control.Environment, identity: dict[str, Any]) -> str:
+    """Hex digest of the problem a solver solves: the compiled model, the source of the task's
+    module (its reward, start, horizon: any change computes afresh) and ``identity``."""
+    model = env.physics.model.ptr
+    buffer = np.zeros(mujoco.mj_sizeModel(model), dtype=np.uint8)
+    mujoco.mj_saveModel(model, None, buffer)
+    module = inspect.getmodule(type(env.task))
+    blob = json.dumps({**identity, "model": hashlib.sha256(buffer.tobytes()).hexdigest(),
+                       "task_source": hashlib.sha256(inspect.getsource(module).encode()).hexdigest()},
+                      sort_keys=True, default=repr)
+    return hashlib.sha256(blob.encode()).hexdigest()
+
+
+def cache_key(env: control.Environment, identity: dict[str, Any], config: Any,
+              solver_version: int) -> str:
+    """Hex digest identifying a solver's result: the problem (:func:`problem_digest`), every field
+    of the solver's ``config`` (a dataclass) but ``n_threads``, and the solver's version."""
+    fields = dataclasses.asdict(config)
+    fields.pop("n_threads", None)  # changes the speed, never the numbers
+    blob = json.dumps({"problem": problem_digest(env, identity), "config": fields,
+                       "solver_version": solver_version}, sort_keys=True, default=repr)
+    return hashlib.sha256(blob.encode()).hexdigest()[:20]
+
+
+def default_cache_dir() -> pathlib.Path:
+    """``$RMAC_MJ_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/rmac-mj``, else ``~/.cache/rmac-mj``."""
+    return user_cache_dir()
+
+
+def cache_directory(cache_dir: str | os.PathLike | None) -> pathlib.Path:
+    """``cache_dir`` as a path, or :func:`default_cache_dir` when None."""
+    return pathlib.Path(cache_dir).expanduser() if cache_dir is not None else default_cache_dir()
+
+
+#: Seconds between two progress lines of a long computation.
+PROGRESS_SECONDS = 10.0
+
+
+class Ticker:
+    """Calls ``announce(what)`` at most every :data:`PROGRESS_SECONDS` (long computations say they
+    are alive)."""
+
+    def __init__(self, announce: Announce | None):
+        self.announce, self.seconds = announce, PROGRESS_SECONDS
+        self.started = self.last = time.monotonic()
+
+    def __call__(self, what: str) -> None:
+        now = time.monotonic()
+        if self.announce is not None and now - self.last >= self.seconds:
+            self.announce(f"  ... {what} ({now - self.started:.0f} s)")
+            self.last = now
+
+
+def versions() -> dict[str, str]:
+    """Package versions that computed a result (kept beside it in the cache)."""
+    import scipy
+
+    from rmac_mj import __version__
+    return {"rmac_mj": __version__, "mujoco": mujoco.__version__, "numpy": np.__version__,
+            "scipy": scipy.__version__}
