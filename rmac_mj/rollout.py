@@ -1,7 +1,7 @@
 """One trial of an agent on a dm-control environment: the glue between tasks and agents.
 
 Agents see a flat state ``x``; tasks give an observation dict. Every task of the suite says what x is
-through its ``learner_state`` (:class:`rmac_mj.tasks.common.LearnerState`): x is the concatenation of
+through its ``learner_state`` (:class:`rmac_mj.tasks.common.LearnerStateSpec`): x is the concatenation of
 the observation entries ``learner_state.keys``, in order, and the state box, the periodic dimensions
 and the learners' default input weightings come with it. The trial length comes from the environment:
 its number of control steps times its control timestep.
@@ -16,27 +16,27 @@ import numpy as np
 from dm_control.rl import control
 
 from rmac_mj.agents import ActionSpace, Agent, StateSpace
-from rmac_mj.tasks.common import LearnerState
+from rmac_mj.tasks.common import LearnerStateSpec
 
 
-def learner_state_of(env: control.Environment) -> LearnerState:
+def learner_state_of(env: control.Environment) -> LearnerStateSpec:
     """The description of the learners' state: the task's (``env.task.learner_state``, the suite) or
     the environment's own (an outside environment adapted by :mod:`rmac_mj.envs`)."""
     learner_state = getattr(env, "learner_state", None)
     if learner_state is None:
         learner_state = getattr(getattr(env, "task", None), "learner_state", None)
-    if not isinstance(learner_state, LearnerState):
+    if not isinstance(learner_state, LearnerStateSpec):
         owner = type(getattr(env, "task", env)).__name__
-        raise ValueError(f"{owner} declares no learner_state (a rmac_mj.tasks.common.LearnerState; "
+        raise ValueError(f"{owner} declares no learner_state (a rmac_mj.tasks.common.LearnerStateSpec; "
                          f"an outside environment gets one through rmac_mj.envs.load), got "
                          f"{learner_state!r}")
     return learner_state
 
 
-def state_of(observation, learner_state: LearnerState | Sequence[str]) -> np.ndarray:
+def state_of(observation, learner_state: LearnerStateSpec | Sequence[str]) -> np.ndarray:
     """x: the observation entries of ``learner_state.keys`` (or of a sequence of keys) concatenated;
     ndarray of shape (n,)."""
-    keys = learner_state.keys if isinstance(learner_state, LearnerState) else learner_state
+    keys = learner_state.keys if isinstance(learner_state, LearnerStateSpec) else learner_state
     # One numpy call (axis=None flattens each entry, dtype=float converts): once per control step.
     return np.concatenate([observation[key] for key in keys], axis=None, dtype=float)
 

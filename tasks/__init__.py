@@ -47,7 +47,7 @@ def load(domain_name: str, task_name: str, task_kwargs: dict[str, Any] | None = 
       domain_name: e.g. ``"dc_pendulum"`` or ``"two_link_arm"``.
       task_name: e.g. ``"swingup"``, ``"balance"`` or ``"reach"``.
       task_kwargs: keyword arguments of the task factory (``time_limit``, ``control_timestep``,
-        ``state_weights``, ``action_weight`` or ``action_weights``, ``start_state``, ``start_noise``,
+        ``state_weights``, ``action_weights``, ``start_state``, ``start_noise``,
         ``random``).
       environment_kwargs: keyword arguments of ``dm_control.rl.control.Environment``.
     """

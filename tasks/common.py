@@ -13,8 +13,8 @@ from dm_control.rl import control
 
 
 @dataclasses.dataclass(frozen=True)
-class LearnerState:
-    """What a learner sees of a task: its flat state x and per-dimension hints.
+class LearnerStateSpec:
+    """What a learner sees of a task, specified: its flat state x and per-dimension hints.
 
     x = concatenation of observation[key] for key in ``keys`` (in order).
     """
@@ -48,30 +48,30 @@ class LearnerState:
 
     def __post_init__(self) -> None:
         if not self.keys or not all(isinstance(k, str) and k for k in self.keys):
-            raise ValueError(f"LearnerState.keys must be non-empty strings, got {self.keys!r}")
+            raise ValueError(f"LearnerStateSpec.keys must be non-empty strings, got {self.keys!r}")
         n = len(self.low)
         for name in ("high", "periodic", "labels", "input_weights"):
             if len(getattr(self, name)) != n:
-                raise ValueError(f"LearnerState.{name} must have one entry per state dim ({n}, as low), "
+                raise ValueError(f"LearnerStateSpec.{name} must have one entry per state dim ({n}, as low), "
                                  f"got {len(getattr(self, name))}")
         if len(self.action_input_weights) != len(self.action_labels) or not self.action_input_weights:
-            raise ValueError(f"LearnerState.action_input_weights and action_labels must have one entry "
+            raise ValueError(f"LearnerStateSpec.action_input_weights and action_labels must have one entry "
                              f"per action dim, got {len(self.action_input_weights)} and "
                              f"{len(self.action_labels)}")
         low, high = np.asarray(self.low, dtype=float), np.asarray(self.high, dtype=float)
         if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high)) and np.all(low < high)):
-            raise ValueError(f"LearnerState.low and high must be finite with low < high, "
+            raise ValueError(f"LearnerStateSpec.low and high must be finite with low < high, "
                              f"got {self.low!r} and {self.high!r}")
         if self.action_cost is not None and len(self.action_cost) != len(self.action_labels):
-            raise ValueError(f"LearnerState.action_cost must be None or have one entry per action dim "
+            raise ValueError(f"LearnerStateSpec.action_cost must be None or have one entry per action dim "
                              f"({len(self.action_labels)}), got {self.action_cost!r}")
         if self.state_cost is not None and len(self.state_cost) != n:
-            raise ValueError(f"LearnerState.state_cost must be None or have one entry per state dim "
+            raise ValueError(f"LearnerStateSpec.state_cost must be None or have one entry per state dim "
                              f"({n}), got {self.state_cost!r}")
         for name in ("input_weights", "action_input_weights", "action_cost", "state_cost"):
             w = np.asarray(getattr(self, name) if getattr(self, name) is not None else (), dtype=float)
             if not (np.all(np.isfinite(w)) and np.all(w >= 0)):
-                raise ValueError(f"LearnerState.{name} must be finite and >= 0, got {getattr(self, name)!r}")
+                raise ValueError(f"LearnerStateSpec.{name} must be finite and >= 0, got {getattr(self, name)!r}")
         # Canonical Python types, so that the hints compare, hash and serialise the same however given.
         object.__setattr__(self, "keys", tuple(str(k) for k in self.keys))
         object.__setattr__(self, "low", tuple(float(v) for v in low))
@@ -85,6 +85,10 @@ class LearnerState:
         for name in ("action_cost", "state_cost"):
             if getattr(self, name) is not None:
                 object.__setattr__(self, name, tuple(float(v) for v in getattr(self, name)))
+
+
+#: The older name of :class:`LearnerStateSpec` (it specifies the state; ``state_dict()`` is one).
+LearnerState = LearnerStateSpec
 
 
 def wrap_angle(angle):

@@ -88,22 +88,25 @@ def _make_environment(task: "SwingUp", time_limit: float, control_timestep: floa
 
 @SUITE.add("benchmarking")
 def swingup(time_limit: float = DEFAULT_TIME_LIMIT, control_timestep: float = CONTROL_TIMESTEP,
-            state_weights=STATE_WEIGHTS, action_weight: float = ACTION_WEIGHT,
+            state_weights=STATE_WEIGHTS, action_weights: float = ACTION_WEIGHT,
             start_state=SWINGUP_START, start_noise: float = 0.0, random=None,
-            environment_kwargs: dict[str, Any] | None = None) -> control.Environment:
-    """The paper's task: swing up from [pi, 0] and balance, 100 steps of 0.03 s."""
-    task = SwingUp(state_weights=state_weights, action_weight=action_weight,
+            environment_kwargs: dict[str, Any] | None = None,
+            action_weight: float | None = None) -> control.Environment:
+    """The paper's task: swing up from [pi, 0] and balance, 100 steps of 0.03 s (``action_weight``:
+    the older name of ``action_weights``)."""
+    task = SwingUp(state_weights=state_weights, action_weights=action_weights, action_weight=action_weight,
                    start_state=start_state, start_noise=start_noise, random=random)
     return _make_environment(task, time_limit, control_timestep, environment_kwargs)
 
 
 @SUITE.add("benchmarking")
 def balance(time_limit: float = DEFAULT_TIME_LIMIT, control_timestep: float = CONTROL_TIMESTEP,
-            state_weights=STATE_WEIGHTS, action_weight: float = ACTION_WEIGHT,
+            state_weights=STATE_WEIGHTS, action_weights: float = ACTION_WEIGHT,
             start_state=BALANCE_START, start_noise: float = BALANCE_START_NOISE, random=None,
-            environment_kwargs: dict[str, Any] | None = None) -> control.Environment:
+            environment_kwargs: dict[str, Any] | None = None,
+            action_weight: float | None = None) -> control.Environment:
     """Balance upright from a small random perturbation of the start angle; same reward."""
-    task = SwingUp(state_weights=state_weights, action_weight=action_weight,
+    task = SwingUp(state_weights=state_weights, action_weights=action_weights, action_weight=action_weight,
                    start_state=start_state, start_noise=start_noise, random=random)
     return _make_environment(task, time_limit, control_timestep, environment_kwargs)
 
@@ -221,7 +224,7 @@ class Physics(mujoco.Physics):
     def orientation(self) -> np.ndarray:
         """[cos(phi), sin(phi)]; ndarray of shape (2,)."""
         # math.cos/sin are the C library's, which numpy's float64 cos/sin also call (numpy has no
-        # SIMD float64 sin/cos, disabled in numpy#23925); tests/test_trajectory_pin.py catches a change.
+        # SIMD float64 sin/cos, disabled in numpy#23925); tests/experiments/test_trajectory_pin.py catches a change.
         phi = self._qpos.item(self._qpos_adr)
         return np.array((math.cos(phi), math.sin(phi)))
 
@@ -229,25 +232,34 @@ class Physics(mujoco.Physics):
 class SwingUp(base.Task):
     """Swing-up and balance with the quadratic reward of section 6 (see the module docstring)."""
 
-    def __init__(self, state_weights=STATE_WEIGHTS, action_weight: float = ACTION_WEIGHT,
-                 start_state=SWINGUP_START, start_noise: float = 0.0, random=None):
+    def __init__(self, state_weights=STATE_WEIGHTS, action_weights: float = ACTION_WEIGHT,
+                 start_state=SWINGUP_START, start_noise: float = 0.0, random=None,
+                 action_weight: float | None = None):
         """
         Args:
           state_weights: Q, as its diagonal (2,) or a full symmetric positive semi-definite (2, 2).
-          action_weight: P >= 0.
+          action_weights: P >= 0, the reward's action weighting (one action: a number).
+          action_weight: the older name of ``action_weights``.
           start_state: x_0 = [phi, phi_dot] of every episode (rad, rad/s).
           start_noise: half-width (rad) of a uniform perturbation of the start angle, drawn from the
             task's random state; 0 makes every episode start exactly at ``start_state``.
           random: int seed, ``numpy.random.RandomState`` or None (dm-control's convention).
         """
         q = common.quadratic_weights("state_weights", state_weights, 2)
-        if not (common.is_real(action_weight) and action_weight >= 0):
-            raise ValueError(f"action_weight must be a finite number >= 0, got {action_weight!r}")
+        if action_weight is not None:
+            if action_weights is not ACTION_WEIGHT and action_weights != action_weight:
+                raise ValueError(f"action_weight is the older name of action_weights; give one, got "
+                                 f"action_weights={action_weights!r} and action_weight={action_weight!r}")
+            action_weights = action_weight
+        if isinstance(action_weights, (list, tuple, np.ndarray)) and np.size(action_weights) == 1:
+            action_weights = np.asarray(action_weights, dtype=float).item()
+        if not (common.is_real(action_weights) and action_weights >= 0):
+            raise ValueError(f"action_weights must be a finite number >= 0, got {action_weights!r}")
         x0 = common.check_start_state(start_state, 2, "[phi, phi_dot]")
         common.check_in("start_noise", start_noise, 0.0, np.pi, " rad")
         common.check_random(random)
         self._q = q
-        self._p = float(action_weight)
+        self._p = float(action_weights)
         self._x = np.empty(2)  # scratch for x in the reward
         self._start_state = x0
         self._start_noise = float(start_noise)
@@ -260,8 +272,13 @@ class SwingUp(base.Task):
         return self._q.copy()
 
     @property
-    def action_weight(self) -> float:
+    def action_weights(self) -> float:
         """P, the reward's action weighting."""
+        return self._p
+
+    @property
+    def action_weight(self) -> float:
+        """The older name of ``action_weights``."""
         return self._p
 
     def initialize_episode(self, physics: Physics) -> None:
@@ -323,10 +340,10 @@ class SwingUp(base.Task):
         return self._reward
 
     @property
-    def learner_state(self) -> common.LearnerState:
+    def learner_state(self) -> common.LearnerStateSpec:
         """x = [phi, phi_dot]; the box is one period in phi and +-NOMINAL_SPEED; Table 2's weights; the
         reward's action cost P and state cost (Q's diagonal; None for a full Q)."""
-        return common.LearnerState(
+        return common.LearnerStateSpec(
             keys=("angle", "velocity"), low=(-np.pi, -NOMINAL_SPEED), high=(np.pi, NOMINAL_SPEED),
             periodic=(True, False), labels=("angle phi [rad]", "angular velocity phi_dot [rad/s]"),
             input_weights=(1.0, 0.1), action_input_weights=(1.0,), action_labels=("u [V]",),

@@ -92,7 +92,7 @@ def lqr_gains(env: control.Environment, epsilon: float = 1e-5) -> np.ndarray:
 
     The model is linearised by central differences of one control step of the environment's own
     physics (a copy; ``env`` is not touched), with the task's own weights Q and P (``state_weights``,
-    ``action_weight``; Table 1's diag(5, 0.1) and 1 by default).
+    ``action_weights``; Table 1's diag(5, 0.1) and 1 by default).
     """
     physics = env.physics.copy(share_model=True)
     n_sub_steps = int(round(env.control_timestep() / physics.timestep()))
@@ -112,6 +112,6 @@ def lqr_gains(env: control.Environment, epsilon: float = 1e-5) -> np.ndarray:
         A[:, i] = (step(e, 0.0) - step(-e, 0.0)) / (2 * epsilon)
     B = ((step(np.zeros(2), epsilon) - step(np.zeros(2), -epsilon)) / (2 * epsilon))[:, None]
     Q = np.asarray(env.task.state_weights, dtype=float)
-    R = np.array([[env.task.action_weight]])
+    R = np.array([[env.task.action_weights]])
     S = scipy.linalg.solve_discrete_are(A, B, Q, R)
     return np.linalg.solve(R + B.T @ S @ B, B.T @ S @ A).reshape(2)

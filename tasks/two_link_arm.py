@@ -207,7 +207,7 @@ class Reach(base.Task):
         return self._reward
 
     @property
-    def learner_state(self) -> common.LearnerState:
+    def learner_state(self) -> common.LearnerStateSpec:
         """x = [theta1, omega1, theta2, omega2] (``shoulder`` then ``elbow``).
 
         The box is one period in each angle and +-NOMINAL_SPEED in each speed. The weights give every
@@ -216,7 +216,7 @@ class Reach(base.Task):
         pendulum's +-8 pi; torques 2 * 3 N m = 3 * 2 N m = 6, as 1 * 6 V. The action cost is R's
         diagonal ((0, 0): the benchmark charges no torque), None for a full R; the state cost Q's.
         """
-        return common.LearnerState(
+        return common.LearnerStateSpec(
             keys=("shoulder", "elbow"),
             low=(-np.pi, -NOMINAL_SPEED, -np.pi, -NOMINAL_SPEED),
             high=(np.pi, NOMINAL_SPEED, np.pi, NOMINAL_SPEED),

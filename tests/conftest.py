@@ -3,7 +3,7 @@
 import os
 import sys
 
-# The pinned results (tests/test_rmac.py, tests/test_trajectory_pin.py) are exact to the last bit,
+# The pinned results (tests/agents/test_rmac.py, tests/experiments/test_trajectory_pin.py) are exact to the last bit,
 # and the last bit depends on the kernels OpenBLAS runs: by default those it picks for the CPU it
 # finds (SkylakeX on an AVX-512 EPYC), or those OPENBLAS_CORETYPE names (Haswell on some machines
 # here). The tests fix the kernel to one every x86-64 CPU with AVX2 runs, so they mean the same on
@@ -29,15 +29,25 @@ def toy(monkeypatch):
 
 
 def pytest_collection_modifyitems(config, items):
-    """Tests run for a deep-RL baseline (a parameter naming one) are skipped, with the reason, when
-    its [baselines] extra is not installed."""
+    """Tests that need an optional extra are skipped, naming it, when it is not installed: those
+    marked ``baselines`` or run for a deep-RL baseline (a parameter naming one) without the
+    [baselines] extra, those marked ``gymnasium`` without the [gymnasium] extra."""
+    import importlib.util
+
     from rmac_mj.agents import sb3_config
 
-    if sb3_config.available():
-        return
-    skip = pytest.mark.skip(reason=sb3_config.INSTALL_HINT)
+    skip_baselines = (None if sb3_config.available()
+                      else pytest.mark.skip(reason=sb3_config.INSTALL_HINT))
+    skip_gymnasium = (None if importlib.util.find_spec("gymnasium") is not None
+                      else pytest.mark.skip(reason="needs the [gymnasium] extra: "
+                                                   "pip install -c constraints.txt -e \".[gymnasium]\""))
     for item in items:
+        if skip_gymnasium is not None and item.get_closest_marker("gymnasium"):
+            item.add_marker(skip_gymnasium)
+        if skip_baselines is None:
+            continue
         callspec = getattr(item, "callspec", None)
-        if callspec is not None and any(isinstance(value, str) and value in sb3_config.BASELINES
-                                        for value in callspec.params.values()):
-            item.add_marker(skip)
+        if item.get_closest_marker("baselines") or (
+                callspec is not None and any(isinstance(value, str) and value in sb3_config.BASELINES
+                                             for value in callspec.params.values())):
+            item.add_marker(skip_baselines)

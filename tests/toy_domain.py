@@ -103,8 +103,8 @@ class Settle(base.Task):
         return self._reward
 
     @property
-    def learner_state(self) -> common.LearnerState:
-        return common.LearnerState(
+    def learner_state(self) -> common.LearnerStateSpec:
+        return common.LearnerStateSpec(
             keys=("position", "velocity"), low=(-np.pi, -1.0, -20.0, -5.0), high=(np.pi, 1.0, 20.0, 5.0),
             periodic=(True, False, False, False),
             labels=("bar angle theta [rad]", "cart position s [m]", "bar rate omega [rad/s]",

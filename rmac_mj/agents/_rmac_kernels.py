@@ -1,6 +1,6 @@
 """Compiled RMAC step (the fast back end of :class:`rmac_mj.agents.rmac.RMAC`), written after
 Algorithm 2 as the numpy reference in ``rmac.py`` is, so that one control step is one compiled call
-instead of a few dozen numpy ones. ``tests/test_rmac.py`` checks that both back ends take the same
+instead of a few dozen numpy ones. ``tests/agents/test_rmac.py`` checks that both back ends take the same
 actions and leave the same memories, step by step, for every option.
 
 :func:`step` is lines 8-29: act with the models as they are (lines 10-12), then :func:`learn` the

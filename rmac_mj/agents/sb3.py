@@ -3,7 +3,7 @@
 Each learner holds an SB3 model and drives SB3's own policy, buffers and ``train()`` one control step
 at a time, in the order of SB3's ``learn()`` loop, so that ``rmac-mj reproduce`` runs them like the
 paper's learners (seeds, curves, greedy trials, snapshots, resume, ``--jobs``, Dask, ``--set``,
-sweeps, ``render`` and ``policy``). ``tests/test_sb3.py`` checks the claim: for the same seed and
+sweeps, ``render`` and ``policy``). ``tests/agents/test_sb3.py`` checks the claim: for the same seed and
 environment, the parameters after a short run equal those of SB3's own ``model.learn()``.
 
 What the learner sees and does (the same for the three):

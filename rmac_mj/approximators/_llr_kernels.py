@@ -4,7 +4,7 @@
 
 Every function follows the numpy reference (``llr_reference``, ``LLRMemory``'s numpy back end) step by
 step, so the two back ends give the same neighbours and, up to rounding, the same local models;
-``tests/test_llr.py`` cross-checks them.
+``tests/approximators/test_llr.py`` cross-checks them.
 
 A memory is passed to compiled code as an :class:`LLRState`, a numba structref whose named fields are
 the memory's own arrays (shared with ``LLRMemory``, so compiled updates change the memory), its

@@ -107,7 +107,7 @@ def _add_outside_options(parser: argparse.ArgumentParser) -> None:
     """What an outside environment (--env) may need beside its SPEC."""
     parser.add_argument("--learner-state", type=_json_object, default=None, metavar="JSON",
                         help="with --env: what the learners' state is where it cannot be inferred, "
-                             "some of LearnerState's fields or per-dimension bounds, e.g. "
+                             "some of LearnerStateSpec's fields or per-dimension bounds, e.g. "
                              "'{\"bounds\": {\"velocity\": [-10, 10]}}' (a --config file's "
                              "[learner_state] table)")
     parser.add_argument("--action-repeat", type=_positive_int, default=1, metavar="N",

@@ -11,7 +11,7 @@ The result is a ``dm_env.Environment`` (:class:`Environment`) that the trial loo
 its observation holds the entries of ``env.learner_state.keys``. What x is comes from the
 environment's specs where they say enough (finite bounds; a (cos, sin) pair folded into one periodic
 angle; the trial length from the time limit), otherwise from the user (``learner_state``: a
-``LearnerState`` or some of its fields); anything still missing or ambiguous is refused in one line
+``LearnerStateSpec`` or some of its fields); anything still missing or ambiguous is refused in one line
 naming it. Rewards are the environment's; a termination (not a truncation) ends a trial with
 discount 0, so the learner does not bootstrap from the last state.
 """
@@ -23,11 +23,11 @@ from typing import Any, Mapping
 from rmac_mj.envs.environment import Environment
 from rmac_mj.envs.observations import ObservationMap, infer_learner_state
 from rmac_mj.envs.spec import EnvSpec, parse
-from rmac_mj.tasks.common import LearnerState
+from rmac_mj.tasks.common import LearnerStateSpec
 
 
 def load(env: str, kwargs: Mapping[str, Any] | None = None, *, seed: int | None = None,
-         learner_state: LearnerState | Mapping[str, Any] | None = None, action_repeat: int = 1,
+         learner_state: LearnerStateSpec | Mapping[str, Any] | None = None, action_repeat: int = 1,
          trial_steps: int | None = None, control_timestep: float | None = None) -> Environment:
     """The environment named by the SPEC ``env``, seeded, as the learners see it.
 
@@ -51,5 +51,5 @@ def hint_for(domain: str) -> str:
             f"{names[0]} (its tasks: {', '.join(names)})")
 
 
-__all__ = ["EnvSpec", "Environment", "LearnerState", "ObservationMap", "infer_learner_state",
+__all__ = ["EnvSpec", "Environment", "LearnerStateSpec", "ObservationMap", "infer_learner_state",
            "hint_for", "load", "parse"]

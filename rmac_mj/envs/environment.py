@@ -19,7 +19,7 @@ from dm_env import specs
 
 from rmac_mj.envs.observations import ObservationLayout, ObservationMap
 from rmac_mj.errors import UserInputError
-from rmac_mj.tasks.common import LearnerState
+from rmac_mj.tasks.common import LearnerStateSpec
 
 
 class Environment(dm_env.Environment):
@@ -42,7 +42,7 @@ class Environment(dm_env.Environment):
       map: the :class:`~rmac_mj.envs.observations.ObservationMap` from raw observations to x.
     """
 
-    def __init__(self, base: dm_env.Environment, learner_state: LearnerState,
+    def __init__(self, base: dm_env.Environment, learner_state: LearnerStateSpec,
                  layout: ObservationLayout, base_timestep: float, steps_per_trial: int,
                  action_repeat: int = 1, name: str = "") -> None:
         self.base = base

@@ -2,7 +2,7 @@
 
 An environment nobody here wrote gives observations as a dict of arrays (dm_env) or a Box or Dict
 space (Gymnasium). The learners need a flat x with a nominal box and its periodic dimensions, which
-:class:`rmac_mj.tasks.common.LearnerState` describes; its ``keys`` are *entries*, expressions over
+:class:`rmac_mj.tasks.common.LearnerStateSpec` describes; its ``keys`` are *entries*, expressions over
 the raw observation (a Box observation is called ``observation``):
 
 * ``KEY``: the whole entry ``KEY``, flattened (one dimension of x per element);
@@ -26,7 +26,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from rmac_mj.tasks.common import LearnerState
+from rmac_mj.tasks.common import LearnerStateSpec
 
 #: The key of a Box (non-dict) observation.
 OBSERVATION = "observation"
@@ -79,7 +79,7 @@ def layout_of_dm_env(spec: Any) -> ObservationLayout:
     for key, array_spec in specs.items():
         if isinstance(array_spec, Mapping):
             raise ValueError(f"observation entry {key!r} is a nested dict; declare the learner "
-                             f"state as a LearnerState of a flat observation")
+                             f"state as a LearnerStateSpec of a flat observation")
         size = int(np.prod(array_spec.shape, dtype=int))
         lo, hi = (getattr(array_spec, "minimum", np.nan), getattr(array_spec, "maximum", np.nan))
         sizes[str(key)] = size
@@ -295,8 +295,8 @@ def default_weights(low: np.ndarray, high: np.ndarray) -> np.ndarray:
     return 2.0 * math.pi / (np.asarray(high, dtype=float) - np.asarray(low, dtype=float))
 
 
-_FIELDS = tuple(f.name for f in dataclasses.fields(LearnerState))
-#: What a declaration may hold: LearnerState's fields, and ``bounds``: {dimension name: [low, high]}
+_FIELDS = tuple(f.name for f in dataclasses.fields(LearnerStateSpec))
+#: What a declaration may hold: LearnerStateSpec's fields, and ``bounds``: {dimension name: [low, high]}
 #: for some dimensions of x (named as in the messages, e.g. "velocity[0]"), the others inferred.
 DECLARABLE = _FIELDS + ("bounds",)
 
@@ -319,15 +319,15 @@ def check_declaration(declared: Mapping[str, Any] | None) -> dict[str, Any]:
 
 def infer_learner_state(layout: ObservationLayout, samples: np.ndarray, action_low: np.ndarray,
                         action_high: np.ndarray, declared: Mapping[str, Any] | None = None,
-                        owner: str = "the environment") -> LearnerState:
-    """The full LearnerState: the ``declared`` fields as given, the others inferred.
+                        owner: str = "the environment") -> LearnerStateSpec:
+    """The full LearnerStateSpec: the ``declared`` fields as given, the others inferred.
 
     Args:
       layout: the raw observation's entries and spec bounds.
       samples: probed observations, flattened in layout order, shape (T, flat size); used only to
         find (cos, sin) pairs when ``declared`` gives no ``keys``.
       action_low, action_high: the action bounds, shape (m,).
-      declared: some of LearnerState's fields (a ``[learner_state]`` table).
+      declared: some of LearnerStateSpec's fields (a ``[learner_state]`` table).
       owner: how the environment is named in messages (its SPEC).
     Raises:
       ValueError: in one line, naming what is missing (bounds of an unbounded entry) or ambiguous.
@@ -392,6 +392,6 @@ def infer_learner_state(layout: ObservationLayout, samples: np.ndarray, action_l
         raise ValueError(f"{owner}: learner_state.action_cost needs {action_low.size} values, one per "
                          f"action dimension, got {declared['action_cost']!r}")
     try:
-        return LearnerState(**{**inferred, **given})
+        return LearnerStateSpec(**{**inferred, **given})
     except ValueError as error:
         raise ValueError(f"{owner}: {error}") from None

@@ -31,7 +31,7 @@ from rmac_mj.envs.environment import Environment, trial_steps
 from rmac_mj.envs.from_gymnasium import GymnasiumEnvironment
 from rmac_mj.envs.observations import (ObservationLayout, ObservationMap, check_declaration,
                                        infer_learner_state, layout_of_dm_env)
-from rmac_mj.tasks.common import LearnerState
+from rmac_mj.tasks.common import LearnerStateSpec
 
 #: The SPEC prefixes that name a library rather than a module of the user's.
 SOURCES = ("dm_control", "gymnasium")
@@ -104,7 +104,7 @@ class EnvSpec:
       kwargs: keyword arguments of the environment: dm-control's ``task_kwargs`` (e.g.
         ``time_limit``; not ``random``, the seed), ``gymnasium.make``'s (e.g. ``g``,
         ``max_episode_steps``), or the factory's.
-      learner_state: what x is: a :class:`~rmac_mj.tasks.common.LearnerState`, or a mapping of some
+      learner_state: what x is: a :class:`~rmac_mj.tasks.common.LearnerStateSpec`, or a mapping of some
         of its fields (a ``[learner_state]`` table) with the others inferred, or None (all inferred;
         a dm-control task that declares ``learner_state`` itself is taken at its word).
       action_repeat: environment steps per learner step, with the same action (rewards summed).
@@ -116,7 +116,7 @@ class EnvSpec:
 
     env: str
     kwargs: Mapping[str, Any] = dataclasses.field(default_factory=dict)
-    learner_state: LearnerState | Mapping[str, Any] | None = None
+    learner_state: LearnerStateSpec | Mapping[str, Any] | None = None
     action_repeat: int = 1
     trial_steps: int | None = None
     control_timestep: float | None = None
@@ -128,7 +128,7 @@ class EnvSpec:
         object.__setattr__(self, "kwargs", dict(self.kwargs))
         if self.source == "dm_control" and "random" in self.kwargs:
             raise ValueError("EnvSpec.kwargs must not set 'random': the seed comes from the experiment")
-        if not isinstance(self.learner_state, (LearnerState, type(None))):
+        if not isinstance(self.learner_state, (LearnerStateSpec, type(None))):
             object.__setattr__(self, "learner_state", check_declaration(self.learner_state))
         for name, value in (("action_repeat", self.action_repeat), ("trial_steps", self.trial_steps)):
             if value is None and name == "trial_steps":
@@ -196,7 +196,7 @@ class EnvSpec:
         ``render``: able to draw its frames (:meth:`Environment.render_frame`)."""
         base = self.build_base(seed, render)
         spec = self
-        if not isinstance(self.learner_state, LearnerState) or (
+        if not isinstance(self.learner_state, LearnerStateSpec) or (
                 self.trial_steps is None and _step_limit(base) is None):
             spec = self.resolve()
         base_dt, base_limit = spec._time_of(base)
@@ -205,7 +205,7 @@ class EnvSpec:
                            action_repeat=spec.action_repeat, name=self.env)
 
     def resolve(self) -> "EnvSpec":
-        """This spec with its full LearnerState (declared fields kept, the rest inferred, probing an
+        """This spec with its full LearnerStateSpec (declared fields kept, the rest inferred, probing an
         instance of the environment of its own for (cos, sin) pairs when ``keys`` are not given) and,
         for an environment without a time limit that truncates its episodes itself, ``trial_steps``
         measured. Raises ValueError, in one line, on whatever is missing or ambiguous."""
@@ -216,11 +216,11 @@ class EnvSpec:
             base = self.build_base(PROBE_SEED)
         spec._time_of(base)  # refuse an environment without a time step now
         declared = self.learner_state
-        if isinstance(declared, LearnerState):
+        if isinstance(declared, LearnerStateSpec):
             return spec
         if declared is None:
             own = getattr(getattr(base, "task", None), "learner_state", None)
-            if isinstance(own, LearnerState):
+            if isinstance(own, LearnerStateSpec):
                 return dataclasses.replace(spec, learner_state=own)
         layout = _layout(base)
         needs_probe = not (declared and "keys" in declared)
@@ -235,7 +235,7 @@ class EnvSpec:
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready: every field, the learner state as its fields."""
         learner_state = self.learner_state
-        if isinstance(learner_state, LearnerState):
+        if isinstance(learner_state, LearnerStateSpec):
             learner_state = dataclasses.asdict(learner_state)
         return {"env": self.env, "kwargs": dict(self.kwargs), "learner_state": learner_state,
                 "action_repeat": int(self.action_repeat), "trial_steps": self.trial_steps,

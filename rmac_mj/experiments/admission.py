@@ -27,7 +27,7 @@ from rmac_mj.experiments import prior_transitions as prior_data
 from rmac_mj.rollout import (action_space_of, learner_state_of, run_trial,
                                          state_space_of, trial_seconds)
 from rmac_mj.experiments.protocol import Protocol
-from rmac_mj.tasks.common import LearnerState
+from rmac_mj.tasks.common import LearnerStateSpec
 
 
 class TaskFacts:
@@ -35,9 +35,9 @@ class TaskFacts:
     once for all: the spaces the learners see, the trial's length and the learner's state."""
 
     def __init__(self) -> None:
-        self._facts: dict[str, tuple[StateSpace, ActionSpace, float, LearnerState]] = {}
+        self._facts: dict[str, tuple[StateSpace, ActionSpace, float, LearnerStateSpec]] = {}
 
-    def _of(self, protocol: Protocol) -> tuple[StateSpace, ActionSpace, float, LearnerState]:
+    def _of(self, protocol: Protocol) -> tuple[StateSpace, ActionSpace, float, LearnerStateSpec]:
         key = json.dumps(protocol.environment_description(), sort_keys=True, default=repr)
         if key not in self._facts:
             env = protocol.make_environment()
@@ -53,7 +53,7 @@ class TaskFacts:
         """Simulated seconds of one trial of the protocol's task."""
         return self._of(protocol)[2]
 
-    def learner_state(self, protocol: Protocol) -> LearnerState:
+    def learner_state(self, protocol: Protocol) -> LearnerStateSpec:
         """What the learner's state x is on the protocol's task (inferred for an outside one)."""
         return self._of(protocol)[3]
 

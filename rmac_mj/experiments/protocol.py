@@ -94,7 +94,7 @@ class Protocol:
       env: an outside environment by SPEC (``rmac_mj.envs``: ``dm_control:DOMAIN/TASK``,
         ``gymnasium:ID``, ``package.module:factory``, ``path/file.py:factory``) instead of
         ``domain``/``task``. With it, and only with it:
-      learner_state: what x is where it cannot be inferred: some of LearnerState's fields, or
+      learner_state: what x is where it cannot be inferred: some of LearnerStateSpec's fields, or
         ``bounds`` per dimension (a ``[learner_state]`` table; ``rmac_mj.envs.EnvSpec``).
       action_repeat: environment steps per learner step, the same action held (rewards summed).
       trial_steps: learner steps after which a trial is truncated; None: the environment's limit.

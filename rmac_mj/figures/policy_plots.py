@@ -195,7 +195,7 @@ def plot_policies(snapshots: Sequence[tuple[Any, dict[str, Any]]], stem: str | o
     Args:
       snapshots: (agent, meta) pairs, as ``load_snapshot`` returns (meta: algorithm, trial, experiment).
       stem: output path without suffix; a .png and a .pdf are written.
-      learner_state: the task's ``LearnerState``: the axes' ranges (its box) and labels, the actions'
+      learner_state: the task's ``LearnerStateSpec``: the axes' ranges (its box) and labels, the actions'
         labels.
       anchor: a state of shape (n,) through which the maps slice when n > 2 (e.g. the start state).
       dims: the state dimensions on the horizontal and vertical axes.

@@ -17,7 +17,7 @@ from dm_env import test_utils
 import toy_domain
 from rmac_mj import tasks
 from rmac_mj.rollout import state_of, steps_per_trial, trial_seconds
-from rmac_mj.tasks.common import LearnerState
+from rmac_mj.tasks.common import LearnerStateSpec
 
 TOY = (toy_domain.DOMAIN, toy_domain.TASK)
 CASES = [*tasks.ALL_TASKS, TOY]
@@ -56,7 +56,7 @@ def test_specs_observations_and_learner_state(domain, task):
     spec = env.action_spec()
     assert np.all(np.isfinite(spec.minimum)) and np.all(np.asarray(spec.minimum) < spec.maximum)
     learner_state = env.task.learner_state
-    assert isinstance(learner_state, LearnerState)
+    assert isinstance(learner_state, LearnerStateSpec)
     n, m = len(learner_state.low), int(np.prod(spec.shape))
     assert len(learner_state.action_labels) == len(learner_state.action_input_weights) == m
     observation_spec = env.observation_spec()
@@ -145,7 +145,7 @@ def test_a_start_beyond_mujocos_range_is_refused_at_load_not_at_reset(domain, ta
 def test_learner_state_names_observations_and_boxes_the_start(domain, task):
     env = tasks.load(domain, task)
     hints = env.task.learner_state
-    assert isinstance(hints, LearnerState)
+    assert isinstance(hints, LearnerStateSpec)
     observation = env.reset().observation
     x = np.concatenate([np.asarray(observation[key]).ravel() for key in hints.keys])
     assert x.shape == (len(hints.low),)
@@ -209,7 +209,7 @@ def test_the_declared_costs_are_the_whole_reward(domain, task):
 def test_learner_state_rejects_inconsistent_hints():
     good = dict(keys=("a",), low=(-1.0,), high=(1.0,), periodic=(False,), labels=("a [m]",),
                 input_weights=(1.0,), action_input_weights=(1.0,), action_labels=("u [V]",))
-    LearnerState(**good)
+    LearnerStateSpec(**good)
     for change, name in [({"high": (1.0, 2.0)}, "high"), ({"low": (1.0,)}, "low"),
                          ({"input_weights": (-1.0,)}, "input_weights"),
                          ({"action_labels": ()}, "action_input_weights"),
@@ -219,7 +219,7 @@ def test_learner_state_rejects_inconsistent_hints():
                          ({"state_cost": (-1.0,)}, "state_cost"),
                          ({"keys": ()}, "keys")]:
         with pytest.raises(ValueError, match=name):
-            LearnerState(**{**good, **change})
+            LearnerStateSpec(**{**good, **change})
 
 
 def _conformance_case(domain: str, task: str):

@@ -1,7 +1,7 @@
 """Speed work must not change a single bit: seeded trajectories pinned from the code before it.
 
 ``tests/data/dc_pendulum_trajectories.json`` was written by this module (``python
-tests/test_trajectory_pin.py``) from the commit before the fast paths of ``env.step`` and
+tests/experiments/test_trajectory_pin.py``) from the commit before the fast paths of ``env.step`` and
 ``run_trial`` (issue 12). It holds, for a few seeded rollouts, every observation entry and every
 reward, discount and step type, and for ``run_trial`` every state and reward an agent was shown and
 every return. Floats are stored by ``repr``, which round-trips exactly; the tests compare with ``==``.
@@ -22,7 +22,7 @@ from rmac_mj import tasks
 from rmac_mj.agents import PolicyAgent
 from rmac_mj.rollout import action_space_of, run_trial, state_space_of
 
-PINNED = pathlib.Path(__file__).parent / "data" / "dc_pendulum_trajectories.json"
+PINNED = pathlib.Path(__file__).parents[1] / "data" / "dc_pendulum_trajectories.json"
 
 #: (name, task, task_kwargs, how actions are drawn)
 ROLLOUTS = [

@@ -219,6 +219,7 @@ def test_ctrl_c_stops_workers_and_says_how_to_resume(tmp_path):
     assert len(list(curves.glob("exp_*.npz"))) == 4
 
 
+@pytest.mark.baselines  # every learner, the deep-RL baselines included
 def test_every_result_file_is_readable_by_others(tmp_path):
     """Under umask 022 every file a run writes (curves, snapshots of every learner, summaries,
     figures) is group- and other-readable, as a cluster's shared result directory needs."""

@@ -1,5 +1,5 @@
 """The dc_pendulum tasks: rewards, episode length, start states, errors (the contract every task
-meets, dm_env conformance and seeding included, is tests/test_suite_contract.py)."""
+meets, dm_env conformance and seeding included, is tests/tasks/test_suite_contract.py)."""
 
 import mujoco
 import numpy as np

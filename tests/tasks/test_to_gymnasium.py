@@ -4,7 +4,8 @@ episodes as the dm-control tasks."""
 import numpy as np
 import pytest
 
-gymnasium = pytest.importorskip("gymnasium", reason="needs the [gymnasium] extra")
+gymnasium = pytest.importorskip("gymnasium", reason="needs the [gymnasium] extra: "
+                                "pip install -c constraints.txt -e \".[gymnasium]\"")
 
 from gymnasium.utils.env_checker import check_env  # noqa: E402
 

@@ -1,6 +1,6 @@
 """The tables of docs/prior-knowledge.md from finished `rmac-mj reproduce` result directories.
 
-    python scripts/prior_knowledge.py results/prior/none results/prior/demo ... [--replay 10]
+    python scripts/prior_knowledge_tables.py results/prior/none results/prior/demo ... [--replay 10]
 
 Learning curves come from the runs' files. Whether a trial swings up is not in them (they hold sums of
 rewards), so the first ``--replay`` trials of every experiment are replayed: the runner is

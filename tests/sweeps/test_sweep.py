@@ -107,7 +107,7 @@ def test_a_malformed_file_names_the_key(tmp_path, text, named):
     assert "\n" not in message
 
 
-STUDIES = sorted((pathlib.Path(__file__).parents[1] / "docs" / "studies").glob("*.toml"))
+STUDIES = sorted((pathlib.Path(__file__).parents[2] / "docs" / "studies").glob("*.toml"))
 
 
 @pytest.mark.parametrize("path", STUDIES, ids=[path.stem for path in STUDIES])

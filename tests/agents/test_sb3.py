@@ -9,7 +9,7 @@ from learners import quick_config
 
 from rmac_mj.agents import agent_class, config_class, make_agent, sb3, sb3_config
 
-pytestmark = pytest.mark.skipif(not sb3_config.available(), reason=sb3_config.INSTALL_HINT)
+pytestmark = pytest.mark.baselines
 
 ENV_ID = "rmac_mj/DCPendulum-Swingup-v0"
 
@@ -144,7 +144,7 @@ TINY = dict(algorithms=("sb3-sac",), experiments=2, trials=2, evaluate_every=1,
 
 def test_reproduce_runs_a_baseline_and_resumes_it_alike(tmp_path):
     """A tiny rmac-mj reproduce of sb3-sac: an interrupted run finished with resume has the curves of
-    an uninterrupted one (serial equals parallel: tests/test_runner.py), and the last snapshot
+    an uninterrupted one (serial equals parallel: tests/experiments/test_runner.py), and the last snapshot
     rebuilds the learner."""
     from rmac_mj.experiments import runner
     from rmac_mj.rollout import run_trial

@@ -10,7 +10,7 @@ from rmac_mj import tasks
 from rmac_mj.solvers import optimum
 from rmac_mj.tasks import common
 
-PACKAGE = pathlib.Path(__file__).resolve().parents[1] / "rmac_mj"
+PACKAGE = pathlib.Path(__file__).resolve().parents[2] / "rmac_mj"
 
 
 def _code_strings(path: pathlib.Path) -> list[tuple[int, str]]:
