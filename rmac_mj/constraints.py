@@ -250,7 +250,7 @@ TD_LAMBDA = {
     "lam": [Interval(numbers.Real, 0, 1)],
     "alpha_c": [Interval(numbers.Real, 0, 1)],
 }
-#: A learner's compute back end: compiled kernels or their numpy reference (the same results).
+#: A learner's compute back end: compiled kernels or their numpy version (the same results).
 BACKEND = [Options("numba", "numpy")]
 
 

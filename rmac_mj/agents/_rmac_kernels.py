@@ -1,5 +1,5 @@
 """Compiled RMAC step (the fast back end of :class:`rmac_mj.agents.rmac.RMAC`), written after
-Algorithm 2 as the numpy reference in ``rmac.py`` is, so that one control step is one compiled call
+Algorithm 2 as the numpy version in ``rmac.py`` is, so that one control step is one compiled call
 instead of a few dozen numpy ones. ``tests/agents/test_rmac.py`` checks that both back ends take the same
 actions and leave the same memories, step by step, for every option.
 

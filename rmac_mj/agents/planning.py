@@ -36,7 +36,7 @@ exploration or learning rate reads the real trial's index). With ``steps = 0`` f
 here runs and the learner is bit for bit the one without it.
 
 Two back ends compute the same thing: the model's prediction goes through the compiled LLR
-interface (``backend='numba'``, one call per simulated step) or the numpy reference.
+interface (``backend='numba'``, one call per simulated step) or the numpy version.
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """Numba kernel of LLR's local fit: the affine least-squares model of K neighbours (the fast path of
-``fit_reference`` in :mod:`rmac_mj.approximators.llr_numpy`: the same normal equations, the same
+``fit_numpy`` in :mod:`rmac_mj.approximators.llr_numpy`: the same normal equations, the same
 conditioning)."""
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 :class:`rmac_mj.approximators.llr.LLRMemory`; the distances and the selection of neighbours are in
 ``_llr_search``, the local fit in ``_llr_fit``).
 
-Every function follows the numpy reference (``llr_reference``, ``LLRMemory``'s numpy back end) step by
+Every function follows the numpy version (``llr_numpy``, ``LLRMemory``'s numpy back end) step by
 step, so the two back ends give the same neighbours and, up to rounding, the same local models;
 ``tests/approximators/test_llr.py`` cross-checks them.
 

@@ -1,5 +1,5 @@
 """Numba kernels of LLR's geometry: wrapping periodic inputs, weighted distances and the selection
-of the K nearest samples (the fast path of ``search_reference`` in
+of the K nearest samples (the fast path of ``search_numpy`` in
 :mod:`rmac_mj.approximators.llr_numpy`, which these follow step by step: same distance, same
 tie-breaking by index, as a stable sort).
 

@@ -69,8 +69,8 @@ import numpy as np
 from rmac_mj.approximators import _llr_kernels as _k
 from rmac_mj.approximators._llr_kernels import LLR_STATE_TYPE, LLRState, LocalFit
 from rmac_mj.approximators._llr_redundancy import MEASURE_DISTANCE, MEASURE_MISFIT
-from rmac_mj.approximators.llr_numpy import (distance_reference, fit_reference, misfit_reference,
-                                                 search_reference, wrap)
+from rmac_mj.approximators.llr_numpy import (distance_numpy, fit_numpy, misfit_numpy,
+                                                 search_numpy, wrap)
 from rmac_mj.constraints import WEIGHTS, Boolean, Field, Interval, Options, TupleOf, check
 
 #: The compiled interface (see the module docstring): the functions take an LLRState first;
@@ -314,7 +314,7 @@ class LLRMemory:
             X_, Y_ = self.X_[:s], self.Y_[:s]
             for i in range(s):
                 others = np.delete(np.arange(s), i)
-                idx = others[search_reference(X_[others], X_[i], self._w, self._pin, self.norm,
+                idx = others[search_numpy(X_[others], X_[i], self._w, self._pin, self.norm,
                                               self.n_neighbours)]
                 self.redundancy_[i] = -self._measures(X_[i], Y_[i], idx)[0]
         return self
@@ -326,9 +326,9 @@ class LLRMemory:
         if len(idx) == 0:
             return np.zeros(1)
         if self.redundancy == "distance":
-            d = distance_reference(self.X_[idx], x, self._w, self._pin, self.norm)
+            d = distance_numpy(self.X_[idx], x, self._w, self._pin, self.norm)
             return np.r_[d[0], d]
-        return misfit_reference(np.vstack([x, self.X_[idx]]), np.vstack([y, self.Y_[idx]]), x,
+        return misfit_numpy(np.vstack([x, self.X_[idx]]), np.vstack([y, self.Y_[idx]]), x,
                                 self._w, self._pin, self._pout, self._eig_cutoff, self._ridge)
 
     def state_dict(self, prefix: str = "") -> dict[str, np.ndarray]:
@@ -385,7 +385,7 @@ class LLRMemory:
         count = int(self._counters[_k.COUNT])
         if self.backend == "numba":
             return self._idx[:_k.neighbours(self._state, xq, self._idx)]
-        return search_reference(self.X_[:count], xq, self._w, self._pin, self.norm,
+        return search_numpy(self.X_[:count], xq, self._w, self._pin, self.norm,
                                 self.n_neighbours)
 
     def neighbour_distances(self, x: Any) -> np.ndarray:
@@ -396,7 +396,7 @@ class LLRMemory:
         """
         xq = self._canonical(self._check("x", x, self.input_dim))
         idx = self._neighbours(xq)
-        return distance_reference(self.X_[idx], xq, self._w, self._pin, self.norm)
+        return distance_numpy(self.X_[idx], xq, self._w, self._pin, self.norm)
 
     def query(self, x: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """LLR at x (shape (n,)).
@@ -421,7 +421,7 @@ class LLRMemory:
             return self._pred, self._beta, self._idx[:max(nk, 0)]
         xq = self._canonical(xq)
         idx = self._neighbours(xq)
-        pred, beta = fit_reference(self.X_[idx], self.Y_[idx], xq, self._w, self._pin, self._pout,
+        pred, beta = fit_numpy(self.X_[idx], self.Y_[idx], xq, self._w, self._pin, self._pout,
                                    self._eig_cutoff, self._ridge, bool(self.clip))
         return pred, beta, idx
 
@@ -459,7 +459,7 @@ class LLRMemory:
         own = 0.0
         if self.replacement == "redundancy":
             # rho_i <- (1 - eta) rho_i + eta c_i over K(x) (module docstring).
-            idx = search_reference(self.X_[:count], x, self._w, self._pin, self.norm,
+            idx = search_numpy(self.X_[:count], x, self._w, self._pin, self.norm,
                                    self.n_neighbours)
             neg_c = self._measures(x, y, idx)
             eta = float(self.redundancy_smoothing)
@@ -474,7 +474,7 @@ class LLRMemory:
             self._counters[_k.COUNT] += 1
         elif self.replacement == "nearest":
             slot = nearest if nearest >= 0 else int(
-                search_reference(self.X_, x, self._w, self._pin, self.norm, 1)[0])
+                search_numpy(self.X_, x, self._w, self._pin, self.norm, 1)[0])
         elif self.replacement == "redundancy":
             slot = int(np.argmax(self.redundancy_[:count]))
         else:

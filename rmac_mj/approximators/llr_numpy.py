@@ -2,11 +2,11 @@
 (``LLRMemory(backend='numpy')``), which the compiled kernels (``_llr_search``, ``_llr_fit``,
 ``_llr_kernels``) follow step by step.
 
-The search (:func:`search_reference`) orders samples by the weighted distance, ties by index as a
-stable sort; the fit (:func:`fit_reference`) is the affine least-squares model of the neighbours in
+The search (:func:`search_numpy`) orders samples by the weighted distance, ties by index as a
+stable sort; the fit (:func:`fit_numpy`) is the affine least-squares model of the neighbours in
 the weighted, query-centred input space, conditioned as the memory says. Redundancy scores (the
-``replacement='redundancy'`` rule) are measured by :func:`distance_reference` and
-:func:`misfit_reference`:
+``replacement='redundancy'`` rule) are measured by :func:`distance_numpy` and
+:func:`misfit_numpy`:
 
 ``redundancy`` ['distance'] and ``redundancy_smoothing`` [0.1]: the score of
   ``replacement='redundancy'``, the scheme issue 14 describes of the authors' code (a redundancy
@@ -54,7 +54,7 @@ def wrap(d: np.ndarray, period: np.ndarray) -> np.ndarray:
     return np.where(period > 0, d - safe * np.floor(d / safe + 0.5), d)
 
 
-def search_reference(X: np.ndarray, xq: np.ndarray, weights: np.ndarray, period: np.ndarray,
+def search_numpy(X: np.ndarray, xq: np.ndarray, weights: np.ndarray, period: np.ndarray,
                      norm: int, k: int) -> np.ndarray:
     """Indices of the min(k, len(X)) nearest rows of X (shape (N, n)) to xq (n,), nearest first."""
     e = weights * wrap(X - xq, period)
@@ -62,7 +62,7 @@ def search_reference(X: np.ndarray, xq: np.ndarray, weights: np.ndarray, period:
     return np.argsort(d, kind="stable")[:k]
 
 
-def fit_reference(X: np.ndarray, Y: np.ndarray, xq: np.ndarray, weights: np.ndarray,
+def fit_numpy(X: np.ndarray, Y: np.ndarray, xq: np.ndarray, weights: np.ndarray,
                   in_period: np.ndarray, out_period: np.ndarray, eig_cutoff: float, ridge: float,
                   clip: bool) -> tuple[np.ndarray, np.ndarray]:
     """Local affine model of neighbours X (k, n) -> Y (k, m) around xq (n,).
@@ -91,7 +91,7 @@ def fit_reference(X: np.ndarray, Y: np.ndarray, xq: np.ndarray, weights: np.ndar
     return pred, beta
 
 
-def distance_reference(X: np.ndarray, xq: np.ndarray, weights: np.ndarray, period: np.ndarray,
+def distance_numpy(X: np.ndarray, xq: np.ndarray, weights: np.ndarray, period: np.ndarray,
                        norm: int) -> np.ndarray:
     """Weighted distances (shape (k,)) of the rows of X (k, n) to xq: the 1-norm or the 2-norm (not
     squared) of w * wrap(x - xq)."""
@@ -99,12 +99,12 @@ def distance_reference(X: np.ndarray, xq: np.ndarray, weights: np.ndarray, perio
     return np.abs(e).sum(axis=1) if norm == 1 else np.sqrt((e * e).sum(axis=1))
 
 
-def misfit_reference(X: np.ndarray, Y: np.ndarray, xq: np.ndarray, weights: np.ndarray,
+def misfit_numpy(X: np.ndarray, Y: np.ndarray, xq: np.ndarray, weights: np.ndarray,
                      in_period: np.ndarray, out_period: np.ndarray, eig_cutoff: float,
                      ridge: float) -> np.ndarray:
     """Squared residuals (shape (k,)) of the samples X (k, n) -> Y (k, m) under their one affine
-    fit at xq (``fit_reference``, unclipped): |wrap(y - pred - beta_x wrap(x - xq))|^2."""
-    pred, beta = fit_reference(X, Y, xq, weights, in_period, out_period, eig_cutoff, ridge, False)
+    fit at xq (``fit_numpy``, unclipped): |wrap(y - pred - beta_x wrap(x - xq))|^2."""
+    pred, beta = fit_numpy(X, Y, xq, weights, in_period, out_period, eig_cutoff, ridge, False)
     n = X.shape[1]
     fitted = pred + wrap(X - xq, in_period) @ beta[:, :n].T
     r = wrap(Y - fitted, out_period)

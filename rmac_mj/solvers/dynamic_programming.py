@@ -36,9 +36,10 @@ an actual admissible policy on the actual model, it is a lower bound on the true
 next to it is its check. Results are cached as JSON keyed by the problem (the compiled model, the task's
 source and settings), the grid and the solver version, so ``rmac-mj optimal`` and Fig. 2 reuse them.
 
-    from rmac_mj.solvers import dynamic_programming as optimal, optimum as reference
+    from rmac_mj.solvers import dynamic_programming as optimal
+    from rmac_mj.solvers.problem import problem_identity
     env = protocol.make_environment()
-    result = optimal.optimal_return(env, reference.problem_identity(protocol))
+    result = optimal.optimal_return(env, problem_identity(protocol.domain, protocol.task))
     print(result.simulated_return, result.dp_value)
 
 The module is one algorithm read top to bottom (config, problem, result, grid, backups, greedy rollout,

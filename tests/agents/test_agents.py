@@ -252,7 +252,7 @@ def test_a_transition_that_overflows_is_refused_and_nothing_non_finite_is_stored
     agent = make_agent(algorithm, STATES, ACTIONS, config=dict(backend=backend), seed=0)
     agent.start(np.array([0.5, 0.0]))
     with pytest.raises(ValueError, match="overflows the learner's arithmetic"), \
-            np.errstate(over="ignore", invalid="ignore"):  # the numpy reference meets the overflow
+            np.errstate(over="ignore", invalid="ignore"):  # the numpy version meets the overflow
         for k in range(1, 50):
             agent.step(1.7e308, np.array([0.5, 0.01 * k]))
     for key, value in agent.state_dict().items():

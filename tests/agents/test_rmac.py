@@ -388,7 +388,7 @@ def _assert_same_state(fast, slow, when, tol):
 
 @pytest.mark.parametrize("options", list(_OPTION_VALUES))
 def test_back_ends_take_the_same_steps_for_every_option(options):
-    """Lock step: before every step the numpy reference is set to the numba agent's state, both take
+    """Lock step: before every step the numpy version is set to the numba agent's state, both take
     the step, and the actions and every array of their state (memories, traces, bookkeeping) must
     agree; the numba agent runs undisturbed, so whatever it carries from step to step is exercised.
     """

@@ -80,14 +80,14 @@ def test_neighbours_match_brute_force_with_weights_and_periodic_input(backend, n
 def test_compiled_search_orders_ties_like_a_stable_sort(norm):
     # Inputs on a coarse grid: many equal distances. The compiled search (bounded by lane minima
     # when unseeded, by the last list when seeded) must return what a stable argsort returns.
-    from rmac_mj.approximators.llr import llr_nearest, search_reference
+    from rmac_mj.approximators.llr import llr_nearest, search_numpy
     rng = np.random.default_rng(7)
     X = np.c_[rng.integers(-6, 6, 700) * 0.5, rng.integers(-10, 10, 700) * 2.0]
     memory = LLRMemory(2, 1, 700, 20, input_weights=[1.0, 0.25], input_period=[TWO_PI, 0.0],
                        norm=norm).fit(X, np.zeros((700, 1)))
     for xq in np.c_[rng.integers(-6, 6, 40) * 0.5, rng.integers(-10, 10, 40) * 2.0]:
         # (queries inside one period, so already wrapped, as llr_nearest wants them)
-        expected = search_reference(memory.X_, xq, np.array([1.0, 0.25]), np.array([TWO_PI, 0.0]),
+        expected = search_numpy(memory.X_, xq, np.array([1.0, 0.25]), np.array([TWO_PI, 0.0]),
                                     norm, 20)
         np.testing.assert_array_equal(memory.neighbours(xq), expected)
         idx, k = llr_nearest(memory.kernel_state, xq)  # seeded with the list searched before
@@ -277,7 +277,7 @@ def test_kept_neighbour_lists_stay_exact_across_insertions(replacement, norm):
     # leaves, the new one is placed by its distance), is what a new search finds, ties and replaced
     # neighbours included. Inputs on a coarse grid make many distances equal; the queries come
     # back to the last few points after one to four insertions, as a learner's states do.
-    from rmac_mj.approximators.llr import llr_insert, llr_nearest, search_reference
+    from rmac_mj.approximators.llr import llr_insert, llr_nearest, search_numpy
     rng = np.random.default_rng(5)
     K = 4
     weights, period = np.array([1.0, 0.5]), np.array([TWO_PI, 0.0])
@@ -293,7 +293,7 @@ def test_kept_neighbour_lists_stay_exact_across_insertions(replacement, norm):
             points.append(xq)
         idx, k = llr_nearest(state, xq)
         before = idx[:k].copy()
-        np.testing.assert_array_equal(before, search_reference(
+        np.testing.assert_array_equal(before, search_numpy(
             memory.X_[:memory.n_samples_], xq, weights, period, norm, K))
         if rng.random() < 0.7:
             x_new = xq + np.r_[rng.integers(-2, 3), rng.integers(-2, 3)] * 0.5
