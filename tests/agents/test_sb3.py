@@ -9,7 +9,6 @@ from learners import quick_config
 
 from rmac_mj.agents import agent_class, config_class, make_agent, sb3, sb3_config
 
-pytestmark = pytest.mark.baselines
 
 ENV_ID = "rmac_mj/DCPendulum-Swingup-v0"
 
@@ -46,6 +45,8 @@ CASES = [("sb3-sac", {"net_arch": (64, 64), "batch_size": 64}, 160),
          ("sb3-ppo", {"n_steps": 40, "batch_size": 20, "n_epochs": 2}, 200)]
 
 
+@pytest.mark.slow
+@pytest.mark.baselines
 @pytest.mark.parametrize("algorithm, overrides, steps", CASES)
 def test_learning_step_by_step_equals_sb3s_own_learn(algorithm, overrides, steps):
     """Same seed, same environment: the learner's parameters equal those of SB3's model.learn() on
@@ -88,6 +89,7 @@ def _pendulum_spaces():
     return state_space_of(env), action_space_of(env)
 
 
+@pytest.mark.baselines
 @pytest.mark.parametrize("algorithm", sb3_config.BASELINES)
 def test_the_defaults_are_sb3s(algorithm):
     """Every hyperparameter SB3's constructor takes defaults to SB3's value, and the networks to SB3's
@@ -114,6 +116,7 @@ def test_the_defaults_are_sb3s(algorithm):
     assert sorted(model.policy.state_dict()) == sorted(agent.model.policy.state_dict())
 
 
+@pytest.mark.baselines
 def test_network_input_is_the_gymnasium_observation():
     """The networks see what a Gymnasium user of the suite observes."""
     import gymnasium
@@ -131,7 +134,7 @@ def test_network_input_is_the_gymnasium_observation():
     assert tasks  # the suite's ids are registered on import
 
 
-def test_without_the_extra_the_learners_name_it(monkeypatch):
+def test_without_the_extra_the_learners_name_it(monkeypatch):  # runs without the extra too
     monkeypatch.setattr(sb3, "available", lambda: False)
     with pytest.raises(ImportError, match=r"\[baselines\]"):
         make_agent("sb3-sac", *_pendulum_spaces(), seed=0)
@@ -142,6 +145,8 @@ TINY = dict(algorithms=("sb3-sac",), experiments=2, trials=2, evaluate_every=1,
             snapshot_trials=(1,), agent_configs={"sb3-sac": quick_config("sb3-sac")})
 
 
+@pytest.mark.slow
+@pytest.mark.baselines
 def test_reproduce_runs_a_baseline_and_resumes_it_alike(tmp_path):
     """A tiny rmac-mj reproduce of sb3-sac: an interrupted run finished with resume has the curves of
     an uninterrupted one (serial equals parallel: tests/experiments/test_runner.py), and the last snapshot

@@ -41,6 +41,7 @@ def coarse_and_finer():
     return optimal.solve(env, _COARSE), optimal.solve(env, _FINER)
 
 
+@pytest.mark.slow
 def test_coarse_grid_agrees_with_finer_grid_within_tolerance(coarse_and_finer):
     coarse, finer = coarse_and_finer
     assert abs(coarse.simulated_return - finer.simulated_return) <= _REL_TOL * abs(finer.simulated_return)
