@@ -17,7 +17,8 @@ from rmac_mj.constraints import Boolean, Interval, Options, TupleOf, check_confi
 BASELINES = ("sb3-sac", "sb3-td3", "sb3-ppo")
 
 INSTALL_HINT = ("the deep-RL baselines need the [baselines] extra (torch, stable-baselines3): "
-                "pip install -c constraints.txt -e \".[baselines]\"")
+                "pip install -c constraints.txt -e \".[baselines]\" "
+                "--extra-index-url https://download.pytorch.org/whl/cpu (torch's CPU build)")
 
 
 def available() -> bool:
