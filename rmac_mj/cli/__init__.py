@@ -62,7 +62,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     prog = PROG
     if args.command is None:  # `rmac-mj` alone: what it can do
         parser.print_help()
-        return 2
+        return 0
     signal.signal(signal.SIGTERM, _interrupt)  # a polite kill cleans up like Ctrl-C
     try:
         if args.command == "reproduce":

@@ -204,8 +204,9 @@ def build_parser(reproduce_defaults: Mapping[str, Any] | None = None) -> argpars
     compare = command("compare", "overlay the learning curves of result directories and tabulate them")
     compare.add_argument("dirs", nargs="+", type=pathlib.Path, metavar="DIR",
                          help="result directories written by rmac-mj reproduce (with summary.json)")
-    compare.add_argument("--out", type=pathlib.Path, default=pathlib.Path("compare"),
-                         help="figure path without suffix (.png and .pdf are written)")
+    compare.add_argument("--out", type=pathlib.Path, default=None,
+                         help="figure path without suffix (.png and .pdf are written; "
+                         "default: FIRST_DIR/compare, beside the first run's own figures)")
     compare.add_argument("--smooth", type=_positive_int, default=1, metavar="N",
                          help="running mean over N trials (1: none)")
 

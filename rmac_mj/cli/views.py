@@ -52,9 +52,10 @@ def compare(args) -> int:
         summaries[label] = store.read_summary()
         if "trial_seconds" not in summaries[label]:
             raise UsageError(f"{store.summary_path} has no trial_seconds (the task's trial length)")
+    out = args.out if args.out is not None else directories[0] / "compare"
     optimal = next((s["optimal_return"] for s in summaries.values() if s.get("optimal_return")), None)
     floors = {s.get("exploration_floor") for s in summaries.values()}
-    paths = plots.plot_learning_curves(summaries, args.out, optimal_return=optimal, smooth=args.smooth,
+    paths = plots.plot_learning_curves(summaries, out, optimal_return=optimal, smooth=args.smooth,
                                        exploration_floor=floors.pop() if len(floors) == 1 else None)
     for label, summary in summaries.items():
         print(f"== {label}: {_settings_line(summary)}")
@@ -65,7 +66,7 @@ def compare(args) -> int:
     paths += plots.plot_performance_profiles(
         {(label, a): s[a]["final_return_per_experiment"] for label, s in summaries.items()
          for a in ALGORITHMS if a in s and "final_return_per_experiment" in s[a]},
-        args.out.with_name(args.out.name + "_profiles"))
+        out.with_name(out.name + "_profiles"))
     print("figures:", ", ".join(map(str, paths)))
     return 0
 

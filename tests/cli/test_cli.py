@@ -76,6 +76,16 @@ def test_reproduce_and_compare_and_policy(tmp_path):
     result = rmac_mj("compare", str(out), str(out), "--out", str(tmp_path / "cmp"))
     assert result.returncode == 0, result.stderr
     assert (tmp_path / "cmp.png").is_file()
+
+
+def test_compare_draws_next_to_the_first_run_by_default(tmp_path):
+    _fake_run(tmp_path / "a" / "run", 0)
+    _fake_run(tmp_path / "b" / "run", 1)
+    result = rmac_mj("compare", "a/run", "b/run", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a", "b"]  # nothing in the working directory
+    for name in ("compare.png", "compare.pdf", "compare_profiles.png", "compare_profiles.pdf"):
+        assert (tmp_path / "a" / "run" / name).is_file(), name
     result = rmac_mj("policy", str(out / "snapshots/s-ac/exp_000/trial_0003.npz"), "--out",
                      str(tmp_path / "policy"))
     assert result.returncode == 0, result.stderr
@@ -133,7 +143,7 @@ def test_version_and_python_dash_m():
 
 def test_no_arguments_prints_the_usage_and_the_commands():
     result = rmac_mj()
-    assert result.returncode == 2 and result.stdout.startswith("usage: rmac-mj")
+    assert result.returncode == 0 and result.stdout.startswith("usage: rmac-mj")
     for command in ("reproduce", "compare", "policy", "optimal", "render", "bench"):
         assert f"\n    {command} " in result.stdout or f"\n    {command}\n" in result.stdout, command
 
@@ -190,6 +200,16 @@ def test_compare_shows_same_named_directories_apart(tmp_path):
     assert "== a/run: 3 experiments of 60 trials, seed 0; default hyperparameters" in result.stdout
     assert "== b/run: 3 experiments of 60 trials, seed 1; --set rmac.exploration.sigma=0.5" in result.stdout
     assert (tmp_path / "cmp.png").is_file()
+
+
+def test_compare_draws_next_to_the_first_run_by_default(tmp_path):
+    _fake_run(tmp_path / "a" / "run", 0)
+    _fake_run(tmp_path / "b" / "run", 1)
+    result = rmac_mj("compare", "a/run", "b/run", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a", "b"]  # nothing in the working directory
+    for name in ("compare.png", "compare.pdf", "compare_profiles.png", "compare_profiles.pdf"):
+        assert (tmp_path / "a" / "run" / name).is_file(), name
 
 
 def test_shortest_distinct_suffixes():
