@@ -83,6 +83,7 @@ class Progress:
         self.plain = enabled and not (_is_terminal(self.stream) or "ipykernel" in sys.modules)
         self.interval = interval
         self.started = time.monotonic()
+        self.last_trial = self.started  # when a trial was last counted: the rate's end
         self.first_trials = self.trials_done["all"]
         self.last_line = -math.inf
         self.bars = {}
@@ -133,6 +134,7 @@ class Progress:
         self._advance(algorithm, self.trials[run] - previous)
 
     def _advance(self, algorithm: str, trials: int) -> None:
+        self.last_trial = time.monotonic()
         for key in ("all", algorithm):
             self.trials_done[key] += trials
             if key in self.bars:
@@ -149,7 +151,10 @@ class Progress:
         elapsed = time.monotonic() - self.started
         total = self.total_trials["all"]
         done = self.trials_done["all"]
-        rate = (done - self.first_trials) / elapsed if elapsed > 0 else 0.0
+        # trials per second of the experiments' own time: a wait after the last one (the summary
+        # waiting for the near-optimal reference, the figures) does not slow it down
+        learning = (self.last_trial if done >= total else time.monotonic()) - self.started
+        rate = (done - self.first_trials) / learning if learning > 0 else 0.0
         eta = f", about {duration((total - done) / rate)} left" if rate > 0 and done < total else ""
         runs = "" if self.runs == 1 else f", {self.runs_done}/{self.runs} runs"
         parts = [f"[{duration(elapsed)}] {done}/{total} trials ({self.done['all']}/"

@@ -11,7 +11,7 @@ import time
 import numpy as np
 import pytest
 
-from rmac_mj.experiments import runner
+from rmac_mj.experiments import progress as progress_module, runner
 from rmac_mj.rollout import run_trial
 from rmac_mj.experiments.progress import Progress, TrialFeed
 from rmac_mj.experiments.protocol import ExperimentSpec, Protocol, run_experiment
@@ -308,6 +308,22 @@ def test_progress_bars_show_the_mean_of_the_last_trials():
         display.trial((0, "s-ac", 0), trial, value)
     display.close()
     assert "last 3 trials -2000" in stream.getvalue() and not display.plain
+
+
+def test_the_trial_rate_counts_only_the_experiments_own_time(monkeypatch):
+    import io
+
+    clock = [100.0]
+    monkeypatch.setattr(progress_module.time, "monotonic", lambda: clock[0])
+    stream = io.StringIO()
+    protocol = Protocol(**TINY)  # 2 experiments of 4 trials
+    display = Progress([protocol], [{}], enabled=True, stream=stream, interval=1e9)
+    clock[0] += 2.0
+    display.experiment((0, "s-ac", 0))
+    display.experiment((0, "s-ac", 1))  # 8 trials in 2 s
+    clock[0] += 60.0  # then a minute of something else (the reference, the figures)
+    display.close()
+    assert stream.getvalue().splitlines()[-1].startswith("[1 min 02 s] 8/8 trials (2/2 experiments), 4 trials/s")
 
 
 def test_a_resumed_run_reports_the_wall_time_of_all_its_parts(tmp_path):
