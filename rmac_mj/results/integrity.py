@@ -37,8 +37,9 @@ class DirectoryBusy(UserInputError):
 class DirectoryLock:
     """An exclusive lock on a result directory, with who holds it written into the lock file.
 
-    ``flock`` locks belong to the open file, so a killed holder never leaves a stale lock; the lock
-    file stays (empty of meaning once unlocked). Re-entrant in one process only through one instance.
+    ``flock`` locks belong to the open file, so a killed holder never leaves a stale lock (its file
+    stays, empty of meaning once unlocked); a run that ends removes the file as it lets go.
+    Re-entrant in one process only through one instance.
     """
 
     def __init__(self, root: pathlib.Path):
@@ -50,15 +51,20 @@ class DirectoryLock:
         if self.handle is not None:
             return
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        handle = open(self.path, "a+", encoding="utf-8")
-        try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            handle.seek(0)
-            holder = handle.read().strip()
-            handle.close()
-            raise DirectoryBusy(f"{self.path.parent} is in use by another run ({_describe(holder)}); "
-                                "wait for it to end or choose another --out") from None
+        while True:
+            handle = open(self.path, "a+", encoding="utf-8")
+            try:
+                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                handle.seek(0)
+                holder = handle.read().strip()
+                handle.close()
+                raise DirectoryBusy(f"{self.path.parent} is in use by another run "
+                                    f"({_describe(holder)}); wait for it to end or choose another "
+                                    "--out") from None
+            if _same_file(handle, self.path):
+                break
+            handle.close()  # its holder removed that file as it let go: lock the one there now
         handle.seek(0)
         handle.truncate()
         handle.write(json.dumps({
@@ -70,6 +76,8 @@ class DirectoryLock:
 
     def release(self) -> None:
         if self.handle is not None:
+            if _same_file(self.handle, self.path):  # removed while still held: no one else has it
+                self.path.unlink()
             fcntl.flock(self.handle, fcntl.LOCK_UN)
             self.handle.close()
             self.handle = None
@@ -80,6 +88,14 @@ class DirectoryLock:
 
     def __exit__(self, *exc) -> None:
         self.release()
+
+
+def _same_file(handle, path: pathlib.Path) -> bool:
+    """Whether the open ``handle`` is the file at ``path`` now (not one removed since it was opened)."""
+    try:
+        return os.path.samestat(os.fstat(handle.fileno()), os.stat(path))
+    except FileNotFoundError:
+        return False
 
 
 def _describe(holder: str) -> str:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import errno
 import json
+import os
 import pathlib
 import shutil
 import signal
@@ -70,6 +71,31 @@ def test_a_directory_in_use_is_refused_naming_the_run_that_holds_it(tmp_path, ca
         holder.kill()
         holder.wait()
     assert main(["reproduce", *CLI, "--out", str(out)]) == 0  # the lock died with its holder
+
+
+def test_a_finished_run_leaves_no_lock_file(finished):
+    assert not (finished / ".lock").exists() and (finished / "summary.json").is_file()
+
+
+def test_a_lock_file_removed_by_its_last_holder_is_not_shared(tmp_path):
+    from rmac_mj.experiments import integrity
+
+    first, second = integrity.DirectoryLock(tmp_path), integrity.DirectoryLock(tmp_path)
+    first.acquire()
+    with pytest.raises(integrity.DirectoryBusy):
+        second.acquire()
+    stale = open(tmp_path / ".lock", "a+")  # opened before the holder let go, as a racing process
+    first.release()
+    assert not (tmp_path / ".lock").exists()
+    second.acquire()  # takes the new file, not the one removed
+    assert json.loads((tmp_path / ".lock").read_text())["pid"] == os.getpid()
+    import fcntl
+    fcntl.flock(stale, fcntl.LOCK_EX | fcntl.LOCK_NB)  # the removed file's lock guards nothing now
+    assert integrity._same_file(stale, tmp_path / ".lock") is False
+    stale.close()
+    with pytest.raises(integrity.DirectoryBusy):
+        first.acquire()
+    second.release()
 
 
 def test_a_sweep_directory_in_use_is_refused_before_anything_is_written(tmp_path, capsys):
