@@ -51,3 +51,31 @@ def pytest_collection_modifyitems(config, items):
                 callspec is not None and any(isinstance(value, str) and value in sb3_config.BASELINES
                                              for value in callspec.params.values())):
             item.add_marker(skip_baselines)
+
+
+def pytest_configure(config):
+    """Say, in one line, when the tests start compiling the kernels (the first run only): else the
+    suite is silent for about a minute while the first test that runs a learner waits for numba."""
+    from numba.core import event
+
+    from rmac_mj import _cache
+
+    class _FirstCompile(event.Listener):
+        said = False
+
+        def on_start(self, ev):
+            if self.said:
+                return
+            self.said = True
+            reporter = config.pluginmanager.get_plugin("terminalreporter")
+            capture = config.pluginmanager.get_plugin("capturemanager")
+            if reporter is None or capture is None:
+                return
+            with capture.global_and_fixture_disabled():  # inside a test: past its output capture
+                reporter.write_line(f"compiling the learners' kernels, first run only (about a minute "
+                                    f"on 2 cores; cached in {_cache.numba_cache_location()})")
+
+        def on_end(self, ev):
+            pass
+
+    event.register("numba:compile", _FirstCompile())

@@ -16,6 +16,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import threading
 import time
 from typing import Any, Callable, Iterable
 
@@ -143,14 +144,17 @@ def warm_up(protocol: Protocol) -> None:
         run_trial(env, agent, learn=False)
 
 
-def warm_up_announced(protocols: Iterable[Protocol], log: Callable[[str], None] | None) -> None:
+#: Seconds between two lines of the warm-up's progress while numba compiles.
+COMPILE_PROGRESS_SECONDS = 10.0
+
+
+def warm_up_announced(protocols: Iterable[Protocol], log: Callable[[str], None] | None,
+                      interval: float = COMPILE_PROGRESS_SECONDS) -> None:
     """:func:`warm_up` once per distinct task, learner and back end (the kernels do not depend on
-    the other settings), saying so when numba really compiles (the first run only)."""
+    the other settings), saying so when numba really compiles (the first run only): which learners'
+    kernels, then every ``interval`` seconds how long it has taken so far, then the total."""
     from rmac_mj import _cache
 
-    def compiling() -> None:
-        if log is not None:
-            log(f"compiling kernels, first run only (cached in {_cache.numba_cache_location()})")
     seen, chosen = set(), []
     for protocol in protocols:
         key = json.dumps([protocol.environment_description(), protocol.algorithms,
@@ -159,9 +163,31 @@ def warm_up_announced(protocols: Iterable[Protocol], log: Callable[[str], None] 
         if key not in seen:
             seen.add(key)
             chosen.append(protocol)
+    learners = ", ".join(dict.fromkeys(a for p in chosen for a in p.algorithms))
     compile_started = time.perf_counter()
-    with _cache.on_first_compile(compiling):
-        for protocol in chosen:
-            warm_up(protocol)
-    if log is not None and _cache.kernel_stats()["compiled"]:
+    compiling, done = threading.Event(), threading.Event()
+
+    def first_compile() -> None:
+        compiling.set()
+        if log is not None:
+            log(f"compiling the kernels of {learners}, first run only (cached in "
+                f"{_cache.numba_cache_location()})")
+
+    def tick() -> None:  # numba holds the interpreter for seconds at a time: a line now and then
+        while not done.wait(interval):
+            if compiling.is_set():
+                log(f"compiling the kernels of {learners}: "
+                    f"{time.perf_counter() - compile_started:.0f} s so far")
+    ticker = threading.Thread(target=tick, name="rmac-mj compile progress", daemon=True)
+    if log is not None:
+        ticker.start()
+    try:
+        with _cache.on_first_compile(first_compile):
+            for protocol in chosen:
+                warm_up(protocol)
+    finally:
+        done.set()
+        if ticker.is_alive():
+            ticker.join()
+    if log is not None and compiling.is_set():
         log(f"kernels compiled in {time.perf_counter() - compile_started:.0f} s")

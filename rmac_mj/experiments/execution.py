@@ -37,7 +37,7 @@ class BackendError(UserInputError):
     """The Dask scheduler cannot be reached, or was lost while experiments ran on it."""
 
 
-def _start_worker(driver: int) -> None:
+def start_worker(driver: int) -> None:
     """Worker initialiser. Ctrl-C reaches the whole process group; only the driver handles it. And a
     worker whose driver is gone (killed with SIGKILL, which it cannot answer by stopping its
     workers) stops too: a watchdog thread sees the parent change and ends the process."""
@@ -77,7 +77,7 @@ def local_outcomes(items: Iterable, run: Callable, jobs: int,
     # "spawn": workers start clean (no inherited GL contexts or numba state); the numba cache (filled
     # by the driver's warm-up) makes their start-up cheap.
     context = multiprocessing.get_context("spawn")
-    pool = context.Pool(processes=min(jobs, len(first)), initializer=_start_worker,
+    pool = context.Pool(processes=min(jobs, len(first)), initializer=start_worker,
                         initargs=(os.getpid(),))
     finished: queue.SimpleQueue = queue.SimpleQueue()
     pending = itertools.chain(first, items)

@@ -15,7 +15,10 @@ import dataclasses
 import datetime
 import itertools
 import json
+import multiprocessing
 import os
+import queue
+import threading
 import time
 from typing import Any, Callable, Iterable, Iterator
 
@@ -67,6 +70,86 @@ def run_tagged(item: tuple[Any, ExperimentSpec],
     def report(algorithm: str, index: int, trial: int, value: float) -> None:
         on_trial((tag, algorithm, index), trial, value)
     return tag, run_experiment(spec, report if on_trial is not None else None)
+
+
+NearOptimal = tuple[float | None, dict[str, float | None]]
+
+#: In the process that computes the near-optimal returns: where its messages go (to the driver).
+_messages: Any = None
+
+
+def _start_near_optimal(driver: int, messages) -> None:
+    global _messages
+    execution.start_worker(driver)
+    _messages = messages
+
+
+def _announce(message: str) -> None:
+    _messages.put(message)
+
+
+def near_optimal(protocol: Protocol, announce: Callable[[str], None] | None = None) -> NearOptimal:
+    """The near-optimal return of the protocol's task and each learner's exploration floor (None
+    where there is none): what its summary and Fig. 2 are measured against."""
+    return (optimum.run_optimum(protocol, announce),
+            {a: optimum.run_exploration_floor(protocol, a, announce) for a in protocol.algorithms})
+
+
+class NearOptimalService:
+    """:func:`near_optimal` of several runs, computed beside their experiments.
+
+    With ``background``, one process of its own computes them, in the runs' order, from the start:
+    while the driver compiles the kernels and while the workers run the first experiments, not after
+    the last one (a sweep's floors of one dynamic programme reuse its values in that process). Its
+    messages reach ``log`` through the driver. Without, each is computed when asked for, here.
+    """
+
+    def __init__(self, protocols: list[Protocol | None], log: Callable[[str], None] | None,
+                 background: bool, compute: Callable[..., NearOptimal] = near_optimal):
+        self.protocols, self.log, self.compute = protocols, log, compute
+        self.pending: dict[int, Any] = {}
+        self.pool = self.relay = None
+        if not background or not any(p is not None for p in protocols):
+            return
+        context = multiprocessing.get_context("spawn")
+        self.messages = context.Queue()
+        self.pool = context.Pool(1, initializer=_start_near_optimal,
+                                 initargs=(os.getpid(), self.messages))
+        for k, protocol in enumerate(protocols):
+            if protocol is not None:
+                self.pending[k] = self.pool.apply_async(compute, (protocol, _announce))
+        self.pool.close()
+        self.relay = threading.Thread(target=self._relay, name="rmac-mj near-optimal messages",
+                                      daemon=True)
+        self.relay.start()
+
+    def _relay(self) -> None:
+        while True:
+            message = self.messages.get()
+            if message is None:
+                return
+            if self.log is not None:
+                self.log(message)
+
+    def result(self, k: int) -> NearOptimal | None:
+        """Run ``k``'s near-optimal return and floors (waiting for them), or None if it asked none."""
+        protocol = self.protocols[k]
+        if protocol is None:
+            return None
+        if k in self.pending:
+            return self.pending[k].get()
+        return self.compute(protocol, self.log)
+
+    def close(self) -> None:
+        """Let the process end; one still computing is stopped at once (what it has not finished
+        is computed again next time)."""
+        if self.pool is not None:
+            if not all(result.ready() for result in self.pending.values()):
+                self.pool.terminate()
+            self.pool.join()
+            self.messages.put(None)
+            self.relay.join(timeout=5)
+            self.pool = None
 
 
 class _Run:
@@ -187,14 +270,18 @@ def run_protocols(runs: Iterable[tuple[Protocol, str | os.PathLike]], jobs: int 
             document["prior_sha256"] = prior_sha256
         state.append(_Run(protocol, out, document, demonstration, resume))
     client = execution.connect_dask(scheduler) if scheduler else None
+    # With one local process (--jobs 1) the run uses one core: the references wait for the end.
+    service = NearOptimalService([run.protocol if references else None for run in state], log,
+                                 background=references and (client is not None or jobs > 1))
     try:
         for run in state:  # what exists is begun now: locked, checked (a sweep's others as they start)
             if run.store.root.exists() and any(run.store.root.iterdir()):
                 run.begin(started, log)
-        return _run_all(state, client, jobs, progress, started, log,
+        return _run_all(state, client, jobs, progress, started, log, service,
                         dict(references=references, figures=figures, smooth=smooth, log=log,
                              started=started, facts=spaces))
     finally:
+        service.close()
         for run in state:
             run.store.lock().release()
         if client is not None:
@@ -202,7 +289,8 @@ def run_protocols(runs: Iterable[tuple[Protocol, str | os.PathLike]], jobs: int 
 
 
 def _run_all(state: list[_Run], client, jobs: int, progress: bool, started: float,
-             log: Callable[[str], None] | None, options: dict[str, Any]) -> list[dict[str, Any]]:
+             log: Callable[[str], None] | None, service: NearOptimalService,
+             options: dict[str, Any]) -> list[dict[str, Any]]:
     local = client is None
     busy = [run for run in state if run.left]
     if busy and local:
@@ -237,28 +325,30 @@ def _run_all(state: list[_Run], client, jobs: int, progress: bool, started: floa
                 display.experiment(key, result.returns)
                 run.clock.record(experiments=1)
                 if not run.left:
-                    run.finalise(**options)
+                    run.finalise(**options, computed=service.result(k))
     finally:
         display.close()
-    return [run.summary if run.summary is not None else run.finalise(**options) for run in state]
+    return [run.summary if run.summary is not None
+            else run.finalise(**options, computed=service.result(k)) for k, run in enumerate(state)]
 
 
 def finalise(store: ResultStore, protocol: Protocol, wall_time_s: float | None = None,
              references: bool = False, figures: bool = True, clock: WallClock | None = None,
              smooth: int = 1, log: Callable[[str], None] | None = None,
-             facts: admission.TaskFacts | None = None) -> dict[str, Any]:
+             facts: admission.TaskFacts | None = None,
+             computed: NearOptimal | None = None) -> dict[str, Any]:
     """Summarise the finished curves in ``store``: returns.csv, Fig. 2, then summary.json.
 
     The wall time in the summary is ``wall_time_s``, or with ``clock`` the total over every part of
     the run up to the end of the figures (``wall_time_parts_s`` lists the parts); ``facts`` are the
     tasks' facts already asked (:class:`admission.TaskFacts`). With ``references``, the task's
-    near-optimal return and each learner's exploration floor are asked for (``log`` hears about a
-    first computation and its progress).
+    near-optimal reference and each learner's exploration floor are asked for (``log`` hears about a
+    first computation and its progress), unless ``computed`` gives them (:func:`near_optimal`).
     """
     store.summary_path.unlink(missing_ok=True)  # until the new one is written: not finished
-    optimal_return = optimum.run_optimum(protocol, log) if references else None
-    floors = ({a: optimum.run_exploration_floor(protocol, a, log) for a in protocol.algorithms}
-              if references else {})
+    if computed is None and references:
+        computed = near_optimal(protocol, log)
+    optimal_return, floors = computed if computed is not None else (None, {})
     shared_floor = set(floors.values())  # one line in Fig. 2 when every learner explores alike
     facts = facts or admission.TaskFacts()
     seconds = facts.trial_seconds(protocol)

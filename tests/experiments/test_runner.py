@@ -326,6 +326,42 @@ def test_the_trial_rate_counts_only_the_experiments_own_time(monkeypatch):
     assert stream.getvalue().splitlines()[-1].startswith("[1 min 02 s] 8/8 trials (2/2 experiments), 4 trials/s")
 
 
+def _fake_near_optimal(protocol, announce):
+    announce(f"computing the floors of {', '.join(protocol.algorithms)}")
+    return -748.0, {a: -870.0 for a in protocol.algorithms}
+
+
+def test_the_near_optimal_returns_are_computed_in_a_process_of_their_own():
+    messages = []
+    service = runner.NearOptimalService([Protocol(**TINY), None], messages.append, background=True,
+                                        compute=_fake_near_optimal)
+    try:
+        assert service.result(0) == (-748.0, {"s-ac": -870.0}) and service.result(1) is None
+    finally:
+        service.close()
+    assert messages == ["computing the floors of s-ac"]  # relayed to the driver's log
+
+
+def test_compiling_says_what_and_how_long_while_it_lasts(monkeypatch):
+    import numba
+
+    from rmac_mj.experiments import admission
+
+    lines = []
+
+    def warm_up(protocol):  # a kernel compiled afresh, then as long as it takes to see a tick
+        numba.njit(lambda x: x + 1)(1)
+        deadline = time.monotonic() + 60
+        while not any("so far" in line for line in lines) and time.monotonic() < deadline:
+            time.sleep(0.01)
+    monkeypatch.setattr(admission, "warm_up", warm_up)
+    admission.warm_up_announced([Protocol(**TINY)], lines.append, interval=0.01)
+    assert lines[0].startswith("compiling the kernels of s-ac, first run only (cached in ")
+    assert any(line.startswith("compiling the kernels of s-ac: ") and line.endswith(" s so far")
+               for line in lines[1:-1])
+    assert lines[-1].startswith("kernels compiled in ")
+
+
 def test_a_resumed_run_reports_the_wall_time_of_all_its_parts(tmp_path):
     protocol = Protocol(**TINY)
     first = runner.run_protocol(protocol, tmp_path, jobs=1, progress=False, figures=False)
