@@ -71,6 +71,21 @@ def compare(args) -> int:
     return 0
 
 
+def _declared_labels(learner_state, meta: dict):
+    """``learner_state`` with the axis labels the snapshot's run declared for the same state (an
+    environment given again by --env has its state inferred: "observation[2]" for a declared
+    "speed [rad/s]")."""
+    import dataclasses
+
+    declared = (meta.get("environment") or {}).get("learner_state") or {}
+    if (list(declared.get("keys") or []) == list(learner_state.keys)
+            and len(declared.get("labels") or []) == len(learner_state.labels)):
+        return dataclasses.replace(learner_state, labels=tuple(declared["labels"]),
+                                   action_labels=tuple(declared.get("action_labels")
+                                                       or learner_state.action_labels))
+    return learner_state
+
+
 def policy(args) -> int:
     from rmac_mj.figures import policy_plots
     from rmac_mj.rollout import learner_state_of, state_of
@@ -82,7 +97,7 @@ def policy(args) -> int:
             agent, meta = load_snapshot(path)
         snapshots.append((agent, meta))
         envs.append(snapshot_environment(agent, meta, args.domain, args.task, args.env))
-    learner_state = learner_state_of(envs[0])
+    learner_state = _declared_labels(learner_state_of(envs[0]), snapshots[0][1])
     for path, env in zip(args.snapshots[1:], envs[1:]):
         if learner_state_of(env) != learner_state:
             raise UsageError(f"{path} learned on another state ({learner_state_of(env).labels}) than "

@@ -28,15 +28,18 @@ from rmac_mj.tasks.common import LearnerStateSpec
 
 def load(env: str, kwargs: Mapping[str, Any] | None = None, *, seed: int | None = None,
          learner_state: LearnerStateSpec | Mapping[str, Any] | None = None, action_repeat: int = 1,
-         trial_steps: int | None = None, control_timestep: float | None = None) -> Environment:
+         trial_steps: int | None = None, control_timestep: float | None = None,
+         render: bool = False) -> Environment:
     """The environment named by the SPEC ``env``, seeded, as the learners see it.
 
-    Arguments as the fields of :class:`EnvSpec`; ``seed`` seeds the environment's starts.
+    Arguments as the fields of :class:`EnvSpec`; ``seed`` seeds the environment's starts;
+    ``render``: able to draw its frames (a Gymnasium environment is made with
+    ``render_mode="rgb_array"``; a factory gets it if it takes ``render_mode``).
     """
     spec = EnvSpec(env, kwargs=kwargs or {}, learner_state=learner_state,
                    action_repeat=action_repeat, trial_steps=trial_steps,
                    control_timestep=control_timestep)
-    return spec.make(seed)
+    return spec.make(seed, render=render)
 
 
 def hint_for(domain: str) -> str:

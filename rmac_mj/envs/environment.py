@@ -127,7 +127,7 @@ class Environment(dm_env.Environment):
     def render_frame(self, width: int = 320, height: int = 240) -> np.ndarray:
         """The current picture, uint8 of shape (H, W, 3): a MuJoCo physics' from its first camera
         at ``width`` x ``height``; a Gymnasium environment's own ``render()`` (its size; made with
-        ``render_mode="rgb_array"``, see ``EnvSpec.make(render=True)``)."""
+        ``render_mode="rgb_array"``, see ``envs.load(..., render=True)``)."""
         physics = getattr(self.base, "physics", None)
         if physics is not None:
             return physics.render(height, width, camera_id=0 if physics.model.ncam > 0 else -1)
@@ -135,8 +135,11 @@ class Environment(dm_env.Environment):
         if gymnasium_env is None:
             raise UserInputError(f"{self.name}: a dm_env without a MuJoCo physics cannot be rendered")
         if gymnasium_env.render_mode != "rgb_array":
-            raise UserInputError(f"{self.name}: made without render_mode='rgb_array' (EnvSpec.make("
-                                 f"render=True), or a factory that takes render_mode)")
+            raise UserInputError(
+                f"{self.name} cannot be rendered: it was made without render_mode='rgb_array'. A "
+                "factory is asked for frames through a render_mode argument: take it, pass it to "
+                "the environment and let its render() return an RGB array (in Python: "
+                "envs.load(SPEC, render=True))")
         try:
             frame = gymnasium_env.render()
         except Exception as error:  # e.g. gymnasium's DependencyNotInstalled (pygame)

@@ -30,8 +30,27 @@ GREEDY_WITHIN = (0.2, 0.1)
 #: Significance level of the end-of-run comparison of learners (two-sided).
 SIGNIFICANCE_LEVEL = 0.05
 #: With fewer experiments than this per learner, 95% intervals are too wide to read (the Student t
-#: factor exceeds 2.7, and the standard deviation itself is a rough guess).
+#: factor exceeds 2.7, and the standard deviation itself is a rough guess), and a bootstrap has too
+#: few distinct resamples to mean anything: the summaries withhold every interval and probability
+#: of improvement below it (:func:`withheld`), saying why.
 FEW_EXPERIMENTS = 5
+
+
+def withheld(*experiments: int) -> str | None:
+    """Why an interval or a probability of learners with these experiment counts is withheld, or
+    None when each has :data:`FEW_EXPERIMENTS` or more."""
+    fewest = min(experiments)
+    if fewest >= FEW_EXPERIMENTS:
+        return None
+    counts = " and ".join(map(str, experiments))
+    return (f"{counts} experiment{'s' if max(experiments) != 1 else ''}: too few for a 95% interval "
+            f"or a probability (they need {FEW_EXPERIMENTS} or more per learner)")
+
+
+def shorter_than(minutes: float, n_trials: int, trial_seconds: float) -> bool:
+    """Whether a run of ``n_trials`` trials lasts less than ``minutes`` of simulated time (then a
+    window of its first ``minutes`` is undefined, not its whole run)."""
+    return n_trials * _check_trial_seconds(trial_seconds) < minutes * 60.0 - 1e-9
 
 
 def confidence_interval(samples: np.ndarray, confidence: float = 0.95, axis: int = 0):
@@ -155,6 +174,10 @@ def summarise(returns: np.ndarray, greedy: np.ndarray | None = None,
     Beside the paper's mean and Student-t interval, the final return and the first minutes' return
     have the interquartile mean with its stratified-bootstrap interval (:mod:`statistics`, the
     field's estimate since Agarwal et al. 2021: robust to a few stuck experiments).
+
+    With fewer than :data:`FEW_EXPERIMENTS` experiments every interval is None and
+    ``intervals_withheld`` says why (the per-trial band of Fig. 2 is kept, drawn with that note); a
+    window of the first minutes is None when the run is shorter than the window.
     """
     from rmac_mj.evaluation import statistics
 
@@ -168,6 +191,11 @@ def summarise(returns: np.ndarray, greedy: np.ndarray | None = None,
     first = early_returns(returns, FIRST_MINUTES, trial_seconds)
     first_mean, first_low, first_high = interval(first)
     stuck_below = stuck_threshold(optimal_return)
+    reason = withheld(n_experiments)
+    if reason is not None:
+        final_low = final_high = first_low = first_high = None
+    if shorter_than(FIRST_MINUTES, n_trials, trial_seconds):
+        first_mean = first_low = first_high = None
     summary = {
         "experiments": n_experiments,
         "trials": n_trials,
@@ -179,16 +207,22 @@ def summarise(returns: np.ndarray, greedy: np.ndarray | None = None,
         "final_return_ci95": [final_low, final_high],
         "final_return_per_experiment": finals.tolist(),
         "minutes_to_90pct": minutes_to_within(mean, window=window, trial_seconds=trial_seconds),
-        "mean_return_first_10min": float(returns[:, :early].mean()),
+        "mean_return_first_10min": (None if shorter_than(EARLY_MINUTES, n_trials, trial_seconds)
+                                    else float(returns[:, :early].mean())),
         "first_10min_trials": min(early, n_trials),
         "mean_return_first_5min": first_mean,
         "first_5min_ci95": [first_low, first_high],
         "first_5min_trials": min(trials_in(FIRST_MINUTES, trial_seconds), n_trials),
         "stuck_below": stuck_below,
         "stuck_experiments": None if stuck_below is None else int(np.sum(finals < stuck_below)),
+        "intervals_withheld": reason,
     }
     for key, scores in (("final_return", finals), ("first_5min", first)):
-        estimate = statistics.iqm_interval(scores).as_dict()
+        if key == "first_5min" and first_mean is None:
+            summary[f"{key}_iqm"], summary[f"{key}_iqm_ci95"] = None, [None, None]
+            continue
+        estimate = (statistics.iqm_interval(scores) if reason is None else
+                    statistics.Estimate(float(statistics.iqm(scores)), np.nan, np.nan)).as_dict()
         summary[f"{key}_iqm"], summary[f"{key}_iqm_ci95"] = estimate["value"], estimate["ci95"]
     if optimal_return is not None:
         summary["gap_to_optimal"] = float(optimal_return - final_mean)
@@ -197,6 +231,8 @@ def summarise(returns: np.ndarray, greedy: np.ndarray | None = None,
         summary["greedy_eval_trials"] = [int(t) for t in greedy_trials]
         summary["greedy_return_per_eval"] = greedy.mean(axis=0).tolist()
         last_mean, last_low, last_high = interval(greedy[:, -1])
+        if reason is not None:
+            last_low = last_high = None
         summary["greedy_return_last_mean"] = last_mean
         summary["greedy_return_last_ci95"] = [last_low, last_high]
         if optimal_return is not None:  # how soon the mean greedy policy is near-optimal
@@ -212,6 +248,26 @@ def summarise(returns: np.ndarray, greedy: np.ndarray | None = None,
         summary["cpu_s_per_simulated_minute"] = float(np.mean(cpu_times)
                                                       / (n_trials * trial_seconds / 60.0))
     return summary
+
+
+def improvement(finals: dict[str, Sequence[float]]) -> dict[str, dict[str, Any]]:
+    """The probability of improvement of every pair of learners' final returns
+    (``statistics.pairwise_improvement``), keyed ``"A > B"``; a pair with fewer than
+    :data:`FEW_EXPERIMENTS` experiments of either learner gets value and ci95 None and ``withheld``
+    saying why (from 2 experiments each it would read 1.00 [1.00, 1.00])."""
+    from rmac_mj.experiments import statistics
+
+    names, table = list(finals), {}
+    for i, a in enumerate(names):
+        for b in names[i + 1:]:
+            counts = [len(finals[a]), len(finals[b])]
+            reason = withheld(*counts)
+            if reason is None:
+                table.update(statistics.pairwise_improvement({a: finals[a], b: finals[b]}))
+            else:
+                table[f"{a} > {b}"] = {"value": None, "ci95": [None, None], "experiments": counts,
+                                       "withheld": reason}
+    return table
 
 
 def compare_final_returns(finals: dict[str, Sequence[float]],

@@ -39,13 +39,16 @@ def _estimate(value: float | None, ci95: list | None, digits: int = 0) -> str:
 
 def describe_improvement(pair: str, estimate: dict[str, Any]) -> str:
     """One line for the probability of improvement of ``pair`` ("a > b"): ``{"value", "ci95",
-    "experiments"}``. A learner is called better only when the interval excludes 0.5 and both have
-    ``FEW_EXPERIMENTS`` or more (with fewer, a bootstrap interval says nothing)."""
+    "experiments"}``. With fewer than ``FEW_EXPERIMENTS`` experiments of either learner it is
+    withheld, saying why (a summary written before it was withheld holds a number: it is not
+    shown); a learner is called better only when the interval excludes 0.5."""
     a, b = pair.split(" > ", 1)
+    reason = estimate.get("withheld") or metrics.withheld(*estimate.get("experiments", [0]))
+    if reason is not None:
+        return f"final returns: P({pair}), the probability of improvement, withheld: {reason}"
     low, high = estimate["ci95"]
-    enough = min(estimate.get("experiments", [0])) >= metrics.FEW_EXPERIMENTS
     verdict = ""
-    if enough and low is not None and (low > 0.5 or high < 0.5):
+    if low is not None and (low > 0.5 or high < 0.5):
         verdict = f": {a if low > 0.5 else b} better"
     return (f"final returns: P({pair}) = {_estimate(estimate['value'], estimate['ci95'], 2)}, "
             f"probability of improvement{verdict}")
@@ -55,20 +58,19 @@ def across_runs(summaries: dict[str, dict[str, Any]]) -> list[str]:
     """The probability of improvement of the final returns between every pair of (run, learner)
     of several runs (``rmac-mj compare``), one line each: a comparison across runs, not only within
     one."""
-    from rmac_mj.evaluation import statistics
-
     finals = {f"{label}: {algorithm}": summary[algorithm]["final_return_per_experiment"]
               for label, summary in summaries.items() for algorithm in ALGORITHMS
               if algorithm in summary and "final_return_per_experiment" in summary[algorithm]}
     return [describe_improvement(pair, estimate)
-            for pair, estimate in statistics.pairwise_improvement(finals).items()]
+            for pair, estimate in metrics.improvement(finals).items()]
 
 
 def few_experiments_note(experiments: int) -> str:
     """The warning printed and drawn when ``experiments`` < :data:`FEW_EXPERIMENTS`."""
     return (f"note: {experiments} experiment{'s' if experiments != 1 else ''} per learner: too few to rank "
-            f"the learners; the 95% intervals and the t-test assume normally distributed returns, which "
-            f"fewer than {metrics.FEW_EXPERIMENTS} experiments cannot show")
+            f"the learners; the 95% intervals and probabilities are withheld (n/a) and the t-test "
+            f"assumes normally distributed returns, which fewer than {metrics.FEW_EXPERIMENTS} "
+            "experiments cannot show")
 
 
 def summary_table(summary: dict[str, Any], algorithms: Iterable[str] | None = None) -> str:
@@ -78,15 +80,23 @@ def summary_table(summary: dict[str, Any], algorithms: Iterable[str] | None = No
     header = (f"{'learner':>8} {'experiments':>11} {'final return':>13} {'95% CI':>19} "
               f"{'IQM [95% CI]':>25} {'min to 90%':>10} {'first 10 min':>12} {'stuck':>5}")
     lines = [header, "-" * len(header)]
+    shorter = False
     for algorithm in algorithms:
         row = summary[algorithm]
+        # a summary written before intervals were withheld holds them: they are not shown
+        few = metrics.withheld(row["experiments"]) is not None
         low, high = row["final_return_ci95"]
-        ci = f"[{low:.0f}, {high:.0f}]" if low is not None else "n/a"
+        ci = f"[{low:.0f}, {high:.0f}]" if low is not None and not few else "n/a"
         stuck = "n/a" if row.get("stuck_experiments") is None else str(row["stuck_experiments"])
-        iqm = _estimate(row.get("final_return_iqm"), row.get("final_return_iqm_ci95"))
+        iqm = _estimate(row.get("final_return_iqm"), None if few else row.get("final_return_iqm_ci95"))
+        early = row.get("mean_return_first_10min")
+        if early is not None and summary.get("trial_seconds") and row.get("trials") and \
+                metrics.shorter_than(metrics.EARLY_MINUTES, row["trials"], summary["trial_seconds"]):
+            early = None  # written before the window was left empty for a shorter run
+        shorter = shorter or early is None
         lines.append(f"{algorithm:>8} {row['experiments']:>11d} {row['final_return_mean']:>13.1f} "
                      f"{ci:>19} {iqm:>25} {row['minutes_to_90pct']:>10.1f} "
-                     f"{row['mean_return_first_10min']:>12.1f} {stuck:>5}")
+                     f"{'n/a' if early is None else f'{early:.1f}':>12} {stuck:>5}")
     if summary.get("optimal_return") is not None:
         lines.append(f"near-optimal return: {summary['optimal_return']:.1f}")
     if summary.get("trial_seconds") is not None:
@@ -98,6 +108,9 @@ def summary_table(summary: dict[str, Any], algorithms: Iterable[str] | None = No
     improvement = summary.get("probability_of_improvement", {})
     lines.extend(describe_improvement(pair, estimate) for pair, estimate in improvement.items()
                  if all(name in algorithms for name in pair.split(" > ")))
+    if shorter:
+        lines.append(f"first 10 min: n/a, the run is shorter than {metrics.EARLY_MINUTES:g} simulated "
+                     "minutes")
     fewest = min((summary[a]["experiments"] for a in algorithms), default=None)
     if fewest is not None and fewest < metrics.FEW_EXPERIMENTS:
         lines.append(few_experiments_note(fewest))

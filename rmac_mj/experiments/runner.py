@@ -24,7 +24,7 @@ from typing import Any, Callable, Iterable, Iterator
 
 from rmac_mj.experiments import admission, execution, prior_transitions as prior_data
 from rmac_mj.results import files
-from rmac_mj.evaluation import metrics, statistics
+from rmac_mj.evaluation import metrics
 from rmac_mj.solvers import optimum
 from rmac_mj.experiments.progress import Progress, TrialFeed
 from rmac_mj.experiments.protocol import ExperimentSpec, Protocol, run_experiment
@@ -373,7 +373,7 @@ def finalise(store: ResultStore, protocol: Protocol, wall_time_s: float | None =
                     for t, r in enumerate(curve))
     finals = {a: summary[a]["final_return_per_experiment"] for a in protocol.algorithms}
     summary["final_return_tests"] = metrics.compare_final_returns(finals)
-    summary["probability_of_improvement"] = statistics.pairwise_improvement(finals)
+    summary["probability_of_improvement"] = metrics.improvement(finals)
 
     store.write_returns(rows)
     if figures:

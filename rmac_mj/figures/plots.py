@@ -77,7 +77,7 @@ def learning_curves_figure(summaries: dict[str, dict[str, Any]], optimal_return:
     if not isinstance(smooth, (int, np.integer)) or smooth < 1:
         raise ValueError(f"smooth must be a positive integer (trials), got {smooth!r}")
     seconds = {label: _trial_seconds(label, summary) for label, summary in summaries.items()}
-    fig, axes = plt.subplots(1, 2, figsize=(13, 4.8), constrained_layout=True)
+    fig, axes = plt.subplots(1, 2, figsize=(15, 4.8), constrained_layout=True)
     colours = {algorithm: style["color"] for algorithm, style in _STYLES.items()}
     palette = [c for c in plt.rcParams["axes.prop_cycle"].by_key()["color"]
                if c not in colours.values()]
@@ -144,8 +144,10 @@ def learning_curves_figure(summaries: dict[str, dict[str, Any]], optimal_return:
         axes[1].set_ylim(*detail_ylim)
     axes[1].set_title("Detail: the levels reached")
     legend_title = f"running mean over {smooth} trials" if smooth > 1 else None
-    for ax in axes:
-        ax.legend(loc="lower right", fontsize="small", title=legend_title, title_fontsize="small")
+    axes[0].legend(loc="lower right", fontsize="small", title=legend_title, title_fontsize="small")
+    # The detail's curves fill it up to its right edge (the levels reached): its legend goes beside it.
+    axes[1].legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize="small",
+                   title=legend_title, title_fontsize="small")
     if fewest is not None and fewest < FEW_EXPERIMENTS:
         fig.text(0.5, -0.01, f"{fewest} experiment{'s' if fewest != 1 else ''} per learner: too few "
                  f"to rank the learners; 95% intervals from fewer than {FEW_EXPERIMENTS} mean little "
@@ -164,7 +166,8 @@ def plot_learning_curves(summaries: dict[str, dict[str, Any]], stem: str | os.Pa
 
     Two panels: the whole range (the paper's view, with S-AC's early dip) and a detail of the levels
     reached, where the learners' differences are a few percent. The y axes follow the mean curves (the
-    bands are clipped to them), each panel has a legend, and a note says when fewer than
+    bands are clipped to them), each panel has a legend (the detail's beside it, off the curves' ends),
+    and a note says when fewer than
     ``FEW_EXPERIMENTS`` experiments make the bands meaningless.
 
     Args:
@@ -196,8 +199,11 @@ def performance_profiles_figure(scores: dict[tuple[str, str], Any],
     thresholds = np.linspace(low, high, 241)
     fig, ax = plt.subplots(figsize=(6.5, 4.2), constrained_layout=True)
     runs = list(dict.fromkeys(run for run, _ in scores))
+    fewest = min(len(v) for v in scores.values())
     for (run, algorithm), values in scores.items():
         fraction, band_low, band_high = statistics.performance_profile(values, thresholds)
+        if fewest < FEW_EXPERIMENTS:  # a bootstrap of so few experiments says nothing: no bands
+            band_low = band_high = np.full_like(fraction, np.nan)
         colour = _STYLES.get(algorithm, {}).get("color")
         name = display_name(algorithm) + (f" ({run})" if run else "")
         line, = ax.plot(thresholds, fraction, color=colour, drawstyle="steps-post", linewidth=1.4,
@@ -211,6 +217,10 @@ def performance_profiles_figure(scores: dict[tuple[str, str], Any],
     ax.grid(alpha=0.3)
     ax.set_title("Performance profiles, 95% stratified-bootstrap bands")
     ax.legend(loc="lower left", fontsize="small")
+    if fewest < FEW_EXPERIMENTS:
+        fig.text(0.5, -0.01, f"{fewest} experiment{'s' if fewest != 1 else ''}: too few for "
+                 f"bands (they need {FEW_EXPERIMENTS} or more per learner); each step is one experiment",
+                 ha="center", va="top", fontsize="small", color="firebrick")
     return fig
 
 

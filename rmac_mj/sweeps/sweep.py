@@ -175,11 +175,12 @@ def format_table(sweep: Sweep, rows: list[dict]) -> str:
         low, high = row["final_return_ci95_low"], row["final_return_ci95_high"]
         ci = f" [{low:.0f}, {high:.0f}]" if low is not None else ""
         greedy = row.get("greedy_return_mean")
+        first = row["mean_return_first_5min"]  # None for a run shorter than the window
         stuck = row["stuck_experiments"]  # None without a reference return to judge "stuck" by
         lines.append(f"{row['configuration']:<{width}} {row['algorithm']:>7} "
                      f"{row['final_return_mean']:>9.1f}{ci:>15} "
                      f"{'' if greedy is None else f'{greedy:.1f}':>7} "
-                     f"{row['minutes_to_90pct']:>10.1f} {row['mean_return_first_5min']:>11.1f} "
+                     f"{row['minutes_to_90pct']:>10.1f} {'n/a' if first is None else f'{first:.1f}':>11} "
                      f"{'' if stuck is None else stuck:>5}")
     windows = sorted({row["final_window"] for row in rows})
     lines.append(f"final return: mean of the last {', '.join(map(str, windows))} trials per experiment; "

@@ -291,3 +291,22 @@ def test_running_a_finished_run_again_prints_its_summary(tmp_path, capsys):
     assert len(error.strip().splitlines()) == 1
     assert main([*args, "--resume"]) == 0
     assert json.loads((out / "summary.json").read_text())["s-ac"] == json.loads(summary)["s-ac"]
+
+
+def test_policy_maps_keep_the_labels_the_run_declared():
+    from rmac_mj.cli.views import _declared_labels
+    from rmac_mj.tasks.common import LearnerState
+
+    inferred = LearnerState(keys=("atan2(observation[1], observation[0])", "observation[2]"),
+                            low=(-3.2, -10.0), high=(3.2, 10.0), periodic=(True, False),
+                            labels=("atan2(observation[1],observation[0]) [rad]", "observation[2]"),
+                            input_weights=(1.0, 0.3), action_input_weights=(1.0,),
+                            action_labels=("u[0]",))
+    meta = {"environment": {"env": "my_task.py:make", "learner_state": {
+        "keys": list(inferred.keys), "labels": ["angle phi [rad]", "speed [rad/s]"],
+        "action_labels": ["torque [N m]"]}}}
+    named = _declared_labels(inferred, meta)
+    assert named.labels == ("angle phi [rad]", "speed [rad/s]") and named.action_labels == ("torque [N m]",)
+    other = {"environment": {"learner_state": {"keys": ["observation[0]"], "labels": ["x"]}}}
+    assert _declared_labels(inferred, other) == inferred  # another state: nothing borrowed
+    assert _declared_labels(inferred, {"domain": "dc_pendulum"}) == inferred

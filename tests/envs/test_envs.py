@@ -474,3 +474,52 @@ def test_the_readmes_worked_example_runs_as_it_stands(tmp_path, monkeypatch, cap
     printed = capsys.readouterr().out.splitlines()
     assert printed == ["('atan2(observation[1], observation[0])', 'observation[2]')", "3.0"]
     assert len(namespace["returns"]) == 30 and all(np.isfinite(namespace["returns"]))
+
+
+_DRAWN = '''
+import gymnasium
+import numpy as np
+
+
+class Dot(gymnasium.Env):
+    metadata = {"render_modes": ["rgb_array"]}
+
+    def __init__(self, render_mode=None):
+        self.observation_space = gymnasium.spaces.Box(-1.0, 1.0, (1,))
+        self.action_space = gymnasium.spaces.Box(-1.0, 1.0, (1,))
+        self.render_mode, self.x, self.dt = render_mode, 0.0, 0.1
+
+    def reset(self, *, seed=None, options=None):
+        super().reset(seed=seed)
+        self.x = 0.5
+        return np.array([self.x], dtype=np.float32), {}
+
+    def step(self, action):
+        return np.array([self.x], dtype=np.float32), -self.x ** 2, False, False, {}
+
+    def render(self):
+        return np.full((8, 8, 3), 200, dtype=np.uint8)
+
+
+def drawn(render_mode=None):
+    return gymnasium.wrappers.TimeLimit(Dot(render_mode=render_mode), max_episode_steps=5)
+
+
+def undrawn():
+    return gymnasium.wrappers.TimeLimit(Dot(), max_episode_steps=5)
+'''
+
+
+def test_render_asks_a_factory_for_frames_through_render_mode(tmp_path):
+    pytest.importorskip("gymnasium")
+    from rmac_mj import envs
+    from rmac_mj.errors import UserInputError
+
+    (tmp_path / "dot.py").write_text(_DRAWN)
+    frame = envs.load(f"{tmp_path / 'dot.py'}:drawn", seed=0, render=True).render_frame()
+    assert frame.shape == (8, 8, 3) and frame.dtype == np.uint8
+    with pytest.raises(UserInputError) as refused:
+        envs.load(f"{tmp_path / 'dot.py'}:undrawn", seed=0, render=True).render_frame()
+    message = str(refused.value)
+    assert "cannot be rendered" in message and "render_mode argument" in message
+    assert "EnvSpec" not in message  # no internal API in what a user reads
