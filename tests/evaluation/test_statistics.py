@@ -92,15 +92,15 @@ def test_bad_scores_are_refused(bad):
 def test_summary_has_the_iqm_of_final_and_first_returns_and_the_cpu_per_simulated_minute():
     from rmac_mj.evaluation import metrics
 
-    # 5 experiments of 40 three-second trials (2 simulated minutes); experiment i returns -100 i
+    # 5 experiments of 100 three-second trials (5 simulated minutes); experiment i returns -100 i
     # in every trial, so its final and first-5-minute returns are -100 i.
-    returns = -100.0 * np.arange(5)[:, None] * np.ones((1, 40))
+    returns = -100.0 * np.arange(5)[:, None] * np.ones((1, 100))
     summary = metrics.summarise(returns, trial_seconds=3.0, cpu_times=np.full(5, 30.0))
     assert summary["final_return_iqm"] == -200.0  # the middle three of 0, -100, ..., -400
     low, high = summary["final_return_iqm_ci95"]
     assert low < -200.0 < high
     assert summary["first_5min_iqm"] == -200.0 and len(summary["first_5min_iqm_ci95"]) == 2
-    assert summary["cpu_s_per_simulated_minute"] == 15.0  # 30 s of CPU for 2 simulated minutes
+    assert summary["cpu_s_per_simulated_minute"] == 6.0  # 30 s of CPU for 5 simulated minutes
 
 
 def test_reproduce_and_compare_report_the_probability_of_improvement(tmp_path, capsys):
@@ -114,11 +114,59 @@ def test_reproduce_and_compare_report_the_probability_of_improvement(tmp_path, c
         summary = runner.run_protocol(protocol, tmp_path / f"seed{seed}", jobs=1, progress=False,
                                       figures=seed == 1)
     pair = summary["probability_of_improvement"]["s-ac > rmac"]
-    assert 0.0 <= pair["value"] <= 1.0 and pair["experiments"] == [2, 2]
+    # 2 experiments each: withheld, saying why, not 1.00 [1.00, 1.00]
+    assert pair["value"] is None and pair["ci95"] == [None, None] and pair["experiments"] == [2, 2]
+    assert pair["withheld"].startswith("2 and 2 experiments: too few")
     assert (tmp_path / "seed1" / "performance_profiles.png").is_file()
     assert main(["compare", str(tmp_path / "seed0"), str(tmp_path / "seed1"),
                  "--out", str(tmp_path / "both")]) == 0
     out = capsys.readouterr().out
-    assert "P(s-ac > rmac) = " in out  # within a run
-    assert "P(seed0: rmac > seed1: rmac) = " in out  # and across the runs
+    assert "P(s-ac > rmac), the probability of improvement, withheld: 2 and 2 experiments" in out
+    assert "P(seed0: rmac > seed1: rmac), the probability of improvement, withheld" in out  # across
+    assert "P(s-ac > rmac) = " not in out and "[1.00, 1.00]" not in out
     assert (tmp_path / "both_profiles.png").is_file()
+
+
+def test_the_probability_of_improvement_is_given_from_five_experiments_each():
+    from rmac_mj.experiments import metrics, report
+
+    table = metrics.improvement({"a": [1.0, 2.0, 3.0, 4.0, 5.0], "b": [0.0] * 5, "c": [9.0] * 4})
+    assert table["a > b"]["value"] == 1.0 and table["a > b"]["ci95"] == [1.0, 1.0]
+    assert "withheld" not in table["a > b"]
+    assert table["a > c"]["value"] is None and table["a > c"]["withheld"].startswith("5 and 4 ")
+    assert report.describe_improvement("a > b", table["a > b"]).endswith("probability of improvement: a better")
+    # a summary written before the rule holds numbers from 2 experiments: they are not shown
+    old = {"value": 1.0, "ci95": [1.0, 1.0], "experiments": [2, 2]}
+    assert "withheld: 2 and 2 experiments" in report.describe_improvement("a > b", old)
+
+
+def test_intervals_of_too_few_experiments_are_withheld_with_the_reason():
+    from rmac_mj.experiments import metrics, report
+
+    rng = np.random.default_rng(0)
+    few = metrics.summarise(-1000 + rng.normal(0, 500, (2, 300)), np.full((2, 1), -900.0), [300],
+                            trial_seconds=3.0)
+    for key in ("final_return_ci95", "final_return_iqm_ci95", "first_5min_ci95",
+                "first_5min_iqm_ci95", "greedy_return_last_ci95"):
+        assert few[key] == [None, None], key
+    assert few["final_return_mean"] is not None and few["final_return_iqm"] is not None
+    assert few["intervals_withheld"].startswith("2 experiments: too few for a 95% interval")
+    enough = metrics.summarise(-1000 + rng.normal(0, 500, (5, 300)), trial_seconds=3.0)
+    assert enough["intervals_withheld"] is None and None not in enough["final_return_ci95"]
+    table = report.summary_table({"rmac": few, "trial_seconds": 3.0}, ["rmac"])
+    row = table.splitlines()[2]
+    assert "n/a" in row and "[" not in row  # no interval printed from 2 experiments
+
+
+def test_a_window_longer_than_the_run_is_empty():
+    from rmac_mj.experiments import metrics, report
+
+    short = metrics.summarise(np.full((5, 20), -1048.5), trial_seconds=3.0)  # one simulated minute
+    assert short["mean_return_first_10min"] is None and short["mean_return_first_5min"] is None
+    assert short["first_5min_ci95"] == [None, None] and short["first_5min_iqm"] is None
+    assert short["final_return_mean"] == -1048.5
+    table = report.summary_table({"rmac": short, "trial_seconds": 3.0}, ["rmac"])
+    assert "-1048.5" in table.splitlines()[2] and table.splitlines()[2].count("-1048.5") == 1
+    assert "first 10 min: n/a, the run is shorter than 10 simulated minutes" in table
+    long = metrics.summarise(np.full((5, 200), -900.0), trial_seconds=3.0)  # exactly 10 minutes
+    assert long["mean_return_first_10min"] == -900.0 and long["mean_return_first_5min"] == -900.0

@@ -103,6 +103,30 @@ def test_smoothing_is_a_running_mean_stated_in_the_legend():
         plots.learning_curves_figure({"run": _summary(6)}, smooth=0)
 
 
+def test_the_detail_legend_covers_none_of_the_curves():
+    fig = plots.learning_curves_figure({"run": _summary(6)}, optimal_return=-1000.0)
+    fig.canvas.draw()
+    detail = fig.axes[1]
+    legend = detail.get_legend().get_window_extent()
+    panel = detail.get_window_extent()
+    assert legend.x0 >= panel.x1  # beside the panel, not over the curves' ends
+
+
+def test_profiles_of_too_few_experiments_draw_no_bands_and_say_why():
+    def profile(n):
+        rng = np.random.default_rng(0)
+        fig = plots.performance_profiles_figure({("", "rmac"): rng.normal(-900, 30, n),
+                                                 ("", "s-ac"): rng.normal(-950, 30, n)})
+        return fig, [t.get_text() for t in fig.texts]
+    few, notes = profile(2)
+    assert len(few.axes[0].collections) == 0 or all(
+        len(c.get_paths()) == 0 or not np.isfinite(c.get_paths()[0].vertices).all()
+        for c in few.axes[0].collections)
+    assert any(text.startswith("2 experiments: too few for bands") for text in notes)
+    enough, notes = profile(6)
+    assert notes == [] and len(enough.axes[0].collections) == 2
+
+
 def test_few_experiments_are_flagged_in_the_figure():
     def notes(n):
         fig = plots.learning_curves_figure({"run": _summary(n)})
