@@ -196,3 +196,20 @@ def test_the_greedy_trajectory_is_drawn_from_the_start_state():
                                 resolution=5, envs=[env])
     lines = [line for line in fig.axes[0].get_lines() if "greedy trial from $x_0$" in str(line.get_label())]
     assert len(lines) == 1
+
+
+def test_the_readme_figure_is_redrawn_from_a_run_by_its_script(tmp_path):
+    import importlib.util
+    import json
+    import pathlib
+
+    path = pathlib.Path(__file__).resolve().parent.parent / "scripts" / "readme_figures.py"
+    spec = importlib.util.spec_from_file_location("readme_figures", path)
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    run = tmp_path / "paper"
+    run.mkdir()
+    summary = {**_summary(6), "optimal_return": -748.0, "exploration_floor": -870.0}
+    (run / "summary.json").write_text(json.dumps(summary))
+    assert script.main([str(run), "--draw-only", "--figure", str(tmp_path / "fig2.png")]) == 0
+    assert (tmp_path / "fig2.png").stat().st_size > 10_000 and not (tmp_path / "fig2.pdf").exists()
