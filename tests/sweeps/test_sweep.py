@@ -187,9 +187,15 @@ def test_tiny_sweep_killed_resumed_and_summarised(tmp_path, capsys):
     whole = tmp_path / "whole"
     from rmac_mj.solvers import optimum
 
+    from rmac_mj.experiments import runner
+
+    service = runner.NearOptimalService
     with pytest.MonkeyPatch.context() as patch:  # the task's reference and floor, as if computed
         patch.setattr(optimum, "run_optimum", lambda protocol, log=None: -748.0)
         patch.setattr(optimum, "run_exploration_floor", lambda protocol, algorithm, log=None: -870.0)
+        # in this process, where the patches are (a process of their own would compute them)
+        patch.setattr(runner, "NearOptimalService",
+                      lambda protocols, log, background: service(protocols, log, background=False))
         rows = sweep.run_sweep(sweep_file.load_sweep(path), whole, jobs=2, progress=False,
                                references=True)
     resumed_curves, whole_curves = curves(killed), curves(whole)
