@@ -31,8 +31,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--figure", type=pathlib.Path, default=FIGURE, help="the PNG to write")
     args = parser.parse_args(argv)
 
-    from rmac_mj.experiments import plots
-    from rmac_mj.experiments.store import ResultStore
+    from rmac_mj.figures import plots
+    from rmac_mj.results.store import ResultStore
 
     store = ResultStore(args.out)
     if not args.draw_only:

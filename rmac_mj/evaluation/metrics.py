@@ -255,7 +255,7 @@ def improvement(finals: dict[str, Sequence[float]]) -> dict[str, dict[str, Any]]
     (``statistics.pairwise_improvement``), keyed ``"A > B"``; a pair with fewer than
     :data:`FEW_EXPERIMENTS` experiments of either learner gets value and ci95 None and ``withheld``
     saying why (from 2 experiments each it would read 1.00 [1.00, 1.00])."""
-    from rmac_mj.experiments import statistics
+    from rmac_mj.evaluation import statistics
 
     names, table = list(finals), {}
     for i, a in enumerate(names):

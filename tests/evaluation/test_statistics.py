@@ -128,7 +128,7 @@ def test_reproduce_and_compare_report_the_probability_of_improvement(tmp_path, c
 
 
 def test_the_probability_of_improvement_is_given_from_five_experiments_each():
-    from rmac_mj.experiments import metrics, report
+    from rmac_mj.evaluation import metrics, report
 
     table = metrics.improvement({"a": [1.0, 2.0, 3.0, 4.0, 5.0], "b": [0.0] * 5, "c": [9.0] * 4})
     assert table["a > b"]["value"] == 1.0 and table["a > b"]["ci95"] == [1.0, 1.0]
@@ -141,7 +141,7 @@ def test_the_probability_of_improvement_is_given_from_five_experiments_each():
 
 
 def test_intervals_of_too_few_experiments_are_withheld_with_the_reason():
-    from rmac_mj.experiments import metrics, report
+    from rmac_mj.evaluation import metrics, report
 
     rng = np.random.default_rng(0)
     few = metrics.summarise(-1000 + rng.normal(0, 500, (2, 300)), np.full((2, 1), -900.0), [300],
@@ -159,7 +159,7 @@ def test_intervals_of_too_few_experiments_are_withheld_with_the_reason():
 
 
 def test_a_window_longer_than_the_run_is_empty():
-    from rmac_mj.experiments import metrics, report
+    from rmac_mj.evaluation import metrics, report
 
     short = metrics.summarise(np.full((5, 20), -1048.5), trial_seconds=3.0)  # one simulated minute
     assert short["mean_return_first_10min"] is None and short["mean_return_first_5min"] is None

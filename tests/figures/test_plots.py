@@ -203,7 +203,7 @@ def test_the_readme_figure_is_redrawn_from_a_run_by_its_script(tmp_path):
     import json
     import pathlib
 
-    path = pathlib.Path(__file__).resolve().parent.parent / "scripts" / "readme_figures.py"
+    path = pathlib.Path(__file__).resolve().parents[2] / "scripts" / "readme_figures.py"
     spec = importlib.util.spec_from_file_location("readme_figures", path)
     script = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(script)

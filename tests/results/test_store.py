@@ -78,7 +78,7 @@ def test_a_finished_run_leaves_no_lock_file(finished):
 
 
 def test_a_lock_file_removed_by_its_last_holder_is_not_shared(tmp_path):
-    from rmac_mj.experiments import integrity
+    from rmac_mj.results import integrity
 
     first, second = integrity.DirectoryLock(tmp_path), integrity.DirectoryLock(tmp_path)
     first.acquire()

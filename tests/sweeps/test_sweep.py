@@ -220,11 +220,10 @@ def test_tiny_sweep_killed_resumed_and_summarised(tmp_path, capsys):
     assert row["gap_to_optimal"] == pytest.approx(-748.0 - row["final_return_mean"])
     assert row["greedy_trial"] == 3 and row["greedy_return_mean"] == pytest.approx(
         summary["s-ac"]["greedy_return_per_eval"][-1])
-    assert row["mean_return_first_5min"] == pytest.approx(np.mean(
-        [whole_curves[f"alpha_a=0.02/curves/s-ac/exp_00{i}.npz"] for i in range(2)]))
-    for metric in ("final_return", "greedy_return", "minutes_to_90pct", "first_5min",
-                   "gap_to_optimal"):
+    assert row["mean_return_first_5min"] is None  # a run shorter than the window: empty
+    for metric in ("final_return", "greedy_return", "minutes_to_90pct", "gap_to_optimal"):
         assert (whole / f"sweep_{metric}.png").is_file(), metric
+    assert not (whole / "sweep_first_5min.png").exists()  # no window in a 9 s run: nothing drawn
     with pytest.raises(UserInputError, match="already holds a sweep"):
         sweep.run_sweep(sweep_file.load_sweep(path), whole, jobs=1, progress=False)
     other = write(tmp_path, TINY.replace("0.02]", "0.03]"), "other.toml")
