@@ -14,9 +14,9 @@ DESCRIPTION = "The rmac-mj command: reproduce the paper's comparison, draw its f
 
 #: The Protocol fields ``reproduce`` has an option for (the option's dest is the field's name);
 #: ``algorithms`` and ``prior_parts`` are given comma-separated.
-PROTOCOL_OPTIONS = ("domain", "task", "algorithms", "experiments", "trials", "seed", "evaluate_every",
-                    "prior", "prior_trials", "prior_parts", "env", "learner_state", "action_repeat",
-                    "evaluate_starts")
+PROTOCOL_OPTIONS = ("domain", "task", "algorithms", "experiments", "trials", "steps", "seed",
+                    "evaluate_every", "prior", "prior_trials", "prior_parts", "env", "learner_state",
+                    "action_repeat", "trial_steps", "control_timestep", "evaluate_starts")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -51,6 +51,17 @@ def _int_at_least(minimum: int, expected: str):
 
 
 _positive_int = _int_at_least(1, "a positive integer")
+
+
+def _positive_seconds(text: str) -> float:
+    """An argparse type: a positive, finite number of seconds."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}")
+    return value
 _non_negative_int = _int_at_least(0, "an integer >= 0")
 
 
@@ -137,7 +148,11 @@ def build_parser(reproduce_defaults: Mapping[str, Any] | None = None) -> argpars
                                              "paper's)")
     reproduce.add_argument("--trials", type=_positive_int, default=600,
                            metavar="N", help="consecutive trials per experiment (default: 600, the "
-                                             "paper's, of 3 s)")
+                                             "paper's, of 3 s); with --steps, at most this many")
+    reproduce.add_argument("--steps", type=_positive_int, default=None, metavar="N",
+                           help="a budget of environment steps per experiment (learner steps x "
+                                "action repeat; greedy trials not counted): trials run until it is "
+                                "reached, the last to its end, or until --trials")
     reproduce.add_argument("--algorithms", default=None, metavar="ALGO[,ALGO]",
                            help=f"comma-separated learners, from {', '.join(ALGORITHMS)} (default: "
                                 "rmac,s-ac, the paper's; with --set, only the learners --set names)")
@@ -170,6 +185,12 @@ def build_parser(reproduce_defaults: Mapping[str, Any] | None = None) -> argpars
                            help="seed only these kinds of knowledge: process, reference, critic, "
                                 "actor (default: all a learner takes)")
     _add_outside_options(reproduce)
+    reproduce.add_argument("--trial-steps", type=_positive_int, default=None, metavar="N",
+                        help="with --env: learner steps after which a trial is truncated "
+                             "(default: the environment's own time limit)")
+    reproduce.add_argument("--control-timestep", type=_positive_seconds, default=None, metavar="S",
+                        help="with --env: seconds per environment step, for an environment that "
+                             "does not say (e.g. MountainCarContinuous-v0)")
     reproduce.add_argument("--evaluate-starts", type=_non_negative_int, default=0, metavar="N",
                            help="an evaluation is the mean of greedy trials from N starts drawn "
                                 "once per experiment (0: one greedy trial from the task's next "

@@ -116,9 +116,11 @@ def reproduce(args) -> int:
         protocol = Protocol(
             domain=args.domain, task=args.task,
             algorithms=algorithms_to_run(args, overrides), experiments=args.experiments,
-            trials=args.trials, seed=args.seed, evaluate_every=args.evaluate_every,
-            evaluate_starts=args.evaluate_starts, env=args.env, learner_state=args.learner_state,
-            action_repeat=args.action_repeat, agent_configs=agent_configs,
+            trials=args.trials, steps=args.steps, seed=args.seed,
+            evaluate_every=args.evaluate_every, evaluate_starts=args.evaluate_starts, env=args.env,
+            learner_state=args.learner_state, action_repeat=args.action_repeat,
+            trial_steps=args.trial_steps, control_timestep=args.control_timestep,
+            agent_configs=agent_configs,
             **{**getattr(args, "config_protocol", {}), **prior})
     out = writable_dir(args.out)
     if args.jobs is not None and args.scheduler:

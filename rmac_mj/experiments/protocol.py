@@ -40,7 +40,7 @@ from rmac_mj.agents import (ALGORITHMS, PRIOR_PARTS, ActionSpace, Agent, StateSp
                             config_class, config_from_dict, make_agent, unknown_algorithm)
 from rmac_mj.results import files
 from rmac_mj.experiments import prior_transitions as prior_data
-from rmac_mj.rollout import action_space_of, run_trial, state_space_of
+from rmac_mj.rollout import action_space_of, run_counted_trial, run_trial, state_space_of
 from rmac_mj.results.snapshots import snapshot_arrays
 from rmac_mj.results.store import ExperimentResult, ResultStore, TrialLog
 
@@ -72,7 +72,12 @@ class Protocol:
         environment's kwargs (``rmac_mj.envs.EnvSpec.kwargs``).
       algorithms: algorithm keys, from ``rmac_mj.agents.ALGORITHMS``.
       experiments: learning experiments per algorithm.
-      trials: consecutive learning trials per experiment.
+      trials: consecutive learning trials per experiment (with ``steps``: at most this many).
+      steps: a budget of environment steps per experiment (learner steps times the action repeat;
+        greedy evaluations do not count): trials run until the experiment has taken ``steps``, and
+        the trial that reaches it runs to its end (a curve holds whole episodes), so an experiment
+        takes at least ``steps`` and at most one trial more; or until ``trials``. None: ``trials``
+        alone. Experiments whose episodes end early then hold different numbers of trials.
       seed: root of every experiment's random stream.
       evaluate_every: after every this many learning trials, one greedy trial (no exploration, no
         learning) is recorded; 0 disables it.
@@ -107,6 +112,7 @@ class Protocol:
     algorithms: tuple[str, ...] = ("rmac", "s-ac")
     experiments: int = 40
     trials: int = 600
+    steps: int | None = None
     seed: int = 0
     evaluate_every: int = 0
     snapshot_trials: tuple[int, ...] = (1, 10, 50, 200)
@@ -131,6 +137,7 @@ class Protocol:
                                            what="a list of one or more algorithm names")],
         "experiments": [constraints.Interval(numbers.Integral, 1, None)],
         "trials": [constraints.Interval(numbers.Integral, 1, None)],
+        "steps": [constraints.Interval(numbers.Integral, 1, None), None],
         "seed": [constraints.Interval(numbers.Integral, 0, None)],
         "evaluate_every": [constraints.Interval(numbers.Integral, 0, None)],
         "snapshot_trials": [constraints.TupleOf(constraints.Interval(numbers.Integral, 1, None)),
@@ -412,29 +419,36 @@ def run_experiment(spec: ExperimentSpec,
     env, agent = experiment.env, experiment.agent
     meta = {**protocol.environment_description(), "experiment": spec.index, "seed": protocol.seed}
     evaluate = evaluation(protocol, spec.index)
-    returns = np.empty(protocol.trials)
+    returns, env_steps = [], []
     greedy_trials, greedy_returns, snapshots = [], [], {}
     snapshot_trials = set(protocol.snapshot_trials) | {protocol.trials}
     start, cpu_start = time.perf_counter(), time.process_time()
     log_path = (ResultStore(spec.stream_to).progress_path(spec.algorithm, spec.index)
                 if spec.stream_to is not None else None)
+    taken, trial = 0, 0
     with TrialLog(log_path) as log:
-        for trial in range(1, protocol.trials + 1):
-            returns[trial - 1] = run_trial(env, agent, learn=True)
+        while trial < protocol.trials and (protocol.steps is None or taken < protocol.steps):
+            trial += 1
+            value, steps = run_counted_trial(env, agent, learn=True)
+            taken += steps
+            returns.append(value)
+            env_steps.append(taken)
             greedy = None
             if protocol.evaluate_every and trial % protocol.evaluate_every == 0:
                 greedy = evaluate(env, agent)
                 greedy_trials.append(trial)
                 greedy_returns.append(greedy)
-            if trial in snapshot_trials:
+            last = trial == protocol.trials or (protocol.steps is not None and taken >= protocol.steps)
+            if trial in snapshot_trials or last:
                 snapshots[trial] = snapshot_arrays(agent, experiment.state_space,
                                                    experiment.action_space, trial=trial, **meta)
-            log.write(trial, returns[trial - 1], greedy)
+            log.write(trial, value, greedy, taken)
             if on_trial is not None:
-                on_trial(spec.algorithm, spec.index, trial, float(returns[trial - 1]))
+                on_trial(spec.algorithm, spec.index, trial, float(value))
     demonstration = experiment.demonstration
     return ExperimentResult(
-        algorithm=spec.algorithm, index=spec.index, returns=returns,
+        algorithm=spec.algorithm, index=spec.index, returns=np.asarray(returns, dtype=float),
+        env_steps=np.asarray(env_steps, dtype=np.int64),
         greedy_trials=np.asarray(greedy_trials, dtype=int),
         greedy_returns=np.asarray(greedy_returns, dtype=float), snapshots=snapshots,
         wall_time_s=time.perf_counter() - start, cpu_time_s=time.process_time() - cpu_start,

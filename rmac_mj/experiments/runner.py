@@ -19,6 +19,8 @@ import os
 import time
 from typing import Any, Callable, Iterable, Iterator
 
+import numpy as np
+
 from rmac_mj.experiments import admission, execution, prior_transitions as prior_data
 from rmac_mj.results import files
 from rmac_mj.evaluation import metrics, statistics
@@ -267,6 +269,7 @@ def finalise(store: ResultStore, protocol: Protocol, wall_time_s: float | None =
                                "exploration_floor": shared_floor.pop() if len(shared_floor) == 1
                                else None,
                                "trial_seconds": seconds,
+                               "env_step_seconds": facts.env_step_seconds(protocol),
                                "plot_hints": dataclasses.asdict(protocol.knowledge.plot_hints),
                                # What x was (inferred, for an outside environment): its provenance.
                                "learner_state": dataclasses.asdict(facts.learner_state(protocol)),
@@ -277,10 +280,12 @@ def finalise(store: ResultStore, protocol: Protocol, wall_time_s: float | None =
         summary[algorithm] = metrics.summarise(curves.returns, curves.greedy_returns,
                                                curves.greedy_trials, optimal_return,
                                                trial_seconds=seconds, wall_times=curves.wall_times,
-                                               cpu_times=curves.cpu_times)
+                                               cpu_times=curves.cpu_times, env_steps=curves.env_steps,
+                                               env_step_seconds=facts.env_step_seconds(protocol))
         summary[algorithm]["exploration_floor"] = floors.get(algorithm)
-        rows.extend((algorithm, i, t + 1, float(r)) for i, curve in enumerate(curves.returns)
-                    for t, r in enumerate(curve))
+        rows.extend((algorithm, i, t + 1, float(r), "" if not np.isfinite(n) else int(n))
+                    for i, (curve, counted) in enumerate(zip(curves.returns, curves.env_steps))
+                    for t, (r, n) in enumerate(zip(curve, counted)) if np.isfinite(r))
     finals = {a: summary[a]["final_return_per_experiment"] for a in protocol.algorithms}
     summary["final_return_tests"] = metrics.compare_final_returns(finals)
     summary["probability_of_improvement"] = statistics.pairwise_improvement(finals)
