@@ -246,6 +246,16 @@ class Protocol:
                             action_repeat=self.action_repeat, trial_steps=self.trial_steps,
                             control_timestep=self.control_timestep)
 
+    @property
+    def measured_bounds(self) -> dict[str, list[float]] | None:
+        """The dimensions of x whose box the outside environment's specs do not give and nobody
+        declared, as measured from random-action rollouts (``rmac_mj.envs.EnvSpec.resolve``): name
+        -> [low, high]; None when there are none."""
+        if self.env is None:
+            return None
+        found = _resolved(self.environment_spec).measured_bounds
+        return {name: list(bound) for name, bound in found.items()} if found else None
+
     def environment_description(self) -> dict[str, Any]:
         """What a snapshot records to rebuild the environment: the suite's ``domain``, ``task`` and
         ``task_kwargs``, or an outside environment's resolved spec under ``environment``."""

@@ -187,6 +187,14 @@ def run_protocols(runs: Iterable[tuple[Protocol, str | os.PathLike]], jobs: int 
                     "references": references}  # a resume computes them only if the run did
         if prior_sha256 is not None:
             document["prior_sha256"] = prior_sha256
+        measured = protocol.measured_bounds
+        if measured:  # what the run chose where the specs say nothing: said once, kept in config.json
+            document["measured_bounds"] = measured
+            if log is not None:
+                log(f"{protocol.environment_name}: no bounds in the specs for "
+                    f"{', '.join(measured)}; measured from random actions ("
+                    + ", ".join(f"{k} [{lo:.3g}, {hi:.3g}]" for k, (lo, hi) in measured.items())
+                    + "; declare learner_state.bounds to choose them)")
         state.append(_Run(protocol, out, document, demonstration, resume))
     client = execution.connect_dask(scheduler) if scheduler else None
     try:
