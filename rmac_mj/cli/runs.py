@@ -155,6 +155,12 @@ def reproduce(args) -> int:
         if saved:
             raise Interrupted(f"{saved} finished experiment{' is' if saved == 1 else 's are'} saved "
                               f"in {out}; {again}") from None
+        checkpointed = {a: ResultStore(out).checkpointed(a) for a in protocol.algorithms}
+        held = [f"{a} experiment {i} after trial {t}" for a, found in checkpointed.items()
+                for i, t in sorted(found.items())]
+        if held:
+            raise Interrupted(f"no experiment had finished; kept to continue from: {', '.join(held)}; "
+                              f"{again}") from None
         raise Interrupted(f"no experiment had finished, nothing is saved; {again}") from None
     print(report.summary_table(summary, protocol.algorithms))
     parts = summary["wall_time_parts_s"]

@@ -39,7 +39,7 @@ from rmac_mj import constraints, envs, tasks
 from rmac_mj.agents import (ALGORITHMS, PRIOR_PARTS, ActionSpace, Agent, StateSpace, agent_class,
                             config_class, config_from_dict, make_agent, unknown_algorithm)
 from rmac_mj.results import files
-from rmac_mj.experiments import prior_transitions as prior_data
+from rmac_mj.experiments import checkpoint as checkpoints, prior_transitions as prior_data
 from rmac_mj.rollout import action_space_of, run_counted_trial, run_trial, state_space_of
 from rmac_mj.results.snapshots import snapshot_arrays
 from rmac_mj.results.store import ExperimentResult, ResultStore, TrialLog
@@ -405,8 +405,11 @@ class ExperimentSpec:
     """One learning experiment to run: ``algorithm`` number ``index`` of ``protocol``.
 
     ``stream_to``: the result directory whose live trial log (``ResultStore.progress_path``) receives
-    every trial as it ends; None streams nothing. ``demonstration``: the recorded prior knowledge when
-    ``protocol.prior`` is a file (read once by the driver).
+    every trial as it ends, and which keeps the experiment's checkpoint (``ResultStore.
+    checkpoint_path``; :mod:`~rmac_mj.experiments.checkpoint`) every ``checkpoint_seconds`` of wall
+    time, from which the experiment continues when run again; None streams and keeps nothing.
+    ``demonstration``: the recorded prior knowledge when ``protocol.prior`` is a file (read once by
+    the driver).
     """
 
     protocol: Protocol
@@ -414,6 +417,7 @@ class ExperimentSpec:
     index: int
     stream_to: str | None = None
     demonstration: prior_data.Demonstration | None = None
+    checkpoint_seconds: float = checkpoints.CHECKPOINT_SECONDS
 
 
 def run_experiment(spec: ExperimentSpec,
@@ -432,11 +436,27 @@ def run_experiment(spec: ExperimentSpec,
     returns, env_steps = [], []
     greedy_trials, greedy_returns, snapshots = [], [], {}
     snapshot_trials = set(protocol.snapshot_trials) | {protocol.trials}
+    store = ResultStore(spec.stream_to) if spec.stream_to is not None else None
+    log_path = store.progress_path(spec.algorithm, spec.index) if store is not None else None
+    digest = checkpoints.protocol_digest(protocol.as_dict())
+    earlier_wall = earlier_cpu = 0.0
+    saved = (checkpoints.read(store.checkpoint_path(spec.algorithm, spec.index), digest)
+             if store is not None else None)
+    if saved is not None:  # continue where the checkpoint left off, exactly
+        agent.load_state_dict(saved["agent"])
+        checkpoints.restore_environment(env, saved["environment"])
+        returns, env_steps = saved["returns"], saved["env_steps"]
+        greedy_trials, greedy_returns = saved["greedy_trials"], saved["greedy_returns"]
+        earlier_wall, earlier_cpu = saved["wall_time_s"], saved["cpu_time_s"]
+        for trial in sorted(t for t in snapshot_trials if t <= len(returns)):
+            snapshots[trial] = store.read_snapshot_arrays(spec.algorithm, spec.index, trial)
     start, cpu_start = time.perf_counter(), time.process_time()
-    log_path = (ResultStore(spec.stream_to).progress_path(spec.algorithm, spec.index)
-                if spec.stream_to is not None else None)
-    taken, trial = 0, 0
+    last_checkpoint = start
+    taken, trial = (env_steps[-1] if env_steps else 0), len(returns)
     with TrialLog(log_path) as log:
+        for done, value in enumerate(returns, start=1):  # a continued experiment's earlier trials
+            log.write(done, value, greedy_returns[greedy_trials.index(done)]
+                      if done in greedy_trials else None, env_steps[done - 1])
         while trial < protocol.trials and (protocol.steps is None or taken < protocol.steps):
             trial += 1
             value, steps = run_counted_trial(env, agent, learn=True)
@@ -453,6 +473,19 @@ def run_experiment(spec: ExperimentSpec,
                 snapshots[trial] = snapshot_arrays(agent, experiment.state_space,
                                                    experiment.action_space, trial=trial, **meta)
             log.write(trial, value, greedy, taken)
+            now = time.perf_counter()
+            if store is not None and not last and now - last_checkpoint >= spec.checkpoint_seconds:
+                environment = checkpoints.environment_state(env)
+                if environment is not None:
+                    for done, arrays in snapshots.items():  # written once; the curve's save rewrites
+                        store.write_snapshot_arrays(spec.algorithm, spec.index, done, arrays)
+                    checkpoints.write(
+                        store.checkpoint_path(spec.algorithm, spec.index), digest=digest, agent=agent,
+                        environment=environment, returns=returns, env_steps=env_steps,
+                        greedy_trials=greedy_trials, greedy_returns=greedy_returns,
+                        wall_time_s=earlier_wall + now - start,
+                        cpu_time_s=earlier_cpu + time.process_time() - cpu_start)
+                last_checkpoint = time.perf_counter()
             if on_trial is not None:
                 on_trial(spec.algorithm, spec.index, trial, float(value))
     demonstration = experiment.demonstration
@@ -461,7 +494,8 @@ def run_experiment(spec: ExperimentSpec,
         env_steps=np.asarray(env_steps, dtype=np.int64),
         greedy_trials=np.asarray(greedy_trials, dtype=int),
         greedy_returns=np.asarray(greedy_returns, dtype=float), snapshots=snapshots,
-        wall_time_s=time.perf_counter() - start, cpu_time_s=time.process_time() - cpu_start,
+        wall_time_s=earlier_wall + time.perf_counter() - start,
+        cpu_time_s=earlier_cpu + time.process_time() - cpu_start,
         task_seed=experiment.task_seed,
         demonstration_returns=(demonstration.trial_returns() if demonstration is not None
                                else np.zeros(0)))

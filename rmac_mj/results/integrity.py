@@ -151,12 +151,17 @@ def curve_problem(path: pathlib.Path, trials: int, greedy_trials: list[int],
     return None
 
 
+def npz_length(path: pathlib.Path, key: str) -> int | None:
+    """The size of array ``key`` of the ``.npz`` file at ``path``, None when it cannot be read."""
+    arrays, problem = _open_npz(path)
+    if problem is not None or key not in arrays:
+        return None
+    return int(arrays[key].size)
+
+
 def curve_trials(path: pathlib.Path) -> int | None:
     """The learning trials a curve file holds, None when it cannot be read."""
-    arrays, problem = _open_npz(path)
-    if problem is not None or "returns" not in arrays:
-        return None
-    return int(arrays["returns"].size)
+    return npz_length(path, "returns")
 
 
 def snapshot_problem(path: pathlib.Path, algorithm: str, trial: int) -> str | None:

@@ -4,6 +4,7 @@
     OUT/curves/<algorithm>/exp_<iii>.npz         an experiment's results; its presence marks it done
     OUT/snapshots/<algorithm>/exp_<iii>/trial_<tttt>.npz   the agent after that trial
     OUT/progress/<algorithm>/exp_<iii>.csv       the live trial log of a running experiment
+    OUT/checkpoints/<algorithm>/exp_<iii>.npz    an unfinished experiment, to continue from
     OUT/returns.csv, summary.json, fig2_learning_curves.{png,pdf}, wall_times.json
     OUT/performance_profiles.{png,pdf}
 
@@ -189,6 +190,32 @@ class ResultStore:
     def snapshot_path(self, algorithm: str, index: int, trial: int) -> pathlib.Path:
         return self.snapshot_dir(algorithm, index) / f"trial_{trial:04d}.npz"
 
+    def checkpoint_path(self, algorithm: str, index: int) -> pathlib.Path:
+        """The checkpoint of an unfinished experiment (:mod:`rmac_mj.experiments.checkpoint`)."""
+        return self.root / "checkpoints" / algorithm / f"{_experiment_name(index)}.npz"
+
+    def checkpointed(self, algorithm: str) -> dict[int, int]:
+        """Experiment index -> learning trials done, of ``algorithm``'s unfinished experiments that
+        hold a checkpoint."""
+        folder = self.root / "checkpoints" / algorithm
+        found = {}
+        for path in folder.glob("exp_*.npz") if folder.is_dir() else ():
+            match = _EXPERIMENT_FILE.fullmatch(path.name)
+            trials = integrity.npz_length(path, "curve/returns") if match else None
+            if trials:
+                found[int(match.group(1))] = trials
+        return found
+
+    def write_snapshot_arrays(self, algorithm: str, index: int, trial: int,
+                              arrays: dict[str, np.ndarray]) -> None:
+        """Write one snapshot (the arrays of ``snapshots.snapshot_arrays``)."""
+        files.write_npz(self.snapshot_path(algorithm, index, trial), **arrays)
+
+    def read_snapshot_arrays(self, algorithm: str, index: int, trial: int) -> dict[str, np.ndarray]:
+        """The arrays of one snapshot as written."""
+        with np.load(self.snapshot_path(algorithm, index, trial), allow_pickle=False) as data:
+            return {key: data[key] for key in data.files}
+
     def progress_path(self, algorithm: str, index: int) -> pathlib.Path:
         """The live trial log of an experiment (see :class:`TrialLog`)."""
         return self.root / "progress" / algorithm / f"{_experiment_name(index)}.csv"
@@ -339,6 +366,7 @@ class ResultStore:
     def discard(self, algorithm: str, index: int) -> None:
         """Remove an experiment's curve and snapshots (before it is run again)."""
         self.curve_path(algorithm, index).unlink(missing_ok=True)
+        self.checkpoint_path(algorithm, index).unlink(missing_ok=True)
         folder = self.snapshot_dir(algorithm, index)
         for path in folder.glob("*.npz") if folder.is_dir() else ():
             path.unlink()
@@ -354,6 +382,7 @@ class ResultStore:
                         task_seed=np.int64(result.task_seed),
                         demonstration_returns=result.demonstration_returns,
                         **({} if result.env_steps is None else {"env_steps": result.env_steps}))
+        self.checkpoint_path(result.algorithm, result.index).unlink(missing_ok=True)
 
     def load_curves(self, algorithm: str, experiments: int | None = None) -> Curves:
         """The curves of ``algorithm``'s experiments 0 .. ``experiments`` - 1 (all must be saved);
