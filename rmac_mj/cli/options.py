@@ -222,6 +222,26 @@ def build_parser(reproduce_defaults: Mapping[str, Any] | None = None) -> argpars
                        help="skip the near-optimal return and exploration floor")
     sweep.add_argument("--no-progress", action="store_true", help="no progress display")
 
+    panel = command("panel", "the public panel (docs/panel.md): six tasks nobody tuned for, every "
+                             "learner at equal interaction, against the issue's goals")
+    panel.add_argument("--out", type=pathlib.Path, required=True,
+                       help="directory of the panel: one result directory per task")
+    panel.add_argument("--algorithms", default="rmac,s-ac,mlac,sb3-sac", metavar="ALGO[,ALGO]",
+                       help="comma-separated learners")
+    panel.add_argument("--experiments", type=_positive_int, default=5, metavar="N",
+                       help="learning experiments per learner and task")
+    panel.add_argument("--tasks", default=None, metavar="TASK[,TASK]",
+                       help="some of the panel's tasks (default: all): dc_pendulum, two_link_arm, "
+                            "pendulum_v1, cartpole_balance, cartpole_swingup, mountaincar")
+    panel.add_argument("--seed", type=_non_negative_int, default=0, help="root random seed")
+    panel.add_argument("--jobs", type=_positive_int, default=None, metavar="N",
+                       help="worker processes shared by all tasks (default: all cores)")
+    panel.add_argument("--resume", action="store_true", help="finish an interrupted panel in --out")
+    panel.add_argument("--trials", type=_positive_int, default=None, metavar="N",
+                       help="every task only N trials, evaluated after each (a smoke test, not the "
+                            "panel)")
+    panel.add_argument("--no-progress", action="store_true", help="no progress display")
+
     compare = command("compare", "overlay the learning curves of result directories and tabulate them")
     compare.add_argument("dirs", nargs="+", type=pathlib.Path, metavar="DIR",
                          help="result directories written by rmac-mj reproduce (with summary.json)")

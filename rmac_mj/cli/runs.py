@@ -195,3 +195,29 @@ def sweep(args) -> int:
     return 0
 
 
+
+
+def panel(args) -> int:
+    from rmac_mj.experiments import panel as panels
+
+    algorithms = tuple(a.strip() for a in args.algorithms.split(",") if a.strip())
+    names = None if args.tasks is None else [t.strip() for t in args.tasks.split(",") if t.strip()]
+    with user_input():
+        chosen = panels.tasks_named(names)
+        for task in chosen:  # every protocol is checked before anything runs
+            task.make_protocol(algorithms, args.experiments, args.seed, args.trials)
+    out = writable_dir(args.out)
+    try:
+        panels.run_panel(out, algorithms, args.experiments, args.seed, names, jobs=args.jobs,
+                         resume=args.resume, trials=args.trials, progress=not args.no_progress,
+                         log=say, started=STARTED)
+    except KeyboardInterrupt:
+        raise Interrupted(f"finished experiments are saved in {out}; finish the panel with: "
+                          f"rmac-mj panel --out {out} --resume (and the same options)") from None
+    for task in chosen:
+        if args.trials is None:
+            print(panels.format_rows(task, panels.panel_rows(task, [out / task.name])))
+            print()
+    print(f"results in {out}/<task>/ (one reproduce directory per task: summary.json, returns.csv, "
+          "fig2_learning_curves.png)")
+    return 0
