@@ -142,3 +142,20 @@ def test_a_directory_written_before_env_steps_were_counted_still_resumes_and_sum
                                   figures=False)
     assert summary["s-ac"]["minutes_to_90pct"] is not None and "env_steps_per_trial" not in summary["s-ac"]
     assert store.returns_path.read_text().splitlines()[1].endswith(",")  # steps not known
+
+
+def test_fig2_reads_against_environment_steps_and_refuses_a_summary_without_them(tmp_path):
+    from rmac_mj.experiments import plots
+
+    protocol = Protocol(env=SLIDER, trial_steps=30, control_timestep=0.1, algorithms=("s-ac",),
+                        experiments=2, trials=1000, steps=60, evaluate_every=1, snapshot_trials=())
+    summary = runner.run_protocol(protocol, tmp_path, jobs=1, progress=False, figures=False)
+    figure = plots.learning_curves_figure({"run": summary}, x_axis="env_steps")
+    line = figure.axes[0].get_lines()[0]
+    np.testing.assert_array_equal(line.get_xdata(), summary["s-ac"]["env_steps_per_trial"])
+    assert figure.axes[0].get_xlabel() == "environment steps"
+    older = {**summary, "s-ac": {k: v for k, v in summary["s-ac"].items()
+                                 if not k.startswith(("env_steps", "greedy_eval_env"))}}
+    with pytest.raises(ValueError, match="holds no environment steps"):
+        plots.learning_curves_figure({"run": older}, x_axis="env_steps")
+    plots.learning_curves_figure({"run": older})  # against minutes, as before

@@ -249,6 +249,9 @@ def build_parser(reproduce_defaults: Mapping[str, Any] | None = None) -> argpars
                          help="figure path without suffix (.png and .pdf are written)")
     compare.add_argument("--smooth", type=_positive_int, default=1, metavar="N",
                          help="running mean over N trials (1: none)")
+    compare.add_argument("--x-axis", choices=("minutes", "env-steps"), default="minutes",
+                         help="Fig. 2's x axis: simulated minutes (the paper's) or environment steps "
+                              "(equal interaction)")
 
     policy = command("policy", "draw snapshots' policies and critics (Figs. 3, 4); two snapshots side "
                                "by side on shared colour scales")

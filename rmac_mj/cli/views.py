@@ -54,8 +54,12 @@ def compare(args) -> int:
             raise UsageError(f"{store.summary_path} has no trial_seconds (the task's trial length)")
     optimal = next((s["optimal_return"] for s in summaries.values() if s.get("optimal_return")), None)
     floors = {s.get("exploration_floor") for s in summaries.values()}
-    paths = plots.plot_learning_curves(summaries, args.out, optimal_return=optimal, smooth=args.smooth,
-                                       exploration_floor=floors.pop() if len(floors) == 1 else None)
+    try:
+        paths = plots.plot_learning_curves(summaries, args.out, optimal_return=optimal,
+                                           smooth=args.smooth, x_axis=args.x_axis.replace("-", "_"),
+                                           exploration_floor=floors.pop() if len(floors) == 1 else None)
+    except ValueError as error:  # e.g. env-steps of a run written before they were counted
+        raise UsageError(str(error)) from None
     for label, summary in summaries.items():
         print(f"== {label}: {_settings_line(summary)}")
         print(report.summary_table(summary))
