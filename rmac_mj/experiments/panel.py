@@ -119,6 +119,23 @@ def run_panel(out: str | os.PathLike, algorithms: Sequence[str], experiments: in
                                 started=started)
 
 
+def env_steps_of(curves, protocol: dict[str, Any], task: PanelTask) -> np.ndarray | None:
+    """Environment steps by the end of each trial, shape (experiments, trials): as recorded, or,
+    for curves written before they were counted, what the task's time limit makes them where no
+    episode can have ended early (every task but MountainCar; there, only if no episode reached
+    the flag); None when they cannot be told."""
+    if curves.env_steps is not None and np.all(np.isfinite(curves.env_steps)):
+        return curves.env_steps
+    if task.reached_by_return is not None and np.any(curves.returns > task.reached_by_return):
+        return None
+    from rmac_mj.experiments.episode import steps_per_trial
+
+    made = Protocol.from_dict(protocol).make_environment(0)
+    per_trial = steps_per_trial(made) * protocol.get("action_repeat", 1)
+    return np.broadcast_to(np.arange(1, curves.returns.shape[1] + 1) * float(per_trial),
+                           curves.returns.shape)
+
+
 def _score(greedy: np.ndarray) -> dict[str, Any]:
     estimate = statistics.iqm_interval(greedy).as_dict()
     return {"iqm": estimate["value"], "ci95": estimate["ci95"], "mean": float(np.mean(greedy))}
@@ -152,7 +169,8 @@ def panel_rows(task: PanelTask, directories: Sequence[str | os.PathLike]) -> lis
                 reached = int(np.sum(learned.any(axis=1) | evaluated.any(axis=1)))
             else:
                 reached = int(np.sum(greedy >= task.goal))
-            steps = curves.env_steps[:, task.goal_trial - 1] if curves.env_steps is not None else None
+            counted = env_steps_of(curves, protocol, task)
+            steps = counted[:, task.goal_trial - 1] if counted is not None else None
             rows.append({
                 "learner": algorithm, "directory": str(directory), "experiments": len(saved),
                 "greedy": _score(greedy), "reached": reached, "goal_trial": task.goal_trial,
