@@ -23,8 +23,9 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from rmac_mj.agents import display_name  # noqa: E402
-from rmac_mj.experiments import panel, statistics  # noqa: E402
-from rmac_mj.experiments.store import ResultStore  # noqa: E402
+from rmac_mj.evaluation import statistics  # noqa: E402
+from rmac_mj.experiments import panel  # noqa: E402
+from rmac_mj.results.store import ResultStore  # noqa: E402
 
 
 def _directories(task: panel.PanelTask, roots: list[pathlib.Path]) -> list[pathlib.Path]:

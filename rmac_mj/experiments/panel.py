@@ -5,7 +5,7 @@ environment steps, its greedy evaluations, what a spec cannot say: an action cos
 a goal read from its greedy curve. :func:`run_panel` runs every task's protocol for the chosen
 learners through one worker pool into ``OUT/<task>/``, ordinary result directories that
 ``reproduce --resume``, ``compare`` and the scripts read; :func:`panel_rows` scores them (the
-interquartile mean with its stratified-bootstrap interval, :mod:`rmac_mj.experiments.statistics`).
+interquartile mean with its stratified-bootstrap interval, :mod:`rmac_mj.evaluation.statistics`).
 """
 
 from __future__ import annotations
@@ -17,9 +17,10 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from rmac_mj.experiments import runner, statistics
+from rmac_mj.evaluation import statistics
+from rmac_mj.experiments import runner
 from rmac_mj.experiments.protocol import Protocol
-from rmac_mj.experiments.store import ResultStore
+from rmac_mj.results.store import ResultStore
 
 #: Experiments per learner and task (the issue's "at least 5").
 EXPERIMENTS = 5
@@ -128,7 +129,7 @@ def env_steps_of(curves, protocol: dict[str, Any], task: PanelTask) -> np.ndarra
         return curves.env_steps
     if task.reached_by_return is not None and np.any(curves.returns > task.reached_by_return):
         return None
-    from rmac_mj.experiments.episode import steps_per_trial
+    from rmac_mj.rollout import steps_per_trial
 
     made = Protocol.from_dict(protocol).make_environment(0)
     per_trial = steps_per_trial(made) * protocol.get("action_repeat", 1)

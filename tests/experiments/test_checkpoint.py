@@ -10,9 +10,9 @@ import pytest
 
 from rmac_mj.experiments import checkpoint as checkpoints, runner
 from rmac_mj.experiments.protocol import ExperimentSpec, Protocol, run_experiment
-from rmac_mj.experiments.store import ResultStore
+from rmac_mj.results.store import ResultStore
 
-SLIDER = f"{pathlib.Path(__file__).with_name('test_envs.py')}:make_slider"
+SLIDER = f"{pathlib.Path(__file__).parents[1] / 'envs' / 'test_envs.py'}:make_slider"
 
 
 class Stop(Exception):
@@ -145,7 +145,7 @@ def test_a_directory_written_before_env_steps_were_counted_still_resumes_and_sum
 
 
 def test_fig2_reads_against_environment_steps_and_refuses_a_summary_without_them(tmp_path):
-    from rmac_mj.experiments import plots
+    from rmac_mj.figures import plots
 
     protocol = Protocol(env=SLIDER, trial_steps=30, control_timestep=0.1, algorithms=("s-ac",),
                         experiments=2, trials=1000, steps=60, evaluate_every=1, snapshot_trials=())

@@ -7,7 +7,7 @@ import pytest
 
 from rmac_mj.cli import main
 from rmac_mj.experiments import panel
-from rmac_mj.experiments.episode import steps_per_trial
+from rmac_mj.rollout import steps_per_trial
 
 
 @pytest.mark.parametrize("name, env_steps", [("pendulum_v1", 5_000), ("cartpole_balance", 10_000),
