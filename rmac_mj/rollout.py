@@ -85,6 +85,11 @@ def trial_seconds(env: control.Environment) -> float:
     return steps_per_trial(env) * env.control_timestep()
 
 
+def env_step_seconds(env: control.Environment) -> float:
+    """Simulated seconds of one environment step: the control timestep, less an action repeat."""
+    return env.control_timestep() / getattr(env, "action_repeat", 1)
+
+
 def n_sub_steps(env: control.Environment) -> int:
     """Physics steps per control step."""
     return int(round(env.control_timestep() / env.physics.timestep()))
@@ -99,15 +104,33 @@ def run_trial(env: control.Environment, agent: Agent, learn: bool = True,
     learned, which is how a learned policy is evaluated. ``on_step(env, u, r)`` is called after every
     step (e.g. to record frames).
     """
+    return run_counted_trial(env, agent, learn, on_step)[0]
+
+
+def env_steps_taken(env: control.Environment) -> int | None:
+    """Base environment steps ``env`` has taken so far, where it counts them (an outside environment
+    adapted by :mod:`rmac_mj.envs`, whose action repeat makes them differ from control steps); None
+    for the suite's tasks, whose control steps are their environment steps."""
+    counted = getattr(env, "base_steps", None)
+    return counted if isinstance(counted, int) else None
+
+
+def run_counted_trial(env: control.Environment, agent: Agent, learn: bool = True,
+                      on_step: Callable[[control.Environment, np.ndarray, float], None] | None = None
+                      ) -> tuple[float, int]:
+    """:func:`run_trial`, also returning the environment steps the episode took (control steps
+    times the action repeat, less where the environment ended it mid-repeat)."""
     keys = learner_state_of(env).keys
+    before = env_steps_taken(env)
     timestep = env.reset()
     x = state_of(timestep.observation, keys)
     if not learn:
         agent.begin_greedy_trial()
     u = agent.start(x) if learn else agent.greedy_action(x)
-    total = 0.0
+    total, steps = 0.0, 0
     while True:
         timestep = env.step(u)
+        steps += 1
         reward = float(timestep.reward)
         total += reward
         if on_step is not None:
@@ -116,5 +139,6 @@ def run_trial(env: control.Environment, agent: Agent, learn: bool = True,
         if timestep.last():
             if learn:  # a termination (discount 0) is a terminal state; a time limit is not
                 agent.stop(reward, x, terminal=timestep.discount == 0.0)
-            return total
+            after = env_steps_taken(env)
+            return total, (steps if before is None or after is None else after - before)
         u = agent.step(reward, x) if learn else agent.greedy_action(x)

@@ -7,6 +7,7 @@
                       [--prior demo|FILE.npz] [--prior-trials N] [--prior-parts process,...]
                       [--config FILE.toml]
     rmac-mj sweep SWEEP.toml --out DIR [--jobs N | --scheduler ADDRESS] [--resume]
+    rmac-mj panel --out DIR [--algorithms ...] [--experiments 5] [--tasks ...] [--resume]
     rmac-mj compare DIR [DIR ...] [--out STEM]
     rmac-mj policy SNAPSHOT [SNAPSHOT] [--out STEM] [--dims 0,1] [--xlim LO,HI] [--ylim LO,HI]
     rmac-mj optimal [--domain D --task T] [--refresh]          (a task of the suite: --env has none)
@@ -36,7 +37,8 @@ from rmac_mj.cli.options import build_parser
 from rmac_mj.errors import UserInputError
 
 
-_COMMANDS = {"reproduce": runs.reproduce, "sweep": runs.sweep, "compare": views.compare,
+_COMMANDS = {"reproduce": runs.reproduce, "sweep": runs.sweep, "panel": runs.panel,
+             "compare": views.compare,
              "policy": views.policy, "optimal": views.optimal, "render": views.render,
              "bench": views.bench}
 
@@ -44,7 +46,7 @@ _COMMANDS = {"reproduce": runs.reproduce, "sweep": runs.sweep, "compare": views.
 def _announcing_compilation(command: str):
     """Say so when a command starts compiling kernels (the first time only: tens of seconds).
     ``reproduce`` and ``sweep`` say it themselves, as they compile them before starting their workers."""
-    if command in ("reproduce", "sweep", "compare", "optimal"):  # these compile nothing, or say it themselves
+    if command in ("reproduce", "sweep", "panel", "compare", "optimal"):  # these compile nothing, or say it themselves
         return contextlib.nullcontext()
     from rmac_mj import _cache
 

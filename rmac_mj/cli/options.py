@@ -14,9 +14,9 @@ DESCRIPTION = "The rmac-mj command: reproduce the paper's comparison, draw its f
 
 #: The Protocol fields ``reproduce`` has an option for (the option's dest is the field's name);
 #: ``algorithms`` and ``prior_parts`` are given comma-separated.
-PROTOCOL_OPTIONS = ("domain", "task", "algorithms", "experiments", "trials", "seed", "evaluate_every",
-                    "prior", "prior_trials", "prior_parts", "env", "learner_state", "action_repeat",
-                    "evaluate_starts")
+PROTOCOL_OPTIONS = ("domain", "task", "algorithms", "experiments", "trials", "steps", "seed",
+                    "evaluate_every", "prior", "prior_trials", "prior_parts", "env", "learner_state",
+                    "action_repeat", "trial_steps", "control_timestep", "evaluate_starts")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -51,6 +51,17 @@ def _int_at_least(minimum: int, expected: str):
 
 
 _positive_int = _int_at_least(1, "a positive integer")
+
+
+def _positive_seconds(text: str) -> float:
+    """An argparse type: a positive, finite number of seconds."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}")
+    return value
 _non_negative_int = _int_at_least(0, "an integer >= 0")
 
 
@@ -137,7 +148,11 @@ def build_parser(reproduce_defaults: Mapping[str, Any] | None = None) -> argpars
                                              "paper's)")
     reproduce.add_argument("--trials", type=_positive_int, default=600,
                            metavar="N", help="consecutive trials per experiment (default: 600, the "
-                                             "paper's, of 3 s)")
+                                             "paper's, of 3 s); with --steps, at most this many")
+    reproduce.add_argument("--steps", type=_positive_int, default=None, metavar="N",
+                           help="a budget of environment steps per experiment (learner steps x "
+                                "action repeat; greedy trials not counted): trials run until it is "
+                                "reached, the last to its end, or until --trials")
     reproduce.add_argument("--algorithms", default=None, metavar="ALGO[,ALGO]",
                            help=f"comma-separated learners, from {', '.join(ALGORITHMS)} (default: "
                                 "rmac,s-ac, the paper's; with --set, only the learners --set names)")
@@ -170,6 +185,12 @@ def build_parser(reproduce_defaults: Mapping[str, Any] | None = None) -> argpars
                            help="seed only these kinds of knowledge: process, reference, critic, "
                                 "actor (default: all a learner takes)")
     _add_outside_options(reproduce)
+    reproduce.add_argument("--trial-steps", type=_positive_int, default=None, metavar="N",
+                        help="with --env: learner steps after which a trial is truncated "
+                             "(default: the environment's own time limit)")
+    reproduce.add_argument("--control-timestep", type=_positive_seconds, default=None, metavar="S",
+                        help="with --env: seconds per environment step, for an environment that "
+                             "does not say (e.g. MountainCarContinuous-v0)")
     reproduce.add_argument("--evaluate-starts", type=_non_negative_int, default=0, metavar="N",
                            help="an evaluation is the mean of greedy trials from N starts drawn "
                                 "once per experiment (0: one greedy trial from the task's next "
@@ -201,6 +222,26 @@ def build_parser(reproduce_defaults: Mapping[str, Any] | None = None) -> argpars
                        help="skip the near-optimal return and exploration floor")
     sweep.add_argument("--no-progress", action="store_true", help="no progress display")
 
+    panel = command("panel", "the public panel (docs/panel.md): six tasks nobody tuned for, every "
+                             "learner at equal interaction, against the issue's goals")
+    panel.add_argument("--out", type=pathlib.Path, required=True,
+                       help="directory of the panel: one result directory per task")
+    panel.add_argument("--algorithms", default="rmac,s-ac,mlac,sb3-sac", metavar="ALGO[,ALGO]",
+                       help="comma-separated learners")
+    panel.add_argument("--experiments", type=_positive_int, default=5, metavar="N",
+                       help="learning experiments per learner and task")
+    panel.add_argument("--tasks", default=None, metavar="TASK[,TASK]",
+                       help="some of the panel's tasks (default: all): dc_pendulum, two_link_arm, "
+                            "pendulum_v1, cartpole_balance, cartpole_swingup, mountaincar")
+    panel.add_argument("--seed", type=_non_negative_int, default=0, help="root random seed")
+    panel.add_argument("--jobs", type=_positive_int, default=None, metavar="N",
+                       help="worker processes shared by all tasks (default: all cores)")
+    panel.add_argument("--resume", action="store_true", help="finish an interrupted panel in --out")
+    panel.add_argument("--trials", type=_positive_int, default=None, metavar="N",
+                       help="every task only N trials, evaluated after each (a smoke test, not the "
+                            "panel)")
+    panel.add_argument("--no-progress", action="store_true", help="no progress display")
+
     compare = command("compare", "overlay the learning curves of result directories and tabulate them")
     compare.add_argument("dirs", nargs="+", type=pathlib.Path, metavar="DIR",
                          help="result directories written by rmac-mj reproduce (with summary.json)")
@@ -209,6 +250,9 @@ def build_parser(reproduce_defaults: Mapping[str, Any] | None = None) -> argpars
                          "default: FIRST_DIR/compare, beside the first run's own figures)")
     compare.add_argument("--smooth", type=_positive_int, default=1, metavar="N",
                          help="running mean over N trials (1: none)")
+    compare.add_argument("--x-axis", choices=("minutes", "env-steps"), default="minutes",
+                         help="Fig. 2's x axis: simulated minutes (the paper's) or environment steps "
+                              "(equal interaction)")
 
     policy = command("policy", "draw snapshots' policies and critics (Figs. 3, 4); two snapshots side "
                                "by side on shared colour scales")

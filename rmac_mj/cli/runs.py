@@ -116,9 +116,11 @@ def reproduce(args) -> int:
         protocol = Protocol(
             domain=args.domain, task=args.task,
             algorithms=algorithms_to_run(args, overrides), experiments=args.experiments,
-            trials=args.trials, seed=args.seed, evaluate_every=args.evaluate_every,
-            evaluate_starts=args.evaluate_starts, env=args.env, learner_state=args.learner_state,
-            action_repeat=args.action_repeat, agent_configs=agent_configs,
+            trials=args.trials, steps=args.steps, seed=args.seed,
+            evaluate_every=args.evaluate_every, evaluate_starts=args.evaluate_starts, env=args.env,
+            learner_state=args.learner_state, action_repeat=args.action_repeat,
+            trial_steps=args.trial_steps, control_timestep=args.control_timestep,
+            agent_configs=agent_configs,
             **{**getattr(args, "config_protocol", {}), **prior})
     out = writable_dir(args.out)
     if args.jobs is not None and args.scheduler:
@@ -153,6 +155,12 @@ def reproduce(args) -> int:
         if saved:
             raise Interrupted(f"{saved} finished experiment{' is' if saved == 1 else 's are'} saved "
                               f"in {out}; {again}") from None
+        checkpointed = {a: ResultStore(out).checkpointed(a) for a in protocol.algorithms}
+        held = [f"{a} experiment {i} after trial {t}" for a, found in checkpointed.items()
+                for i, t in sorted(found.items())]
+        if held:
+            raise Interrupted(f"no experiment had finished; kept to continue from: {', '.join(held)}; "
+                              f"{again}") from None
         raise Interrupted(f"no experiment had finished, nothing is saved; {again}") from None
     print(report.summary_table(summary, protocol.algorithms))
     parts = summary["wall_time_parts_s"]
@@ -187,3 +195,29 @@ def sweep(args) -> int:
     return 0
 
 
+
+
+def panel(args) -> int:
+    from rmac_mj.experiments import panel as panels
+
+    algorithms = tuple(a.strip() for a in args.algorithms.split(",") if a.strip())
+    names = None if args.tasks is None else [t.strip() for t in args.tasks.split(",") if t.strip()]
+    with user_input():
+        chosen = panels.tasks_named(names)
+        for task in chosen:  # every protocol is checked before anything runs
+            task.make_protocol(algorithms, args.experiments, args.seed, args.trials)
+    out = writable_dir(args.out)
+    try:
+        panels.run_panel(out, algorithms, args.experiments, args.seed, names, jobs=args.jobs,
+                         resume=args.resume, trials=args.trials, progress=not args.no_progress,
+                         log=say, started=STARTED)
+    except KeyboardInterrupt:
+        raise Interrupted(f"finished experiments are saved in {out}; finish the panel with: "
+                          f"rmac-mj panel --out {out} --resume (and the same options)") from None
+    for task in chosen:
+        if args.trials is None:
+            print(panels.format_rows(task, panels.panel_rows(task, [out / task.name])))
+            print()
+    print(f"results in {out}/<task>/ (one reproduce directory per task: summary.json, returns.csv, "
+          "fig2_learning_curves.png)")
+    return 0

@@ -55,8 +55,12 @@ def compare(args) -> int:
     out = args.out if args.out is not None else directories[0] / "compare"
     optimal = next((s["optimal_return"] for s in summaries.values() if s.get("optimal_return")), None)
     floors = {s.get("exploration_floor") for s in summaries.values()}
-    paths = plots.plot_learning_curves(summaries, out, optimal_return=optimal, smooth=args.smooth,
-                                       exploration_floor=floors.pop() if len(floors) == 1 else None)
+    try:
+        paths = plots.plot_learning_curves(summaries, out, optimal_return=optimal,
+                                           smooth=args.smooth, x_axis=args.x_axis.replace("-", "_"),
+                                           exploration_floor=floors.pop() if len(floors) == 1 else None)
+    except ValueError as error:  # e.g. env-steps of a run written before they were counted
+        raise UsageError(str(error)) from None
     for label, summary in summaries.items():
         print(f"== {label}: {_settings_line(summary)}")
         print(report.summary_table(summary))

@@ -40,6 +40,8 @@ class Environment(dm_env.Environment):
       learner_state, steps_per_trial, action_repeat, name: as given.
       base: the wrapped environment.
       map: the :class:`~rmac_mj.envs.observations.ObservationMap` from raw observations to x.
+      base_steps: base steps taken since it was made (an episode ended by the base mid-repeat
+        counts the steps it really took): the interaction a budget in environment steps counts.
     """
 
     def __init__(self, base: dm_env.Environment, learner_state: LearnerStateSpec,
@@ -66,6 +68,7 @@ class Environment(dm_env.Environment):
         self.action_repeat = int(action_repeat)
         self.name = name
         self._step = 0
+        self.base_steps = 0
 
     # ------------------------------------------------------------------------------ dm_env interface
     def reset(self) -> dm_env.TimeStep:
@@ -80,6 +83,7 @@ class Environment(dm_env.Environment):
         reward, discount = 0.0, 1.0
         for _ in range(self.action_repeat):
             timestep = self.base.step(action)
+            self.base_steps += 1
             reward += float(timestep.reward)
             discount *= 1.0 if timestep.discount is None else float(timestep.discount)
             if timestep.last():

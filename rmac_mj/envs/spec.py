@@ -39,6 +39,9 @@ SOURCES = ("dm_control", "gymnasium")
 PROBE_EPISODES, PROBE_STEPS, PROBE_SEED = 3, 100, 0
 #: The longest episode run to find where an environment without a time limit truncates.
 MAX_PROBE_STEPS = 100_000
+#: Measuring the box where the specs give none: environment steps of uniformly random actions (held
+#: for the action repeat, whole episodes up to the trial length), with the probes' seed.
+BOX_PROBE_STEPS = 10_000
 
 
 def parse(spec: str) -> tuple[str, str]:
@@ -112,6 +115,9 @@ class EnvSpec:
         limit (dm-control's, Gymnasium's ``max_episode_steps``).
       control_timestep: seconds per environment step where the environment does not say (a plain
         dm_env, a Gymnasium env without ``dt``); None: the environment's.
+      measured_bounds: set by :meth:`resolve`: the dimensions of x whose box neither the specs nor
+        the declaration gave, measured from random-action rollouts
+        (:func:`~rmac_mj.envs.observations.measured_box`), name -> [low, high]; None: none.
     """
 
     env: str
@@ -120,6 +126,7 @@ class EnvSpec:
     action_repeat: int = 1
     trial_steps: int | None = None
     control_timestep: float | None = None
+    measured_bounds: Mapping[str, Any] | None = None
 
     def __post_init__(self) -> None:
         parse(self.env)
@@ -226,20 +233,27 @@ class EnvSpec:
         needs_probe = not (declared and "keys" in declared)
         samples = _probe(base, layout) if needs_probe else np.zeros((0, sum(layout.sizes.values())))
         action = base.action_spec()
+        measured: dict[str, list[float]] = {}
         learner_state = infer_learner_state(
             layout, samples, np.broadcast_to(action.minimum, action.shape),
-            np.broadcast_to(action.maximum, action.shape), declared, owner=self.env)
+            np.broadcast_to(action.maximum, action.shape), declared, owner=self.env,
+            measure=lambda mapping: _random_states(self.build_base(PROBE_SEED), mapping, spec),
+            measured=measured)
         base.close()
-        return dataclasses.replace(spec, learner_state=learner_state)
+        return dataclasses.replace(spec, learner_state=learner_state,
+                                   measured_bounds=measured or self.measured_bounds)
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready: every field, the learner state as its fields."""
         learner_state = self.learner_state
         if isinstance(learner_state, LearnerStateSpec):
             learner_state = dataclasses.asdict(learner_state)
-        return {"env": self.env, "kwargs": dict(self.kwargs), "learner_state": learner_state,
-                "action_repeat": int(self.action_repeat), "trial_steps": self.trial_steps,
-                "control_timestep": self.control_timestep}
+        document = {"env": self.env, "kwargs": dict(self.kwargs), "learner_state": learner_state,
+                    "action_repeat": int(self.action_repeat), "trial_steps": self.trial_steps,
+                    "control_timestep": self.control_timestep}
+        if self.measured_bounds:  # only then: an environment with bounds is described as before
+            document["measured_bounds"] = {k: list(v) for k, v in self.measured_bounds.items()}
+        return document
 
     def _time_of(self, base: dm_env.Environment) -> tuple[float, int]:
         """(seconds per base step, base steps per episode); ValueError naming what is missing."""
@@ -299,6 +313,32 @@ def _truncation_steps(base: dm_env.Environment, spec: EnvSpec) -> int | None:
             return None
         lengths.add(steps)
     return trial_steps(lengths.pop(), spec.action_repeat) if len(lengths) == 1 else None
+
+
+def _random_states(base: dm_env.Environment, mapping: ObservationMap, spec: EnvSpec) -> np.ndarray:
+    """States x (shape (T, n)) a learner sees under uniformly random actions, each held for the
+    action repeat: whole episodes (up to ``spec.trial_steps``) until :data:`BOX_PROBE_STEPS`
+    environment steps, seeded with :data:`PROBE_SEED`."""
+    rng = np.random.default_rng(PROBE_SEED)
+    action = base.action_spec()
+    low = np.broadcast_to(action.minimum, action.shape).astype(float)
+    high = np.broadcast_to(action.maximum, action.shape).astype(float)
+    states, taken = [], 0
+    while taken < BOX_PROBE_STEPS:
+        timestep, steps = base.reset(), 0
+        states.append(mapping(timestep.observation))
+        while not timestep.last() and taken < BOX_PROBE_STEPS and (
+                spec.trial_steps is None or steps < spec.trial_steps):
+            u = rng.uniform(low, high)
+            for _ in range(spec.action_repeat):
+                timestep = base.step(u)
+                taken += 1
+                if timestep.last():
+                    break
+            steps += 1
+            states.append(mapping(timestep.observation))
+    base.close()
+    return np.asarray(states)
 
 
 def _probe(base: dm_env.Environment, layout: ObservationLayout) -> np.ndarray:

@@ -159,10 +159,35 @@ def interval(samples: np.ndarray) -> list[float | None]:
     return _nan_to_none(np.stack(confidence_interval(np.asarray(samples, dtype=float))))
 
 
+def _measured_minutes(env_steps: np.ndarray | None, env_step_seconds: float | None,
+                      returns: np.ndarray, trial_seconds: float) -> np.ndarray | None:
+    """Simulated minutes at the end of every trial, shape (experiments, trials), from the
+    environment steps that really ran (NaN after an experiment's last trial); None when they are
+    not known (curves written before they were recorded) or equal what ``trial_seconds`` says."""
+    if env_steps is None or env_step_seconds is None:
+        return None
+    env_steps = np.asarray(env_steps, dtype=float)
+    ran = np.isfinite(returns)
+    if env_steps.shape != returns.shape or not np.all(np.isfinite(env_steps[ran])):
+        return None
+    minutes = env_steps * float(env_step_seconds) / 60.0
+    nominal = np.arange(1, returns.shape[1] + 1) * trial_seconds / 60.0
+    if ran.all() and np.allclose(minutes, nominal, rtol=1e-9, atol=0.0):
+        return None  # every trial ran to its limit: the nominal times, to the bit
+    return np.where(ran, minutes, np.nan)
+
+
+def _nan_interval(returns: np.ndarray):
+    """:func:`confidence_interval` per trial over the experiments that ran it (NaN: did not)."""
+    columns = [confidence_interval(column[np.isfinite(column)]) for column in returns.T]
+    return tuple(np.array([c[k] for c in columns], dtype=float) for k in range(3))
+
+
 def summarise(returns: np.ndarray, greedy: np.ndarray | None = None,
               greedy_trials: Sequence[int] = (), optimal_return: float | None = None, *,
               trial_seconds: float, wall_times: np.ndarray | None = None,
-              cpu_times: np.ndarray | None = None) -> dict:
+              cpu_times: np.ndarray | None = None, env_steps: np.ndarray | None = None,
+              env_step_seconds: float | None = None) -> dict:
     """The summary of one learner: returns is an ndarray of shape (experiments, trials).
 
     ``greedy`` (experiments, evaluations) holds the greedy-trial returns after the trials listed in
@@ -170,6 +195,15 @@ def summarise(returns: np.ndarray, greedy: np.ndarray | None = None,
     into minutes. Stuck experiments are counted only against a reference (``optimal_return``; see
     :func:`stuck_threshold`), else ``stuck_experiments`` is None. ``wall_times`` and ``cpu_times``
     (experiments,): each experiment's wall and CPU time (s).
+
+    ``env_steps`` (experiments, trials): the environment steps taken by the end of each trial (NaN
+    after an experiment's last, with ``returns``), ``env_step_seconds`` the seconds of one: with them
+    the times (minutes to 90%, the first minutes, CPU per simulated minute) come from the steps that
+    really ran, not from ``trial_seconds`` (a trial's limit), and the summary lists the steps
+    (``env_steps_per_trial``, ``greedy_eval_env_steps``, ``env_steps_per_experiment``), so that every
+    curve can be read against them. ``returns`` may end early per experiment (NaN after; a budget in
+    environment steps): per-trial means are over the experiments that ran the trial, final levels over
+    each experiment's own last trials.
 
     Beside the paper's mean and Student-t interval, the final return and the first minutes' return
     have the interquartile mean with its stratified-bootstrap interval (:mod:`statistics`, the
@@ -183,12 +217,37 @@ def summarise(returns: np.ndarray, greedy: np.ndarray | None = None,
 
     returns = np.asarray(returns, dtype=float)
     n_experiments, n_trials = returns.shape
-    window = min(FINAL_WINDOW, n_trials)
+    ragged = not np.all(np.isfinite(returns)) and np.all(np.isfinite(returns[:, 0]))
+    ran = np.sum(np.isfinite(returns), axis=1) if ragged else np.full(n_experiments, n_trials)
+    window = min(FINAL_WINDOW, int(ran.min()))
+    measured = _measured_minutes(env_steps, env_step_seconds, returns, trial_seconds)
     early = trials_in(EARLY_MINUTES, trial_seconds)
-    mean, low, high = confidence_interval(returns)
-    finals = final_returns(returns, window)
+    if ragged:
+        mean, low, high = _nan_interval(returns)
+        finals = np.array([row[:n][-window:].mean() for row, n in zip(returns, ran)])
+    else:
+        mean, low, high = confidence_interval(returns)
+        finals = final_returns(returns, window)
     final_mean, final_low, final_high = interval(finals)
-    first = early_returns(returns, FIRST_MINUTES, trial_seconds)
+    if measured is None:
+        first = early_returns(returns, FIRST_MINUTES, trial_seconds)
+        early_mean = float(returns[:, :early].mean())
+        first_10min_trials = min(early, n_trials)
+        first_5min_trials = min(trials_in(FIRST_MINUTES, trial_seconds), n_trials)
+        # trial t (1-based) of the mean curve ends at t * trial_seconds
+        to_90 = minutes_to_within(mean, window=window, trial_seconds=trial_seconds)
+    else:
+        def within(minutes: float) -> np.ndarray:  # the trials ended by then (at least the first)
+            inside = np.nan_to_num(measured, nan=np.inf) <= minutes + 1e-9
+            inside[:, 0] = True
+            return inside
+        first = np.array([row[mask].mean() for row, mask in zip(returns, within(FIRST_MINUTES))])
+        early_mean = float(np.mean(returns[within(EARLY_MINUTES)]))
+        first_10min_trials = int(within(EARLY_MINUTES).sum(axis=1).min())
+        first_5min_trials = int(within(FIRST_MINUTES).sum(axis=1).min())
+        final = np.nanmean(mean[-window:]) if not ragged else float(np.mean(finals))
+        close = np.abs(mean - final) <= 0.1 * abs(final)
+        to_90 = float(np.nanmean(measured[:, int(np.argmax(close))]))
     first_mean, first_low, first_high = interval(first)
     stuck_below = stuck_threshold(optimal_return)
     reason = withheld(n_experiments)
@@ -206,17 +265,31 @@ def summarise(returns: np.ndarray, greedy: np.ndarray | None = None,
         "final_return_mean": final_mean,
         "final_return_ci95": [final_low, final_high],
         "final_return_per_experiment": finals.tolist(),
-        "minutes_to_90pct": minutes_to_within(mean, window=window, trial_seconds=trial_seconds),
+        "minutes_to_90pct": to_90,
         "mean_return_first_10min": (None if shorter_than(EARLY_MINUTES, n_trials, trial_seconds)
-                                    else float(returns[:, :early].mean())),
-        "first_10min_trials": min(early, n_trials),
+                                    else early_mean),
+        "first_10min_trials": first_10min_trials,
         "mean_return_first_5min": first_mean,
         "first_5min_ci95": [first_low, first_high],
-        "first_5min_trials": min(trials_in(FIRST_MINUTES, trial_seconds), n_trials),
+        "first_5min_trials": first_5min_trials,
         "stuck_below": stuck_below,
         "stuck_experiments": None if stuck_below is None else int(np.sum(finals < stuck_below)),
         "intervals_withheld": reason,
     }
+    if ragged:
+        summary["trials_per_experiment"] = [int(n) for n in ran]
+    steps = None if env_steps is None else np.asarray(env_steps, dtype=float)
+    if steps is not None and steps.shape == returns.shape and np.all(
+            np.isfinite(steps[np.isfinite(returns)])):
+        last = steps[np.arange(n_experiments), ran - 1]
+        summary["env_steps_per_trial"] = _nan_to_none(np.nanmean(steps, axis=0))
+        summary["env_steps_per_experiment"] = [int(v) for v in last]
+        if env_step_seconds is not None:
+            summary["simulated_minutes_per_experiment"] = (last * env_step_seconds / 60.0).tolist()
+            summary["trial_seconds_mean"] = float(np.sum(last) * env_step_seconds / np.sum(ran))
+        if greedy is not None and len(greedy_trials):
+            at = np.asarray(greedy_trials, dtype=int) - 1
+            summary["greedy_eval_env_steps"] = _nan_to_none(np.nanmean(steps[:, at], axis=0))
     for key, scores in (("final_return", finals), ("first_5min", first)):
         if key == "first_5min" and first_mean is None:
             summary[f"{key}_iqm"], summary[f"{key}_iqm_ci95"] = None, [None, None]
@@ -229,8 +302,14 @@ def summarise(returns: np.ndarray, greedy: np.ndarray | None = None,
     if greedy is not None and len(greedy_trials):
         greedy = np.asarray(greedy, dtype=float)
         summary["greedy_eval_trials"] = [int(t) for t in greedy_trials]
-        summary["greedy_return_per_eval"] = greedy.mean(axis=0).tolist()
-        last_mean, last_low, last_high = interval(greedy[:, -1])
+        if np.all(np.isfinite(greedy)):
+            per_eval, lasts = greedy.mean(axis=0), greedy[:, -1]
+        else:  # experiments that ran fewer trials: over those that ran each; their own last
+            per_eval = np.array([np.mean(c[np.isfinite(c)]) if np.isfinite(c).any() else np.nan
+                                 for c in greedy.T])
+            lasts = np.array([row[np.isfinite(row)][-1] for row in greedy if np.isfinite(row).any()])
+        summary["greedy_return_per_eval"] = _nan_to_none(per_eval)
+        last_mean, last_low, last_high = interval(lasts)
         if reason is not None:
             last_low = last_high = None
         summary["greedy_return_last_mean"] = last_mean
@@ -238,15 +317,16 @@ def summarise(returns: np.ndarray, greedy: np.ndarray | None = None,
         if optimal_return is not None:  # how soon the mean greedy policy is near-optimal
             for fraction in GREEDY_WITHIN:
                 summary[f"greedy_trial_within_{round(100 * fraction)}pct"] = first_reaching(
-                    greedy.mean(axis=0), greedy_trials, within_optimal(optimal_return, fraction))
+                    per_eval, greedy_trials, within_optimal(optimal_return, fraction))
     if wall_times is not None:
         summary["experiment_wall_s_mean"] = float(np.mean(wall_times))
         summary["experiment_wall_s_total"] = float(np.sum(wall_times))
     if cpu_times is not None and np.all(np.isfinite(cpu_times)):
         summary["experiment_cpu_s_mean"] = float(np.mean(cpu_times))
         # CPU of an experiment (its greedy trials and snapshots included) per minute it learned
-        summary["cpu_s_per_simulated_minute"] = float(np.mean(cpu_times)
-                                                      / (n_trials * trial_seconds / 60.0))
+        learned = (n_trials * trial_seconds / 60.0 if measured is None
+                   else float(np.mean(measured[np.arange(n_experiments), ran - 1])))
+        summary["cpu_s_per_simulated_minute"] = float(np.mean(cpu_times) / learned)
     return summary
 
 

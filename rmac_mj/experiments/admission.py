@@ -26,7 +26,7 @@ from rmac_mj.agents.spaces import ActionSpace, StateSpace
 from rmac_mj.errors import UserInputError
 from rmac_mj.experiments import prior_transitions as prior_data
 from rmac_mj.rollout import (action_space_of, learner_state_of, run_trial,
-                                         state_space_of, trial_seconds)
+                                         state_space_of, trial_seconds, env_step_seconds)
 from rmac_mj.experiments.protocol import Protocol
 from rmac_mj.tasks.common import LearnerStateSpec
 
@@ -36,14 +36,14 @@ class TaskFacts:
     once for all: the spaces the learners see, the trial's length and the learner's state."""
 
     def __init__(self) -> None:
-        self._facts: dict[str, tuple[StateSpace, ActionSpace, float, LearnerStateSpec]] = {}
+        self._facts: dict[str, tuple[StateSpace, ActionSpace, float, LearnerStateSpec, float]] = {}
 
-    def _of(self, protocol: Protocol) -> tuple[StateSpace, ActionSpace, float, LearnerStateSpec]:
+    def _of(self, protocol: Protocol) -> tuple[StateSpace, ActionSpace, float, LearnerStateSpec, float]:
         key = json.dumps(protocol.environment_description(), sort_keys=True, default=repr)
         if key not in self._facts:
             env = protocol.make_environment()
             self._facts[key] = (state_space_of(env), action_space_of(env), trial_seconds(env),
-                                learner_state_of(env))
+                                learner_state_of(env), env_step_seconds(env))
         return self._facts[key]
 
     def of(self, protocol: Protocol) -> tuple[StateSpace, ActionSpace]:
@@ -53,6 +53,11 @@ class TaskFacts:
     def trial_seconds(self, protocol: Protocol) -> float:
         """Simulated seconds of one trial of the protocol's task."""
         return self._of(protocol)[2]
+
+    def env_step_seconds(self, protocol: Protocol) -> float:
+        """Simulated seconds of one environment step of the protocol's task (before any action
+        repeat): what a budget in environment steps counts."""
+        return self._of(protocol)[4]
 
     def learner_state(self, protocol: Protocol) -> LearnerStateSpec:
         """What the learner's state x is on the protocol's task (inferred for an outside one)."""

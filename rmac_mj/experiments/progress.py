@@ -198,7 +198,7 @@ class TrialFeed:
                 continue
             self.offsets[key] = self.offsets.get(key, 0) + end
             for line in chunk[:end].decode("utf-8").splitlines():
-                trial, value, _ = line.split(",")
+                trial, value = line.split(",")[:2]  # trial,return,greedy_return[,env_steps]
                 if trial != "trial":
                     self.progress.trial(key, int(trial), float(value))
         self.progress.tick()

@@ -39,8 +39,8 @@ from rmac_mj import constraints, envs, tasks
 from rmac_mj.agents import (ALGORITHMS, PRIOR_PARTS, ActionSpace, Agent, StateSpace, agent_class,
                             config_class, config_from_dict, make_agent, unknown_algorithm)
 from rmac_mj.results import files
-from rmac_mj.experiments import prior_transitions as prior_data
-from rmac_mj.rollout import action_space_of, run_trial, state_space_of
+from rmac_mj.experiments import checkpoint as checkpoints, prior_transitions as prior_data
+from rmac_mj.rollout import action_space_of, run_counted_trial, run_trial, state_space_of
 from rmac_mj.results.snapshots import snapshot_arrays
 from rmac_mj.results.store import ExperimentResult, ResultStore, TrialLog
 
@@ -72,7 +72,12 @@ class Protocol:
         environment's kwargs (``rmac_mj.envs.EnvSpec.kwargs``).
       algorithms: algorithm keys, from ``rmac_mj.agents.ALGORITHMS``.
       experiments: learning experiments per algorithm.
-      trials: consecutive learning trials per experiment.
+      trials: consecutive learning trials per experiment (with ``steps``: at most this many).
+      steps: a budget of environment steps per experiment (learner steps times the action repeat;
+        greedy evaluations do not count): trials run until the experiment has taken ``steps``, and
+        the trial that reaches it runs to its end (a curve holds whole episodes), so an experiment
+        takes at least ``steps`` and at most one trial more; or until ``trials``. None: ``trials``
+        alone. Experiments whose episodes end early then hold different numbers of trials.
       seed: root of every experiment's random stream.
       evaluate_every: after every this many learning trials, one greedy trial (no exploration, no
         learning) is recorded; 0 disables it.
@@ -107,6 +112,7 @@ class Protocol:
     algorithms: tuple[str, ...] = ("rmac", "s-ac")
     experiments: int = 40
     trials: int = 600
+    steps: int | None = None
     seed: int = 0
     evaluate_every: int = 0
     snapshot_trials: tuple[int, ...] = (1, 10, 50, 200)
@@ -131,6 +137,7 @@ class Protocol:
                                            what="a list of one or more algorithm names")],
         "experiments": [constraints.Interval(numbers.Integral, 1, None)],
         "trials": [constraints.Interval(numbers.Integral, 1, None)],
+        "steps": [constraints.Interval(numbers.Integral, 1, None), None],
         "seed": [constraints.Interval(numbers.Integral, 0, None)],
         "evaluate_every": [constraints.Interval(numbers.Integral, 0, None)],
         "snapshot_trials": [constraints.TupleOf(constraints.Interval(numbers.Integral, 1, None)),
@@ -238,6 +245,16 @@ class Protocol:
         return envs.EnvSpec(self.env, kwargs=self.task_kwargs, learner_state=self.learner_state,
                             action_repeat=self.action_repeat, trial_steps=self.trial_steps,
                             control_timestep=self.control_timestep)
+
+    @property
+    def measured_bounds(self) -> dict[str, list[float]] | None:
+        """The dimensions of x whose box the outside environment's specs do not give and nobody
+        declared, as measured from random-action rollouts (``rmac_mj.envs.EnvSpec.resolve``): name
+        -> [low, high]; None when there are none."""
+        if self.env is None:
+            return None
+        found = _resolved(self.environment_spec).measured_bounds
+        return {name: list(bound) for name, bound in found.items()} if found else None
 
     def environment_description(self) -> dict[str, Any]:
         """What a snapshot records to rebuild the environment: the suite's ``domain``, ``task`` and
@@ -388,8 +405,11 @@ class ExperimentSpec:
     """One learning experiment to run: ``algorithm`` number ``index`` of ``protocol``.
 
     ``stream_to``: the result directory whose live trial log (``ResultStore.progress_path``) receives
-    every trial as it ends; None streams nothing. ``demonstration``: the recorded prior knowledge when
-    ``protocol.prior`` is a file (read once by the driver).
+    every trial as it ends, and which keeps the experiment's checkpoint (``ResultStore.
+    checkpoint_path``; :mod:`~rmac_mj.experiments.checkpoint`) every ``checkpoint_seconds`` of wall
+    time, from which the experiment continues when run again; None streams and keeps nothing.
+    ``demonstration``: the recorded prior knowledge when ``protocol.prior`` is a file (read once by
+    the driver).
     """
 
     protocol: Protocol
@@ -397,6 +417,7 @@ class ExperimentSpec:
     index: int
     stream_to: str | None = None
     demonstration: prior_data.Demonstration | None = None
+    checkpoint_seconds: float = checkpoints.CHECKPOINT_SECONDS
 
 
 def run_experiment(spec: ExperimentSpec,
@@ -412,32 +433,69 @@ def run_experiment(spec: ExperimentSpec,
     env, agent = experiment.env, experiment.agent
     meta = {**protocol.environment_description(), "experiment": spec.index, "seed": protocol.seed}
     evaluate = evaluation(protocol, spec.index)
-    returns = np.empty(protocol.trials)
+    returns, env_steps = [], []
     greedy_trials, greedy_returns, snapshots = [], [], {}
     snapshot_trials = set(protocol.snapshot_trials) | {protocol.trials}
+    store = ResultStore(spec.stream_to) if spec.stream_to is not None else None
+    log_path = store.progress_path(spec.algorithm, spec.index) if store is not None else None
+    digest = checkpoints.protocol_digest(protocol.as_dict())
+    earlier_wall = earlier_cpu = 0.0
+    saved = (checkpoints.read(store.checkpoint_path(spec.algorithm, spec.index), digest)
+             if store is not None else None)
+    if saved is not None:  # continue where the checkpoint left off, exactly
+        agent.load_state_dict(saved["agent"])
+        checkpoints.restore_environment(env, saved["environment"])
+        returns, env_steps = saved["returns"], saved["env_steps"]
+        greedy_trials, greedy_returns = saved["greedy_trials"], saved["greedy_returns"]
+        earlier_wall, earlier_cpu = saved["wall_time_s"], saved["cpu_time_s"]
+        for trial in sorted(t for t in snapshot_trials if t <= len(returns)):
+            snapshots[trial] = store.read_snapshot_arrays(spec.algorithm, spec.index, trial)
     start, cpu_start = time.perf_counter(), time.process_time()
-    log_path = (ResultStore(spec.stream_to).progress_path(spec.algorithm, spec.index)
-                if spec.stream_to is not None else None)
+    last_checkpoint = start
+    taken, trial = (env_steps[-1] if env_steps else 0), len(returns)
     with TrialLog(log_path) as log:
-        for trial in range(1, protocol.trials + 1):
-            returns[trial - 1] = run_trial(env, agent, learn=True)
+        for done, value in enumerate(returns, start=1):  # a continued experiment's earlier trials
+            log.write(done, value, greedy_returns[greedy_trials.index(done)]
+                      if done in greedy_trials else None, env_steps[done - 1])
+        while trial < protocol.trials and (protocol.steps is None or taken < protocol.steps):
+            trial += 1
+            value, steps = run_counted_trial(env, agent, learn=True)
+            taken += steps
+            returns.append(value)
+            env_steps.append(taken)
             greedy = None
             if protocol.evaluate_every and trial % protocol.evaluate_every == 0:
                 greedy = evaluate(env, agent)
                 greedy_trials.append(trial)
                 greedy_returns.append(greedy)
-            if trial in snapshot_trials:
+            last = trial == protocol.trials or (protocol.steps is not None and taken >= protocol.steps)
+            if trial in snapshot_trials or last:
                 snapshots[trial] = snapshot_arrays(agent, experiment.state_space,
                                                    experiment.action_space, trial=trial, **meta)
-            log.write(trial, returns[trial - 1], greedy)
+            log.write(trial, value, greedy, taken)
+            now = time.perf_counter()
+            if store is not None and not last and now - last_checkpoint >= spec.checkpoint_seconds:
+                environment = checkpoints.environment_state(env)
+                if environment is not None:
+                    for done, arrays in snapshots.items():  # written once; the curve's save rewrites
+                        store.write_snapshot_arrays(spec.algorithm, spec.index, done, arrays)
+                    checkpoints.write(
+                        store.checkpoint_path(spec.algorithm, spec.index), digest=digest, agent=agent,
+                        environment=environment, returns=returns, env_steps=env_steps,
+                        greedy_trials=greedy_trials, greedy_returns=greedy_returns,
+                        wall_time_s=earlier_wall + now - start,
+                        cpu_time_s=earlier_cpu + time.process_time() - cpu_start)
+                last_checkpoint = time.perf_counter()
             if on_trial is not None:
-                on_trial(spec.algorithm, spec.index, trial, float(returns[trial - 1]))
+                on_trial(spec.algorithm, spec.index, trial, float(value))
     demonstration = experiment.demonstration
     return ExperimentResult(
-        algorithm=spec.algorithm, index=spec.index, returns=returns,
+        algorithm=spec.algorithm, index=spec.index, returns=np.asarray(returns, dtype=float),
+        env_steps=np.asarray(env_steps, dtype=np.int64),
         greedy_trials=np.asarray(greedy_trials, dtype=int),
         greedy_returns=np.asarray(greedy_returns, dtype=float), snapshots=snapshots,
-        wall_time_s=time.perf_counter() - start, cpu_time_s=time.process_time() - cpu_start,
+        wall_time_s=earlier_wall + time.perf_counter() - start,
+        cpu_time_s=earlier_cpu + time.process_time() - cpu_start,
         task_seed=experiment.task_seed,
         demonstration_returns=(demonstration.trial_returns() if demonstration is not None
                                else np.zeros(0)))

@@ -22,6 +22,8 @@ import threading
 import time
 from typing import Any, Callable, Iterable, Iterator
 
+import numpy as np
+
 from rmac_mj.experiments import admission, execution, prior_transitions as prior_data
 from rmac_mj.results import files
 from rmac_mj.evaluation import metrics
@@ -268,6 +270,14 @@ def run_protocols(runs: Iterable[tuple[Protocol, str | os.PathLike]], jobs: int 
                     "references": references}  # a resume computes them only if the run did
         if prior_sha256 is not None:
             document["prior_sha256"] = prior_sha256
+        measured = protocol.measured_bounds
+        if measured:  # what the run chose where the specs say nothing: said once, kept in config.json
+            document["measured_bounds"] = measured
+            if log is not None:
+                log(f"{protocol.environment_name}: no bounds in the specs for "
+                    f"{', '.join(measured)}; measured from random actions ("
+                    + ", ".join(f"{k} [{lo:.3g}, {hi:.3g}]" for k, (lo, hi) in measured.items())
+                    + "; declare learner_state.bounds to choose them)")
         state.append(_Run(protocol, out, document, demonstration, resume))
     client = execution.connect_dask(scheduler) if scheduler else None
     # With one local process (--jobs 1) the run uses one core: the references wait for the end.
@@ -357,6 +367,7 @@ def finalise(store: ResultStore, protocol: Protocol, wall_time_s: float | None =
                                "exploration_floor": shared_floor.pop() if len(shared_floor) == 1
                                else None,
                                "trial_seconds": seconds,
+                               "env_step_seconds": facts.env_step_seconds(protocol),
                                "plot_hints": dataclasses.asdict(protocol.knowledge.plot_hints),
                                # What x was (inferred, for an outside environment): its provenance.
                                "learner_state": dataclasses.asdict(facts.learner_state(protocol)),
@@ -367,10 +378,12 @@ def finalise(store: ResultStore, protocol: Protocol, wall_time_s: float | None =
         summary[algorithm] = metrics.summarise(curves.returns, curves.greedy_returns,
                                                curves.greedy_trials, optimal_return,
                                                trial_seconds=seconds, wall_times=curves.wall_times,
-                                               cpu_times=curves.cpu_times)
+                                               cpu_times=curves.cpu_times, env_steps=curves.env_steps,
+                                               env_step_seconds=facts.env_step_seconds(protocol))
         summary[algorithm]["exploration_floor"] = floors.get(algorithm)
-        rows.extend((algorithm, i, t + 1, float(r)) for i, curve in enumerate(curves.returns)
-                    for t, r in enumerate(curve))
+        rows.extend((algorithm, i, t + 1, float(r), "" if not np.isfinite(n) else int(n))
+                    for i, (curve, counted) in enumerate(zip(curves.returns, curves.env_steps))
+                    for t, (r, n) in enumerate(zip(curve, counted)) if np.isfinite(r))
     finals = {a: summary[a]["final_return_per_experiment"] for a in protocol.algorithms}
     summary["final_return_tests"] = metrics.compare_final_returns(finals)
     summary["probability_of_improvement"] = metrics.improvement(finals)

@@ -70,12 +70,36 @@ def _padded(low: float, high: float, fraction: float = 0.05, minimum: float = _R
     return low - margin, high + margin
 
 
+#: What Fig. 2's x axis counts: simulated minutes (the paper's) or environment steps.
+X_AXES = ("minutes", "env_steps")
+
+
+def _x_of(row: dict[str, Any], summary: dict[str, Any], trials: np.ndarray, seconds: float,
+          x_axis: str, key: str = "env_steps_per_trial", at: np.ndarray | None = None) -> np.ndarray:
+    """The x of the trials ``trials`` (1-based): their environment steps, or the simulated minutes
+    those steps took; where the summary does not hold the steps (written before they were
+    counted), trials of the task's full length."""
+    steps = row.get(key)
+    if steps is not None and None not in steps:
+        steps = np.asarray(steps, dtype=float)
+        if x_axis == "env_steps":
+            return steps
+        if summary.get("env_step_seconds"):
+            return steps * float(summary["env_step_seconds"]) / 60.0
+    if x_axis == "env_steps":
+        raise ValueError("this summary holds no environment steps (written before they were "
+                         "counted): draw it against minutes")
+    return np.asarray(trials, dtype=float) * seconds / 60.0
+
+
 def learning_curves_figure(summaries: dict[str, dict[str, Any]], optimal_return: float | None = None,
                            detail_ylim: tuple[float, float] | None = None, smooth: int = 1,
-                           exploration_floor: float | None = None):
+                           exploration_floor: float | None = None, x_axis: str = "minutes"):
     """The figure of :func:`plot_learning_curves` (see it), not yet saved."""
     if not isinstance(smooth, (int, np.integer)) or smooth < 1:
         raise ValueError(f"smooth must be a positive integer (trials), got {smooth!r}")
+    if x_axis not in X_AXES:
+        raise ValueError(f"x_axis must be one of {', '.join(X_AXES)}, got {x_axis!r}")
     seconds = {label: _trial_seconds(label, summary) for label, summary in summaries.items()}
     fig, axes = plt.subplots(1, 2, figsize=(15, 4.8), constrained_layout=True)
     colours = {algorithm: style["color"] for algorithm, style in _STYLES.items()}
@@ -91,7 +115,7 @@ def learning_curves_figure(summaries: dict[str, dict[str, Any]], optimal_return:
                 low = running_mean([np.nan if v is None else v for v in row["ci95_low_per_trial"]], smooth)
                 high = running_mean([np.nan if v is None else v for v in row["ci95_high_per_trial"]],
                                     smooth)
-                minutes = np.arange(1, mean.size + 1) * seconds[label] / 60.0
+                minutes = _x_of(row, summary, np.arange(1, mean.size + 1), seconds[label], x_axis)
                 name = display_name(algorithm)
                 if algorithm not in colours:
                     colours[algorithm] = palette[len(colours) % len(palette)]
@@ -105,7 +129,8 @@ def learning_curves_figure(summaries: dict[str, dict[str, Any]], optimal_return:
                 drawn.append(mean)
                 ends.append(mean[-FINAL_WINDOW:])
                 if row.get("greedy_eval_trials"):
-                    eval_minutes = np.asarray(row["greedy_eval_trials"]) * seconds[label] / 60.0
+                    eval_minutes = _x_of(row, summary, np.asarray(row["greedy_eval_trials"]),
+                                         seconds[label], x_axis, key="greedy_eval_env_steps")
                     ax.plot(eval_minutes, row["greedy_return_per_eval"], marker=".", linewidth=0.8,
                             alpha=0.8, label=f"{name}, greedy trial", **style)
                     drawn.append(np.asarray(row["greedy_return_per_eval"], dtype=float))
@@ -117,12 +142,19 @@ def learning_curves_figure(summaries: dict[str, dict[str, Any]], optimal_return:
             ax.axhline(exploration_floor, color="grey", linewidth=1.0, linestyle=":",
                        label=f"near-optimal, exploring ({exploration_floor:.0f})")
         lengths = sorted(set(seconds.values()))
-        ax.set_xlabel("time [min] (simulated" + (f"; one trial = {lengths[0]:g} s)" if len(lengths) == 1
-                                                 else ")"))
+        if x_axis == "env_steps":
+            ax.set_xlabel("environment steps")
+        else:
+            ax.set_xlabel("time [min] (simulated" + (f"; one trial = {lengths[0]:g} s)"
+                                                     if len(lengths) == 1 else ")"))
         ax.set_ylabel("sum of rewards per trial")
         ax.grid(alpha=0.3)
         ax.set_xlim(left=0)
-        if len(lengths) == 1:  # trials on the top axis (with several trial lengths it would be ambiguous)
+        uniform = all(abs(row.get("trial_seconds_mean", seconds[label]) - seconds[label])
+                      <= 1e-9 * seconds[label] for label, summary in summaries.items()
+                      for row in (summary[a] for a in _learners(summary)))
+        if len(lengths) == 1 and x_axis == "minutes" and uniform:
+            # trials on the top axis (with several trial lengths it would be ambiguous)
             trials_axis = ax.secondary_xaxis("top", functions=(lambda m, s=lengths[0]: m * 60.0 / s,
                                                                lambda t, s=lengths[0]: t * s / 60.0))
             trials_axis.set_xlabel("trial")
@@ -160,7 +192,8 @@ def plot_learning_curves(summaries: dict[str, dict[str, Any]], stem: str | os.Pa
                          optimal_return: float | None = None,
                          detail_ylim: tuple[float, float] | None = None,
                          smooth: int = 1,
-                         exploration_floor: float | None = None) -> list[pathlib.Path]:
+                         exploration_floor: float | None = None,
+                         x_axis: str = "minutes") -> list[pathlib.Path]:
     """Fig. 2: sum of rewards per trial against simulated minutes (trials on the top axis), mean and
     95% confidence band.
 
@@ -184,8 +217,11 @@ def plot_learning_curves(summaries: dict[str, dict[str, Any]], stem: str | os.Pa
         the legends. 1 draws the raw per-trial values.
       exploration_floor: drawn as a second line: the near-optimal policy's return while exploring
         as the learners do, the level an exploring learning curve is judged against.
+      x_axis: "minutes", simulated time from the steps that ran (the paper's axis), or "env_steps",
+        the environment steps taken (equal interaction across tasks and learners).
     """
-    fig = learning_curves_figure(summaries, optimal_return, detail_ylim, smooth, exploration_floor)
+    fig = learning_curves_figure(summaries, optimal_return, detail_ylim, smooth, exploration_floor,
+                                 x_axis)
     return save_figure(fig, stem)
 
 

@@ -123,18 +123,38 @@ def _finite_numbers(array: np.ndarray) -> bool:
     return array.dtype.kind in "biuf" and bool(np.all(np.isfinite(array)))
 
 
-def curve_problem(path: pathlib.Path, trials: int, greedy_trials: list[int]) -> str | None:
+def curve_problem(path: pathlib.Path, trials: int, greedy_trials: list[int],
+                  steps: int | None = None) -> str | None:
     """None when the curve file at ``path`` is whole and holds ``trials`` finite returns and greedy
-    trials after exactly ``greedy_trials``; else what is wrong with it."""
+    trials after exactly ``greedy_trials``; else what is wrong with it. With a budget of ``steps``
+    environment steps, ``trials`` is the most it may hold: it holds the trials until its
+    ``env_steps`` reached the budget, and the greedy trials among them. ``env_steps`` (written since
+    environment steps are counted) must then be a non-decreasing count per trial."""
     arrays, problem = _open_npz(path)
     if problem is not None:
         return problem
     missing = [key for key in CURVE_KEYS if key not in arrays]
+    if steps is not None and "env_steps" not in arrays:
+        missing.append("env_steps")
     if missing:
         return f"lacks {', '.join(missing)}"
     returns, greedy = arrays["returns"], arrays["greedy_returns"]
+    if steps is not None and returns.ndim == 1 and 1 <= returns.size <= trials:
+        counted = arrays["env_steps"]
+        reached = counted.shape == returns.shape and counted[-1] >= steps and (
+            returns.size == 1 or counted[-2] < steps)
+        if not reached and returns.size < trials:
+            return (f"its {returns.size} trials do not end where the budget of {steps} environment "
+                    f"steps is reached")
+        trials = returns.size
+        greedy_trials = [t for t in greedy_trials if t <= trials]
     if returns.shape != (trials,) or not _finite_numbers(returns):
         return f"returns are not {trials} finite numbers (shape {returns.shape}, dtype {returns.dtype})"
+    if "env_steps" in arrays:
+        counted = arrays["env_steps"]
+        if (counted.shape != (trials,) or counted.dtype.kind not in "iu"
+                or np.any(np.diff(counted) < 0) or (counted.size and counted[0] < 1)):
+            return f"env_steps are not {trials} increasing counts of environment steps"
     if arrays["greedy_trials"].tolist() != greedy_trials:
         return f"greedy trials {arrays['greedy_trials'].tolist()[:5]}... are not the protocol's"
     if greedy.shape != (len(greedy_trials),) or (greedy.size and not _finite_numbers(greedy)):
@@ -145,6 +165,19 @@ def curve_problem(path: pathlib.Path, trials: int, greedy_trials: list[int]) -> 
     if arrays["demonstration_returns"].ndim != 1 or not _finite_numbers(arrays["demonstration_returns"]):
         return "demonstration_returns are not finite numbers"
     return None
+
+
+def npz_length(path: pathlib.Path, key: str) -> int | None:
+    """The size of array ``key`` of the ``.npz`` file at ``path``, None when it cannot be read."""
+    arrays, problem = _open_npz(path)
+    if problem is not None or key not in arrays:
+        return None
+    return int(arrays[key].size)
+
+
+def curve_trials(path: pathlib.Path) -> int | None:
+    """The learning trials a curve file holds, None when it cannot be read."""
+    return npz_length(path, "returns")
 
 
 def snapshot_problem(path: pathlib.Path, algorithm: str, trial: int) -> str | None:

@@ -4,6 +4,7 @@
     OUT/curves/<algorithm>/exp_<iii>.npz         an experiment's results; its presence marks it done
     OUT/snapshots/<algorithm>/exp_<iii>/trial_<tttt>.npz   the agent after that trial
     OUT/progress/<algorithm>/exp_<iii>.csv       the live trial log of a running experiment
+    OUT/checkpoints/<algorithm>/exp_<iii>.npz    an unfinished experiment, to continue from
     OUT/returns.csv, summary.json, fig2_learning_curves.{png,pdf}, wall_times.json
     OUT/performance_profiles.{png,pdf}
 
@@ -48,6 +49,8 @@ class ExperimentResult:
     Attributes:
       algorithm, index: which experiment.
       returns: ndarray of shape (trials,): the sum of rewards of every learning trial.
+      env_steps: int ndarray of shape (trials,): the environment steps taken by the end of every
+        learning trial, counted from the experiment's start (greedy trials not counted).
       greedy_trials: ndarray of shape (evaluations,): after which learning trials a greedy trial ran.
       greedy_returns: ndarray of shape (evaluations,): their returns.
       snapshots: trial -> the snapshot arrays of the agent after it (``snapshots.snapshot_arrays``).
@@ -69,6 +72,7 @@ class ExperimentResult:
     cpu_time_s: float
     task_seed: int
     demonstration_returns: np.ndarray
+    env_steps: np.ndarray | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -76,7 +80,10 @@ class Curves:
     """One learner's curves over the experiments of a run.
 
     Attributes:
-      returns: ndarray of shape (experiments, trials): sum of rewards per learning trial.
+      returns: ndarray of shape (experiments, trials): sum of rewards per learning trial; NaN after
+        the last trial of an experiment that ran fewer (a budget in environment steps).
+      env_steps: ndarray of shape (experiments, trials): environment steps taken by the end of each
+        trial (float; NaN where ``returns`` is, and for curves written before they were recorded).
       greedy_returns: ndarray of shape (experiments, evaluations): greedy trials' returns.
       greedy_trials: ndarray of shape (evaluations,): after which learning trials they ran.
       wall_times: ndarray of shape (experiments,): each experiment's wall time (s).
@@ -92,14 +99,21 @@ class Curves:
     wall_times: np.ndarray
     cpu_times: np.ndarray
     demonstration_returns: np.ndarray
+    env_steps: np.ndarray | None = None
+
+    @property
+    def trials_run(self) -> np.ndarray:
+        """int ndarray of shape (experiments,): the learning trials each experiment ran."""
+        return np.sum(np.isfinite(self.returns), axis=1).astype(int)
 
 
 class TrialLog:
-    """The live log of one experiment: a CSV (``trial,return,greedy_return``) flushed after every trial,
+    """The live log of one experiment: a CSV (``trial,return,greedy_return,env_steps``; the last: the
+    environment steps taken so far) flushed after every trial,
     so ``tail -f`` or pandas can follow a run. Not atomic and rewritten when a resumed run repeats the
     experiment: it is a view of a run in progress, not a result."""
 
-    HEADER = "trial,return,greedy_return\n"
+    HEADER = "trial,return,greedy_return,env_steps\n"
 
     def __init__(self, path: pathlib.Path | None):
         self.path, self.handle = path, None
@@ -112,10 +126,12 @@ class TrialLog:
             self.handle.flush()
         return self
 
-    def write(self, trial: int, value: float, greedy: float | None) -> None:
+    def write(self, trial: int, value: float, greedy: float | None, env_steps: int | None = None
+              ) -> None:
         if self.handle is not None:
             text = "" if greedy is None else repr(float(greedy))
-            self.handle.write(f"{trial},{float(value)!r},{text}\n")
+            steps = "" if env_steps is None else str(int(env_steps))
+            self.handle.write(f"{trial},{float(value)!r},{text},{steps}\n")
             self.handle.flush()
 
     def __exit__(self, *exc) -> None:
@@ -173,6 +189,32 @@ class ResultStore:
 
     def snapshot_path(self, algorithm: str, index: int, trial: int) -> pathlib.Path:
         return self.snapshot_dir(algorithm, index) / f"trial_{trial:04d}.npz"
+
+    def checkpoint_path(self, algorithm: str, index: int) -> pathlib.Path:
+        """The checkpoint of an unfinished experiment (:mod:`rmac_mj.experiments.checkpoint`)."""
+        return self.root / "checkpoints" / algorithm / f"{_experiment_name(index)}.npz"
+
+    def checkpointed(self, algorithm: str) -> dict[int, int]:
+        """Experiment index -> learning trials done, of ``algorithm``'s unfinished experiments that
+        hold a checkpoint."""
+        folder = self.root / "checkpoints" / algorithm
+        found = {}
+        for path in folder.glob("exp_*.npz") if folder.is_dir() else ():
+            match = _EXPERIMENT_FILE.fullmatch(path.name)
+            trials = integrity.npz_length(path, "curve/returns") if match else None
+            if trials:
+                found[int(match.group(1))] = trials
+        return found
+
+    def write_snapshot_arrays(self, algorithm: str, index: int, trial: int,
+                              arrays: dict[str, np.ndarray]) -> None:
+        """Write one snapshot (the arrays of ``snapshots.snapshot_arrays``)."""
+        files.write_npz(self.snapshot_path(algorithm, index, trial), **arrays)
+
+    def read_snapshot_arrays(self, algorithm: str, index: int, trial: int) -> dict[str, np.ndarray]:
+        """The arrays of one snapshot as written."""
+        with np.load(self.snapshot_path(algorithm, index, trial), allow_pickle=False) as data:
+            return {key: data[key] for key in data.files}
 
     def progress_path(self, algorithm: str, index: int) -> pathlib.Path:
         """The live trial log of an experiment (see :class:`TrialLog`)."""
@@ -292,7 +334,13 @@ class ResultStore:
         """Whether this directory holds ``protocol``'s run, finished: the same protocol, every
         experiment saved and the summary written."""
         stored = self.read_protocol()
-        return stored == protocol.as_dict() and self._complete(stored)
+        if stored is None:
+            return False
+        try:  # a directory written before a field existed holds it at its default
+            same = type(protocol).from_dict(stored).as_dict() == protocol.as_dict()
+        except (TypeError, ValueError):
+            same = False
+        return same and self._complete(stored)
 
     def experiment_problem(self, protocol, algorithm: str, index: int) -> str | None:
         """None when experiment ``index`` of ``algorithm`` is saved whole and as ``protocol`` says
@@ -301,10 +349,14 @@ class ResultStore:
         every = protocol.evaluate_every
         greedy = [t for t in range(every, protocol.trials + 1, every)] if every else []
         path = self.curve_path(algorithm, index)
-        problem = integrity.curve_problem(path, protocol.trials, greedy)
+        problem = integrity.curve_problem(path, protocol.trials, greedy, protocol.steps)
         if problem is not None:
             return f"{path.relative_to(self.root)}: {problem}"
-        for trial in protocol.snapshot_trials:
+        snapshot_trials = protocol.snapshot_trials
+        if protocol.steps is not None:  # the trials it ran, the last always saved
+            ran = integrity.curve_trials(path)
+            snapshot_trials = sorted({t for t in snapshot_trials if t <= ran} | {ran})
+        for trial in snapshot_trials:
             path = self.snapshot_path(algorithm, index, trial)
             problem = integrity.snapshot_problem(path, algorithm, trial)
             if problem is not None:
@@ -314,6 +366,7 @@ class ResultStore:
     def discard(self, algorithm: str, index: int) -> None:
         """Remove an experiment's curve and snapshots (before it is run again)."""
         self.curve_path(algorithm, index).unlink(missing_ok=True)
+        self.checkpoint_path(algorithm, index).unlink(missing_ok=True)
         folder = self.snapshot_dir(algorithm, index)
         for path in folder.glob("*.npz") if folder.is_dir() else ():
             path.unlink()
@@ -327,25 +380,31 @@ class ResultStore:
                         wall_time_s=np.float64(result.wall_time_s),
                         cpu_time_s=np.float64(result.cpu_time_s),
                         task_seed=np.int64(result.task_seed),
-                        demonstration_returns=result.demonstration_returns)
+                        demonstration_returns=result.demonstration_returns,
+                        **({} if result.env_steps is None else {"env_steps": result.env_steps}))
+        self.checkpoint_path(result.algorithm, result.index).unlink(missing_ok=True)
 
     def load_curves(self, algorithm: str, experiments: int | None = None) -> Curves:
         """The curves of ``algorithm``'s experiments 0 .. ``experiments`` - 1 (all must be saved);
         None: every saved experiment, in order of index."""
-        returns, greedy, wall, cpu, demonstrations = [], [], [], [], []
+        returns, greedy, wall, cpu, demonstrations, steps = [], [], [], [], [], []
         greedy_trials = np.zeros(0, dtype=int)
         indices = range(experiments) if experiments is not None else sorted(self.finished(algorithm))
         for index in indices:
             with np.load(self.curve_path(algorithm, index), allow_pickle=False) as data:
                 returns.append(data["returns"])
+                # written before environment steps were recorded: unknown (see Curves)
+                steps.append(data["env_steps"] if "env_steps" in data.files
+                             else np.full(data["returns"].shape, np.nan))
                 greedy.append(data["greedy_returns"])
-                greedy_trials = data["greedy_trials"]
+                if data["greedy_trials"].size >= greedy_trials.size:
+                    greedy_trials = data["greedy_trials"]
                 wall.append(float(data["wall_time_s"]))
                 cpu.append(float(data["cpu_time_s"]) if "cpu_time_s" in data.files else np.nan)
                 demonstrations.append(data["demonstration_returns"])
-        return Curves(returns=np.array(returns), greedy_returns=np.array(greedy),
+        return Curves(returns=_padded(returns), greedy_returns=_padded(greedy),
                       greedy_trials=greedy_trials, wall_times=np.array(wall), cpu_times=np.array(cpu),
-                      demonstration_returns=np.array(demonstrations))
+                      demonstration_returns=np.array(demonstrations), env_steps=_padded(steps))
 
     # -- snapshots -----------------------------------------------------------------------------------
     def snapshot_algorithms(self) -> list[str]:
@@ -364,9 +423,12 @@ class ResultStore:
         return dict(sorted(found.items()))
 
     # -- summaries -----------------------------------------------------------------------------------
-    def write_returns(self, rows: Iterator[tuple[str, int, int, float]]) -> None:
-        """``returns.csv``: one row (algorithm, experiment, trial, return) per learning trial."""
-        files.write_csv(self.returns_path, ["algorithm", "experiment", "trial", "return"], rows)
+    def write_returns(self, rows: Iterator[tuple]) -> None:
+        """``returns.csv``: one row (algorithm, experiment, trial, return, env_steps) per learning
+        trial; env_steps, the environment steps taken by the end of the trial, is empty for curves
+        written before they were counted."""
+        files.write_csv(self.returns_path, ["algorithm", "experiment", "trial", "return", "env_steps"],
+                        rows)
 
     def write_summary(self, summary: dict[str, Any]) -> None:
         """``summary.json``; non-finite numbers (a learner that diverged) are written as null."""
@@ -390,6 +452,19 @@ class ResultStore:
 
     def write_wall_times(self, parts: list[dict[str, Any]]) -> None:
         files.write_json(self.wall_times_path, {"parts": parts})
+
+
+def _padded(rows: list[np.ndarray]) -> np.ndarray:
+    """Rows of possibly different lengths as one float array of shape (rows, longest), NaN after
+    each row's end (experiments of a budget in environment steps run different numbers of trials);
+    rows of one length come back exactly as ``np.array(rows)``."""
+    lengths = {len(row) for row in rows}
+    if len(lengths) <= 1:
+        return np.array(rows)
+    padded = np.full((len(rows), max(lengths)), np.nan)
+    for i, row in enumerate(rows):
+        padded[i, :len(row)] = row
+    return padded
 
 
 def added_experiments(stored: Any, protocol: Any) -> int | None:

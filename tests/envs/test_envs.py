@@ -227,8 +227,6 @@ def test_an_ambiguous_observation_is_refused_naming_the_key():
 
 
 @pytest.mark.parametrize("spec, kwargs, message", [
-    ("dm_control:pendulum/swingup", {}, r"no finite bounds for velocity .*learner_state.bounds = "
-                                        r"\{\"velocity\" = \[LOW, HIGH\]\}"),
     (f"{HERE}:make_slider", {}, r"does not say its time step.*control_timestep"),
     ("gymnasium:CartPole-v1", {}, r"action space is Discrete"),
     ("gymnasium:NoSuchEnv-v0", {}, r"gymnasium:NoSuchEnv-v0"),
@@ -242,6 +240,42 @@ def test_what_is_missing_or_wrong_is_refused_in_one_line(spec, kwargs, message):
     with pytest.raises(ValueError, match=message) as error:
         envs.load(spec, seed=0, **kwargs)
     assert "\n" not in str(error.value)
+
+
+def test_a_box_the_specs_do_not_give_is_measured_and_a_declared_one_wins():
+    spec = envs.EnvSpec("dm_control:cartpole/swingup", action_repeat=5,
+                        learner_state={"bounds": {"position[0]": [-1.8, 1.8]}}).resolve()
+    state = spec.learner_state
+    assert set(spec.measured_bounds) == {"velocity[0]", "velocity[1]"}
+    assert (state.low[0], state.high[0]) == (-1.8, 1.8)  # declared
+    # random actions held for 5 steps swing the pole at several rad/s; the margin widens what they
+    # reached, so the box holds every state they visited
+    low, high = spec.measured_bounds["velocity[1]"]
+    assert low < -5.0 and high > 5.0 and (state.low[3], state.high[3]) == (low, high)
+    # the same seed, the same box: every worker and every resume sees one learner state
+    assert envs.EnvSpec("dm_control:cartpole/swingup", action_repeat=5, learner_state={
+        "bounds": {"position[0]": [-1.8, 1.8]}}).resolve().measured_bounds == spec.measured_bounds
+    # the measured box travels with the spec (snapshots, config.json) and rebuilds it as it was
+    again = envs.EnvSpec(**spec.as_dict()).resolve()
+    assert again.measured_bounds == spec.measured_bounds and again.learner_state == spec.learner_state
+
+
+def test_measured_box_widens_the_visited_range_about_its_centre():
+    from rmac_mj.envs.observations import measured_box
+
+    low, high = measured_box(np.array([[0.0, 3.0], [2.0, 3.0]]), margin=0.5)
+    np.testing.assert_allclose(low, [-0.5, 2.0])  # [0, 2] half-width 1 -> 1.5; a still one: +-1
+    np.testing.assert_allclose(high, [2.5, 4.0])
+
+
+def test_without_a_measurement_an_unbounded_dimension_is_refused_naming_it():
+    from rmac_mj.envs.observations import infer_learner_state, layout_of_dm_env
+    from dm_env import specs
+
+    layout = layout_of_dm_env({"velocity": specs.Array((1,), float, "velocity")})
+    with pytest.raises(ValueError, match=r"no finite bounds for velocity .*learner_state.bounds = "
+                                         r"\{\"velocity\" = \[LOW, HIGH\]\}"):
+        infer_learner_state(layout, np.zeros((1, 1)), np.array([-1.0]), np.array([1.0]))
 
 
 def test_slider_needs_a_time_limit():
@@ -395,8 +429,8 @@ def test_a_sweep_file_takes_env_and_a_learner_state_table(tmp_path):
     assert env.learner_state.keys[1] == "atan2(position[2], position[1])"
     assert steps_per_trial(env) == 5
     path.write_text(path.read_text().replace(', "velocity[1]" = [-20, 20]', ""))
-    with pytest.raises(SweepFileError, match=r"no finite bounds for velocity\[1\]"):
-        load_sweep(path)
+    measured = load_sweep(path).configurations[0].protocol  # the undeclared one is measured
+    assert list(measured.measured_bounds) == ["velocity[1]"]
 
 
 # ----------------------------------------------------------------------------------------------------

@@ -54,7 +54,7 @@ def test_tiny_protocol_end_to_end(tmp_path, monkeypatch):
     with np.load(tmp_path / "curves/s-ac/exp_000.npz", allow_pickle=False) as data:
         assert data["returns"].shape == (4,) and list(data["greedy_trials"]) == [2, 4]
     lines = (tmp_path / "returns.csv").read_text().splitlines()
-    assert lines[0] == "algorithm,experiment,trial,return" and len(lines) == 1 + 2 * 4
+    assert lines[0] == "algorithm,experiment,trial,return,env_steps" and len(lines) == 1 + 2 * 4
 
 
 def test_serial_and_parallel_runs_are_identical(tmp_path):
@@ -269,9 +269,10 @@ def test_trials_are_streamed_to_disk_as_they_happen(tmp_path):
                               on_trial=on_trial)
     assert seen == ["1", "2", "3", "4"]
     lines = log.read_text().splitlines()
-    assert lines[0] == "trial,return,greedy_return"
+    assert lines[0] == "trial,return,greedy_return,env_steps"
     np.testing.assert_array_equal([float(line.split(",")[1]) for line in lines[1:]], streamed.returns)
     assert [line.split(",")[2] != "" for line in lines[1:]] == [False, True, False, True]
+    np.testing.assert_array_equal([int(line.split(",")[3]) for line in lines[1:]], streamed.env_steps)
     silent = run_experiment(ExperimentSpec(protocol, "s-ac", 0))
     np.testing.assert_array_equal(silent.returns, streamed.returns)  # streaming changes nothing
 

@@ -183,7 +183,7 @@ def test_side_by_side_policies_share_their_colour_scales():
 
 
 def test_the_greedy_trajectory_is_drawn_from_the_start_state():
-    from test_render import energy_pump_agent  # (tests/ is on sys.path, as pytest imports it)
+    from scripted import energy_pump_agent  # tests/ is on sys.path
 
     env, learner_state = _pendulum()
     states, total = policy_plots.greedy_trajectory(env, energy_pump_agent())
