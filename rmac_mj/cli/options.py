@@ -9,6 +9,7 @@ from typing import Any, Mapping
 
 from rmac_mj import __version__
 from rmac_mj.cli.common import PROG
+from rmac_mj.experiments import panel as panel_tasks
 
 DESCRIPTION = "The rmac-mj command: reproduce the paper's comparison, draw its figures, render videos, benchmark."
 
@@ -231,8 +232,8 @@ def build_parser(reproduce_defaults: Mapping[str, Any] | None = None) -> argpars
     panel.add_argument("--experiments", type=_positive_int, default=5, metavar="N",
                        help="learning experiments per learner and task")
     panel.add_argument("--tasks", default=None, metavar="TASK[,TASK]",
-                       help="some of the panel's tasks (default: all): dc_pendulum, two_link_arm, "
-                            "pendulum_v1, cartpole_balance, cartpole_swingup, mountaincar")
+                       help="some of the panel's tasks (default: all): "
+                            + ", ".join(task.name for task in panel_tasks.TASKS))
     panel.add_argument("--seed", type=_non_negative_int, default=0, help="root random seed")
     panel.add_argument("--jobs", type=_positive_int, default=None, metavar="N",
                        help="worker processes shared by all tasks (default: all cores)")

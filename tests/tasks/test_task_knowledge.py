@@ -29,8 +29,10 @@ def test_nothing_outside_the_tasks_names_a_task_of_the_suite():
     names as a whole string: what is task-specific comes from the task (``tasks.knowledge``,
     ``tasks.DEFAULT_TASK``)."""
     task_names = {t for ts in tasks.TASKS_BY_DOMAIN.values() for t in ts}
+    # The public panel is a fixed list of named tasks: naming them is what that module is for.
+    exempt = {PACKAGE / "experiments" / "panel.py"}
     found = [f"{path.relative_to(PACKAGE.parent)}:{line}: {text!r}"
-             for path in sorted(PACKAGE.rglob("*.py"))
+             for path in sorted(set(PACKAGE.rglob("*.py")) - exempt)
              for line, text in _code_strings(path)
              if any(domain in text for domain in tasks.TASKS_BY_DOMAIN) or text in task_names]
     assert not found, "\n".join(found)
