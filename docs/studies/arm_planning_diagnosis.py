@@ -105,6 +105,7 @@ def run(seed: int, trials: int, config: dict, every: int) -> dict[str, np.ndarra
     weights = np.asarray(agent.config.critic_weights)
     intervals = {"critic": [], "reference": []}
     clipped = [0, 0]
+    rewards_seen = [-np.inf, 0, 0]  # the largest real reward; simulated rewards, those above it
     rehearsal = agent.rehearsal
     original_after, original_predict = rehearsal.after_trial, rehearsal.model.predict
 
@@ -118,6 +119,8 @@ def run(seed: int, trials: int, config: dict, every: int) -> dict[str, np.ndarra
         x_next, r = original_predict(x, u)
         clipped[0] += 1
         clipped[1] += bool(np.any(np.abs(x_next[speed]) >= space.high[speed] - 1e-12))
+        rewards_seen[1] += 1
+        rewards_seen[2] += r > rewards_seen[0] + 1e-9
         return x_next, r
 
     rehearsal.after_trial, rehearsal.model.predict = after_trial, predict
@@ -125,7 +128,9 @@ def run(seed: int, trials: int, config: dict, every: int) -> dict[str, np.ndarra
     for t in range(trials):
         model_before = copy.deepcopy(rehearsal.model)
         states, actions, rewards = _trial(env, agent, learn=True)
-        row = {"trial": t + 1}
+        rewards_seen[0] = max(rewards_seen[0], float(rewards.max()))
+        row = {"trial": t + 1, "reward_above_real": rewards_seen[2] / max(rewards_seen[1], 1)}
+        rewards_seen[1:] = [0, 0]
         if t > 0:  # the model as it was before this trial, on this trial's real transitions
             one = [model_before.predict(states[k], actions[k])[0] for k in range(len(actions))]
             err = space.canonical(np.array(one) - states[1:])
@@ -167,7 +172,8 @@ def main() -> None:
     mean = {k: np.nanmean(np.array([r[k] for r in runs]), axis=0) for k in keys}
     print("config:", json.dumps(config))
     cols = ["greedy_return", "greedy_discounted", "value_x0", "one_step_error", "open_loop_error",
-            "state_change", "simulated_critic", "simulated_reference", "clipped"]
+            "state_change", "simulated_critic", "simulated_reference", "clipped",
+            "reward_above_real"]
     print("trial " + " ".join(f"{c[:12]:>12}" for c in cols))
     for i in range(args.every - 1, args.trials, args.every):
         print(f"{i + 1:5d} " + " ".join(f"{mean[c][i]:12.3f}" for c in cols))

@@ -73,6 +73,9 @@ class Planning:
     """Nearest neighbours K of the model's local fits (9 for n + m = 3); None: 9 (n + m) / 3."""
     clip: bool = True
     """Keep predicted non-periodic state entries inside the task's nominal box."""
+    interpolate: bool = False
+    """Keep every prediction (next state and learned reward) within the range of its neighbours'
+    outputs, so that a local fit never extrapolates a reward no real transition earned."""
 
     parameter_constraints: ClassVar[dict[str, list]] = {
         "steps": [Interval(Integral, 0, None)],
@@ -82,6 +85,7 @@ class Planning:
         "model_capacity": [Interval(Integral, 1, None), None],
         "model_neighbours": [Interval(Integral, 1, None), None],
         "clip": [Boolean()],
+        "interpolate": [Boolean()],
     }
     #: The fields set from the task when left None: field -> (rule, value at the paper's pendulum)
     #: (``task_knowledge.with_task_units``).
@@ -189,7 +193,7 @@ class TransitionModel:
             input_weights=np.r_[state_space.input_weights, action_space.input_weights],
             input_period=np.r_[self.period, np.zeros(m)],
             output_period=np.r_[self.period, np.zeros(outputs - n)], conditioning="ridge",
-            backend=backend)
+            clip=bool(planning.interpolate), backend=backend)
         # Scratch of the compiled prediction.
         self._z = np.empty(n + m)
         self._idx = np.empty(planning.model_neighbours, dtype=np.int64)
