@@ -118,3 +118,23 @@ def test_s_ac_running_scale_survives_a_restore():
     other = make_agent("s-ac", state, action, seed=5)
     other.load_state_dict(saved)
     assert other.reward_scale_ == 7.0 and other.rate_a == agent.rate_a
+
+
+def test_the_recommended_learner_on_the_pendulum():
+    state, action = _pendulum_spaces()
+    agent = make_agent("recommended", state, action, seed=0)
+    c = agent.config
+    assert (c.planning.steps, c.alpha_a, c.gamma, c.exploration.sigma) == (30, 0.002, 0.97, 1.0)
+    assert agent.rehearsal is not None and agent.display_name == "S-AC + planning"
+
+
+@pytest.mark.parametrize("interpolate", [False, True])
+def test_an_interpolating_model_never_predicts_a_reward_beyond_the_real_ones(interpolate):
+    from rmac_mj.agents.planning import Planning, TransitionModel
+    state, action = _spaces(n=1, m=1)
+    model = TransitionModel(Planning(steps=1, interpolate=interpolate, model_capacity=50,
+                                     model_neighbours=5), state, action)
+    for x in np.linspace(-0.5, 0.5, 11):
+        model.observe(np.array([x]), np.array([0.0]), -1.0 + x, np.array([x]))
+    _, r = model.predict(np.array([0.9]), np.array([0.9]))
+    assert (r <= -0.5 + 1e-9) == interpolate  # an affine fit extrapolates to about -0.1
