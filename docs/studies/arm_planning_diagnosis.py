@@ -24,7 +24,7 @@ import numpy as np
 
 from rmac_mj import tasks
 from rmac_mj.agents import make_agent
-from rmac_mj.experiments.episode import action_space_of, learner_state_of, state_of, state_space_of
+from rmac_mj.rollout import action_space_of, learner_state_of, state_of, state_space_of
 
 #: arm-fastest.toml's RMAC with planning, with the sizes and noise that run had (before the
 #: settings followed the task's units).

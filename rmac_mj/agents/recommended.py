@@ -14,13 +14,13 @@ from typing import ClassVar
 import numpy as np
 
 from rmac_mj.agents.planning import Planning
-from rmac_mj.agents.sac import SAC, SACConfig
+from rmac_mj.agents.standard_ac import StandardACConfig, StandardActorCritic
 from rmac_mj.constraints import Boolean, Interval
 
 
 @dataclasses.dataclass(frozen=True)
-class RecommendedConfig(SACConfig):
-    """S-AC's settings (:class:`SACConfig`) with planning on: ``planning.steps`` simulated
+class RecommendedConfig(StandardACConfig):
+    """S-AC's settings (:class:`StandardACConfig`) with planning on: ``planning.steps`` simulated
     transitions per real one, and an actor rate of 0.002 at the paper's reward scale (the smaller
     step planning wants on the pendulum, docs/planning.md).
 
@@ -38,14 +38,14 @@ class RecommendedConfig(SACConfig):
     lookahead_rollouts: bool = True
 
     task_units: ClassVar[dict[str, tuple[str, float]]] = {
-        **SACConfig.task_units, "alpha_a": ("reward", 0.002)}
+        **StandardACConfig.task_units, "alpha_a": ("reward", 0.002)}
     parameter_constraints: ClassVar[dict[str, list]] = {
-        **SACConfig.parameter_constraints, "lookahead": [Interval(Integral, 0, None)],
+        **StandardACConfig.parameter_constraints, "lookahead": [Interval(Integral, 0, None)],
         "lookahead_rollouts": [Boolean()]}
 
 
-class Recommended(SAC):
-    """S-AC with planning (module docstring); the same interface and state as :class:`SAC`."""
+class Recommended(StandardActorCritic):
+    """S-AC with planning (module docstring); the same interface and state as :class:`StandardActorCritic`."""
 
     name = "recommended"
     display_name = "S-AC + planning"
