@@ -246,8 +246,8 @@ WEIGHTS = TupleOf(Interval(numbers.Real, 0, None), what="a list of finite number
 #: What every TD(lambda) learner here declares alike (Table 2): the discount gamma in [0, 1), the
 #: trace decay lambda and the critic's learning rate alpha_c in [0, 1].
 TD_LAMBDA = {
-    "gamma": [Interval(numbers.Real, 0, 1, closed="left")],
-    "lam": [Interval(numbers.Real, 0, 1)],
+    "gamma": [Interval(numbers.Real, 0, 1, closed="left"), None],
+    "lam": [Interval(numbers.Real, 0, 1), None],
     "alpha_c": [Interval(numbers.Real, 0, 1)],
 }
 #: A learner's compute back end: compiled kernels or their numpy version (the same results).

@@ -42,11 +42,13 @@ def state_of(observation, learner_state: LearnerStateSpec | Sequence[str]) -> np
 
 
 def state_space_of(env: control.Environment) -> StateSpace:
-    """The task's nominal state box, periodic dimensions, state weightings and state cost as a
-    StateSpace."""
+    """The task's nominal state box, periodic dimensions, state weightings, state cost, control step
+    and reward scale as a StateSpace."""
     learner_state = learner_state_of(env)
     return StateSpace(low=learner_state.low, high=learner_state.high, periodic=learner_state.periodic,
-                      input_weights=learner_state.input_weights, cost=learner_state.state_cost)
+                      input_weights=learner_state.input_weights, cost=learner_state.state_cost,
+                      timestep=float(env.control_timestep()),
+                      reward_scale=learner_state.reward_scale)
 
 
 def action_space_of(env: control.Environment) -> ActionSpace:

@@ -45,6 +45,10 @@ class LearnerStateSpec:
     the learner sees it, angles wrapped) and no other term in x (the diagonal of the reward's Q;
     dc_pendulum: (5, 0.1)). With ``action_cost``, the whole reward: what a learner is given when
     the task's reward is prior knowledge (planning's ``reward='task'``). None: the task does not say."""
+    reward_scale: float | None = None
+    """The magnitude of the reward per step far from the goal (dc_pendulum: 5 pi^2, |r| hanging
+    still), by which the learners scale their rates on TD errors. None: the task does not say (a
+    learner that needs it estimates it from the rewards it receives)."""
 
     def __post_init__(self) -> None:
         if not self.keys or not all(isinstance(k, str) and k for k in self.keys):
@@ -82,6 +86,11 @@ class LearnerStateSpec:
         object.__setattr__(self, "action_input_weights",
                            tuple(float(v) for v in self.action_input_weights))
         object.__setattr__(self, "action_labels", tuple(str(v) for v in self.action_labels))
+        if self.reward_scale is not None:
+            if not (is_real(self.reward_scale) and self.reward_scale > 0):
+                raise ValueError(f"LearnerState.reward_scale must be None or a positive finite "
+                                 f"number, got {self.reward_scale!r}")
+            object.__setattr__(self, "reward_scale", float(self.reward_scale))
         for name in ("action_cost", "state_cost"):
             if getattr(self, name) is not None:
                 object.__setattr__(self, name, tuple(float(v) for v in getattr(self, name)))

@@ -349,4 +349,5 @@ class SwingUp(base.Task):
             input_weights=(1.0, 0.1), action_input_weights=(1.0,), action_labels=("u [V]",),
             action_cost=(self._p,),
             state_cost=tuple(np.diag(self._q)) if np.array_equal(self._q, np.diag(np.diag(self._q)))
-            else None)
+            else None,
+            reward_scale=float(self._q[0, 0]) * math.pi ** 2 or None)

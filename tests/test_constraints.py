@@ -42,7 +42,8 @@ def test_a_bool_is_no_learning_rate_in_any_learner(cls):
 @pytest.mark.parametrize("cls", LEARNERS)
 def test_gamma_1_is_refused_by_every_learner(cls):
     # Was: refused by S-AC, accepted by RMAC and MLAC. The paper: gamma in [0, 1) (eq. 1).
-    assert refusal(cls, gamma=1.0) == f"{cls.__name__}.gamma must be a number in [0, 1), got 1.0"
+    assert refusal(cls, gamma=1.0) == \
+        f"{cls.__name__}.gamma must be a number in [0, 1), or None, got 1.0"  # None: the task's
     assert cls(gamma=0.999).gamma == 0.999
 
 
@@ -68,7 +69,7 @@ def test_integers_are_integers_everywhere():
     assert refusal(Exploration, period=3.0) == \
         "Exploration.period must be an integer >= 1, got 3.0"
     assert refusal(RMACConfig, critic_capacity=2000.0) == \
-        "RMACConfig.critic_capacity must be an integer >= 1, got 2000.0"
+        "RMACConfig.critic_capacity must be an integer >= 1 or None, got 2000.0"
     assert refusal(TileCodingConfig, num_tilings=16.0) == \
         "TileCodingConfig.num_tilings must be an integer >= 1, got 16.0"
     with pytest.raises(constraints.InvalidParameterError,
@@ -77,8 +78,9 @@ def test_integers_are_integers_everywhere():
 
 
 def test_a_bound_named_after_another_parameter_shows_its_value():
-    assert refusal(RMACConfig, critic_neighbours=3000) == \
-        "RMACConfig.critic_neighbours must be an integer in [1, critic_capacity=2000], got 3000"
+    assert refusal(RMACConfig, critic_capacity=2000, critic_neighbours=3000) == \
+        "RMACConfig.critic_neighbours must be an integer in [1, critic_capacity=2000], or None, " \
+        "got 3000"
     with pytest.raises(constraints.InvalidParameterError,
                        match=r"LLRMemory.n_neighbours must be an integer in \[1, capacity=10\]"):
         LLRMemory(2, 1, 10, 11)

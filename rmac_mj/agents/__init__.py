@@ -37,6 +37,8 @@ _REGISTRY = {
     "rmac": ("rmac_mj.agents.rmac", "RMAC", "RMACConfig"),
     "s-ac": ("rmac_mj.agents.standard_ac", "StandardActorCritic", "StandardACConfig"),
     "mlac": ("rmac_mj.agents.mlac", "MLAC", "MLACConfig"),
+    # The learner to pick for a new task: S-AC with planning, in the task's units (recommended.py).
+    "recommended": ("rmac_mj.agents.recommended", "Recommended", "RecommendedConfig"),
     # Deep-RL baselines (Stable-Baselines3; the [baselines] extra), rmac_mj/agents/sb3.py (their configs: sb3_config.py).
     "sb3-sac": ("rmac_mj.agents.sb3", "SB3SAC", "SB3SACConfig"),
     "sb3-td3": ("rmac_mj.agents.sb3", "SB3TD3", "SB3TD3Config"),

@@ -36,6 +36,7 @@ from rmac_mj.agents.planning import Rehearsal
 from rmac_mj.agents.seeding import check_transitions
 from rmac_mj.agents.random_state import generator_state_array, set_generator_state
 from rmac_mj.agents.spaces import STATE_LIMIT_WIDTHS, ActionSpace, StateSpace
+from rmac_mj.agents.task_knowledge import with_task_units
 
 
 class Agent(abc.ABC):
@@ -72,7 +73,8 @@ class Agent(abc.ABC):
                             f"{type(config).__name__}")
         self.state_space = state_space
         self.action_space = action_space
-        self.config = config
+        #: The config with the fields left None set from the task (``with_task_units``).
+        self.config = config = with_task_units(config, state_space, action_space)
         self.rng = np.random.default_rng(seed)
         self._state_dim = state_space.dim
         self._in_trial = False
@@ -94,6 +96,7 @@ class Agent(abc.ABC):
         elif isinstance(config, dict):
             from rmac_mj.agents import config_from_dict
             config = config_from_dict(cls.config_class, config)
+        config = with_task_units(config, state_space, action_space)
         arrays, state = cls._memory_parts(config, state_space, action_space)
         return int(arrays + 2 * state)
 

@@ -40,8 +40,10 @@ class Exploration:
     random stream is the one of the paper's schedule, draw for draw.
 
     Attributes:
-      sigma: standard deviation of the exploration noise, in action units (V). Paper: 1. With a
-        decay, the std of the first trial.
+      sigma: standard deviation of the exploration noise, in action units. None (the default): the
+        paper's fraction of the action range, N(0, 1) on +-3 V, i.e. 1/6 of the range's width
+        (``task_knowledge.with_task_units``; dc_pendulum: 1). With a decay, the std of the first
+        trial.
       period: explore once every ``period`` steps. Paper: 3.
       phase: which step of each period explores.
       decay: 'none' (paper), 'exponential' or 'linear': how the std falls from trial to trial.
@@ -56,7 +58,7 @@ class Exploration:
         (a finite number >= 0) with where='uncertain', unused otherwise.
     """
 
-    sigma: float = 1.0
+    sigma: float | None = None
     period: int = 3
     phase: int = 0
     decay: str = "none"
@@ -67,7 +69,7 @@ class Exploration:
     uncertainty_threshold: float | None = None
 
     parameter_constraints: ClassVar[dict[str, list]] = {
-        "sigma": [Interval(Real, 0, None)],
+        "sigma": [Interval(Real, 0, None), None],
         "period": [Interval(Integral, 1, None)],
         "phase": [Interval(Integral, 0, Field("period"), closed="left")],
         "decay": [Options("none", "exponential", "linear")],
@@ -77,6 +79,10 @@ class Exploration:
         "where": [Options("always", "uncertain")],
         "uncertainty_threshold": [Interval(Real, 0, None), None],
     }
+
+    #: The fields set from the task when left None: field -> (rule, value at the paper's pendulum)
+    #: (``task_knowledge.with_task_units``).
+    task_units: ClassVar[dict[str, tuple[str, float]]] = {"sigma": ("action", 1.0)}
 
     def __post_init__(self) -> None:
         check_config(self)
@@ -90,10 +96,14 @@ class Exploration:
     @property
     def uses_trial(self) -> bool:
         """Whether the noise depends on the trial index (a decay)."""
-        return self.decay != "none" and self.sigma_min != self.sigma
+        return self.decay != "none" and self.sigma is not None and self.sigma_min != self.sigma
 
     def sigma_at(self, trial: int) -> float:
-        """The noise std of learning trial ``trial`` (0 for the first), see ``decay``."""
+        """The noise std of learning trial ``trial`` (0 for the first), see ``decay``; ``sigma``
+        must be resolved against the task (``with_task_units``)."""
+        if self.sigma is None:
+            raise ValueError("Exploration.sigma is None (the task's): resolve it with "
+                             "rmac_mj.agents.task_knowledge.with_task_units before sampling")
         if self.decay == "none" or trial <= 0:
             return self.sigma
         if self.decay == "exponential":

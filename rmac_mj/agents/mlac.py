@@ -68,33 +68,35 @@ class MLACConfig:
     authors' group's MLAC settings for this swing-up (memory sizes, K, learning rates, weightings),
     then the documented choices (docs/mlac.md)."""
 
-    gamma: float = 0.97
-    """Discount factor (RMAC paper, section 6.2)."""
-    lam: float = 0.65
-    """Trace decay lambda of the critic."""
+    gamma: float | None = None
+    """Discount factor per control step (RMAC paper, section 6.2: 0.97 per 0.03 s); None:
+    0.97 ** (dt / 0.03), the same horizon in seconds at the task's step dt."""
+    lam: float | None = None
+    """Trace decay lambda of the critic per control step (0.65); None: 0.65 ** (dt / 0.03)."""
     alpha_a: float = 0.05
     """Actor learning rate: the actor's samples move by alpha_a dQ/du per step."""
     alpha_c: float = 0.3
     """Critic learning rate alpha_c of the TD(lambda) update on the critic's samples."""
 
-    actor_capacity: int = 2000
-    """Actor memory size."""
-    actor_neighbours: int = 25
-    """Actor nearest neighbours K: the samples that define pi(x) and move in an update."""
+    actor_capacity: int | None = None
+    """Actor memory size (2000 for n = 2); None: 2000 n / 2."""
+    actor_neighbours: int | None = None
+    """Actor nearest neighbours K: the samples that define pi(x) and move in an update (25 for
+    n = 2); None: 25 n / 2."""
     actor_weights: tuple[float, ...] | None = None
     """Actor input weighting over x (n entries). None: the task's, ``StateSpace.input_weights``: (1, 0.1)
     for dc_pendulum, as the authors' group's code uses."""
-    critic_capacity: int = 2000
-    """Critic memory size."""
-    critic_neighbours: int = 15
-    """Critic nearest neighbours K."""
+    critic_capacity: int | None = None
+    """Critic memory size (2000 for n = 2); None: 2000 n / 2."""
+    critic_neighbours: int | None = None
+    """Critic nearest neighbours K (15 for n = 2); None: 15 n / 2."""
     critic_weights: tuple[float, ...] | None = None
     """Critic input weighting over x (n entries). None: the task's, ``StateSpace.input_weights`` ((1, 0.1)
     for dc_pendulum)."""
-    process_capacity: int = 100
-    """Process memory size."""
-    process_neighbours: int = 10
-    """Process nearest neighbours K."""
+    process_capacity: int | None = None
+    """Process memory size (100 for n + m = 3); None: 100 (n + m) / 3."""
+    process_neighbours: int | None = None
+    """Process nearest neighbours K (10 for n + m = 3); None: 10 (n + m) / 3."""
     process_weights: tuple[float, ...] | None = None
     """Process input weighting over [x, u] (n + m entries). None: the task's, ``StateSpace.input_weights``
     then ``ActionSpace.input_weights`` ((1, 0.1, 1) for dc_pendulum, as the authors' group's code)."""
@@ -156,6 +158,13 @@ class MLACConfig:
 
     #: Parameters renamed since earlier versions (read from snapshots those wrote): old -> new.
     former_names: ClassVar[dict[str, str]] = {"alpha_actor": "alpha_a", "alpha_critic": "alpha_c"}
+    #: The fields set from the task when left None: field -> (rule, value at the paper's pendulum)
+    #: (``task_knowledge.with_task_units``).
+    task_units: ClassVar[dict[str, tuple[str, float]]] = {
+        "gamma": ("horizon", 0.97), "lam": ("horizon", 0.65),
+        "actor_capacity": ("states", 2000), "actor_neighbours": ("states", 25),
+        "critic_capacity": ("states", 2000), "critic_neighbours": ("states", 15),
+        "process_capacity": ("transitions", 100), "process_neighbours": ("transitions", 10)}
     parameter_constraints: ClassVar[dict[str, list]] = {
         **TD_LAMBDA,
         "alpha_a": [Interval(Real, 0, 1)],
@@ -197,6 +206,7 @@ class MLAC(Agent):
                  config: MLACConfig = MLACConfig(),
                  seed: int | np.random.Generator | None = None) -> None:
         super().__init__(state_space, action_space, config, seed)
+        config = self.config  # with the task's units (Agent.__init__)
         n, m = state_space.dim, action_space.dim
         self.n, self.m = n, m
         self.period = state_space.period  # (n,), 0 for non-periodic dimensions

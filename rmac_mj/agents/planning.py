@@ -67,26 +67,35 @@ class Planning:
     reward: str = "learned"
     """The simulated reward: 'learned' (an LLR model of the real rewards over [x, u]) or 'task' (the
     task's reward given as prior knowledge: its declared state and action costs)."""
-    model_capacity: int = 2000
-    """Samples of the model's memory."""
-    model_neighbours: int = 9
-    """Nearest neighbours K of the model's local fits."""
+    model_capacity: int | None = None
+    """Samples of the model's memory (2000 for n + m = 3); None: 2000 (n + m) / 3."""
+    model_neighbours: int | None = None
+    """Nearest neighbours K of the model's local fits (9 for n + m = 3); None: 9 (n + m) / 3."""
     clip: bool = True
     """Keep predicted non-periodic state entries inside the task's nominal box."""
+    interpolate: bool = False
+    """Keep every prediction (next state and learned reward) within the range of its neighbours'
+    outputs, so that a local fit never extrapolates a reward no real transition earned."""
 
     parameter_constraints: ClassVar[dict[str, list]] = {
         "steps": [Interval(Integral, 0, None)],
         "horizon": [Interval(Integral, 0, None)],
         "start": [Options("start", "trajectory", "memory")],
         "reward": [Options("learned", "task")],
-        "model_capacity": [Interval(Integral, 1, None)],
-        "model_neighbours": [Interval(Integral, 1, None)],
+        "model_capacity": [Interval(Integral, 1, None), None],
+        "model_neighbours": [Interval(Integral, 1, None), None],
         "clip": [Boolean()],
+        "interpolate": [Boolean()],
     }
+    #: The fields set from the task when left None: field -> (rule, value at the paper's pendulum)
+    #: (``task_knowledge.with_task_units``).
+    task_units: ClassVar[dict[str, tuple[str, float]]] = {
+        "model_capacity": ("transitions", 2000), "model_neighbours": ("transitions", 9)}
 
     def __post_init__(self) -> None:
         check_config(self)
-        if self.model_neighbours > self.model_capacity:
+        if (self.model_neighbours is not None and self.model_capacity is not None
+                and self.model_neighbours > self.model_capacity):
             raise invalid("Planning", "model_neighbours", self.model_neighbours,
                           f"an integer in [1, model_capacity={self.model_capacity}]")
 
@@ -184,7 +193,7 @@ class TransitionModel:
             input_weights=np.r_[state_space.input_weights, action_space.input_weights],
             input_period=np.r_[self.period, np.zeros(m)],
             output_period=np.r_[self.period, np.zeros(outputs - n)], conditioning="ridge",
-            backend=backend)
+            clip=bool(planning.interpolate), backend=backend)
         # Scratch of the compiled prediction.
         self._z = np.empty(n + m)
         self._idx = np.empty(planning.model_neighbours, dtype=np.int64)

@@ -78,6 +78,7 @@ class RMAC(Agent):
                  config: RMACConfig = RMACConfig(),
                  seed: int | np.random.Generator | None = None) -> None:
         super().__init__(state_space, action_space, config, seed)
+        config = self.config  # with the task's units (Agent.__init__)
         n, m = state_space.dim, action_space.dim
         config = with_task_weights("RMAC", config, state_space, action_space,
                                    ("critic", "reference"))

@@ -21,10 +21,11 @@ REACHABLE_RULES = ("vertices", "vertices_value", "grid", "exact")
 class RMACConfig:
     """Hyperparameters of RMAC. Defaults: section 6.2 and Table 2, then the documented choices."""
 
-    gamma: float = 0.97
-    """Discount factor (section 6.2)."""
-    lam: float = 0.65
-    """Trace decay lambda (section 6.2)."""
+    gamma: float | None = None
+    """Discount factor per control step (section 6.2: 0.97 per 0.03 s); None: 0.97 ** (dt / 0.03),
+    the paper's horizon in seconds at the task's step dt."""
+    lam: float | None = None
+    """Trace decay lambda per control step (section 6.2: 0.65); None: 0.65 ** (dt / 0.03)."""
     alpha_c: float = 0.1
     """Critic learning rate (Table 2)."""
     alpha_r: float = 0.005
@@ -40,24 +41,24 @@ class RMACConfig:
     rate_decay_trials: int = 200
     """Learning trials over which ``alpha_c`` and ``alpha_r`` reach their final values."""
 
-    critic_capacity: int = 2000
-    """Critic memory size (Table 2)."""
-    critic_neighbours: int = 20
-    """Critic nearest neighbours K (Table 2)."""
+    critic_capacity: int | None = None
+    """Critic memory size (Table 2: 2000 for n = 2); None: 2000 n / 2."""
+    critic_neighbours: int | None = None
+    """Critic nearest neighbours K (Table 2: 20); None: 20 n / 2."""
     critic_weights: tuple[float, ...] | None = None
     """Critic input weighting over x; None: the task's (``StateSpace.input_weights``; dc_pendulum: Table 2's
     (1, 0.1))."""
-    process_capacity: int = 100
-    """Process memory size (Table 2)."""
-    process_neighbours: int = 9
-    """Process nearest neighbours K (Table 2)."""
+    process_capacity: int | None = None
+    """Process memory size (Table 2: 100 for n + m = 3); None: 100 (n + m) / 3."""
+    process_neighbours: int | None = None
+    """Process nearest neighbours K (Table 2: 9); None: 9 (n + m) / 3."""
     process_weights: tuple[float, ...] | None = None
     """Process input weighting over [x, u]; None: the task's (``StateSpace.input_weights`` then
     ``ActionSpace.input_weights``; dc_pendulum: Table 2's (1, 0.1, 1))."""
-    reference_capacity: int = 2000
-    """Reference memory size (Table 2)."""
-    reference_neighbours: int = 20
-    """Reference nearest neighbours K (Table 2)."""
+    reference_capacity: int | None = None
+    """Reference memory size (Table 2: 2000 for n = 2); None: 2000 n / 2."""
+    reference_neighbours: int | None = None
+    """Reference nearest neighbours K (Table 2: 20); None: 20 n / 2."""
     reference_weights: tuple[float, ...] | None = None
     """Reference input weighting over x; None: the task's (``StateSpace.input_weights``; dc_pendulum: Table
     2's (1, 0.1))."""
@@ -178,6 +179,16 @@ class RMACConfig:
         return tuple(float(start if final is None else start + fraction * (final - start))
                      for start, final in ((self.alpha_c, self.alpha_c_final),
                                           (self.alpha_r, self.alpha_r_final)))
+
+    #: The fields set from the task when left None: field -> (rule, value at the paper's pendulum)
+    #: (``task_knowledge.with_task_units``). alpha_c and alpha_r need no rule: the critic's samples
+    #: move by a fraction of the TD error and the reference's by a fraction of x_r - x_hat, both
+    #: independent of the reward's and the state's scales.
+    task_units: ClassVar[dict[str, tuple[str, float]]] = {
+        "gamma": ("horizon", 0.97), "lam": ("horizon", 0.65),
+        "critic_capacity": ("states", 2000), "critic_neighbours": ("states", 20),
+        "process_capacity": ("transitions", 100), "process_neighbours": ("transitions", 9),
+        "reference_capacity": ("states", 2000), "reference_neighbours": ("states", 20)}
 
     parameter_constraints: ClassVar[dict[str, list]] = {
         **TD_LAMBDA,

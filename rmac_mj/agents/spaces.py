@@ -44,6 +44,11 @@ class StateSpace:
         -sum_i cost_i x_i^2 (x canonical; dc_pendulum: Q's diagonal (5, 0.1)): with
         ``ActionSpace.cost``, the task's reward given as prior knowledge (planning's
         ``reward='task'``). None: the task does not say.
+      timestep: seconds between successive states x_k and x_{k+1}, the task's control step. None:
+        not said (the learners then take the paper's 0.03 s).
+      reward_scale: the magnitude of the task's reward per step far from the goal (dc_pendulum:
+        5 pi^2, |r| hanging still), which scales the learners' rates on TD errors. None: not said
+        (a learner that needs it estimates it).
     """
 
     low: np.ndarray
@@ -51,6 +56,8 @@ class StateSpace:
     periodic: np.ndarray
     input_weights: np.ndarray | None = None
     cost: np.ndarray | None = None
+    timestep: float | None = None
+    reward_scale: float | None = None
 
     def __post_init__(self) -> None:
         low = np.asarray(self.low, dtype=float).reshape(-1)
@@ -69,6 +76,14 @@ class StateSpace:
                            _weights("StateSpace", self.input_weights, low.shape[0], "input_weights"))
         if self.cost is not None:
             object.__setattr__(self, "cost", _weights("StateSpace", self.cost, low.shape[0], "cost"))
+        for name in ("timestep", "reward_scale"):
+            value = getattr(self, name)
+            if value is not None:
+                if not (isinstance(value, (int, float, np.floating, np.integer))
+                        and not isinstance(value, bool) and np.isfinite(value) and value > 0):
+                    raise ValueError(f"StateSpace: {name} must be a positive finite number or "
+                                     f"None, got {value!r}")
+                object.__setattr__(self, name, float(value))
         # The accepted region (see ``limit``), as Python floats for the per-step check.
         object.__setattr__(self, "_centre", ((low + high) / 2).tolist())
         object.__setattr__(self, "_reach", (STATE_LIMIT_WIDTHS * (high - low)).tolist())

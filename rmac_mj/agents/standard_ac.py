@@ -46,6 +46,7 @@ from rmac_mj.agents.base import Agent
 from rmac_mj.agents.exploration import Exploration
 from rmac_mj.agents.planning import REHEARSAL, Planning, Replay
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
+from rmac_mj.agents.task_knowledge import reward_rate
 from rmac_mj.approximators.tile_coding import Backend, TileCoder, TileCodingConfig
 from rmac_mj.constraints import (BACKEND, TD_LAMBDA, InstanceOf, Interval, Options, TupleOf, check_config,
                                  invalid)
@@ -59,10 +60,16 @@ _TILE_BOUNDS = TupleOf([Interval(Real), None], what="a list of finite numbers or
 class StandardACConfig:
     """Hyperparameters of S-AC; defaults are the paper's (section 6.1) unless noted.
 
+    The fields left None are set from the task (``task_units``, ``task_knowledge.with_task_units``);
+    on the paper's pendulum each is the paper's value.
+
     Attributes:
-      gamma: discount factor. Paper: 0.97.
-      lam: trace decay lambda. Paper: 0.65.
-      alpha_a: actor learning rate (eq. 4). Paper: 0.005.
+      gamma: discount factor per control step. Paper: 0.97 per 0.03 s; None: 0.97 ** (dt / 0.03),
+        the same horizon in seconds at the task's step dt.
+      lam: trace decay lambda per control step. Paper: 0.65; None: 0.65 ** (dt / 0.03).
+      alpha_a: actor learning rate (eq. 4). Paper: 0.005 at the pendulum's reward scale; None: 0.005
+        times 5 pi^2 / the task's reward scale (a TD error's size grows with the reward), and where
+        the task declares no scale, the largest |r| of the real transitions so far.
       alpha_c: critic learning rate (eq. 3). Paper: 0.1.
       rate_split: which learning rates are divided over the ``num_tilings`` active weights:
         ``"both"``, ``"actor"`` or ``"none"`` (not in the paper; measured in docs/standard-ac.md).
@@ -79,9 +86,9 @@ class StandardACConfig:
       backend: ``"numba"`` (compiled) or ``"numpy"`` (reference); same results.
     """
 
-    gamma: float = 0.97
-    lam: float = 0.65
-    alpha_a: float = 0.005
+    gamma: float | None = None
+    lam: float | None = None
+    alpha_a: float | None = None
     alpha_c: float = 0.1
     rate_split: Literal["both", "actor", "none"] = "both"
     tile_coding: TileCodingConfig = TileCodingConfig()
@@ -95,9 +102,12 @@ class StandardACConfig:
 
     #: Parameters renamed since earlier versions (read from snapshots those wrote): old -> new.
     former_names: ClassVar[dict[str, str]] = {"alpha_actor": "alpha_a", "alpha_critic": "alpha_c"}
+    #: The fields set from the task when left None: field -> (rule, value at the paper's pendulum).
+    task_units: ClassVar[dict[str, tuple[str, float]]] = {
+        "gamma": ("horizon", 0.97), "lam": ("horizon", 0.65), "alpha_a": ("reward", 0.005)}
     parameter_constraints: ClassVar[dict[str, list]] = {
         **TD_LAMBDA,
-        "alpha_a": [Interval(Real, 0, 1)],
+        "alpha_a": [Interval(Real, 0, 1), None],
         "rate_split": [Options("both", "actor", "none")],
         "tile_coding": [InstanceOf(TileCodingConfig)],
         "tile_low": [_TILE_BOUNDS, None],
@@ -212,6 +222,7 @@ class StandardActorCritic(Agent):
                  config: StandardACConfig = StandardACConfig(),
                  seed: int | np.random.Generator | None = None) -> None:
         super().__init__(state_space, action_space, config, seed)
+        config = self.config  # with the task's units (Agent.__init__)
 
         low, high = state_space.low.copy(), state_space.high.copy()
         for name, bound in (("tile_low", low), ("tile_high", high)):
@@ -228,7 +239,12 @@ class StandardActorCritic(Agent):
         T = self.coder.num_tilings
         #: The step per active weight of the critic and of the actor (see ``rate_split``).
         self.rate_c = config.alpha_c / T if config.rate_split == "both" else config.alpha_c
-        self.rate_a = config.alpha_a / T if config.rate_split in ("both", "actor") else config.alpha_a
+        self._split_a = T if config.rate_split in ("both", "actor") else 1
+        #: The largest |r| of the real transitions so far, the reward's scale alpha_a follows when
+        #: the task declares none (config.alpha_a None); None when alpha_a is fixed.
+        self.reward_scale_ = None if config.alpha_a is not None else 0.0
+        self._learns_scale = True
+        self._set_rate_a()
         self._decay = config.gamma * config.lam
         self._a_low = action_space.low
         self._a_high = action_space.high
@@ -255,6 +271,16 @@ class StandardActorCritic(Agent):
                           config.backend)  # small: the layout, no weights
         features = coder.num_features * (3 + action_space.dim)
         return 8 * features, 8 * features
+
+    def _set_rate_a(self) -> None:
+        alpha_a = self.config.alpha_a
+        if alpha_a is None:
+            alpha_a = reward_rate(type(self.config).task_units["alpha_a"][1], self.reward_scale_)
+        self.rate_a = alpha_a / self._split_a if self._split_a != 1 else alpha_a
+
+    def _set_rehearsing(self, rehearsing: bool) -> None:
+        """While rehearsing (planning, replay), the reward's running scale stays as it is."""
+        self._learns_scale = not rehearsing
 
     # ----------------------------------------------------------------------------------- protocol
     def _start(self, x0: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
@@ -298,7 +324,9 @@ class StandardActorCritic(Agent):
                 "traces": self._traces.copy(), "trace_idx": self._trace_idx.copy(),
                 "n_traces": np.array(self._n_traces), "prev_tiles": self._prev_tiles.copy(),
                 "tiles": self._tiles.copy(), "prev_du": self._prev_du.copy(),
-                "k": np.array(self._k), "last_delta": np.array(self.last_delta_)}
+                "k": np.array(self._k), "last_delta": np.array(self.last_delta_),
+                **({} if self.reward_scale_ is None else
+                   {"reward_scale": np.array(self.reward_scale_)})}
 
     def _check_state(self, state: dict[str, np.ndarray]) -> None:
         features, n_traces = self.coder.num_features, int(state["n_traces"])
@@ -310,6 +338,8 @@ class StandardActorCritic(Agent):
                 raise ValueError(f"s-ac: state {key!r} must hold tile indices in [0, {features})")
         if np.any((state["traces"] < 0) | (state["traces"] > 1)) or int(state["k"]) < 0:
             raise ValueError("s-ac: state 'traces' must lie in [0, 1] and 'k' be >= 0")
+        if "reward_scale" in state and not float(state["reward_scale"]) >= 0:
+            raise ValueError("s-ac: state 'reward_scale' must be a finite number >= 0")
 
     def _load_state(self, state: dict[str, np.ndarray]) -> None:
         self.critic_ = np.array(state["critic"], dtype=float)
@@ -322,6 +352,9 @@ class StandardActorCritic(Agent):
         self._n_traces = int(state["n_traces"])
         self._k = int(state["k"])
         self.last_delta_ = float(state["last_delta"])
+        if self.reward_scale_ is not None:
+            self.reward_scale_ = float(state["reward_scale"])
+            self._set_rate_a()
 
     # ---------------------------------------------------------------------------------- internals
     def _tiles_of(self, x: np.ndarray, out: np.ndarray) -> None:
@@ -357,6 +390,9 @@ class StandardActorCritic(Agent):
         """Lines 10-13 for the transition x_{k-1} -> x_k (tiles in _prev_tiles and _tiles), with
         the discount ``gamma`` of V(x_k) in the TD error (0 for a terminal x_k)."""
         c = self.config
+        if self.reward_scale_ is not None and self._learns_scale and abs(reward) > self.reward_scale_:
+            self.reward_scale_ = abs(reward)
+            self._set_rate_a()
         if c.backend == "numba":
             delta, n_traces = _learn_numba(
                 self.critic_, self.actor_, self._traces, self._trace_idx, self._n_traces,

@@ -1,10 +1,13 @@
-"""What a learner's config takes from the task: the default input weightings of its LLR memories
-and the reward's action cost, for the fields left None (the task's hints, carried by the spaces).
-The resolved config is the one the learner keeps, so results record the values actually used."""
+"""What a learner's config takes from the task, for the fields left None: the default input
+weightings of its LLR memories, the reward's action cost, and every default set for the paper's
+pendulum carried to the task's own units (its control step, action range, reward scale and
+dimensions: :func:`with_task_units`). The resolved config is the one the learner keeps, so results
+record the values actually used."""
 
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Any
 
 import numpy as np
@@ -55,3 +58,85 @@ def with_task_action_cost(owner: str, config: Any, action_space: ActionSpace,
                          f"this task has {m} action dimensions")
     return dataclasses.replace(
         config, action_cost=None if cost is None else tuple(float(c) for c in cost))
+
+
+# --------------------------------------------------------------------------------------------------
+# Settings in the task's own units.
+
+#: The paper's pendulum, for which the learners' numeric defaults were set (section 6, Table 2): its
+#: control step [s], its state and action dimensions, and its reward's scale, |r| hanging still at
+#: the start (r = -Q_11 pi^2 with Q_11 = 5).
+PAPER_TIMESTEP = 0.03
+PAPER_STATE_DIM = 2
+PAPER_ACTION_DIM = 1
+PAPER_REWARD_SCALE = 5.0 * math.pi ** 2
+#: The width of the paper's action range [V]: u in [-3, 3] (section 6).
+PAPER_ACTION_RANGE = 6.0
+
+#: How a default given at the paper's pendulum is carried to another task (a config's
+#: ``task_units`` names one rule per field):
+#:
+#: * 'horizon': a per-step factor (gamma, lambda) keeping its horizon in seconds,
+#:   value ** (dt / 0.03) for the task's control step dt;
+#: * 'reward': a rate applied to a TD error, value * PAPER_REWARD_SCALE / the task's reward scale
+#:   (left None when the task declares none: the learner then scales by a running estimate);
+#: * 'states', 'transitions': a memory size or neighbour count, grown in proportion to the dimension
+#:   of what the memory holds, n (2 on the pendulum) or n + m (3);
+#: * 'action': an exploration std, the same fraction of the action range as on the paper's +-3 V
+#:   (the mean width over action dimensions).
+TASK_UNIT_RULES = ("horizon", "reward", "states", "transitions", "action")
+
+
+def step_ratio(state_space: StateSpace) -> float:
+    """dt / 0.03 s for the task's control step dt (1 when the task does not say), to 9 decimals, so
+    that a step computed as sub-steps times the physics step counts as its nominal value."""
+    dt = getattr(state_space, "timestep", None)
+    return 1.0 if dt is None else round(dt / PAPER_TIMESTEP, 9)
+
+
+def reward_rate(paper_rate: float, reward_scale: float) -> float:
+    """A rate applied to TD errors, ``paper_rate`` at the paper's reward scale, at ``reward_scale``
+    (at most 1); the paper's rate while the scale is unknown (0)."""
+    if not reward_scale > 0:
+        return paper_rate
+    return min(1.0, paper_rate * (PAPER_REWARD_SCALE / reward_scale))
+
+
+def task_value(rule: str, paper_value: float, state_space: StateSpace,
+               action_space: ActionSpace) -> float | int | None:
+    """``paper_value`` (a default at the paper's pendulum) carried to this task by ``rule`` (one of
+    :data:`TASK_UNIT_RULES`); None for 'reward' when the task declares no reward scale."""
+    n, m = state_space.dim, action_space.dim
+    if rule == "horizon":
+        return float(paper_value ** step_ratio(state_space))
+    if rule == "reward":
+        scale = getattr(state_space, "reward_scale", None)
+        return None if scale is None else reward_rate(paper_value, scale)
+    if rule == "states":
+        return int(round(paper_value * n / PAPER_STATE_DIM))
+    if rule == "transitions":
+        return int(round(paper_value * (n + m) / (PAPER_STATE_DIM + PAPER_ACTION_DIM)))
+    if rule == "action":
+        return float(paper_value * np.mean(action_space.high - action_space.low)
+                     / PAPER_ACTION_RANGE)
+    raise ValueError(f"unknown task-unit rule {rule!r}; one of {', '.join(TASK_UNIT_RULES)}")
+
+
+def with_task_units(config: Any, state_space: StateSpace, action_space: ActionSpace) -> Any:
+    """``config`` with every field its class lists in ``task_units`` (field -> (rule, value at the
+    paper's pendulum)) and leaves None set from the task (:func:`task_value`), nested configs
+    (exploration, planning) likewise. A field set explicitly is kept; on the paper's pendulum every
+    resolved value is the paper's."""
+    changes = {}
+    for field in dataclasses.fields(config):
+        value = getattr(config, field.name)
+        if dataclasses.is_dataclass(value) and hasattr(type(value), "task_units"):
+            resolved = with_task_units(value, state_space, action_space)
+            if resolved != value:
+                changes[field.name] = resolved
+    for name, (rule, paper_value) in getattr(type(config), "task_units", {}).items():
+        if getattr(config, name) is None:
+            resolved = task_value(rule, paper_value, state_space, action_space)
+            if resolved is not None:
+                changes[name] = resolved
+    return dataclasses.replace(config, **changes) if changes else config

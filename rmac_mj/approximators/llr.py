@@ -552,12 +552,13 @@ def memory_constraints(memory: str, replacements: tuple[str, ...] = tuple(_REPLA
                        redundancy: bool = True) -> dict[str, list]:
     """A learner config's constraints on the settings of its LLR memory ``memory`` (e.g. 'critic'),
     LLRMemory's own rules under the config's names: ``{memory}_capacity``, ``{memory}_neighbours``
-    (at most the capacity), ``{memory}_weights`` (None: the task's; the length is checked against
+    (at most the capacity; both None: grown from the paper's with the task's dimension),
+    ``{memory}_weights`` (None: the task's; the length is checked against
     the task), ``{memory}_clip``, ``{memory}_replacement`` (one of ``replacements``) and, with
     ``redundancy``, ``{memory}_redundancy``."""
     own = LLRMemory.parameter_constraints
-    table = {f"{memory}_capacity": own["capacity"],
-             f"{memory}_neighbours": [Interval(Integral, 1, Field(f"{memory}_capacity"))],
+    table = {f"{memory}_capacity": [*own["capacity"], None],
+             f"{memory}_neighbours": [Interval(Integral, 1, Field(f"{memory}_capacity")), None],
              f"{memory}_weights": [WEIGHTS, None],
              f"{memory}_clip": own["clip"],
              f"{memory}_replacement": [Options(*replacements)]}

@@ -145,7 +145,12 @@ def optimal(args) -> int:
             optimum.optimum(args.domain, args.task)  # raises, naming the tasks that have one
     result = optimum.optimum(args.domain, args.task, refresh=args.refresh, announce=say)
     print(result.describe())
-    paper = Exploration()  # the learners' default exploration (section 6.1)
+    from rmac_mj import tasks
+    from rmac_mj.agents.task_knowledge import with_task_units
+    from rmac_mj.rollout import action_space_of, state_space_of
+    env = tasks.load(args.domain, args.task)
+    # The learners' default exploration (section 6.1), in the task's action range.
+    paper = with_task_units(Exploration(), state_space_of(env), action_space_of(env))
     floor = optimum.exploration_floor(args.domain, args.task, paper.sigma, paper.period,
                                         paper.phase, refresh=args.refresh, announce=say)
     if floor is not None:  # a reference with a policy to explore with (the dynamic programme)

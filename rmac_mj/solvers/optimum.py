@@ -132,6 +132,11 @@ def run_exploration_floor(protocol, algorithm: str, announce: Announce | None = 
     exploration = getattr(config, "exploration", None)
     if exploration is None or exploration.where != "always":
         return None
+    if exploration.sigma is None:  # the task's: the learner resolves it against the action range
+        from rmac_mj.agents.task_knowledge import with_task_units
+        from rmac_mj.rollout import action_space_of, state_space_of
+        env = protocol.make_environment()
+        exploration = with_task_units(exploration, state_space_of(env), action_space_of(env))
     floor = exploration_floor(protocol.domain, protocol.task,
                               exploration.sigma_at(protocol.trials - 1), exploration.period,
                               exploration.phase, announce=announce)

@@ -54,7 +54,7 @@ def test_spaces_and_exploration_reject_bad_values():
     with pytest.raises(ValueError, match="period"):
         Exploration(period=0)
     rng = np.random.default_rng(0)
-    explore = Exploration()
+    explore = Exploration(sigma=1.0)
     draws = [explore.sample(k, 1, rng)[0] for k in range(9)]
     assert [d != 0 for d in draws] == [True, False, False] * 3  # every third step, from step 0
 

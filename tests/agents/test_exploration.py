@@ -27,7 +27,7 @@ def _returns(agent, trials, steps=60):
 # -- the schedule ---------------------------------------------------------------------------------
 
 def test_decay_schedules_at_given_trials():
-    paper = Exploration()
+    paper = Exploration(sigma=1.0)  # the paper's, resolved on +-3 V
     assert [paper.sigma_at(t) for t in (0, 1, 599)] == [1.0, 1.0, 1.0]
     exponential = Exploration(sigma=1.0, decay="exponential", decay_rate=0.9, sigma_min=0.2)
     assert exponential.sigma_at(0) == 1.0

@@ -11,13 +11,14 @@ import plain_pendulum
 from rmac_mj.agents import make_agent
 from rmac_mj.agents.base import ActionSpace, StateSpace
 from rmac_mj.agents.planning import Planning, Replay
+from rmac_mj.agents.task_knowledge import PAPER_REWARD_SCALE
 from rmac_mj.constraints import InvalidParameterError
 
 LEARNERS = ("rmac", "s-ac", "mlac")
 
 #: The pendulum's spaces as the dc_pendulum task gives them (Table 2's weights, the reward's costs).
 PENDULUM = (StateSpace(low=[-np.pi, -8 * np.pi], high=[np.pi, 8 * np.pi], periodic=[True, False],
-                       input_weights=[1.0, 0.1], cost=[5.0, 0.1]),
+                       input_weights=[1.0, 0.1], cost=[5.0, 0.1], reward_scale=PAPER_REWARD_SCALE),
             ActionSpace(low=[-3.0], high=[3.0], cost=[1.0]))
 #: Memories small enough to fill (and replace) within the first trials of these tests.
 SMALL = {"rmac": dict(critic_capacity=60, reference_capacity=50, process_capacity=20,

@@ -6,8 +6,11 @@ import pytest
 from rmac_mj.agents import ActionSpace, Exploration, StateSpace
 from rmac_mj.agents.standard_ac import StandardActorCritic, StandardACConfig
 from rmac_mj.approximators.tile_coding import TileCodingConfig
+from rmac_mj.agents.task_knowledge import PAPER_REWARD_SCALE
 
-PENDULUM = StateSpace(low=[-np.pi, -60.0], high=[np.pi, 60.0], periodic=[True, False])
+#: The pendulum's box; its reward scale, as dc_pendulum declares it, keeps alpha_a at the paper's.
+PENDULUM = StateSpace(low=[-np.pi, -60.0], high=[np.pi, 60.0], periodic=[True, False],
+                      reward_scale=PAPER_REWARD_SCALE)
 VOLTS = ActionSpace(low=[-3.0], high=[3.0])
 LINE = StateSpace(low=[0.0], high=[1.0], periodic=[False])
 NO_EXPLORATION = Exploration(sigma=0.0)
@@ -201,7 +204,7 @@ def test_boundary_errors_and_config_round_trip():
                        tile_coding=TileCodingConfig(num_tilings=8, tiles=5))
     agent = StandardActorCritic(PENDULUM, VOLTS, config, seed=0)
     # The JSON form of the config (what results and snapshots store) rebuilds the same config.
-    assert config_from_dict(StandardACConfig, agent.config_dict()) == config
+    assert config_from_dict(StandardACConfig, agent.config_dict()) == agent.config
 
 
 def test_improves_on_swingup():

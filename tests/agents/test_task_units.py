@@ -1,0 +1,140 @@
+"""Settings in the task's own units: on the paper's pendulum every default resolves to the paper's
+number (section 6, Table 2), elsewhere it follows the task's step, action range, reward scale and
+dimensions, and a value set explicitly is kept."""
+
+import math
+
+import numpy as np
+import pytest
+
+from rmac_mj import tasks
+from rmac_mj.agents import ActionSpace, StateSpace, make_agent
+from rmac_mj.agents.task_knowledge import PAPER_REWARD_SCALE
+from rmac_mj.rollout import action_space_of, state_space_of
+
+
+def _pendulum_spaces():
+    env = tasks.load("dc_pendulum", "swingup")
+    return state_space_of(env), action_space_of(env)
+
+
+def _spaces(n=4, m=2, timestep=0.05, reward_scale=None, action_high=1.0):
+    state = StateSpace(low=-np.ones(n), high=np.ones(n), periodic=np.zeros(n, bool),
+                       timestep=timestep, reward_scale=reward_scale)
+    return state, ActionSpace(low=-action_high * np.ones(m), high=action_high * np.ones(m))
+
+
+def test_the_pendulum_declares_its_step_and_reward_scale():
+    state, _ = _pendulum_spaces()
+    assert state.timestep == 0.03
+    assert state.reward_scale == PAPER_REWARD_SCALE == 5.0 * math.pi ** 2
+
+
+def test_resolved_on_the_paper_pendulum_every_default_is_table_2():
+    """Pinned: the exact floats of the paper's settings (section 6.1, 6.2, Table 2)."""
+    state, action = _pendulum_spaces()
+    rmac = make_agent("rmac", state, action, seed=0, config={"planning": {"steps": 1}}).config
+    assert (rmac.gamma, rmac.lam, rmac.alpha_c, rmac.alpha_r) == (0.97, 0.65, 0.1, 0.005)
+    assert (rmac.critic_capacity, rmac.critic_neighbours, rmac.critic_weights) == (2000, 20, (1.0, 0.1))
+    assert (rmac.process_capacity, rmac.process_neighbours, rmac.process_weights) == \
+        (100, 9, (1.0, 0.1, 1.0))
+    assert (rmac.reference_capacity, rmac.reference_neighbours, rmac.reference_weights) == \
+        (2000, 20, (1.0, 0.1))
+    assert (rmac.planning.model_capacity, rmac.planning.model_neighbours) == (2000, 9)
+    sac = make_agent("s-ac", state, action, seed=0)
+    c = sac.config
+    assert (c.gamma, c.lam, c.alpha_a, c.alpha_c) == (0.97, 0.65, 0.005, 0.1)
+    assert sac.rate_a == 0.005 / 16 and "reward_scale" not in sac.state_dict()
+    mlac = make_agent("mlac", state, action, seed=0).config
+    assert (mlac.gamma, mlac.lam, mlac.alpha_a, mlac.alpha_c) == (0.97, 0.65, 0.05, 0.3)
+    assert (mlac.actor_capacity, mlac.actor_neighbours, mlac.critic_capacity,
+            mlac.critic_neighbours, mlac.process_capacity, mlac.process_neighbours) == \
+        (2000, 25, 2000, 15, 100, 10)
+    for config in (rmac, c, mlac):
+        assert (config.exploration.sigma, config.exploration.period) == (1.0, 3)
+
+
+@pytest.mark.parametrize("name", ["rmac", "s-ac", "mlac"])
+def test_elsewhere_the_settings_follow_the_task(name):
+    """Horizon in seconds, noise as a fraction of the range, memories grown with the dimension."""
+    state, action = _spaces(n=4, m=2, timestep=0.06, action_high=1.5)
+    overrides = {"planning": {"steps": 1}, **({"action_cost": 0.0} if name == "mlac" else {})}
+    config = make_agent(name, state, action, seed=0, config=overrides).config
+    assert config.gamma == pytest.approx(0.97 ** 2) and config.lam == pytest.approx(0.65 ** 2)
+    assert config.exploration.sigma == pytest.approx(1.0 * 3.0 / 6.0)
+    assert (config.planning.model_capacity, config.planning.model_neighbours) == (4000, 18)
+    if name == "rmac":
+        assert (config.critic_capacity, config.critic_neighbours, config.process_capacity,
+                config.process_neighbours) == (4000, 40, 200, 18)
+
+
+def test_a_value_set_explicitly_wins():
+    state, action = _spaces()
+    config = make_agent("rmac", state, action, seed=0, config={
+        "gamma": 0.99, "critic_capacity": 300, "exploration": {"sigma": 0.7}}).config
+    assert (config.gamma, config.critic_capacity, config.exploration.sigma) == (0.99, 300, 0.7)
+
+
+def test_s_ac_actor_rate_follows_a_declared_reward_scale():
+    state, action = _spaces(m=1, reward_scale=PAPER_REWARD_SCALE / 10)
+    agent = make_agent("s-ac", state, action, seed=0)
+    assert agent.config.alpha_a == pytest.approx(0.05)
+    state, action = _spaces(m=1, reward_scale=1e-6)
+    assert make_agent("s-ac", state, action, seed=0).config.alpha_a == 1.0  # capped
+
+
+def _drive(agent, rewards, states):
+    agent.start(states[0])
+    for r, x in zip(rewards[:-1], states[1:-1]):
+        agent.step(r, x)
+    agent.stop(rewards[-1], states[-1])
+
+
+def test_s_ac_without_a_declared_scale_learns_alike_at_any_reward_scale():
+    """With the running scale (the largest |r| so far), rewards 100 times larger give the same
+    actions and actor and a critic 100 times larger."""
+    rng = np.random.default_rng(3)
+    states = rng.uniform(-1, 1, size=(41, 2))
+    rewards = -rng.uniform(0, 1, size=40)
+    agents = []
+    for factor in (1.0, 100.0):
+        state, action = _spaces(n=2, m=1)
+        agent = make_agent("s-ac", state, action, seed=5)
+        assert agent.config.alpha_a is None
+        _drive(agent, factor * rewards, states)
+        agents.append(agent)
+    small, large = agents
+    assert large.reward_scale_ == pytest.approx(100 * small.reward_scale_)
+    np.testing.assert_allclose(large.actor_, small.actor_, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(large.critic_, 100 * small.critic_, rtol=1e-9, atol=1e-12)
+
+
+def test_s_ac_running_scale_survives_a_restore():
+    state, action = _spaces(n=2, m=1)
+    agent = make_agent("s-ac", state, action, seed=5)
+    _drive(agent, [-2.0, -7.0, -1.0], np.zeros((4, 2)))
+    saved = agent.state_dict()
+    assert float(saved["reward_scale"]) == 7.0
+    other = make_agent("s-ac", state, action, seed=5)
+    other.load_state_dict(saved)
+    assert other.reward_scale_ == 7.0 and other.rate_a == agent.rate_a
+
+
+def test_the_recommended_learner_on_the_pendulum():
+    state, action = _pendulum_spaces()
+    agent = make_agent("recommended", state, action, seed=0)
+    c = agent.config
+    assert (c.planning.steps, c.alpha_a, c.gamma, c.exploration.sigma) == (30, 0.002, 0.97, 1.0)
+    assert agent.rehearsal is not None and agent.display_name == "S-AC + planning"
+
+
+@pytest.mark.parametrize("interpolate", [False, True])
+def test_an_interpolating_model_never_predicts_a_reward_beyond_the_real_ones(interpolate):
+    from rmac_mj.agents.planning import Planning, TransitionModel
+    state, action = _spaces(n=1, m=1)
+    model = TransitionModel(Planning(steps=1, interpolate=interpolate, model_capacity=50,
+                                     model_neighbours=5), state, action)
+    for x in np.linspace(-0.5, 0.5, 11):
+        model.observe(np.array([x]), np.array([0.0]), -1.0 + x, np.array([x]))
+    _, r = model.predict(np.array([0.9]), np.array([0.9]))
+    assert (r <= -0.5 + 1e-9) == interpolate  # an affine fit extrapolates to about -0.1
