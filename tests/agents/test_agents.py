@@ -348,6 +348,7 @@ def test_memory_estimate_needs_no_memory_for_what_cannot_fit(tmp_path):
 #: Per learner, the hyperparameter its memory grows with, at two sizes.
 _SIZES = {"rmac": ("critic_capacity", 2000, 20000), "mlac": ("actor_capacity", 2000, 20000),
           "s-ac": ("tile_coding", {"tiles": 7}, {"tiles": 70}),
+          "recommended": ("tile_coding", {"tiles": 7}, {"tiles": 70}),
           "sb3-sac": ("buffer_size", 10 ** 4, 10 ** 6), "sb3-td3": ("buffer_size", 10 ** 4, 10 ** 6),
           "sb3-ppo": ("n_steps", 256, 8192)}
 

@@ -165,7 +165,7 @@ def test_mlac_improves_on_pendulum_swingup():
 @pytest.mark.parametrize("kwargs, name", [
     (dict(gamma=1.5), "gamma"), (dict(alpha_a=-0.1), "alpha_a"),
     (dict(alpha_c=float("nan")), "alpha_c"), (dict(lam=2), "lam"),
-    (dict(actor_capacity=0), "actor_capacity"), (dict(process_neighbours=200), "process_neighbours"),
+    (dict(actor_capacity=0), "actor_capacity"), (dict(process_capacity=100, process_neighbours=200), "process_neighbours"),
     (dict(critic_neighbours=True), "critic_neighbours"),
     (dict(actor_weights=(1.0, -1.0)), "actor_weights"), (dict(process_weights="ab"), "process_weights"),
     (dict(action_cost=-1.0), "action_cost"), (dict(saturation_threshold=0.0), "saturation_threshold"),

@@ -102,8 +102,10 @@ def test_planning_in_the_true_model_learns_in_fewer_real_trials():
     for steps in (0, 10):
         needed = []
         for seed in range(3):
+            # The paper's actor rate and noise, as this test was set for (not the task's units).
+            paper = dict(alpha_a=0.005, exploration={"sigma": 1.0})
             agent = make_agent("s-ac", *INTEGRATOR, seed=seed, config=dict(
-                planning=Planning(steps=steps, reward="task")) if steps else None)
+                paper, planning=Planning(steps=steps, reward="task")) if steps else paper)
             if steps:
                 agent.rehearsal.model.memory.fit(Z, Y)
             needed.append(next((t for t in range(1, 9) if _integrator_trial(agent) is not None

@@ -173,7 +173,9 @@ def _lq_reachable_case(rule, backend, action_cost):
     a, b, xs = 0.9, 0.5, 0.5
     # conditioning 'none': a truncated SVD would drop the slope of two samples 0.005 apart.
     agent = _agent(1, 1, backend, critic_neighbours=2, critic_capacity=1000, critic_clip=False,
-                   conditioning="none", reachable_rule=rule, action_cost=action_cost)
+                   conditioning="none", reachable_rule=rule, action_cost=action_cost,
+                   process_capacity=100, process_neighbours=9, reference_capacity=2000,
+                   reference_neighbours=20)
     rng = np.random.default_rng(0)
     X, U = rng.uniform(-2, 2, (100, 1)), rng.uniform(-3, 3, (100, 1))
     agent.process.fit(np.c_[X, U], a * X + b * U)
@@ -498,7 +500,7 @@ def test_rmac_improves_on_pendulum_swingup():
 
 @pytest.mark.parametrize("kwargs, name", [
     (dict(gamma=1.5), "gamma"), (dict(alpha_r=-0.1), "alpha_r"),
-    (dict(critic_capacity=0), "critic_capacity"), (dict(process_neighbours=200), "process"),
+    (dict(critic_capacity=0), "critic_capacity"), (dict(process_capacity=100, process_neighbours=200), "process"),
     (dict(reference_weights=(1.0, -1.0)), "reference_weights"),
     (dict(conditioning="qr"), "conditioning"), (dict(inverse_query="x"), "inverse_query"),
     (dict(critic_replacement="lru"), "critic_replacement"), (dict(backend="jax"), "backend"),
