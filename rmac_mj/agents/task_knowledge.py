@@ -126,7 +126,9 @@ def with_task_units(config: Any, state_space: StateSpace, action_space: ActionSp
     """``config`` with every field its class lists in ``task_units`` (field -> (rule, value at the
     paper's pendulum)) and leaves None set from the task (:func:`task_value`), nested configs
     (exploration, planning) likewise. A field set explicitly is kept; on the paper's pendulum every
-    resolved value is the paper's."""
+    resolved value is the paper's. A learner without a config (a scripted policy) has none."""
+    if config is None:
+        return None
     changes = {}
     for field in dataclasses.fields(config):
         value = getattr(config, field.name)

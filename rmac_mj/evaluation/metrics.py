@@ -282,6 +282,7 @@ def summarise(returns: np.ndarray, greedy: np.ndarray | None = None,
     if steps is not None and steps.shape == returns.shape and np.all(
             np.isfinite(steps[np.isfinite(returns)])):
         last = steps[np.arange(n_experiments), ran - 1]
+        summary["trials_per_experiment"] = [int(n) for n in ran]
         summary["env_steps_per_trial"] = _nan_to_none(np.nanmean(steps, axis=0))
         summary["env_steps_per_experiment"] = [int(v) for v in last]
         if env_step_seconds is not None:
