@@ -73,9 +73,14 @@ class Task:
 
     def summary(self, learner: str) -> dict[str, Any]:
         curve = self.curves[learner]
-        return metrics.summarise(curve.returns, curve.greedy_returns, curve.greedy_trials,
-                                 self.facts.get("optimal_return"), trial_seconds=self.seconds,
-                                 cpu_times=curve.cpu_times)
+        return metrics.summarise(
+            curve.returns,
+            curve.greedy_returns,
+            curve.greedy_trials,
+            self.facts.get("optimal_return"),
+            trial_seconds=self.seconds,
+            cpu_times=curve.cpu_times,
+        )
 
 
 def fmt(estimate: statistics.Estimate, digits: int = 0) -> str:
@@ -83,20 +88,24 @@ def fmt(estimate: statistics.Estimate, digits: int = 0) -> str:
 
 
 def table(task: Task) -> list[str]:
-    rows = ["| learner | experiments (of planned) | trials (simulated min) | min to within 10% of its "
-            "final level | first 5 min, IQM [95% CI] | final return, IQM [95% CI] | greedy at 10 min, "
-            "IQM [95% CI] | greedy at its end, IQM | stuck | CPU s per simulated min |",
-            "|---|---|---|---|---|---|---|---|---|---|"]
+    rows = [
+        "| learner | experiments (of planned) | trials (simulated min) | min to within 10% of its "
+        "final level | first 5 min, IQM [95% CI] | final return, IQM [95% CI] | greedy at 10 min, "
+        "IQM [95% CI] | greedy at its end, IQM | stuck | CPU s per simulated min |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
     for learner in task.learners():
         c, s = task.curves[learner], task.summary(learner)
         n, trials = c.returns.shape
         greedy10 = statistics.iqm_interval(task.greedy_at(learner))
         first = statistics.Estimate(s["first_5min_iqm"], *s["first_5min_iqm_ci95"])
         final = statistics.Estimate(s["final_return_iqm"], *s["final_return_iqm_ci95"])
-        rows.append(f"| {display_name(learner)} | {n} ({task.planned[learner]}) | {trials} "
-                    f"({trials * task.seconds / 60:g}) | {s['minutes_to_90pct']:.1f} | {fmt(first)} | "
-                    f"{fmt(final)} | {fmt(greedy10)} | {statistics.iqm(c.greedy_returns[:, -1]):.0f} | "
-                    f"{s['stuck_experiments']}/{n} | {s['cpu_s_per_simulated_minute']:.3g} |")
+        rows.append(
+            f"| {display_name(learner)} | {n} ({task.planned[learner]}) | {trials} "
+            f"({trials * task.seconds / 60:g}) | {s['minutes_to_90pct']:.1f} | {fmt(first)} | "
+            f"{fmt(final)} | {fmt(greedy10)} | {statistics.iqm(c.greedy_returns[:, -1]):.0f} | "
+            f"{s['stuck_experiments']}/{n} | {s['cpu_s_per_simulated_minute']:.3g} |"
+        )
     return rows
 
 
@@ -105,9 +114,11 @@ def headline(loaded: dict[str, Task]) -> list[str]:
     experiments x trials, the final return (IQM, interval), the greedy return at 10 simulated minutes
     (IQM), the minutes to within 10% of the final level, and the CPU cost."""
     names = " / ".join(task.name.split("/")[0] for task in loaded.values())
-    rows = [f"| learner ({names}) | experiments x trials | final return, IQM [95% CI] | greedy at 10 "
-            "min, IQM | min to within 10% of final | CPU s per simulated min |",
-            "|---|---|---|---|---|---|"]
+    rows = [
+        f"| learner ({names}) | experiments x trials | final return, IQM [95% CI] | greedy at 10 "
+        "min, IQM | min to within 10% of final | CPU s per simulated min |",
+        "|---|---|---|---|---|---|",
+    ]
     for learner in LEARNERS:
         cells: list[list[str]] = [[], [], [], [], []]
         for task in loaded.values():
@@ -117,20 +128,30 @@ def headline(loaded: dict[str, Task]) -> list[str]:
                 continue
             s, (n, trials) = task.summary(learner), task.curves[learner].returns.shape
             final = statistics.Estimate(s["final_return_iqm"], *s["final_return_iqm_ci95"])
-            for column, value in zip(cells, (f"{n} x {trials}", fmt(final),
-                                             f"{statistics.iqm(task.greedy_at(learner)):.0f}",
-                                             f"{s['minutes_to_90pct']:.1f}",
-                                             f"{s['cpu_s_per_simulated_minute']:.2g}")):
+            for column, value in zip(
+                cells,
+                (
+                    f"{n} x {trials}",
+                    fmt(final),
+                    f"{statistics.iqm(task.greedy_at(learner)):.0f}",
+                    f"{s['minutes_to_90pct']:.1f}",
+                    f"{s['cpu_s_per_simulated_minute']:.2g}",
+                ),
+            ):
                 column.append(value)
-        rows.append(f"| {display_name(learner)} | " + " | ".join(" / ".join(c) for c in cells) + " |")
+        rows.append(
+            f"| {display_name(learner)} | " + " | ".join(" / ".join(c) for c in cells) + " |"
+        )
     return rows
 
 
 def improvement(task: Task, scores: dict[str, np.ndarray]) -> list[str]:
     """P(row > column) of ``scores`` (learner -> per-experiment score), with 95% intervals."""
     names = list(scores)
-    rows = ["| P(row > column) | " + " | ".join(display_name(n) for n in names) + " |",
-            "|---" * (len(names) + 1) + "|"]
+    rows = [
+        "| P(row > column) | " + " | ".join(display_name(n) for n in names) + " |",
+        "|---" * (len(names) + 1) + "|",
+    ]
     for a in names:
         cells = []
         for b in names:
@@ -143,11 +164,16 @@ def improvement(task: Task, scores: dict[str, np.ndarray]) -> list[str]:
 def aggregate(loaded: dict[str, Task]) -> list[str]:
     """IQM over both tasks of the near-optimal return divided by the greedy return at 10 minutes (1
     is optimal, 0.5 twice the optimum's cost), tasks as the bootstrap's strata."""
-    rows = ["| learner | both tasks: near-optimal / greedy return at 10 min, IQM [95% CI] |",
-            "|---|---|"]
+    rows = [
+        "| learner | both tasks: near-optimal / greedy return at 10 min, IQM [95% CI] |",
+        "|---|---|",
+    ]
     for learner in LEARNERS:
-        strata = [task.facts["optimal_return"] / task.greedy_at(learner) for task in loaded.values()
-                  if learner in task.curves and "optimal_return" in task.facts]
+        strata = [
+            task.facts["optimal_return"] / task.greedy_at(learner)
+            for task in loaded.values()
+            if learner in task.curves and "optimal_return" in task.facts
+        ]
         if len(strata) == len(loaded):
             rows.append(f"| {display_name(learner)} | {fmt(statistics.iqm_interval(strata), 3)} |")
     return rows
@@ -157,9 +183,12 @@ def figures(key: str, task: Task, out: pathlib.Path) -> None:
     """Fig. 2 of every learner (the package's own figure: mean, t-interval, greedy trials) and the
     performance profiles of the greedy return at 10 simulated minutes."""
     summary = {"trial_seconds": task.seconds, **{n: task.summary(n) for n in task.learners()}}
-    fig = plots.learning_curves_figure({task.name: summary}, task.facts.get("optimal_return"),
-                                       smooth=SMOOTH,
-                                       exploration_floor=task.facts.get("exploration_floor"))
+    fig = plots.learning_curves_figure(
+        {task.name: summary},
+        task.facts.get("optimal_return"),
+        smooth=SMOOTH,
+        exploration_floor=task.facts.get("exploration_floor"),
+    )
     fig.suptitle(f"{task.name}: every learner on the simulated-time axis (SAC and TD3: 10 min)")
     plots.save_figure(fig, out / f"baselines_fig2_{key}", formats=("png",))
     scores = {("", n): task.greedy_at(n) for n in task.learners()}
@@ -171,8 +200,11 @@ def figures(key: str, task: Task, out: pathlib.Path) -> None:
 def rates(root: pathlib.Path, task: Task) -> list[str]:
     """The learning-rate check. The default rate's row is the main run's first experiments over the
     check's trials: the same seeds, so the same experiments as a run of that length."""
-    rows = ["| learner | learning rate | experiments x trials | learning return, last 50 trials, "
-            "mean | greedy at the end, mean |", "|---|---|---|---|---|"]
+    rows = [
+        "| learner | learning rate | experiments x trials | learning return, last 50 trials, "
+        "mean | greedy at the end, mean |",
+        "|---|---|---|---|---|",
+    ]
     found: dict[str, list] = {}
     for directory in sorted((root / "rates").glob("*-lr*")):
         learner, rate = directory.name.rsplit("-lr", 1)
@@ -185,11 +217,18 @@ def rates(root: pathlib.Path, task: Task) -> list[str]:
         if learner in task.curves:
             main = task.curves[learner]
             last = list(main.greedy_trials).index(trials)
-            runs.append((config_class(learner)().learning_rate, main.returns[:experiments, :trials],
-                         main.greedy_returns[:experiments, last]))
+            runs.append(
+                (
+                    config_class(learner)().learning_rate,
+                    main.returns[:experiments, :trials],
+                    main.greedy_returns[:experiments, last],
+                )
+            )
         for rate, returns, greedy in sorted(runs, key=lambda run: run[0]):
-            rows.append(f"| {display_name(learner)} | {rate:g} | {len(returns)} x {trials} | "
-                        f"{metrics.final_returns(returns).mean():.0f} | {greedy.mean():.0f} |")
+            rows.append(
+                f"| {display_name(learner)} | {rate:g} | {len(returns)} x {trials} | "
+                f"{metrics.final_returns(returns).mean():.0f} | {greedy.mean():.0f} |"
+            )
     return rows
 
 
@@ -204,11 +243,19 @@ def main() -> None:
         facts = ", ".join(f"{k} {v:.2f}" for k, v in task.facts.items() if k != "trial_seconds")
         print(f"\n### {task.name} ({facts})\n")
         print("\n".join(table(task)))
-        print(f"\nProbability of improvement, greedy return at {COMMON_MINUTES:g} simulated minutes:\n")
+        print(
+            f"\nProbability of improvement, greedy return at {COMMON_MINUTES:g} simulated minutes:\n"
+        )
         print("\n".join(improvement(task, {n: task.greedy_at(n) for n in task.learners()})))
         print("\nProbability of improvement, final return (each learner at its own end):\n")
-        print("\n".join(improvement(task, {n: metrics.final_returns(task.curves[n].returns)
-                                           for n in task.learners()})))
+        print(
+            "\n".join(
+                improvement(
+                    task,
+                    {n: metrics.final_returns(task.curves[n].returns) for n in task.learners()},
+                )
+            )
+        )
         check = rates(args.runs / key, task)
         if len(check) > 2:
             print("\nLearning-rate check:\n")

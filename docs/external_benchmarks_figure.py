@@ -20,8 +20,8 @@ import numpy as np  # noqa: E402
 
 from rmac_mj import envs  # noqa: E402
 from rmac_mj.agents import display_name  # noqa: E402
-from rmac_mj.rollout import steps_per_trial  # noqa: E402
 from rmac_mj.evaluation.metrics import confidence_interval  # noqa: E402
+from rmac_mj.rollout import steps_per_trial  # noqa: E402
 
 #: Published deep-RL levels (docs/external-benchmarks.md cites them): a label and the returns drawn.
 PUBLISHED = {
@@ -36,8 +36,15 @@ def panel(ax, runs: list[pathlib.Path], published) -> None:
     label, values = published
     for value in values:
         ax.axhline(value, ls="--", lw=1, color="k")
-    ax.annotate(label, (0.02, min(values)), xycoords=("axes fraction", "data"), va="top", fontsize=7,
-                xytext=(0, -2), textcoords="offset points")
+    ax.annotate(
+        label,
+        (0.02, min(values)),
+        xycoords=("axes fraction", "data"),
+        va="top",
+        fontsize=7,
+        xytext=(0, -2),
+        textcoords="offset points",
+    )
     ax.set_xlabel("environment steps")
     ax.set_ylabel("greedy return (sum of rewards per episode)")
     ax.grid(alpha=0.3)
@@ -48,27 +55,48 @@ def curves(ax, run: pathlib.Path) -> None:
     """Each learner's greedy returns in ``run``: mean and 95% interval against environment steps."""
     summary = json.loads((run / "summary.json").read_text())
     protocol = summary["protocol"]
-    env = envs.load(protocol["env"], protocol["task_kwargs"], learner_state=protocol["learner_state"],
-                    action_repeat=protocol["action_repeat"], trial_steps=protocol["trial_steps"],
-                    control_timestep=protocol["control_timestep"])
-    env_steps = steps_per_trial(env) * protocol["action_repeat"]   # environment steps per episode
+    env = envs.load(
+        protocol["env"],
+        protocol["task_kwargs"],
+        learner_state=protocol["learner_state"],
+        action_repeat=protocol["action_repeat"],
+        trial_steps=protocol["trial_steps"],
+        control_timestep=protocol["control_timestep"],
+    )
+    env_steps = steps_per_trial(env) * protocol["action_repeat"]  # environment steps per episode
     for algo in protocol["algorithms"]:
         files = sorted((run / "curves" / algo).glob("exp_*.npz"))
-        greedy = np.array([np.load(f)["greedy_returns"] for f in files])   # (experiments, evaluations)
+        greedy = np.array(
+            [np.load(f)["greedy_returns"] for f in files]
+        )  # (experiments, evaluations)
         steps = np.load(files[0])["greedy_trials"] * env_steps
         mean, low, high = confidence_interval(greedy)
-        line, = ax.plot(steps, mean, marker="o", ms=3, label=f"{display_name(algo)} ({len(files)} exp.)")
+        (line,) = ax.plot(
+            steps, mean, marker="o", ms=3, label=f"{display_name(algo)} ({len(files)} exp.)"
+        )
         ax.fill_between(steps, low, high, color=line.get_color(), alpha=0.2)
     ax.set_title(protocol["env"])
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--pendulum", type=pathlib.Path, nargs="+", required=True,
-                        help="result directories of Pendulum-v1 runs")
-    parser.add_argument("--cartpole", type=pathlib.Path, nargs="+", required=True,
-                        help="result directories of cartpole/swingup runs")
-    parser.add_argument("--out", type=pathlib.Path, default=pathlib.Path("docs/external_benchmarks.png"))
+    parser.add_argument(
+        "--pendulum",
+        type=pathlib.Path,
+        nargs="+",
+        required=True,
+        help="result directories of Pendulum-v1 runs",
+    )
+    parser.add_argument(
+        "--cartpole",
+        type=pathlib.Path,
+        nargs="+",
+        required=True,
+        help="result directories of cartpole/swingup runs",
+    )
+    parser.add_argument(
+        "--out", type=pathlib.Path, default=pathlib.Path("docs/external_benchmarks.png")
+    )
     args = parser.parse_args()
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
     panel(axes[0], args.pendulum, PUBLISHED["pendulum"])

@@ -51,8 +51,9 @@ def figure(roots: list[pathlib.Path], path: pathlib.Path) -> None:
                 value = [statistics.iqm_interval(greedy[:, k]) for k in range(greedy.shape[1])]
                 iqm = np.array([v.value for v in value])
                 low, high = np.array([v.low for v in value]), np.array([v.high for v in value])
-                line, = ax.plot(steps, iqm, marker=".",
-                                label=f"{display_name(algorithm)} ({greedy.shape[0]})")
+                (line,) = ax.plot(
+                    steps, iqm, marker=".", label=f"{display_name(algorithm)} ({greedy.shape[0]})"
+                )
                 ax.fill_between(steps, low, high, color=line.get_color(), alpha=0.15, linewidth=0)
         ax.axhline(task.goal, color="black", linestyle="-.", linewidth=1.0, label="goal")
         ax.set_title(task.name, fontsize="medium")
@@ -60,7 +61,9 @@ def figure(roots: list[pathlib.Path], path: pathlib.Path) -> None:
         ax.set_ylabel("greedy return (IQM, 95% CI)")
         ax.grid(alpha=0.3)
         ax.legend(fontsize="x-small", loc="lower right")
-    fig.suptitle("The panel: greedy return against interaction (experiments per learner in brackets)")
+    fig.suptitle(
+        "The panel: greedy return against interaction (experiments per learner in brackets)"
+    )
     fig.savefig(path, dpi=110)
     plt.close(fig)
 

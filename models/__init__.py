@@ -29,6 +29,8 @@ def model_path(name: str = "dc_pendulum", scene: bool = False) -> pathlib.Path:
         path = MODELS_DIR / f"{name}.xml"
     if not path.is_file():
         if scene and name in available_models():
-            raise ValueError(f"model_path: model {name!r} has no scene.xml (only folder models have one)")
+            raise ValueError(
+                f"model_path: model {name!r} has no scene.xml (only folder models have one)"
+            )
         raise ValueError(f"model_path: no model named {name!r}; available: {available_models()}")
     return path

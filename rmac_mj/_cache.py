@@ -21,7 +21,7 @@ import hashlib
 import os
 import pathlib
 import sys
-from typing import Callable, Iterator, MutableMapping
+from collections.abc import Callable, Iterator, MutableMapping
 
 _CACHE_ENV = "RMAC_MJ_CACHE_DIR"
 _NUMBA_ENV = "NUMBA_CACHE_DIR"
@@ -50,8 +50,9 @@ def kernel_source_hash(package_dir: pathlib.Path = _PACKAGE_DIR) -> str:
     return digest.hexdigest()[:16]
 
 
-def configure_numba_cache(environ: MutableMapping[str, str] | None = None,
-                          package_dir: pathlib.Path = _PACKAGE_DIR) -> str | None:
+def configure_numba_cache(
+    environ: MutableMapping[str, str] | None = None, package_dir: pathlib.Path = _PACKAGE_DIR
+) -> str | None:
     """Point ``NUMBA_CACHE_DIR`` at ``user_cache_dir() / "numba" / kernel_source_hash()``.
 
     Returns the value set, or None when the user set ``NUMBA_CACHE_DIR`` (kept as it is).
@@ -61,7 +62,9 @@ def configure_numba_cache(environ: MutableMapping[str, str] | None = None,
         return None
     environ[_NUMBA_ENV] = str(user_cache_dir(environ) / "numba" / kernel_source_hash(package_dir))
     if "numba" in sys.modules and environ is os.environ:  # imported before rmac_mj: too late for
-        sys.modules["numba"].config.CACHE_DIR = environ[_NUMBA_ENV]  # its import, not for our kernels
+        sys.modules["numba"].config.CACHE_DIR = environ[
+            _NUMBA_ENV
+        ]  # its import, not for our kernels
     return environ[_NUMBA_ENV]
 
 

@@ -18,7 +18,7 @@ import ctypes.util
 import numbers
 import os
 import sys
-from typing import MutableMapping
+from collections.abc import MutableMapping
 
 #: Off-screen back ends in order of preference: (MUJOCO_GL value, library stem, sonames to try).
 OFFSCREEN_BACKENDS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
@@ -78,8 +78,9 @@ def egl_device_count(sonames: tuple[str, ...] = OFFSCREEN_BACKENDS[0][2]) -> int
         address = egl.eglGetProcAddress(b"eglQueryDevicesEXT")
         if not address:
             return 0
-        query = ctypes.CFUNCTYPE(ctypes.c_uint, ctypes.c_int, ctypes.c_void_p,
-                                 ctypes.POINTER(ctypes.c_int))(address)
+        query = ctypes.CFUNCTYPE(
+            ctypes.c_uint, ctypes.c_int, ctypes.c_void_p, ctypes.POINTER(ctypes.c_int)
+        )(address)
         count = ctypes.c_int(0)
         return count.value if query(0, None, ctypes.byref(count)) else 0
     return 0
@@ -92,7 +93,9 @@ def backend_available(backend: str) -> bool:
             if not can_load_library(stem, sonames):
                 return False
             return backend != "egl" or egl_device_count(sonames) > 0
-    raise ValueError(f"backend must be one of {[b[0] for b in OFFSCREEN_BACKENDS]}, got {backend!r}")
+    raise ValueError(
+        f"backend must be one of {[b[0] for b in OFFSCREEN_BACKENDS]}, got {backend!r}"
+    )
 
 
 def has_display(environ: MutableMapping[str, str] | None = None) -> bool:
@@ -144,18 +147,24 @@ def require_gl_backend(environ: MutableMapping[str, str] | None = None) -> str:
     environ = os.environ if environ is None else environ
     chosen = environ.get("MUJOCO_GL", "").strip().lower()
     if chosen in _OFF:
-        raise GLBackendError(f"rendering is off: MUJOCO_GL={chosen} (rmac_mj sets this when no "
-                             f"OpenGL back end loads).\n{INSTALL_HINT}")
-    for backend, stem, sonames in OFFSCREEN_BACKENDS:
+        raise GLBackendError(
+            f"rendering is off: MUJOCO_GL={chosen} (rmac_mj sets this when no "
+            f"OpenGL back end loads).\n{INSTALL_HINT}"
+        )
+    for backend, stem, _sonames in OFFSCREEN_BACKENDS:
         if chosen == backend:
             if not backend_available(backend):
-                raise GLBackendError(f"MUJOCO_GL={backend} but lib{stem} cannot be loaded"
-                                     f"{' or finds no device' if backend == 'egl' else ''}."
-                                     f"\n{INSTALL_HINT}")
+                raise GLBackendError(
+                    f"MUJOCO_GL={backend} but lib{stem} cannot be loaded"
+                    f"{' or finds no device' if backend == 'egl' else ''}."
+                    f"\n{INSTALL_HINT}"
+                )
             return backend
     if chosen in ("", "glfw", "enable", "enabled", "on", "true", "1") and not has_display(environ):
-        raise GLBackendError(f"no display and no off-screen back end (MUJOCO_GL is "
-                             f"{chosen or 'unset'}).\n{INSTALL_HINT}")
+        raise GLBackendError(
+            f"no display and no off-screen back end (MUJOCO_GL is "
+            f"{chosen or 'unset'}).\n{INSTALL_HINT}"
+        )
     return chosen or "glfw"
 
 
@@ -175,19 +184,30 @@ def open_renderer(model, width: int, height: int):
         raise GLBackendError(f"MuJoCo could not import its {backend} back end.\n{INSTALL_HINT}")
     if context_class.__module__.startswith("mujoco.glfw") and not has_display():
         # mujoco was imported before rmac_mj chose a back end (it reads MUJOCO_GL only then).
-        raise GLBackendError("mujoco was imported before an off-screen back end was chosen, and "
-                             "there is no display for its default (GLFW): set MUJOCO_GL=egl "
-                             f"before starting Python, or import rmac_mj first.\n{INSTALL_HINT}")
+        raise GLBackendError(
+            "mujoco was imported before an off-screen back end was chosen, and "
+            "there is no display for its default (GLFW): set MUJOCO_GL=egl "
+            f"before starting Python, or import rmac_mj first.\n{INSTALL_HINT}"
+        )
     try:
         return mujoco.Renderer(model, height=height, width=width)
     except Exception as error:  # context creation fails in many library-specific ways
-        raise GLBackendError(f"the {backend} back end failed to start: {error}\n"
-                             f"{INSTALL_HINT}") from error
+        raise GLBackendError(
+            f"the {backend} back end failed to start: {error}\n{INSTALL_HINT}"
+        ) from error
 
 
 def _check_size(model, width: int, height: int) -> None:
-    for name, value, limit, attribute in (("width", width, model.vis.global_.offwidth, "offwidth"),
-                                          ("height", height, model.vis.global_.offheight, "offheight")):
-        if not isinstance(value, numbers.Integral) or isinstance(value, bool) or not 0 < value <= limit:
-            raise ValueError(f"{name} must be an integer in [1, {limit}] (the model's <global "
-                             f"{attribute}>), got {value!r}")
+    for name, value, limit, attribute in (
+        ("width", width, model.vis.global_.offwidth, "offwidth"),
+        ("height", height, model.vis.global_.offheight, "offheight"),
+    ):
+        if (
+            not isinstance(value, numbers.Integral)
+            or isinstance(value, bool)
+            or not 0 < value <= limit
+        ):
+            raise ValueError(
+                f"{name} must be an integer in [1, {limit}] (the model's <global "
+                f"{attribute}>), got {value!r}"
+            )

@@ -36,12 +36,26 @@ import dataclasses
 import difflib
 import math
 import numbers
-from typing import Any, Iterable, Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
-__all__ = ["Boolean", "Field", "InstanceOf", "Interval", "InvalidParameterError", "Options",
-           "TupleOf", "WEIGHTS", "check", "invalid", "lookup", "unknown", "unmet"]
+__all__ = [
+    "Boolean",
+    "Field",
+    "InstanceOf",
+    "Interval",
+    "InvalidParameterError",
+    "Options",
+    "TupleOf",
+    "WEIGHTS",
+    "check",
+    "invalid",
+    "lookup",
+    "unknown",
+    "unmet",
+]
 
 
 class InvalidParameterError(ValueError, TypeError):
@@ -74,12 +88,17 @@ class Constraint:
 
 
 def _is_real(value: Any) -> bool:
-    return (isinstance(value, (numbers.Real, np.floating, np.integer))
-            and not isinstance(value, (bool, np.bool_)) and math.isfinite(value))
+    return (
+        isinstance(value, (numbers.Real, np.floating, np.integer))
+        and not isinstance(value, (bool, np.bool_))
+        and math.isfinite(value)
+    )
 
 
 def _is_integer(value: Any) -> bool:
-    return isinstance(value, (numbers.Integral, np.integer)) and not isinstance(value, (bool, np.bool_))
+    return isinstance(value, (numbers.Integral, np.integer)) and not isinstance(
+        value, (bool, np.bool_)
+    )
 
 
 class Interval(Constraint):
@@ -93,10 +112,13 @@ class Interval(Constraint):
 
     def __init__(self, kind: type, low: Any = None, high: Any = None, closed: str = "both") -> None:
         if kind not in (numbers.Real, numbers.Integral):
-            raise ValueError(f"Interval kind must be numbers.Real or numbers.Integral, got {kind!r}")
+            raise ValueError(
+                f"Interval kind must be numbers.Real or numbers.Integral, got {kind!r}"
+            )
         if closed not in ("both", "left", "right", "neither"):
-            raise ValueError(f"Interval closed must be 'both', 'left', 'right' or 'neither', "
-                             f"got {closed!r}")
+            raise ValueError(
+                f"Interval closed must be 'both', 'left', 'right' or 'neither', got {closed!r}"
+            )
         self.kind, self.low, self.high, self.closed = kind, low, high, closed
 
     @staticmethod
@@ -111,10 +133,13 @@ class Interval(Constraint):
         if not (_is_integer(value) if self.kind is numbers.Integral else _is_real(value)):
             return False
         low, high = self._bound(self.low, context), self._bound(self.high, context)
-        if low is not None and (value < low or (value == low and self.closed in ("right", "neither"))):
+        if low is not None and (
+            value < low or (value == low and self.closed in ("right", "neither"))
+        ):
             return False
-        if high is not None and (value > high or
-                                 (value == high and self.closed in ("left", "neither"))):
+        if high is not None and (
+            value > high or (value == high and self.closed in ("left", "neither"))
+        ):
             return False
         return True
 
@@ -204,8 +229,9 @@ class TupleOf(Constraint):
         for entry in self._entries(value):
             if _is_real(entry) and not _is_integer(entry):
                 entry = float(entry)
-            elif _is_integer(entry) and any(isinstance(c, Interval) and c.kind is numbers.Real
-                                            for c in self.elements):
+            elif _is_integer(entry) and any(
+                isinstance(c, Interval) and c.kind is numbers.Real for c in self.elements
+            ):
                 entry = float(entry)
             elif _is_integer(entry):
                 entry = int(entry)
@@ -264,8 +290,9 @@ def _alternatives(constraints: Sequence[Any], context: Mapping[str, Any] | None 
 _NONE_ALLOWED = object()
 
 
-def _first_satisfied(constraints: Iterable[Any], value: Any,
-                     context: Mapping[str, Any] | None = None) -> Any:
+def _first_satisfied(
+    constraints: Iterable[Any], value: Any, context: Mapping[str, Any] | None = None
+) -> Any:
     """The first constraint ``value`` satisfies (``_NONE_ALLOWED`` for an allowed None), or None."""
     for constraint in constraints:
         if constraint is None:
@@ -276,8 +303,9 @@ def _first_satisfied(constraints: Iterable[Any], value: Any,
     return None
 
 
-def unmet(value: Any, constraints: Sequence[Any],
-          context: Mapping[str, Any] | None = None) -> str | None:
+def unmet(
+    value: Any, constraints: Sequence[Any], context: Mapping[str, Any] | None = None
+) -> str | None:
     """None when ``value`` satisfies one of ``constraints``, else what was expected (for messages).
 
     ``context`` holds the configuration's other values, for bounds that name them; without it such
@@ -358,8 +386,11 @@ def lookup(cls: type, path: Sequence[str]) -> list:
             raise unknown(owner.__name__, name, table)
         constraints = list(table[name])
         if depth < len(path) - 1:
-            nested = [c.cls for c in constraints if isinstance(c, InstanceOf)
-                      and hasattr(c.cls, "parameter_constraints")]
+            nested = [
+                c.cls
+                for c in constraints
+                if isinstance(c, InstanceOf) and hasattr(c.cls, "parameter_constraints")
+            ]
             if not nested:
                 raise InvalidParameterError(f"{owner.__name__}.{name} has no parameters of its own")
             owner = nested[0]

@@ -10,7 +10,7 @@ its number of control steps times its control timestep.
 from __future__ import annotations
 
 import math
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from dm_control.rl import control
@@ -27,9 +27,11 @@ def learner_state_of(env: control.Environment) -> LearnerStateSpec:
         learner_state = getattr(getattr(env, "task", None), "learner_state", None)
     if not isinstance(learner_state, LearnerStateSpec):
         owner = type(getattr(env, "task", env)).__name__
-        raise ValueError(f"{owner} declares no learner_state (a rmac_mj.tasks.common.LearnerStateSpec; "
-                         f"an outside environment gets one through rmac_mj.envs.load), got "
-                         f"{learner_state!r}")
+        raise ValueError(
+            f"{owner} declares no learner_state (a rmac_mj.tasks.common.LearnerStateSpec; "
+            f"an outside environment gets one through rmac_mj.envs.load), got "
+            f"{learner_state!r}"
+        )
     return learner_state
 
 
@@ -45,10 +47,15 @@ def state_space_of(env: control.Environment) -> StateSpace:
     """The task's nominal state box, periodic dimensions, state weightings, state cost, control step
     and reward scale as a StateSpace."""
     learner_state = learner_state_of(env)
-    return StateSpace(low=learner_state.low, high=learner_state.high, periodic=learner_state.periodic,
-                      input_weights=learner_state.input_weights, cost=learner_state.state_cost,
-                      timestep=float(env.control_timestep()),
-                      reward_scale=learner_state.reward_scale)
+    return StateSpace(
+        low=learner_state.low,
+        high=learner_state.high,
+        periodic=learner_state.periodic,
+        input_weights=learner_state.input_weights,
+        cost=learner_state.state_cost,
+        timestep=float(env.control_timestep()),
+        reward_scale=learner_state.reward_scale,
+    )
 
 
 def action_space_of(env: control.Environment) -> ActionSpace:
@@ -59,10 +66,16 @@ def action_space_of(env: control.Environment) -> ActionSpace:
     learner_state = learner_state_of(env)
     weights = learner_state.action_input_weights
     if len(weights) != low.size:
-        raise ValueError(f"task {type(env.task).__name__}: learner_state.action_input_weights has "
-                         f"{len(weights)} entries, the action spec {low.size}")
-    return ActionSpace(low=low, high=np.broadcast_to(spec.maximum, spec.shape), input_weights=weights,
-                       cost=learner_state.action_cost)
+        raise ValueError(
+            f"task {type(env.task).__name__}: learner_state.action_input_weights has "
+            f"{len(weights)} entries, the action spec {low.size}"
+        )
+    return ActionSpace(
+        low=low,
+        high=np.broadcast_to(spec.maximum, spec.shape),
+        input_weights=weights,
+        cost=learner_state.action_cost,
+    )
 
 
 def steps_per_trial(env: control.Environment) -> int:
@@ -77,8 +90,10 @@ def steps_per_trial(env: control.Environment) -> int:
         return own
     limit = getattr(env, "_step_limit", None)
     if limit is None or not math.isfinite(limit) or limit <= 0:
-        raise ValueError(f"the environment must have a finite time limit (trials end on it), got a "
-                         f"step limit of {limit!r}")
+        raise ValueError(
+            f"the environment must have a finite time limit (trials end on it), got a "
+            f"step limit of {limit!r}"
+        )
     return int(math.ceil(limit))
 
 
@@ -97,8 +112,12 @@ def n_sub_steps(env: control.Environment) -> int:
     return int(round(env.control_timestep() / env.physics.timestep()))
 
 
-def run_trial(env: control.Environment, agent: Agent, learn: bool = True,
-              on_step: Callable[[control.Environment, np.ndarray, float], None] | None = None) -> float:
+def run_trial(
+    env: control.Environment,
+    agent: Agent,
+    learn: bool = True,
+    on_step: Callable[[control.Environment, np.ndarray, float], None] | None = None,
+) -> float:
     """Run one episode; return the sum of rewards.
 
     With ``learn=True`` the agent follows its online protocol (``start``/``step``/``stop``: Algorithm
@@ -117,9 +136,12 @@ def env_steps_taken(env: control.Environment) -> int | None:
     return counted if isinstance(counted, int) else None
 
 
-def run_counted_trial(env: control.Environment, agent: Agent, learn: bool = True,
-                      on_step: Callable[[control.Environment, np.ndarray, float], None] | None = None
-                      ) -> tuple[float, int]:
+def run_counted_trial(
+    env: control.Environment,
+    agent: Agent,
+    learn: bool = True,
+    on_step: Callable[[control.Environment, np.ndarray, float], None] | None = None,
+) -> tuple[float, int]:
     """:func:`run_trial`, also returning the environment steps the episode took (control steps
     times the action repeat, less where the environment ended it mid-repeat)."""
     keys = learner_state_of(env).keys

@@ -26,8 +26,12 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("out", type=pathlib.Path, help="the run's result directory")
     parser.add_argument("--experiments", type=int, default=40, help="experiments per learner")
-    parser.add_argument("--jobs", type=int, default=None, help="worker processes (default: all cores)")
-    parser.add_argument("--draw-only", action="store_true", help="redraw from the run's summary.json")
+    parser.add_argument(
+        "--jobs", type=int, default=None, help="worker processes (default: all cores)"
+    )
+    parser.add_argument(
+        "--draw-only", action="store_true", help="redraw from the run's summary.json"
+    )
     parser.add_argument("--figure", type=pathlib.Path, default=FIGURE, help="the PNG to write")
     args = parser.parse_args(argv)
 
@@ -36,22 +40,39 @@ def main(argv: list[str] | None = None) -> int:
 
     store = ResultStore(args.out)
     if not args.draw_only:
-        command = [sys.executable, "-m", "rmac_mj", "reproduce", *PROTOCOL,
-                   "--experiments", str(args.experiments), "--out", str(args.out)]
+        command = [
+            sys.executable,
+            "-m",
+            "rmac_mj",
+            "reproduce",
+            *PROTOCOL,
+            "--experiments",
+            str(args.experiments),
+            "--out",
+            str(args.out),
+        ]
         if args.jobs is not None:
             command += ["--jobs", str(args.jobs)]
         if store.read_config() is not None and not store.summary_path.exists():
             command.append("--resume")  # a run interrupted before: finish it
         print(" ".join(command[2:]), flush=True)
-        if store.summary_path.exists() and store.read_summary()["protocol"]["experiments"] == args.experiments:
+        if (
+            store.summary_path.exists()
+            and store.read_summary()["protocol"]["experiments"] == args.experiments
+        ):
             print(f"{args.out} holds the finished run; drawing it")
         else:
             subprocess.run(command, check=True)
     summary = store.read_summary()
     paths = plots.save_figure(
-        plots.learning_curves_figure({args.out.name: summary}, optimal_return=summary.get("optimal_return"),
-                                     exploration_floor=summary.get("exploration_floor")),
-        args.figure.with_suffix(""), formats=("png",))
+        plots.learning_curves_figure(
+            {args.out.name: summary},
+            optimal_return=summary.get("optimal_return"),
+            exploration_floor=summary.get("exploration_floor"),
+        ),
+        args.figure.with_suffix(""),
+        formats=("png",),
+    )
     print("figure:", ", ".join(map(str, paths)))
     return 0
 

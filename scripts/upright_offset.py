@@ -54,19 +54,35 @@ import sys
 import numpy as np
 from scipy import stats
 
-from rmac_mj.agents import ActionSpace, StateSpace, make_agent
 from rmac_mj import rollout as episode
+from rmac_mj import tasks
+from rmac_mj.agents import ActionSpace, StateSpace, make_agent
 from rmac_mj.evaluation.metrics import confidence_interval
 from rmac_mj.results.snapshots import load_snapshot
-from rmac_mj import tasks
 
-SETTLE_ANGLE = 0.05   # rad, |phi - phi_ss| from the settle step on
-SETTLE_SPEED = 0.5    # rad/s, |phi_dot| from the settle step on
-UPRIGHT = 0.5         # rad: a trial "ends upright" when it settles (see settle_step) within this of 0
-FIELDS = ("directory", "algorithm", "experiment", "repeat", "greedy_return", "stored_greedy_return",
-          "phi_ss", "phi_dot_ss", "u_ss", "phi_std", "settle_step", "offset_loss", "critic_peak",
-          "critic_switch", "critic_gain", "critic_points_back", "memory_near_upright",
-          "critic_span_at_upright")
+SETTLE_ANGLE = 0.05  # rad, |phi - phi_ss| from the settle step on
+SETTLE_SPEED = 0.5  # rad/s, |phi_dot| from the settle step on
+UPRIGHT = 0.5  # rad: a trial "ends upright" when it settles (see settle_step) within this of 0
+FIELDS = (
+    "directory",
+    "algorithm",
+    "experiment",
+    "repeat",
+    "greedy_return",
+    "stored_greedy_return",
+    "phi_ss",
+    "phi_dot_ss",
+    "u_ss",
+    "phi_std",
+    "settle_step",
+    "offset_loss",
+    "critic_peak",
+    "critic_switch",
+    "critic_gain",
+    "critic_points_back",
+    "memory_near_upright",
+    "critic_span_at_upright",
+)
 #: The slice phi_dot = 0 on which RMAC's learned memories are read (rad).
 SLICE = np.linspace(-0.3, 0.3, 121)
 
@@ -82,8 +98,13 @@ def read_csv(path: pathlib.Path) -> list[dict]:
                     out[key] = text
                 elif text == "":
                     out[key] = None
-                elif key in ("experiment", "repeat", "settle_step", "memory_near_upright",
-                             "critic_points_back"):
+                elif key in (
+                    "experiment",
+                    "repeat",
+                    "settle_step",
+                    "memory_near_upright",
+                    "critic_points_back",
+                ):
                     out[key] = int(float(text))
                 else:
                     out[key] = float(text)
@@ -95,9 +116,13 @@ def result_dirs(path: pathlib.Path) -> list[pathlib.Path]:
     """``path`` itself if it is a reproduce directory, else every one below it (a sweep)."""
     if (path / "config.json").is_file() and (path / "snapshots").is_dir():
         return [path]
-    found = sorted(p.parent for p in path.glob("*/config.json") if (p.parent / "snapshots").is_dir())
+    found = sorted(
+        p.parent for p in path.glob("*/config.json") if (p.parent / "snapshots").is_dir()
+    )
     if not found:
-        raise SystemExit(f"upright_offset: {path} holds no reproduce result directory with snapshots")
+        raise SystemExit(
+            f"upright_offset: {path} holds no reproduce result directory with snapshots"
+        )
     return found
 
 
@@ -120,20 +145,26 @@ def greedy_trajectory(agent, env) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             return np.array(states), np.array(actions), np.array(rewards)
 
 
-def steady_state(states: np.ndarray, actions: np.ndarray, rewards: np.ndarray,
-                 last: int) -> dict[str, float | int | None]:
+def steady_state(
+    states: np.ndarray, actions: np.ndarray, rewards: np.ndarray, last: int
+) -> dict[str, float | int | None]:
     """The steady-state metrics of one trial (see the module docstring)."""
     phi, phi_dot, u = states[:, 0], states[:, 1], actions[:, 0]
     phi_ss = float(phi[-last:].mean())
     near = (np.abs(phi - phi_ss) < SETTLE_ANGLE) & (np.abs(phi_dot) < SETTLE_SPEED)
     outside = np.flatnonzero(~near)
-    settle = (0 if len(outside) == 0 else int(outside[-1]) + 1)
+    settle = 0 if len(outside) == 0 else int(outside[-1]) + 1
     settle_step = settle if settle < len(phi) else None
-    return {"phi_ss": phi_ss, "phi_dot_ss": float(phi_dot[-last:].mean()),
-            "u_ss": float(u[-last:].mean()), "phi_std": float(phi[-last:].std()),
-            "settle_step": settle_step,
-            "offset_loss": (float(-rewards[settle_step:].sum()) if settle_step is not None
-                            else float("nan"))}
+    return {
+        "phi_ss": phi_ss,
+        "phi_dot_ss": float(phi_dot[-last:].mean()),
+        "u_ss": float(u[-last:].mean()),
+        "phi_std": float(phi[-last:].std()),
+        "settle_step": settle_step,
+        "offset_loss": (
+            float(-rewards[settle_step:].sum()) if settle_step is not None else float("nan")
+        ),
+    }
 
 
 def parse_sets(assignments: list[str]) -> dict:
@@ -158,7 +189,7 @@ def parse_sets(assignments: list[str]) -> dict:
 def _merge(config: dict, overrides: dict) -> dict:
     merged = dict(config)
     for key, value in overrides.items():
-        merged[key] = (_merge(merged.get(key, {}), value) if isinstance(value, dict) else value)
+        merged[key] = _merge(merged.get(key, {}), value) if isinstance(value, dict) else value
     return merged
 
 
@@ -169,10 +200,14 @@ def load_agent(path: pathlib.Path, overrides: dict, index: int):
         return load_snapshot(path)
     with np.load(path, allow_pickle=False) as data:
         meta = json.loads(str(data["meta"]))
-        state = {key[len("agent/"):]: data[key] for key in data.files if key.startswith("agent/")}
-    agent = make_agent(meta["algorithm"], StateSpace(**meta["state_space"]),
-                       ActionSpace(**meta["action_space"]),
-                       config=_merge(meta["config"], overrides), seed=index)
+        state = {key[len("agent/") :]: data[key] for key in data.files if key.startswith("agent/")}
+    agent = make_agent(
+        meta["algorithm"],
+        StateSpace(**meta["state_space"]),
+        ActionSpace(**meta["action_space"]),
+        config=_merge(meta["config"], overrides),
+        seed=index,
+    )
     agent.load_state_dict(state)
     return agent, meta
 
@@ -183,8 +218,9 @@ class CriticGreedy:
 
     def __init__(self, agent, n_actions: int = 121):
         self.agent = agent
-        self.candidates = np.linspace(agent.action_space.low[0], agent.action_space.high[0],
-                                      n_actions)[:, None]
+        self.candidates = np.linspace(
+            agent.action_space.low[0], agent.action_space.high[0], n_actions
+        )[:, None]
         self.u_prev = np.zeros(agent.m)
 
     def begin_greedy_trial(self) -> None:
@@ -194,7 +230,7 @@ class CriticGreedy:
         a = self.agent
         x = a._canonical(np.asarray(x, dtype=float))
         pred, beta, _ = a.process.query(np.concatenate([x, self.u_prev]))
-        beta_u = beta[:, a.n:a.n + a.m]
+        beta_u = beta[:, a.n : a.n + a.m]
         scores = [a._reachable_score(u, pred, beta_u, self.u_prev)[0] for u in self.candidates]
         self.u_prev = self.candidates[int(np.argmax(scores))].copy()
         return self.u_prev.copy()
@@ -208,11 +244,13 @@ class OracleInverse:
 
     def __init__(self, agent, env, n_actions: int = 601):
         from rmac_mj.solvers import dynamic_programming as optimal
+
         self.agent = agent
         self.model = env.physics.model.ptr
         self.n_sub = episode.n_sub_steps(env)
-        self.candidates = np.linspace(agent.action_space.low[0], agent.action_space.high[0],
-                                      n_actions)
+        self.candidates = np.linspace(
+            agent.action_space.low[0], agent.action_space.high[0], n_actions
+        )
         self.simulate = optimal.simulate_transitions
 
     def begin_greedy_trial(self) -> None:
@@ -223,16 +261,24 @@ class OracleInverse:
         x = a._canonical(np.asarray(x, dtype=float))
         desired = a.reference.query(x)[0]
         n = len(self.candidates)
-        nxt = self.simulate(self.model, np.full(n, x[0]), np.full(n, x[1]), self.candidates,
-                            self.n_sub)
+        nxt = self.simulate(
+            self.model, np.full(n, x[0]), np.full(n, x[1]), self.candidates, self.n_sub
+        )
         error = nxt - desired
         error[:, 0] = (error[:, 0] + np.pi) % (2 * np.pi) - np.pi
-        return self.candidates[[int(np.argmin((error ** 2).sum(axis=1)))]]
+        return self.candidates[[int(np.argmin((error**2).sum(axis=1)))]]
 
 
-def measure(directory: pathlib.Path, trial: int, last: int, algorithms: list[str] | None,
-            overrides: dict | None = None, more_trials: int = 0,
-            policy: str = "learned", repeats: int = 1) -> list[dict]:
+def measure(
+    directory: pathlib.Path,
+    trial: int,
+    last: int,
+    algorithms: list[str] | None,
+    overrides: dict | None = None,
+    more_trials: int = 0,
+    policy: str = "learned",
+    repeats: int = 1,
+) -> list[dict]:
     """One row per experiment and learner of a reproduce directory (``repeats`` rows each: a greedy
     trial, then one more learning trial before the next)."""
     overrides = overrides or {}
@@ -243,26 +289,47 @@ def measure(directory: pathlib.Path, trial: int, last: int, algorithms: list[str
             continue
         for exp_dir in sorted((directory / "snapshots" / algorithm).glob("exp_*")):
             index = int(exp_dir.name.split("_")[1])
-            agent, meta = load_agent(exp_dir / f"trial_{trial:04d}.npz",
-                                     overrides.get(algorithm, {}), index)
+            agent, meta = load_agent(
+                exp_dir / f"trial_{trial:04d}.npz", overrides.get(algorithm, {}), index
+            )
             env = tasks.load(meta["domain"], meta["task"], task_kwargs=meta["task_kwargs"])
             for _ in range(more_trials):
                 episode.run_trial(env, agent, learn=True)
             for repeat in range(repeats):
                 if repeat:
                     episode.run_trial(env, agent, learn=True)
-                row = _measure_one(directory, algorithm, index, agent, env, trial, last, policy,
-                                   intervened=bool(overrides) or more_trials or repeat
-                                   or policy != "learned")
+                row = _measure_one(
+                    directory,
+                    algorithm,
+                    index,
+                    agent,
+                    env,
+                    trial,
+                    last,
+                    policy,
+                    intervened=bool(overrides) or more_trials or repeat or policy != "learned",
+                )
                 rows.append({**row, "repeat": repeat})
     return rows
 
 
-def _measure_one(directory: pathlib.Path, algorithm: str, index: int, agent, env, trial: int,
-                 last: int, policy: str, intervened: bool) -> dict:
+def _measure_one(
+    directory: pathlib.Path,
+    algorithm: str,
+    index: int,
+    agent,
+    env,
+    trial: int,
+    last: int,
+    policy: str,
+    intervened: bool,
+) -> dict:
     """The greedy trial of one agent as a row (see ``measure``)."""
-    actor = {"learned": lambda: agent, "critic-greedy": lambda: CriticGreedy(agent),
-             "oracle-inverse": lambda: OracleInverse(agent, env)}[policy]()
+    actor = {
+        "learned": lambda: agent,
+        "critic-greedy": lambda: CriticGreedy(agent),
+        "oracle-inverse": lambda: OracleInverse(agent, env),
+    }[policy]()
     states, actions, rewards = greedy_trajectory(actor, env)
     stored = None
     curve = directory / "curves" / algorithm / f"exp_{index:03d}.npz"
@@ -272,12 +339,19 @@ def _measure_one(directory: pathlib.Path, algorithm: str, index: int, agent, env
             if len(hit):
                 stored = float(data["greedy_returns"][hit[0]])
     if stored is not None and not intervened and abs(stored - rewards.sum()) > 1e-9:
-        raise SystemExit(f"upright_offset: {directory} {algorithm} experiment {index}: the "
-                         f"replayed greedy return {rewards.sum()!r} differs from the stored "
-                         f"{stored!r}")
-    row = {"directory": str(directory), "algorithm": algorithm, "experiment": index,
-           "greedy_return": float(rewards.sum()), "stored_greedy_return": stored,
-           **steady_state(states, actions, rewards, last)}
+        raise SystemExit(
+            f"upright_offset: {directory} {algorithm} experiment {index}: the "
+            f"replayed greedy return {rewards.sum()!r} differs from the stored "
+            f"{stored!r}"
+        )
+    row = {
+        "directory": str(directory),
+        "algorithm": algorithm,
+        "experiment": index,
+        "greedy_return": float(rewards.sum()),
+        "stored_greedy_return": stored,
+        **steady_state(states, actions, rewards, last),
+    }
     if algorithm == "rmac":
         row.update(rmac_memories(agent, row))
     return row
@@ -305,18 +379,27 @@ def rmac_memories(agent, row: dict) -> dict:
     for phi in SLICE:
         value, slope, _ = agent.critic.memory.query([phi, 0.0])
         values.append(value[0])
-        slopes.append(slope[0, :agent.n] @ beta_u)
+        slopes.append(slope[0, : agent.n] @ beta_u)
     values, slopes = np.array(values), np.array(slopes)
     falling = np.flatnonzero((slopes[:-1] > 0) & (slopes[1:] <= 0))
-    switch = (float("nan") if len(falling) == 0 else
-              float(SLICE[falling][np.argmin(np.abs(SLICE[falling] - x_ss[0]))]))
-    X = agent.critic.memory.X_[:agent.critic.memory.n_samples_]
-    return {"critic_peak": float(SLICE[np.argmax(values)]), "critic_switch": switch,
-            "critic_gain": float(values.max() - agent.critic.memory.query(x_ss)[0][0]),
-            "critic_points_back": int(np.sign(agent.critic.memory.query(x_ss)[1][0, :agent.n] @ beta_u)
-                                      == -np.sign(x_ss[0])),
-            "memory_near_upright": int(((np.abs(X[:, 0]) < 0.1) & (np.abs(X[:, 1]) < 1.0)).sum()),
-            "critic_span_at_upright": float(np.ptp(X[agent.critic.memory.neighbours(np.zeros(agent.n)), 0]))}
+    switch = (
+        float("nan")
+        if len(falling) == 0
+        else float(SLICE[falling][np.argmin(np.abs(SLICE[falling] - x_ss[0]))])
+    )
+    X = agent.critic.memory.X_[: agent.critic.memory.n_samples_]
+    return {
+        "critic_peak": float(SLICE[np.argmax(values)]),
+        "critic_switch": switch,
+        "critic_gain": float(values.max() - agent.critic.memory.query(x_ss)[0][0]),
+        "critic_points_back": int(
+            np.sign(agent.critic.memory.query(x_ss)[1][0, : agent.n] @ beta_u) == -np.sign(x_ss[0])
+        ),
+        "memory_near_upright": int(((np.abs(X[:, 0]) < 0.1) & (np.abs(X[:, 1]) < 1.0)).sum()),
+        "critic_span_at_upright": float(
+            np.ptp(X[agent.critic.memory.neighbours(np.zeros(agent.n)), 0])
+        ),
+    }
 
 
 def upright(row: dict) -> bool:
@@ -330,8 +413,10 @@ def _ci(values) -> str:
 
 def summarise(rows: list[dict]) -> None:
     """One markdown row per directory and learner."""
-    print("| directory | learner | upright / exp. | phi_ss, mean [95% CI] (rad) | \\|phi_ss\\| | below / above 0 "
-          "| u_ss (V) | \\|u_ss\\| | offset loss per trial | greedy return (all exp.) |")
+    print(
+        "| directory | learner | upright / exp. | phi_ss, mean [95% CI] (rad) | \\|phi_ss\\| | below / above 0 "
+        "| u_ss (V) | \\|u_ss\\| | offset loss per trial | greedy return (all exp.) |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|")
     groups: dict[tuple[str, str], list[dict]] = {}
     for row in rows:
@@ -342,34 +427,42 @@ def summarise(rows: list[dict]) -> None:
         u = np.array([r["u_ss"] for r in group])
         loss = np.array([r["offset_loss"] for r in group])
         settled = np.isfinite(loss)
-        print(f"| {pathlib.Path(directory).name} | {algorithm} | {len(group)}/{len(every)} | {_ci(phi)} "
-              f"| {_ci(np.abs(phi))} | {(phi < 0).sum()} / {(phi > 0).sum()} | {_ci(u)} "
-              f"| {_ci(np.abs(u))} | {_ci(loss[settled])} "
-              f"| {_ci([r['greedy_return'] for r in every])} |")
+        print(
+            f"| {pathlib.Path(directory).name} | {algorithm} | {len(group)}/{len(every)} | {_ci(phi)} "
+            f"| {_ci(np.abs(phi))} | {(phi < 0).sum()} / {(phi > 0).sum()} | {_ci(u)} "
+            f"| {_ci(np.abs(u))} | {_ci(loss[settled])} "
+            f"| {_ci([r['greedy_return'] for r in every])} |"
+        )
         if algorithm == "rmac" and len(group) > 2 and group[0].get("critic_switch", "") != "":
-            switch = np.array([np.nan if r["critic_switch"] is None else r["critic_switch"]
-                               for r in group], dtype=float)
+            switch = np.array(
+                [np.nan if r["critic_switch"] is None else r["critic_switch"] for r in group],
+                dtype=float,
+            )
             peak = np.array([r["critic_peak"] for r in group])
             ok = np.isfinite(switch)
-            print(f"|   | RMAC's critic: vertex-rule switch at {_ci(switch[ok])} rad, \\|switch\\| "
-                  f"{_ci(np.abs(switch[ok]))}, corr(phi_ss, switch) = "
-                  f"{np.corrcoef(phi[ok], switch[ok])[0, 1]:.2f} ({ok.sum()} exp.); peak of V(phi, 0) "
-                  f"\\|peak\\| {_ci(np.abs(peak))}, corr(phi_ss, peak) = "
-                  f"{np.corrcoef(phi, peak)[0, 1]:.2f}; V(peak) - V(x_ss) "
-                  f"{_ci([r['critic_gain'] for r in group])}; at x_ss the vertex rule pushes "
-                  f"back towards upright in {sum(r['critic_points_back'] for r in group)}/"
-                  f"{len(group)}; critic samples near upright "
-                  f"{_ci([r['memory_near_upright'] for r in group])} of "
-                  f"{agent_capacity(group)}; the critic's neighbours at upright span "
-                  f"{_ci([r['critic_span_at_upright'] for r in group])} rad of phi |||||||||")
+            print(
+                f"|   | RMAC's critic: vertex-rule switch at {_ci(switch[ok])} rad, \\|switch\\| "
+                f"{_ci(np.abs(switch[ok]))}, corr(phi_ss, switch) = "
+                f"{np.corrcoef(phi[ok], switch[ok])[0, 1]:.2f} ({ok.sum()} exp.); peak of V(phi, 0) "
+                f"\\|peak\\| {_ci(np.abs(peak))}, corr(phi_ss, peak) = "
+                f"{np.corrcoef(phi, peak)[0, 1]:.2f}; V(peak) - V(x_ss) "
+                f"{_ci([r['critic_gain'] for r in group])}; at x_ss the vertex rule pushes "
+                f"back towards upright in {sum(r['critic_points_back'] for r in group)}/"
+                f"{len(group)}; critic samples near upright "
+                f"{_ci([r['memory_near_upright'] for r in group])} of "
+                f"{agent_capacity(group)}; the critic's neighbours at upright span "
+                f"{_ci([r['critic_span_at_upright'] for r in group])} rad of phi |||||||||"
+            )
         if len(group) > 2 and np.ptp(phi) > 0:
             # Holding phi takes u = -c sin(phi) (gravity against the motor): fit c across experiments.
             s = np.sin(phi)
             c = -float(s @ u / (s @ s))
             sign = stats.binomtest(int((phi > 0).sum()), len(phi)).pvalue
-            print(f"|   | fit u_ss = -c sin(phi_ss): c = {c:.2f} V/rad, residual rms "
-                  f"{np.sqrt(np.mean((u + c * s) ** 2)):.3f} V; sign test (as many above as below 0) "
-                  f"p = {sign:.2g} |||||||||")
+            print(
+                f"|   | fit u_ss = -c sin(phi_ss): c = {c:.2f} V/rad, residual rms "
+                f"{np.sqrt(np.mean((u + c * s) ** 2)):.3f} V; sign test (as many above as below 0) "
+                f"p = {sign:.2g} |||||||||"
+            )
 
 
 def persistence(rows: list[dict]) -> None:
@@ -379,14 +472,19 @@ def persistence(rows: list[dict]) -> None:
     groups: dict[tuple[str, str], dict[int, list[dict]]] = {}
     for row in rows:
         groups.setdefault((row["directory"], row["algorithm"]), {}).setdefault(
-            row["experiment"], []).append(row)
-    print("\n| directory | learner | exp. x greedy trials (upright) | mean \\|phi_ss\\| | SD within an "
-          "experiment | SD of the experiments' means | corr(phi_ss, next phi_ss) | sign kept to next "
-          "trial |")
+            row["experiment"], []
+        ).append(row)
+    print(
+        "\n| directory | learner | exp. x greedy trials (upright) | mean \\|phi_ss\\| | SD within an "
+        "experiment | SD of the experiments' means | corr(phi_ss, next phi_ss) | sign kept to next "
+        "trial |"
+    )
     print("|---|---|---|---|---|---|---|---|")
     for (directory, algorithm), by_exp in groups.items():
-        series = [[r["phi_ss"] if upright(r) else np.nan for r in sorted(rs, key=lambda r: r["repeat"])]
-                  for rs in by_exp.values()]
+        series = [
+            [r["phi_ss"] if upright(r) else np.nan for r in sorted(rs, key=lambda r: r["repeat"])]
+            for rs in by_exp.values()
+        ]
         phi = np.array(series)
         within = np.sqrt(np.nanmean(np.nanvar(phi, axis=1, ddof=1)))
         between = np.nanstd(np.nanmean(phi, axis=1), ddof=1)
@@ -394,15 +492,18 @@ def persistence(rows: list[dict]) -> None:
         ok = np.isfinite(a) & np.isfinite(b)
         corr = np.corrcoef(a[ok], b[ok])[0, 1]
         kept = np.mean(np.sign(a[ok]) == np.sign(b[ok]))
-        print(f"| {pathlib.Path(directory).name} | {algorithm} | {phi.shape[0]} x {phi.shape[1]} "
-              f"({np.isfinite(phi).sum()}) | {np.nanmean(np.abs(phi)):.3f} | {within:.3f} "
-              f"| {between:.3f} | {corr:.2f} | {kept:.2f} |")
+        print(
+            f"| {pathlib.Path(directory).name} | {algorithm} | {phi.shape[0]} x {phi.shape[1]} "
+            f"({np.isfinite(phi).sum()}) | {np.nanmean(np.abs(phi)):.3f} | {within:.3f} "
+            f"| {between:.3f} | {corr:.2f} | {kept:.2f} |"
+        )
 
 
 def agent_capacity(group: list[dict]) -> str:
     config = json.loads((pathlib.Path(group[0]["directory"]) / "config.json").read_text())
-    return str(config["protocol"].get("agent_configs", {}).get("rmac", {}).get("critic_capacity",
-                                                                               2000))
+    return str(
+        config["protocol"].get("agent_configs", {}).get("rmac", {}).get("critic_capacity", 2000)
+    )
 
 
 def _per_experiment(rows: list[dict]) -> dict[tuple[str, str, int], dict[str, float]]:
@@ -417,7 +518,8 @@ def _per_experiment(rows: list[dict]) -> dict[tuple[str, str, int], dict[str, fl
         means[key] = {
             "|phi_ss|": float(np.mean([abs(r["phi_ss"]) for r in up])) if up else float("nan"),
             "offset loss": float(np.mean([r["offset_loss"] for r in up])) if up else float("nan"),
-            "greedy return (all)": float(np.mean([r["greedy_return"] for r in group]))}
+            "greedy return (all)": float(np.mean([r["greedy_return"] for r in group])),
+        }
     return means
 
 
@@ -429,40 +531,61 @@ def paired(rows: list[dict], base_rows: list[dict]) -> None:
     groups: dict[tuple[str, str], list[tuple[int, dict]]] = {}
     for (directory, algorithm, index), value in _per_experiment(rows).items():
         groups.setdefault((directory, algorithm), []).append((index, value))
-    print("\n| directory | learner | pairs | metric (mean over greedy trials) | difference (this - "
-          "base) [95% CI] | p (paired t) |")
+    print(
+        "\n| directory | learner | pairs | metric (mean over greedy trials) | difference (this - "
+        "base) [95% CI] | p (paired t) |"
+    )
     print("|---|---|---|---|---|---|")
     for (directory, algorithm), group in groups.items():
         for metric in ("|phi_ss|", "offset loss", "greedy return (all)"):
-            d = np.array([value[metric] - base[(algorithm, index)][metric] for index, value in group
-                          if (algorithm, index) in base])
+            d = np.array(
+                [
+                    value[metric] - base[(algorithm, index)][metric]
+                    for index, value in group
+                    if (algorithm, index) in base
+                ]
+            )
             d = d[np.isfinite(d)]
             if len(d) < 2:
                 continue
             p = stats.ttest_1samp(d, 0.0).pvalue if np.ptp(d) > 0 else float("nan")
-            print(f"| {pathlib.Path(directory).name} | {algorithm} | {len(d)} | {metric} | {_ci(d)} "
-                  f"| {p:.2g} |")
+            print(
+                f"| {pathlib.Path(directory).name} | {algorithm} | {len(d)} | {metric} | {_ci(d)} "
+                f"| {p:.2g} |"
+            )
 
 
 def plot(rows: list[dict], path: str) -> None:
     """u_ss against phi_ss per experiment, with the voltage that holds the pendulum at phi."""
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
     fig, ax = plt.subplots(figsize=(5.5, 4))
     groups: dict[str, list[dict]] = {}
     for row in rows:
-        groups.setdefault(f"{pathlib.Path(row['directory']).name} {row['algorithm']}", []).append(row)
+        groups.setdefault(f"{pathlib.Path(row['directory']).name} {row['algorithm']}", []).append(
+            row
+        )
     for label, group in groups.items():
-        ax.plot([r["phi_ss"] for r in group], [r["u_ss"] for r in group], "o", ms=4, alpha=0.7,
-                label=f"{label} ({len(group)})")
+        ax.plot(
+            [r["phi_ss"] for r in group],
+            [r["u_ss"] for r in group],
+            "o",
+            ms=4,
+            alpha=0.7,
+            label=f"{label} ({len(group)})",
+        )
     phi = np.linspace(-0.25, 0.25, 101)
     ax.plot(phi, -4.02 * np.sin(phi), "k--", lw=0.8, label="holding voltage -4.02 sin(phi)")
     ax.axhline(0, color="0.7", lw=0.5)
     ax.axvline(0, color="0.7", lw=0.5)
-    ax.set(xlabel="steady-state angle phi_ss (rad, 0 = upright)",
-           ylabel="steady-state voltage u_ss (V)",
-           title="greedy policies after 600 trials: where they settle")
+    ax.set(
+        xlabel="steady-state angle phi_ss (rad, 0 = upright)",
+        ylabel="steady-state voltage u_ss (V)",
+        title="greedy policies after 600 trials: where they settle",
+    )
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3)
     fig.tight_layout()
@@ -471,40 +594,87 @@ def plot(rows: list[dict], path: str) -> None:
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("directories", nargs="+", type=pathlib.Path,
-                        help="result or sweep directories, or CSV files written by --csv (their "
-                             "rows are summarised as they are)")
+    parser.add_argument(
+        "directories",
+        nargs="+",
+        type=pathlib.Path,
+        help="result or sweep directories, or CSV files written by --csv (their "
+        "rows are summarised as they are)",
+    )
     parser.add_argument("--trial", type=int, default=600)
     parser.add_argument("--last", type=int, default=30)
     parser.add_argument("--algorithms", nargs="*")
     parser.add_argument("--csv")
     parser.add_argument("--pair-with", type=pathlib.Path)
     parser.add_argument("--plot")
-    parser.add_argument("--set", action="append", default=[], metavar="ALGO.FIELD=VALUE",
-                        help="evaluate with this config field changed, e.g. rmac.reference_neighbours=5")
-    parser.add_argument("--continue", dest="more_trials", type=int, default=0, metavar="N",
-                        help="learn N more trials from the snapshot before the greedy trial")
-    parser.add_argument("--policy", choices=("learned", "critic-greedy", "oracle-inverse"), default="learned")
-    parser.add_argument("--repeat", type=int, default=1, metavar="R",
-                        help="R greedy trials per experiment, one more learning trial between two")
+    parser.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="ALGO.FIELD=VALUE",
+        help="evaluate with this config field changed, e.g. rmac.reference_neighbours=5",
+    )
+    parser.add_argument(
+        "--continue",
+        dest="more_trials",
+        type=int,
+        default=0,
+        metavar="N",
+        help="learn N more trials from the snapshot before the greedy trial",
+    )
+    parser.add_argument(
+        "--policy", choices=("learned", "critic-greedy", "oracle-inverse"), default="learned"
+    )
+    parser.add_argument(
+        "--repeat",
+        type=int,
+        default=1,
+        metavar="R",
+        help="R greedy trials per experiment, one more learning trial between two",
+    )
     args = parser.parse_args(argv)
     overrides = parse_sets(args.set)
     rows = []
     for path in args.directories:
         if path.suffix == ".csv":  # a table of an earlier run, redrawn
-            rows += [r for r in read_csv(path) if not args.algorithms
-                     or r["algorithm"] in args.algorithms]
+            rows += [
+                r
+                for r in read_csv(path)
+                if not args.algorithms or r["algorithm"] in args.algorithms
+            ]
             continue
-        rows += [row for directory in result_dirs(path)
-                 for row in measure(directory, args.trial, args.last, args.algorithms, overrides,
-                                    args.more_trials, args.policy, args.repeat)]
+        rows += [
+            row
+            for directory in result_dirs(path)
+            for row in measure(
+                directory,
+                args.trial,
+                args.last,
+                args.algorithms,
+                overrides,
+                args.more_trials,
+                args.policy,
+                args.repeat,
+            )
+        ]
     summarise([r for r in rows if r["repeat"] == 0])
     if max(r["repeat"] for r in rows) > 0:
         persistence(rows)
     if args.pair_with is not None:
-        base = (read_csv(args.pair_with) if args.pair_with.suffix == ".csv" else
-                measure(args.pair_with, args.trial, args.last, args.algorithms, {},
-                        args.more_trials, "learned", args.repeat))
+        base = (
+            read_csv(args.pair_with)
+            if args.pair_with.suffix == ".csv"
+            else measure(
+                args.pair_with,
+                args.trial,
+                args.last,
+                args.algorithms,
+                {},
+                args.more_trials,
+                "learned",
+                args.repeat,
+            )
+        )
         paired(rows, base)
     if args.csv:
         with open(args.csv, "w", newline="") as handle:

@@ -1,7 +1,7 @@
 """The rmac-mj task suite, loaded like ``dm_control.suite`` (installed as ``rmac_mj.tasks``).
 
-    from rmac_mj import tasks
-    env = tasks.load("dc_pendulum", "swingup", task_kwargs={"random": 0})
+from rmac_mj import tasks
+env = tasks.load("dc_pendulum", "swingup", task_kwargs={"random": 0})
 """
 
 from __future__ import annotations
@@ -14,12 +14,14 @@ from dm_control.rl import control
 
 from rmac_mj.tasks import common, dc_pendulum, two_link_arm
 
-_DOMAINS = {name: module for name, module in [("dc_pendulum", dc_pendulum),
-                                              ("two_link_arm", two_link_arm)]}
+_DOMAINS = {
+    name: module for name, module in [("dc_pendulum", dc_pendulum), ("two_link_arm", two_link_arm)]
+}
 
 #: Every (domain_name, task_name) pair in the suite.
-ALL_TASKS = tuple(sorted((domain, task) for domain, module in _DOMAINS.items()
-                         for task in module.SUITE))
+ALL_TASKS = tuple(
+    sorted((domain, task) for domain, module in _DOMAINS.items() for task in module.SUITE)
+)
 
 #: Domain name -> the tuple of its task names (like ``dm_control.suite.TASKS_BY_DOMAIN``).
 TASKS_BY_DOMAIN = {domain: tuple(sorted(module.SUITE)) for domain, module in _DOMAINS.items()}
@@ -39,8 +41,12 @@ def knowledge(domain_name: str, task_name: str) -> common.TaskKnowledge:
     return getattr(_DOMAINS[domain_name], "KNOWLEDGE", {}).get(task_name, common.NOTHING_KNOWN)
 
 
-def load(domain_name: str, task_name: str, task_kwargs: dict[str, Any] | None = None,
-         environment_kwargs: dict[str, Any] | None = None) -> control.Environment:
+def load(
+    domain_name: str,
+    task_name: str,
+    task_kwargs: dict[str, Any] | None = None,
+    environment_kwargs: dict[str, Any] | None = None,
+) -> control.Environment:
     """Return the environment of ``domain_name``/``task_name``, mirroring ``dm_control.suite.load``.
 
     Args:
@@ -54,8 +60,12 @@ def load(domain_name: str, task_name: str, task_kwargs: dict[str, Any] | None = 
     return build_environment(domain_name, task_name, task_kwargs, environment_kwargs)
 
 
-def build_environment(domain_name: str, task_name: str, task_kwargs: dict[str, Any] | None = None,
-                      environment_kwargs: dict[str, Any] | None = None) -> control.Environment:
+def build_environment(
+    domain_name: str,
+    task_name: str,
+    task_kwargs: dict[str, Any] | None = None,
+    environment_kwargs: dict[str, Any] | None = None,
+) -> control.Environment:
     """Like :func:`load`; kept for parity with ``dm_control.suite.build_environment``."""
     _check_names(domain_name, task_name)
     factory = _DOMAINS[domain_name].SUITE[task_name]
@@ -63,8 +73,10 @@ def build_environment(domain_name: str, task_name: str, task_kwargs: dict[str, A
     accepted = set(inspect.signature(factory).parameters) - {"environment_kwargs"}
     unknown = sorted(set(task_kwargs) - accepted)
     if unknown:
-        raise ValueError(f"unknown task_kwargs {unknown} for {domain_name}/{task_name}; "
-                         f"accepted: {sorted(accepted)}")
+        raise ValueError(
+            f"unknown task_kwargs {unknown} for {domain_name}/{task_name}; "
+            f"accepted: {sorted(accepted)}"
+        )
     return factory(environment_kwargs=environment_kwargs, **task_kwargs)
 
 
@@ -72,8 +84,10 @@ def _check_names(domain_name: str, task_name: str) -> None:
     if domain_name not in _DOMAINS:
         raise ValueError(f"unknown domain_name {domain_name!r}; available: {sorted(_DOMAINS)}")
     if task_name not in _DOMAINS[domain_name].SUITE:
-        raise ValueError(f"unknown task_name {task_name!r} for domain {domain_name!r}; "
-                         f"available: {sorted(_DOMAINS[domain_name].SUITE)}")
+        raise ValueError(
+            f"unknown task_name {task_name!r} for domain {domain_name!r}; "
+            f"available: {sorted(_DOMAINS[domain_name].SUITE)}"
+        )
 
 
 # Every task above as a Gymnasium environment, rmac_mj/<Domain>-<Task>-v0 (see gymnasium_env), when

@@ -6,7 +6,8 @@ from __future__ import annotations
 import dataclasses
 import math
 import numbers
-from typing import Any, Callable, Mapping, Protocol
+from collections.abc import Callable, Mapping
+from typing import Any, Protocol
 
 import numpy as np
 from dm_control.rl import control
@@ -56,26 +57,43 @@ class LearnerStateSpec:
         n = len(self.low)
         for name in ("high", "periodic", "labels", "input_weights"):
             if len(getattr(self, name)) != n:
-                raise ValueError(f"LearnerStateSpec.{name} must have one entry per state dim ({n}, as low), "
-                                 f"got {len(getattr(self, name))}")
-        if len(self.action_input_weights) != len(self.action_labels) or not self.action_input_weights:
-            raise ValueError(f"LearnerStateSpec.action_input_weights and action_labels must have one entry "
-                             f"per action dim, got {len(self.action_input_weights)} and "
-                             f"{len(self.action_labels)}")
+                raise ValueError(
+                    f"LearnerStateSpec.{name} must have one entry per state dim ({n}, as low), "
+                    f"got {len(getattr(self, name))}"
+                )
+        if (
+            len(self.action_input_weights) != len(self.action_labels)
+            or not self.action_input_weights
+        ):
+            raise ValueError(
+                f"LearnerStateSpec.action_input_weights and action_labels must have one entry "
+                f"per action dim, got {len(self.action_input_weights)} and "
+                f"{len(self.action_labels)}"
+            )
         low, high = np.asarray(self.low, dtype=float), np.asarray(self.high, dtype=float)
         if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high)) and np.all(low < high)):
-            raise ValueError(f"LearnerStateSpec.low and high must be finite with low < high, "
-                             f"got {self.low!r} and {self.high!r}")
+            raise ValueError(
+                f"LearnerStateSpec.low and high must be finite with low < high, "
+                f"got {self.low!r} and {self.high!r}"
+            )
         if self.action_cost is not None and len(self.action_cost) != len(self.action_labels):
-            raise ValueError(f"LearnerStateSpec.action_cost must be None or have one entry per action dim "
-                             f"({len(self.action_labels)}), got {self.action_cost!r}")
+            raise ValueError(
+                f"LearnerStateSpec.action_cost must be None or have one entry per action dim "
+                f"({len(self.action_labels)}), got {self.action_cost!r}"
+            )
         if self.state_cost is not None and len(self.state_cost) != n:
-            raise ValueError(f"LearnerStateSpec.state_cost must be None or have one entry per state dim "
-                             f"({n}), got {self.state_cost!r}")
+            raise ValueError(
+                f"LearnerStateSpec.state_cost must be None or have one entry per state dim "
+                f"({n}), got {self.state_cost!r}"
+            )
         for name in ("input_weights", "action_input_weights", "action_cost", "state_cost"):
-            w = np.asarray(getattr(self, name) if getattr(self, name) is not None else (), dtype=float)
+            w = np.asarray(
+                getattr(self, name) if getattr(self, name) is not None else (), dtype=float
+            )
             if not (np.all(np.isfinite(w)) and np.all(w >= 0)):
-                raise ValueError(f"LearnerStateSpec.{name} must be finite and >= 0, got {getattr(self, name)!r}")
+                raise ValueError(
+                    f"LearnerStateSpec.{name} must be finite and >= 0, got {getattr(self, name)!r}"
+                )
         # Canonical Python types, so that the hints compare, hash and serialise the same however given.
         object.__setattr__(self, "keys", tuple(str(k) for k in self.keys))
         object.__setattr__(self, "low", tuple(float(v) for v in low))
@@ -83,13 +101,16 @@ class LearnerStateSpec:
         object.__setattr__(self, "periodic", tuple(bool(v) for v in self.periodic))
         object.__setattr__(self, "labels", tuple(str(v) for v in self.labels))
         object.__setattr__(self, "input_weights", tuple(float(v) for v in self.input_weights))
-        object.__setattr__(self, "action_input_weights",
-                           tuple(float(v) for v in self.action_input_weights))
+        object.__setattr__(
+            self, "action_input_weights", tuple(float(v) for v in self.action_input_weights)
+        )
         object.__setattr__(self, "action_labels", tuple(str(v) for v in self.action_labels))
         if self.reward_scale is not None:
             if not (is_real(self.reward_scale) and self.reward_scale > 0):
-                raise ValueError(f"LearnerState.reward_scale must be None or a positive finite "
-                                 f"number, got {self.reward_scale!r}")
+                raise ValueError(
+                    f"LearnerState.reward_scale must be None or a positive finite "
+                    f"number, got {self.reward_scale!r}"
+                )
             object.__setattr__(self, "reward_scale", float(self.reward_scale))
         for name in ("action_cost", "state_cost"):
             if getattr(self, name) is not None:
@@ -112,8 +133,11 @@ MAX_STATE = 1e10
 
 def is_real(value) -> bool:
     """Whether ``value`` is one finite real number (a bool, a string or a complex is not)."""
-    return (isinstance(value, (numbers.Real, np.floating, np.integer))
-            and not isinstance(value, (bool, np.bool_)) and math.isfinite(value))
+    return (
+        isinstance(value, (numbers.Real, np.floating, np.integer))
+        and not isinstance(value, (bool, np.bool_))
+        and math.isfinite(value)
+    )
 
 
 def check_positive(name: str, value) -> None:
@@ -145,8 +169,10 @@ def check_start_state(value, n: int, what: str) -> np.ndarray:
     if x0.shape != (n,):
         raise ValueError(f"start_state must be {what} ({n} numbers), got {value!r}")
     if np.any(np.abs(x0) > MAX_STATE):
-        raise ValueError(f"start_state must lie within +-{MAX_STATE:g} (MuJoCo's range; beyond it a "
-                         f"reset fails), got {value!r}")
+        raise ValueError(
+            f"start_state must lie within +-{MAX_STATE:g} (MuJoCo's range; beyond it a "
+            f"reset fails), got {value!r}"
+        )
     return x0
 
 
@@ -155,11 +181,16 @@ def check_random(random) -> None:
     integer in [0, 2**32)) or a ``numpy.random.RandomState``."""
     if random is None or isinstance(random, np.random.RandomState):
         return
-    if isinstance(random, (int, np.integer)) and not isinstance(random, (bool, np.bool_)) \
-            and 0 <= random < 2**32:
+    if (
+        isinstance(random, (int, np.integer))
+        and not isinstance(random, (bool, np.bool_))
+        and 0 <= random < 2**32
+    ):
         return
-    raise ValueError(f"random must be None, a seed (an integer in [0, 2**32)) or a "
-                     f"numpy.random.RandomState, got {random!r}")
+    raise ValueError(
+        f"random must be None, a seed (an integer in [0, 2**32)) or a "
+        f"numpy.random.RandomState, got {random!r}"
+    )
 
 
 def quadratic_weights(name: str, value, n: int) -> np.ndarray:
@@ -167,20 +198,33 @@ def quadratic_weights(name: str, value, n: int) -> np.ndarray:
 
     Raises ValueError naming ``name`` otherwise.
     """
-    expected = (f"a diagonal of shape ({n},) or a symmetric positive semi-definite ({n}, {n}) "
-                "matrix of finite numbers")
+    expected = (
+        f"a diagonal of shape ({n},) or a symmetric positive semi-definite ({n}, {n}) "
+        "matrix of finite numbers"
+    )
     w = real_array(name, value, expected)
     if w.shape == (n,):
         w = np.diag(w)
-    if (w.shape != (n, n) or not np.all(np.isfinite(w)) or not np.allclose(w, w.T)
-            or np.min(np.linalg.eigvalsh(w)) < 0):
-        raise ValueError(f"{name} must be a diagonal of shape ({n},) or a symmetric positive "
-                         f"semi-definite ({n}, {n}) matrix, got {value!r}")
+    if (
+        w.shape != (n, n)
+        or not np.all(np.isfinite(w))
+        or not np.allclose(w, w.T)
+        or np.min(np.linalg.eigvalsh(w)) < 0
+    ):
+        raise ValueError(
+            f"{name} must be a diagonal of shape ({n},) or a symmetric positive "
+            f"semi-definite ({n}, {n}) matrix, got {value!r}"
+        )
     return w
 
 
-def make_environment(physics, task, time_limit: float, control_timestep: float,
-                     environment_kwargs: dict[str, Any] | None) -> control.Environment:
+def make_environment(
+    physics,
+    task,
+    time_limit: float,
+    control_timestep: float,
+    environment_kwargs: dict[str, Any] | None,
+) -> control.Environment:
     """A ``control.Environment`` of exactly ``time_limit / control_timestep`` control steps.
 
     Both must be positive, ``control_timestep`` a whole number of physics timesteps and ``time_limit`` a
@@ -190,21 +234,31 @@ def make_environment(physics, task, time_limit: float, control_timestep: float,
     for clash in ("control_timestep", "n_sub_steps", "time_limit"):
         if clash in environment_kwargs:
             raise ValueError(
-                f"environment_kwargs[{clash!r}] is set by the task; pass it as a task_kwarg instead")
+                f"environment_kwargs[{clash!r}] is set by the task; pass it as a task_kwarg instead"
+            )
     check_positive("time_limit", time_limit)
     check_positive("control_timestep", control_timestep)
     n_sub_steps = control_timestep / physics.timestep()
     if abs(n_sub_steps - round(n_sub_steps)) > 1e-8 or round(n_sub_steps) < 1:
-        raise ValueError(f"control_timestep must be a positive multiple of the physics timestep "
-                         f"{physics.timestep()} s, got {control_timestep!r}")
+        raise ValueError(
+            f"control_timestep must be a positive multiple of the physics timestep "
+            f"{physics.timestep()} s, got {control_timestep!r}"
+        )
     n_steps = time_limit / control_timestep
     if abs(n_steps - round(n_steps)) > 1e-8:
-        raise ValueError(f"time_limit must be a whole number of control steps of {control_timestep} s, "
-                         f"got {time_limit!r}")
+        raise ValueError(
+            f"time_limit must be a whole number of control steps of {control_timestep} s, "
+            f"got {time_limit!r}"
+        )
     # dm-control ends an episode once step_count >= time_limit / control_timestep; 3.0 / 0.03 is
     # 100.00000000000001 in floating point, which would give 101 steps. Half a step less is exact.
-    return control.Environment(physics, task, time_limit=(round(n_steps) - 0.5) * control_timestep,
-                               control_timestep=control_timestep, **environment_kwargs)
+    return control.Environment(
+        physics,
+        task,
+        time_limit=(round(n_steps) - 0.5) * control_timestep,
+        control_timestep=control_timestep,
+        **environment_kwargs,
+    )
 
 
 def check_action(action, n: int) -> np.ndarray:
@@ -226,6 +280,7 @@ def check_action(action, n: int) -> np.ndarray:
 
 # --------------------------------------------------------------------------------------------------
 # What a task knows beyond its dynamics and reward: declared by the task, asked by the experiments.
+
 
 class Demonstrator(Protocol):
     """A scripted controller of a task, whose closed loop can be recorded as prior knowledge."""
@@ -293,21 +348,27 @@ class TaskKnowledge:
     def __post_init__(self, reference: Optimum | None) -> None:
         if reference is not None:
             if self.optimum is not None:
-                raise TypeError("TaskKnowledge: give optimum= (reference= is its older name), not both")
+                raise TypeError(
+                    "TaskKnowledge: give optimum= (reference= is its older name), not both"
+                )
             object.__setattr__(self, "optimum", reference)
 
     def demonstrator(self, name: str, where: str = "this task") -> Demonstrator:
         """Demonstrator ``name``; ValueError listing the available ones."""
         if name not in self.demonstrators:
-            raise ValueError(f"no demonstrator {name!r} for {where}; available: "
-                             f"{', '.join(self.demonstrators) or 'none'} (or give recorded data, "
-                             "FILE.npz)")
+            raise ValueError(
+                f"no demonstrator {name!r} for {where}; available: "
+                f"{', '.join(self.demonstrators) or 'none'} (or give recorded data, "
+                "FILE.npz)"
+            )
         return self.demonstrators[name]
 
 
 # The older name, read: ``knowledge.reference`` is ``knowledge.optimum``.
-TaskKnowledge.reference = property(lambda self: self.optimum,  # type: ignore[assignment]
-                                   doc="The older name of ``optimum``.")
+TaskKnowledge.reference = property(
+    lambda self: self.optimum,  # type: ignore[assignment]
+    doc="The older name of ``optimum``.",
+)
 
 #: The knowledge of an environment that declares none.
 NOTHING_KNOWN = TaskKnowledge()

@@ -30,13 +30,13 @@ from rmac_mj.models import model_path
 from rmac_mj.tasks import common
 from rmac_mj.tasks.energy_swingup import EnergySwingUp
 
-DEFAULT_TIME_LIMIT = 3.0        # s, one trial (section 6)
-CONTROL_TIMESTEP = 0.03         # s; the paper leaves it open, its group's follow-up work uses 0.03 s
-STATE_WEIGHTS = (5.0, 0.1)      # Q = diag(5, 0.1)
-ACTION_WEIGHT = 1.0             # P
-SWINGUP_START = (np.pi, 0.0)    # x_0 = [pi, 0]: hanging down, at rest
+DEFAULT_TIME_LIMIT = 3.0  # s, one trial (section 6)
+CONTROL_TIMESTEP = 0.03  # s; the paper leaves it open, its group's follow-up work uses 0.03 s
+STATE_WEIGHTS = (5.0, 0.1)  # Q = diag(5, 0.1)
+ACTION_WEIGHT = 1.0  # P
+SWINGUP_START = (np.pi, 0.0)  # x_0 = [pi, 0]: hanging down, at rest
 BALANCE_START = (0.0, 0.0)
-BALANCE_START_NOISE = 0.1       # rad: half-width of the uniform perturbation of the balance start angle
+BALANCE_START_NOISE = 0.1  # rad: half-width of the uniform perturbation of the balance start angle
 
 #: Highest angular speed the pendulum reaches under |u| <= 3 V (rad/s), measured on the model by
 #: spinning it with a constant 3 V from every start on a grid: 57.5 rad/s.
@@ -53,8 +53,10 @@ SUITE = containers.TaggedTasks()
 
 #: The demonstrators of both tasks: 'demo' is the one ``--prior demo`` records; 'poor-demo' pumps with
 #: half the voltage and balances with half the LQR gains (it still swings up).
-DEMONSTRATORS = {"demo": EnergySwingUp(),
-                 "poor-demo": EnergySwingUp(pump_voltage=1.5, balance_scale=0.5)}
+DEMONSTRATORS = {
+    "demo": EnergySwingUp(),
+    "poor-demo": EnergySwingUp(pump_voltage=1.5, balance_scale=0.5),
+}
 
 #: What each task declares beyond its environment (``rmac_mj.tasks.knowledge``). The swing-up's
 #: near-optimal return is the dynamic programme of docs/optimal.md on a grid of 361 x 241 states
@@ -62,12 +64,22 @@ DEMONSTRATORS = {"demo": EnergySwingUp(),
 #: starts at random, so it has none. Returns of order -1000 per trial: differences under 10 are noise.
 KNOWLEDGE = {
     "swingup": common.TaskKnowledge(
-        optimum=common.Optimum("dynamic programming", {
-            "n_phi": 361, "n_phi_dot": 241, "max_phi_dot": 20.0, "n_actions": 25,
-            "lookahead_actions": 121}),
-        demonstrators=DEMONSTRATORS, plot_hints=common.PlotHints(return_margin=10.0)),
-    "balance": common.TaskKnowledge(demonstrators=DEMONSTRATORS,
-                                    plot_hints=common.PlotHints(return_margin=10.0)),
+        optimum=common.Optimum(
+            "dynamic programming",
+            {
+                "n_phi": 361,
+                "n_phi_dot": 241,
+                "max_phi_dot": 20.0,
+                "n_actions": 25,
+                "lookahead_actions": 121,
+            },
+        ),
+        demonstrators=DEMONSTRATORS,
+        plot_hints=common.PlotHints(return_margin=10.0),
+    ),
+    "balance": common.TaskKnowledge(
+        demonstrators=DEMONSTRATORS, plot_hints=common.PlotHints(return_margin=10.0)
+    ),
 }
 
 _TWO_PI = 2.0 * math.pi
@@ -76,38 +88,68 @@ _RK4 = int(_mujoco.mjtIntegrator.mjINT_RK4)
 
 def get_model_and_assets() -> tuple[str, dict[str, Any]]:
     """The scene XML string (the pendulum with floor, light and camera) and its assets (the model)."""
-    return (model_path("dc_pendulum", scene=True).read_text(),
-            {"dc_pendulum.xml": model_path("dc_pendulum").read_bytes()})
+    return (
+        model_path("dc_pendulum", scene=True).read_text(),
+        {"dc_pendulum.xml": model_path("dc_pendulum").read_bytes()},
+    )
 
 
-def _make_environment(task: "SwingUp", time_limit: float, control_timestep: float,
-                      environment_kwargs: dict[str, Any] | None) -> control.Environment:
+def _make_environment(
+    task: SwingUp,
+    time_limit: float,
+    control_timestep: float,
+    environment_kwargs: dict[str, Any] | None,
+) -> control.Environment:
     physics = Physics.from_xml_string(*get_model_and_assets())
     return common.make_environment(physics, task, time_limit, control_timestep, environment_kwargs)
 
 
 @SUITE.add("benchmarking")
-def swingup(time_limit: float = DEFAULT_TIME_LIMIT, control_timestep: float = CONTROL_TIMESTEP,
-            state_weights=STATE_WEIGHTS, action_weights: float = ACTION_WEIGHT,
-            start_state=SWINGUP_START, start_noise: float = 0.0, random=None,
-            environment_kwargs: dict[str, Any] | None = None,
-            action_weight: float | None = None) -> control.Environment:
+def swingup(
+    time_limit: float = DEFAULT_TIME_LIMIT,
+    control_timestep: float = CONTROL_TIMESTEP,
+    state_weights=STATE_WEIGHTS,
+    action_weights: float = ACTION_WEIGHT,
+    start_state=SWINGUP_START,
+    start_noise: float = 0.0,
+    random=None,
+    environment_kwargs: dict[str, Any] | None = None,
+    action_weight: float | None = None,
+) -> control.Environment:
     """The paper's task: swing up from [pi, 0] and balance, 100 steps of 0.03 s (``action_weight``:
     the older name of ``action_weights``)."""
-    task = SwingUp(state_weights=state_weights, action_weights=action_weights, action_weight=action_weight,
-                   start_state=start_state, start_noise=start_noise, random=random)
+    task = SwingUp(
+        state_weights=state_weights,
+        action_weights=action_weights,
+        action_weight=action_weight,
+        start_state=start_state,
+        start_noise=start_noise,
+        random=random,
+    )
     return _make_environment(task, time_limit, control_timestep, environment_kwargs)
 
 
 @SUITE.add("benchmarking")
-def balance(time_limit: float = DEFAULT_TIME_LIMIT, control_timestep: float = CONTROL_TIMESTEP,
-            state_weights=STATE_WEIGHTS, action_weights: float = ACTION_WEIGHT,
-            start_state=BALANCE_START, start_noise: float = BALANCE_START_NOISE, random=None,
-            environment_kwargs: dict[str, Any] | None = None,
-            action_weight: float | None = None) -> control.Environment:
+def balance(
+    time_limit: float = DEFAULT_TIME_LIMIT,
+    control_timestep: float = CONTROL_TIMESTEP,
+    state_weights=STATE_WEIGHTS,
+    action_weights: float = ACTION_WEIGHT,
+    start_state=BALANCE_START,
+    start_noise: float = BALANCE_START_NOISE,
+    random=None,
+    environment_kwargs: dict[str, Any] | None = None,
+    action_weight: float | None = None,
+) -> control.Environment:
     """Balance upright from a small random perturbation of the start angle; same reward."""
-    task = SwingUp(state_weights=state_weights, action_weights=action_weights, action_weight=action_weight,
-                   start_state=start_state, start_noise=start_noise, random=random)
+    task = SwingUp(
+        state_weights=state_weights,
+        action_weights=action_weights,
+        action_weight=action_weight,
+        start_state=start_state,
+        start_noise=start_noise,
+        random=random,
+    )
     return _make_environment(task, time_limit, control_timestep, environment_kwargs)
 
 
@@ -173,8 +215,11 @@ class Physics(mujoco.Physics):
         Counters can also fall (MuJoCo's automatic reset after a bad state zeroes them before
         counting the new warning); like dm-control, only growth counts.
         """
-        names = [name for name, grew in zip(_mujoco.mjtWarning.__members__, self._warnings > before)
-                 if grew]
+        names = [
+            name
+            for name, grew in zip(_mujoco.mjtWarning.__members__, self._warnings > before)
+            if grew
+        ]
         if not names:
             return
         message = f"Physics state is invalid. Warning(s) raised: {', '.join(names)}"
@@ -232,9 +277,15 @@ class Physics(mujoco.Physics):
 class SwingUp(base.Task):
     """Swing-up and balance with the quadratic reward of section 6 (see the module docstring)."""
 
-    def __init__(self, state_weights=STATE_WEIGHTS, action_weights: float = ACTION_WEIGHT,
-                 start_state=SWINGUP_START, start_noise: float = 0.0, random=None,
-                 action_weight: float | None = None):
+    def __init__(
+        self,
+        state_weights=STATE_WEIGHTS,
+        action_weights: float = ACTION_WEIGHT,
+        start_state=SWINGUP_START,
+        start_noise: float = 0.0,
+        random=None,
+        action_weight: float | None = None,
+    ):
         """
         Args:
           state_weights: Q, as its diagonal (2,) or a full symmetric positive semi-definite (2, 2).
@@ -248,8 +299,10 @@ class SwingUp(base.Task):
         q = common.quadratic_weights("state_weights", state_weights, 2)
         if action_weight is not None:
             if action_weights is not ACTION_WEIGHT and action_weights != action_weight:
-                raise ValueError(f"action_weight is the older name of action_weights; give one, got "
-                                 f"action_weights={action_weights!r} and action_weight={action_weight!r}")
+                raise ValueError(
+                    f"action_weight is the older name of action_weights; give one, got "
+                    f"action_weights={action_weights!r} and action_weight={action_weight!r}"
+                )
             action_weights = action_weight
         if isinstance(action_weights, (list, tuple, np.ndarray)) and np.size(action_weights) == 1:
             action_weights = np.asarray(action_weights, dtype=float).item()
@@ -304,7 +357,9 @@ class SwingUp(base.Task):
             raise ValueError(f"action must be finite, got {action!r}")
         physics.set_voltage(u)
         u = physics.voltage()
-        self._reward = -self._state_cost(physics.angle(), physics.angular_velocity()) - self._p * u * u
+        self._reward = (
+            -self._state_cost(physics.angle(), physics.angular_velocity()) - self._p * u * u
+        )
 
     def _state_cost(self, phi: float, phi_dot: float) -> float:
         """x^T Q x for x = [phi, phi_dot].
@@ -344,10 +399,17 @@ class SwingUp(base.Task):
         """x = [phi, phi_dot]; the box is one period in phi and +-NOMINAL_SPEED; Table 2's weights; the
         reward's action cost P and state cost (Q's diagonal; None for a full Q)."""
         return common.LearnerStateSpec(
-            keys=("angle", "velocity"), low=(-np.pi, -NOMINAL_SPEED), high=(np.pi, NOMINAL_SPEED),
-            periodic=(True, False), labels=("angle phi [rad]", "angular velocity phi_dot [rad/s]"),
-            input_weights=(1.0, 0.1), action_input_weights=(1.0,), action_labels=("u [V]",),
+            keys=("angle", "velocity"),
+            low=(-np.pi, -NOMINAL_SPEED),
+            high=(np.pi, NOMINAL_SPEED),
+            periodic=(True, False),
+            labels=("angle phi [rad]", "angular velocity phi_dot [rad/s]"),
+            input_weights=(1.0, 0.1),
+            action_input_weights=(1.0,),
+            action_labels=("u [V]",),
             action_cost=(self._p,),
-            state_cost=tuple(np.diag(self._q)) if np.array_equal(self._q, np.diag(np.diag(self._q)))
+            state_cost=tuple(np.diag(self._q))
+            if np.array_equal(self._q, np.diag(np.diag(self._q)))
             else None,
-            reward_scale=float(self._q[0, 0]) * math.pi ** 2 or None)
+            reward_scale=float(self._q[0, 0]) * math.pi**2 or None,
+        )

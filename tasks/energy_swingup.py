@@ -14,7 +14,7 @@ tasks' demonstrators ('demo' and a poorer 'poor-demo'), recorded by ``rmac-mj re
 from __future__ import annotations
 
 import dataclasses
-from typing import Callable
+from collections.abc import Callable
 
 import mujoco
 import numpy as np
@@ -46,10 +46,13 @@ class EnergySwingUp:
         for name in ("pump_voltage", "balance_scale", "capture_angle", "action_noise"):
             value = getattr(self, name)
             if not (np.isscalar(value) and np.isfinite(value) and value >= 0):
-                raise ValueError(f"EnergySwingUp.{name} must be a finite number >= 0, got {value!r}")
+                raise ValueError(
+                    f"EnergySwingUp.{name} must be a finite number >= 0, got {value!r}"
+                )
         if not 0 < self.capture_angle < np.pi:
-            raise ValueError(f"EnergySwingUp.capture_angle must be in (0, pi), "
-                             f"got {self.capture_angle!r}")
+            raise ValueError(
+                f"EnergySwingUp.capture_angle must be in (0, pi), got {self.capture_angle!r}"
+            )
 
     def controller(self, env: control.Environment) -> Callable[[np.ndarray], np.ndarray]:
         """The controller x = [phi, phi_dot] -> u (shape (1,)), built from ``env``'s model."""
@@ -70,7 +73,7 @@ class EnergySwingUp:
                 u = -(gains[0] * phi + gains[1] * phi_dot)
             else:
                 # Energy relative to rest upright: 0 there, -2 M g l hanging down at rest.
-                energy = 0.5 * inertia * phi_dot ** 2 + mass * gravity * arm * (np.cos(phi) - 1.0)
+                energy = 0.5 * inertia * phi_dot**2 + mass * gravity * arm * (np.cos(phi) - 1.0)
                 u = (pump if phi_dot >= 0 else -pump) if energy < 0 else 0.0
             return np.array([min(max(u, low), high)])
 

@@ -39,9 +39,12 @@ NAMESPACE = "rmac_mj"
 
 def env_id(domain: str, task: str) -> str:
     """The Gymnasium id of ``domain``/``task``, e.g. ``rmac_mj/DCPendulum-Swingup-v0``."""
+
     def title(name: str) -> str:
-        return "".join(word.upper() if len(word) <= 2 else word.capitalize()
-                       for word in name.split("_"))
+        return "".join(
+            word.upper() if len(word) <= 2 else word.capitalize() for word in name.split("_")
+        )
+
     return f"{NAMESPACE}/{title(domain)}-{title(task)}-v0"
 
 
@@ -52,8 +55,9 @@ def register_suite() -> None:
     for domain, task in ALL_TASKS:
         name = env_id(domain, task)
         if name not in gymnasium.registry:
-            gymnasium.register(name, entry_point=f"{__name__}:SuiteEnv",
-                               kwargs={"domain": domain, "task": task})
+            gymnasium.register(
+                name, entry_point=f"{__name__}:SuiteEnv", kwargs={"domain": domain, "task": task}
+            )
 
 
 class SuiteEnv(gymnasium.Env):
@@ -68,16 +72,25 @@ class SuiteEnv(gymnasium.Env):
 
     metadata = {"render_modes": ["rgb_array"]}
 
-    def __init__(self, domain: str, task: str, task_kwargs: dict[str, Any] | None = None,
-                 render_mode: str | None = None, width: int = 320, height: int = 240) -> None:
+    def __init__(
+        self,
+        domain: str,
+        task: str,
+        task_kwargs: dict[str, Any] | None = None,
+        render_mode: str | None = None,
+        width: int = 320,
+        height: int = 240,
+    ) -> None:
         from rmac_mj import tasks
 
         task_kwargs = dict(task_kwargs or {})
         if "random" in task_kwargs:
             raise ValueError("task_kwargs must not set 'random': seed through reset(seed=...)")
         if render_mode not in (None, *self.metadata["render_modes"]):
-            raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, "
-                             f"got {render_mode!r}")
+            raise ValueError(
+                f"render_mode must be None or one of {self.metadata['render_modes']}, "
+                f"got {render_mode!r}"
+            )
         self.domain, self.task, self.task_kwargs = domain, task, task_kwargs
         self.render_mode, self.width, self.height = render_mode, width, height
         self.dm_env = tasks.load(domain, task, task_kwargs=task_kwargs)
@@ -89,7 +102,9 @@ class SuiteEnv(gymnasium.Env):
         spec = self.dm_env.action_spec()
         self.action_space = gymnasium.spaces.Box(
             np.broadcast_to(spec.minimum, spec.shape).astype(np.float32),
-            np.broadcast_to(spec.maximum, spec.shape).astype(np.float32), dtype=np.float32)
+            np.broadcast_to(spec.maximum, spec.shape).astype(np.float32),
+            dtype=np.float32,
+        )
         self.metadata = {**self.metadata, "render_fps": 1.0 / self.dm_env.control_timestep()}
         self._renderer = None
 
@@ -100,13 +115,16 @@ class SuiteEnv(gymnasium.Env):
             parts.extend((math.cos(value), math.sin(value)) if wraps else (value,))
         return np.array(parts, dtype=np.float64)
 
-    def reset(self, *, seed: int | None = None,
-              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
         if seed is not None:  # the task's random state, as tasks.load(..., random=seed) makes it
             from rmac_mj import tasks
-            self.dm_env = tasks.load(self.domain, self.task,
-                                     task_kwargs={**self.task_kwargs, "random": seed})
+
+            self.dm_env = tasks.load(
+                self.domain, self.task, task_kwargs={**self.task_kwargs, "random": seed}
+            )
         return self._observation(self.dm_env.reset()), {}
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
@@ -116,8 +134,9 @@ class SuiteEnv(gymnasium.Env):
     def render(self) -> np.ndarray | None:
         """The current state as uint8 (height, width, 3), with render_mode 'rgb_array'."""
         if self.render_mode is None:
-            gymnasium.logger.warn("render() without a render_mode: pass render_mode='rgb_array' to "
-                                  "gymnasium.make")
+            gymnasium.logger.warn(
+                "render() without a render_mode: pass render_mode='rgb_array' to gymnasium.make"
+            )
             return None
         from rmac_mj._gl import open_renderer
 

@@ -34,12 +34,12 @@ from dm_control.utils import containers
 from rmac_mj.models import model_path
 from rmac_mj.tasks import common
 
-DEFAULT_TIME_LIMIT = 3.0                      # s, one trial of the benchmark
-CONTROL_TIMESTEP = 0.05                       # s, the benchmark's sampling time
-STATE_WEIGHTS = (1.0, 0.05, 1.0, 0.05)        # diag Q over [theta1, omega1, theta2, omega2]
-ACTION_WEIGHTS = (0.0, 0.0)                   # diag R: the benchmark does not charge the torques
-REACH_START = (-np.pi / 2, 0.0, np.pi / 2, 0.0)   # x_0: link 1 along -y, link 2 bent back along +x
-DISCOUNT = 0.98                               # the benchmark's gamma
+DEFAULT_TIME_LIMIT = 3.0  # s, one trial of the benchmark
+CONTROL_TIMESTEP = 0.05  # s, the benchmark's sampling time
+STATE_WEIGHTS = (1.0, 0.05, 1.0, 0.05)  # diag Q over [theta1, omega1, theta2, omega2]
+ACTION_WEIGHTS = (0.0, 0.0)  # diag R: the benchmark does not charge the torques
+REACH_START = (-np.pi / 2, 0.0, np.pi / 2, 0.0)  # x_0: link 1 along -y, link 2 bent back along +x
+DISCOUNT = 0.98  # the benchmark's gamma
 
 #: Highest joint speed (rad/s) the arm reaches within one 3 s trial from x_0 under the torque limits,
 #: measured on the model: 47.8 rad/s (the elbow, with both torques held at opposite extremes for the
@@ -60,25 +60,40 @@ SUITE = containers.TaggedTasks()
 #: reference is found by trajectory optimisation (iLQR from several starts, docs/optimal.md: -37.65
 #: per trial); returns near the end are of order -40, so differences of about 1 are worth seeing.
 KNOWLEDGE = {
-    "reach": common.TaskKnowledge(optimum=common.Optimum("trajectory optimisation"),
-                                  plot_hints=common.PlotHints(return_margin=1.0)),
+    "reach": common.TaskKnowledge(
+        optimum=common.Optimum("trajectory optimisation"),
+        plot_hints=common.PlotHints(return_margin=1.0),
+    ),
 }
 
 
 def get_model_and_assets() -> tuple[str, dict[str, Any]]:
     """The scene XML string (the arm with floor, light and camera) and its assets (the arm's XML)."""
-    return (model_path("two_link_arm", scene=True).read_text(),
-            {"two_link_arm.xml": model_path("two_link_arm").read_bytes()})
+    return (
+        model_path("two_link_arm", scene=True).read_text(),
+        {"two_link_arm.xml": model_path("two_link_arm").read_bytes()},
+    )
 
 
 @SUITE.add("benchmarking")
-def reach(time_limit: float = DEFAULT_TIME_LIMIT, control_timestep: float = CONTROL_TIMESTEP,
-          state_weights=STATE_WEIGHTS, action_weights=ACTION_WEIGHTS, start_state=REACH_START,
-          start_noise: float = 0.0, random=None,
-          environment_kwargs: dict[str, Any] | None = None) -> control.Environment:
+def reach(
+    time_limit: float = DEFAULT_TIME_LIMIT,
+    control_timestep: float = CONTROL_TIMESTEP,
+    state_weights=STATE_WEIGHTS,
+    action_weights=ACTION_WEIGHTS,
+    start_state=REACH_START,
+    start_noise: float = 0.0,
+    random=None,
+    environment_kwargs: dict[str, Any] | None = None,
+) -> control.Environment:
     """The benchmark's task: from [-pi/2, 0, pi/2, 0] to the origin, 60 steps of 0.05 s."""
-    task = Reach(state_weights=state_weights, action_weights=action_weights, start_state=start_state,
-                 start_noise=start_noise, random=random)
+    task = Reach(
+        state_weights=state_weights,
+        action_weights=action_weights,
+        start_state=start_state,
+        start_noise=start_noise,
+        random=random,
+    )
     physics = Physics.from_xml_string(*get_model_and_assets())
     return common.make_environment(physics, task, time_limit, control_timestep, environment_kwargs)
 
@@ -143,8 +158,14 @@ class Physics(mujoco.Physics):
 class Reach(base.Task):
     """Bring the arm from ``start_state`` to the origin with the quadratic reward (module docstring)."""
 
-    def __init__(self, state_weights=STATE_WEIGHTS, action_weights=ACTION_WEIGHTS,
-                 start_state=REACH_START, start_noise: float = 0.0, random=None):
+    def __init__(
+        self,
+        state_weights=STATE_WEIGHTS,
+        action_weights=ACTION_WEIGHTS,
+        start_state=REACH_START,
+        start_noise: float = 0.0,
+        random=None,
+    ):
         """
         Args:
           state_weights: Q over [theta1, omega1, theta2, omega2], as its diagonal (4,) or a full
@@ -190,8 +211,9 @@ class Reach(base.Task):
         Returns:
           ndarray of shape (...,).
         """
-        return (-np.einsum("...i,ij,...j->...", x, self._q, x)
-                - np.einsum("...i,ij,...j->...", u, self._r, u))
+        return -np.einsum("...i,ij,...j->...", x, self._q, x) - np.einsum(
+            "...i,ij,...j->...", u, self._r, u
+        )
 
     def get_observation(self, physics: Physics) -> collections.OrderedDict:
         theta, omega = physics.joint_angles(), physics.joint_velocities()
@@ -221,11 +243,19 @@ class Reach(base.Task):
             low=(-np.pi, -NOMINAL_SPEED, -np.pi, -NOMINAL_SPEED),
             high=(np.pi, NOMINAL_SPEED, np.pi, NOMINAL_SPEED),
             periodic=(True, False, True, False),
-            labels=("shoulder angle theta1 [rad]", "shoulder speed omega1 [rad/s]",
-                    "elbow angle theta2 [rad]", "elbow speed omega2 [rad/s]"),
-            input_weights=(1.0, 0.2, 1.0, 0.2), action_input_weights=(2.0, 3.0),
+            labels=(
+                "shoulder angle theta1 [rad]",
+                "shoulder speed omega1 [rad/s]",
+                "elbow angle theta2 [rad]",
+                "elbow speed omega2 [rad/s]",
+            ),
+            input_weights=(1.0, 0.2, 1.0, 0.2),
+            action_input_weights=(2.0, 3.0),
             action_labels=("tau1 [N m]", "tau2 [N m]"),
-            action_cost=tuple(np.diag(self._r)) if np.array_equal(self._r, np.diag(np.diag(self._r)))
+            action_cost=tuple(np.diag(self._r))
+            if np.array_equal(self._r, np.diag(np.diag(self._r)))
             else None,
-            state_cost=tuple(np.diag(self._q)) if np.array_equal(self._q, np.diag(np.diag(self._q)))
-            else None)
+            state_cost=tuple(np.diag(self._q))
+            if np.array_equal(self._q, np.diag(np.diag(self._q)))
+            else None,
+        )

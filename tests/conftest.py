@@ -9,13 +9,15 @@ import sys
 # here). The tests fix the kernel to one every x86-64 CPU with AVX2 runs, so they mean the same on
 # every such machine; subprocesses inherit it.
 if "numpy" in sys.modules and os.environ.get("OPENBLAS_CORETYPE") != "Haswell":
-    raise RuntimeError("numpy was imported before tests/conftest.py could set OPENBLAS_CORETYPE: "
-                       "run the tests with OPENBLAS_CORETYPE=Haswell")
+    raise RuntimeError(
+        "numpy was imported before tests/conftest.py could set OPENBLAS_CORETYPE: "
+        "run the tests with OPENBLAS_CORETYPE=Haswell"
+    )
 os.environ["OPENBLAS_CORETYPE"] = "Haswell"
 
-import rmac_mj  # noqa: E402,F401  (rmac_mj/__init__.py selects the GL back end; see rmac_mj._gl)
-
 import pytest  # noqa: E402
+
+import rmac_mj  # noqa: E402,F401  (rmac_mj/__init__.py selects the GL back end; see rmac_mj._gl)
 
 
 @pytest.fixture
@@ -36,11 +38,16 @@ def pytest_collection_modifyitems(config, items):
 
     from rmac_mj.agents import sb3_config
 
-    skip_baselines = (None if sb3_config.available()
-                      else pytest.mark.skip(reason=sb3_config.INSTALL_HINT))
-    skip_gymnasium = (None if importlib.util.find_spec("gymnasium") is not None
-                      else pytest.mark.skip(reason="needs the [gymnasium] extra: "
-                                                   "pip install -c constraints.txt -e \".[gymnasium]\""))
+    skip_baselines = (
+        None if sb3_config.available() else pytest.mark.skip(reason=sb3_config.INSTALL_HINT)
+    )
+    skip_gymnasium = (
+        None
+        if importlib.util.find_spec("gymnasium") is not None
+        else pytest.mark.skip(
+            reason='needs the [gymnasium] extra: pip install -c constraints.txt -e ".[gymnasium]"'
+        )
+    )
     for item in items:
         if skip_gymnasium is not None and item.get_closest_marker("gymnasium"):
             item.add_marker(skip_gymnasium)
@@ -48,8 +55,12 @@ def pytest_collection_modifyitems(config, items):
             continue
         callspec = getattr(item, "callspec", None)
         if item.get_closest_marker("baselines") or (
-                callspec is not None and any(isinstance(value, str) and value in sb3_config.BASELINES
-                                             for value in callspec.params.values())):
+            callspec is not None
+            and any(
+                isinstance(value, str) and value in sb3_config.BASELINES
+                for value in callspec.params.values()
+            )
+        ):
             item.add_marker(skip_baselines)
 
 
@@ -72,8 +83,10 @@ def pytest_configure(config):
             if reporter is None or capture is None:
                 return
             with capture.global_and_fixture_disabled():  # inside a test: past its output capture
-                reporter.write_line(f"compiling the learners' kernels, first run only (about a minute "
-                                    f"on 2 cores; cached in {_cache.numba_cache_location()})")
+                reporter.write_line(
+                    f"compiling the learners' kernels, first run only (about a minute "
+                    f"on 2 cores; cached in {_cache.numba_cache_location()})"
+                )
 
         def on_end(self, ev):
             pass

@@ -12,11 +12,14 @@ def _energy_pump(x):
     phi, omega = x
     if abs(phi) < 0.8:
         return np.array([np.clip(-8.0 * phi - 0.6 * omega, -3.0, 3.0)])
-    energy = 0.5 * _J * omega ** 2 + _MGL * (np.cos(phi) - 1.0)  # 0 upright at rest
+    energy = 0.5 * _J * omega**2 + _MGL * (np.cos(phi) - 1.0)  # 0 upright at rest
     return np.array([3.0 if (omega >= 0) == (energy < 0) else -3.0])
 
 
 def energy_pump_agent():
     """The scripted swing-up as an agent (no learning)."""
-    return PolicyAgent(StateSpace(low=[-np.pi, -30.0], high=[np.pi, 30.0], periodic=[True, False]),
-                       ActionSpace(low=[-3.0], high=[3.0]), _energy_pump)
+    return PolicyAgent(
+        StateSpace(low=[-np.pi, -30.0], high=[np.pi, 30.0], periodic=[True, False]),
+        ActionSpace(low=[-3.0], high=[3.0]),
+        _energy_pump,
+    )

@@ -27,8 +27,14 @@ def test_a_second_process_loads_the_kernels_instead_of_compiling_them(tmp_path):
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba")}  # a cold cache of our own
 
     def run():
-        result = subprocess.run([sys.executable, "-c", _LOAD_ONE_KERNEL], env=env, capture_output=True,
-                                text=True, timeout=120, check=True)
+        result = subprocess.run(
+            [sys.executable, "-c", _LOAD_ONE_KERNEL],
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=120,
+            check=True,
+        )
         return json.loads(result.stdout.strip().splitlines()[-1])
 
     first, second = run(), run()
@@ -48,7 +54,10 @@ def test_kernels_are_cached_per_version_of_their_sources(tmp_path):
     first = _cache.configure_numba_cache(environ, package)
     assert first.startswith(str(tmp_path / "cache" / "numba"))
     assert environ["NUMBA_CACHE_DIR"] == first == _cache.numba_cache_location(environ)
-    assert _cache.configure_numba_cache({"RMAC_MJ_CACHE_DIR": str(tmp_path / "cache")}, package) == first
+    assert (
+        _cache.configure_numba_cache({"RMAC_MJ_CACHE_DIR": str(tmp_path / "cache")}, package)
+        == first
+    )
     (package / _cache._KERNEL_DIRS[-1] / "kernels.py").write_text("def f():\n    return 2\n")
     second = _cache.configure_numba_cache({"RMAC_MJ_CACHE_DIR": str(tmp_path / "cache")}, package)
     assert second != first and second.startswith(str(tmp_path / "cache" / "numba"))

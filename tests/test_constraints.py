@@ -36,14 +36,18 @@ def test_every_field_has_constraints_and_the_defaults_meet_them(cls):
 def test_a_bool_is_no_learning_rate_in_any_learner(cls):
     # Was: StandardACConfig(alpha_critic=True) accepted while RMAC and MLAC refused a bool. Every
     # learner's critic rate is now alpha_c, the paper's name (the actor's alpha_a, RMAC's alpha_r).
-    assert refusal(cls, alpha_c=True) == f"{cls.__name__}.alpha_c must be a number in [0, 1], got True"
+    assert (
+        refusal(cls, alpha_c=True) == f"{cls.__name__}.alpha_c must be a number in [0, 1], got True"
+    )
 
 
 @pytest.mark.parametrize("cls", LEARNERS)
 def test_gamma_1_is_refused_by_every_learner(cls):
     # Was: refused by S-AC, accepted by RMAC and MLAC. The paper: gamma in [0, 1) (eq. 1).
-    assert refusal(cls, gamma=1.0) == \
-        f"{cls.__name__}.gamma must be a number in [0, 1), or None, got 1.0"  # None: the task's
+    assert (
+        refusal(cls, gamma=1.0)
+        == f"{cls.__name__}.gamma must be a number in [0, 1), or None, got 1.0"
+    )  # None: the task's
     assert cls(gamma=0.999).gamma == 0.999
 
 
@@ -51,47 +55,64 @@ def test_gamma_1_is_refused_by_every_learner(cls):
 def test_a_bool_norm_and_a_string_clip_are_refused_by_rmac_and_mlac_alike(cls):
     # Was: RMACConfig(norm=True) and RMACConfig(critic_clip="no") accepted, MLAC refused both.
     assert refusal(cls, norm=True) == f"{cls.__name__}.norm must be 1 or 2, got True"
-    assert refusal(cls, critic_clip="no") == \
-        f"{cls.__name__}.critic_clip must be True or False, got 'no'"
+    assert (
+        refusal(cls, critic_clip="no")
+        == f"{cls.__name__}.critic_clip must be True or False, got 'no'"
+    )
 
 
 @pytest.mark.parametrize("cls", (RMACConfig, MLACConfig))
 def test_a_string_action_cost_and_a_missing_rcond_are_named(cls):
     # Was: a raw numpy TypeError naming nothing.
-    assert refusal(cls, action_cost="1") == \
-        f"{cls.__name__}.action_cost must be a finite number >= 0 or a list of finite numbers >= 0 " \
+    assert (
+        refusal(cls, action_cost="1")
+        == f"{cls.__name__}.action_cost must be a finite number >= 0 or a list of finite numbers >= 0 "
         "or None, got '1'"
+    )
     assert refusal(cls, rcond=None) == f"{cls.__name__}.rcond must be a number in [0, 1), got None"
 
 
 def test_integers_are_integers_everywhere():
     # Was: Exploration(period=3.0) accepted where critic_capacity=2000.0 was refused.
-    assert refusal(Exploration, period=3.0) == \
-        "Exploration.period must be an integer >= 1, got 3.0"
-    assert refusal(RMACConfig, critic_capacity=2000.0) == \
-        "RMACConfig.critic_capacity must be an integer >= 1 or None, got 2000.0"
-    assert refusal(TileCodingConfig, num_tilings=16.0) == \
-        "TileCodingConfig.num_tilings must be an integer >= 1, got 16.0"
-    with pytest.raises(constraints.InvalidParameterError,
-                       match=r"^LLRMemory.capacity must be an integer >= 1, got 10.0$"):
+    assert refusal(Exploration, period=3.0) == "Exploration.period must be an integer >= 1, got 3.0"
+    assert (
+        refusal(RMACConfig, critic_capacity=2000.0)
+        == "RMACConfig.critic_capacity must be an integer >= 1 or None, got 2000.0"
+    )
+    assert (
+        refusal(TileCodingConfig, num_tilings=16.0)
+        == "TileCodingConfig.num_tilings must be an integer >= 1, got 16.0"
+    )
+    with pytest.raises(
+        constraints.InvalidParameterError,
+        match=r"^LLRMemory.capacity must be an integer >= 1, got 10.0$",
+    ):
         LLRMemory(2, 1, 10.0, 3)
 
 
 def test_a_bound_named_after_another_parameter_shows_its_value():
-    assert refusal(RMACConfig, critic_capacity=2000, critic_neighbours=3000) == \
-        "RMACConfig.critic_neighbours must be an integer in [1, critic_capacity=2000], or None, " \
+    assert (
+        refusal(RMACConfig, critic_capacity=2000, critic_neighbours=3000)
+        == "RMACConfig.critic_neighbours must be an integer in [1, critic_capacity=2000], or None, "
         "got 3000"
-    with pytest.raises(constraints.InvalidParameterError,
-                       match=r"LLRMemory.n_neighbours must be an integer in \[1, capacity=10\]"):
+    )
+    with pytest.raises(
+        constraints.InvalidParameterError,
+        match=r"LLRMemory.n_neighbours must be an integer in \[1, capacity=10\]",
+    ):
         LLRMemory(2, 1, 10, 11)
 
 
 def test_an_unknown_name_suggests_the_closest_known_one():
-    with pytest.raises(constraints.InvalidParameterError,
-                       match=r"^RMACConfig has no parameter 'alpha_x' \(did you mean 'alpha_r'\?\)$"):
+    with pytest.raises(
+        constraints.InvalidParameterError,
+        match=r"^RMACConfig has no parameter 'alpha_x' \(did you mean 'alpha_r'\?\)$",
+    ):
         config_from_dict(RMACConfig, {"alpha_x": 0.1})
-    with pytest.raises(constraints.InvalidParameterError,
-                       match=r"^Exploration has no parameter 'sigmaa' \(did you mean 'sigma'\?\)$"):
+    with pytest.raises(
+        constraints.InvalidParameterError,
+        match=r"^Exploration has no parameter 'sigmaa' \(did you mean 'sigma'\?\)$",
+    ):
         config_from_dict(RMACConfig, {"exploration": {"sigmaa": 0.5}})
 
 
@@ -99,8 +120,10 @@ def test_sequences_are_kept_as_tuples_of_floats():
     config = RMACConfig(critic_weights=[1, 0.1])
     assert config.critic_weights == (1.0, 0.1) and hash(config)
     assert StandardACConfig(tile_low=[None, -5]).tile_low == (None, -5.0)
-    assert refusal(RMACConfig, critic_weights=()) == \
-        "RMACConfig.critic_weights must be a list of finite numbers >= 0 or None, got ()"
+    assert (
+        refusal(RMACConfig, critic_weights=())
+        == "RMACConfig.critic_weights must be a list of finite numbers >= 0 or None, got ()"
+    )
 
 
 def test_invalid_parameter_error_is_a_value_and_a_type_error():
@@ -111,13 +134,16 @@ def test_invalid_parameter_error_is_a_value_and_a_type_error():
         MLACConfig(alpha_a="fast")
 
 
-@pytest.mark.parametrize("key, value, cls, field", [
-    ("rmac.alpha_r", "fast", RMACConfig, "alpha_r"),
-    ("rmac.norm", True, RMACConfig, "norm"),
-    ("rmac.exploration.period", 3.5, Exploration, "period"),
-    ("s-ac.alpha_c", True, StandardACConfig, "alpha_c"),
-    ("mlac.critic_clip", "no", MLACConfig, "critic_clip"),
-])
+@pytest.mark.parametrize(
+    "key, value, cls, field",
+    [
+        ("rmac.alpha_r", "fast", RMACConfig, "alpha_r"),
+        ("rmac.norm", True, RMACConfig, "norm"),
+        ("rmac.exploration.period", 3.5, Exploration, "period"),
+        ("s-ac.alpha_c", True, StandardACConfig, "alpha_c"),
+        ("mlac.critic_clip", "no", MLACConfig, "critic_clip"),
+    ],
+)
 def test_the_sweep_checker_expects_what_the_config_expects(tmp_path, key, value, cls, field):
     """A sweep file's value is judged by the config's own table: the same words after 'expected'."""
     algorithm = key.split(".")[0]
@@ -128,7 +154,9 @@ def test_the_sweep_checker_expects_what_the_config_expects(tmp_path, key, value,
         sweep_file.load_sweep(path)
     expected = constraints.unmet(value, cls.parameter_constraints[field])
     assert expected is not None and f"expected {expected}, got {toml}" in str(error.value)
-    assert f"{cls.__name__}.{field} must be {expected}, got {value!r}" == refusal(cls, **{field: value})
+    assert f"{cls.__name__}.{field} must be {expected}, got {value!r}" == refusal(
+        cls, **{field: value}
+    )
 
 
 def test_renamed_parameters_are_read_from_stored_configs_only():

@@ -31,7 +31,9 @@ def _imports(path: pathlib.Path) -> set[str]:
 
 @pytest.mark.parametrize("folder", sorted(ALLOWED))
 def test_tasks_and_models_import_nothing_above_them(folder):
-    wrong = {f"{path.relative_to(ROOT)}: rmac_mj.{name}"
-             for path in sorted((ROOT / folder).rglob("*.py"))
-             for name in _imports(path) - ALLOWED[folder]}
+    wrong = {
+        f"{path.relative_to(ROOT)}: rmac_mj.{name}"
+        for path in sorted((ROOT / folder).rglob("*.py"))
+        for name in _imports(path) - ALLOWED[folder]
+    }
     assert not wrong, sorted(wrong)

@@ -6,16 +6,27 @@ from learners import quick_config
 
 from rmac_mj import tasks
 from rmac_mj.agents import ALGORITHMS, make_agent
-from rmac_mj.rollout import (action_space_of, run_trial, state_of, state_space_of,
-                                         steps_per_trial, trial_seconds)
 from rmac_mj.figures.policy_plots import policy_actions, policy_slice
+from rmac_mj.rollout import (
+    action_space_of,
+    run_trial,
+    state_of,
+    state_space_of,
+    steps_per_trial,
+    trial_seconds,
+)
 
 
 @pytest.fixture(scope="module", params=ALGORITHMS)
 def learned(request):
     env = tasks.load("dc_pendulum", "swingup")
-    agent = make_agent(request.param, state_space_of(env), action_space_of(env),
-                       config=quick_config(request.param), seed=3)
+    agent = make_agent(
+        request.param,
+        state_space_of(env),
+        action_space_of(env),
+        config=quick_config(request.param),
+        seed=3,
+    )
     for _ in range(15):
         run_trial(env, agent, learn=True)
     return env, agent
@@ -35,8 +46,9 @@ def test_greedy_trials_are_repeatable_and_learn_nothing(learned):
 
 def test_policy_map_does_not_depend_on_scan_order(learned):
     _, agent = learned
-    xs, ys, actions, values = policy_slice(agent, [-np.pi, -25.0], [np.pi, 25.0], [0.0, 0.0],
-                                           resolution=(7, 5))
+    xs, ys, actions, values = policy_slice(
+        agent, [-np.pi, -25.0], [np.pi, 25.0], [0.0, 0.0], resolution=(7, 5)
+    )
     assert actions.shape == (5, 7, 1) and values.shape == (5, 7)
     np.testing.assert_allclose(xs, np.linspace(-np.pi, np.pi, 7))
     np.testing.assert_allclose(ys, np.linspace(-25.0, 25.0, 5))
@@ -70,6 +82,14 @@ def test_rmac_weightings_default_to_table_2_from_the_task_and_explicit_ones_win(
     assert agent.config.critic_weights == agent.config.reference_weights == (1.0, 0.1)
     assert agent.config.process_weights == (1.0, 0.1, 1.0)
     np.testing.assert_array_equal(agent.process.input_weights, [1.0, 0.1, 1.0])
-    agent = make_agent("rmac", state_space_of(env), action_space_of(env), seed=0,
-                       config={"critic_weights": (1.0, 0.3)})
-    assert agent.config.critic_weights == (1.0, 0.3) and agent.config.reference_weights == (1.0, 0.1)
+    agent = make_agent(
+        "rmac",
+        state_space_of(env),
+        action_space_of(env),
+        seed=0,
+        config={"critic_weights": (1.0, 0.3)},
+    )
+    assert agent.config.critic_weights == (1.0, 0.3) and agent.config.reference_weights == (
+        1.0,
+        0.1,
+    )

@@ -54,11 +54,21 @@ SUITE = containers.TaggedTasks()
 
 
 @SUITE.add()
-def settle(time_limit: float = TIME_LIMIT, control_timestep: float = CONTROL_TIMESTEP,
-           start_noise: float = 0.1, random=None, environment_kwargs=None):
+def settle(
+    time_limit: float = TIME_LIMIT,
+    control_timestep: float = CONTROL_TIMESTEP,
+    start_noise: float = 0.1,
+    random=None,
+    environment_kwargs=None,
+):
     physics = Physics.from_xml_string(MODEL)
-    return common.make_environment(physics, Settle(start_noise, random=random), time_limit,
-                                   control_timestep, environment_kwargs)
+    return common.make_environment(
+        physics,
+        Settle(start_noise, random=random),
+        time_limit,
+        control_timestep,
+        environment_kwargs,
+    )
 
 
 class Physics(mujoco.Physics):
@@ -89,8 +99,11 @@ class Settle(base.Task):
     def before_step(self, action, physics):
         physics.set_control(common.check_action(action, 2))
         x = np.r_[physics.position(), physics.velocity()]
-        u = np.clip(physics.data.ctrl, physics.model.actuator_ctrlrange[:, 0],
-                    physics.model.actuator_ctrlrange[:, 1])
+        u = np.clip(
+            physics.data.ctrl,
+            physics.model.actuator_ctrlrange[:, 0],
+            physics.model.actuator_ctrlrange[:, 1],
+        )
         self._reward = -float(x @ x) - 0.1 * float(u @ u)
 
     def get_observation(self, physics):
@@ -105,12 +118,20 @@ class Settle(base.Task):
     @property
     def learner_state(self) -> common.LearnerStateSpec:
         return common.LearnerStateSpec(
-            keys=("position", "velocity"), low=(-np.pi, -1.0, -20.0, -5.0), high=(np.pi, 1.0, 20.0, 5.0),
+            keys=("position", "velocity"),
+            low=(-np.pi, -1.0, -20.0, -5.0),
+            high=(np.pi, 1.0, 20.0, 5.0),
             periodic=(True, False, False, False),
-            labels=("bar angle theta [rad]", "cart position s [m]", "bar rate omega [rad/s]",
-                    "cart speed v [m/s]"),
-            input_weights=(1.0, 1.0, 0.1, 0.2), action_input_weights=(1.0, 0.5),
-            action_labels=("torque tau [N m]", "force f [N]"))
+            labels=(
+                "bar angle theta [rad]",
+                "cart position s [m]",
+                "bar rate omega [rad/s]",
+                "cart speed v [m/s]",
+            ),
+            input_weights=(1.0, 1.0, 0.1, 0.2),
+            action_input_weights=(1.0, 0.5),
+            action_labels=("torque tau [N m]", "force f [N]"),
+        )
 
 
 class Brake:
@@ -123,8 +144,11 @@ class Brake:
 
 
 #: What the task declares beyond its environment, in its own module, as a task of the suite does.
-KNOWLEDGE = {TASK: common.TaskKnowledge(demonstrators={"demo": Brake()},
-                                        plot_hints=common.PlotHints(return_margin=0.5))}
+KNOWLEDGE = {
+    TASK: common.TaskKnowledge(
+        demonstrators={"demo": Brake()}, plot_hints=common.PlotHints(return_margin=0.5)
+    )
+}
 
 
 def register(monkeypatch) -> None:

@@ -28,10 +28,19 @@ from rmac_mj.rollout import action_space_of, learner_state_of, state_of, state_s
 
 #: arm-fastest.toml's RMAC with planning, with the sizes and noise that run had (before the
 #: settings followed the task's units).
-ARM_FASTEST = {"gamma": 0.98, "lam": 0.65, "alpha_r": 0.05, "planning": {"steps": 30},
-               "critic_capacity": 2000, "critic_neighbours": 20, "process_capacity": 100,
-               "process_neighbours": 9, "reference_capacity": 2000, "reference_neighbours": 20,
-               "exploration": {"sigma": 1.0}}
+ARM_FASTEST = {
+    "gamma": 0.98,
+    "lam": 0.65,
+    "alpha_r": 0.05,
+    "planning": {"steps": 30},
+    "critic_capacity": 2000,
+    "critic_neighbours": 20,
+    "process_capacity": 100,
+    "process_neighbours": 9,
+    "reference_capacity": 2000,
+    "reference_neighbours": 20,
+    "exploration": {"sigma": 1.0},
+}
 
 
 def _nested(settings: list[str]) -> dict:
@@ -42,7 +51,7 @@ def _nested(settings: list[str]) -> dict:
         node = out
         for p in parents:
             node = node.setdefault(p, {})
-        node[leaf] = json.loads(value) if value[:1] in "0123456789-[{tfn\"" else value
+        node[leaf] = json.loads(value) if value[:1] in '0123456789-[{tfn"' else value
     return out
 
 
@@ -87,7 +96,7 @@ def _latest_stamp(memory) -> int:
 
 
 def _simulated_fraction(memory, intervals) -> float:
-    stamps = memory.stamp_[:memory.n_samples_]
+    stamps = memory.stamp_[: memory.n_samples_]
     if not len(stamps):
         return 0.0
     simulated = np.zeros(len(stamps), bool)
@@ -152,8 +161,10 @@ def run(seed: int, trials: int, config: dict, every: int) -> dict[str, np.ndarra
             row["value_x0"] = agent.value(g_states[0])
         rows.append(row)
     keys = sorted({k for r in rows for k in r if r[k] is not None})
-    return {k: np.array([r.get(k, np.nan) if r.get(k) is not None else np.nan for r in rows])
-            for k in keys}
+    return {
+        k: np.array([r.get(k, np.nan) if r.get(k) is not None else np.nan for r in rows])
+        for k in keys
+    }
 
 
 def main() -> None:
@@ -171,9 +182,18 @@ def main() -> None:
     keys = runs[0].keys()
     mean = {k: np.nanmean(np.array([r[k] for r in runs]), axis=0) for k in keys}
     print("config:", json.dumps(config))
-    cols = ["greedy_return", "greedy_discounted", "value_x0", "one_step_error", "open_loop_error",
-            "state_change", "simulated_critic", "simulated_reference", "clipped",
-            "reward_above_real"]
+    cols = [
+        "greedy_return",
+        "greedy_discounted",
+        "value_x0",
+        "one_step_error",
+        "open_loop_error",
+        "state_change",
+        "simulated_critic",
+        "simulated_reference",
+        "clipped",
+        "reward_above_real",
+    ]
     print("trial " + " ".join(f"{c[:12]:>12}" for c in cols))
     for i in range(args.every - 1, args.trials, args.every):
         print(f"{i + 1:5d} " + " ".join(f"{mean[c][i]:12.3f}" for c in cols))

@@ -22,8 +22,13 @@ import sys
 import numpy as np
 from scipy import stats
 
-from rmac_mj.evaluation.metrics import (FIRST_MINUTES, confidence_interval, early_returns,
-                                         final_returns, minutes_to_within)
+from rmac_mj.evaluation.metrics import (
+    FIRST_MINUTES,
+    confidence_interval,
+    early_returns,
+    final_returns,
+    minutes_to_within,
+)
 from rmac_mj.results.store import ResultStore
 
 GOAL = {"greedy": -775.0, "exploring": -905.0, "first_5min": -1800.0, "minutes_to_90pct": 5.0}
@@ -37,16 +42,23 @@ def load(directory: pathlib.Path, learner: str):
         raise SystemExit(f"goal_report: no curves of {learner!r} in {directory}")
     curves = store.load_curves(learner)
     if curves.greedy_returns.shape[1] == 0:
-        raise SystemExit(f"goal_report: {directory} has no greedy trials (run with --evaluate-every)")
+        raise SystemExit(
+            f"goal_report: {directory} has no greedy trials (run with --evaluate-every)"
+        )
     return curves.returns, curves.greedy_returns, store.read_summary()["trial_seconds"]
 
 
 def metrics(returns: np.ndarray, greedy: np.ndarray, seconds: float) -> dict:
     finals = final_returns(returns)
-    return {"greedy": greedy[:, -1], "greedy_last5": greedy[:, -5:].mean(axis=1), "exploring": finals,
-            "first_5min": early_returns(returns, FIRST_MINUTES, seconds),
-            "minutes_to_90pct": minutes_to_within(returns.mean(axis=0), trial_seconds=seconds),
-            "stuck": int(np.sum(finals < STUCK_BELOW)), "n": len(returns)}
+    return {
+        "greedy": greedy[:, -1],
+        "greedy_last5": greedy[:, -5:].mean(axis=1),
+        "exploring": finals,
+        "first_5min": early_returns(returns, FIRST_MINUTES, seconds),
+        "minutes_to_90pct": minutes_to_within(returns.mean(axis=0), trial_seconds=seconds),
+        "stuck": int(np.sum(finals < STUCK_BELOW)),
+        "n": len(returns),
+    }
 
 
 def paired_difference(a: np.ndarray, b: np.ndarray) -> tuple[float, float, float]:
@@ -64,24 +76,31 @@ def parse(argument: str) -> list[tuple[pathlib.Path, str, str]]:
     directory, _, rest = argument.partition(":")
     learner, _, label = rest.partition(":")
     path = pathlib.Path(directory)
-    learners = [learner] if learner else json.loads(
-        (path / "summary.json").read_text())["protocol"]["algorithms"]
+    learners = (
+        [learner]
+        if learner
+        else json.loads((path / "summary.json").read_text())["protocol"]["algorithms"]
+    )
     return [(path, a, label or f"{path.name} {a}") for a in learners]
 
 
-def plot(rows: list[tuple[str, np.ndarray, np.ndarray, float]], path: str, bands: bool = True) -> None:
+def plot(
+    rows: list[tuple[str, np.ndarray, np.ndarray, float]], path: str, bands: bool = True
+) -> None:
     """Exploring learning curves (10-trial running mean) and greedy returns, mean and (``bands``)
     95% CI, for rows (label, returns, greedy returns, trial seconds)."""
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
     fig, (ax, gx) = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
     for label, returns, greedy, seconds in rows:
         mean, low, high = confidence_interval(returns)
         window = np.ones(10) / 10
         smooth = [np.convolve(c, window, mode="valid") for c in (mean, low, high)]
         minutes = (np.arange(len(smooth[0])) + 10) * seconds / 60
-        line, = ax.plot(minutes, smooth[0], label=label, lw=1.2)
+        (line,) = ax.plot(minutes, smooth[0], label=label, lw=1.2)
         if bands:
             ax.fill_between(minutes, smooth[1], smooth[2], color=line.get_color(), alpha=0.2)
         every = returns.shape[1] // greedy.shape[1]
@@ -90,8 +109,10 @@ def plot(rows: list[tuple[str, np.ndarray, np.ndarray, float]], path: str, bands
         gx.plot(gminutes, gm, color=line.get_color(), lw=1.2, label=label)
         if bands:
             gx.fill_between(gminutes, glo, ghi, color=line.get_color(), alpha=0.2)
-    for axis, title, goal in ((ax, "exploring trials (10-trial mean)", GOAL["exploring"]),
-                              (gx, "greedy trials", GOAL["greedy"])):
+    for axis, title, goal in (
+        (ax, "exploring trials (10-trial mean)", GOAL["exploring"]),
+        (gx, "greedy trials", GOAL["greedy"]),
+    ):
         axis.axhline(-748, color="k", lw=0.8, ls="--", label="near-optimal (-748)")
         axis.axhline(goal, color="tab:red", lw=0.8, ls=":", label=f"goal ({goal:.0f})")
         axis.set(xlabel="simulated minutes", title=title, ylim=(-3000, -650))
@@ -109,10 +130,12 @@ def main(arguments: list[str]) -> None:
     if "--plot" in arguments:
         at = arguments.index("--plot")
         out = arguments[at + 1]
-        del arguments[at:at + 2]
+        del arguments[at : at + 2]
     entries = [entry for argument in arguments for entry in parse(argument)]
-    print("| run | exp. | greedy at the end (goal -775) | exploring, last 50 (goal -905) "
-          "| first 5 min (goal -1800) | min to 90% (goal 5) | stuck (goal 0) |")
+    print(
+        "| run | exp. | greedy at the end (goal -775) | exploring, last 50 (goal -905) "
+        "| first 5 min (goal -1800) | min to 90% (goal 5) | stuck (goal 0) |"
+    )
     print("|---|---|---|---|---|---|---|")
     table, curves = [], []
     for directory, learner, label in entries:
@@ -121,18 +144,22 @@ def main(arguments: list[str]) -> None:
         table.append((label, m))
         curves.append((label, returns, greedy, seconds))
         minutes = m["minutes_to_90pct"]
-        print(f"| {label} | {m['n']} | {cell(m['greedy'], GOAL['greedy'])} | "
-              f"{cell(m['exploring'], GOAL['exploring'])} | {cell(m['first_5min'], GOAL['first_5min'])} | "
-              f"{minutes:.1f} {'yes' if minutes <= GOAL['minutes_to_90pct'] else 'no'} | "
-              f"{m['stuck']}/{m['n']} {'yes' if m['stuck'] == 0 else 'no'} |")
+        print(
+            f"| {label} | {m['n']} | {cell(m['greedy'], GOAL['greedy'])} | "
+            f"{cell(m['exploring'], GOAL['exploring'])} | {cell(m['first_5min'], GOAL['first_5min'])} | "
+            f"{minutes:.1f} {'yes' if minutes <= GOAL['minutes_to_90pct'] else 'no'} | "
+            f"{m['stuck']}/{m['n']} {'yes' if m['stuck'] == 0 else 'no'} |"
+        )
     base_label, base = table[0]
     for label, m in table[1:]:
         parts = []
         for key in ("greedy", "greedy_last5", "exploring", "first_5min"):
             if paired:
                 if len(m[key]) != len(base[key]):
-                    raise SystemExit(f"goal_report: --paired needs as many experiments in {label} "
-                                     f"as in {base_label}")
+                    raise SystemExit(
+                        f"goal_report: --paired needs as many experiments in {label} "
+                        f"as in {base_label}"
+                    )
                 mean, half, p = paired_difference(m[key], base[key])
                 parts.append(f"{key} {mean:+.0f} ± {half:.0f} (p = {p:.2g})")
             else:

@@ -15,18 +15,22 @@ import csv
 import pathlib
 import sys
 
+import goal_report
 import numpy as np
 
-import goal_report
-
-SAME_SIZE = {"redundancy-process-50": "critic-reference-2000__process_capacity=50",
-             "redundancy-critic-reference-4000": "critic-reference-4000__process_capacity=100"}
+SAME_SIZE = {
+    "redundancy-process-50": "critic-reference-2000__process_capacity=50",
+    "redundancy-critic-reference-4000": "critic-reference-4000__process_capacity=100",
+}
 
 
 def paired(a: np.ndarray, b: np.ndarray) -> str:
     mean, half, p = goal_report.paired_difference(a, b)
-    return f"{mean:+.0f} ± {half:.0f} (p {p:.3f})" if p >= 0.001 else \
-        f"{mean:+.0f} ± {half:.0f} (p {p:.1e})"
+    return (
+        f"{mean:+.0f} ± {half:.0f} (p {p:.3f})"
+        if p >= 0.001
+        else f"{mean:+.0f} ± {half:.0f} (p {p:.1e})"
+    )
 
 
 def metrics(directory: pathlib.Path):
@@ -38,23 +42,30 @@ def main(root: str, sizes: str | None) -> None:
     root_p = pathlib.Path(root)
     rows = list(csv.DictReader(open(root_p / "sweep.csv")))
     base_g, base_f = metrics(root_p / "nearest")
-    print("| configuration | exploring (last 50) | greedy (trial 600) | paired greedy | paired exploring "
-          "| first 5 min | min to 90% | stuck | paired greedy, same sizes |")
+    print(
+        "| configuration | exploring (last 50) | greedy (trial 600) | paired greedy | paired exploring "
+        "| first 5 min | min to 90% | stuck | paired greedy, same sizes |"
+    )
     print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for row in rows:
         name = row["configuration"]
         g, f = metrics(root_p / name)
-        ci = lambda k, lo, hi: f"{float(row[k]):.0f} [{float(row[lo]):.0f}, {float(row[hi]):.0f}]"
+
+        def ci(k, lo, hi, row=row):
+            return f"{float(row[k]):.0f} [{float(row[lo]):.0f}, {float(row[hi]):.0f}]"
+
         same = ""
         if sizes and name in SAME_SIZE:
             sg, _ = metrics(pathlib.Path(sizes) / SAME_SIZE[name])
             same = paired(g, sg)
-        print(f"| {name} | {ci('final_return_mean', 'final_return_ci95_low', 'final_return_ci95_high')} "
-              f"| {ci('greedy_return_mean', 'greedy_return_ci95_low', 'greedy_return_ci95_high')} "
-              f"| {'' if name == 'nearest' else paired(g, base_g)} "
-              f"| {'' if name == 'nearest' else paired(f, base_f)} "
-              f"| {ci('mean_return_first_5min', 'first_5min_ci95_low', 'first_5min_ci95_high')} "
-              f"| {float(row['minutes_to_90pct']):.1f} | {row['stuck_experiments']} | {same} |")
+        print(
+            f"| {name} | {ci('final_return_mean', 'final_return_ci95_low', 'final_return_ci95_high')} "
+            f"| {ci('greedy_return_mean', 'greedy_return_ci95_low', 'greedy_return_ci95_high')} "
+            f"| {'' if name == 'nearest' else paired(g, base_g)} "
+            f"| {'' if name == 'nearest' else paired(f, base_f)} "
+            f"| {ci('mean_return_first_5min', 'first_5min_ci95_low', 'first_5min_ci95_high')} "
+            f"| {float(row['minutes_to_90pct']):.1f} | {row['stuck_experiments']} | {same} |"
+        )
 
 
 if __name__ == "__main__":

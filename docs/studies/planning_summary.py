@@ -26,10 +26,15 @@ import sys
 import numpy as np
 
 from rmac_mj.agents import display_name
-from rmac_mj.evaluation.metrics import (GREEDY_WITHIN, confidence_interval, first_reaching,
-                                         stuck_threshold, within_optimal)
-from rmac_mj.sweeps import sweep_file
+from rmac_mj.evaluation.metrics import (
+    GREEDY_WITHIN,
+    confidence_interval,
+    first_reaching,
+    stuck_threshold,
+    within_optimal,
+)
 from rmac_mj.results.store import ResultStore
+from rmac_mj.sweeps import sweep_file
 
 #: Trials after which the greedy return is tabulated (issue 23: one simulated minute, five).
 AT_TRIALS = (20, 100)
@@ -75,28 +80,45 @@ def rows(paths, experiments: int | None = None):
         summary = store.read_summary()
         optimal = summary.get("optimal_return")
         for learner in protocol["algorithms"]:
-            n = protocol["experiments"] if experiments is None else min(experiments,
-                                                                         protocol["experiments"])
+            n = (
+                protocol["experiments"]
+                if experiments is None
+                else min(experiments, protocol["experiments"])
+            )
             curves = store.load_curves(learner, n)
             greedy, trials = curves.greedy_returns, curves.greedy_trials
             kind, steps, label = setting(protocol["agent_configs"].get(learner, {}))
-            row = {"learner": learner, "run": directory.name, "kind": kind, "steps": steps,
-                   "setting": label, "experiments": n, "seed": protocol["seed"],
-                   "greedy_trials": trials,
-                   "greedy_mean": greedy.mean(axis=0), "trial_seconds": summary["trial_seconds"],
-                   "cpu_per_minute": float(np.mean(curves.cpu_times)
-                                           / (curves.returns.shape[1] * summary["trial_seconds"] / 60)),
-                   "stuck": None if optimal is None else int(np.sum(
-                       greedy[:, -STUCK_EVALUATIONS:].mean(axis=1) < stuck_threshold(optimal))),
-                   "floor": summary.get("exploration_floor"),
-                   "exploring": curves.returns[:, -LAST:].mean(axis=1)}
+            row = {
+                "learner": learner,
+                "run": directory.name,
+                "kind": kind,
+                "steps": steps,
+                "setting": label,
+                "experiments": n,
+                "seed": protocol["seed"],
+                "greedy_trials": trials,
+                "greedy_mean": greedy.mean(axis=0),
+                "trial_seconds": summary["trial_seconds"],
+                "cpu_per_minute": float(
+                    np.mean(curves.cpu_times)
+                    / (curves.returns.shape[1] * summary["trial_seconds"] / 60)
+                ),
+                "stuck": None
+                if optimal is None
+                else int(
+                    np.sum(greedy[:, -STUCK_EVALUATIONS:].mean(axis=1) < stuck_threshold(optimal))
+                ),
+                "floor": summary.get("exploration_floor"),
+                "exploring": curves.returns[:, -LAST:].mean(axis=1),
+            }
             for t in AT_TRIALS:
                 if t in trials:
                     row[f"greedy_{t}"] = confidence_interval(greedy[:, list(trials).index(t)])
             if optimal is not None:
                 for fraction in GREEDY_WITHIN:
                     row[f"within_{fraction}"] = first_reaching(
-                        row["greedy_mean"], trials, within_optimal(optimal, fraction))
+                        row["greedy_mean"], trials, within_optimal(optimal, fraction)
+                    )
                 row["levels"] = {f: within_optimal(optimal, f) for f in GREEDY_WITHIN}
             yield row
 
@@ -107,23 +129,29 @@ def _interval(ci) -> str:
 
 def table(all_rows) -> str:
     levels = next((r["levels"] for r in all_rows if "levels" in r), {})
-    heads = [f"first trial >= {levels[f]:.0f}" if f in levels else f"within {f:.0%}"
-             for f in GREEDY_WITHIN]
-    lines = ["| learner | setting | experiments (seed) | greedy, trial 20 | greedy, trial 100 | "
-             + " | ".join(heads)
-             + f" | exploring, last {LAST} trials (floor) | stuck | CPU s / sim. min |",
-             "|---" * (8 + len(heads)) + "|"]
+    heads = [
+        f"first trial >= {levels[f]:.0f}" if f in levels else f"within {f:.0%}"
+        for f in GREEDY_WITHIN
+    ]
+    lines = [
+        "| learner | setting | experiments (seed) | greedy, trial 20 | greedy, trial 100 | "
+        + " | ".join(heads)
+        + f" | exploring, last {LAST} trials (floor) | stuck | CPU s / sim. min |",
+        "|---" * (8 + len(heads)) + "|",
+    ]
     for r in all_rows:
         reach = [str(r.get(f"within_{f}") or "not in run") for f in GREEDY_WITHIN]
         mean, low, high = confidence_interval(r["exploring"])
         floor = "" if r["floor"] is None else f" ({r['floor']:.0f})"
         stuck = "" if r["stuck"] is None else f"{r['stuck']}/{r['experiments']}"
-        lines.append(f"| {display_name(r['learner'])} | {r['setting']} | "
-                     f"{r['experiments']} ({r['seed']}) | "
-                     f"{_interval(r.get('greedy_20'))} | {_interval(r.get('greedy_100'))} | "
-                     + " | ".join(reach)
-                     + f" | {mean:.0f} [{low:.0f}, {high:.0f}]{floor} | {stuck} | "
-                       f"{r['cpu_per_minute']:.1f} |")
+        lines.append(
+            f"| {display_name(r['learner'])} | {r['setting']} | "
+            f"{r['experiments']} ({r['seed']}) | "
+            f"{_interval(r.get('greedy_20'))} | {_interval(r.get('greedy_100'))} | "
+            + " | ".join(reach)
+            + f" | {mean:.0f} [{low:.0f}, {high:.0f}]{floor} | {stuck} | "
+            f"{r['cpu_per_minute']:.1f} |"
+        )
     return "\n".join(lines)
 
 
@@ -134,6 +162,7 @@ _MARKERS = {"": "o", "none": "o", "planning": "s", "replay": "^"}
 def plot_tradeoff(all_rows, path: pathlib.Path) -> None:
     """Simulated minutes to each greedy level against CPU s per simulated minute."""
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import matplotlib.ticker
@@ -145,31 +174,53 @@ def plot_tradeoff(all_rows, path: pathlib.Path) -> None:
         for r in all_rows:
             trial = r.get(f"within_{fraction}")
             minutes = never if trial is None else trial * r["trial_seconds"] / 60
-            ax.scatter(r["cpu_per_minute"], minutes, color=_COLOURS.get(r["learner"], "k"),
-                       marker=_MARKERS.get(r["kind"], "o"), s=40, zorder=3,
-                       facecolors="none" if trial is None else _COLOURS.get(r["learner"], "k"))
+            ax.scatter(
+                r["cpu_per_minute"],
+                minutes,
+                color=_COLOURS.get(r["learner"], "k"),
+                marker=_MARKERS.get(r["kind"], "o"),
+                s=40,
+                zorder=3,
+                facecolors="none" if trial is None else _COLOURS.get(r["learner"], "k"),
+            )
             # the steps; a star when other settings differ too (fastest.toml's actor step size)
             label = str(r["steps"]) + ("*" if "," in r["setting"] else "")
-            ax.annotate(label, (r["cpu_per_minute"], minutes),
-                        textcoords="offset points", xytext=(4, 3), fontsize=7)
+            ax.annotate(
+                label,
+                (r["cpu_per_minute"], minutes),
+                textcoords="offset points",
+                xytext=(4, 3),
+                fontsize=7,
+            )
         ax.axhline(never, color="grey", linewidth=0.8, linestyle=":")
         ax.set_xscale("log")
         ax.xaxis.set_major_locator(matplotlib.ticker.FixedLocator([0.1, 0.2, 0.5, 1, 2, 5, 10, 20]))
         ax.xaxis.set_major_formatter(matplotlib.ticker.FormatStrFormatter("%g"))
         ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
         ax.set_xlabel("CPU seconds per simulated minute")
-        ax.set_title(f"mean greedy return >= {levels[fraction]:.0f} "
-                     f"(within {fraction:.0%} of the optimum)", fontsize=9)
+        ax.set_title(
+            f"mean greedy return >= {levels[fraction]:.0f} (within {fraction:.0%} of the optimum)",
+            fontsize=9,
+        )
         ax.grid(alpha=0.3)
-    np.atleast_1d(axes)[0].set_ylabel("simulated minutes until reached\n(open marker: not within the run)")
-    handles = [plt.Line2D([], [], color=c, marker="o", linestyle="", label=display_name(k))
-               for k, c in _COLOURS.items() if any(r["learner"] == k for r in all_rows)]
-    handles += [plt.Line2D([], [], color="k", marker=m, linestyle="", markerfacecolor="none",
-                           label=k) for k, m in (("none", "o"), ("planning", "s"), ("replay", "^"))]
+    np.atleast_1d(axes)[0].set_ylabel(
+        "simulated minutes until reached\n(open marker: not within the run)"
+    )
+    handles = [
+        plt.Line2D([], [], color=c, marker="o", linestyle="", label=display_name(k))
+        for k, c in _COLOURS.items()
+        if any(r["learner"] == k for r in all_rows)
+    ]
+    handles += [
+        plt.Line2D([], [], color="k", marker=m, linestyle="", markerfacecolor="none", label=k)
+        for k, m in (("none", "o"), ("planning", "s"), ("replay", "^"))
+    ]
     fig.legend(handles=handles, fontsize=8, loc="lower center", ncol=len(handles))
-    fig.suptitle("Planning and replay steps per real step (numbers; * other settings too): "
-                 "learning speed against CPU",
-                 fontsize=10)
+    fig.suptitle(
+        "Planning and replay steps per real step (numbers; * other settings too): "
+        "learning speed against CPU",
+        fontsize=10,
+    )
     fig.tight_layout(rect=(0, 0.07, 1, 1))
     fig.savefig(path, dpi=120)
 
@@ -177,6 +228,7 @@ def plot_tradeoff(all_rows, path: pathlib.Path) -> None:
 def plot_curves(all_rows, path: pathlib.Path) -> None:
     """Mean greedy return per learner, one line per setting."""
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
@@ -186,9 +238,8 @@ def plot_curves(all_rows, path: pathlib.Path) -> None:
         for r in (r for r in all_rows if r["learner"] == learner):
             minutes = np.asarray(r["greedy_trials"]) * r["trial_seconds"] / 60
             style = "-" if r["kind"] == "planning" else "--" if r["kind"] == "replay" else "k-"
-            ax.plot(minutes, r["greedy_mean"], style, linewidth=1,
-                    label=r["setting"])
-        for fraction, level in next(r["levels"] for r in all_rows if "levels" in r).items():
+            ax.plot(minutes, r["greedy_mean"], style, linewidth=1, label=r["setting"])
+        for level in next(r["levels"] for r in all_rows if "levels" in r).values():
             ax.axhline(level, color="grey", linewidth=0.8, linestyle=":")
         ax.set_title(display_name(learner))
         ax.set_xlabel("simulated time [min]")
@@ -205,9 +256,12 @@ def main() -> None:
     parser.add_argument("paths", nargs="+", help="sweep or run directories")
     parser.add_argument("--plot", type=pathlib.Path, help="the trade-off figure")
     parser.add_argument("--curves", type=pathlib.Path, help="the mean greedy curves")
-    parser.add_argument("--experiments", type=int,
-                        help="only each run's first N experiments (to compare runs of different sizes "
-                             "on the same seeds)")
+    parser.add_argument(
+        "--experiments",
+        type=int,
+        help="only each run's first N experiments (to compare runs of different sizes "
+        "on the same seeds)",
+    )
     args = parser.parse_args()
     all_rows = list(rows(args.paths, args.experiments))
     print(table(all_rows))

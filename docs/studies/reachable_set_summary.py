@@ -9,8 +9,12 @@ import pathlib
 
 import numpy as np
 
-from rmac_mj.evaluation.metrics import (compare_final_returns, confidence_interval, final_returns,
-                                         minutes_to_within)
+from rmac_mj.evaluation.metrics import (
+    compare_final_returns,
+    confidence_interval,
+    final_returns,
+    minutes_to_within,
+)
 from rmac_mj.evaluation.report import describe_test
 from rmac_mj.results.store import ResultStore
 
@@ -26,14 +30,20 @@ def plot(root: str, rules: list[str], path: str) -> None:
     """Mean learning curve (10-trial running mean) and mean greedy return per rule
     (goal_report's figure)."""
     from goal_report import plot as plot_curves
-    plot_curves([(rule, *load(pathlib.Path(root) / rule)[:2], TRIAL_SECONDS) for rule in rules], path,
-                bands=False)
+
+    plot_curves(
+        [(rule, *load(pathlib.Path(root) / rule)[:2], TRIAL_SECONDS) for rule in rules],
+        path,
+        bands=False,
+    )
 
 
 def main(root: str, rules: list[str]) -> None:
     finals = {}
-    print("| rule | exp. | last 50, mean [95% CI] | greedy at 600, mean [95% CI] | greedy, last 5 evaluations "
-          "| min to 90% | first 5 min (trials 1-100) | stuck | wall s / exp. |")
+    print(
+        "| rule | exp. | last 50, mean [95% CI] | greedy at 600, mean [95% CI] | greedy, last 5 evaluations "
+        "| min to 90% | first 5 min (trials 1-100) | stuck | wall s / exp. |"
+    )
     print("|---|---|---|---|---|---|---|---|---|")
     for rule in rules:
         returns, greedy, wall = load(pathlib.Path(root) / rule)
@@ -42,15 +52,18 @@ def main(root: str, rules: list[str]) -> None:
         m, lo, hi = confidence_interval(final)
         gm, glo, ghi = confidence_interval(greedy[:, -1])
         minutes = minutes_to_within(returns.mean(axis=0), trial_seconds=TRIAL_SECONDS)
-        print(f"| {rule} | {len(returns)} | {m:.0f} [{lo:.0f}, {hi:.0f}] | {gm:.0f} [{glo:.0f}, "
-              f"{ghi:.0f}] | {greedy[:, -5:].mean():.0f} | {minutes:.1f} | {returns[:, :100].mean():.0f} | "
-              f"{int(np.sum(final < STUCK_BELOW))}/{len(returns)} | {wall.mean():.0f} |")
+        print(
+            f"| {rule} | {len(returns)} | {m:.0f} [{lo:.0f}, {hi:.0f}] | {gm:.0f} [{glo:.0f}, "
+            f"{ghi:.0f}] | {greedy[:, -5:].mean():.0f} | {minutes:.1f} | {returns[:, :100].mean():.0f} | "
+            f"{int(np.sum(final < STUCK_BELOW))}/{len(returns)} | {wall.mean():.0f} |"
+        )
     for test in compare_final_returns(finals):
         print("-", describe_test(test))
 
 
 if __name__ == "__main__":
     import argparse
+
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("root", help="the directory holding one reproduce directory per rule")
     parser.add_argument("rules", nargs="*", default=["vertices", "vertices_value", "grid", "exact"])

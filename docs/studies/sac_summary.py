@@ -19,9 +19,9 @@ import json
 import pathlib
 import sys
 
+import goal_report
 import numpy as np
 
-import goal_report
 from rmac_mj.evaluation.metrics import confidence_interval
 
 
@@ -39,19 +39,25 @@ def paired(a: np.ndarray, b: np.ndarray) -> str:
     if not np.any(a - b):
         return "0 (identical)"
     mean, half, p = goal_report.paired_difference(a, b)
-    return f"{mean:+.0f} ± {half:.0f} (p {p:.3f})" if p >= 0.001 else \
-        f"{mean:+.0f} ± {half:.0f} (p < 0.001)"
+    return (
+        f"{mean:+.0f} ± {half:.0f} (p {p:.3f})"
+        if p >= 0.001
+        else f"{mean:+.0f} ± {half:.0f} (p < 0.001)"
+    )
 
 
 def plot(root: pathlib.Path, index: dict, path: str) -> None:
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
     lines: dict = {}
     for c in index["configurations"]:
         v = c["values"]
         lines.setdefault((v["s-ac.alpha_c"], v["s-ac.lam"]), []).append(
-            (v["s-ac.alpha_a"], metrics(root / c["directory"])))
+            (v["s-ac.alpha_a"], metrics(root / c["directory"]))
+        )
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
     for (critic, lam), points in sorted(lines.items()):
         points.sort(key=lambda p: p[0])
@@ -60,10 +66,23 @@ def plot(root: pathlib.Path, index: dict, path: str) -> None:
         for ax, key in zip(axes, ("first_5min", "greedy_last5")):
             mean, low, high = np.array([confidence_interval(p[1][key]) for p in points]).T
             shift = x * (1 + 0.04 * (critic / 0.1 - 1))  # spread the error bars a little
-            ax.errorbar(shift, mean, yerr=[mean - low, high - mean], fmt="o" + style, ms=3, lw=1,
-                        capsize=2, label=f"alpha_c {critic}, lambda {lam}")
-    for ax, title in zip(axes, ("mean return, first 5 simulated minutes",
-                                "greedy return, mean of the last 5 greedy trials")):
+            ax.errorbar(
+                shift,
+                mean,
+                yerr=[mean - low, high - mean],
+                fmt="o" + style,
+                ms=3,
+                lw=1,
+                capsize=2,
+                label=f"alpha_c {critic}, lambda {lam}",
+            )
+    for ax, title in zip(
+        axes,
+        (
+            "mean return, first 5 simulated minutes",
+            "greedy return, mean of the last 5 greedy trials",
+        ),
+    ):
         ax.set_xscale("log")
         ax.minorticks_off()
         ax.set_xticks([0.0025, 0.005, 0.01, 0.02], ["0.0025", "0.005\n(paper)", "0.01", "0.02"])
@@ -82,11 +101,11 @@ def main(arguments: list[str]) -> None:
     if "--plot" in arguments:
         at = arguments.index("--plot")
         out = arguments[at + 1]
-        del arguments[at:at + 2]
+        del arguments[at : at + 2]
     if "--sort" in arguments:
         at = arguments.index("--sort")
         sort = arguments[at + 1]
-        del arguments[at:at + 2]
+        del arguments[at : at + 2]
     root, baseline = pathlib.Path(arguments[0]), pathlib.Path(arguments[1])
     index = json.loads((root / "sweep.json").read_text())
     names = [c["directory"] for c in index["configurations"]]
@@ -94,15 +113,19 @@ def main(arguments: list[str]) -> None:
     rows = [(name, metrics(root / name)) for name in names]
     if sort:
         rows.sort(key=lambda row: -row[1][sort].mean())
-    print("| configuration | greedy at 600 | greedy, last 5 | exploring, last 50 | first 5 min "
-          "| min to 90% | stuck | paired greedy, last 5 | paired exploring | paired first 5 min |")
+    print(
+        "| configuration | greedy at 600 | greedy, last 5 | exploring, last 50 | first 5 min "
+        "| min to 90% | stuck | paired greedy, last 5 | paired exploring | paired first 5 min |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|")
     for name, m in rows:
-        print(f"| {name} | {ci(m['greedy'])} | {ci(m['greedy_last5'])} | {ci(m['exploring'])} "
-              f"| {ci(m['first_5min'])} | {m['minutes_to_90pct']:.1f} | {m['stuck']}/{m['n']} "
-              f"| {paired(m['greedy_last5'], base['greedy_last5'])} "
-              f"| {paired(m['exploring'], base['exploring'])} "
-              f"| {paired(m['first_5min'], base['first_5min'])} |")
+        print(
+            f"| {name} | {ci(m['greedy'])} | {ci(m['greedy_last5'])} | {ci(m['exploring'])} "
+            f"| {ci(m['first_5min'])} | {m['minutes_to_90pct']:.1f} | {m['stuck']}/{m['n']} "
+            f"| {paired(m['greedy_last5'], base['greedy_last5'])} "
+            f"| {paired(m['exploring'], base['exploring'])} "
+            f"| {paired(m['first_5min'], base['first_5min'])} |"
+        )
     if out:
         plot(root, index, out)
 

@@ -27,9 +27,9 @@ import numpy as np
 from rmac_mj import constraints
 from rmac_mj.agents.base import Agent
 from rmac_mj.agents.exploration import Exploration, model_uncertainty
-from rmac_mj.agents.seeding import PRIOR_PARTS, check_transitions, discounted_returns, seed_memory
 from rmac_mj.agents.random_state import generator_state_array, set_generator_state
 from rmac_mj.agents.scripted import PolicyAgent
+from rmac_mj.agents.seeding import PRIOR_PARTS, check_transitions, discounted_returns, seed_memory
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
 
 #: Algorithm key -> (module, agent class, config class). Imported lazily: numba kernels compile on use.
@@ -49,8 +49,11 @@ _REGISTRY = {
 ALGORITHMS = tuple(_REGISTRY)
 
 #: Names users may type for a learner that has another key ("sac": in RL, Soft Actor-Critic).
-_DID_YOU_MEAN = {"sac": "s-ac (the paper's standard actor-critic) or sb3-sac (Soft Actor-Critic)",
-                 "sb3": "sb3-sac, sb3-td3 or sb3-ppo", "standard-ac": "s-ac"}
+_DID_YOU_MEAN = {
+    "sac": "s-ac (the paper's standard actor-critic) or sb3-sac (Soft Actor-Critic)",
+    "sb3": "sb3-sac, sb3-td3 or sb3-ppo",
+    "standard-ac": "s-ac",
+}
 
 
 def unknown_algorithm(name: str, what: str = "unknown algorithm") -> ValueError:
@@ -109,15 +112,21 @@ def config_from_dict(cls: type, values: dict[str, Any], stored: bool = False):
     return cls(**kwargs)
 
 
-def memory_estimate(name: str, state_space: StateSpace, action_space: ActionSpace,
-                    config: Any = None) -> int:
+def memory_estimate(
+    name: str, state_space: StateSpace, action_space: ActionSpace, config: Any = None
+) -> int:
     """Bytes of RAM the learner ``name`` needs with ``config`` on these spaces, computed without
     building it (:meth:`Agent.memory_estimate`)."""
     return _lookup(name)[0].memory_estimate(config, state_space, action_space)
 
 
-def make_agent(name: str, state_space: StateSpace, action_space: ActionSpace,
-               config: Any = None, seed: int | np.random.Generator | None = None) -> Agent:
+def make_agent(
+    name: str,
+    state_space: StateSpace,
+    action_space: ActionSpace,
+    config: Any = None,
+    seed: int | np.random.Generator | None = None,
+) -> Agent:
     """Build the learner ``name`` (one of :data:`ALGORITHMS`: ``"rmac"``, ``"s-ac"``, ``"mlac"``).
 
     ``config`` is its config dataclass, a dict of overrides of the paper's defaults, or None.
@@ -128,13 +137,32 @@ def make_agent(name: str, state_space: StateSpace, action_space: ActionSpace,
     elif isinstance(config, dict):
         config = config_from_dict(config_cls, config)
     elif not isinstance(config, config_cls):
-        raise TypeError(f"config for {name!r} must be a {config_cls.__name__} or dict, "
-                        f"got {type(config).__name__}")
+        raise TypeError(
+            f"config for {name!r} must be a {config_cls.__name__} or dict, "
+            f"got {type(config).__name__}"
+        )
     return agent_cls(state_space, action_space, config=config, seed=seed)
 
 
-__all__ = ["ALGORITHMS", "PRIOR_PARTS", "ActionSpace", "Agent", "Exploration", "PolicyAgent",
-           "StateSpace", "agent_class", "check_transitions", "config_class", "config_from_dict",
-           "discounted_returns", "display_name", "generator_state_array", "make_agent",
-           "memory_estimate", "model_uncertainty", "seed_memory", "set_generator_state",
-           "unknown_algorithm"]
+__all__ = [
+    "ALGORITHMS",
+    "PRIOR_PARTS",
+    "ActionSpace",
+    "Agent",
+    "Exploration",
+    "PolicyAgent",
+    "StateSpace",
+    "agent_class",
+    "check_transitions",
+    "config_class",
+    "config_from_dict",
+    "discounted_returns",
+    "display_name",
+    "generator_state_array",
+    "make_agent",
+    "memory_estimate",
+    "model_uncertainty",
+    "seed_memory",
+    "set_generator_state",
+    "unknown_algorithm",
+]

@@ -50,19 +50,42 @@ from numba.experimental import structref
 
 from rmac_mj.agents.critic import CRITIC_STATE_TYPE, td_update, value_fit
 from rmac_mj.agents.rmac_config import REACHABLE_RULES
-from rmac_mj.approximators.llr import (LLR_STATE_TYPE, llr_canonical, llr_fit_at, llr_insert_among,
-                                       llr_local_fit, llr_move_outputs, llr_nearest, llr_query,
-                                       wrap_scalar)
+from rmac_mj.approximators.llr import (
+    LLR_STATE_TYPE,
+    llr_canonical,
+    llr_fit_at,
+    llr_insert_among,
+    llr_local_fit,
+    llr_move_outputs,
+    llr_nearest,
+    llr_query,
+    wrap_scalar,
+)
 
 _RULE_VERTICES = REACHABLE_RULES.index("vertices")
 _RULE_EXACT = REACHABLE_RULES.index("exact")
-_INV_PHI = (5.0 ** 0.5 - 1.0) / 2.0
+_INV_PHI = (5.0**0.5 - 1.0) / 2.0
 
 #: The settings of a compiled RMAC step (fields: see the module docstring).
-RMACSettings = collections.namedtuple("RMACSettings", [
-    "gamma", "alpha_r", "beta_u_zero", "inverse_previous", "gradient_at_next", "rule",
-    "action_cost", "vertices", "candidates", "refine_steps", "insert_rate", "period", "low",
-    "high"])
+RMACSettings = collections.namedtuple(
+    "RMACSettings",
+    [
+        "gamma",
+        "alpha_r",
+        "beta_u_zero",
+        "inverse_previous",
+        "gradient_at_next",
+        "rule",
+        "action_cost",
+        "vertices",
+        "candidates",
+        "refine_steps",
+        "insert_rate",
+        "period",
+        "low",
+        "high",
+    ],
+)
 
 
 @structref.register
@@ -82,14 +105,30 @@ structref.define_boxing(RMACStateType, RMACState)
 
 _VECTOR = types.float64[::1]
 _MATRIX = types.float64[:, ::1]
-RMAC_STATE_TYPE = RMACStateType([
-    ("process", LLR_STATE_TYPE), ("reference", LLR_STATE_TYPE), ("critic", CRITIC_STATE_TYPE),
-    ("x_prev", _VECTOR), ("u_prev", _VECTOR), ("v_prev", _VECTOR),
-    ("gamma", types.float64), ("alpha_r", types.float64), ("beta_u_zero", types.float64),
-    ("inverse_previous", types.boolean), ("gradient_at_next", types.boolean), ("rule", types.int64),
-    ("action_cost", _VECTOR), ("vertices", _MATRIX), ("candidates", _MATRIX),
-    ("refine_steps", types.int64), ("insert_rate", types.float64), ("period", _VECTOR),
-    ("low", _VECTOR), ("high", _VECTOR)])
+RMAC_STATE_TYPE = RMACStateType(
+    [
+        ("process", LLR_STATE_TYPE),
+        ("reference", LLR_STATE_TYPE),
+        ("critic", CRITIC_STATE_TYPE),
+        ("x_prev", _VECTOR),
+        ("u_prev", _VECTOR),
+        ("v_prev", _VECTOR),
+        ("gamma", types.float64),
+        ("alpha_r", types.float64),
+        ("beta_u_zero", types.float64),
+        ("inverse_previous", types.boolean),
+        ("gradient_at_next", types.boolean),
+        ("rule", types.int64),
+        ("action_cost", _VECTOR),
+        ("vertices", _MATRIX),
+        ("candidates", _MATRIX),
+        ("refine_steps", types.int64),
+        ("insert_rate", types.float64),
+        ("period", _VECTOR),
+        ("low", _VECTOR),
+        ("high", _VECTOR),
+    ]
+)
 
 
 @njit(cache=True)
@@ -138,12 +177,13 @@ def _canonical(x, period):
 def _joined(x, u):
     """[x, u], a new array."""
     z = np.empty(x.shape[0] + u.shape[0])
-    z[:x.shape[0]] = x
-    z[x.shape[0]:] = u
+    z[: x.shape[0]] = x
+    z[x.shape[0] :] = u
     return z
 
 
 # -- the policy: u = f^-1(x, R(x)) -------------------------------------------------------------------
+
 
 @njit(cache=True)
 def inverse(s, x, x_desired, u_query):
@@ -155,7 +195,7 @@ def inverse(s, x, x_desired, u_query):
     beta = np.empty((n, n + m + 1))
     pred = np.empty(n)
     llr_query(P, _joined(x, u_query), idx, beta, pred)
-    beta_u = np.ascontiguousarray(beta[:, n:n + m])
+    beta_u = np.ascontiguousarray(beta[:, n : n + m])
     u = np.zeros(m)
     if np.abs(beta_u).max() <= s.beta_u_zero * max(1.0, np.abs(beta[:, :n]).max()):
         return u
@@ -186,6 +226,7 @@ def act(s, x):
 
 
 # -- line 16: the best reachable state ----------------------------------------------------------------
+
 
 @njit(cache=True)
 def _reachable_score(s, u, u_model, model, x_next):
@@ -248,7 +289,7 @@ def _best_scored(s, u_model, model):
                 xd[:] = xc
                 uc[0] = b - _INV_PHI * (b - a)
                 fc = _reachable_score(s, uc, u_model, model, xc)
-            else:         # in [c, b]
+            else:  # in [c, b]
                 a = uc[0]
                 uc[0] = ud[0]
                 fc = fd
@@ -311,6 +352,7 @@ def best_reachable(s, x, u, x_next, model, value):
 
 # -- lines 17-20: the reference model -------------------------------------------------------------------
 
+
 @njit(cache=True)
 def update_reference(s, x, x_r):
     """Lines 17-20: insert [x | x_r] in M^R (or R(x) moved towards x_r: ``insert_rate``), then move
@@ -327,12 +369,14 @@ def update_reference(s, x, x_r):
         inserted = np.empty(n)
         for j in range(n):
             inserted[j] = wrap_scalar(
-                r_x[j] + s.insert_rate * wrap_scalar(x_r[j] - r_x[j], period[j]), period[j])
+                r_x[j] + s.insert_rate * wrap_scalar(x_r[j] - r_x[j], period[j]), period[j]
+            )
     llr_insert_among(R, x, inserted, near, nk)  # line 17
     llr_move_outputs(R, near, nk, x_r, s.alpha_r)  # lines 18-20
 
 
 # -- lines 13-28: one transition ------------------------------------------------------------------------
+
 
 @njit(cache=True)
 def learn(s, x, u, reward, x_next, v, model_learns, terminal):
@@ -348,13 +392,13 @@ def learn(s, x, u, reward, x_next, v, model_learns, terminal):
     if model_learns:  # line 14: insert [x, u | x'] in M^P
         near, nk = llr_nearest(P, zq)
         llr_insert_among(P, z, x_next, near, nk)
-    model = llr_local_fit(P, zq)       # the local process model at (x, u)
+    model = llr_local_fit(P, zq)  # the local process model at (x, u)
     value = value_fit(s.critic, x_next)  # line 22: V(x') and its local model
     v_next = value.prediction[0]
     x_r = best_reachable(s, x, u, x_next, model, value)  # line 16
     if not (np.all(np.isfinite(x_r)) and np.isfinite(reward + s.critic.gamma * v_next - v)):
         return np.nan  # overflow: refused before M^R and M^C change (the caller says so)
-    update_reference(s, x, x_r)        # lines 17-20
+    update_reference(s, x, x_r)  # lines 17-20
     td_update(s.critic, x, v, reward, 0.0 if terminal else v_next)  # lines 23-28
     return v_next
 
@@ -384,5 +428,6 @@ def step(s, reward, x, du, model_learns):
 def stop(s, reward, x, model_learns, terminal):
     """The last transition of a trial (lines 13-28, no action) for a checked state x (``terminal``:
     V(x) = 0 in the TD error); returns V_K (NaN: refused, see ``learn``)."""
-    return learn(s, s.x_prev, s.u_prev, reward, _canonical(x, s.period), s.v_prev[0], model_learns,
-                 terminal)
+    return learn(
+        s, s.x_prev, s.u_prev, reward, _canonical(x, s.period), s.v_prev[0], model_learns, terminal
+    )

@@ -28,13 +28,14 @@ from __future__ import annotations
 import abc
 import dataclasses
 import math
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
 from rmac_mj.agents.planning import Rehearsal
-from rmac_mj.agents.seeding import check_transitions
 from rmac_mj.agents.random_state import generator_state_array, set_generator_state
+from rmac_mj.agents.seeding import check_transitions
 from rmac_mj.agents.spaces import STATE_LIMIT_WIDTHS, ActionSpace, StateSpace
 from rmac_mj.agents.task_knowledge import with_task_units
 
@@ -59,18 +60,27 @@ class Agent(abc.ABC):
     #: :data:`PRIOR_PARTS`; empty for a learner that takes none.
     prior_parts: tuple[str, ...] = ()
 
-    def __init__(self, state_space: StateSpace, action_space: ActionSpace, config: Any,
-                 seed: int | np.random.Generator | None = None) -> None:
+    def __init__(
+        self,
+        state_space: StateSpace,
+        action_space: ActionSpace,
+        config: Any,
+        seed: int | np.random.Generator | None = None,
+    ) -> None:
         """Check and keep the spaces and the config; ``rng`` is the agent's only randomness."""
         cls = type(self).__name__
         if not isinstance(state_space, StateSpace):
-            raise TypeError(f"{cls}: state_space must be a StateSpace, got {type(state_space).__name__}")
+            raise TypeError(
+                f"{cls}: state_space must be a StateSpace, got {type(state_space).__name__}"
+            )
         if not isinstance(action_space, ActionSpace):
-            raise TypeError(f"{cls}: action_space must be an ActionSpace, got "
-                            f"{type(action_space).__name__}")
+            raise TypeError(
+                f"{cls}: action_space must be an ActionSpace, got {type(action_space).__name__}"
+            )
         if not isinstance(config, self.config_class):
-            raise TypeError(f"{cls}: config must be a {self.config_class.__name__}, got "
-                            f"{type(config).__name__}")
+            raise TypeError(
+                f"{cls}: config must be a {self.config_class.__name__}, got {type(config).__name__}"
+            )
         self.state_space = state_space
         self.action_space = action_space
         #: The config with the fields left None set from the task (``with_task_units``).
@@ -84,7 +94,9 @@ class Agent(abc.ABC):
         self._rehearsal = Rehearsal.of(config, state_space, action_space)
 
     @classmethod
-    def memory_estimate(cls, config: Any, state_space: StateSpace, action_space: ActionSpace) -> int:
+    def memory_estimate(
+        cls, config: Any, state_space: StateSpace, action_space: ActionSpace
+    ) -> int:
         """Bytes of RAM a learner of this class needs with ``config`` (its config dataclass, a dict
         of overrides, or None for the defaults) on these spaces, computed without building it: its
         arrays (memories, weights, traces) and two copies of its state (``state_dict``, and the
@@ -95,14 +107,16 @@ class Agent(abc.ABC):
             config = cls.config_class()
         elif isinstance(config, dict):
             from rmac_mj.agents import config_from_dict
+
             config = config_from_dict(cls.config_class, config)
         config = with_task_units(config, state_space, action_space)
         arrays, state = cls._memory_parts(config, state_space, action_space)
         return int(arrays + 2 * state)
 
     @classmethod
-    def _memory_parts(cls, config: Any, state_space: StateSpace,
-                      action_space: ActionSpace) -> tuple[int, int]:
+    def _memory_parts(
+        cls, config: Any, state_space: StateSpace, action_space: ActionSpace
+    ) -> tuple[int, int]:
         """(bytes of the learner's arrays, bytes of one state dict) for :meth:`memory_estimate`."""
         raise NotImplementedError(f"{cls.name} gives no memory estimate")
 
@@ -112,8 +126,10 @@ class Agent(abc.ABC):
         v = np.array(x, dtype=float)
         if v.shape != (self._state_dim,):
             if v.size != self._state_dim:
-                raise ValueError(f"{self.name}: {name} must have shape ({self._state_dim},), got "
-                                 f"shape {np.shape(x)}")
+                raise ValueError(
+                    f"{self.name}: {name} must have shape ({self._state_dim},), got "
+                    f"shape {np.shape(x)}"
+                )
             v = v.reshape(self._state_dim)
         # Called once per control step on a few numbers: Python over a list is several times
         # cheaper than numpy on a short vector. A NaN fails every comparison, so this one check
@@ -127,7 +143,8 @@ class Agent(abc.ABC):
             raise ValueError(
                 f"{self.name}: {name}[{i}] = {values[i]:g} is beyond what a learner accepts, "
                 f"[{low[i]:g}, {high[i]:g}] ({STATE_LIMIT_WIDTHS:g} widths of the state box around "
-                f"it); a state that far out overflows the learner's arithmetic")
+                f"it); a state that far out overflows the learner's arithmetic"
+            )
         return v
 
     def _checked_reward(self, reward: Any, name: str = "reward") -> float:
@@ -135,7 +152,9 @@ class Agent(abc.ABC):
         try:
             r = float(reward)
         except (TypeError, ValueError):
-            raise ValueError(f"{self.name}: {name} must be a finite number, got {reward!r}") from None
+            raise ValueError(
+                f"{self.name}: {name} must be a finite number, got {reward!r}"
+            ) from None
         if not math.isfinite(r):
             raise ValueError(f"{self.name}: {name} must be finite, got {reward!r}")
         return r
@@ -144,8 +163,10 @@ class Agent(abc.ABC):
         """u as a new float64 vector of shape (m,); ValueError naming ``name`` if not finite or wrong."""
         v = np.array(u, dtype=float).reshape(-1)
         if v.shape != (self.action_space.dim,):
-            raise ValueError(f"{self.name}: {name} must have shape ({self.action_space.dim},), got "
-                             f"shape {np.shape(u)}")
+            raise ValueError(
+                f"{self.name}: {name} must have shape ({self.action_space.dim},), got "
+                f"shape {np.shape(u)}"
+            )
         if not np.all(np.isfinite(v)):
             raise ValueError(f"{self.name}: {name} must be finite, got {u!r}")
         return v
@@ -155,12 +176,16 @@ class Agent(abc.ABC):
         reward): refused before anything non-finite is stored."""
         if not isinstance(what, str):
             what = f"the transition with reward {what!r}"
-        return ValueError(f"{self.name}: {what} overflows the learner's arithmetic (not finite); "
-                          f"refused, nothing non-finite was stored")
+        return ValueError(
+            f"{self.name}: {what} overflows the learner's arithmetic (not finite); "
+            f"refused, nothing non-finite was stored"
+        )
 
     def _check_in_trial(self, method: str) -> None:
         if not self._in_trial:
-            raise RuntimeError(f"{self.name}: {method}() called outside a trial; call start(x0) first")
+            raise RuntimeError(
+                f"{self.name}: {method}() called outside a trial; call start(x0) first"
+            )
 
     def start(self, x0: Any) -> np.ndarray:
         """Begin a trial in state ``x0`` (shape (n,)); reset traces; return u_0 (shape (m,))."""
@@ -211,22 +236,30 @@ class Agent(abc.ABC):
             (inside the action bounds); rewards: shape (K,), r_1 ... r_K. All finite, K >= 1.
         """
         if self._in_trial:
-            raise RuntimeError(f"{self.name}: learn_from() called inside a trial; call it between "
-                               f"trials")
+            raise RuntimeError(
+                f"{self.name}: learn_from() called inside a trial; call it between trials"
+            )
         n, m = self._state_dim, self.action_space.dim
         states, actions, rewards = (np.array(a, dtype=float) for a in (states, actions, rewards))
         K = rewards.shape[0] if rewards.ndim == 1 else -1
-        for name, a, shape in (("rewards", rewards, (K,)), ("states", states, (K + 1, n)),
-                               ("actions", actions, (K, m))):
+        for name, a, shape in (
+            ("rewards", rewards, (K,)),
+            ("states", states, (K + 1, n)),
+            ("actions", actions, (K, m)),
+        ):
             if K < 1 or a.shape != shape:
-                raise ValueError(f"{self.name}: learn_from() needs states (K + 1, {n}), actions "
-                                 f"(K, {m}) and rewards (K,) with K >= 1; {name} has shape "
-                                 f"{a.shape}")
+                raise ValueError(
+                    f"{self.name}: learn_from() needs states (K + 1, {n}), actions "
+                    f"(K, {m}) and rewards (K,) with K >= 1; {name} has shape "
+                    f"{a.shape}"
+                )
             if not np.all(np.isfinite(a)):
                 raise ValueError(f"{self.name}: learn_from() {name} must be finite")
         if np.any((actions < self.action_space.low) | (actions > self.action_space.high)):
-            raise ValueError(f"{self.name}: learn_from() actions must lie inside the action bounds "
-                             f"[{self.action_space.low}, {self.action_space.high}]")
+            raise ValueError(
+                f"{self.name}: learn_from() actions must lie inside the action bounds "
+                f"[{self.action_space.low}, {self.action_space.high}]"
+            )
         self._learn_trial(states, actions, rewards)
 
     def _learn_trial(self, states: np.ndarray, actions: np.ndarray, rewards: np.ndarray) -> None:
@@ -237,8 +270,9 @@ class Agent(abc.ABC):
             self._step(float(rewards[k]), states[k + 1], actions[k + 1])
         self._stop(float(rewards[K - 1]), states[K], False)
 
-    def _replay_transition(self, x: np.ndarray, u: np.ndarray, reward: float,
-                           x_next: np.ndarray) -> None:
+    def _replay_transition(
+        self, x: np.ndarray, u: np.ndarray, reward: float, x_next: np.ndarray
+    ) -> None:
         """One recorded transition learned on its own, as a trial of one step (backward replay)."""
         self._start(x, u)
         self._stop(reward, x_next, False)
@@ -258,8 +292,9 @@ class Agent(abc.ABC):
     def rehearse_stop(self, reward: float, x: np.ndarray, terminal: bool) -> None:
         self._stop(reward, x, terminal)
 
-    def replay_transition(self, x: np.ndarray, u: np.ndarray, reward: float,
-                          x_next: np.ndarray) -> None:
+    def replay_transition(
+        self, x: np.ndarray, u: np.ndarray, reward: float, x_next: np.ndarray
+    ) -> None:
         self._replay_transition(x, u, reward, x_next)
 
     def replay_trial(self, states: np.ndarray, actions: np.ndarray, rewards: np.ndarray) -> None:
@@ -270,7 +305,7 @@ class Agent(abc.ABC):
         """What planning and replay keep (the learned model, the stored trials), or None without."""
         return self._rehearsal
 
-    def _set_rehearsing(self, rehearsing: bool) -> None:
+    def _set_rehearsing(self, rehearsing: bool) -> None:  # noqa: B027 (an optional hook)
         """Whether the transitions that follow are rehearsed (planning, replay) rather than real: a
         learner that learns a model of the dynamics (RMAC's and MLAC's process model) must then
         leave it unchanged, so that only real transitions enter it (``agents.planning``)."""
@@ -294,8 +329,9 @@ class Agent(abc.ABC):
         """The critic's estimate V(x)."""
         return float(self._value(self._checked_state(x)))
 
-    def learn(self, x: Any, u: Any, reward: Any, x_next: Any, v: Any = None,
-              model: bool = True) -> float:
+    def learn(
+        self, x: Any, u: Any, reward: Any, x_next: Any, v: Any = None, model: bool = True
+    ) -> float:
         """Learn one transition (x, u, r, x') as a control step does, with the running trial's traces
         and learning rates; returns V(x') (before the update). The learner's step bookkeeping
         (x_{k-1}, u_{k-1}, V_{k-1}) is left alone, so this also learns transitions the learner did
@@ -317,16 +353,24 @@ class Agent(abc.ABC):
         v = self._value(x) if v is None else self._checked_reward(v, "v")
         return float(self._learn_transition(x, u, reward, x_next, v, bool(model)))
 
-    def _learn_transition(self, x: np.ndarray, u: np.ndarray, reward: float, x_next: np.ndarray,
-                          v: float, model: bool) -> float:
+    def _learn_transition(
+        self, x: np.ndarray, u: np.ndarray, reward: float, x_next: np.ndarray, v: float, model: bool
+    ) -> float:
         """:meth:`learn` for checked arguments (learners that learn single transitions)."""
         raise NotImplementedError(f"{self.name} learns only from its own steps")
 
-    def begin_greedy_trial(self) -> None:
+    def begin_greedy_trial(self) -> None:  # noqa: B027 (an optional hook)
         """Forget what a previous greedy trial carried over (e.g. RMAC's last action); no learning."""
 
-    def seed_from(self, states: Any, actions: Any, rewards: Any, next_states: Any, trial: Any,
-                  parts: Any = None) -> None:
+    def seed_from(
+        self,
+        states: Any,
+        actions: Any,
+        rewards: Any,
+        next_states: Any,
+        trial: Any,
+        parts: Any = None,
+    ) -> None:
         """Initialise the learner from recorded transitions (prior knowledge, section 7).
 
         Transition t went from ``states[t]`` under ``actions[t]`` to ``next_states[t]`` and earned
@@ -346,18 +390,36 @@ class Agent(abc.ABC):
         if not self.prior_parts:
             raise NotImplementedError(f"{self.name} does not take prior knowledge")
         if self._in_trial:
-            raise RuntimeError(f"{self.name}: seed_from() called inside a trial; seed before start()")
+            raise RuntimeError(
+                f"{self.name}: seed_from() called inside a trial; seed before start()"
+            )
         chosen = tuple(self.prior_parts) if parts is None else tuple(parts)
         unknown = sorted(set(chosen) - set(self.prior_parts))
         if not chosen or unknown:
-            raise ValueError(f"{self.name}: parts must name some of {self.prior_parts}, got "
-                             f"{parts!r}")
-        arrays = check_transitions(states, actions, rewards, next_states, trial,
-                                   self._state_dim, self.action_space.dim, owner=self.name)
+            raise ValueError(
+                f"{self.name}: parts must name some of {self.prior_parts}, got {parts!r}"
+            )
+        arrays = check_transitions(
+            states,
+            actions,
+            rewards,
+            next_states,
+            trial,
+            self._state_dim,
+            self.action_space.dim,
+            owner=self.name,
+        )
         self._seed_from(*arrays, parts=tuple(p for p in self.prior_parts if p in chosen))
 
-    def _seed_from(self, states: np.ndarray, actions: np.ndarray, rewards: np.ndarray,
-                   next_states: np.ndarray, trial: np.ndarray, parts: tuple[str, ...]) -> None:
+    def _seed_from(
+        self,
+        states: np.ndarray,
+        actions: np.ndarray,
+        rewards: np.ndarray,
+        next_states: np.ndarray,
+        trial: np.ndarray,
+        parts: tuple[str, ...],
+    ) -> None:
         """Put the checked transitions into the ``parts`` they seed (learners with prior_parts)."""
         raise NotImplementedError(f"{self.name} does not take prior knowledge")
 
@@ -398,7 +460,9 @@ class Agent(abc.ABC):
         state = self._state()
         for key in ("rng", "in_trial", "trials"):
             if key in state:
-                raise KeyError(f"{type(self).__name__}._state() must not use the reserved key {key!r}")
+                raise KeyError(
+                    f"{type(self).__name__}._state() must not use the reserved key {key!r}"
+                )
         if self._rehearsal is not None:
             state.update(self._rehearsal.state_dict("rehearsal."))
         state["rng"] = generator_state_array(self.rng)
@@ -415,27 +479,41 @@ class Agent(abc.ABC):
         own rules (``_check_state``: counts and indices in range). ValueError names what is wrong.
         """
         if not isinstance(state, Mapping):
-            raise TypeError(f"{self.name}: a state dict must be a mapping of names to arrays, got "
-                            f"{type(state).__name__}")
+            raise TypeError(
+                f"{self.name}: a state dict must be a mapping of names to arrays, got "
+                f"{type(state).__name__}"
+            )
         own = self.state_dict()
         missing = sorted(k for k in own if k not in state and not self._may_lack(k))
         foreign = sorted(k for k in state if k not in own and not self._may_lack(k))
         if missing or foreign:
-            parts = [f"lacks {_listed(missing)}"] * bool(missing) + \
-                [f"has {_listed(foreign)}, which {self.name} does not"] * bool(foreign)
+            parts = [f"lacks {_listed(missing)}"] * bool(missing) + [
+                f"has {_listed(foreign)}, which {self.name} does not"
+            ] * bool(foreign)
             hint = " (a state dict of another learner?)" if missing and foreign else ""
             raise ValueError(f"{self.name}: the state dict {' and '.join(parts)}{hint}")
-        arrays = {key: self._checked_entry(key, value, own.get(key)) for key, value in state.items()}
+        arrays = {
+            key: self._checked_entry(key, value, own.get(key)) for key, value in state.items()
+        }
         # Snapshots written before the trial counter existed lack ``trials``; they load unless the
         # agent's exploration decays, which would then start again from the first trial's noise.
         if "trials" not in arrays and self._uses_trial_counter:
-            raise ValueError(f"{self.name}: the state dict lacks 'trials', which a decaying "
-                             f"exploration or learning rate needs")
+            raise ValueError(
+                f"{self.name}: the state dict lacks 'trials', which a decaying "
+                f"exploration or learning rate needs"
+            )
         if "trials" in arrays and int(arrays["trials"]) < 0:
-            raise ValueError(f"{self.name}: state 'trials' must be >= 0, got {int(arrays['trials'])}")
+            raise ValueError(
+                f"{self.name}: state 'trials' must be >= 0, got {int(arrays['trials'])}"
+            )
         self._check_state(arrays)
-        self._load_state({k: v for k, v in arrays.items()
-                          if k not in ("rng", "in_trial", "trials") and not k.startswith("rehearsal.")})
+        self._load_state(
+            {
+                k: v
+                for k, v in arrays.items()
+                if k not in ("rng", "in_trial", "trials") and not k.startswith("rehearsal.")
+            }
+        )
         if self._rehearsal is not None:
             self._rehearsal.load_state_dict(arrays, "rehearsal.")
         set_generator_state(self.rng, arrays["rng"])
@@ -451,14 +529,19 @@ class Agent(abc.ABC):
         expected = kinds.get(own.dtype.kind, own.dtype.kind) if own is not None else "fiub"
         if array.dtype.kind not in expected or (key == "rng" and array.dtype != np.uint64):
             want = own.dtype if own is not None else "numbers"
-            raise ValueError(f"{self.name}: state {key!r} must hold {want}, got dtype {array.dtype}")
+            raise ValueError(
+                f"{self.name}: state {key!r} must hold {want}, got dtype {array.dtype}"
+            )
         if own is not None and array.shape != own.shape and not self._shape_varies(key):
-            raise ValueError(f"{self.name}: state {key!r} must have shape {own.shape}, got "
-                             f"{array.shape}")
+            raise ValueError(
+                f"{self.name}: state {key!r} must have shape {own.shape}, got {array.shape}"
+            )
         if array.dtype.kind == "f" and not np.all(np.isfinite(array)):
-            raise ValueError(f"{self.name}: state {key!r} must be finite; "
-                             f"{int(np.size(array) - np.count_nonzero(np.isfinite(array)))} of "
-                             f"{np.size(array)} entries are not")
+            raise ValueError(
+                f"{self.name}: state {key!r} must be finite; "
+                f"{int(np.size(array) - np.count_nonzero(np.isfinite(array)))} of "
+                f"{np.size(array)} entries are not"
+            )
         return array
 
     def _may_lack(self, key: str) -> bool:
@@ -471,7 +554,7 @@ class Agent(abc.ABC):
         planning's or replay's stored transitions)."""
         return key.startswith("rehearsal.")
 
-    def _check_state(self, state: dict[str, np.ndarray]) -> None:
+    def _check_state(self, state: dict[str, np.ndarray]) -> None:  # noqa: B027 (an optional hook)
         """The learner's own rules on a state dict to restore (counts and indices in range), checked
         before anything changes; ValueError naming the entry."""
 

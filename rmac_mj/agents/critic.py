@@ -24,8 +24,16 @@ import numpy as np
 from numba import njit, types
 from numba.experimental import structref
 
-from rmac_mj.approximators.llr import (LLR_STATE_TYPE, LLRMemory, llr_add_weighted, llr_canonical,
-                                       llr_insert_among, llr_local_fit, llr_nearest, llr_size)
+from rmac_mj.approximators.llr import (
+    LLR_STATE_TYPE,
+    LLRMemory,
+    llr_add_weighted,
+    llr_canonical,
+    llr_insert_among,
+    llr_local_fit,
+    llr_nearest,
+    llr_size,
+)
 
 #: The TD settings of a critic: discount gamma, trace decay lambda, learning rate alpha_c.
 CriticSettings = collections.namedtuple("CriticSettings", ["gamma", "lam", "alpha"])
@@ -46,9 +54,15 @@ class CriticState(structref.StructRefProxy):
 
 structref.define_boxing(CriticStateType, CriticState)
 
-CRITIC_STATE_TYPE = CriticStateType([
-    ("memory", LLR_STATE_TYPE), ("traces", types.float64[::1]), ("gamma", types.float64),
-    ("lam", types.float64), ("alpha", types.float64)])
+CRITIC_STATE_TYPE = CriticStateType(
+    [
+        ("memory", LLR_STATE_TYPE),
+        ("traces", types.float64[::1]),
+        ("gamma", types.float64),
+        ("lam", types.float64),
+        ("alpha", types.float64),
+    ]
+)
 
 
 @njit(cache=True)
@@ -87,7 +101,7 @@ def td_update(critic, x, v, reward, v_next):
     ``v_next``: insert [x | v], then the TD(lambda) step on every sample. Returns delta; a delta
     that is not finite (arithmetic overflow) is returned without anything stored."""
     memory, traces = critic.memory, critic.traces
-    delta = reward + critic.gamma * v_next - v           # line 24
+    delta = reward + critic.gamma * v_next - v  # line 24
     if not np.isfinite(delta):
         return delta  # refused: nothing is stored (the caller says so)
     near, nk = llr_nearest(memory, x)
@@ -97,13 +111,13 @@ def td_update(critic, x, v, reward, v_next):
     slot = llr_insert_among(memory, x, v_in, near, nk)  # line 23
     decay = critic.lam * critic.gamma
     for i in range(llr_size(memory)):
-        traces[i] *= decay                               # line 26
+        traces[i] *= decay  # line 26
     for a in range(nk):
         traces[near[a]] = 1.0
     traces[slot] = 1.0
     step = np.empty(1)
     step[0] = critic.alpha * delta
-    llr_add_weighted(memory, traces, step)               # line 27
+    llr_add_weighted(memory, traces, step)  # line 27
     return delta
 
 
@@ -130,8 +144,10 @@ class LLRCritic:
 
     def __init__(self, memory: LLRMemory, gamma: float, lam: float, alpha: float) -> None:
         if memory.output_dim != 1:
-            raise ValueError(f"LLRCritic: the memory must hold values (output_dim 1), got "
-                             f"output_dim={memory.output_dim}")
+            raise ValueError(
+                f"LLRCritic: the memory must hold values (output_dim 1), got "
+                f"output_dim={memory.output_dim}"
+            )
         self.memory = memory
         self.gamma, self.lam, self._alpha = float(gamma), float(lam), float(alpha)
         self.traces = np.zeros(memory.capacity)
@@ -140,8 +156,11 @@ class LLRCritic:
     def _new_kernel_state(self) -> CriticState | None:
         if self.memory.backend != "numba":
             return None
-        return new_critic(self.memory.kernel_state, self.traces,
-                          CriticSettings(gamma=self.gamma, lam=self.lam, alpha=self._alpha))
+        return new_critic(
+            self.memory.kernel_state,
+            self.traces,
+            CriticSettings(gamma=self.gamma, lam=self.lam, alpha=self._alpha),
+        )
 
     def __getstate__(self) -> dict:
         # The structref is a view of the arrays pickled here; it is made anew when unpickled.
@@ -170,8 +189,9 @@ class LLRCritic:
         """V(x), the memory's LLR estimate (0 on an empty memory, line 2)."""
         return float(self.memory.query(x)[0][0])
 
-    def update(self, x: np.ndarray, v: float, reward: float,
-               x_next: np.ndarray) -> tuple[float, float]:
+    def update(
+        self, x: np.ndarray, v: float, reward: float, x_next: np.ndarray
+    ) -> tuple[float, float]:
         """Lines 22-27 for the transition from the canonical x, with V(x) = ``v``, to the canonical
         x_next with reward ``reward``; returns V(x_next), computed before the update (line 22), and
         delta (not finite: the update was refused, nothing stored)."""
@@ -186,13 +206,13 @@ class LLRCritic:
         values overflow) is returned with nothing stored."""
         if self.kernel_state is not None:
             return float(td_update(self.kernel_state, x, v, reward, v_next))
-        delta = reward + self.gamma * v_next - v                                  # line 24
+        delta = reward + self.gamma * v_next - v  # line 24
         if not math.isfinite(delta):
             return delta
         near = self.memory.neighbours(x)
         slot = self.memory.insert(x, [v], int(near[0]) if len(near) else None)  # line 23
-        self.traces *= self.lam * self.gamma                                      # line 26
+        self.traces *= self.lam * self.gamma  # line 26
         self.traces[near] = 1.0
         self.traces[slot] = 1.0
-        self.memory.add_weighted(self.traces, [self._alpha * delta])              # line 27
+        self.memory.add_weighted(self.traces, [self._alpha * delta])  # line 27
         return delta

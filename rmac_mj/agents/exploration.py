@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 from numbers import Integral, Real
-from typing import Any, Callable, ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -87,11 +88,19 @@ class Exploration:
     def __post_init__(self) -> None:
         check_config(self)
         if self.decay == "exponential" and self.decay_rate == 1:
-            raise invalid("Exploration", "decay_rate", self.decay_rate,
-                          "below 1 with decay='exponential' (1 never decays; use decay='none')")
+            raise invalid(
+                "Exploration",
+                "decay_rate",
+                self.decay_rate,
+                "below 1 with decay='exponential' (1 never decays; use decay='none')",
+            )
         if self.where == "uncertain" and self.uncertainty_threshold is None:
-            raise invalid("Exploration", "uncertainty_threshold", None,
-                          "a finite number >= 0 with where='uncertain'")
+            raise invalid(
+                "Exploration",
+                "uncertainty_threshold",
+                None,
+                "a finite number >= 0 with where='uncertain'",
+            )
 
     @property
     def uses_trial(self) -> bool:
@@ -102,21 +111,31 @@ class Exploration:
         """The noise std of learning trial ``trial`` (0 for the first), see ``decay``; ``sigma``
         must be resolved against the task (``with_task_units``)."""
         if self.sigma is None:
-            raise ValueError("Exploration.sigma is None (the task's): resolve it with "
-                             "rmac_mj.agents.task_knowledge.with_task_units before sampling")
+            raise ValueError(
+                "Exploration.sigma is None (the task's): resolve it with "
+                "rmac_mj.agents.task_knowledge.with_task_units before sampling"
+            )
         if self.decay == "none" or trial <= 0:
             return self.sigma
         if self.decay == "exponential":
-            return max(self.sigma_min, self.sigma * self.decay_rate ** trial)
-        return self.sigma + (self.sigma_min - self.sigma) * min(trial, self.decay_trials) / \
-            self.decay_trials
+            return max(self.sigma_min, self.sigma * self.decay_rate**trial)
+        return (
+            self.sigma
+            + (self.sigma_min - self.sigma) * min(trial, self.decay_trials) / self.decay_trials
+        )
 
     def scheduled(self, k: int) -> bool:
         """Whether step ``k`` of a trial is one on which exploration may happen (period, phase)."""
         return k % self.period == self.phase
 
-    def sample(self, k: int, dim: int, rng: np.random.Generator, trial: int = 0,
-               uncertainty: Callable[[], float] | None = None) -> np.ndarray:
+    def sample(
+        self,
+        k: int,
+        dim: int,
+        rng: np.random.Generator,
+        trial: int = 0,
+        uncertainty: Callable[[], float] | None = None,
+    ) -> np.ndarray:
         """Delta u_k, ndarray of shape (dim,): noise on exploring steps, zeros otherwise.
 
         Args:
@@ -134,8 +153,9 @@ class Exploration:
             return np.zeros(dim)
         if self.where == "uncertain":
             if uncertainty is None:
-                raise ValueError("Exploration.sample: where='uncertain' needs the learner's "
-                                 "uncertainty")
+                raise ValueError(
+                    "Exploration.sample: where='uncertain' needs the learner's uncertainty"
+                )
             if not uncertainty() >= self.uncertainty_threshold:
                 return np.zeros(dim)
         return rng.normal(0.0, sigma, size=dim)

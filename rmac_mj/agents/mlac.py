@@ -57,7 +57,15 @@ from rmac_mj.agents.seeding import discounted_returns, seed_memory
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
 from rmac_mj.agents.task_knowledge import with_task_action_cost, with_task_weights
 from rmac_mj.approximators.llr import SHARED_CONSTRAINTS, LLRMemory, memory_constraints, wrap
-from rmac_mj.constraints import BACKEND, TD_LAMBDA, WEIGHTS, InstanceOf, Interval, Options, check_config
+from rmac_mj.constraints import (
+    BACKEND,
+    TD_LAMBDA,
+    WEIGHTS,
+    InstanceOf,
+    Interval,
+    Options,
+    check_config,
+)
 
 _MEMORIES = ("actor", "critic", "process")
 
@@ -161,15 +169,25 @@ class MLACConfig:
     #: The fields set from the task when left None: field -> (rule, value at the paper's pendulum)
     #: (``task_knowledge.with_task_units``).
     task_units: ClassVar[dict[str, tuple[str, float]]] = {
-        "gamma": ("horizon", 0.97), "lam": ("horizon", 0.65),
-        "actor_capacity": ("states", 2000), "actor_neighbours": ("states", 25),
-        "critic_capacity": ("states", 2000), "critic_neighbours": ("states", 15),
-        "process_capacity": ("transitions", 100), "process_neighbours": ("transitions", 10)}
+        "gamma": ("horizon", 0.97),
+        "lam": ("horizon", 0.65),
+        "actor_capacity": ("states", 2000),
+        "actor_neighbours": ("states", 25),
+        "critic_capacity": ("states", 2000),
+        "critic_neighbours": ("states", 15),
+        "process_capacity": ("transitions", 100),
+        "process_neighbours": ("transitions", 10),
+    }
     parameter_constraints: ClassVar[dict[str, list]] = {
         **TD_LAMBDA,
         "alpha_a": [Interval(Real, 0, 1)],
-        **{name: constraints for memory in _MEMORIES for name, constraints in
-           memory_constraints(memory, ("nearest", "oldest"), redundancy=False).items()},
+        **{
+            name: constraints
+            for memory in _MEMORIES
+            for name, constraints in memory_constraints(
+                memory, ("nearest", "oldest"), redundancy=False
+            ).items()
+        },
         "exploration": [InstanceOf(Exploration)],
         "action_cost": [Interval(Real, 0, None), WEIGHTS, None],
         "saturation_threshold": [Interval(Real, 0, 1, closed="right")],
@@ -202,33 +220,69 @@ class MLAC(Agent):
     display_name = "MLAC"
     config_class = MLACConfig
 
-    def __init__(self, state_space: StateSpace, action_space: ActionSpace,
-                 config: MLACConfig = MLACConfig(),
-                 seed: int | np.random.Generator | None = None) -> None:
+    def __init__(
+        self,
+        state_space: StateSpace,
+        action_space: ActionSpace,
+        config: MLACConfig = MLACConfig(),
+        seed: int | np.random.Generator | None = None,
+    ) -> None:
         super().__init__(state_space, action_space, config, seed)
         config = self.config  # with the task's units (Agent.__init__)
         n, m = state_space.dim, action_space.dim
         self.n, self.m = n, m
         self.period = state_space.period  # (n,), 0 for non-periodic dimensions
         config = with_task_weights("MLAC", config, state_space, action_space, ("actor", "critic"))
-        self.config = config = with_task_action_cost("MLAC", config, action_space,
-                                                     "the actor's gradient")
+        self.config = config = with_task_action_cost(
+            "MLAC", config, action_space, "the actor's gradient"
+        )
         self._action_cost = np.array(config.action_cost)  # P, shape (m,)
-        common = dict(norm=config.norm, conditioning=config.conditioning, rcond=config.rcond,
-                      ridge=config.ridge, backend=config.backend)
+        common = dict(
+            norm=config.norm,
+            conditioning=config.conditioning,
+            rcond=config.rcond,
+            ridge=config.ridge,
+            backend=config.backend,
+        )
         self.actor = LLRMemory(
-            n, m, config.actor_capacity, config.actor_neighbours, input_weights=config.actor_weights,
-            input_period=self.period, clip=config.actor_clip,
-            replacement=config.actor_replacement, **common)
-        self.critic = LLRCritic(LLRMemory(
-            n, 1, config.critic_capacity, config.critic_neighbours, input_weights=config.critic_weights,
-            input_period=self.period, clip=config.critic_clip,
-            replacement=config.critic_replacement, **common), config.gamma, config.lam, config.alpha_c)
+            n,
+            m,
+            config.actor_capacity,
+            config.actor_neighbours,
+            input_weights=config.actor_weights,
+            input_period=self.period,
+            clip=config.actor_clip,
+            replacement=config.actor_replacement,
+            **common,
+        )
+        self.critic = LLRCritic(
+            LLRMemory(
+                n,
+                1,
+                config.critic_capacity,
+                config.critic_neighbours,
+                input_weights=config.critic_weights,
+                input_period=self.period,
+                clip=config.critic_clip,
+                replacement=config.critic_replacement,
+                **common,
+            ),
+            config.gamma,
+            config.lam,
+            config.alpha_c,
+        )
         self.process = LLRMemory(
-            n + m, n, config.process_capacity, config.process_neighbours,
-            input_weights=config.process_weights, input_period=np.r_[self.period, np.zeros(m)],
-            output_period=self.period, clip=config.process_clip,
-            replacement=config.process_replacement, **common)
+            n + m,
+            n,
+            config.process_capacity,
+            config.process_neighbours,
+            input_weights=config.process_weights,
+            input_period=np.r_[self.period, np.zeros(m)],
+            output_period=self.period,
+            clip=config.process_clip,
+            replacement=config.process_replacement,
+            **common,
+        )
         #: The middle and half-width of the action box, for the saturation rule.
         self._u_mid = 0.5 * (action_space.low + action_space.high)
         self._u_half = 0.5 * (action_space.high - action_space.low)
@@ -247,16 +301,21 @@ class MLAC(Agent):
         self._learns_model = not rehearsing
 
     @classmethod
-    def _memory_parts(cls, config: MLACConfig, state_space: StateSpace,
-                      action_space: ActionSpace) -> tuple[int, int]:
+    def _memory_parts(
+        cls, config: MLACConfig, state_space: StateSpace, action_space: ActionSpace
+    ) -> tuple[int, int]:
         """The three memories and the critic's traces (see :meth:`Agent.memory_estimate`)."""
         n, m = state_space.dim, action_space.dim
-        memories = ((n, m, config.actor_capacity, config.actor_neighbours),
-                    (n, 1, config.critic_capacity, config.critic_neighbours),
-                    (n + m, n, config.process_capacity, config.process_neighbours))
+        memories = (
+            (n, m, config.actor_capacity, config.actor_neighbours),
+            (n, 1, config.critic_capacity, config.critic_neighbours),
+            (n + m, n, config.process_capacity, config.process_neighbours),
+        )
         traces = 8 * config.critic_capacity
-        return (sum(LLRMemory.memory_estimate(*memory) for memory in memories) + traces,
-                sum(LLRMemory.state_estimate(*memory[:3]) for memory in memories) + traces)
+        return (
+            sum(LLRMemory.memory_estimate(*memory) for memory in memories) + traces,
+            sum(LLRMemory.state_estimate(*memory[:3]) for memory in memories) + traces,
+        )
 
     # -- the policy -----------------------------------------------------------------------------------
     def _pi(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -277,8 +336,9 @@ class MLAC(Agent):
         of the action box: the dimensions the saturation rule applies to."""
         return np.abs(u - self._u_mid) > self.config.saturation_threshold * self._u_half
 
-    def action_gradient(self, x: np.ndarray, u_pi: np.ndarray,
-                        u_model: np.ndarray | None = None) -> np.ndarray:
+    def action_gradient(
+        self, x: np.ndarray, u_pi: np.ndarray, u_model: np.ndarray | None = None
+    ) -> np.ndarray:
         """dQ/du = gamma (dV/dx at x_hat)^T df/du + dr/du at (x, u_pi); shape (m,).
 
         x: the state (shape (n,), canonical); u_pi: the policy's action there (shape (m,)); u_model:
@@ -288,22 +348,23 @@ class MLAC(Agent):
         u_model = u_pi if u_model is None else u_model
         # The process model's local fit at (x, u_model): x_hat and beta^P = [df/dx df/du df_b].
         x_hat, beta_p, _ = self.process.query(np.concatenate([x, u_model]))
-        df_du = beta_p[:, n:n + self.m]                      # (n, m)
+        df_du = beta_p[:, n : n + self.m]  # (n, m)
         # The critic's local fit at the predicted next state: its slope is dV/dx (x_hat is wrapped
         # by the query; the slope holds for wrapped offsets).
-        dv_dx = self.critic.memory.query(x_hat)[1][0, :n]    # (n,)
-        model_term = cfg.gamma * dv_dx @ df_du               # (m,), column j is df/du_j's share
+        dv_dx = self.critic.memory.query(x_hat)[1][0, :n]  # (n,)
+        model_term = cfg.gamma * dv_dx @ df_du  # (m,), column j is df/du_j's share
         # The saturation rule: df/du_j = 0 where the policy's action is saturated ('zero'), or only
         # where the model term would push it further out ('outward').
         ignored = self.saturated(u_pi)
         if cfg.saturation_rule == "outward":
             ignored &= model_term * (u_pi - self._u_mid) > 0
         model_term[ignored] = 0.0
-        dr_du = -2.0 * self._action_cost * u_pi              # reward term -sum_i P_i u_i^2
+        dr_du = -2.0 * self._action_cost * u_pi  # reward term -sum_i P_i u_i^2
         return model_term + dr_du
 
-    def _improve_actor(self, x: np.ndarray, u: np.ndarray,
-                       policy: tuple[np.ndarray, np.ndarray] | None) -> None:
+    def _improve_actor(
+        self, x: np.ndarray, u: np.ndarray, policy: tuple[np.ndarray, np.ndarray] | None
+    ) -> None:
         """Step 3: insert [x | pi(x)], move it and K(x) along alpha_a dQ/du. ``policy``: (pi(x),
         K(x)) when known (found when u was chosen in x: the actor has not changed since), else
         None."""
@@ -347,8 +408,9 @@ class MLAC(Agent):
         when replaying)."""
         x = self.state_space.canonical(x)
         self._k += 1
-        self._v_prev = self._learn(self._x_prev, self._u_prev, reward, x, self._v_prev,
-                                   self._learns_model, self._pi_prev)
+        self._v_prev = self._learn(
+            self._x_prev, self._u_prev, reward, x, self._v_prev, self._learns_model, self._pi_prev
+        )
         u = self._act(x, u)
         self._x_prev, self._u_prev = x, u
         return u.copy()
@@ -356,18 +418,35 @@ class MLAC(Agent):
     def _stop(self, reward: float, x: np.ndarray, terminal: bool) -> None:
         """The trial's last transition is learned like any other (a time limit), or with V(x_K) = 0
         when x_K is terminal."""
-        self._learn(self._x_prev, self._u_prev, reward, self.state_space.canonical(x),
-                    self._v_prev, self._learns_model, self._pi_prev, terminal)
+        self._learn(
+            self._x_prev,
+            self._u_prev,
+            reward,
+            self.state_space.canonical(x),
+            self._v_prev,
+            self._learns_model,
+            self._pi_prev,
+            terminal,
+        )
 
-    def _learn_transition(self, x: np.ndarray, u: np.ndarray, reward: float, x_next: np.ndarray,
-                          v: float, model: bool) -> float:
+    def _learn_transition(
+        self, x: np.ndarray, u: np.ndarray, reward: float, x_next: np.ndarray, v: float, model: bool
+    ) -> float:
         """:meth:`Agent.learn`: steps 1-3 for one transition (``model=False``: without step 1)."""
         x, x_next = self.state_space.canonical(x), self.state_space.canonical(x_next)
         return self._learn(x, u, reward, x_next, v, model, None)
 
-    def _learn(self, x: np.ndarray, u: np.ndarray, reward: float, x_next: np.ndarray, v: float,
-               model: bool, policy: tuple[np.ndarray, np.ndarray] | None,
-               terminal: bool = False) -> float:
+    def _learn(
+        self,
+        x: np.ndarray,
+        u: np.ndarray,
+        reward: float,
+        x_next: np.ndarray,
+        v: float,
+        model: bool,
+        policy: tuple[np.ndarray, np.ndarray] | None,
+        terminal: bool = False,
+    ) -> float:
         """Steps 1-3 of the module docstring for canonical states; returns V(x') (0 for a
         ``terminal`` x', whose value the TD error then does not bootstrap from)."""
         if model:  # 1. The process model learns the transition.
@@ -395,8 +474,15 @@ class MLAC(Agent):
     #: What :meth:`Agent.seed_from` can initialise from recorded transitions.
     prior_parts = ("process", "critic", "actor")
 
-    def _seed_from(self, states: np.ndarray, actions: np.ndarray, rewards: np.ndarray,
-                   next_states: np.ndarray, trial: np.ndarray, parts: tuple[str, ...]) -> None:
+    def _seed_from(
+        self,
+        states: np.ndarray,
+        actions: np.ndarray,
+        rewards: np.ndarray,
+        next_states: np.ndarray,
+        trial: np.ndarray,
+        parts: tuple[str, ...],
+    ) -> None:
         """Initialise the memories from a demonstration (section 7 of the RMAC paper): the actor with
         its (x_t, u_t), the critic with its discounted returns-to-go (this agent's gamma, 0 after a
         trial's last transition), the process model with its transitions [x_t, u_t] -> x_{t+1}.
@@ -407,13 +493,18 @@ class MLAC(Agent):
         period = self.period
         x = wrap(states, period)
         x_next = wrap(next_states, period)
-        data = {"actor": (x, actions),
-                "critic": (x, discounted_returns(rewards, trial, self.config.gamma)[:, None]),
-                "process": (np.hstack([x, actions]), x_next)}
-        if "actor" in parts and np.any((actions < self.action_space.low) |
-                                       (actions > self.action_space.high)):
-            raise ValueError("MLAC.seed_from: actions must lie inside the action bounds "
-                             f"[{self.action_space.low}, {self.action_space.high}]")
+        data = {
+            "actor": (x, actions),
+            "critic": (x, discounted_returns(rewards, trial, self.config.gamma)[:, None]),
+            "process": (np.hstack([x, actions]), x_next),
+        }
+        if "actor" in parts and np.any(
+            (actions < self.action_space.low) | (actions > self.action_space.high)
+        ):
+            raise ValueError(
+                "MLAC.seed_from: actions must lie inside the action bounds "
+                f"[{self.action_space.low}, {self.action_space.high}]"
+            )
         for name in parts:
             seed_memory(self._memory(name), *data[name])
         self._pi_prev = None

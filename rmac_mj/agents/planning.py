@@ -90,14 +90,23 @@ class Planning:
     #: The fields set from the task when left None: field -> (rule, value at the paper's pendulum)
     #: (``task_knowledge.with_task_units``).
     task_units: ClassVar[dict[str, tuple[str, float]]] = {
-        "model_capacity": ("transitions", 2000), "model_neighbours": ("transitions", 9)}
+        "model_capacity": ("transitions", 2000),
+        "model_neighbours": ("transitions", 9),
+    }
 
     def __post_init__(self) -> None:
         check_config(self)
-        if (self.model_neighbours is not None and self.model_capacity is not None
-                and self.model_neighbours > self.model_capacity):
-            raise invalid("Planning", "model_neighbours", self.model_neighbours,
-                          f"an integer in [1, model_capacity={self.model_capacity}]")
+        if (
+            self.model_neighbours is not None
+            and self.model_capacity is not None
+            and self.model_neighbours > self.model_capacity
+        ):
+            raise invalid(
+                "Planning",
+                "model_neighbours",
+                self.model_neighbours,
+                f"an integer in [1, model_capacity={self.model_capacity}]",
+            )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -129,9 +138,11 @@ REHEARSAL = {"planning": [InstanceOf(Planning)], "replay": [InstanceOf(Replay)]}
 # --------------------------------------------------------------------------------------------------
 # The model planning simulates with.
 
+
 @njit(cache=True)
-def _predict(memory, z, period, low, high, clip, state_cost, action_cost, task_reward, idx, beta,
-             out, x_next):
+def _predict(
+    memory, z, period, low, high, clip, state_cost, action_cost, task_reward, idx, beta, out, x_next
+):
     """x' (into ``x_next``) and r at z = [x, u] (x canonical, u applied): the compiled
     ``TransitionModel.predict``."""
     n = x_next.shape[0]
@@ -167,8 +178,13 @@ class TransitionModel:
     Learned state: ``memory`` (:class:`LLRMemory`).
     """
 
-    def __init__(self, planning: Planning, state_space: StateSpace, action_space: ActionSpace,
-                 backend: str = "numba") -> None:
+    def __init__(
+        self,
+        planning: Planning,
+        state_space: StateSpace,
+        action_space: ActionSpace,
+        backend: str = "numba",
+    ) -> None:
         n, m = state_space.dim, action_space.dim
         self.n, self.m = n, m
         self.period = state_space.period
@@ -180,20 +196,28 @@ class TransitionModel:
             state_cost = getattr(state_space, "cost", None)
             action_cost = getattr(action_space, "cost", None)
             if state_cost is None or action_cost is None:
-                raise ValueError("Planning.reward='task' needs the task's reward as prior knowledge, "
-                                 "but this task does not declare its state and action costs "
-                                 "(learner_state.state_cost, action_cost); use reward='learned'")
+                raise ValueError(
+                    "Planning.reward='task' needs the task's reward as prior knowledge, "
+                    "but this task does not declare its state and action costs "
+                    "(learner_state.state_cost, action_cost); use reward='learned'"
+                )
             self.state_cost = np.asarray(state_cost, dtype=float)
             self.action_cost = np.asarray(action_cost, dtype=float)
         else:
             self.state_cost, self.action_cost = np.zeros(n), np.zeros(m)
         outputs = n if self.task_reward else n + 1
         self.memory = LLRMemory(
-            n + m, outputs, planning.model_capacity, planning.model_neighbours,
+            n + m,
+            outputs,
+            planning.model_capacity,
+            planning.model_neighbours,
             input_weights=np.r_[state_space.input_weights, action_space.input_weights],
             input_period=np.r_[self.period, np.zeros(m)],
-            output_period=np.r_[self.period, np.zeros(outputs - n)], conditioning="ridge",
-            clip=bool(planning.interpolate), backend=backend)
+            output_period=np.r_[self.period, np.zeros(outputs - n)],
+            conditioning="ridge",
+            clip=bool(planning.interpolate),
+            backend=backend,
+        )
         # Scratch of the compiled prediction.
         self._z = np.empty(n + m)
         self._idx = np.empty(planning.model_neighbours, dtype=np.int64)
@@ -202,8 +226,7 @@ class TransitionModel:
 
     def observe(self, x: np.ndarray, u: np.ndarray, r: float, x_next: np.ndarray) -> None:
         """Learn one real transition (x canonical, u as applied)."""
-        self.memory.insert(np.concatenate([x, u]),
-                           x_next if self.task_reward else np.r_[x_next, r])
+        self.memory.insert(np.concatenate([x, u]), x_next if self.task_reward else np.r_[x_next, r])
 
     def predict(self, x: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, float]:
         """(x', r) at the canonical state x (shape (n,)) under the applied action u (shape (m,))."""
@@ -213,9 +236,21 @@ class TransitionModel:
             z[:n] = x
             z[n:] = u
             x_next = np.empty(n)
-            r = _predict(self.memory.kernel_state, z, self.period, self.low, self.high, self.clip,
-                         self.state_cost, self.action_cost, self.task_reward, self._idx,
-                         self._beta, self._out, x_next)
+            r = _predict(
+                self.memory.kernel_state,
+                z,
+                self.period,
+                self.low,
+                self.high,
+                self.clip,
+                self.state_cost,
+                self.action_cost,
+                self.task_reward,
+                self._idx,
+                self._beta,
+                self._out,
+                x_next,
+            )
             return x_next, r
         out = self.memory.query(np.concatenate([x, u]))[0]
         x_next = wrap(out[:n], self.period)
@@ -235,6 +270,7 @@ class TransitionModel:
 # --------------------------------------------------------------------------------------------------
 # The rehearsal between real trials.
 
+
 class RehearsedLearner(Protocol):
     """What a rehearsal needs of a learner (``Agent`` implements it): its generator, a switch that
     tells it the transitions that follow are rehearsed, and its own updates, unchecked."""
@@ -253,8 +289,9 @@ class RehearsedLearner(Protocol):
     def rehearse_stop(self, reward: float, x: np.ndarray, terminal: bool) -> None:
         """The last simulated transition of a rollout."""
 
-    def replay_transition(self, x: np.ndarray, u: np.ndarray, reward: float,
-                          x_next: np.ndarray) -> None:
+    def replay_transition(
+        self, x: np.ndarray, u: np.ndarray, reward: float, x_next: np.ndarray
+    ) -> None:
         """One stored transition learned on its own (backward replay)."""
 
     def replay_trial(self, states: np.ndarray, actions: np.ndarray, rewards: np.ndarray) -> None:
@@ -272,13 +309,22 @@ class Rehearsal:
     (with replay) and the running trial's record.
     """
 
-    def __init__(self, planning: Planning, replay: Replay, state_space: StateSpace,
-                 action_space: ActionSpace, backend: str = "numba") -> None:
+    def __init__(
+        self,
+        planning: Planning,
+        replay: Replay,
+        state_space: StateSpace,
+        action_space: ActionSpace,
+        backend: str = "numba",
+    ) -> None:
         self.planning, self.replay = planning, replay
         self.n, self.m = state_space.dim, action_space.dim
         self.period = state_space.period
-        self.model = (TransitionModel(planning, state_space, action_space, backend)
-                      if planning.steps else None)
+        self.model = (
+            TransitionModel(planning, state_space, action_space, backend)
+            if planning.steps
+            else None
+        )
         # The running trial: x_0..x_K (canonical), u_0..u_{K-1} as applied, r_1..r_K.
         self._states: list[np.ndarray] = []
         self._actions: list[np.ndarray] = []
@@ -288,14 +334,15 @@ class Rehearsal:
         self._low, self._high = action_space.low, action_space.high
 
     @staticmethod
-    def of(config: Any, state_space: StateSpace, action_space: ActionSpace) -> "Rehearsal | None":
+    def of(config: Any, state_space: StateSpace, action_space: ActionSpace) -> Rehearsal | None:
         """The rehearsal a learner's config asks for, or None (no planning and no replay)."""
         planning = getattr(config, "planning", None) or Planning()
         replay = getattr(config, "replay", None) or Replay()
         if not planning.steps and not replay.steps:
             return None
-        return Rehearsal(planning, replay, state_space, action_space,
-                         getattr(config, "backend", "numba"))
+        return Rehearsal(
+            planning, replay, state_space, action_space, getattr(config, "backend", "numba")
+        )
 
     # -- the real trial --------------------------------------------------------------------------
     def begin(self, x0: np.ndarray, u0: np.ndarray) -> None:
@@ -343,10 +390,9 @@ class Rehearsal:
             K = min(len(rewards), budget)
             if self.replay.order == "backward":
                 for k in range(len(rewards) - 1, len(rewards) - 1 - K, -1):
-                    agent.replay_transition(states[k], actions[k], float(rewards[k]),
-                                             states[k + 1])
+                    agent.replay_transition(states[k], actions[k], float(rewards[k]), states[k + 1])
             else:
-                agent.replay_trial(states[:K + 1], actions[:K], rewards[:K])
+                agent.replay_trial(states[: K + 1], actions[:K], rewards[:K])
             budget -= K
 
     def _plan(self, agent: RehearsedLearner, budget: int, trial, steps: int) -> None:
@@ -360,7 +406,9 @@ class Rehearsal:
             elif planning.start == "trajectory":
                 x = states[int(agent.rng.integers(steps))]
             else:
-                x = model.memory.X_[int(agent.rng.integers(model.memory.n_samples_)), :self.n].copy()
+                x = model.memory.X_[
+                    int(agent.rng.integers(model.memory.n_samples_)), : self.n
+                ].copy()
             H = min(horizon, budget)
             u = agent.rehearse_start(x)
             for k in range(H):
@@ -382,12 +430,19 @@ class Rehearsal:
         if self.replay.steps:
             lengths = np.array([len(t[2]) for t in self.trials_], dtype=np.int64)
             state[prefix + "trial_lengths"] = lengths
-            state[prefix + "states"] = (np.concatenate([t[0] for t in self.trials_])
-                                        if self.trials_ else np.zeros((0, self.n)))
-            state[prefix + "actions"] = (np.concatenate([t[1] for t in self.trials_])
-                                         if self.trials_ else np.zeros((0, self.m)))
-            state[prefix + "rewards"] = (np.concatenate([t[2] for t in self.trials_])
-                                         if self.trials_ else np.zeros(0))
+            state[prefix + "states"] = (
+                np.concatenate([t[0] for t in self.trials_])
+                if self.trials_
+                else np.zeros((0, self.n))
+            )
+            state[prefix + "actions"] = (
+                np.concatenate([t[1] for t in self.trials_])
+                if self.trials_
+                else np.zeros((0, self.m))
+            )
+            state[prefix + "rewards"] = (
+                np.concatenate([t[2] for t in self.trials_]) if self.trials_ else np.zeros(0)
+            )
         return state
 
     def load_state_dict(self, state: dict[str, np.ndarray], prefix: str = "") -> None:
@@ -398,11 +453,15 @@ class Rehearsal:
         self._rewards = [float(r) for r in np.asarray(state[prefix + "trial.rewards"])]
         if self.replay.steps:
             lengths = np.asarray(state[prefix + "trial_lengths"], dtype=np.int64)
-            S, U, R = (np.asarray(state[prefix + key], dtype=float)
-                       for key in ("states", "actions", "rewards"))
+            S, U, R = (
+                np.asarray(state[prefix + key], dtype=float)
+                for key in ("states", "actions", "rewards")
+            )
             self.trials_ = []
             s = a = 0
             for K in lengths:
-                self.trials_.append((S[s:s + K + 1].copy(), U[a:a + K].copy(), R[a:a + K].copy()))
+                self.trials_.append(
+                    (S[s : s + K + 1].copy(), U[a : a + K].copy(), R[a : a + K].copy())
+                )
                 s += K + 1
                 a += K

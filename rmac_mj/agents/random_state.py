@@ -16,8 +16,17 @@ def generator_state_array(rng: np.random.Generator) -> np.ndarray:
     if st.get("bit_generator") != "PCG64":
         raise ValueError(f"only PCG64 generators can be saved, got {st.get('bit_generator')!r}")
     s, inc = int(st["state"]["state"]), int(st["state"]["inc"])
-    return np.array([s >> 64, s & _MASK64, inc >> 64, inc & _MASK64, int(st["has_uint32"]),
-                     int(st["uinteger"])], dtype=np.uint64)
+    return np.array(
+        [
+            s >> 64,
+            s & _MASK64,
+            inc >> 64,
+            inc & _MASK64,
+            int(st["has_uint32"]),
+            int(st["uinteger"]),
+        ],
+        dtype=np.uint64,
+    )
 
 
 def set_generator_state(rng: np.random.Generator, words: Any) -> None:
@@ -31,4 +40,6 @@ def set_generator_state(rng: np.random.Generator, words: Any) -> None:
     rng.bit_generator.state = {
         "bit_generator": "PCG64",
         "state": {"state": (hi_lo[0] << 64) | hi_lo[1], "inc": (hi_lo[2] << 64) | hi_lo[3]},
-        "has_uint32": hi_lo[4], "uinteger": hi_lo[5]}
+        "has_uint32": hi_lo[4],
+        "uinteger": hi_lo[5],
+    }

@@ -38,10 +38,14 @@ class RecommendedConfig(StandardACConfig):
     lookahead_rollouts: bool = True
 
     task_units: ClassVar[dict[str, tuple[str, float]]] = {
-        **StandardACConfig.task_units, "alpha_a": ("reward", 0.002)}
+        **StandardACConfig.task_units,
+        "alpha_a": ("reward", 0.002),
+    }
     parameter_constraints: ClassVar[dict[str, list]] = {
-        **StandardACConfig.parameter_constraints, "lookahead": [Interval(Integral, 0, None)],
-        "lookahead_rollouts": [Boolean()]}
+        **StandardACConfig.parameter_constraints,
+        "lookahead": [Interval(Integral, 0, None)],
+        "lookahead_rollouts": [Boolean()],
+    }
 
 
 class Recommended(StandardActorCritic):
@@ -55,13 +59,21 @@ class Recommended(StandardActorCritic):
         super().__init__(*args, **kwargs)
         c = self.config
         if c.lookahead and not c.planning.steps:
-            raise ValueError("recommended: config.lookahead needs the planning model "
-                             "(planning.steps > 0)")
-        grids = [np.linspace(lo, hi, c.lookahead) for lo, hi in
-                 zip(self.action_space.low, self.action_space.high)] if c.lookahead else []
+            raise ValueError(
+                "recommended: config.lookahead needs the planning model (planning.steps > 0)"
+            )
+        grids = (
+            [
+                np.linspace(lo, hi, c.lookahead)
+                for lo, hi in zip(self.action_space.low, self.action_space.high)
+            ]
+            if c.lookahead
+            else []
+        )
         #: The lookahead's fixed candidates, shape (c, m).
         self.candidates = np.array(list(itertools.product(*grids)), dtype=float).reshape(
-            -1, self.action_space.dim)
+            -1, self.action_space.dim
+        )
         self._rehearsing = False
 
     def _set_rehearsing(self, rehearsing: bool) -> None:
@@ -72,8 +84,11 @@ class Recommended(StandardActorCritic):
         model = self.rehearsal.model if self.rehearsal is not None else None
         if self._rehearsing and not self.config.lookahead_rollouts:
             return False
-        return (self.config.lookahead > 0 and model is not None
-                and model.memory.n_samples_ >= model.memory.n_neighbours)
+        return (
+            self.config.lookahead > 0
+            and model is not None
+            and model.memory.n_samples_ >= model.memory.n_neighbours
+        )
 
     def _best(self, x: np.ndarray) -> np.ndarray:
         """argmax over the candidates and pi(x) of r(x, u) + gamma V(f(x, u)) in the learned model."""

@@ -36,8 +36,8 @@ from rmac_mj.agents import _rmac_kernels
 from rmac_mj.agents.base import Agent
 from rmac_mj.agents.critic import LLRCritic, _check_traces
 from rmac_mj.agents.exploration import model_uncertainty
-from rmac_mj.agents.seeding import discounted_returns, seed_memory
 from rmac_mj.agents.rmac_config import REACHABLE_RULES, RMACConfig
+from rmac_mj.agents.seeding import discounted_returns, seed_memory
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
 from rmac_mj.agents.task_knowledge import with_task_action_cost, with_task_weights
 from rmac_mj.approximators.llr import LLRMemory, wrap
@@ -51,7 +51,7 @@ BETA_U_ZERO = 1e-9
 #: Absolute tolerance, in action units, of the golden-section refinement of reachable_rule='exact'.
 EXACT_TOLERANCE = 1e-6
 #: 1 / golden ratio, the shrink factor of one golden-section step.
-INV_PHI = (5.0 ** 0.5 - 1.0) / 2.0
+INV_PHI = (5.0**0.5 - 1.0) / 2.0
 
 
 class RMAC(Agent):
@@ -74,62 +74,124 @@ class RMAC(Agent):
     config_class = RMACConfig
     prior_parts = ("process", "reference", "critic")
 
-    def __init__(self, state_space: StateSpace, action_space: ActionSpace,
-                 config: RMACConfig = RMACConfig(),
-                 seed: int | np.random.Generator | None = None) -> None:
+    def __init__(
+        self,
+        state_space: StateSpace,
+        action_space: ActionSpace,
+        config: RMACConfig = RMACConfig(),
+        seed: int | np.random.Generator | None = None,
+    ) -> None:
         super().__init__(state_space, action_space, config, seed)
         config = self.config  # with the task's units (Agent.__init__)
         n, m = state_space.dim, action_space.dim
-        config = with_task_weights("RMAC", config, state_space, action_space,
-                                   ("critic", "reference"))
+        config = with_task_weights(
+            "RMAC", config, state_space, action_space, ("critic", "reference")
+        )
         self.config = config = with_task_action_cost(
-            "RMAC", config, action_space, None if config.reachable_rule == "vertices" else
-            f"reachable_rule={config.reachable_rule!r}")
+            "RMAC",
+            config,
+            action_space,
+            None
+            if config.reachable_rule == "vertices"
+            else f"reachable_rule={config.reachable_rule!r}",
+        )
         #: P of the reachable rules' score (zeros when the rule does not use it), shape (m,).
         self._action_cost = np.array(config.action_cost or np.zeros(action_space.dim), dtype=float)
         self.n, self.m = n, m
         if config.reachable_rule == "exact" and m != 1:
-            raise ValueError(f"RMAC: config.reachable_rule='exact' needs a one-dimensional action, "
-                             f"this task has {m}; use 'grid'")
+            raise ValueError(
+                f"RMAC: config.reachable_rule='exact' needs a one-dimensional action, "
+                f"this task has {m}; use 'grid'"
+            )
         self.period = state_space.period  # (n,), 0 for non-periodic dimensions
-        common = dict(norm=config.norm, conditioning=config.conditioning, rcond=config.rcond,
-                      ridge=config.ridge, redundancy_smoothing=config.redundancy_smoothing,
-                      backend=config.backend)
+        common = dict(
+            norm=config.norm,
+            conditioning=config.conditioning,
+            rcond=config.rcond,
+            ridge=config.ridge,
+            redundancy_smoothing=config.redundancy_smoothing,
+            backend=config.backend,
+        )
         self.process = LLRMemory(
-            n + m, n, config.process_capacity, config.process_neighbours,
-            input_weights=config.process_weights, input_period=np.r_[self.period, np.zeros(m)],
-            output_period=self.period, clip=config.process_clip,
-            replacement=config.process_replacement, redundancy=config.process_redundancy,
-            **common)
+            n + m,
+            n,
+            config.process_capacity,
+            config.process_neighbours,
+            input_weights=config.process_weights,
+            input_period=np.r_[self.period, np.zeros(m)],
+            output_period=self.period,
+            clip=config.process_clip,
+            replacement=config.process_replacement,
+            redundancy=config.process_redundancy,
+            **common,
+        )
         self.reference = LLRMemory(
-            n, n, config.reference_capacity, config.reference_neighbours,
-            input_weights=config.reference_weights, input_period=self.period,
-            output_period=self.period, clip=config.reference_clip,
-            replacement=config.reference_replacement, redundancy=config.reference_redundancy,
-            **common)
+            n,
+            n,
+            config.reference_capacity,
+            config.reference_neighbours,
+            input_weights=config.reference_weights,
+            input_period=self.period,
+            output_period=self.period,
+            clip=config.reference_clip,
+            replacement=config.reference_replacement,
+            redundancy=config.reference_redundancy,
+            **common,
+        )
         alpha_c, self._alpha_r = config.rates_at(self.trial)
-        self.critic = LLRCritic(LLRMemory(
-            n, 1, config.critic_capacity, config.critic_neighbours,
-            input_weights=config.critic_weights, input_period=self.period,
-            clip=config.critic_clip, replacement=config.critic_replacement,
-            redundancy=config.critic_redundancy, **common), config.gamma, config.lam, alpha_c)
+        self.critic = LLRCritic(
+            LLRMemory(
+                n,
+                1,
+                config.critic_capacity,
+                config.critic_neighbours,
+                input_weights=config.critic_weights,
+                input_period=self.period,
+                clip=config.critic_clip,
+                replacement=config.critic_replacement,
+                redundancy=config.critic_redundancy,
+                **common,
+            ),
+            config.gamma,
+            config.lam,
+            alpha_c,
+        )
         self._rates_trial = self.trial
         #: U_R without the state rows: the 2^m combinations of action extremes, (2^m, m), max first.
-        self.vertices = np.array(list(itertools.product(
-            *[(hi, lo) for lo, hi in zip(action_space.low, action_space.high)])), dtype=float)
+        self.vertices = np.array(
+            list(
+                itertools.product(
+                    *[(hi, lo) for lo, hi in zip(action_space.low, action_space.high)]
+                )
+            ),
+            dtype=float,
+        )
         #: The candidate actions of the reachable rule, (c, m): the vertices, or for 'grid' and
         #: 'exact' the product of ``reachable_grid`` evenly spaced values per action dimension.
         if config.reachable_rule in ("grid", "exact"):
-            self.candidates = np.array(list(itertools.product(*[
-                np.linspace(lo, hi, config.reachable_grid)
-                for lo, hi in zip(action_space.low, action_space.high)])), dtype=float)
+            self.candidates = np.array(
+                list(
+                    itertools.product(
+                        *[
+                            np.linspace(lo, hi, config.reachable_grid)
+                            for lo, hi in zip(action_space.low, action_space.high)
+                        ]
+                    )
+                ),
+                dtype=float,
+            )
         else:
             self.candidates = self.vertices.copy()
         #: Golden-section steps of reachable_rule='exact': a bracket of two grid spacings shrinks
         #: to EXACT_TOLERANCE.
-        span = 2.0 * float(np.max(action_space.high - action_space.low)) / (config.reachable_grid - 1)
-        self._refine_steps = (int(np.ceil(np.log(EXACT_TOLERANCE / span) / np.log(INV_PHI)))
-                              if config.reachable_rule == "exact" and span > EXACT_TOLERANCE else 0)
+        span = (
+            2.0 * float(np.max(action_space.high - action_space.low)) / (config.reachable_grid - 1)
+        )
+        self._refine_steps = (
+            int(np.ceil(np.log(EXACT_TOLERANCE / span) / np.log(INV_PHI)))
+            if config.reachable_rule == "exact" and span > EXACT_TOLERANCE
+            else 0
+        )
         self._k = 0
         # x_{k-1}, u_{k-1} and V_{k-1}, updated in place: the compiled step shares these arrays.
         self._x_prev = np.zeros(n)
@@ -145,16 +207,21 @@ class RMAC(Agent):
         self._learns_model = not rehearsing
 
     @classmethod
-    def _memory_parts(cls, config: RMACConfig, state_space: StateSpace,
-                      action_space: ActionSpace) -> tuple[int, int]:
+    def _memory_parts(
+        cls, config: RMACConfig, state_space: StateSpace, action_space: ActionSpace
+    ) -> tuple[int, int]:
         """The three memories and the critic's traces (see :meth:`Agent.memory_estimate`)."""
         n, m = state_space.dim, action_space.dim
-        memories = ((n + m, n, config.process_capacity, config.process_neighbours),
-                    (n, n, config.reference_capacity, config.reference_neighbours),
-                    (n, 1, config.critic_capacity, config.critic_neighbours))
+        memories = (
+            (n + m, n, config.process_capacity, config.process_neighbours),
+            (n, n, config.reference_capacity, config.reference_neighbours),
+            (n, 1, config.critic_capacity, config.critic_neighbours),
+        )
         traces = 8 * config.critic_capacity
-        return (sum(LLRMemory.memory_estimate(*memory) for memory in memories) + traces,
-                sum(LLRMemory.state_estimate(*memory[:3]) for memory in memories) + traces)
+        return (
+            sum(LLRMemory.memory_estimate(*memory) for memory in memories) + traces,
+            sum(LLRMemory.state_estimate(*memory[:3]) for memory in memories) + traces,
+        )
 
     def _new_kernel_state(self) -> _rmac_kernels.RMACState | None:
         """The compiled step's view of this agent's arrays (numba back end), else None."""
@@ -162,18 +229,30 @@ class RMAC(Agent):
             return None
         cfg = self.config
         settings = _rmac_kernels.RMACSettings(
-            gamma=float(cfg.gamma), alpha_r=self._alpha_r, beta_u_zero=BETA_U_ZERO,
+            gamma=float(cfg.gamma),
+            alpha_r=self._alpha_r,
+            beta_u_zero=BETA_U_ZERO,
             inverse_previous=cfg.inverse_query == "previous",
             gradient_at_next=cfg.critic_gradient_at == "next",
-            rule=REACHABLE_RULES.index(cfg.reachable_rule), action_cost=self._action_cost,
+            rule=REACHABLE_RULES.index(cfg.reachable_rule),
+            action_cost=self._action_cost,
             vertices=np.ascontiguousarray(self.vertices),
-            candidates=np.ascontiguousarray(self.candidates), refine_steps=self._refine_steps,
+            candidates=np.ascontiguousarray(self.candidates),
+            refine_steps=self._refine_steps,
             insert_rate=float(cfg.reference_insert_rate),
             period=np.ascontiguousarray(self.period, dtype=float),
-            low=self.action_space.low.copy(), high=self.action_space.high.copy())
+            low=self.action_space.low.copy(),
+            high=self.action_space.high.copy(),
+        )
         return _rmac_kernels.new_state(
-            self.process.kernel_state, self.reference.kernel_state, self.critic.kernel_state,
-            self._x_prev, self._u_prev, self._v_prev, settings)
+            self.process.kernel_state,
+            self.reference.kernel_state,
+            self.critic.kernel_state,
+            self._x_prev,
+            self._u_prev,
+            self._v_prev,
+            settings,
+        )
 
     @property
     def _uses_trial_counter(self) -> bool:
@@ -206,8 +285,8 @@ class RMAC(Agent):
         u = 0 when beta_u = 0 (numerically: see BETA_U_ZERO; section 5); saturated to the action bounds.
         """
         pred, beta, _ = self.process.query(np.concatenate([x, u_query]))
-        beta_u = beta[:, self.n:self.n + self.m]
-        if np.abs(beta_u).max() <= BETA_U_ZERO * max(1.0, np.abs(beta[:, :self.n]).max()):
+        beta_u = beta[:, self.n : self.n + self.m]
+        if np.abs(beta_u).max() <= BETA_U_ZERO * max(1.0, np.abs(beta[:, : self.n]).max()):
             return np.zeros(self.m)
         u = u_query + np.linalg.pinv(beta_u) @ wrap(x_desired - pred, self.period)
         return self.action_space.clip(u)
@@ -229,8 +308,10 @@ class RMAC(Agent):
         states = np.asarray(states, dtype=float).reshape(-1, self.n)
         if not np.all(np.isfinite(states)):
             raise ValueError("RMAC.policy: states must be finite")
-        uq = np.broadcast_to(np.zeros(self.m) if u_query is None else
-                             np.asarray(u_query, dtype=float), (len(states), self.m))
+        uq = np.broadcast_to(
+            np.zeros(self.m) if u_query is None else np.asarray(u_query, dtype=float),
+            (len(states), self.m),
+        )
         out = np.empty((len(states), self.m))
         for i, x in enumerate(states):
             x = self.state_space.canonical(x)
@@ -281,8 +362,9 @@ class RMAC(Agent):
         x = self.state_space.canonical(x)
         if u is None:
             u = self._explore(self._act(x, self._u_prev), x, self._u_prev)  # lines 10-12
-        self._v_prev[0] = self._learn(self._x_prev, self._u_prev, reward, x,
-                                      float(self._v_prev[0]), self._learns_model)  # lines 13-28
+        self._v_prev[0] = self._learn(
+            self._x_prev, self._u_prev, reward, x, float(self._v_prev[0]), self._learns_model
+        )  # lines 13-28
         self._x_prev[:] = x
         self._u_prev[:] = u
         return u.copy()
@@ -292,17 +374,26 @@ class RMAC(Agent):
         the TD error), no action."""
         self._sync_rates()
         if self._kernel_state is not None:
-            if np.isnan(_rmac_kernels.stop(self._kernel_state, reward, x, self._learns_model,
-                                           terminal)):
+            if np.isnan(
+                _rmac_kernels.stop(self._kernel_state, reward, x, self._learns_model, terminal)
+            ):
                 raise self._overflow(reward)
         else:
-            self._learn(self._x_prev, self._u_prev, reward, self.state_space.canonical(x),
-                        float(self._v_prev[0]), self._learns_model, terminal)
+            self._learn(
+                self._x_prev,
+                self._u_prev,
+                reward,
+                self.state_space.canonical(x),
+                float(self._v_prev[0]),
+                self._learns_model,
+                terminal,
+            )
         self._u_greedy = np.zeros(self.m)  # a greedy trial that follows starts from u_{-1} = 0
 
     # -- one transition: lines 13-28 --------------------------------------------------------------------
-    def _learn_transition(self, x: np.ndarray, u: np.ndarray, reward: float, x_next: np.ndarray,
-                          v: float, model: bool) -> float:
+    def _learn_transition(
+        self, x: np.ndarray, u: np.ndarray, reward: float, x_next: np.ndarray, v: float, model: bool
+    ) -> float:
         """:meth:`Agent.learn`: lines 13-28 for one transition (``model=False``: without line 14)."""
         x, x_next = self.state_space.canonical(x), self.state_space.canonical(x_next)
         self._sync_rates()
@@ -313,8 +404,16 @@ class RMAC(Agent):
             return v_next
         return self._learn(x, u, reward, x_next, v, model)
 
-    def _learn(self, x: np.ndarray, u: np.ndarray, reward: float, x_next: np.ndarray, v: float,
-               model: bool, terminal: bool = False) -> float:
+    def _learn(
+        self,
+        x: np.ndarray,
+        u: np.ndarray,
+        reward: float,
+        x_next: np.ndarray,
+        v: float,
+        model: bool,
+        terminal: bool = False,
+    ) -> float:
         """Lines 13-28 (reference implementation) for canonical states; returns V(x') (line 22).
         ``terminal``: x' is terminal, its value 0 in the TD error (no bootstrap)."""
         cfg, n = self.config, self.n
@@ -322,7 +421,7 @@ class RMAC(Agent):
             self.process.insert(np.concatenate([x, u]), x_next)
         # Line 16: the best reachable state. X_R = beta^P U_R, linearised at (x, u).
         pred, beta, _ = self.process.query(np.concatenate([x, u]))
-        beta_u = beta[:, n:n + self.m]
+        beta_u = beta[:, n : n + self.m]
         v_next, beta_c, _ = self.critic.memory.query(x_next)  # line 22: V(x') and its local model
         v_next = float(v_next[0])
         if cfg.reachable_rule == "vertices":
@@ -344,15 +443,17 @@ class RMAC(Agent):
         if cfg.reference_insert_rate < 1.0 and len(near):  # R(x) moved towards x_r
             r_x = self.reference.query(x)[0]
             inserted = self.state_space.canonical(
-                r_x + cfg.reference_insert_rate * wrap(x_r - r_x, self.period))
+                r_x + cfg.reference_insert_rate * wrap(x_r - r_x, self.period)
+            )
         self.reference.insert(x, inserted, int(near[0]) if len(near) else None)
         self.reference.move_outputs(near, x_r, self._alpha_r)
         # Lines 22-28: TD(lambda) on the critic's samples, V(x') from above (line 22).
         self.critic.td_update(x, v, reward, 0.0 if terminal else v_next)
         return v_next
 
-    def _reachable_score(self, u: np.ndarray, pred: np.ndarray, beta_u: np.ndarray,
-                         u_model: np.ndarray) -> tuple[float, np.ndarray]:
+    def _reachable_score(
+        self, u: np.ndarray, pred: np.ndarray, beta_u: np.ndarray, u_model: np.ndarray
+    ) -> tuple[float, np.ndarray]:
         """-sum_i P_i u_i^2 + gamma V(x'(u)) and x'(u) (canonical), x'(u) = pred + beta_u (u -
         u_model), the process model's local fit at (x, u_model) extended to u."""
         x_next = self.state_space.canonical(pred + beta_u @ (u - u_model))
@@ -381,7 +482,7 @@ class RMAC(Agent):
                     b, d, fd, xd = d, c, fc, xc
                     c = b - INV_PHI * (b - a)
                     fc, xc = f(c)
-                else:         # in [c, b]
+                else:  # in [c, b]
                     a, c, fc, xc = c, d, fd, xd
                     d = a + INV_PHI * (b - a)
                     fd, xd = f(d)
@@ -411,8 +512,15 @@ class RMAC(Agent):
         return self.critic.value(self.state_space.canonical(x))
 
     # -- prior knowledge (section 7) --------------------------------------------------------------------
-    def _seed_from(self, states: np.ndarray, actions: np.ndarray, rewards: np.ndarray,
-                   next_states: np.ndarray, trial: np.ndarray, parts: tuple[str, ...]) -> None:
+    def _seed_from(
+        self,
+        states: np.ndarray,
+        actions: np.ndarray,
+        rewards: np.ndarray,
+        next_states: np.ndarray,
+        trial: np.ndarray,
+        parts: tuple[str, ...],
+    ) -> None:
         """Initialise the memories from recorded transitions instead of empty (section 7).
 
         * 'process': M^P <- [x_t, u_t | x_{t+1}], the recorded dynamics;
@@ -439,8 +547,11 @@ class RMAC(Agent):
     def _state(self) -> dict[str, np.ndarray]:
         """The three memories, the critic's traces and the running trial's bookkeeping."""
         state: dict[str, np.ndarray] = {}
-        for name, memory in (("process", self.process), ("reference", self.reference),
-                             ("critic", self.critic.memory)):
+        for name, memory in (
+            ("process", self.process),
+            ("reference", self.reference),
+            ("critic", self.critic.memory),
+        ):
             state.update(memory.state_dict(prefix=f"{name}."))
         state["traces"] = self.critic.traces.copy()
         state["k"] = np.array(self._k)
@@ -454,14 +565,20 @@ class RMAC(Agent):
         return super()._may_lack(key) or key.endswith(".redundancy")  # older snapshots
 
     def _check_state(self, state: dict[str, np.ndarray]) -> None:
-        for name, memory in (("process", self.process), ("reference", self.reference),
-                             ("critic", self.critic.memory)):
+        for name, memory in (
+            ("process", self.process),
+            ("reference", self.reference),
+            ("critic", self.critic.memory),
+        ):
             memory.check_state_dict(state, prefix=f"{name}.")
         _check_traces(self.name, state)
 
     def _load_state(self, state: dict[str, np.ndarray]) -> None:
-        for name, memory in (("process", self.process), ("reference", self.reference),
-                             ("critic", self.critic.memory)):
+        for name, memory in (
+            ("process", self.process),
+            ("reference", self.reference),
+            ("critic", self.critic.memory),
+        ):
             memory.load_state_dict(state, prefix=f"{name}.")
         self.critic.traces[:] = state["traces"]
         self._k = int(state["k"])

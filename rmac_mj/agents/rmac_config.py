@@ -11,7 +11,15 @@ from typing import ClassVar
 from rmac_mj.agents.exploration import Exploration
 from rmac_mj.agents.planning import REHEARSAL, Planning, Replay
 from rmac_mj.approximators.llr import SHARED_CONSTRAINTS, LLRMemory, memory_constraints
-from rmac_mj.constraints import BACKEND, TD_LAMBDA, WEIGHTS, InstanceOf, Interval, Options, check_config
+from rmac_mj.constraints import (
+    BACKEND,
+    TD_LAMBDA,
+    WEIGHTS,
+    InstanceOf,
+    Interval,
+    Options,
+    check_config,
+)
 
 #: The rules that select line 16's best reachable state (``RMACConfig.reachable_rule``).
 REACHABLE_RULES = ("vertices", "vertices_value", "grid", "exact")
@@ -176,19 +184,28 @@ class RMACConfig:
     def rates_at(self, trial: int) -> tuple[float, float]:
         """(alpha_c, alpha_r) of learning trial ``trial`` (0: the first); see ``alpha_c_final``."""
         fraction = min(max(trial, 0) / self.rate_decay_trials, 1.0)
-        return tuple(float(start if final is None else start + fraction * (final - start))
-                     for start, final in ((self.alpha_c, self.alpha_c_final),
-                                          (self.alpha_r, self.alpha_r_final)))
+        return tuple(
+            float(start if final is None else start + fraction * (final - start))
+            for start, final in (
+                (self.alpha_c, self.alpha_c_final),
+                (self.alpha_r, self.alpha_r_final),
+            )
+        )
 
     #: The fields set from the task when left None: field -> (rule, value at the paper's pendulum)
     #: (``task_knowledge.with_task_units``). alpha_c and alpha_r need no rule: the critic's samples
     #: move by a fraction of the TD error and the reference's by a fraction of x_r - x_hat, both
     #: independent of the reward's and the state's scales.
     task_units: ClassVar[dict[str, tuple[str, float]]] = {
-        "gamma": ("horizon", 0.97), "lam": ("horizon", 0.65),
-        "critic_capacity": ("states", 2000), "critic_neighbours": ("states", 20),
-        "process_capacity": ("transitions", 100), "process_neighbours": ("transitions", 9),
-        "reference_capacity": ("states", 2000), "reference_neighbours": ("states", 20)}
+        "gamma": ("horizon", 0.97),
+        "lam": ("horizon", 0.65),
+        "critic_capacity": ("states", 2000),
+        "critic_neighbours": ("states", 20),
+        "process_capacity": ("transitions", 100),
+        "process_neighbours": ("transitions", 9),
+        "reference_capacity": ("states", 2000),
+        "reference_neighbours": ("states", 20),
+    }
 
     parameter_constraints: ClassVar[dict[str, list]] = {
         **TD_LAMBDA,
@@ -196,7 +213,8 @@ class RMACConfig:
         "alpha_c_final": [Interval(Real, 0, 1), None],
         "alpha_r_final": [Interval(Real, 0, 1), None],
         "rate_decay_trials": [Interval(Integral, 1, None)],
-        **memory_constraints("critic"), **memory_constraints("process"),
+        **memory_constraints("critic"),
+        **memory_constraints("process"),
         **memory_constraints("reference"),
         "exploration": [InstanceOf(Exploration)],
         **SHARED_CONSTRAINTS,

@@ -43,12 +43,18 @@ import numpy as np
 
 from rmac_mj.agents.base import Agent
 from rmac_mj.agents.random_state import generator_state_array, set_generator_state
+from rmac_mj.agents.sb3_config import (
+    INSTALL_HINT,
+    SB3PPOConfig,
+    SB3SACConfig,
+    SB3TD3Config,
+    available,
+)
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
-from rmac_mj.agents.sb3_config import (INSTALL_HINT, SB3PPOConfig, SB3SACConfig, SB3TD3Config,
-                                       available)
 
 # ----------------------------------------------------------------------------------------------------
 # The learners.
+
 
 def network_input(x: np.ndarray, periodic: np.ndarray) -> np.ndarray:
     """The networks' view of a state ``x`` (shape (n,)): each periodic entry as (cos, sin), the others
@@ -60,29 +66,36 @@ def network_input(x: np.ndarray, periodic: np.ndarray) -> np.ndarray:
 
 
 def _arrays_of_module(prefix: str, module) -> dict[str, np.ndarray]:
-    return {f"{prefix}{name}": tensor.detach().cpu().numpy().copy()
-            for name, tensor in module.state_dict().items()}
+    return {
+        f"{prefix}{name}": tensor.detach().cpu().numpy().copy()
+        for name, tensor in module.state_dict().items()
+    }
 
 
 def _load_module(prefix: str, module, state: dict[str, np.ndarray]) -> None:
     import torch
-    module.load_state_dict({name: torch.from_numpy(np.array(state[prefix + name]))
-                            for name in module.state_dict()})
+
+    module.load_state_dict(
+        {name: torch.from_numpy(np.array(state[prefix + name])) for name in module.state_dict()}
+    )
 
 
 def _arrays_of_optimizer(prefix: str, optimizer) -> dict[str, np.ndarray]:
     """Adam's moments and step count per parameter, as ``<prefix><index>.<name>``."""
-    return {f"{prefix}{index}.{name}": value.detach().cpu().numpy().copy()
-            for index, slots in optimizer.state_dict()["state"].items()
-            for name, value in slots.items()}
+    return {
+        f"{prefix}{index}.{name}": value.detach().cpu().numpy().copy()
+        for index, slots in optimizer.state_dict()["state"].items()
+        for name, value in slots.items()
+    }
 
 
 def _load_optimizer(prefix: str, optimizer, state: dict[str, np.ndarray]) -> None:
     import torch
+
     slots: dict[int, dict[str, Any]] = {}
     for key, value in state.items():
         if key.startswith(prefix):
-            index, name = key[len(prefix):].split(".", 1)
+            index, name = key[len(prefix) :].split(".", 1)
             slots.setdefault(int(index), {})[name] = torch.from_numpy(np.array(value))
     document = optimizer.state_dict()
     document["state"] = slots
@@ -96,11 +109,14 @@ def _spaces_only(observation_dim: int, action_space: ActionSpace):
 
     class SpacesOnly(gymnasium.Env):
         def __init__(self) -> None:
-            self.observation_space = gymnasium.spaces.Box(-np.inf, np.inf, (observation_dim,),
-                                                          np.float32)
-            self.action_space = gymnasium.spaces.Box(action_space.low.astype(np.float32),
-                                                     action_space.high.astype(np.float32),
-                                                     dtype=np.float32)
+            self.observation_space = gymnasium.spaces.Box(
+                -np.inf, np.inf, (observation_dim,), np.float32
+            )
+            self.action_space = gymnasium.spaces.Box(
+                action_space.low.astype(np.float32),
+                action_space.high.astype(np.float32),
+                dtype=np.float32,
+            )
 
         def reset(self, *, seed=None, options=None):
             raise RuntimeError("an rmac-mj learner is stepped by the runner, not by SB3")
@@ -121,8 +137,13 @@ class SB3Agent(Agent):
     #: The stable_baselines3 class name, e.g. ``"SAC"``.
     sb3_class = ""
 
-    def __init__(self, state_space: StateSpace, action_space: ActionSpace, config: Any = None,
-                 seed: int | np.random.Generator | None = None) -> None:
+    def __init__(
+        self,
+        state_space: StateSpace,
+        action_space: ActionSpace,
+        config: Any = None,
+        seed: int | np.random.Generator | None = None,
+    ) -> None:
         config = self.config_class() if config is None else config
         super().__init__(state_space, action_space, config, seed)
         if not available():
@@ -141,8 +162,12 @@ class SB3Agent(Agent):
         outer = self._global_random_states()
         try:
             self.model = getattr(stable_baselines3, self.sb3_class)(
-                "MlpPolicy", _spaces_only(observation_dim, action_space), seed=self.sb3_seed_,
-                device="cpu", **self._sb3_kwargs())
+                "MlpPolicy",
+                _spaces_only(observation_dim, action_space),
+                seed=self.sb3_seed_,
+                device="cpu",
+                **self._sb3_kwargs(),
+            )
             self._random_states = self._global_random_states()
         finally:
             self._set_global_random_states(outer)
@@ -208,14 +233,16 @@ class SB3Agent(Agent):
     def _state(self) -> dict[str, np.ndarray]:
         torch_state, (_, keys, position, has_gauss, gauss) = self._random_states
         state = _arrays_of_module("policy.", self.model.policy)
-        state.update({
-            "torch_rng": torch_state.numpy().copy(),
-            "numpy_rng_keys": np.asarray(keys, dtype=np.uint32).copy(),
-            "numpy_rng_position": np.array([position, has_gauss], dtype=np.int64),
-            "numpy_rng_gauss": np.array(gauss, dtype=np.float64),
-            "timesteps": np.array(self.model.num_timesteps, dtype=np.int64),
-            "updates": np.array(self.model._n_updates, dtype=np.int64),
-        })
+        state.update(
+            {
+                "torch_rng": torch_state.numpy().copy(),
+                "numpy_rng_keys": np.asarray(keys, dtype=np.uint32).copy(),
+                "numpy_rng_position": np.array([position, has_gauss], dtype=np.int64),
+                "numpy_rng_gauss": np.array(gauss, dtype=np.float64),
+                "timesteps": np.array(self.model.num_timesteps, dtype=np.int64),
+                "updates": np.array(self.model._n_updates, dtype=np.int64),
+            }
+        )
         if self._in_trial:
             state["last_observation"] = np.array(self.model._last_obs)
         return state
@@ -223,9 +250,18 @@ class SB3Agent(Agent):
     def _may_lack(self, key: str) -> bool:
         """Entries SB3 holds only at some moments: in a trial, with a pending action, after an
         optimizer's first update."""
-        return super()._may_lack(key) or "optimizer." in key or key in (
-            "last_observation", "buffer_action", "pending_action", "pending_value",
-            "pending_log_prob")
+        return (
+            super()._may_lack(key)
+            or "optimizer." in key
+            or key
+            in (
+                "last_observation",
+                "buffer_action",
+                "pending_action",
+                "pending_value",
+                "pending_log_prob",
+            )
+        )
 
     def _shape_varies(self, key: str) -> bool:
         return key.startswith(("replay.", "rollout."))  # buffers that fill
@@ -235,8 +271,14 @@ class SB3Agent(Agent):
         position, has_gauss = (int(v) for v in state["numpy_rng_position"])
         self._random_states = (
             self._torch.from_numpy(np.array(state["torch_rng"], dtype=np.uint8)),
-            ("MT19937", np.array(state["numpy_rng_keys"], dtype=np.uint32), position, has_gauss,
-             float(state["numpy_rng_gauss"])))
+            (
+                "MT19937",
+                np.array(state["numpy_rng_keys"], dtype=np.uint32),
+                position,
+                has_gauss,
+                float(state["numpy_rng_gauss"]),
+            ),
+        )
         self.model.num_timesteps = int(state["timesteps"])
         self.model._n_updates = int(state["updates"])
         if "last_observation" in state:
@@ -255,14 +297,23 @@ class _OffPolicyAgent(SB3Agent):
 
     def _sb3_kwargs(self) -> dict[str, Any]:
         c = self.config
-        return dict(learning_rate=c.learning_rate, buffer_size=c.buffer_size,
-                    learning_starts=c.learning_starts, batch_size=c.batch_size, tau=c.tau,
-                    gamma=c.gamma, train_freq=c.train_freq, gradient_steps=c.gradient_steps,
-                    policy_kwargs={"net_arch": list(c.net_arch)})
+        return dict(
+            learning_rate=c.learning_rate,
+            buffer_size=c.buffer_size,
+            learning_starts=c.learning_starts,
+            batch_size=c.batch_size,
+            tau=c.tau,
+            gamma=c.gamma,
+            train_freq=c.train_freq,
+            gradient_steps=c.gradient_steps,
+            policy_kwargs={"net_arch": list(c.net_arch)},
+        )
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self._buffer_action: np.ndarray | None = None  # the scaled action of the step, for the buffer
+        self._buffer_action: np.ndarray | None = (
+            None  # the scaled action of the step, for the buffer
+        )
         self._steps_since_update = 0
 
     def _act(self) -> np.ndarray:
@@ -270,8 +321,9 @@ class _OffPolicyAgent(SB3Agent):
         (SAC) or the actor plus exploration noise (TD3); keeps the scaled action for the buffer."""
         model = self.model
         with self._own_randomness():
-            action, self._buffer_action = model._sample_action(model.learning_starts,
-                                                               model.action_noise, 1)
+            action, self._buffer_action = model._sample_action(
+                model.learning_starts, model.action_noise, 1
+            )
         return action[0].astype(float)
 
     def _record(self, reward: float, x: np.ndarray, last: bool, terminal: bool = False) -> None:
@@ -280,11 +332,20 @@ class _OffPolicyAgent(SB3Agent):
         observation = self._observation(x)
         # A trial that ends on its time limit is stored as a time-out, whose value is bootstrapped;
         # one that ends in a terminal state as a done, whose value is 0.
-        infos = [{"terminal_observation": observation[0], "TimeLimit.truncated": not terminal}] \
-            if last else [{}]
+        infos = (
+            [{"terminal_observation": observation[0], "TimeLimit.truncated": not terminal}]
+            if last
+            else [{}]
+        )
         model.num_timesteps += 1
-        model._store_transition(model.replay_buffer, self._buffer_action, observation,
-                                np.array([reward], dtype=np.float32), np.array([last]), infos)
+        model._store_transition(
+            model.replay_buffer,
+            self._buffer_action,
+            observation,
+            np.array([reward], dtype=np.float32),
+            np.array([last]),
+            infos,
+        )
         model._on_step()
         if last:
             model._episode_num += 1
@@ -294,7 +355,11 @@ class _OffPolicyAgent(SB3Agent):
         if self._steps_since_update == model.train_freq.frequency:
             self._steps_since_update = 0
             if model.num_timesteps > model.learning_starts:
-                steps = model.gradient_steps if model.gradient_steps >= 0 else model.train_freq.frequency
+                steps = (
+                    model.gradient_steps
+                    if model.gradient_steps >= 0
+                    else model.train_freq.frequency
+                )
                 if steps > 0:
                     with self._own_randomness():
                         model.train(batch_size=model.batch_size, gradient_steps=steps)
@@ -312,20 +377,25 @@ class _OffPolicyAgent(SB3Agent):
         raise NotImplementedError
 
     @classmethod
-    def _memory_parts(cls, config: Any, state_space: StateSpace,
-                      action_space: ActionSpace) -> tuple[int, int]:
+    def _memory_parts(
+        cls, config: Any, state_space: StateSpace, action_space: ActionSpace
+    ) -> tuple[int, int]:
         """An upper estimate (see :meth:`Agent.memory_estimate`): the actor and two critics, each
         with a target copy and Adam's two moments, and a full replay buffer of float32 transitions
         (observation, next observation, action, reward, done, timeout)."""
         n, m = state_space.dim, action_space.dim
-        networks = 4 * (_network_bytes(n, config.net_arch, 2 * m)
-                        + 2 * _network_bytes(n + m, config.net_arch, 1))
+        networks = 4 * (
+            _network_bytes(n, config.net_arch, 2 * m)
+            + 2 * _network_bytes(n + m, config.net_arch, 1)
+        )
         buffer = 4 * config.buffer_size * (2 * n + m + 3)
         return networks + buffer, networks + buffer
 
     def _optimizers(self) -> dict[str, Any]:
-        return {"actor_optimizer.": self.model.actor.optimizer,
-                "critic_optimizer.": self.model.critic.optimizer}
+        return {
+            "actor_optimizer.": self.model.actor.optimizer,
+            "critic_optimizer.": self.model.critic.optimizer,
+        }
 
     def _state(self) -> dict[str, np.ndarray]:
         state = super()._state()
@@ -333,7 +403,14 @@ class _OffPolicyAgent(SB3Agent):
             state.update(_arrays_of_optimizer(prefix, optimizer))
         buffer = self.model.replay_buffer
         filled = buffer.buffer_size if buffer.full else buffer.pos
-        for name in ("observations", "next_observations", "actions", "rewards", "dones", "timeouts"):
+        for name in (
+            "observations",
+            "next_observations",
+            "actions",
+            "rewards",
+            "dones",
+            "timeouts",
+        ):
             state[f"replay.{name}"] = getattr(buffer, name)[:filled].copy()
         state["replay.position"] = np.array([buffer.pos, buffer.full], dtype=np.int64)
         state["action_space_rng"] = generator_state_array(self.model.action_space.np_random)
@@ -350,15 +427,23 @@ class _OffPolicyAgent(SB3Agent):
         buffer = self.model.replay_buffer
         buffer.reset()
         position, full = (int(v) for v in state["replay.position"])
-        for name in ("observations", "next_observations", "actions", "rewards", "dones", "timeouts"):
+        for name in (
+            "observations",
+            "next_observations",
+            "actions",
+            "rewards",
+            "dones",
+            "timeouts",
+        ):
             saved = state[f"replay.{name}"]
-            getattr(buffer, name)[:len(saved)] = saved
+            getattr(buffer, name)[: len(saved)] = saved
         buffer.pos, buffer.full = position, bool(full)
         set_generator_state(self.model.action_space.np_random, state["action_space_rng"])
         self.model._episode_num = int(state["episodes"])
         self._steps_since_update = int(state["steps_since_update"])
-        self._buffer_action = (np.array(state["buffer_action"], dtype=np.float32)
-                               if "buffer_action" in state else None)
+        self._buffer_action = (
+            np.array(state["buffer_action"], dtype=np.float32) if "buffer_action" in state else None
+        )
 
 
 class SB3SAC(_OffPolicyAgent):
@@ -371,8 +456,12 @@ class SB3SAC(_OffPolicyAgent):
 
     def _sb3_kwargs(self) -> dict[str, Any]:
         c = self.config
-        return {**super()._sb3_kwargs(), "ent_coef": c.ent_coef, "target_entropy": c.target_entropy,
-                "target_update_interval": c.target_update_interval}
+        return {
+            **super()._sb3_kwargs(),
+            "ent_coef": c.ent_coef,
+            "target_entropy": c.target_entropy,
+            "target_update_interval": c.target_update_interval,
+        }
 
     def _greedy_scaled_action(self, observation):
         return self.model.actor(observation, deterministic=True)
@@ -393,7 +482,9 @@ class SB3SAC(_OffPolicyAgent):
         super()._load_state(state)
         if self.model.log_ent_coef is not None:
             with self._torch.no_grad():
-                self.model.log_ent_coef.copy_(self._torch.from_numpy(np.array(state["log_ent_coef"])))
+                self.model.log_ent_coef.copy_(
+                    self._torch.from_numpy(np.array(state["log_ent_coef"]))
+                )
 
 
 class SB3TD3(_OffPolicyAgent):
@@ -409,11 +500,18 @@ class SB3TD3(_OffPolicyAgent):
 
         c = self.config
         m = self.action_space.dim
-        noise = (NormalActionNoise(mean=np.zeros(m), sigma=c.action_noise * np.ones(m))
-                 if c.action_noise > 0 else None)
-        return {**super()._sb3_kwargs(), "policy_delay": c.policy_delay,
-                "target_policy_noise": c.target_policy_noise,
-                "target_noise_clip": c.target_noise_clip, "action_noise": noise}
+        noise = (
+            NormalActionNoise(mean=np.zeros(m), sigma=c.action_noise * np.ones(m))
+            if c.action_noise > 0
+            else None
+        )
+        return {
+            **super()._sb3_kwargs(),
+            "policy_delay": c.policy_delay,
+            "target_policy_noise": c.target_policy_noise,
+            "target_noise_clip": c.target_noise_clip,
+            "action_noise": noise,
+        }
 
     def _greedy_scaled_action(self, observation):
         return self.model.actor(observation)
@@ -430,13 +528,16 @@ class SB3PPO(SB3Agent):
     sb3_class = "PPO"
 
     @classmethod
-    def _memory_parts(cls, config: Any, state_space: StateSpace,
-                      action_space: ActionSpace) -> tuple[int, int]:
+    def _memory_parts(
+        cls, config: Any, state_space: StateSpace, action_space: ActionSpace
+    ) -> tuple[int, int]:
         """An upper estimate (see :meth:`Agent.memory_estimate`): the policy and value networks
         with Adam's two moments, and a full rollout of float32 entries (observation, action,
         reward, return, advantage, value, log probability, episode start)."""
         n, m = state_space.dim, action_space.dim
-        networks = 3 * (_network_bytes(n, config.net_arch, m) + _network_bytes(n, config.net_arch, 1))
+        networks = 3 * (
+            _network_bytes(n, config.net_arch, m) + _network_bytes(n, config.net_arch, 1)
+        )
         rollout = 4 * config.n_steps * (n + m + 6)
         return networks + rollout, networks + rollout
 
@@ -447,12 +548,22 @@ class SB3PPO(SB3Agent):
 
     def _sb3_kwargs(self) -> dict[str, Any]:
         c = self.config
-        return dict(learning_rate=c.learning_rate, n_steps=c.n_steps, batch_size=c.batch_size,
-                    n_epochs=c.n_epochs, gamma=c.gamma, gae_lambda=c.gae_lambda,
-                    clip_range=c.clip_range, clip_range_vf=c.clip_range_vf,
-                    normalize_advantage=c.normalize_advantage, ent_coef=c.ent_coef,
-                    vf_coef=c.vf_coef, max_grad_norm=c.max_grad_norm, target_kl=c.target_kl,
-                    policy_kwargs={"net_arch": list(c.net_arch), "log_std_init": c.log_std_init})
+        return dict(
+            learning_rate=c.learning_rate,
+            n_steps=c.n_steps,
+            batch_size=c.batch_size,
+            n_epochs=c.n_epochs,
+            gamma=c.gamma,
+            gae_lambda=c.gae_lambda,
+            clip_range=c.clip_range,
+            clip_range_vf=c.clip_range_vf,
+            normalize_advantage=c.normalize_advantage,
+            ent_coef=c.ent_coef,
+            vf_coef=c.vf_coef,
+            max_grad_norm=c.max_grad_norm,
+            target_kl=c.target_kl,
+            policy_kwargs={"net_arch": list(c.net_arch), "log_std_init": c.log_std_init},
+        )
 
     def _act(self) -> np.ndarray:
         """One step of SB3's ``collect_rollouts``: sample from the policy, clip to the bounds."""
@@ -481,8 +592,9 @@ class SB3PPO(SB3Agent):
                 final_value = model.policy.predict_values(final)[0]
             rewards[0] += model.gamma * final_value
         actions, values, log_probs = self._pending
-        model.rollout_buffer.add(model._last_obs, actions, rewards, model._last_episode_starts,
-                                 values, log_probs)
+        model.rollout_buffer.add(
+            model._last_obs, actions, rewards, model._last_episode_starts, values, log_probs
+        )
         model._last_obs = observation
         model._last_episode_starts = np.array([last])
         if model.rollout_buffer.full:
@@ -490,8 +602,9 @@ class SB3PPO(SB3Agent):
                 # After a trial's end this is V(x_K), which the time-out masks: SB3 would use the next
                 # trial's first state there, with the same (masked) result.
                 last_values = model.policy.predict_values(obs_as_tensor(observation, model.device))
-            model.rollout_buffer.compute_returns_and_advantage(last_values=last_values,
-                                                               dones=np.array([last]))
+            model.rollout_buffer.compute_returns_and_advantage(
+                last_values=last_values, dones=np.array([last])
+            )
             with self._own_randomness():
                 model.train()
             model.rollout_buffer.reset()
@@ -499,8 +612,9 @@ class SB3PPO(SB3Agent):
 
     def _value(self, x: np.ndarray) -> float:
         with self._torch.no_grad():
-            return float(self.model.policy.predict_values(
-                self._torch.as_tensor(self._observation(x)))[0, 0])
+            return float(
+                self.model.policy.predict_values(self._torch.as_tensor(self._observation(x)))[0, 0]
+            )
 
     _ROLLOUT = ("observations", "actions", "rewards", "episode_starts", "values", "log_probs")
 
@@ -509,7 +623,7 @@ class SB3PPO(SB3Agent):
         state.update(_arrays_of_optimizer("optimizer.", self.model.policy.optimizer))
         buffer = self.model.rollout_buffer
         for name in self._ROLLOUT:
-            state[f"rollout.{name}"] = getattr(buffer, name)[:buffer.pos].copy()
+            state[f"rollout.{name}"] = getattr(buffer, name)[: buffer.pos].copy()
         state["last_episode_starts"] = np.array(self.model._last_episode_starts)
         if self._in_trial:
             actions, values, log_probs = self._pending
@@ -525,13 +639,15 @@ class SB3PPO(SB3Agent):
         buffer.reset()
         for name in self._ROLLOUT:
             saved = state[f"rollout.{name}"]
-            getattr(buffer, name)[:len(saved)] = saved
+            getattr(buffer, name)[: len(saved)] = saved
         buffer.pos = len(state["rollout.observations"])
         self.model._last_episode_starts = np.array(state["last_episode_starts"], dtype=bool)
         if "pending_action" in state:
             torch = self._torch
-            self._pending = (np.array(state["pending_action"], dtype=np.float32),
-                             torch.from_numpy(np.array(state["pending_value"])),
-                             torch.from_numpy(np.array(state["pending_log_prob"])))
+            self._pending = (
+                np.array(state["pending_action"], dtype=np.float32),
+                torch.from_numpy(np.array(state["pending_value"])),
+                torch.from_numpy(np.array(state["pending_log_prob"])),
+            )
         else:
             self._pending = None

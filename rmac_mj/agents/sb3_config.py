@@ -16,22 +16,28 @@ from rmac_mj.constraints import Boolean, Interval, Options, TupleOf, check_confi
 #: The algorithm keys of the baselines.
 BASELINES = ("sb3-sac", "sb3-td3", "sb3-ppo")
 
-INSTALL_HINT = ("the deep-RL baselines need the [baselines] extra (torch, stable-baselines3): "
-                "pip install -c constraints.txt -e \".[baselines]\" "
-                "--extra-index-url https://download.pytorch.org/whl/cpu (torch's CPU build)")
+INSTALL_HINT = (
+    "the deep-RL baselines need the [baselines] extra (torch, stable-baselines3): "
+    'pip install -c constraints.txt -e ".[baselines]" '
+    "--extra-index-url https://download.pytorch.org/whl/cpu (torch's CPU build)"
+)
 
 
 def available() -> bool:
     """Whether torch and stable-baselines3 are installed (the ``[baselines]`` extra)."""
-    return all(importlib.util.find_spec(name) is not None
-               for name in ("torch", "stable_baselines3", "gymnasium"))
+    return all(
+        importlib.util.find_spec(name) is not None
+        for name in ("torch", "stable_baselines3", "gymnasium")
+    )
 
 
 # ----------------------------------------------------------------------------------------------------
 # Hyperparameters: SB3's defaults (stable-baselines3 2.9), checked by one table each (rmac_mj.constraints).
 
 #: Hidden units per layer of a network.
-_NET_ARCH = TupleOf(Interval(Integral, 1, None), what="a list of positive integers (units per layer)")
+_NET_ARCH = TupleOf(
+    Interval(Integral, 1, None), what="a list of positive integers (units per layer)"
+)
 _POSITIVE = [Interval(Real, 0, None, closed="neither")]
 _COUNT = [Interval(Integral, 1, None)]
 

@@ -21,16 +21,22 @@ class PolicyAgent(Agent):
     name = display_name = "policy"
     config_class = type(None)
 
-    def __init__(self, state_space: StateSpace, action_space: ActionSpace,
-                 policy: Any, seed: int | np.random.Generator | None = None) -> None:
+    def __init__(
+        self,
+        state_space: StateSpace,
+        action_space: ActionSpace,
+        policy: Any,
+        seed: int | np.random.Generator | None = None,
+    ) -> None:
         if not callable(policy):
             raise TypeError(f"policy must be a function x -> u, got {type(policy).__name__}")
         super().__init__(state_space, action_space, config=None, seed=seed)
         self.policy_function = policy
 
     @classmethod
-    def _memory_parts(cls, config: Any, state_space: StateSpace,
-                      action_space: ActionSpace) -> tuple[int, int]:
+    def _memory_parts(
+        cls, config: Any, state_space: StateSpace, action_space: ActionSpace
+    ) -> tuple[int, int]:
         return 0, 0
 
     def _act(self, x: np.ndarray) -> np.ndarray:

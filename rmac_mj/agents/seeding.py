@@ -11,7 +11,6 @@ from typing import Any
 
 import numpy as np
 
-
 #: The kinds of prior knowledge a learner may take from recorded transitions:
 #: 'process' (x, u) -> x' samples of the dynamics; 'reference' x_k -> x_{k+1} along the demonstrated
 #: closed loop (the desired behaviour); 'critic' the demonstration's discounted returns-to-go;
@@ -19,9 +18,16 @@ import numpy as np
 PRIOR_PARTS = ("process", "reference", "critic", "actor")
 
 
-def check_transitions(states: Any, actions: Any, rewards: Any, next_states: Any, trial: Any,
-                      state_dim: int | None = None, action_dim: int | None = None,
-                      owner: str = "transitions") -> tuple[np.ndarray, ...]:
+def check_transitions(
+    states: Any,
+    actions: Any,
+    rewards: Any,
+    next_states: Any,
+    trial: Any,
+    state_dim: int | None = None,
+    action_dim: int | None = None,
+    owner: str = "transitions",
+) -> tuple[np.ndarray, ...]:
     """Recorded transitions as float arrays (and int64 trial ids), checked once.
 
     Shapes: states and next_states (T, n), actions (T, m), rewards (T,), trial (T,) with T >= 1;
@@ -29,6 +35,7 @@ def check_transitions(states: Any, actions: Any, rewards: Any, next_states: Any,
     time order). ``state_dim``/``action_dim``, when given, are the n and m required. ValueError names
     the field that is wrong.
     """
+
     def matrix(name, value, width):
         a = np.asarray(value)
         if a.dtype.kind not in "biuf":
@@ -51,23 +58,36 @@ def check_transitions(states: Any, actions: Any, rewards: Any, next_states: Any,
     if trial_ids.dtype.kind not in "biu":
         raise ValueError(f"{owner}: trial must hold integers, got dtype {trial_ids.dtype}")
     trial_ids = trial_ids.astype(np.int64)
-    for name, a, shape in (("actions", actions, (T, actions.shape[1])),
-                           ("next_states", next_states, (T, n)), ("rewards", rewards, (T,)),
-                           ("trial", trial_ids, (T,))):
+    for name, a, shape in (
+        ("actions", actions, (T, actions.shape[1])),
+        ("next_states", next_states, (T, n)),
+        ("rewards", rewards, (T,)),
+        ("trial", trial_ids, (T,)),
+    ):
         if a.shape != shape:
-            raise ValueError(f"{owner}: {name} must have shape {shape} to match states "
-                             f"{states.shape}, got {a.shape}")
-    for name, a in (("states", states), ("actions", actions), ("rewards", rewards),
-                    ("next_states", next_states)):
+            raise ValueError(
+                f"{owner}: {name} must have shape {shape} to match states "
+                f"{states.shape}, got {a.shape}"
+            )
+    for name, a in (
+        ("states", states),
+        ("actions", actions),
+        ("rewards", rewards),
+        ("next_states", next_states),
+    ):
         bad_rows = ~np.isfinite(a.reshape(T, -1)).all(axis=1)
         if bad_rows.any():
-            raise ValueError(f"{owner}: {name} must be finite; {int(bad_rows.sum())} of {T} rows are "
-                             f"not (first: row {int(np.argmax(bad_rows))})")
+            raise ValueError(
+                f"{owner}: {name} must be finite; {int(bad_rows.sum())} of {T} rows are "
+                f"not (first: row {int(np.argmax(bad_rows))})"
+            )
     if T > 1 and np.any(np.diff(trial_ids) < 0):
         row = int(np.argmax(np.diff(trial_ids) < 0)) + 1
-        raise ValueError(f"{owner}: trial must be non-decreasing (each trial's transitions together, "
-                         f"in time order); row {row} goes back from {trial_ids[row - 1]} to "
-                         f"{trial_ids[row]}")
+        raise ValueError(
+            f"{owner}: trial must be non-decreasing (each trial's transitions together, "
+            f"in time order); row {row} goes back from {trial_ids[row - 1]} to "
+            f"{trial_ids[row]}"
+        )
     return states, actions, rewards, next_states, trial_ids
 
 

@@ -10,7 +10,6 @@ import numpy as np
 
 from rmac_mj.approximators.llr import wrap
 
-
 #: How far from its box a learner accepts a state, in box widths. Far beyond any state a task
 #: produces (the pendulum's box is +-8 pi rad/s wide; 1e6 widths are 5e7 rad/s), and near enough that
 #: every learner's arithmetic stays finite and accurate: squared weighted distances, the normal
@@ -25,8 +24,9 @@ def _weights(owner: str, weights, n: int, name: str = "weights") -> np.ndarray:
         return np.ones(n)
     w = np.asarray(weights, dtype=float).reshape(-1)
     if w.shape != (n,) or not np.all(np.isfinite(w) & (w >= 0)):
-        raise ValueError(f"{owner}: {name} must be {n} finite numbers >= 0 (one per dimension), "
-                         f"got {weights!r}")
+        raise ValueError(
+            f"{owner}: {name} must be {n} finite numbers >= 0 (one per dimension), got {weights!r}"
+        )
     return w
 
 
@@ -66,23 +66,35 @@ class StateSpace:
         if not (low.shape == high.shape == periodic.shape):
             raise ValueError(
                 f"StateSpace: low, high and periodic must have one shape, got {low.shape}, "
-                f"{high.shape} and {periodic.shape}")
+                f"{high.shape} and {periodic.shape}"
+            )
         if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high)) and np.all(high > low)):
             raise ValueError(f"StateSpace: need finite low < high, got low={low}, high={high}")
         object.__setattr__(self, "low", low)
         object.__setattr__(self, "high", high)
         object.__setattr__(self, "periodic", periodic)
-        object.__setattr__(self, "input_weights",
-                           _weights("StateSpace", self.input_weights, low.shape[0], "input_weights"))
+        object.__setattr__(
+            self,
+            "input_weights",
+            _weights("StateSpace", self.input_weights, low.shape[0], "input_weights"),
+        )
         if self.cost is not None:
-            object.__setattr__(self, "cost", _weights("StateSpace", self.cost, low.shape[0], "cost"))
+            object.__setattr__(
+                self, "cost", _weights("StateSpace", self.cost, low.shape[0], "cost")
+            )
         for name in ("timestep", "reward_scale"):
             value = getattr(self, name)
             if value is not None:
-                if not (isinstance(value, (int, float, np.floating, np.integer))
-                        and not isinstance(value, bool) and np.isfinite(value) and value > 0):
-                    raise ValueError(f"StateSpace: {name} must be a positive finite number or "
-                                     f"None, got {value!r}")
+                if not (
+                    isinstance(value, (int, float, np.floating, np.integer))
+                    and not isinstance(value, bool)
+                    and np.isfinite(value)
+                    and value > 0
+                ):
+                    raise ValueError(
+                        f"StateSpace: {name} must be a positive finite number or "
+                        f"None, got {value!r}"
+                    )
                 object.__setattr__(self, name, float(value))
         # The accepted region (see ``limit``), as Python floats for the per-step check.
         object.__setattr__(self, "_centre", ((low + high) / 2).tolist())
@@ -136,14 +148,21 @@ class ActionSpace:
     def __post_init__(self) -> None:
         low = np.asarray(self.low, dtype=float).reshape(-1)
         high = np.asarray(self.high, dtype=float).reshape(-1)
-        if low.shape != high.shape or not np.all(np.isfinite(low) & np.isfinite(high) & (high > low)):
+        if low.shape != high.shape or not np.all(
+            np.isfinite(low) & np.isfinite(high) & (high > low)
+        ):
             raise ValueError(f"ActionSpace: need finite low < high of one shape, got {low}, {high}")
         object.__setattr__(self, "low", low)
         object.__setattr__(self, "high", high)
-        object.__setattr__(self, "input_weights",
-                           _weights("ActionSpace", self.input_weights, low.shape[0], "input_weights"))
+        object.__setattr__(
+            self,
+            "input_weights",
+            _weights("ActionSpace", self.input_weights, low.shape[0], "input_weights"),
+        )
         if self.cost is not None:
-            object.__setattr__(self, "cost", _weights("ActionSpace", self.cost, low.shape[0], "cost"))
+            object.__setattr__(
+                self, "cost", _weights("ActionSpace", self.cost, low.shape[0], "cost")
+            )
 
     @property
     def dim(self) -> int:

@@ -48,9 +48,16 @@ from rmac_mj.agents.planning import REHEARSAL, Planning, Replay
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
 from rmac_mj.agents.task_knowledge import reward_rate
 from rmac_mj.approximators.tile_coding import Backend, TileCoder, TileCodingConfig
-from rmac_mj.constraints import (BACKEND, TD_LAMBDA, InstanceOf, Interval, Options, TupleOf, check_config,
-                                 invalid)
-
+from rmac_mj.constraints import (
+    BACKEND,
+    TD_LAMBDA,
+    InstanceOf,
+    Interval,
+    Options,
+    TupleOf,
+    check_config,
+    invalid,
+)
 
 #: tile_low/tile_high: a bound per state dimension, None keeping the StateSpace's.
 _TILE_BOUNDS = TupleOf([Interval(Real), None], what="a list of finite numbers or None entries")
@@ -104,7 +111,10 @@ class StandardACConfig:
     former_names: ClassVar[dict[str, str]] = {"alpha_actor": "alpha_a", "alpha_critic": "alpha_c"}
     #: The fields set from the task when left None: field -> (rule, value at the paper's pendulum).
     task_units: ClassVar[dict[str, tuple[str, float]]] = {
-        "gamma": ("horizon", 0.97), "lam": ("horizon", 0.65), "alpha_a": ("reward", 0.005)}
+        "gamma": ("horizon", 0.97),
+        "lam": ("horizon", 0.65),
+        "alpha_a": ("reward", 0.005),
+    }
     parameter_constraints: ClassVar[dict[str, list]] = {
         **TD_LAMBDA,
         "alpha_a": [Interval(Real, 0, 1), None],
@@ -121,12 +131,17 @@ class StandardACConfig:
     def __post_init__(self) -> None:
         check_config(self)
         if self.exploration.where != "always":
-            raise invalid("StandardACConfig", "exploration.where", self.exploration.where,
-                          "'always': S-AC learns no process model to be uncertain about")
+            raise invalid(
+                "StandardACConfig",
+                "exploration.where",
+                self.exploration.where,
+                "'always': S-AC learns no process model to be uncertain about",
+            )
 
 
 # --------------------------------------------------------------------------------------------------
 # Compiled kernels. Each mirrors a numpy method of StandardActorCritic below (the numpy version), operation for operation.
+
 
 @numba.njit(cache=True)
 def _policy_numba(actor, tiles, low, high, out):
@@ -149,8 +164,24 @@ def _act_numba(actor, tiles, low, high, noise, u, du):
 
 
 @numba.njit(cache=True)
-def _learn_numba(critic, actor, traces, trace_idx, n_traces, prev_tiles, tiles, reward, gamma,
-                 decay, cutoff, a_critic, a_actor, prev_du, a_low, a_high):
+def _learn_numba(
+    critic,
+    actor,
+    traces,
+    trace_idx,
+    n_traces,
+    prev_tiles,
+    tiles,
+    reward,
+    gamma,
+    decay,
+    cutoff,
+    a_critic,
+    a_actor,
+    prev_du,
+    a_low,
+    a_high,
+):
     """Lines 10-13 of Algorithm 1 in place; returns (delta_k, number of live traces)."""
     v_prev = 0.0
     v_next = 0.0
@@ -218,9 +249,13 @@ class StandardActorCritic(Agent):
     display_name = "S-AC"
     config_class = StandardACConfig
 
-    def __init__(self, state_space: StateSpace, action_space: ActionSpace,
-                 config: StandardACConfig = StandardACConfig(),
-                 seed: int | np.random.Generator | None = None) -> None:
+    def __init__(
+        self,
+        state_space: StateSpace,
+        action_space: ActionSpace,
+        config: StandardACConfig = StandardACConfig(),
+        seed: int | np.random.Generator | None = None,
+    ) -> None:
         super().__init__(state_space, action_space, config, seed)
         config = self.config  # with the task's units (Agent.__init__)
 
@@ -230,8 +265,10 @@ class StandardActorCritic(Agent):
             if override is None:
                 continue
             if len(override) != state_space.dim:
-                raise ValueError(f"StandardACConfig.{name} has {len(override)} entries, the state has "
-                                 f"{state_space.dim} dimensions")
+                raise ValueError(
+                    f"StandardACConfig.{name} has {len(override)} entries, the state has "
+                    f"{state_space.dim} dimensions"
+                )
             for d, v in enumerate(override):
                 if v is not None:
                     bound[d] = v
@@ -263,12 +300,18 @@ class StandardActorCritic(Agent):
         self.last_delta_ = 0.0
 
     @classmethod
-    def _memory_parts(cls, config: StandardACConfig, state_space: StateSpace,
-                      action_space: ActionSpace) -> tuple[int, int]:
+    def _memory_parts(
+        cls, config: StandardACConfig, state_space: StateSpace, action_space: ActionSpace
+    ) -> tuple[int, int]:
         """theta, vartheta (one weight per tile, times m), the traces and their index (see
         :meth:`Agent.memory_estimate`)."""
-        coder = TileCoder(state_space.low, state_space.high, state_space.periodic, config.tile_coding,
-                          config.backend)  # small: the layout, no weights
+        coder = TileCoder(
+            state_space.low,
+            state_space.high,
+            state_space.periodic,
+            config.tile_coding,
+            config.backend,
+        )  # small: the layout, no weights
         features = coder.num_features * (3 + action_space.dim)
         return 8 * features, 8 * features
 
@@ -286,7 +329,7 @@ class StandardActorCritic(Agent):
     def _start(self, x0: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
         """Lines 1-4: reset the traces, apply u_0 = pi(x_0) + Delta u_0 (or the given u_0, when
         replaying); returns shape (m,)."""
-        self._traces[self._trace_idx[:self._n_traces]] = 0.0
+        self._traces[self._trace_idx[: self._n_traces]] = 0.0
         self._n_traces = 0
         self._k = 0
         self._tiles_of(x0, self._prev_tiles)
@@ -297,7 +340,9 @@ class StandardActorCritic(Agent):
         """Lines 6-14 for r_k and x_k; returns u_k of shape (m,) (the given u_k, when replaying)."""
         self._k += 1
         self._tiles_of(x, self._tiles)
-        u, du = self._act(self._tiles, self._k, u)  # line 8 uses vartheta_{k-1}: act before learning
+        u, du = self._act(
+            self._tiles, self._k, u
+        )  # line 8 uses vartheta_{k-1}: act before learning
         self._learn(reward, self.config.gamma)
         self._prev_tiles, self._tiles = self._tiles, self._prev_tiles
         self._prev_du = du
@@ -320,20 +365,31 @@ class StandardActorCritic(Agent):
     # ------------------------------------------------------------------------------------- state
     def _state(self) -> dict[str, np.ndarray]:
         """theta, vartheta, the eligibility traces and the running trial's bookkeeping."""
-        return {"critic": self.critic_.copy(), "actor": self.actor_.copy(),
-                "traces": self._traces.copy(), "trace_idx": self._trace_idx.copy(),
-                "n_traces": np.array(self._n_traces), "prev_tiles": self._prev_tiles.copy(),
-                "tiles": self._tiles.copy(), "prev_du": self._prev_du.copy(),
-                "k": np.array(self._k), "last_delta": np.array(self.last_delta_),
-                **({} if self.reward_scale_ is None else
-                   {"reward_scale": np.array(self.reward_scale_)})}
+        return {
+            "critic": self.critic_.copy(),
+            "actor": self.actor_.copy(),
+            "traces": self._traces.copy(),
+            "trace_idx": self._trace_idx.copy(),
+            "n_traces": np.array(self._n_traces),
+            "prev_tiles": self._prev_tiles.copy(),
+            "tiles": self._tiles.copy(),
+            "prev_du": self._prev_du.copy(),
+            "k": np.array(self._k),
+            "last_delta": np.array(self.last_delta_),
+            **(
+                {} if self.reward_scale_ is None else {"reward_scale": np.array(self.reward_scale_)}
+            ),
+        }
 
     def _check_state(self, state: dict[str, np.ndarray]) -> None:
         features, n_traces = self.coder.num_features, int(state["n_traces"])
         if not 0 <= n_traces <= features:
             raise ValueError(f"s-ac: state 'n_traces' must lie in [0, {features}], got {n_traces}")
-        for key, entries in (("trace_idx", state["trace_idx"][:n_traces]),
-                             ("prev_tiles", state["prev_tiles"]), ("tiles", state["tiles"])):
+        for key, entries in (
+            ("trace_idx", state["trace_idx"][:n_traces]),
+            ("prev_tiles", state["prev_tiles"]),
+            ("tiles", state["tiles"]),
+        ):
             if np.any((entries < 0) | (entries >= features)):
                 raise ValueError(f"s-ac: state {key!r} must hold tile indices in [0, {features})")
         if np.any((state["traces"] < 0) | (state["traces"] > 1)) or int(state["k"]) < 0:
@@ -366,12 +422,14 @@ class StandardActorCritic(Agent):
 
     def _policy(self, tiles: np.ndarray) -> np.ndarray:
         if self.config.backend == "numba":
-            return _policy_numba(self.actor_, tiles, self._a_low, self._a_high,
-                                 np.empty(self.action_space.dim))
+            return _policy_numba(
+                self.actor_, tiles, self._a_low, self._a_high, np.empty(self.action_space.dim)
+            )
         return np.clip(self.actor_[tiles].sum(axis=0), self._a_low, self._a_high)
 
-    def _act(self, tiles: np.ndarray, k: int,
-             u: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def _act(
+        self, tiles: np.ndarray, k: int, u: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Lines 6 and 8: u_k = sat(pi(x_k) + Delta u_k) and the applied exploration u_k - pi(x_k);
         a given u_k (replay) is taken as applied, its exploration relative to today's pi(x_k)."""
         if u is not None:
@@ -390,14 +448,32 @@ class StandardActorCritic(Agent):
         """Lines 10-13 for the transition x_{k-1} -> x_k (tiles in _prev_tiles and _tiles), with
         the discount ``gamma`` of V(x_k) in the TD error (0 for a terminal x_k)."""
         c = self.config
-        if self.reward_scale_ is not None and self._learns_scale and abs(reward) > self.reward_scale_:
+        if (
+            self.reward_scale_ is not None
+            and self._learns_scale
+            and abs(reward) > self.reward_scale_
+        ):
             self.reward_scale_ = abs(reward)
             self._set_rate_a()
         if c.backend == "numba":
             delta, n_traces = _learn_numba(
-                self.critic_, self.actor_, self._traces, self._trace_idx, self._n_traces,
-                self._prev_tiles, self._tiles, reward, gamma, self._decay, c.trace_cutoff,
-                self.rate_c, self.rate_a, self._prev_du, self._a_low, self._a_high)
+                self.critic_,
+                self.actor_,
+                self._traces,
+                self._trace_idx,
+                self._n_traces,
+                self._prev_tiles,
+                self._tiles,
+                reward,
+                gamma,
+                self._decay,
+                c.trace_cutoff,
+                self.rate_c,
+                self.rate_a,
+                self._prev_du,
+                self._a_low,
+                self._a_high,
+            )
             if not np.isfinite(delta):
                 raise self._overflow(f"the TD error with reward {reward!r}")
             self.last_delta_, self._n_traces = delta, n_traces
@@ -416,7 +492,7 @@ class StandardActorCritic(Agent):
         self._traces[self._traces < c.trace_cutoff] = 0.0
         self._traces[prev] = 1.0
         self._n_traces = int(np.count_nonzero(self._traces))
-        self._trace_idx[:self._n_traces] = np.flatnonzero(self._traces)
+        self._trace_idx[: self._n_traces] = np.flatnonzero(self._traces)
         # Line 12 (eq. 3 with traces): dV/dtheta(x) is the indicator of x's tiles.
         self.critic_ += (self.rate_c * delta) * self._traces
         # Line 13 (eq. 4): dpi/dvartheta(x_{k-1}) is the indicator of x_{k-1}'s tiles.

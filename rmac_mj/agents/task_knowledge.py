@@ -15,31 +15,48 @@ import numpy as np
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
 
 
-def with_task_weights(owner: str, config: Any, state_space: StateSpace, action_space: ActionSpace,
-                      state_memories: tuple[str, ...],
-                      process_memories: tuple[str, ...] = ("process",)) -> Any:
+def with_task_weights(
+    owner: str,
+    config: Any,
+    state_space: StateSpace,
+    action_space: ActionSpace,
+    state_memories: tuple[str, ...],
+    process_memories: tuple[str, ...] = ("process",),
+) -> Any:
     """``config`` with every ``<memory>_weights`` left None taken from the task's hints: the
     StateSpace's ``input_weights`` for a memory over x, those then the ActionSpace's for one over
     [x, u]; every weighting checked against n or n + m (ValueError naming ``owner``)."""
     n, m = state_space.dim, action_space.dim
     hints = {name: state_space.input_weights for name in state_memories}
-    hints.update({name: np.r_[state_space.input_weights, action_space.input_weights]
-                  for name in process_memories})
-    config = dataclasses.replace(config, **{
-        f"{name}_weights": tuple(float(w) for w in weights)
-        for name, weights in hints.items() if getattr(config, f"{name}_weights") is None})
+    hints.update(
+        {
+            name: np.r_[state_space.input_weights, action_space.input_weights]
+            for name in process_memories
+        }
+    )
+    config = dataclasses.replace(
+        config,
+        **{
+            f"{name}_weights": tuple(float(w) for w in weights)
+            for name, weights in hints.items()
+            if getattr(config, f"{name}_weights") is None
+        },
+    )
     for name in hints:
         size = n + m if name in process_memories else n
         weights = getattr(config, f"{name}_weights")
         if len(weights) != size:
-            raise ValueError(f"{owner}: config.{name}_weights has {len(weights)} "
-                             f"entries, this task needs {size} "
-                             f"({'[x, u]' if name in process_memories else 'x'})")
+            raise ValueError(
+                f"{owner}: config.{name}_weights has {len(weights)} "
+                f"entries, this task needs {size} "
+                f"({'[x, u]' if name in process_memories else 'x'})"
+            )
     return config
 
 
-def with_task_action_cost(owner: str, config: Any, action_space: ActionSpace,
-                          used_by: str | None) -> Any:
+def with_task_action_cost(
+    owner: str, config: Any, action_space: ActionSpace, used_by: str | None
+) -> Any:
     """``config`` with its ``action_cost`` resolved against the task, as a tuple of m numbers: None
     takes the task's (``ActionSpace.cost``), a number P stands for P in every action dimension.
     ``used_by`` says what reads it; None when nothing does, and then a cost the task does not
@@ -48,16 +65,21 @@ def with_task_action_cost(owner: str, config: Any, action_space: ActionSpace,
     if cost is None:
         cost = action_space.cost
         if cost is None and used_by is not None:
-            raise ValueError(f"{owner}: {used_by} uses the reward's action cost, "
-                             f"which this task does not declare (learner_state.action_cost); "
-                             f"set config.action_cost (0: the reward does not depend on u)")
+            raise ValueError(
+                f"{owner}: {used_by} uses the reward's action cost, "
+                f"which this task does not declare (learner_state.action_cost); "
+                f"set config.action_cost (0: the reward does not depend on u)"
+            )
     elif np.ndim(cost) == 0:
         cost = (cost,) * m
     if cost is not None and len(cost) != m:
-        raise ValueError(f"{owner}: config.action_cost has {len(cost)} entries, "
-                         f"this task has {m} action dimensions")
+        raise ValueError(
+            f"{owner}: config.action_cost has {len(cost)} entries, "
+            f"this task has {m} action dimensions"
+        )
     return dataclasses.replace(
-        config, action_cost=None if cost is None else tuple(float(c) for c in cost))
+        config, action_cost=None if cost is None else tuple(float(c) for c in cost)
+    )
 
 
 # --------------------------------------------------------------------------------------------------
@@ -69,7 +91,7 @@ def with_task_action_cost(owner: str, config: Any, action_space: ActionSpace,
 PAPER_TIMESTEP = 0.03
 PAPER_STATE_DIM = 2
 PAPER_ACTION_DIM = 1
-PAPER_REWARD_SCALE = 5.0 * math.pi ** 2
+PAPER_REWARD_SCALE = 5.0 * math.pi**2
 #: The width of the paper's action range [V]: u in [-3, 3] (section 6).
 PAPER_ACTION_RANGE = 6.0
 
@@ -102,8 +124,9 @@ def reward_rate(paper_rate: float, reward_scale: float) -> float:
     return min(1.0, paper_rate * (PAPER_REWARD_SCALE / reward_scale))
 
 
-def task_value(rule: str, paper_value: float, state_space: StateSpace,
-               action_space: ActionSpace) -> float | int | None:
+def task_value(
+    rule: str, paper_value: float, state_space: StateSpace, action_space: ActionSpace
+) -> float | int | None:
     """``paper_value`` (a default at the paper's pendulum) carried to this task by ``rule`` (one of
     :data:`TASK_UNIT_RULES`); None for 'reward' when the task declares no reward scale."""
     n, m = state_space.dim, action_space.dim
@@ -117,8 +140,9 @@ def task_value(rule: str, paper_value: float, state_space: StateSpace,
     if rule == "transitions":
         return int(round(paper_value * (n + m) / (PAPER_STATE_DIM + PAPER_ACTION_DIM)))
     if rule == "action":
-        return float(paper_value * np.mean(action_space.high - action_space.low)
-                     / PAPER_ACTION_RANGE)
+        return float(
+            paper_value * np.mean(action_space.high - action_space.low) / PAPER_ACTION_RANGE
+        )
     raise ValueError(f"unknown task-unit rule {rule!r}; one of {', '.join(TASK_UNIT_RULES)}")
 
 

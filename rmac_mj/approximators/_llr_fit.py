@@ -19,7 +19,7 @@ def jacobi_eigh(G, evals, evecs):
     for a in range(p):
         for b in range(p):
             evecs[a, b] = 1.0 if a == b else 0.0
-    for sweep in range(50):
+    for _sweep in range(50):
         off = 0.0
         scale = 0.0
         for a in range(p):
@@ -54,6 +54,7 @@ def jacobi_eigh(G, evals, evecs):
                     evecs[k, b] = s * vka + c * vkb
     for a in range(p):
         evals[a] = G[a, a]
+
 
 @njit(cache=True)
 def fit(Xt, Y, idx, nk, xq, w, in_period, out_period, eig_cutoff, ridge, clip, beta_out, pred_out):

@@ -84,11 +84,14 @@ KEPT = 3
 
 #: The memory's own arrays (see the module docstring), shared with ``LLRMemory``.
 LLRArrays = collections.namedtuple(
-    "LLRArrays", ["Xt", "Y", "stamp", "counters", "redundancy", "weights", "in_period", "out_period"])
+    "LLRArrays",
+    ["Xt", "Y", "stamp", "counters", "redundancy", "weights", "in_period", "out_period"],
+)
 #: The memory's settings (see the module docstring).
 LLRSettings = collections.namedtuple(
-    "LLRSettings", ["n_neighbours", "norm", "clip", "replacement", "eig_cutoff", "ridge", "measure",
-                    "smoothing"])
+    "LLRSettings",
+    ["n_neighbours", "norm", "clip", "replacement", "eig_cutoff", "ridge", "measure", "smoothing"],
+)
 #: A local affine model: the prediction (m,) at the query point and beta (m, n+1), with
 #: beta @ [x; 1] == prediction at the query point (offsets of periodic inputs wrapped).
 LocalFit = collections.namedtuple("LocalFit", ["prediction", "beta"])
@@ -115,17 +118,40 @@ _VECTOR = types.float64[::1]
 _MATRIX = types.float64[:, ::1]
 _INTS = types.int64[::1]
 #: The one concrete type of every LLRState (C-contiguous float64/int64 arrays).
-LLR_STATE_TYPE = LLRStateType([
-    ("Xt", _MATRIX), ("Y", _MATRIX), ("stamp", _INTS), ("counters", _INTS), ("redundancy", _VECTOR),
-    ("weights", _VECTOR), ("in_period", _VECTOR), ("out_period", _VECTOR),
-    ("n_neighbours", types.int64), ("norm", types.int64), ("clip", types.boolean),
-    ("replacement", types.int64), ("eig_cutoff", types.float64), ("ridge", types.float64),
-    ("measure", types.int64), ("smoothing", types.float64),
-    ("dist", _VECTOR), ("best", _VECTOR), ("seen", types.boolean[::1]), ("lanes", _VECTOR),
-    ("last_nearest", types.int64), ("last_point", _VECTOR), ("last_version", types.int64),
-    ("kept_idx", types.int64[:, ::1]), ("kept_dist", _MATRIX), ("kept_count", _INTS),
-    ("kept_version", _INTS), ("kept_point", _MATRIX), ("kept_used", _INTS),
-    ("kept_clock", types.int64)])
+LLR_STATE_TYPE = LLRStateType(
+    [
+        ("Xt", _MATRIX),
+        ("Y", _MATRIX),
+        ("stamp", _INTS),
+        ("counters", _INTS),
+        ("redundancy", _VECTOR),
+        ("weights", _VECTOR),
+        ("in_period", _VECTOR),
+        ("out_period", _VECTOR),
+        ("n_neighbours", types.int64),
+        ("norm", types.int64),
+        ("clip", types.boolean),
+        ("replacement", types.int64),
+        ("eig_cutoff", types.float64),
+        ("ridge", types.float64),
+        ("measure", types.int64),
+        ("smoothing", types.float64),
+        ("dist", _VECTOR),
+        ("best", _VECTOR),
+        ("seen", types.boolean[::1]),
+        ("lanes", _VECTOR),
+        ("last_nearest", types.int64),
+        ("last_point", _VECTOR),
+        ("last_version", types.int64),
+        ("kept_idx", types.int64[:, ::1]),
+        ("kept_dist", _MATRIX),
+        ("kept_count", _INTS),
+        ("kept_version", _INTS),
+        ("kept_point", _MATRIX),
+        ("kept_used", _INTS),
+        ("kept_clock", types.int64),
+    ]
+)
 
 
 @njit(cache=True)
@@ -184,6 +210,7 @@ def version(state):
 
 # -- state-level operations ---------------------------------------------------------------------
 
+
 @njit(cache=True)
 def _search(state, xq, k, idx_out, best, seed, n_seed):
     """The min(k, count) nearest samples to a canonical xq, by (distance, index), with their
@@ -200,8 +227,21 @@ def _search(state, xq, k, idx_out, best, seed, n_seed):
 @njit(cache=True)
 def fit_at(state, xq, idx, nk, beta_out, pred_out):
     """The local model at a canonical xq from the neighbours ``idx[:nk]`` (see ``fit``)."""
-    fit(state.Xt, state.Y, idx, nk, xq, state.weights, state.in_period, state.out_period,
-        state.eig_cutoff, state.ridge, state.clip, beta_out, pred_out)
+    fit(
+        state.Xt,
+        state.Y,
+        idx,
+        nk,
+        xq,
+        state.weights,
+        state.in_period,
+        state.out_period,
+        state.eig_cutoff,
+        state.ridge,
+        state.clip,
+        beta_out,
+        pred_out,
+    )
 
 
 @njit(cache=True)
@@ -247,8 +287,7 @@ def refresh(state, xq, idx, dist, n, slot):
     sample outside the list may lie before it), which is dropped.
     """
     capacity = idx.shape[0]
-    distances(state.Xt, slot, slot + 1, xq, state.weights, state.in_period, state.norm,
-              state.dist)
+    distances(state.Xt, slot, slot + 1, xq, state.weights, state.in_period, state.norm, state.dist)
     kept = 0
     for a in range(n):
         if idx[a] != slot:
@@ -287,8 +326,9 @@ def nearest(state, xq):
         c = int(np.argmin(state.kept_used))  # the least recently used list gives way
         seeds = int(np.argmax(state.kept_used))  # the last one asked for: near xq on a trajectory
         n_seeds = max(state.kept_count[seeds], 0) if seeds != c else 0
-        state.kept_count[c] = candidates(state, xq, state.kept_idx[c], state.kept_dist[c],
-                                         state.kept_idx[seeds], n_seeds)
+        state.kept_count[c] = candidates(
+            state, xq, state.kept_idx[c], state.kept_dist[c], state.kept_idx[seeds], n_seeds
+        )
         state.kept_version[c] = state.counters[VERSION]
         state.kept_point[c, :] = xq
     state.kept_clock += 1
@@ -320,8 +360,14 @@ def _carry_kept(state, before, count_before, slot):
         if state.kept_count[c] != complete:
             state.kept_count[c] = -1
             continue
-        state.kept_count[c] = refresh(state, state.kept_point[c], state.kept_idx[c],
-                                      state.kept_dist[c], state.kept_count[c], slot)
+        state.kept_count[c] = refresh(
+            state,
+            state.kept_point[c],
+            state.kept_idx[c],
+            state.kept_dist[c],
+            state.kept_count[c],
+            slot,
+        )
         state.kept_version[c] = state.counters[VERSION]
 
 
@@ -347,14 +393,27 @@ def insert(state, x, y, nearest):
         if nearest < 0:
             xq = np.empty(x.shape[0])
             canonical(x, state.in_period, xq)
-            if (state.last_version == counters[VERSION] and state.last_nearest >= 0
-                    and np.all(state.last_point == xq)):
+            if (
+                state.last_version == counters[VERSION]
+                and state.last_nearest >= 0
+                and np.all(state.last_point == xq)
+            ):
                 nearest = state.last_nearest
             else:
                 one_d = np.empty(1)
-                distances(state.Xt, 0, counters[COUNT], xq, state.weights, state.in_period, state.norm,
-                          state.dist)
-                smallest(state.dist, counters[COUNT], 1, one, one_d, one, 0, state.seen, state.lanes)
+                distances(
+                    state.Xt,
+                    0,
+                    counters[COUNT],
+                    xq,
+                    state.weights,
+                    state.in_period,
+                    state.norm,
+                    state.dist,
+                )
+                smallest(
+                    state.dist, counters[COUNT], 1, one, one_d, one, 0, state.seen, state.lanes
+                )
                 nearest = one[0]
         one[0] = nearest
         return insert_among(state, x, y, one, 1)

@@ -46,8 +46,21 @@ def misfits(state, xq, y, idx, nk, out):
     rows = np.arange(nk + 1)
     beta = np.empty((m, n + 1))
     pred = np.empty(m)
-    fit(Xt2, Y2, rows, nk + 1, xq, state.weights, state.in_period, state.out_period,
-        state.eig_cutoff, state.ridge, False, beta, pred)
+    fit(
+        Xt2,
+        Y2,
+        rows,
+        nk + 1,
+        xq,
+        state.weights,
+        state.in_period,
+        state.out_period,
+        state.eig_cutoff,
+        state.ridge,
+        False,
+        beta,
+        pred,
+    )
     for a in range(nk + 1):
         e2 = 0.0
         for o in range(m):

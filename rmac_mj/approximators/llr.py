@@ -69,8 +69,13 @@ import numpy as np
 from rmac_mj.approximators import _llr_kernels as _k
 from rmac_mj.approximators._llr_kernels import LLR_STATE_TYPE, LLRState, LocalFit
 from rmac_mj.approximators._llr_redundancy import MEASURE_DISTANCE, MEASURE_MISFIT
-from rmac_mj.approximators.llr_numpy import (distance_numpy, fit_numpy, misfit_numpy,
-                                                 search_numpy, wrap)
+from rmac_mj.approximators.llr_numpy import (
+    distance_numpy,
+    fit_numpy,
+    misfit_numpy,
+    search_numpy,
+    wrap,
+)
 from rmac_mj.constraints import WEIGHTS, Boolean, Field, Interval, Options, TupleOf, check
 
 #: The compiled interface (see the module docstring): the functions take an LLRState first;
@@ -87,14 +92,33 @@ llr_size = _k.size
 llr_canonical = _k.canonical
 wrap_scalar = _k.wrap
 
-__all__ = ["LLRMemory", "LLRState", "LLR_STATE_TYPE", "LocalFit", "SHARED_CONSTRAINTS",
-           "llr_add_weighted", "llr_canonical", "llr_fit_at", "llr_insert", "llr_insert_among",
-           "llr_local_fit", "llr_move_outputs", "llr_nearest", "llr_query", "llr_size",
-           "memory_constraints", "wrap", "wrap_scalar"]
+__all__ = [
+    "LLRMemory",
+    "LLRState",
+    "LLR_STATE_TYPE",
+    "LocalFit",
+    "SHARED_CONSTRAINTS",
+    "llr_add_weighted",
+    "llr_canonical",
+    "llr_fit_at",
+    "llr_insert",
+    "llr_insert_among",
+    "llr_local_fit",
+    "llr_move_outputs",
+    "llr_nearest",
+    "llr_query",
+    "llr_size",
+    "memory_constraints",
+    "wrap",
+    "wrap_scalar",
+]
 
 _CONDITIONINGS = ("svd", "ridge", "none")
-_REPLACEMENTS = {"oldest": _k.REPLACE_OLDEST, "nearest": _k.REPLACE_NEAREST,
-                 "redundancy": _k.REPLACE_REDUNDANCY}
+_REPLACEMENTS = {
+    "oldest": _k.REPLACE_OLDEST,
+    "nearest": _k.REPLACE_NEAREST,
+    "redundancy": _k.REPLACE_REDUNDANCY,
+}
 _MEASURES = {"distance": MEASURE_DISTANCE, "misfit": MEASURE_MISFIT}
 _BACKENDS = ("numba", "numpy")
 #: Relative eigenvalue cutoff of G = A^T A used for 'none' and 'ridge' (a singular value ratio of
@@ -127,12 +151,25 @@ class LLRMemory:
     names the same arrays for compiled code.
     """
 
-    def __init__(self, input_dim: int, output_dim: int, capacity: int, n_neighbours: int,
-                 input_weights: Any = None, norm: int = 1, input_period: Any = None,
-                 output_period: Any = None, conditioning: str = "svd", rcond: float = 0.01,
-                 ridge: float = 1e-3, clip: bool = False, replacement: str = "nearest",
-                 redundancy: str = "distance", redundancy_smoothing: float = 0.1,
-                 backend: str = "numba") -> None:
+    def __init__(
+        self,
+        input_dim: int,
+        output_dim: int,
+        capacity: int,
+        n_neighbours: int,
+        input_weights: Any = None,
+        norm: int = 1,
+        input_period: Any = None,
+        output_period: Any = None,
+        conditioning: str = "svd",
+        rcond: float = 0.01,
+        ridge: float = 1e-3,
+        clip: bool = False,
+        replacement: str = "nearest",
+        redundancy: str = "distance",
+        redundancy_smoothing: float = 0.1,
+        backend: str = "numba",
+    ) -> None:
         self.input_dim = input_dim
         self.output_dim = output_dim
         self.capacity = capacity
@@ -178,14 +215,26 @@ class LLRMemory:
         return int(capacity) * 8 * (input_dim + output_dim + 2) + 16
 
     def _new_kernel_state(self) -> LLRState:
-        arrays = _k.LLRArrays(Xt=self._Xt, Y=self.Y_, stamp=self.stamp_, counters=self._counters,
-                              redundancy=self.redundancy_, weights=self._w, in_period=self._pin,
-                              out_period=self._pout)
+        arrays = _k.LLRArrays(
+            Xt=self._Xt,
+            Y=self.Y_,
+            stamp=self.stamp_,
+            counters=self._counters,
+            redundancy=self.redundancy_,
+            weights=self._w,
+            in_period=self._pin,
+            out_period=self._pout,
+        )
         settings = _k.LLRSettings(
-            n_neighbours=int(self.n_neighbours), norm=int(self.norm), clip=bool(self.clip),
-            replacement=_REPLACEMENTS[self.replacement], eig_cutoff=self._eig_cutoff,
-            ridge=self._ridge, measure=_MEASURES[self.redundancy],
-            smoothing=float(self.redundancy_smoothing))
+            n_neighbours=int(self.n_neighbours),
+            norm=int(self.norm),
+            clip=bool(self.clip),
+            replacement=_REPLACEMENTS[self.replacement],
+            eig_cutoff=self._eig_cutoff,
+            ridge=self._ridge,
+            measure=_MEASURES[self.redundancy],
+            smoothing=float(self.redundancy_smoothing),
+        )
         return _k.new_state(arrays, settings)
 
     def __getstate__(self) -> dict[str, Any]:
@@ -223,8 +272,11 @@ class LLRMemory:
     def _validate(self) -> None:
         """Check the constructor's arguments against :attr:`parameter_constraints`; derive the
         arrays and numbers the kernels take."""
-        values = check("LLRMemory", self.parameter_constraints,
-                       {name: getattr(self, name) for name in self.parameter_constraints})
+        values = check(
+            "LLRMemory",
+            self.parameter_constraints,
+            {name: getattr(self, name) for name in self.parameter_constraints},
+        )
         n, m = self.input_dim, self.output_dim
         self._w = self._vector(values["input_weights"], n, 1.0)
         self._pin = self._vector(values["input_period"], n, 0.0)
@@ -245,13 +297,17 @@ class LLRMemory:
     def _check(self, name: str, value: Any, size: int, finite: bool = True) -> np.ndarray:
         """value as a float vector of shape (size,); checked finite unless ``finite`` is False (the
         numba kernels check that themselves, at no cost)."""
-        v = value if type(value) is np.ndarray and value.dtype == np.float64 else np.asarray(
-            value, dtype=float)
+        v = (
+            value
+            if type(value) is np.ndarray and value.dtype == np.float64
+            else np.asarray(value, dtype=float)
+        )
         if v.shape != (size,):
             v = v.reshape(-1)
             if v.shape != (size,):
-                raise ValueError(f"LLRMemory: {name} must have shape ({size},), "
-                                 f"got {np.shape(value)}")
+                raise ValueError(
+                    f"LLRMemory: {name} must have shape ({size},), got {np.shape(value)}"
+                )
         if finite and not np.all(np.isfinite(v)):
             self._not_finite(name, value)
         return v
@@ -286,7 +342,7 @@ class LLRMemory:
         self.stamp_[:] = 0
         self.redundancy_[:] = 0.0
 
-    def fit(self, X: Any, Y: Any) -> "LLRMemory":
+    def fit(self, X: Any, Y: Any) -> LLRMemory:
         """Initialise the memory from given samples (prior knowledge, section 7).
 
         X: array of shape (s, n), Y: (s, m), s <= capacity. Replaces all current samples.
@@ -294,10 +350,13 @@ class LLRMemory:
         X = np.asarray(X, dtype=float)
         Y = np.asarray(Y, dtype=float)
         if X.ndim != 2 or X.shape[1] != self.input_dim:
-            raise ValueError(f"LLRMemory.fit: X must have shape (s, {self.input_dim}), got {X.shape}")
+            raise ValueError(
+                f"LLRMemory.fit: X must have shape (s, {self.input_dim}), got {X.shape}"
+            )
         if Y.shape != (X.shape[0], self.output_dim):
-            raise ValueError(f"LLRMemory.fit: Y must have shape ({X.shape[0]}, {self.output_dim}), "
-                             f"got {Y.shape}")
+            raise ValueError(
+                f"LLRMemory.fit: Y must have shape ({X.shape[0]}, {self.output_dim}), got {Y.shape}"
+            )
         if X.shape[0] > self.capacity:
             raise ValueError(f"LLRMemory.fit: {X.shape[0]} samples exceed capacity={self.capacity}")
         if not (np.all(np.isfinite(X)) and np.all(np.isfinite(Y))):
@@ -314,8 +373,11 @@ class LLRMemory:
             X_, Y_ = self.X_[:s], self.Y_[:s]
             for i in range(s):
                 others = np.delete(np.arange(s), i)
-                idx = others[search_numpy(X_[others], X_[i], self._w, self._pin, self.norm,
-                                              self.n_neighbours)]
+                idx = others[
+                    search_numpy(
+                        X_[others], X_[i], self._w, self._pin, self.norm, self.n_neighbours
+                    )
+                ]
                 self.redundancy_[i] = -self._measures(X_[i], Y_[i], idx)[0]
         return self
 
@@ -328,14 +390,26 @@ class LLRMemory:
         if self.redundancy == "distance":
             d = distance_numpy(self.X_[idx], x, self._w, self._pin, self.norm)
             return np.r_[d[0], d]
-        return misfit_numpy(np.vstack([x, self.X_[idx]]), np.vstack([y, self.Y_[idx]]), x,
-                                self._w, self._pin, self._pout, self._eig_cutoff, self._ridge)
+        return misfit_numpy(
+            np.vstack([x, self.X_[idx]]),
+            np.vstack([y, self.Y_[idx]]),
+            x,
+            self._w,
+            self._pin,
+            self._pout,
+            self._eig_cutoff,
+            self._ridge,
+        )
 
     def state_dict(self, prefix: str = "") -> dict[str, np.ndarray]:
         """Samples and bookkeeping as numeric arrays, keys prefixed with ``prefix``."""
-        return {prefix + "X": self.X_.copy(), prefix + "Y": self.Y_.copy(),
-                prefix + "stamp": self.stamp_.copy(), prefix + "meta": self._counters[:2].copy(),
-                prefix + "redundancy": self.redundancy_.copy()}
+        return {
+            prefix + "X": self.X_.copy(),
+            prefix + "Y": self.Y_.copy(),
+            prefix + "stamp": self.stamp_.copy(),
+            prefix + "meta": self._counters[:2].copy(),
+            prefix + "redundancy": self.redundancy_.copy(),
+        }
 
     def check_state_dict(self, state: dict[str, np.ndarray], prefix: str = "") -> None:
         """ValueError naming the entry unless ``state`` holds a state dict of this memory under
@@ -348,29 +422,42 @@ class LLRMemory:
                     continue
                 raise ValueError(f"LLRMemory: the state dict lacks {key!r}")
             value = np.asarray(state[key])
-            if value.dtype.kind not in ("iu" if arr.dtype.kind in "iu" else "f") or \
-                    value.shape != arr.shape:
-                raise ValueError(f"LLRMemory: state {key!r} must be {arr.dtype} of shape "
-                                 f"{arr.shape}, got {value.dtype} of shape {value.shape}")
+            if (
+                value.dtype.kind not in ("iu" if arr.dtype.kind in "iu" else "f")
+                or value.shape != arr.shape
+            ):
+                raise ValueError(
+                    f"LLRMemory: state {key!r} must be {arr.dtype} of shape "
+                    f"{arr.shape}, got {value.dtype} of shape {value.shape}"
+                )
             if value.dtype.kind == "f" and not np.all(np.isfinite(value)):
                 raise ValueError(f"LLRMemory: state {key!r} must be finite")
         count, clock = (int(v) for v in state[prefix + "meta"])
         if not (0 <= count <= self.capacity and clock >= count):
-            raise ValueError(f"LLRMemory: state {prefix + 'meta'!r} = [count {count}, clock "
-                             f"{clock}] needs 0 <= count <= {self.capacity} (the capacity) and "
-                             f"clock >= count")
+            raise ValueError(
+                f"LLRMemory: state {prefix + 'meta'!r} = [count {count}, clock "
+                f"{clock}] needs 0 <= count <= {self.capacity} (the capacity) and "
+                f"clock >= count"
+            )
         X = np.asarray(state[prefix + "X"])[:count]
         if np.any((self._pin > 0) & (np.abs(X) > self._pin * (0.5 + 1e-9))):
-            raise ValueError(f"LLRMemory: state {prefix + 'X'!r} holds periodic inputs outside "
-                             f"[-period/2, period/2)")
+            raise ValueError(
+                f"LLRMemory: state {prefix + 'X'!r} holds periodic inputs outside "
+                f"[-period/2, period/2)"
+            )
 
     def load_state_dict(self, state: dict[str, np.ndarray], prefix: str = "") -> None:
         """Restore a ``state_dict`` (checked first: :meth:`check_state_dict`)."""
         self.check_state_dict(state, prefix)
         if prefix + "redundancy" not in state:
             state = dict(state, **{prefix + "redundancy": np.zeros(self.capacity)})
-        for key, arr in (("X", self.X_), ("Y", self.Y_), ("stamp", self.stamp_),
-                         ("meta", self._counters[:2]), ("redundancy", self.redundancy_)):
+        for key, arr in (
+            ("X", self.X_),
+            ("Y", self.Y_),
+            ("stamp", self.stamp_),
+            ("meta", self._counters[:2]),
+            ("redundancy", self.redundancy_),
+        ):
             arr[...] = state[prefix + key]
         self._counters[_k.VERSION] += 1
 
@@ -384,9 +471,8 @@ class LLRMemory:
         """Unvalidated K(xq) for a canonical xq (periodic entries in [-period/2, period/2))."""
         count = int(self._counters[_k.COUNT])
         if self.backend == "numba":
-            return self._idx[:_k.neighbours(self._state, xq, self._idx)]
-        return search_numpy(self.X_[:count], xq, self._w, self._pin, self.norm,
-                                self.n_neighbours)
+            return self._idx[: _k.neighbours(self._state, xq, self._idx)]
+        return search_numpy(self.X_[:count], xq, self._w, self._pin, self.norm, self.n_neighbours)
 
     def neighbour_distances(self, x: Any) -> np.ndarray:
         """Weighted distances (float, shape (min(K, n_samples_),)) from x to K(x), nearest first.
@@ -418,19 +504,29 @@ class LLRMemory:
         """Unvalidated query; returned arrays may be internal buffers (copy before keeping)."""
         if self.backend == "numba":
             nk = _k.query(self._state, xq, self._idx, self._beta, self._pred)
-            return self._pred, self._beta, self._idx[:max(nk, 0)]
+            return self._pred, self._beta, self._idx[: max(nk, 0)]
         xq = self._canonical(xq)
         idx = self._neighbours(xq)
-        pred, beta = fit_numpy(self.X_[idx], self.Y_[idx], xq, self._w, self._pin, self._pout,
-                                   self._eig_cutoff, self._ridge, bool(self.clip))
+        pred, beta = fit_numpy(
+            self.X_[idx],
+            self.Y_[idx],
+            xq,
+            self._w,
+            self._pin,
+            self._pout,
+            self._eig_cutoff,
+            self._ridge,
+            bool(self.clip),
+        )
         return pred, beta, idx
 
     def predict(self, X: Any) -> np.ndarray:
         """Predictions for a batch of queries X of shape (q, n); returns shape (q, m)."""
         X = np.asarray(X, dtype=float)
         if X.ndim != 2 or X.shape[1] != self.input_dim:
-            raise ValueError(f"LLRMemory.predict: X must have shape (q, {self.input_dim}), "
-                             f"got {X.shape}")
+            raise ValueError(
+                f"LLRMemory.predict: X must have shape (q, {self.input_dim}), got {X.shape}"
+            )
         if not np.all(np.isfinite(X)):
             raise ValueError("LLRMemory.predict: X must be finite")
         return np.array([self._query(x)[0].copy() for x in X]).reshape(X.shape[0], self.output_dim)
@@ -459,22 +555,28 @@ class LLRMemory:
         own = 0.0
         if self.replacement == "redundancy":
             # rho_i <- (1 - eta) rho_i + eta c_i over K(x) (module docstring).
-            idx = search_numpy(self.X_[:count], x, self._w, self._pin, self.norm,
-                                   self.n_neighbours)
+            idx = search_numpy(self.X_[:count], x, self._w, self._pin, self.norm, self.n_neighbours)
             neg_c = self._measures(x, y, idx)
             eta = float(self.redundancy_smoothing)
             for a, i in enumerate(idx):  # in the compiled kernel's order
                 self.redundancy_[i] = (1.0 - eta) * self.redundancy_[i] - eta * neg_c[1 + a]
             # rho_* = (1 - eta) mean rho_i + eta c_*, over the updated neighbours
             # (summed in order, as the compiled kernel does)
-            own = (1.0 - eta) * (sum(float(self.redundancy_[i]) for i in idx) / len(idx)) \
-                - eta * neg_c[0] if len(idx) else 0.0
+            own = (
+                (1.0 - eta) * (sum(float(self.redundancy_[i]) for i in idx) / len(idx))
+                - eta * neg_c[0]
+                if len(idx)
+                else 0.0
+            )
         if count < self.capacity:
             slot = count
             self._counters[_k.COUNT] += 1
         elif self.replacement == "nearest":
-            slot = nearest if nearest >= 0 else int(
-                search_numpy(self.X_, x, self._w, self._pin, self.norm, 1)[0])
+            slot = (
+                nearest
+                if nearest >= 0
+                else int(search_numpy(self.X_, x, self._w, self._pin, self.norm, 1)[0])
+            )
         elif self.replacement == "redundancy":
             slot = int(np.argmax(self.redundancy_[:count]))
         else:
@@ -521,8 +623,10 @@ class LLRMemory:
         count = self.n_samples_
         w = np.asarray(weights, dtype=float).reshape(-1)
         if w.shape not in ((self.capacity,), (count,)):
-            raise ValueError(f"LLRMemory.add_weighted: weights must have shape ({self.capacity},) "
-                             f"or ({count},), got {np.shape(weights)}")
+            raise ValueError(
+                f"LLRMemory.add_weighted: weights must have shape ({self.capacity},) "
+                f"or ({count},), got {np.shape(weights)}"
+            )
         delta = self._check("delta", delta, self.output_dim)
         if not np.all(np.isfinite(w[:count])):
             raise ValueError("LLRMemory.add_weighted: weights must be finite")
@@ -534,8 +638,9 @@ class LLRMemory:
     def _indices(self, method: str, indices: Any) -> np.ndarray:
         idx = np.asarray(indices, dtype=np.int64).reshape(-1)
         if np.any((idx < 0) | (idx >= self._counters[_k.COUNT])):
-            raise ValueError(f"LLRMemory.{method}: indices must be in [0, {self.n_samples_}), "
-                             f"got {indices!r}")
+            raise ValueError(
+                f"LLRMemory.{method}: indices must be in [0, {self.n_samples_}), got {indices!r}"
+            )
         return idx
 
     def outputs(self, indices: Any) -> np.ndarray:
@@ -543,13 +648,16 @@ class LLRMemory:
         return self.Y_[np.asarray(indices, dtype=np.int64).reshape(-1)].copy()
 
     def __repr__(self) -> str:
-        return (f"LLRMemory(input_dim={self.input_dim}, output_dim={self.output_dim}, "
-                f"capacity={self.capacity}, n_neighbours={self.n_neighbours}, "
-                f"n_samples_={self.n_samples_}, backend={self.backend!r})")
+        return (
+            f"LLRMemory(input_dim={self.input_dim}, output_dim={self.output_dim}, "
+            f"capacity={self.capacity}, n_neighbours={self.n_neighbours}, "
+            f"n_samples_={self.n_samples_}, backend={self.backend!r})"
+        )
 
 
-def memory_constraints(memory: str, replacements: tuple[str, ...] = tuple(_REPLACEMENTS),
-                       redundancy: bool = True) -> dict[str, list]:
+def memory_constraints(
+    memory: str, replacements: tuple[str, ...] = tuple(_REPLACEMENTS), redundancy: bool = True
+) -> dict[str, list]:
     """A learner config's constraints on the settings of its LLR memory ``memory`` (e.g. 'critic'),
     LLRMemory's own rules under the config's names: ``{memory}_capacity``, ``{memory}_neighbours``
     (at most the capacity; both None: grown from the paper's with the task's dimension),
@@ -557,16 +665,20 @@ def memory_constraints(memory: str, replacements: tuple[str, ...] = tuple(_REPLA
     the task), ``{memory}_clip``, ``{memory}_replacement`` (one of ``replacements``) and, with
     ``redundancy``, ``{memory}_redundancy``."""
     own = LLRMemory.parameter_constraints
-    table = {f"{memory}_capacity": [*own["capacity"], None],
-             f"{memory}_neighbours": [Interval(Integral, 1, Field(f"{memory}_capacity")), None],
-             f"{memory}_weights": [WEIGHTS, None],
-             f"{memory}_clip": own["clip"],
-             f"{memory}_replacement": [Options(*replacements)]}
+    table = {
+        f"{memory}_capacity": [*own["capacity"], None],
+        f"{memory}_neighbours": [Interval(Integral, 1, Field(f"{memory}_capacity")), None],
+        f"{memory}_weights": [WEIGHTS, None],
+        f"{memory}_clip": own["clip"],
+        f"{memory}_replacement": [Options(*replacements)],
+    }
     if redundancy:
         table[f"{memory}_redundancy"] = own["redundancy"]
     return table
 
 
 #: The settings every memory of a learner shares, as LLRMemory checks them.
-SHARED_CONSTRAINTS = {name: LLRMemory.parameter_constraints[name]
-                      for name in ("norm", "conditioning", "rcond", "ridge")}
+SHARED_CONSTRAINTS = {
+    name: LLRMemory.parameter_constraints[name]
+    for name in ("norm", "conditioning", "rcond", "ridge")
+}

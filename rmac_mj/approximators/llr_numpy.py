@@ -54,17 +54,26 @@ def wrap(d: np.ndarray, period: np.ndarray) -> np.ndarray:
     return np.where(period > 0, d - safe * np.floor(d / safe + 0.5), d)
 
 
-def search_numpy(X: np.ndarray, xq: np.ndarray, weights: np.ndarray, period: np.ndarray,
-                     norm: int, k: int) -> np.ndarray:
+def search_numpy(
+    X: np.ndarray, xq: np.ndarray, weights: np.ndarray, period: np.ndarray, norm: int, k: int
+) -> np.ndarray:
     """Indices of the min(k, len(X)) nearest rows of X (shape (N, n)) to xq (n,), nearest first."""
     e = weights * wrap(X - xq, period)
     d = np.abs(e).sum(axis=1) if norm == 1 else (e * e).sum(axis=1)
     return np.argsort(d, kind="stable")[:k]
 
 
-def fit_numpy(X: np.ndarray, Y: np.ndarray, xq: np.ndarray, weights: np.ndarray,
-                  in_period: np.ndarray, out_period: np.ndarray, eig_cutoff: float, ridge: float,
-                  clip: bool) -> tuple[np.ndarray, np.ndarray]:
+def fit_numpy(
+    X: np.ndarray,
+    Y: np.ndarray,
+    xq: np.ndarray,
+    weights: np.ndarray,
+    in_period: np.ndarray,
+    out_period: np.ndarray,
+    eig_cutoff: float,
+    ridge: float,
+    clip: bool,
+) -> tuple[np.ndarray, np.ndarray]:
     """Local affine model of neighbours X (k, n) -> Y (k, m) around xq (n,).
 
     Returns (prediction of shape (m,), beta of shape (m, n+1)) with beta @ [xq; 1] == prediction.
@@ -91,17 +100,25 @@ def fit_numpy(X: np.ndarray, Y: np.ndarray, xq: np.ndarray, weights: np.ndarray,
     return pred, beta
 
 
-def distance_numpy(X: np.ndarray, xq: np.ndarray, weights: np.ndarray, period: np.ndarray,
-                       norm: int) -> np.ndarray:
+def distance_numpy(
+    X: np.ndarray, xq: np.ndarray, weights: np.ndarray, period: np.ndarray, norm: int
+) -> np.ndarray:
     """Weighted distances (shape (k,)) of the rows of X (k, n) to xq: the 1-norm or the 2-norm (not
     squared) of w * wrap(x - xq)."""
     e = weights * wrap(X - xq, period)
     return np.abs(e).sum(axis=1) if norm == 1 else np.sqrt((e * e).sum(axis=1))
 
 
-def misfit_numpy(X: np.ndarray, Y: np.ndarray, xq: np.ndarray, weights: np.ndarray,
-                     in_period: np.ndarray, out_period: np.ndarray, eig_cutoff: float,
-                     ridge: float) -> np.ndarray:
+def misfit_numpy(
+    X: np.ndarray,
+    Y: np.ndarray,
+    xq: np.ndarray,
+    weights: np.ndarray,
+    in_period: np.ndarray,
+    out_period: np.ndarray,
+    eig_cutoff: float,
+    ridge: float,
+) -> np.ndarray:
     """Squared residuals (shape (k,)) of the samples X (k, n) -> Y (k, m) under their one affine
     fit at xq (``fit_numpy``, unclipped): |wrap(y - pred - beta_x wrap(x - xq))|^2."""
     pred, beta = fit_numpy(X, Y, xq, weights, in_period, out_period, eig_cutoff, ridge, False)

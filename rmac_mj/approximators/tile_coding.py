@@ -27,8 +27,9 @@ Two back ends compute the same features: ``"numpy"`` (readable reference) and ``
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 from numbers import Integral
-from typing import ClassVar, Literal, Sequence
+from typing import ClassVar, Literal
 
 import numba
 import numpy as np
@@ -69,7 +70,8 @@ class TileCodingConfig:
         tiles = np.asarray(self.tiles, dtype=np.int64)
         if tiles.shape != (dim,):
             raise ValueError(
-                f"TileCodingConfig.tiles has {tiles.shape[0]} entries but the state has {dim} dimensions")
+                f"TileCodingConfig.tiles has {tiles.shape[0]} entries but the state has {dim} dimensions"
+            )
         return tiles
 
 
@@ -83,9 +85,10 @@ def tiling_offsets(num_tilings: int, dim: int, kind: str = "uniform") -> np.ndar
         return np.repeat((np.arange(num_tilings) / num_tilings)[:, None], dim, axis=1)
     if kind == "grid":
         per_dim = int(round(num_tilings ** (1.0 / dim)))
-        if per_dim ** dim != num_tilings:
+        if per_dim**dim != num_tilings:
             raise ValueError(
-                f"offsets='grid' needs num_tilings to be a {dim}-th power, got num_tilings={num_tilings}")
+                f"offsets='grid' needs num_tilings to be a {dim}-th power, got num_tilings={num_tilings}"
+            )
         shifts = np.stack(np.unravel_index(np.arange(num_tilings), (per_dim,) * dim), axis=1)
         return shifts / per_dim
     raise ValueError(f"offsets must be 'uniform' or 'grid', got {kind!r}")
@@ -136,18 +139,30 @@ class TileCoder:
       offsets: ndarray of shape (num_tilings, n), shift of each tiling in tile widths.
     """
 
-    def __init__(self, low: Sequence[float], high: Sequence[float], periodic: Sequence[bool],
-                 config: TileCodingConfig = TileCodingConfig(), backend: Backend = "numba") -> None:
+    def __init__(
+        self,
+        low: Sequence[float],
+        high: Sequence[float],
+        periodic: Sequence[bool],
+        config: TileCodingConfig = TileCodingConfig(),
+        backend: Backend = "numba",
+    ) -> None:
         self.low = np.asarray(low, dtype=float).reshape(-1)
         self.high = np.asarray(high, dtype=float).reshape(-1)
         self.periodic = np.asarray(periodic, dtype=bool).reshape(-1)
         if not (self.low.shape == self.high.shape == self.periodic.shape):
             raise ValueError(
                 f"TileCoder: low, high and periodic must have one shape, got {self.low.shape}, "
-                f"{self.high.shape} and {self.periodic.shape}")
-        if not (np.all(np.isfinite(self.low)) and np.all(np.isfinite(self.high))
-                and np.all(self.high > self.low)):
-            raise ValueError(f"TileCoder: need finite low < high, got low={self.low}, high={self.high}")
+                f"{self.high.shape} and {self.periodic.shape}"
+            )
+        if not (
+            np.all(np.isfinite(self.low))
+            and np.all(np.isfinite(self.high))
+            and np.all(self.high > self.low)
+        ):
+            raise ValueError(
+                f"TileCoder: need finite low < high, got low={self.low}, high={self.high}"
+            )
         check("TileCoder", {"backend": [Options("numba", "numpy")]}, {"backend": backend})
         self.config = config
         self.backend = backend
@@ -195,8 +210,18 @@ class TileCoder:
         """
         if not (type(x) is np.ndarray and x.dtype == np.float64 and x.shape == self._shape):
             x = self.check_state(x)
-        if not _active_tiles_numba(x, self.low, self.high, self.periodic, self.scale, self.offsets,
-                                   self.sizes, self.strides, self.tiling_size, out):
+        if not _active_tiles_numba(
+            x,
+            self.low,
+            self.high,
+            self.periodic,
+            self.scale,
+            self.offsets,
+            self.sizes,
+            self.strides,
+            self.tiling_size,
+            out,
+        ):
             self.check_state(x)  # raises the ValueError naming the non-finite state
         return out
 
@@ -206,7 +231,9 @@ class TileCoder:
         x = np.where(self.periodic, wrapped, np.clip(x, self.low, self.high))
         coords = np.floor((x - self.low) * self.scale + self.offsets).astype(np.int64)
         coords = np.where(self.periodic, coords % self.sizes, np.minimum(coords, self.sizes - 1))
-        return np.arange(self.num_tilings, dtype=np.int64) * self.tiling_size + coords @ self.strides
+        return (
+            np.arange(self.num_tilings, dtype=np.int64) * self.tiling_size + coords @ self.strides
+        )
 
 
 class LinearTileApproximator:
@@ -226,8 +253,9 @@ class LinearTileApproximator:
             raise ValueError(f"output_dim must be a positive integer, got {output_dim!r}")
         self.coder = coder
         self.output_dim = int(output_dim)
-        self.weights_ = np.full((coder.num_features, self.output_dim),
-                                float(initial_value) / coder.num_tilings)
+        self.weights_ = np.full(
+            (coder.num_features, self.output_dim), float(initial_value) / coder.num_tilings
+        )
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         """f(x), ndarray of shape (m,)."""

@@ -37,7 +37,8 @@ import os
 import platform
 import tempfile
 import time
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -46,8 +47,15 @@ from rmac_mj import tasks
 from rmac_mj.agents import PolicyAgent, make_agent
 from rmac_mj.approximators.llr import LLRMemory
 from rmac_mj.bench import planning as bench_planning
-from rmac_mj.rollout import (action_space_of, learner_state_of, n_sub_steps, run_trial,
-                                         state_of, state_space_of, steps_per_trial)
+from rmac_mj.rollout import (
+    action_space_of,
+    learner_state_of,
+    n_sub_steps,
+    run_trial,
+    state_of,
+    state_space_of,
+    steps_per_trial,
+)
 
 #: The suite's default task, which the benchmark measures unless told otherwise.
 _DOMAIN, _TASK = tasks.DEFAULT_TASK
@@ -81,16 +89,26 @@ def check_task(**where: Any) -> None:
     _load(**where)
 
 
-def _where(domain: str = _DOMAIN, task: str = _TASK, env: str | None = None,
-           learner_state: dict | None = None, action_repeat: int = 1):
+def _where(
+    domain: str = _DOMAIN,
+    task: str = _TASK,
+    env: str | None = None,
+    learner_state: dict | None = None,
+    action_repeat: int = 1,
+):
     """What is measured, as a Protocol (the one place environments are built): a task of the suite
     (``domain``/``task``) or an outside environment (``env``, a SPEC, with its ``learner_state``
     declaration and ``action_repeat``, see ``rmac_mj.envs``)."""
     from rmac_mj.experiments.protocol import Protocol
 
     if env is not None:  # (domain/task other than the default are refused beside it)
-        return Protocol(env=env, learner_state=learner_state, action_repeat=action_repeat,
-                        domain=domain, task=task)
+        return Protocol(
+            env=env,
+            learner_state=learner_state,
+            action_repeat=action_repeat,
+            domain=domain,
+            task=task,
+        )
     return Protocol(domain=domain, task=task)
 
 
@@ -117,6 +135,7 @@ def _raw_step(env, rng: np.random.Generator, calls: int) -> tuple[Callable[[], f
                 for _ in range(n_sub):
                     mujoco.mj_step(model, data)
             return (_clock_ns() - start) / calls / 1e3
+
         return raw_batch, f"raw MuJoCo control step ({n_sub} x mj_step)"
     own = env.base.env  # a Gymnasium environment (rmac_mj.envs.GymnasiumEnvironment.env)
     space = own.action_space
@@ -132,6 +151,7 @@ def _raw_step(env, rng: np.random.Generator, calls: int) -> tuple[Callable[[], f
             if terminated or truncated:
                 own.reset()
         return elapsed / calls / 1e3
+
     return own_batch, "the environment's own step (Gymnasium)"
 
 
@@ -199,8 +219,12 @@ def step_costs(calls: int, repeats: int, **where: Any) -> dict[str, Any]:
         raw.append(raw_batch())
         env_step.append(env_batch())
         glue.append(trial_batch() - episode_batch())
-    return {"physics_step_us": float(np.median(raw)), "env_step_us": float(np.median(env_step)),
-            "glue_step_us": float(np.median(glue)), "raw_step": raw_label}
+    return {
+        "physics_step_us": float(np.median(raw)),
+        "env_step_us": float(np.median(env_step)),
+        "glue_step_us": float(np.median(glue)),
+        "raw_step": raw_label,
+    }
 
 
 def physics_step_us(calls: int, repeats: int, **where: Any) -> float:
@@ -217,8 +241,14 @@ def llr_query_insert_us(calls: int, repeats: int, **where: Any) -> float:
     """A query and an insertion on a full critic-like memory (N = 2000, K = 20) over the task's state:
     its dimensions, weights and periods, filled uniformly over its box."""
     space = state_space_of(_load(**where))
-    memory = LLRMemory(input_dim=space.dim, output_dim=1, capacity=2000, n_neighbours=20,
-                       input_weights=space.input_weights, input_period=space.period)
+    memory = LLRMemory(
+        input_dim=space.dim,
+        output_dim=1,
+        capacity=2000,
+        n_neighbours=20,
+        input_weights=space.input_weights,
+        input_period=space.period,
+    )
     rng = np.random.default_rng(0)
     fill = rng.uniform(space.low, space.high, (2000, space.dim))
     for x in fill:
@@ -228,11 +258,13 @@ def llr_query_insert_us(calls: int, repeats: int, **where: Any) -> float:
     def query_insert(i):
         prediction, _, _ = memory.query(queries[i])
         memory.insert(queries[i], prediction)
+
     return _median_us(query_insert, calls, repeats)
 
 
-def learner_step_us(algorithm: str, repeats: int, warmup_trials: int | None = None,
-                    **where: Any) -> float:
+def learner_step_us(
+    algorithm: str, repeats: int, warmup_trials: int | None = None, **where: Any
+) -> float:
     """One learner step (act + update) with full memories, the environment excluded.
 
     The agent first learns for ``warmup_trials`` trials (default: 2500 steps' worth, so that RMAC's
@@ -292,12 +324,18 @@ def _process_cpu_s() -> float | None:
         import resource
     except ImportError:  # not on Unix: only wall time is reported
         return None
-    return sum(u.ru_utime + u.ru_stime for u in (resource.getrusage(resource.RUSAGE_SELF),
-                                                 resource.getrusage(resource.RUSAGE_CHILDREN)))
+    return sum(
+        u.ru_utime + u.ru_stime
+        for u in (
+            resource.getrusage(resource.RUSAGE_SELF),
+            resource.getrusage(resource.RUSAGE_CHILDREN),
+        )
+    )
 
 
-def real_run(experiments: int, trials: int, jobs: int, physics_step_us: float,
-             **where: Any) -> dict[str, Any]:
+def real_run(
+    experiments: int, trials: int, jobs: int, physics_step_us: float, **where: Any
+) -> dict[str, Any]:
     """Run ``run_protocol`` (both learners, ``experiments`` x ``trials`` each, on ``jobs`` worker
     processes, into a temporary directory, no figures) and time it end to end.
 
@@ -314,8 +352,12 @@ def real_run(experiments: int, trials: int, jobs: int, physics_step_us: float,
     from rmac_mj.experiments.runner import run_protocol
 
     protocol = dataclasses.replace(_where(**where), experiments=experiments, trials=trials)
-    steps = experiments * len(protocol.algorithms) * trials * steps_per_trial(
-        protocol.make_environment(0))
+    steps = (
+        experiments
+        * len(protocol.algorithms)
+        * trials
+        * steps_per_trial(protocol.make_environment(0))
+    )
     workers = min(jobs, experiments * len(protocol.algorithms))
     with tempfile.TemporaryDirectory(prefix="rmac-mj-bench-") as out:
         cpu_before = _process_cpu_s()
@@ -324,14 +366,24 @@ def real_run(experiments: int, trials: int, jobs: int, physics_step_us: float,
         wall = time.perf_counter() - start
         cpu_after = _process_cpu_s()
     cpu = None if cpu_before is None else (cpu_after - cpu_before) / workers
-    in_experiments = sum(summary[name]["experiment_wall_s_mean"] * experiments
-                         for name in protocol.algorithms) / workers
+    in_experiments = (
+        sum(summary[name]["experiment_wall_s_mean"] * experiments for name in protocol.algorithms)
+        / workers
+    )
     physics = steps * physics_step_us * 1e-6 / workers
-    return {"experiments_per_learner": experiments, "trials": trials, "workers": workers,
-            "steps": steps, "physics_s": physics,
-            "wall_s": wall, "x_physics": wall / physics,
-            "cpu_s": cpu, "cpu_x_physics": None if cpu is None else cpu / physics,
-            "in_experiments_s": in_experiments, "in_experiments_x_physics": in_experiments / physics}
+    return {
+        "experiments_per_learner": experiments,
+        "trials": trials,
+        "workers": workers,
+        "steps": steps,
+        "physics_s": physics,
+        "wall_s": wall,
+        "x_physics": wall / physics,
+        "cpu_s": cpu,
+        "cpu_x_physics": None if cpu is None else cpu / physics,
+        "in_experiments_s": in_experiments,
+        "in_experiments_x_physics": in_experiments / physics,
+    }
 
 
 def _cpu_name() -> str:
@@ -347,19 +399,22 @@ def _cpu_name() -> str:
 
 #: The per-step figures of the report, in table order, with their labels ({n_sub}: physics steps per
 #: control step of the measured task).
-ROWS = (("physics_step_us", "{raw_step}"),
-        ("env_step_us", "{env_step}"),
-        ("env_overhead_us", "  of which outside the physics"),
-        ("glue_step_us", "glue per step (run_trial, agent boundary)"),
-        ("outside_physics_learner_us", "overhead outside physics and learner"),
-        ("llr_query_insert_us", "LLR query + insert (N=2000, K=20)"),
-        ("sac_step_us", "S-AC learner step (act + update)"),
-        ("rmac_step_us", "RMAC learner step (act + update)"),
-        ("mlac_step_us", "MLAC learner step (act + update)"))
+ROWS = (
+    ("physics_step_us", "{raw_step}"),
+    ("env_step_us", "{env_step}"),
+    ("env_overhead_us", "  of which outside the physics"),
+    ("glue_step_us", "glue per step (run_trial, agent boundary)"),
+    ("outside_physics_learner_us", "overhead outside physics and learner"),
+    ("llr_query_insert_us", "LLR query + insert (N=2000, K=20)"),
+    ("sac_step_us", "S-AC learner step (act + update)"),
+    ("rmac_step_us", "RMAC learner step (act + update)"),
+    ("mlac_step_us", "MLAC learner step (act + update)"),
+)
 
 
-def run(quick: bool = False, algorithms: tuple[str, ...] = ("s-ac", "rmac"), jobs: int = 2,
-        **where: Any) -> dict[str, Any]:
+def run(
+    quick: bool = False, algorithms: tuple[str, ...] = ("s-ac", "rmac"), jobs: int = 2, **where: Any
+) -> dict[str, Any]:
     """Measure everything on a task of the suite or an outside environment (``where``: ``domain``
     and ``task``, or ``env`` with its ``learner_state`` and ``action_repeat``, see :func:`_where`);
     return the report (the keys of ``--json``)."""
@@ -367,17 +422,22 @@ def run(quick: bool = False, algorithms: tuple[str, ...] = ("s-ac", "rmac"), job
     trials = 30 if quick else PAPER_TRIALS
     on = dict(where)
     env = _load(**where)
-    report: dict[str, Any] = {**on, "environment": _where(**where).environment_name,
-                              "control_timestep_s": env.control_timestep(),
-                              "n_sub_steps": n_sub_steps(env) if hasattr(env, "physics") else None,
-                              "state_dim": state_space_of(env).dim}
+    report: dict[str, Any] = {
+        **on,
+        "environment": _where(**where).environment_name,
+        "control_timestep_s": env.control_timestep(),
+        "n_sub_steps": n_sub_steps(env) if hasattr(env, "physics") else None,
+        "state_dim": state_space_of(env).dim,
+    }
     report.update(step_costs(calls, repeats, **on))
-    report.update({
-        "llr_query_insert_us": llr_query_insert_us(calls, repeats, **on),
-        "sac_step_us": learner_step_us("s-ac", repeats, **on),
-        "rmac_step_us": learner_step_us("rmac", repeats, **on),
-        "mlac_step_us": learner_step_us("mlac", repeats, **on),
-    })
+    report.update(
+        {
+            "llr_query_insert_us": llr_query_insert_us(calls, repeats, **on),
+            "sac_step_us": learner_step_us("s-ac", repeats, **on),
+            "rmac_step_us": learner_step_us("rmac", repeats, **on),
+            "mlac_step_us": learner_step_us("mlac", repeats, **on),
+        }
+    )
     physics = report["physics_step_us"]
     report["env_overhead_us"] = report["env_step_us"] - physics
     report["outside_physics_learner_us"] = report["env_overhead_us"] + report["glue_step_us"]
@@ -391,10 +451,17 @@ def run(quick: bool = False, algorithms: tuple[str, ...] = ("s-ac", "rmac"), job
     report["protocol_projected_min"] = PAPER_EXPERIMENTS * sum(walls.values()) / cores / 60.0
     report["run"] = real_run(1 if quick else 2, 10 if quick else 100, jobs, physics, **on)
     report["rehearsal"] = bench_planning.rehearsal_costs(
-        repeats=3 if quick else 5, trials=1 if quick else 2,
-        steps=(0, 20) if quick else bench_planning.STEPS, **on)
-    report["machine"] = {"cores": cores, "cpu": _cpu_name(), "python": platform.python_version(),
-                         "mujoco": mujoco.__version__}
+        repeats=3 if quick else 5,
+        trials=1 if quick else 2,
+        steps=(0, 20) if quick else bench_planning.STEPS,
+        **on,
+    )
+    report["machine"] = {
+        "cores": cores,
+        "cpu": _cpu_name(),
+        "python": platform.python_version(),
+        "mujoco": mujoco.__version__,
+    }
     return report
 
 
@@ -407,49 +474,68 @@ def _verdict(ratio: float, target: float | None) -> str:
 def format_table(report: dict[str, Any]) -> str:
     """The report as a table: microseconds, multiples of the raw control step and of env.step."""
     physics, env = report["physics_step_us"], report["env_step_us"]
-    lines = [_task_line(report),
-             f"{'what':<44} {'us':>8} {'x raw step':>10} {'x env.step':>10}  target (x raw)",
-             "-" * 90]
+    lines = [
+        _task_line(report),
+        f"{'what':<44} {'us':>8} {'x raw step':>10} {'x env.step':>10}  target (x raw)",
+        "-" * 90,
+    ]
     for key, label in ROWS:
         value = report[key]
         label = label.format(raw_step=_raw_label(report), env_step=_env_step_label(report))
-        lines.append(f"{label:<44} {value:>8.1f} {value / physics:>10.2f} {value / env:>10.2f}  "
-                     f"{_verdict(value / physics, TARGETS.get(key))}")
+        lines.append(
+            f"{label:<44} {value:>8.1f} {value / physics:>10.2f} {value / env:>10.2f}  "
+            f"{_verdict(value / physics, TARGETS.get(key))}"
+        )
     lines.append("")
     measured = report.get("experiment_trials_measured", PAPER_TRIALS)
     per_trial = report["steps_per_trial"]
     for name, seconds in report["experiment_s"].items():
         note = "" if measured == PAPER_TRIALS else f", projected from {measured} trials"
         per_step = seconds / (PAPER_TRIALS * per_trial) * 1e6
-        lines.append(f"one experiment of {PAPER_TRIALS} trials, {name:<5} {seconds:>6.1f} s: "
-                     f"{per_step:.0f} us per step = {per_step / physics:.1f} x raw{note}")
+        lines.append(
+            f"one experiment of {PAPER_TRIALS} trials, {name:<5} {seconds:>6.1f} s: "
+            f"{per_step:.0f} us per step = {per_step / physics:.1f} x raw{note}"
+        )
     run = report["run"]
-    lines.append(f"real run, measured: run_protocol, {run['experiments_per_learner']} experiment(s) "
-                 f"x {run['trials']} trials per learner on {run['workers']} workers, "
-                 f"{run['steps']} steps ({run['physics_s']:.2f} s of raw physics per worker):")
-    lines.append(f"  wall {run['wall_s']:.1f} s = {run['x_physics']:.1f} x the raw physics (target for "
-                 f"a whole run: <= {RUN_TARGET:g}; a short run pays more of the start-up below)")
+    lines.append(
+        f"real run, measured: run_protocol, {run['experiments_per_learner']} experiment(s) "
+        f"x {run['trials']} trials per learner on {run['workers']} workers, "
+        f"{run['steps']} steps ({run['physics_s']:.2f} s of raw physics per worker):"
+    )
+    lines.append(
+        f"  wall {run['wall_s']:.1f} s = {run['x_physics']:.1f} x the raw physics (target for "
+        f"a whole run: <= {RUN_TARGET:g}; a short run pays more of the start-up below)"
+    )
     if run["cpu_s"] is not None:
-        lines.append(f"  CPU  {run['cpu_s']:.1f} s per worker = {run['cpu_x_physics']:.1f} x "
-                     "(the wall time on idle cores)")
-    lines.append(f"  inside experiments {run['in_experiments_s']:.1f} s per worker (wall) = "
-                 f"{run['in_experiments_x_physics']:.1f} x; the rest of the wall time is starting "
-                 "workers (imports, numba cache) and writing results")
+        lines.append(
+            f"  CPU  {run['cpu_s']:.1f} s per worker = {run['cpu_x_physics']:.1f} x "
+            "(the wall time on idle cores)"
+        )
+    lines.append(
+        f"  inside experiments {run['in_experiments_s']:.1f} s per worker (wall) = "
+        f"{run['in_experiments_x_physics']:.1f} x; the rest of the wall time is starting "
+        "workers (imports, numba cache) and writing results"
+    )
     projected = report["protocol_projected_min"]
     verdict = "met" if projected <= PROTOCOL_TARGET_MIN else "MISSED"
-    lines.append(f"full protocol (40 + 40 experiments) on {report['machine']['cores']} cores: "
-                 f"{projected:.1f} min projected (target <= {PROTOCOL_TARGET_MIN:g}: {verdict})")
+    lines.append(
+        f"full protocol (40 + 40 experiments) on {report['machine']['cores']} cores: "
+        f"{projected:.1f} min projected (target <= {PROTOCOL_TARGET_MIN:g}: {verdict})"
+    )
     if "rehearsal" in report:
         lines.extend(bench_planning.format_lines(report["rehearsal"], physics))
-    lines.append(f"machine: {report['machine']['cpu']}, {report['machine']['cores']} cores, "
-                 f"Python {report['machine']['python']}, MuJoCo {report['machine']['mujoco']}")
+    lines.append(
+        f"machine: {report['machine']['cpu']}, {report['machine']['cores']} cores, "
+        f"Python {report['machine']['python']}, MuJoCo {report['machine']['mujoco']}"
+    )
     return "\n".join(lines)
 
 
 def _raw_label(report: dict[str, Any]) -> str:
     """What the unit of a report is (reports written before it was recorded: MuJoCo's steps)."""
-    return report.get("raw_step", f"raw MuJoCo control step ({report.get('n_sub_steps', '?')} x "
-                                  "mj_step)")
+    return report.get(
+        "raw_step", f"raw MuJoCo control step ({report.get('n_sub_steps', '?')} x mj_step)"
+    )
 
 
 def _env_step_label(report: dict[str, Any]) -> str:
@@ -459,38 +545,55 @@ def _env_step_label(report: dict[str, Any]) -> str:
 
 
 def _task_line(report: dict[str, Any]) -> str:
-    name = report.get("environment") or f"{report.get('domain', _DOMAIN)}/{report.get('task', _TASK)}"
-    substeps = (f" = {report['n_sub_steps']} physics steps" if report.get("n_sub_steps") is not None
-                else "")
-    return (f"{name}: control step {report.get('control_timestep_s', float('nan')):g} s{substeps}, "
-            f"state n={report.get('state_dim', '?')}")
+    name = (
+        report.get("environment") or f"{report.get('domain', _DOMAIN)}/{report.get('task', _TASK)}"
+    )
+    substeps = (
+        f" = {report['n_sub_steps']} physics steps" if report.get("n_sub_steps") is not None else ""
+    )
+    return (
+        f"{name}: control step {report.get('control_timestep_s', float('nan')):g} s{substeps}, "
+        f"state n={report.get('state_dim', '?')}"
+    )
 
 
 def format_markdown(report: dict[str, Any]) -> str:
     """The per-step figures and the real run as a Markdown table (the README's speed table)."""
     physics = report["physics_step_us"]
     machine = report["machine"]
-    lines = [f"`rmac-mj bench` on {machine['cpu']} ({machine['cores']} cores), Python "
-             f"{machine['python']}, MuJoCo {machine['mujoco']}; {_task_line(report)}:", "",
-             "| what | us | x raw control step | target |", "|---|---|---|---|"]
+    lines = [
+        f"`rmac-mj bench` on {machine['cpu']} ({machine['cores']} cores), Python "
+        f"{machine['python']}, MuJoCo {machine['mujoco']}; {_task_line(report)}:",
+        "",
+        "| what | us | x raw control step | target |",
+        "|---|---|---|---|",
+    ]
     for key, label in ROWS:
         value = report[key]
         label = label.format(raw_step=_raw_label(report), env_step=_env_step_label(report))
-        lines.append(f"| {label.strip()} | {value:.1f} | {value / physics:.2f} | "
-                     f"{_verdict(value / physics, TARGETS.get(key))} |")
+        lines.append(
+            f"| {label.strip()} | {value:.1f} | {value / physics:.2f} | "
+            f"{_verdict(value / physics, TARGETS.get(key))} |"
+        )
     per_trial = report["steps_per_trial"]
     for name, seconds in report["experiment_s"].items():
         per_step = seconds / (PAPER_TRIALS * per_trial) * 1e6
-        lines.append(f"| one {PAPER_TRIALS}-trial experiment, {name}, per step | {per_step:.0f} | "
-                     f"{per_step / physics:.1f} | |")
+        lines.append(
+            f"| one {PAPER_TRIALS}-trial experiment, {name}, per step | {per_step:.0f} | "
+            f"{per_step / physics:.1f} | |"
+        )
     run = report["run"]
     cpu = "" if run["cpu_s"] is None else f"; CPU per worker {run['cpu_x_physics']:.1f} x"
-    lines.append(f"| real run: {run['experiments_per_learner']} + {run['experiments_per_learner']} "
-                 f"experiments x {run['trials']} trials on {run['workers']} workers | "
-                 f"{run['wall_s']:.1f} s wall | {run['x_physics']:.1f}{cpu} | "
-                 f"whole run: <= {RUN_TARGET:g} |")
-    lines.append(f"| full protocol, projected | {report['protocol_projected_min']:.1f} min | | "
-                 f"<= {PROTOCOL_TARGET_MIN:g} min |")
+    lines.append(
+        f"| real run: {run['experiments_per_learner']} + {run['experiments_per_learner']} "
+        f"experiments x {run['trials']} trials on {run['workers']} workers | "
+        f"{run['wall_s']:.1f} s wall | {run['x_physics']:.1f}{cpu} | "
+        f"whole run: <= {RUN_TARGET:g} |"
+    )
+    lines.append(
+        f"| full protocol, projected | {report['protocol_projected_min']:.1f} min | | "
+        f"<= {PROTOCOL_TARGET_MIN:g} min |"
+    )
     if "rehearsal" in report:
         lines.extend(bench_planning.format_markdown(report["rehearsal"], physics))
     return "\n".join(lines)

@@ -22,36 +22,49 @@ The options are declared in :mod:`rmac_mj.cli.options`, the commands that run ex
 :mod:`rmac_mj.cli.runs`, those that look at results in :mod:`rmac_mj.cli.views`.
 """
 
-
 from __future__ import annotations
 
 import contextlib
 import errno
 import signal
 import sys
-from typing import Sequence
+from collections.abc import Sequence
 
-from rmac_mj.cli.common import PROG, say  # first: its import time is the start of the wall time
 from rmac_mj.cli import runs, views
+from rmac_mj.cli.common import PROG, say  # first: its import time is the start of the wall time
 from rmac_mj.cli.options import build_parser
 from rmac_mj.errors import UserInputError
 
-
-_COMMANDS = {"reproduce": runs.reproduce, "sweep": runs.sweep, "panel": runs.panel,
-             "compare": views.compare,
-             "policy": views.policy, "optimal": views.optimal, "render": views.render,
-             "bench": views.bench}
+_COMMANDS = {
+    "reproduce": runs.reproduce,
+    "sweep": runs.sweep,
+    "panel": runs.panel,
+    "compare": views.compare,
+    "policy": views.policy,
+    "optimal": views.optimal,
+    "render": views.render,
+    "bench": views.bench,
+}
 
 
 def _announcing_compilation(command: str):
     """Say so when a command starts compiling kernels (the first time only: tens of seconds).
     ``reproduce`` and ``sweep`` say it themselves, as they compile them before starting their workers."""
-    if command in ("reproduce", "sweep", "panel", "compare", "optimal"):  # these compile nothing, or say it themselves
+    if command in (
+        "reproduce",
+        "sweep",
+        "panel",
+        "compare",
+        "optimal",
+    ):  # these compile nothing, or say it themselves
         return contextlib.nullcontext()
     from rmac_mj import _cache
 
-    return _cache.on_first_compile(lambda: say(f"compiling kernels, first run only (cached in "
-                                                 f"{_cache.numba_cache_location()})"))
+    return _cache.on_first_compile(
+        lambda: say(
+            f"compiling kernels, first run only (cached in {_cache.numba_cache_location()})"
+        )
+    )
 
 
 def _interrupt(signum, frame):
@@ -80,6 +93,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     except RuntimeError as error:
         from rmac_mj._gl import GLBackendError
+
         if isinstance(error, GLBackendError):  # no off-screen GL: the message names the packages
             print(f"{prog}: error: {error}", file=sys.stderr)
             return 2
@@ -90,12 +104,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         # The machine's storage, not a bug: what was saved is whole (every file is written
         # atomically), and --resume finishes the run once there is room.
         where = f" ({error.filename})" if error.filename else ""
-        print(f"{prog}: error: cannot write{where}: {error.strerror}; what was saved is whole: free "
-              "some space and run again with --resume", file=sys.stderr)
+        print(
+            f"{prog}: error: cannot write{where}: {error.strerror}; what was saved is whole: free "
+            "some space and run again with --resume",
+            file=sys.stderr,
+        )
         return 1
 
 
 #: Storage errors reported in one line (disk full, quota exceeded, read-only file system).
 _STORAGE_ERRORS = (errno.ENOSPC, errno.EDQUOT, errno.EROFS)
-
-

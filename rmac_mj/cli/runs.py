@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import argparse
 import json
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 from rmac_mj.cli.common import STARTED, Interrupted, UsageError, say, user_input, writable_dir
 from rmac_mj.cli.options import PROTOCOL_OPTIONS, build_parser
@@ -14,6 +15,7 @@ from rmac_mj.errors import UserInputError
 def parse_overrides(assignments: Sequence[str]) -> dict[str, dict]:
     """``["rmac.exploration.sigma=0.5", ...]`` -> ``{"rmac": {"exploration": {"sigma": 0.5}}}``."""
     from rmac_mj.sweeps.sweep_file import nest
+
     flat: dict[str, Any] = {}
     for assignment in assignments:
         key, separator, text = assignment.partition("=")
@@ -38,8 +40,10 @@ def algorithms_to_run(args, overrides: dict[str, dict]) -> tuple[str, ...]:
         chosen = tuple(overrides)
         others = [a for a in Protocol().algorithms if a not in chosen]
         if others:
-            say(f"--set names only {', '.join(chosen)}: running {'it' if len(chosen) == 1 else 'them'} "
-                 f"alone (give --algorithms to run {', '.join(others)} too)")
+            say(
+                f"--set names only {', '.join(chosen)}: running {'it' if len(chosen) == 1 else 'them'} "
+                f"alone (give --algorithms to run {', '.join(others)} too)"
+            )
         return chosen
     return Protocol().algorithms  # the paper's comparison: RMAC and S-AC
 
@@ -51,8 +55,8 @@ def settings_from_files(argv: Sequence[str] | None, args: argparse.Namespace) ->
     ``reproduce`` has no option for travel in ``args.config_protocol``, its hyperparameters in
     ``args.config_agent_configs`` (``--set`` applies on top). A resumed run started with
     ``--no-optimal`` is finished without the reference too."""
-    from rmac_mj.sweeps import sweep_file
     from rmac_mj.results.store import ResultStore
+    from rmac_mj.sweeps import sweep_file
 
     layers: list[tuple[dict[str, Any], dict[str, dict]]] = []
     without_references = False
@@ -91,11 +95,11 @@ def settings_from_files(argv: Sequence[str] | None, args: argparse.Namespace) ->
 
 
 def reproduce(args) -> int:
-    from rmac_mj.experiments import execution, runner
     from rmac_mj.evaluation import report
-    from rmac_mj.sweeps import sweep_file
+    from rmac_mj.experiments import execution, runner
     from rmac_mj.experiments.protocol import Protocol
     from rmac_mj.results.store import ResultStore
+    from rmac_mj.sweeps import sweep_file
 
     if args.prior is None and (args.prior_trials is not None or args.prior_parts is not None):
         raise UsageError("--prior-trials and --prior-parts need --prior")
@@ -107,21 +111,32 @@ def reproduce(args) -> int:
         if args.prior_trials is not None:
             prior["prior_trials"] = args.prior_trials
         if args.prior_parts is not None:
-            prior["prior_parts"] = tuple(p.strip() for p in args.prior_parts.split(",") if p.strip())
+            prior["prior_parts"] = tuple(
+                p.strip() for p in args.prior_parts.split(",") if p.strip()
+            )
             if not prior["prior_parts"]:
                 raise UsageError("--prior-parts must name at least one part")
     overrides = parse_overrides(args.set)
     agent_configs = sweep_file.merge(getattr(args, "config_agent_configs", {}), overrides)
     with user_input():
         protocol = Protocol(
-            domain=args.domain, task=args.task,
-            algorithms=algorithms_to_run(args, overrides), experiments=args.experiments,
-            trials=args.trials, steps=args.steps, seed=args.seed,
-            evaluate_every=args.evaluate_every, evaluate_starts=args.evaluate_starts, env=args.env,
-            learner_state=args.learner_state, action_repeat=args.action_repeat,
-            trial_steps=args.trial_steps, control_timestep=args.control_timestep,
+            domain=args.domain,
+            task=args.task,
+            algorithms=algorithms_to_run(args, overrides),
+            experiments=args.experiments,
+            trials=args.trials,
+            steps=args.steps,
+            seed=args.seed,
+            evaluate_every=args.evaluate_every,
+            evaluate_starts=args.evaluate_starts,
+            env=args.env,
+            learner_state=args.learner_state,
+            action_repeat=args.action_repeat,
+            trial_steps=args.trial_steps,
+            control_timestep=args.control_timestep,
             agent_configs=agent_configs,
-            **{**getattr(args, "config_protocol", {}), **prior})
+            **{**getattr(args, "config_protocol", {}), **prior},
+        )
     out = writable_dir(args.out)
     if args.jobs is not None and args.scheduler:
         raise UsageError("--jobs and --scheduler exclude each other")
@@ -133,47 +148,71 @@ def reproduce(args) -> int:
             finished = store.read_summary()
         except UserInputError as error:  # damaged since it was written: --resume writes it again
             raise UsageError(f"{error}; {resume} writes it again") from None
-        say(f"{out} already holds this run, finished; its summary (run with another --out to "
-            "repeat it):")
+        say(
+            f"{out} already holds this run, finished; its summary (run with another --out to "
+            "repeat it):"
+        )
         print(report.summary_table(finished, protocol.algorithms))
         print(f"results in {out}/ (summary.json, returns.csv, fig2_learning_curves.png)")
         return 0
     try:
-        summary = runner.run_protocol(protocol, out, jobs=args.jobs, resume=args.resume,
-                                      scheduler=args.scheduler, progress=not args.no_progress,
-                                      references=not args.no_optimal, smooth=args.smooth, log=say,
-                                      started=STARTED)
+        summary = runner.run_protocol(
+            protocol,
+            out,
+            jobs=args.jobs,
+            resume=args.resume,
+            scheduler=args.scheduler,
+            progress=not args.no_progress,
+            references=not args.no_optimal,
+            smooth=args.smooth,
+            log=say,
+            started=STARTED,
+        )
     except execution.BackendError as error:  # e.g. the scheduler lost: what finished is saved
         saved = runner.finished_experiments(out, protocol)
         if not saved:
             raise
-        raise UsageError(f"{error}; {saved} finished experiment{'s' * (saved != 1)} saved in {out}: "
-                         f"finish with {resume} (with --scheduler or --jobs)") from None
+        raise UsageError(
+            f"{error}; {saved} finished experiment{'s' * (saved != 1)} saved in {out}: "
+            f"finish with {resume} (with --scheduler or --jobs)"
+        ) from None
     except KeyboardInterrupt:
         saved = runner.finished_experiments(out, protocol)
         again = f"finish it with: {resume}"
         if saved:
-            raise Interrupted(f"{saved} finished experiment{' is' if saved == 1 else 's are'} saved "
-                              f"in {out}; {again}") from None
+            raise Interrupted(
+                f"{saved} finished experiment{' is' if saved == 1 else 's are'} saved "
+                f"in {out}; {again}"
+            ) from None
         checkpointed = {a: ResultStore(out).checkpointed(a) for a in protocol.algorithms}
-        held = [f"{a} experiment {i} after trial {t}" for a, found in checkpointed.items()
-                for i, t in sorted(found.items())]
+        held = [
+            f"{a} experiment {i} after trial {t}"
+            for a, found in checkpointed.items()
+            for i, t in sorted(found.items())
+        ]
         if held:
-            raise Interrupted(f"no experiment had finished; kept to continue from: {', '.join(held)}; "
-                              f"{again}") from None
+            raise Interrupted(
+                f"no experiment had finished; kept to continue from: {', '.join(held)}; {again}"
+            ) from None
         raise Interrupted(f"no experiment had finished, nothing is saved; {again}") from None
     print(report.summary_table(summary, protocol.algorithms))
     parts = summary["wall_time_parts_s"]
     total = summary["wall_time_s"]
-    detail = (f" over {len(parts)} parts ({' + '.join(f'{p:.1f}' for p in parts)} s)"
-              if len(parts) > 1 else "")
-    print(f"wall time {total:.1f} s{detail}, all included (start-up, compiling, experiments, "
-          f"reference, figures); results in {out}/ (summary.json, returns.csv, fig2_learning_curves.png)")
+    detail = (
+        f" over {len(parts)} parts ({' + '.join(f'{p:.1f}' for p in parts)} s)"
+        if len(parts) > 1
+        else ""
+    )
+    print(
+        f"wall time {total:.1f} s{detail}, all included (start-up, compiling, experiments, "
+        f"reference, figures); results in {out}/ (summary.json, returns.csv, fig2_learning_curves.png)"
+    )
     return 0
 
 
 def sweep(args) -> int:
-    from rmac_mj.sweeps import sweep as sweeps, sweep_file
+    from rmac_mj.sweeps import sweep as sweeps
+    from rmac_mj.sweeps import sweep_file
 
     if args.jobs is not None and args.scheduler:
         raise UsageError("--jobs and --scheduler exclude each other")
@@ -182,19 +221,29 @@ def sweep(args) -> int:
     out = writable_dir(args.out)
     say(f"running into {out}/")
     try:
-        rows = sweeps.run_sweep(plan, out, jobs=args.jobs, scheduler=args.scheduler, resume=args.resume,
-                               progress=not args.no_progress, references=not args.no_optimal,
-                               log=say, started=STARTED)
+        rows = sweeps.run_sweep(
+            plan,
+            out,
+            jobs=args.jobs,
+            scheduler=args.scheduler,
+            resume=args.resume,
+            progress=not args.no_progress,
+            references=not args.no_optimal,
+            log=say,
+            started=STARTED,
+        )
     except KeyboardInterrupt:
         again = f"rmac-mj sweep {args.file} --resume --out {out}"
-        raise Interrupted(f"finished experiments are saved in {out}; finish the sweep with: {again}"
-                          f"{' --no-optimal' if args.no_optimal else ''}") from None
+        raise Interrupted(
+            f"finished experiments are saved in {out}; finish the sweep with: {again}"
+            f"{' --no-optimal' if args.no_optimal else ''}"
+        ) from None
     print(sweeps.format_table(plan, rows))
-    print(f"results in {out}/ (sweep.csv, sweep_<metric>.png, sweep.json, one directory per "
-          "configuration)")
+    print(
+        f"results in {out}/ (sweep.csv, sweep_<metric>.png, sweep.json, one directory per "
+        "configuration)"
+    )
     return 0
-
-
 
 
 def panel(args) -> int:
@@ -208,16 +257,30 @@ def panel(args) -> int:
             task.make_protocol(algorithms, args.experiments, args.seed, args.trials)
     out = writable_dir(args.out)
     try:
-        panels.run_panel(out, algorithms, args.experiments, args.seed, names, jobs=args.jobs,
-                         resume=args.resume, trials=args.trials, progress=not args.no_progress,
-                         log=say, started=STARTED)
+        panels.run_panel(
+            out,
+            algorithms,
+            args.experiments,
+            args.seed,
+            names,
+            jobs=args.jobs,
+            resume=args.resume,
+            trials=args.trials,
+            progress=not args.no_progress,
+            log=say,
+            started=STARTED,
+        )
     except KeyboardInterrupt:
-        raise Interrupted(f"finished experiments are saved in {out}; finish the panel with: "
-                          f"rmac-mj panel --out {out} --resume (and the same options)") from None
+        raise Interrupted(
+            f"finished experiments are saved in {out}; finish the panel with: "
+            f"rmac-mj panel --out {out} --resume (and the same options)"
+        ) from None
     for task in chosen:
         if args.trials is None:
             print(panels.format_rows(task, panels.panel_rows(task, [out / task.name])))
             print()
-    print(f"results in {out}/<task>/ (one reproduce directory per task: summary.json, returns.csv, "
-          "fig2_learning_curves.png)")
+    print(
+        f"results in {out}/<task>/ (one reproduce directory per task: summary.json, returns.csv, "
+        "fig2_learning_curves.png)"
+    )
     return 0

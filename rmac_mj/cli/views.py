@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 import pathlib
-from typing import Sequence
+from collections.abc import Sequence
 
 from rmac_mj.cli.common import UsageError, say, user_input
 
@@ -29,15 +29,22 @@ def _settings_line(summary: dict) -> str:
     """How a run was made: its size, seed and --set overrides."""
     protocol = summary.get("protocol", {})
     from rmac_mj.sweeps.sweep_file import flatten
-    overrides = [f"{key}={json.dumps(value)}"
-                 for key, value in flatten(protocol.get("agent_configs") or {}).items()]
-    text = (f"{protocol.get('experiments', '?')} experiments of {protocol.get('trials', '?')} trials, "
-            f"seed {protocol.get('seed', '?')}")
+
+    overrides = [
+        f"{key}={json.dumps(value)}"
+        for key, value in flatten(protocol.get("agent_configs") or {}).items()
+    ]
+    text = (
+        f"{protocol.get('experiments', '?')} experiments of {protocol.get('trials', '?')} trials, "
+        f"seed {protocol.get('seed', '?')}"
+    )
     return text + ("; --set " + " ".join(overrides) if overrides else "; default hyperparameters")
+
+
 def compare(args) -> int:
     from rmac_mj.agents import ALGORITHMS
-    from rmac_mj.figures import plots
     from rmac_mj.evaluation import report
+    from rmac_mj.figures import plots
     from rmac_mj.results.store import ResultStore
 
     directories = []
@@ -53,12 +60,19 @@ def compare(args) -> int:
         if "trial_seconds" not in summaries[label]:
             raise UsageError(f"{store.summary_path} has no trial_seconds (the task's trial length)")
     out = args.out if args.out is not None else directories[0] / "compare"
-    optimal = next((s["optimal_return"] for s in summaries.values() if s.get("optimal_return")), None)
+    optimal = next(
+        (s["optimal_return"] for s in summaries.values() if s.get("optimal_return")), None
+    )
     floors = {s.get("exploration_floor") for s in summaries.values()}
     try:
-        paths = plots.plot_learning_curves(summaries, out, optimal_return=optimal,
-                                           smooth=args.smooth, x_axis=args.x_axis.replace("-", "_"),
-                                           exploration_floor=floors.pop() if len(floors) == 1 else None)
+        paths = plots.plot_learning_curves(
+            summaries,
+            out,
+            optimal_return=optimal,
+            smooth=args.smooth,
+            x_axis=args.x_axis.replace("-", "_"),
+            exploration_floor=floors.pop() if len(floors) == 1 else None,
+        )
     except ValueError as error:  # e.g. env-steps of a run written before they were counted
         raise UsageError(str(error)) from None
     for label, summary in summaries.items():
@@ -68,9 +82,14 @@ def compare(args) -> int:
         print("== across the runs")
         print("\n".join(report.across_runs(summaries)))
     paths += plots.plot_performance_profiles(
-        {(label, a): s[a]["final_return_per_experiment"] for label, s in summaries.items()
-         for a in ALGORITHMS if a in s and "final_return_per_experiment" in s[a]},
-        out.with_name(out.name + "_profiles"))
+        {
+            (label, a): s[a]["final_return_per_experiment"]
+            for label, s in summaries.items()
+            for a in ALGORITHMS
+            if a in s and "final_return_per_experiment" in s[a]
+        },
+        out.with_name(out.name + "_profiles"),
+    )
     print("figures:", ", ".join(map(str, paths)))
     return 0
 
@@ -82,18 +101,21 @@ def _declared_labels(learner_state, meta: dict):
     import dataclasses
 
     declared = (meta.get("environment") or {}).get("learner_state") or {}
-    if (list(declared.get("keys") or []) == list(learner_state.keys)
-            and len(declared.get("labels") or []) == len(learner_state.labels)):
-        return dataclasses.replace(learner_state, labels=tuple(declared["labels"]),
-                                   action_labels=tuple(declared.get("action_labels")
-                                                       or learner_state.action_labels))
+    if list(declared.get("keys") or []) == list(learner_state.keys) and len(
+        declared.get("labels") or []
+    ) == len(learner_state.labels):
+        return dataclasses.replace(
+            learner_state,
+            labels=tuple(declared["labels"]),
+            action_labels=tuple(declared.get("action_labels") or learner_state.action_labels),
+        )
     return learner_state
 
 
 def policy(args) -> int:
     from rmac_mj.figures import policy_plots
-    from rmac_mj.rollout import learner_state_of, state_of
     from rmac_mj.results.snapshots import load_snapshot, snapshot_environment
+    from rmac_mj.rollout import learner_state_of, state_of
 
     snapshots, envs = [], []
     for path in args.snapshots:
@@ -104,8 +126,10 @@ def policy(args) -> int:
     learner_state = _declared_labels(learner_state_of(envs[0]), snapshots[0][1])
     for path, env in zip(args.snapshots[1:], envs[1:]):
         if learner_state_of(env) != learner_state:
-            raise UsageError(f"{path} learned on another state ({learner_state_of(env).labels}) than "
-                             f"{args.snapshots[0]} ({learner_state.labels}); draw them one by one")
+            raise UsageError(
+                f"{path} learned on another state ({learner_state_of(env).labels}) than "
+                f"{args.snapshots[0]} ({learner_state.labels}); draw them one by one"
+            )
     meta = snapshots[0][1]
     n = len(learner_state.low)
     if args.at is not None:
@@ -118,15 +142,27 @@ def policy(args) -> int:
         raise UsageError(f"policy maps need at least two state dimensions; the state has {n}")
     i, j = args.dims
     if not (0 <= i < n and 0 <= j < n and i != j):
-        raise UsageError(f"--dims must name two different state dimensions in [0, {n}), got {i},{j}")
+        raise UsageError(
+            f"--dims must name two different state dimensions in [0, {n}), got {i},{j}"
+        )
     limits = {d: lim for d, lim in ((i, args.xlim), (j, args.ylim)) if lim is not None}
     for option, lim in (("--xlim", args.xlim), ("--ylim", args.ylim)):
         if lim is not None and not lim[0] < lim[1]:
             raise UsageError(f"{option} needs LO < HI, got {lim[0]:g},{lim[1]:g}")
     first = args.snapshots[0]
-    stem = args.out or first.with_name(first.stem + ("_policy" if len(snapshots) == 1 else "_policies"))
-    paths = policy_plots.plot_policies(snapshots, stem, learner_state, anchor, dims=(i, j), limits=limits,
-                                resolution=args.resolution, envs=None if args.no_trajectory else envs)
+    stem = args.out or first.with_name(
+        first.stem + ("_policy" if len(snapshots) == 1 else "_policies")
+    )
+    paths = policy_plots.plot_policies(
+        snapshots,
+        stem,
+        learner_state,
+        anchor,
+        dims=(i, j),
+        limits=limits,
+        resolution=args.resolution,
+        envs=None if args.no_trajectory else envs,
+    )
     print("figure:", ", ".join(map(str, paths)))
     return 0
 
@@ -137,9 +173,12 @@ def optimal(args) -> int:
 
     if args.env is not None:
         from rmac_mj import tasks
+
         having = ", ".join(f"{d}/{t}" for d, t in tasks.ALL_TASKS if optimum.has_optimum(d, t))
-        raise UsageError(f"no near-optimal return for {args.env}: an outside environment declares "
-                         f"none (the suite's tasks that do: {having})")
+        raise UsageError(
+            f"no near-optimal return for {args.env}: an outside environment declares "
+            f"none (the suite's tasks that do: {having})"
+        )
     with user_input():
         if not optimum.has_optimum(args.domain, args.task):
             optimum.optimum(args.domain, args.task)  # raises, naming the tasks that have one
@@ -148,11 +187,19 @@ def optimal(args) -> int:
     from rmac_mj import tasks
     from rmac_mj.agents.task_knowledge import with_task_units
     from rmac_mj.rollout import action_space_of, state_space_of
+
     env = tasks.load(args.domain, args.task)
     # The learners' default exploration (section 6.1), in the task's action range.
     paper = with_task_units(Exploration(), state_space_of(env), action_space_of(env))
-    floor = optimum.exploration_floor(args.domain, args.task, paper.sigma, paper.period,
-                                        paper.phase, refresh=args.refresh, announce=say)
+    floor = optimum.exploration_floor(
+        args.domain,
+        args.task,
+        paper.sigma,
+        paper.period,
+        paper.phase,
+        refresh=args.refresh,
+        announce=say,
+    )
     if floor is not None:  # a reference with a policy to explore with (the dynamic programme)
         print(floor.describe())
     return 0
@@ -164,19 +211,26 @@ def render(args) -> int:
         raise UsageError("give exactly one of SNAPSHOT, --progression DIR or --compare DIR")
     from rmac_mj.videos import result_videos
 
-    options = {"width": args.width, "height": args.height, "overlay": not args.no_overlay,
-               "frames_per_step": args.frames_per_step}
+    options = {
+        "width": args.width,
+        "height": args.height,
+        "overlay": not args.no_overlay,
+        "frames_per_step": args.frames_per_step,
+    }
     if args.snapshot is not None:
-        path = result_videos.render_snapshot(args.snapshot, args.out, domain=args.domain, task=args.task,
-                                      env=args.env, **options)
+        path = result_videos.render_snapshot(
+            args.snapshot, args.out, domain=args.domain, task=args.task, env=args.env, **options
+        )
     elif args.domain is not None or args.task is not None or args.env is not None:
         raise UsageError("--domain/--task and --env apply to a single SNAPSHOT only")
     elif args.progression is not None:
-        path = result_videos.render_progression(args.progression, args.out, experiment=args.experiment,
-                                         **options)
+        path = result_videos.render_progression(
+            args.progression, args.out, experiment=args.experiment, **options
+        )
     else:
-        path = result_videos.render_comparison(args.compare, args.out, experiment=args.experiment,
-                                        **options)
+        path = result_videos.render_comparison(
+            args.compare, args.out, experiment=args.experiment, **options
+        )
     print("video:", path)
     return 0
 
@@ -184,15 +238,24 @@ def render(args) -> int:
 def bench(args) -> int:
     from rmac_mj.bench import bench
 
-    where = ({"domain": args.domain, "task": args.task} if args.env is None else
-             {"domain": args.domain, "task": args.task, "env": args.env,
-              "learner_state": args.learner_state, "action_repeat": args.action_repeat})
+    where = (
+        {"domain": args.domain, "task": args.task}
+        if args.env is None
+        else {
+            "domain": args.domain,
+            "task": args.task,
+            "env": args.env,
+            "learner_state": args.learner_state,
+            "action_repeat": args.action_repeat,
+        }
+    )
     with user_input():
         bench.check_task(**where)
     report = bench.run(quick=args.quick, **where)
     print(bench.format_markdown(report) if args.markdown else bench.format_table(report))
     if args.json:
         from rmac_mj.results.files import write_json
+
         write_json(args.json, report)
         print("json:", args.json)
     return 0

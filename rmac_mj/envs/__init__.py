@@ -18,7 +18,8 @@ discount 0, so the learner does not bootstrap from the last state.
 
 from __future__ import annotations
 
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 from rmac_mj.envs.environment import Environment
 from rmac_mj.envs.observations import ObservationMap, infer_learner_state
@@ -26,19 +27,31 @@ from rmac_mj.envs.spec import EnvSpec, parse
 from rmac_mj.tasks.common import LearnerStateSpec
 
 
-def load(env: str, kwargs: Mapping[str, Any] | None = None, *, seed: int | None = None,
-         learner_state: LearnerStateSpec | Mapping[str, Any] | None = None, action_repeat: int = 1,
-         trial_steps: int | None = None, control_timestep: float | None = None,
-         render: bool = False) -> Environment:
+def load(
+    env: str,
+    kwargs: Mapping[str, Any] | None = None,
+    *,
+    seed: int | None = None,
+    learner_state: LearnerStateSpec | Mapping[str, Any] | None = None,
+    action_repeat: int = 1,
+    trial_steps: int | None = None,
+    control_timestep: float | None = None,
+    render: bool = False,
+) -> Environment:
     """The environment named by the SPEC ``env``, seeded, as the learners see it.
 
     Arguments as the fields of :class:`EnvSpec`; ``seed`` seeds the environment's starts;
     ``render``: able to draw its frames (a Gymnasium environment is made with
     ``render_mode="rgb_array"``; a factory gets it if it takes ``render_mode``).
     """
-    spec = EnvSpec(env, kwargs=kwargs or {}, learner_state=learner_state,
-                   action_repeat=action_repeat, trial_steps=trial_steps,
-                   control_timestep=control_timestep)
+    spec = EnvSpec(
+        env,
+        kwargs=kwargs or {},
+        learner_state=learner_state,
+        action_repeat=action_repeat,
+        trial_steps=trial_steps,
+        control_timestep=control_timestep,
+    )
     return spec.make(seed, render=render)
 
 
@@ -50,9 +63,19 @@ def hint_for(domain: str) -> str:
     if not isinstance(domain, str) or domain not in suite.TASKS_BY_DOMAIN:
         return ""
     names = suite.TASKS_BY_DOMAIN[domain]
-    return (f"; dm-control has {domain!r}, an outside environment: env dm_control:{domain}/"
-            f"{names[0]} (its tasks: {', '.join(names)})")
+    return (
+        f"; dm-control has {domain!r}, an outside environment: env dm_control:{domain}/"
+        f"{names[0]} (its tasks: {', '.join(names)})"
+    )
 
 
-__all__ = ["EnvSpec", "Environment", "LearnerStateSpec", "ObservationMap", "infer_learner_state",
-           "hint_for", "load", "parse"]
+__all__ = [
+    "EnvSpec",
+    "Environment",
+    "LearnerStateSpec",
+    "ObservationMap",
+    "infer_learner_state",
+    "hint_for",
+    "load",
+    "parse",
+]

@@ -44,24 +44,38 @@ class Environment(dm_env.Environment):
         counts the steps it really took): the interaction a budget in environment steps counts.
     """
 
-    def __init__(self, base: dm_env.Environment, learner_state: LearnerStateSpec,
-                 layout: ObservationLayout, base_timestep: float, steps_per_trial: int,
-                 action_repeat: int = 1, name: str = "") -> None:
+    def __init__(
+        self,
+        base: dm_env.Environment,
+        learner_state: LearnerStateSpec,
+        layout: ObservationLayout,
+        base_timestep: float,
+        steps_per_trial: int,
+        action_repeat: int = 1,
+        name: str = "",
+    ) -> None:
         self.base = base
         self.learner_state = learner_state
         self.map = ObservationMap(learner_state.keys, layout)
         if self.map.dim != len(learner_state.low):
-            raise ValueError(f"{name}: learner_state.keys give {self.map.dim} dimensions, its low "
-                             f"and high {len(learner_state.low)}")
+            raise ValueError(
+                f"{name}: learner_state.keys give {self.map.dim} dimensions, its low "
+                f"and high {len(learner_state.low)}"
+            )
         action = base.action_spec()
         m = int(np.prod(action.shape, dtype=int))
         if len(learner_state.action_input_weights) != m:
-            raise ValueError(f"{name}: learner_state.action_input_weights has "
-                             f"{len(learner_state.action_input_weights)} entries, the action {m}")
+            raise ValueError(
+                f"{name}: learner_state.action_input_weights has "
+                f"{len(learner_state.action_input_weights)} entries, the action {m}"
+            )
         self._action_spec = specs.BoundedArray(
-            shape=(m,), dtype=float, name="action",
+            shape=(m,),
+            dtype=float,
+            name="action",
             minimum=np.broadcast_to(action.minimum, action.shape).reshape(m).astype(float),
-            maximum=np.broadcast_to(action.maximum, action.shape).reshape(m).astype(float))
+            maximum=np.broadcast_to(action.maximum, action.shape).reshape(m).astype(float),
+        )
         self._base_shape = action.shape
         self.base_timestep = float(base_timestep)
         self.steps_per_trial = int(steps_per_trial)
@@ -96,8 +110,10 @@ class Environment(dm_env.Environment):
 
     def observation_spec(self) -> dict[str, specs.Array]:
         sizes = [e.size for e in self.map.entries_]
-        return {name: specs.Array(shape=(size,), dtype=float, name=name)
-                for name, size in zip(self.map.names, sizes)}
+        return {
+            name: specs.Array(shape=(size,), dtype=float, name=name)
+            for name, size in zip(self.map.names, sizes)
+        }
 
     def action_spec(self) -> specs.BoundedArray:
         return self._action_spec
@@ -137,13 +153,16 @@ class Environment(dm_env.Environment):
             return physics.render(height, width, camera_id=0 if physics.model.ncam > 0 else -1)
         gymnasium_env = getattr(self.base, "env", None)
         if gymnasium_env is None:
-            raise UserInputError(f"{self.name}: a dm_env without a MuJoCo physics cannot be rendered")
+            raise UserInputError(
+                f"{self.name}: a dm_env without a MuJoCo physics cannot be rendered"
+            )
         if gymnasium_env.render_mode != "rgb_array":
             raise UserInputError(
                 f"{self.name} cannot be rendered: it was made without render_mode='rgb_array'. A "
                 "factory is asked for frames through a render_mode argument: take it, pass it to "
                 "the environment and let its render() return an RGB array (in Python: "
-                "envs.load(SPEC, render=True))")
+                "envs.load(SPEC, render=True))"
+            )
         try:
             frame = gymnasium_env.render()
         except Exception as error:  # e.g. gymnasium's DependencyNotInstalled (pygame)
@@ -151,8 +170,10 @@ class Environment(dm_env.Environment):
         return np.asarray(frame, dtype=np.uint8)
 
     def __repr__(self) -> str:
-        return (f"Environment({self.name!r}, x=[{', '.join(self.learner_state.keys)}], "
-                f"{self.steps_per_trial} steps of {self.control_timestep():g} s)")
+        return (
+            f"Environment({self.name!r}, x=[{', '.join(self.learner_state.keys)}], "
+            f"{self.steps_per_trial} steps of {self.control_timestep():g} s)"
+        )
 
 
 def trial_steps(base_steps: int, action_repeat: int) -> int:

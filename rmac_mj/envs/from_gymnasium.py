@@ -33,18 +33,23 @@ class GymnasiumEnvironment(dm_env.Environment):
 
         space = env.action_space
         if not isinstance(space, spaces.Box):
-            raise ValueError(f"{name}: the action space is {type(space).__name__}; the learners "
-                             f"need a bounded Box")
+            raise ValueError(
+                f"{name}: the action space is {type(space).__name__}; the learners "
+                f"need a bounded Box"
+            )
         low, high = np.asarray(space.low, dtype=float), np.asarray(space.high, dtype=float)
         if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high)) and np.all(low < high)):
-            raise ValueError(f"{name}: the action space must be bounded (finite low < high), got "
-                             f"low={space.low}, high={space.high}")
+            raise ValueError(
+                f"{name}: the action space must be bounded (finite low < high), got "
+                f"low={space.low}, high={space.high}"
+            )
         self.env = env
         self.layout = layout_of_gymnasium(env.observation_space)
         self._dict_observation = isinstance(env.observation_space, spaces.Dict)
         self._shape, self._dtype = space.shape, space.dtype
-        self._action_spec = specs.BoundedArray(shape=(low.size,), dtype=float, minimum=low.ravel(),
-                                               maximum=high.ravel(), name="action")
+        self._action_spec = specs.BoundedArray(
+            shape=(low.size,), dtype=float, minimum=low.ravel(), maximum=high.ravel(), name="action"
+        )
         self._seed = seed
         self._reset_next_step = True
 
@@ -70,8 +75,10 @@ class GymnasiumEnvironment(dm_env.Environment):
         return dm_env.transition(reward, observation)
 
     def observation_spec(self) -> dict[str, specs.Array]:
-        return {key: specs.Array(shape=(size,), dtype=float, name=key)
-                for key, size in self.layout.sizes.items()}
+        return {
+            key: specs.Array(shape=(size,), dtype=float, name=key)
+            for key, size in self.layout.sizes.items()
+        }
 
     def action_spec(self) -> specs.BoundedArray:
         return self._action_spec

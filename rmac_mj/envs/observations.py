@@ -22,7 +22,8 @@ import dataclasses
 import difflib
 import math
 import re
-from typing import Any, Mapping, Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -61,8 +62,10 @@ class ObservationLayout:
         if key not in self.sizes:
             close = difflib.get_close_matches(key, self.keys, n=1)
             hint = f" (did you mean {close[0]!r}?)" if close else ""
-            raise ValueError(f"{owner}: the observation has no entry {key!r}{hint}; it has "
-                             f"{', '.join(self.keys)}")
+            raise ValueError(
+                f"{owner}: the observation has no entry {key!r}{hint}; it has "
+                f"{', '.join(self.keys)}"
+            )
 
     def bound(self, key: str, index: int) -> tuple[float, float]:
         """(low, high) of element ``index`` of ``key``; NaN where unbounded."""
@@ -83,8 +86,10 @@ def layout_of_dm_env(spec: Any) -> ObservationLayout:
     sizes, low, high = {}, {}, {}
     for key, array_spec in specs.items():
         if isinstance(array_spec, Mapping):
-            raise ValueError(f"observation entry {key!r} is a nested dict; declare the learner "
-                             f"state as a LearnerStateSpec of a flat observation")
+            raise ValueError(
+                f"observation entry {key!r} is a nested dict; declare the learner "
+                f"state as a LearnerStateSpec of a flat observation"
+            )
         size = int(np.prod(array_spec.shape, dtype=int))
         lo, hi = (getattr(array_spec, "minimum", np.nan), getattr(array_spec, "maximum", np.nan))
         sizes[str(key)] = size
@@ -100,8 +105,10 @@ def layout_of_gymnasium(space: Any) -> ObservationLayout:
     sizes, low, high = {}, {}, {}
     for key, box in boxes.items():
         if not isinstance(box, spaces.Box):
-            raise ValueError(f"observation entry {key!r} is a {type(box).__name__} space; the "
-                             f"learners take Box observations (or a Dict of Boxes)")
+            raise ValueError(
+                f"observation entry {key!r} is a {type(box).__name__} space; the "
+                f"learners take Box observations (or a Dict of Boxes)"
+            )
         size = int(np.prod(box.shape, dtype=int))
         sizes[str(key)] = size
         low[str(key)], high[str(key)] = _bounds(box.low, box.high, size)
@@ -110,6 +117,7 @@ def layout_of_gymnasium(space: Any) -> ObservationLayout:
 
 # ----------------------------------------------------------------------------------------------------
 # Entries: expressions over the raw observation, compiled into one map observation -> x.
+
 
 @dataclasses.dataclass(frozen=True)
 class _Entry:
@@ -139,13 +147,16 @@ def parse_entry(text: str, layout: ObservationLayout) -> _Entry:
     def element(part: str) -> tuple[str, int]:
         match = _ELEMENT.match(part.strip())
         if match is None:
-            raise ValueError(f"learner_state.keys: {text!r} must read KEY, KEY[i] or "
-                             f"atan2(KEY[j], KEY[i])")
+            raise ValueError(
+                f"learner_state.keys: {text!r} must read KEY, KEY[i] or atan2(KEY[j], KEY[i])"
+            )
         key, index = match["key"].strip(), int(match["index"])
         layout.check_key(key, f"learner_state.keys entry {text!r}")
         if index >= layout.sizes[key]:
-            raise ValueError(f"learner_state.keys entry {text!r}: {key!r} has {layout.sizes[key]} "
-                             f"elements, index {index} is out of range")
+            raise ValueError(
+                f"learner_state.keys entry {text!r}: {key!r} has {layout.sizes[key]} "
+                f"elements, index {index} is out of range"
+            )
         return key, index
 
     angle = _ANGLE.match(text)
@@ -237,6 +248,7 @@ class ObservationMap:
 # ----------------------------------------------------------------------------------------------------
 # Inference.
 
+
 def unit_pairs(layout: ObservationLayout, samples: np.ndarray) -> list[tuple[str, int, int]]:
     """The (cos, sin) pairs of ``samples`` (shape (T, flat size), raw observations flattened in
     layout order): (key, i, j), i < j, elements of one key within [-1, 1] whose squares sum to 1 on
@@ -246,31 +258,45 @@ def unit_pairs(layout: ObservationLayout, samples: np.ndarray) -> list[tuple[str
     offset = 0
     for key in layout.keys:
         size = layout.sizes[key]
-        block = samples[:, offset:offset + size]
+        block = samples[:, offset : offset + size]
         offset += size
-        candidates = [(i, j) for i in range(size) for j in range(i + 1, size)
-                      if _is_unit_pair(block[:, i], block[:, j], layout, key, i, j)]
+        candidates = [
+            (i, j)
+            for i in range(size)
+            for j in range(i + 1, size)
+            if _is_unit_pair(block[:, i], block[:, j], layout, key, i, j)
+        ]
         used: dict[int, list[tuple[int, int]]] = {}
         for i, j in candidates:
             used.setdefault(i, []).append((i, j))
             used.setdefault(j, []).append((i, j))
-        clashes = sorted({pair for element_pairs in used.values() if len(element_pairs) > 1
-                          for pair in element_pairs})
+        clashes = sorted(
+            {
+                pair
+                for element_pairs in used.values()
+                if len(element_pairs) > 1
+                for pair in element_pairs
+            }
+        )
         if clashes:
             listed = ", ".join(f"({key}[{i}], {key}[{j}])" for i, j in clashes)
-            raise ValueError(f"observation {key!r} is ambiguous: its elements form overlapping "
-                             f"(cos, sin) pairs {listed}; declare learner_state.keys (e.g. "
-                             f"'atan2({key}[{clashes[0][1]}], {key}[{clashes[0][0]}])')")
+            raise ValueError(
+                f"observation {key!r} is ambiguous: its elements form overlapping "
+                f"(cos, sin) pairs {listed}; declare learner_state.keys (e.g. "
+                f"'atan2({key}[{clashes[0][1]}], {key}[{clashes[0][0]}])')"
+            )
         pairs.extend((key, i, j) for i, j in candidates)
     return pairs
 
 
-def _is_unit_pair(c: np.ndarray, s: np.ndarray, layout: ObservationLayout, key: str,
-                  i: int, j: int) -> bool:
+def _is_unit_pair(
+    c: np.ndarray, s: np.ndarray, layout: ObservationLayout, key: str, i: int, j: int
+) -> bool:
     for index in (i, j):
         low, high = layout.bound(key, index)
-        if (not math.isnan(low) and low < -1 - UNIT_TOLERANCE) or \
-                (not math.isnan(high) and high > 1 + UNIT_TOLERANCE):
+        if (not math.isnan(low) and low < -1 - UNIT_TOLERANCE) or (
+            not math.isnan(high) and high > 1 + UNIT_TOLERANCE
+        ):
             return False
     if not np.all(np.abs(c * c + s * s - 1.0) <= UNIT_TOLERANCE):
         return False
@@ -289,8 +315,9 @@ def inferred_entries(layout: ObservationLayout, samples: np.ndarray) -> list[str
             if (key, index) in folded:
                 entries.append(folded[key, index])
             elif (key, index) not in dropped:
-                entries.append(f"{key}[{index}]" if layout.sizes[key] > 1 or key == OBSERVATION
-                               else key)
+                entries.append(
+                    f"{key}[{index}]" if layout.sizes[key] > 1 or key == OBSERVATION else key
+                )
     return entries
 
 
@@ -313,12 +340,14 @@ def check_declaration(declared: Mapping[str, Any] | None) -> dict[str, Any]:
         if name not in DECLARABLE:
             close = difflib.get_close_matches(name, DECLARABLE, n=1)
             hint = f" (did you mean {close[0]!r}?)" if close else ""
-            raise ValueError(f"learner_state has no field {name!r}{hint}; its fields: "
-                             f"{', '.join(DECLARABLE)}")
+            raise ValueError(
+                f"learner_state has no field {name!r}{hint}; its fields: {', '.join(DECLARABLE)}"
+            )
     bounds = declared.get("bounds", {})
     if not isinstance(bounds, Mapping):
-        raise ValueError(f"learner_state.bounds must map dimension names to [low, high], got "
-                         f"{bounds!r}")
+        raise ValueError(
+            f"learner_state.bounds must map dimension names to [low, high], got {bounds!r}"
+        )
     return declared
 
 
@@ -333,10 +362,16 @@ def measured_box(x: np.ndarray, margin: float = MEASURED_MARGIN) -> tuple[np.nda
     return centre - half, centre + half
 
 
-def infer_learner_state(layout: ObservationLayout, samples: np.ndarray, action_low: np.ndarray,
-                        action_high: np.ndarray, declared: Mapping[str, Any] | None = None,
-                        owner: str = "the environment", measure: Any = None,
-                        measured: dict[str, list[float]] | None = None) -> LearnerStateSpec:
+def infer_learner_state(
+    layout: ObservationLayout,
+    samples: np.ndarray,
+    action_low: np.ndarray,
+    action_high: np.ndarray,
+    declared: Mapping[str, Any] | None = None,
+    owner: str = "the environment",
+    measure: Any = None,
+    measured: dict[str, list[float]] | None = None,
+) -> LearnerStateSpec:
     """The full LearnerStateSpec: the ``declared`` fields as given, the others inferred.
 
     Args:
@@ -355,8 +390,10 @@ def infer_learner_state(layout: ObservationLayout, samples: np.ndarray, action_l
     """
     declared = check_declaration(declared)
     if "bounds" in declared and ("low" in declared or "high" in declared):
-        raise ValueError(f"{owner}: declare the state box either as learner_state.low and .high or "
-                         f"as learner_state.bounds, not both")
+        raise ValueError(
+            f"{owner}: declare the state box either as learner_state.low and .high or "
+            f"as learner_state.bounds, not both"
+        )
     keys = declared.get("keys")
     if isinstance(keys, str):
         raise ValueError(f"learner_state.keys must be a list of entries, got the string {keys!r}")
@@ -370,8 +407,10 @@ def infer_learner_state(layout: ObservationLayout, samples: np.ndarray, action_l
             return default
         value = np.asarray(declared[name], dtype=float).reshape(-1)
         if value.shape != (n,):
-            raise ValueError(f"{owner}: learner_state.{name} needs {n} values, one per dimension of "
-                             f"x = [{', '.join(mapping.dimension_names())}], got {declared[name]!r}")
+            raise ValueError(
+                f"{owner}: learner_state.{name} needs {n} values, one per dimension of "
+                f"x = [{', '.join(mapping.dimension_names())}], got {declared[name]!r}"
+            )
         return value
 
     low, high = vector("low", spec_low), vector("high", spec_high)
@@ -380,12 +419,16 @@ def infer_learner_state(layout: ObservationLayout, samples: np.ndarray, action_l
         if name not in names:
             close = difflib.get_close_matches(name, names, n=1)
             hint = f" (did you mean {close[0]!r}?)" if close else ""
-            raise ValueError(f"{owner}: learner_state.bounds names {name!r}{hint}, not a dimension "
-                             f"of x = [{', '.join(names)}]")
+            raise ValueError(
+                f"{owner}: learner_state.bounds names {name!r}{hint}, not a dimension "
+                f"of x = [{', '.join(names)}]"
+            )
         bound = np.asarray(bound, dtype=float).reshape(-1)
         if bound.shape != (2,):
-            raise ValueError(f"{owner}: learner_state.bounds[{name!r}] must be [low, high], got "
-                             f"{declared['bounds'][name]!r}")
+            raise ValueError(
+                f"{owner}: learner_state.bounds[{name!r}] must be [low, high], got "
+                f"{declared['bounds'][name]!r}"
+            )
         low[names.index(name)], high[names.index(name)] = bound
     missing = [name for name, lo, hi in zip(names, low, high) if math.isnan(lo) or math.isnan(hi)]
     if missing and measure is not None:
@@ -399,28 +442,39 @@ def infer_learner_state(layout: ObservationLayout, samples: np.ndarray, action_l
         missing = []
     if missing:
         example = ", ".join(f'"{name}" = [LOW, HIGH]' for name in missing)
-        raise ValueError(f"{owner}: no finite bounds for {', '.join(missing)} (the observation spec "
-                         f"gives none); declare them: learner_state.bounds = {{{example}}}")
+        raise ValueError(
+            f"{owner}: no finite bounds for {', '.join(missing)} (the observation spec "
+            f"gives none); declare them: learner_state.bounds = {{{example}}}"
+        )
     action_low = np.asarray(action_low, dtype=float).reshape(-1)
     action_high = np.asarray(action_high, dtype=float).reshape(-1)
     inferred = {
-        "keys": tuple(entries), "low": tuple(low), "high": tuple(high),
+        "keys": tuple(entries),
+        "low": tuple(low),
+        "high": tuple(high),
         "periodic": mapping.periodic(),
         # The suite's label convention is "description symbol [unit]" (the overlay of a video shows
         # the last word): an entry without spaces is its own symbol.
-        "labels": tuple(name.replace(" ", "") + (" [rad]" if p else "")
-                        for name, p in zip(names, mapping.periodic())),
+        "labels": tuple(
+            name.replace(" ", "") + (" [rad]" if p else "")
+            for name, p in zip(names, mapping.periodic())
+        ),
         "input_weights": tuple(default_weights(low, high)),
         "action_input_weights": tuple(default_weights(action_low, action_high)),
         "action_labels": tuple(f"u[{i}]" for i in range(action_low.size)),
         # What the reward charges for the action cannot be read from the specs: only declared.
         "action_cost": None,
     }
-    given = {name: (tuple(value) if isinstance(value, list) else value)
-             for name, value in declared.items() if name in _FIELDS and name not in ("low", "high")}
+    given = {
+        name: (tuple(value) if isinstance(value, list) else value)
+        for name, value in declared.items()
+        if name in _FIELDS and name not in ("low", "high")
+    }
     if given.get("action_cost") is not None and len(given["action_cost"]) != action_low.size:
-        raise ValueError(f"{owner}: learner_state.action_cost needs {action_low.size} values, one per "
-                         f"action dimension, got {declared['action_cost']!r}")
+        raise ValueError(
+            f"{owner}: learner_state.action_cost needs {action_low.size} values, one per "
+            f"action dimension, got {declared['action_cost']!r}"
+        )
     try:
         return LearnerStateSpec(**{**inferred, **given})
     except ValueError as error:

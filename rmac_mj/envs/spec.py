@@ -22,15 +22,21 @@ import math
 import pathlib
 import sys
 import zlib
-from typing import Any, Callable, Mapping
+from collections.abc import Callable, Mapping
+from typing import Any
 
 import dm_env
 import numpy as np
 
 from rmac_mj.envs.environment import Environment, trial_steps
 from rmac_mj.envs.from_gymnasium import GymnasiumEnvironment
-from rmac_mj.envs.observations import (ObservationLayout, ObservationMap, check_declaration,
-                                       infer_learner_state, layout_of_dm_env)
+from rmac_mj.envs.observations import (
+    ObservationLayout,
+    ObservationMap,
+    check_declaration,
+    infer_learner_state,
+    layout_of_dm_env,
+)
 from rmac_mj.tasks.common import LearnerStateSpec
 
 #: The SPEC prefixes that name a library rather than a module of the user's.
@@ -48,14 +54,17 @@ def parse(spec: str) -> tuple[str, str]:
     """``(source, target)`` of a SPEC: ('dm_control', 'DOMAIN/TASK'), ('gymnasium', 'ID') or
     ('factory', 'module:function'); ValueError naming the SPEC otherwise."""
     if not isinstance(spec, str) or ":" not in spec:
-        raise ValueError(f"env {spec!r} must read dm_control:DOMAIN/TASK, gymnasium:ID, "
-                         f"package.module:factory or path/to/file.py:factory")
+        raise ValueError(
+            f"env {spec!r} must read dm_control:DOMAIN/TASK, gymnasium:ID, "
+            f"package.module:factory or path/to/file.py:factory"
+        )
     prefix, _, rest = spec.partition(":")
     if prefix == "dm_control":
         domain, _, task = rest.partition("/")
         if not domain or not task or "/" in task:
-            raise ValueError(f"env {spec!r} must read dm_control:DOMAIN/TASK, e.g. "
-                             f"dm_control:cartpole/swingup")
+            raise ValueError(
+                f"env {spec!r} must read dm_control:DOMAIN/TASK, e.g. dm_control:cartpole/swingup"
+            )
         return prefix, rest
     if prefix == "gymnasium":
         if not rest:
@@ -63,8 +72,9 @@ def parse(spec: str) -> tuple[str, str]:
         return prefix, rest
     module, _, function = spec.rpartition(":")
     if not module or not function or not all(part.isidentifier() for part in function.split(".")):
-        raise ValueError(f"env {spec!r}: a factory must read package.module:function or "
-                         f"path/to/file.py:function")
+        raise ValueError(
+            f"env {spec!r}: a factory must read package.module:function or path/to/file.py:function"
+        )
     return "factory", spec
 
 
@@ -86,9 +96,11 @@ def load_factory(target: str) -> Callable[..., Any]:
         try:
             module = importlib.import_module(module_name)
         except ImportError as error:
-            raise ValueError(f"env {target!r}: cannot import {module_name!r} ({error}); a module "
-                             f"must be installed or on PYTHONPATH, or give path/to/file.py:"
-                             f"{attribute}") from None
+            raise ValueError(
+                f"env {target!r}: cannot import {module_name!r} ({error}); a module "
+                f"must be installed or on PYTHONPATH, or give path/to/file.py:"
+                f"{attribute}"
+            ) from None
     try:
         factory = functools.reduce(getattr, attribute.split("."), module)
     except AttributeError:
@@ -134,19 +146,29 @@ class EnvSpec:
             raise ValueError(f"EnvSpec.kwargs must be a mapping, got {self.kwargs!r}")
         object.__setattr__(self, "kwargs", dict(self.kwargs))
         if self.source == "dm_control" and "random" in self.kwargs:
-            raise ValueError("EnvSpec.kwargs must not set 'random': the seed comes from the experiment")
+            raise ValueError(
+                "EnvSpec.kwargs must not set 'random': the seed comes from the experiment"
+            )
         if not isinstance(self.learner_state, (LearnerStateSpec, type(None))):
             object.__setattr__(self, "learner_state", check_declaration(self.learner_state))
-        for name, value in (("action_repeat", self.action_repeat), ("trial_steps", self.trial_steps)):
+        for name, value in (
+            ("action_repeat", self.action_repeat),
+            ("trial_steps", self.trial_steps),
+        ):
             if value is None and name == "trial_steps":
                 continue
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
                 raise ValueError(f"EnvSpec.{name} must be a positive integer, got {value!r}")
         dt = self.control_timestep
-        if dt is not None and not (isinstance(dt, (int, float)) and not isinstance(dt, bool)
-                                   and math.isfinite(dt) and dt > 0):
-            raise ValueError(f"EnvSpec.control_timestep must be a positive number of seconds, "
-                             f"got {dt!r}")
+        if dt is not None and not (
+            isinstance(dt, (int, float))
+            and not isinstance(dt, bool)
+            and math.isfinite(dt)
+            and dt > 0
+        ):
+            raise ValueError(
+                f"EnvSpec.control_timestep must be a positive number of seconds, got {dt!r}"
+            )
 
     @property
     def source(self) -> str:
@@ -165,17 +187,22 @@ class EnvSpec:
 
             domain, task = target.split("/")
             if (domain, task) not in suite.ALL_TASKS:
-                known = ", ".join(f"{d}/{t}" for d, t in suite.ALL_TASKS if d == domain) or \
-                    ", ".join(sorted(suite.TASKS_BY_DOMAIN))
-                raise ValueError(f"env {self.env!r}: dm-control has no {target!r}; "
-                                 f"{'its tasks' if domain in suite.TASKS_BY_DOMAIN else 'domains'}: "
-                                 f"{known}")
+                known = ", ".join(
+                    f"{d}/{t}" for d, t in suite.ALL_TASKS if d == domain
+                ) or ", ".join(sorted(suite.TASKS_BY_DOMAIN))
+                raise ValueError(
+                    f"env {self.env!r}: dm-control has no {target!r}; "
+                    f"{'its tasks' if domain in suite.TASKS_BY_DOMAIN else 'domains'}: "
+                    f"{known}"
+                )
             return suite.load(domain, task, task_kwargs=dict(kwargs, random=seed))
         if source == "gymnasium":
             try:
                 import gymnasium
             except ImportError:
-                raise ValueError(f"env {self.env!r} needs Gymnasium: pip install gymnasium") from None
+                raise ValueError(
+                    f"env {self.env!r} needs Gymnasium: pip install gymnasium"
+                ) from None
             if render:
                 kwargs["render_mode"] = "rgb_array"
             try:
@@ -194,8 +221,10 @@ class EnvSpec:
             return made
         if _is_gymnasium_env(made):
             return GymnasiumEnvironment(made, seed=seed, name=self.env)
-        raise ValueError(f"env {self.env!r}: the factory returned a {type(made).__name__}, not a "
-                         f"dm_env.Environment or a gymnasium.Env")
+        raise ValueError(
+            f"env {self.env!r}: the factory returned a {type(made).__name__}, not a "
+            f"dm_env.Environment or a gymnasium.Env"
+        )
 
     def make(self, seed: int | None = None, render: bool = False) -> Environment:
         """The environment the learners run on, seeded with ``seed`` (an int, or None for fresh
@@ -204,14 +233,22 @@ class EnvSpec:
         base = self.build_base(seed, render)
         spec = self
         if not isinstance(self.learner_state, LearnerStateSpec) or (
-                self.trial_steps is None and _step_limit(base) is None):
+            self.trial_steps is None and _step_limit(base) is None
+        ):
             spec = self.resolve()
         base_dt, base_limit = spec._time_of(base)
         steps = spec.trial_steps or trial_steps(base_limit, spec.action_repeat)
-        return Environment(base, spec.learner_state, _layout(base), base_dt, steps,
-                           action_repeat=spec.action_repeat, name=self.env)
+        return Environment(
+            base,
+            spec.learner_state,
+            _layout(base),
+            base_dt,
+            steps,
+            action_repeat=spec.action_repeat,
+            name=self.env,
+        )
 
-    def resolve(self) -> "EnvSpec":
+    def resolve(self) -> EnvSpec:
         """This spec with its full LearnerStateSpec (declared fields kept, the rest inferred, probing an
         instance of the environment of its own for (cos, sin) pairs when ``keys`` are not given) and,
         for an environment without a time limit that truncates its episodes itself, ``trial_steps``
@@ -235,22 +272,33 @@ class EnvSpec:
         action = base.action_spec()
         measured: dict[str, list[float]] = {}
         learner_state = infer_learner_state(
-            layout, samples, np.broadcast_to(action.minimum, action.shape),
-            np.broadcast_to(action.maximum, action.shape), declared, owner=self.env,
+            layout,
+            samples,
+            np.broadcast_to(action.minimum, action.shape),
+            np.broadcast_to(action.maximum, action.shape),
+            declared,
+            owner=self.env,
             measure=lambda mapping: _random_states(self.build_base(PROBE_SEED), mapping, spec),
-            measured=measured)
+            measured=measured,
+        )
         base.close()
-        return dataclasses.replace(spec, learner_state=learner_state,
-                                   measured_bounds=measured or self.measured_bounds)
+        return dataclasses.replace(
+            spec, learner_state=learner_state, measured_bounds=measured or self.measured_bounds
+        )
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready: every field, the learner state as its fields."""
         learner_state = self.learner_state
         if isinstance(learner_state, LearnerStateSpec):
             learner_state = dataclasses.asdict(learner_state)
-        document = {"env": self.env, "kwargs": dict(self.kwargs), "learner_state": learner_state,
-                    "action_repeat": int(self.action_repeat), "trial_steps": self.trial_steps,
-                    "control_timestep": self.control_timestep}
+        document = {
+            "env": self.env,
+            "kwargs": dict(self.kwargs),
+            "learner_state": learner_state,
+            "action_repeat": int(self.action_repeat),
+            "trial_steps": self.trial_steps,
+            "control_timestep": self.control_timestep,
+        }
         if self.measured_bounds:  # only then: an environment with bounds is described as before
             document["measured_bounds"] = {k: list(v) for k, v in self.measured_bounds.items()}
         return document
@@ -262,13 +310,17 @@ class EnvSpec:
             own = getattr(base, "control_timestep", None)
             dt = own() if callable(own) else None
         if dt is None or not dt > 0:
-            raise ValueError(f"env {self.env!r} does not say its time step (no dt); set "
-                             f"control_timestep (seconds per environment step)")
+            raise ValueError(
+                f"env {self.env!r} does not say its time step (no dt); set "
+                f"control_timestep (seconds per environment step)"
+            )
         limit = _step_limit(base)
         if limit is None and self.trial_steps is None:
-            raise ValueError(f"env {self.env!r} has no time limit and does not truncate its "
-                             f"episodes; set trial_steps (or, for Gymnasium, max_episode_steps in "
-                             f"its kwargs)")
+            raise ValueError(
+                f"env {self.env!r} has no time limit and does not truncate its "
+                f"episodes; set trial_steps (or, for Gymnasium, max_episode_steps in "
+                f"its kwargs)"
+            )
         return float(dt), limit if limit is not None else self.trial_steps * self.action_repeat
 
 
@@ -279,8 +331,11 @@ def _is_gymnasium_env(obj: Any) -> bool:
 
 def _layout(base: dm_env.Environment) -> ObservationLayout:
     layout = getattr(base, "layout", None)  # a GymnasiumEnvironment knows its space's bounds
-    return layout if isinstance(layout, ObservationLayout) else layout_of_dm_env(
-        base.observation_spec())
+    return (
+        layout
+        if isinstance(layout, ObservationLayout)
+        else layout_of_dm_env(base.observation_spec())
+    )
 
 
 def _step_limit(base: dm_env.Environment) -> int | None:
@@ -305,7 +360,7 @@ def _truncation_steps(base: dm_env.Environment, spec: EnvSpec) -> int | None:
     lengths = set()
     for _ in range(2):
         base.reset()
-        for steps in range(1, MAX_PROBE_STEPS + 1):
+        for steps in range(1, MAX_PROBE_STEPS + 1):  # noqa: B007 (read after the loop)
             timestep = base.step(rng.uniform(low, high))
             if timestep.last():
                 break
@@ -327,8 +382,11 @@ def _random_states(base: dm_env.Environment, mapping: ObservationMap, spec: EnvS
     while taken < BOX_PROBE_STEPS:
         timestep, steps = base.reset(), 0
         states.append(mapping(timestep.observation))
-        while not timestep.last() and taken < BOX_PROBE_STEPS and (
-                spec.trial_steps is None or steps < spec.trial_steps):
+        while (
+            not timestep.last()
+            and taken < BOX_PROBE_STEPS
+            and (spec.trial_steps is None or steps < spec.trial_steps)
+        ):
             u = rng.uniform(low, high)
             for _ in range(spec.action_repeat):
                 timestep = base.step(u)

@@ -13,7 +13,8 @@ them at once.
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -43,8 +44,10 @@ def withheld(*experiments: int) -> str | None:
     if fewest >= FEW_EXPERIMENTS:
         return None
     counts = " and ".join(map(str, experiments))
-    return (f"{counts} experiment{'s' if max(experiments) != 1 else ''}: too few for a 95% interval "
-            f"or a probability (they need {FEW_EXPERIMENTS} or more per learner)")
+    return (
+        f"{counts} experiment{'s' if max(experiments) != 1 else ''}: too few for a 95% interval "
+        f"or a probability (they need {FEW_EXPERIMENTS} or more per learner)"
+    )
 
 
 def shorter_than(minutes: float, n_trials: int, trial_seconds: float) -> bool:
@@ -77,15 +80,21 @@ def confidence_interval(samples: np.ndarray, confidence: float = 0.95, axis: int
 
 
 def _check_trial_seconds(trial_seconds) -> float:
-    if not (isinstance(trial_seconds, (int, float, np.floating, np.integer))
-            and np.isfinite(trial_seconds) and trial_seconds > 0):
-        raise ValueError(f"trial_seconds must be a positive number (simulated seconds per trial), "
-                         f"got {trial_seconds!r}")
+    if not (
+        isinstance(trial_seconds, (int, float, np.floating, np.integer))
+        and np.isfinite(trial_seconds)
+        and trial_seconds > 0
+    ):
+        raise ValueError(
+            f"trial_seconds must be a positive number (simulated seconds per trial), "
+            f"got {trial_seconds!r}"
+        )
     return float(trial_seconds)
 
 
-def minutes_to_within(curve: np.ndarray, fraction: float = 0.1, window: int = FINAL_WINDOW, *,
-                      trial_seconds: float) -> float:
+def minutes_to_within(
+    curve: np.ndarray, fraction: float = 0.1, window: int = FINAL_WINDOW, *, trial_seconds: float
+) -> float:
     """Simulated minutes until ``curve`` first comes within ``fraction`` of its final level.
 
     The final level is the mean of the last ``window`` trials; trial t (1-based) ends at
@@ -143,14 +152,14 @@ def final_returns(returns: np.ndarray, window: int = FINAL_WINDOW) -> np.ndarray
       ndarray of shape (experiments,).
     """
     returns = np.asarray(returns, dtype=float)
-    return returns[:, -min(window, returns.shape[1]):].mean(axis=1)
+    return returns[:, -min(window, returns.shape[1]) :].mean(axis=1)
 
 
 def early_returns(returns: np.ndarray, minutes: float, trial_seconds: float) -> np.ndarray:
     """Each experiment's mean return over the trials that end within its first ``minutes`` of
     simulated time (at least one trial); ndarray of shape (experiments,)."""
     returns = np.asarray(returns, dtype=float)
-    return returns[:, :trials_in(minutes, trial_seconds)].mean(axis=1)
+    return returns[:, : trials_in(minutes, trial_seconds)].mean(axis=1)
 
 
 def interval(samples: np.ndarray) -> list[float | None]:
@@ -159,8 +168,12 @@ def interval(samples: np.ndarray) -> list[float | None]:
     return _nan_to_none(np.stack(confidence_interval(np.asarray(samples, dtype=float))))
 
 
-def _measured_minutes(env_steps: np.ndarray | None, env_step_seconds: float | None,
-                      returns: np.ndarray, trial_seconds: float) -> np.ndarray | None:
+def _measured_minutes(
+    env_steps: np.ndarray | None,
+    env_step_seconds: float | None,
+    returns: np.ndarray,
+    trial_seconds: float,
+) -> np.ndarray | None:
     """Simulated minutes at the end of every trial, shape (experiments, trials), from the
     environment steps that really ran (NaN after an experiment's last trial); None when they are
     not known (curves written before they were recorded) or equal what ``trial_seconds`` says."""
@@ -183,11 +196,18 @@ def _nan_interval(returns: np.ndarray):
     return tuple(np.array([c[k] for c in columns], dtype=float) for k in range(3))
 
 
-def summarise(returns: np.ndarray, greedy: np.ndarray | None = None,
-              greedy_trials: Sequence[int] = (), optimal_return: float | None = None, *,
-              trial_seconds: float, wall_times: np.ndarray | None = None,
-              cpu_times: np.ndarray | None = None, env_steps: np.ndarray | None = None,
-              env_step_seconds: float | None = None) -> dict:
+def summarise(
+    returns: np.ndarray,
+    greedy: np.ndarray | None = None,
+    greedy_trials: Sequence[int] = (),
+    optimal_return: float | None = None,
+    *,
+    trial_seconds: float,
+    wall_times: np.ndarray | None = None,
+    cpu_times: np.ndarray | None = None,
+    env_steps: np.ndarray | None = None,
+    env_step_seconds: float | None = None,
+) -> dict:
     """The summary of one learner: returns is an ndarray of shape (experiments, trials).
 
     ``greedy`` (experiments, evaluations) holds the greedy-trial returns after the trials listed in
@@ -237,10 +257,12 @@ def summarise(returns: np.ndarray, greedy: np.ndarray | None = None,
         # trial t (1-based) of the mean curve ends at t * trial_seconds
         to_90 = minutes_to_within(mean, window=window, trial_seconds=trial_seconds)
     else:
+
         def within(minutes: float) -> np.ndarray:  # the trials ended by then (at least the first)
             inside = np.nan_to_num(measured, nan=np.inf) <= minutes + 1e-9
             inside[:, 0] = True
             return inside
+
         first = np.array([row[mask].mean() for row, mask in zip(returns, within(FIRST_MINUTES))])
         early_mean = float(np.mean(returns[within(EARLY_MINUTES)]))
         first_10min_trials = int(within(EARLY_MINUTES).sum(axis=1).min())
@@ -266,8 +288,9 @@ def summarise(returns: np.ndarray, greedy: np.ndarray | None = None,
         "final_return_ci95": [final_low, final_high],
         "final_return_per_experiment": finals.tolist(),
         "minutes_to_90pct": to_90,
-        "mean_return_first_10min": (None if shorter_than(EARLY_MINUTES, n_trials, trial_seconds)
-                                    else early_mean),
+        "mean_return_first_10min": (
+            None if shorter_than(EARLY_MINUTES, n_trials, trial_seconds) else early_mean
+        ),
         "first_10min_trials": first_10min_trials,
         "mean_return_first_5min": first_mean,
         "first_5min_ci95": [first_low, first_high],
@@ -279,8 +302,11 @@ def summarise(returns: np.ndarray, greedy: np.ndarray | None = None,
     if ragged:
         summary["trials_per_experiment"] = [int(n) for n in ran]
     steps = None if env_steps is None else np.asarray(env_steps, dtype=float)
-    if steps is not None and steps.shape == returns.shape and np.all(
-            np.isfinite(steps[np.isfinite(returns)])):
+    if (
+        steps is not None
+        and steps.shape == returns.shape
+        and np.all(np.isfinite(steps[np.isfinite(returns)]))
+    ):
         last = steps[np.arange(n_experiments), ran - 1]
         summary["trials_per_experiment"] = [int(n) for n in ran]
         summary["env_steps_per_trial"] = _nan_to_none(np.nanmean(steps, axis=0))
@@ -295,8 +321,11 @@ def summarise(returns: np.ndarray, greedy: np.ndarray | None = None,
         if key == "first_5min" and first_mean is None:
             summary[f"{key}_iqm"], summary[f"{key}_iqm_ci95"] = None, [None, None]
             continue
-        estimate = (statistics.iqm_interval(scores) if reason is None else
-                    statistics.Estimate(float(statistics.iqm(scores)), np.nan, np.nan)).as_dict()
+        estimate = (
+            statistics.iqm_interval(scores)
+            if reason is None
+            else statistics.Estimate(float(statistics.iqm(scores)), np.nan, np.nan)
+        ).as_dict()
         summary[f"{key}_iqm"], summary[f"{key}_iqm_ci95"] = estimate["value"], estimate["ci95"]
     if optimal_return is not None:
         summary["gap_to_optimal"] = float(optimal_return - final_mean)
@@ -306,9 +335,12 @@ def summarise(returns: np.ndarray, greedy: np.ndarray | None = None,
         if np.all(np.isfinite(greedy)):
             per_eval, lasts = greedy.mean(axis=0), greedy[:, -1]
         else:  # experiments that ran fewer trials: over those that ran each; their own last
-            per_eval = np.array([np.mean(c[np.isfinite(c)]) if np.isfinite(c).any() else np.nan
-                                 for c in greedy.T])
-            lasts = np.array([row[np.isfinite(row)][-1] for row in greedy if np.isfinite(row).any()])
+            per_eval = np.array(
+                [np.mean(c[np.isfinite(c)]) if np.isfinite(c).any() else np.nan for c in greedy.T]
+            )
+            lasts = np.array(
+                [row[np.isfinite(row)][-1] for row in greedy if np.isfinite(row).any()]
+            )
         summary["greedy_return_per_eval"] = _nan_to_none(per_eval)
         last_mean, last_low, last_high = interval(lasts)
         if reason is not None:
@@ -318,15 +350,19 @@ def summarise(returns: np.ndarray, greedy: np.ndarray | None = None,
         if optimal_return is not None:  # how soon the mean greedy policy is near-optimal
             for fraction in GREEDY_WITHIN:
                 summary[f"greedy_trial_within_{round(100 * fraction)}pct"] = first_reaching(
-                    per_eval, greedy_trials, within_optimal(optimal_return, fraction))
+                    per_eval, greedy_trials, within_optimal(optimal_return, fraction)
+                )
     if wall_times is not None:
         summary["experiment_wall_s_mean"] = float(np.mean(wall_times))
         summary["experiment_wall_s_total"] = float(np.sum(wall_times))
     if cpu_times is not None and np.all(np.isfinite(cpu_times)):
         summary["experiment_cpu_s_mean"] = float(np.mean(cpu_times))
         # CPU of an experiment (its greedy trials and snapshots included) per minute it learned
-        learned = (n_trials * trial_seconds / 60.0 if measured is None
-                   else float(np.mean(measured[np.arange(n_experiments), ran - 1])))
+        learned = (
+            n_trials * trial_seconds / 60.0
+            if measured is None
+            else float(np.mean(measured[np.arange(n_experiments), ran - 1]))
+        )
         summary["cpu_s_per_simulated_minute"] = float(np.mean(cpu_times) / learned)
     return summary
 
@@ -340,19 +376,24 @@ def improvement(finals: dict[str, Sequence[float]]) -> dict[str, dict[str, Any]]
 
     names, table = list(finals), {}
     for i, a in enumerate(names):
-        for b in names[i + 1:]:
+        for b in names[i + 1 :]:
             counts = [len(finals[a]), len(finals[b])]
             reason = withheld(*counts)
             if reason is None:
                 table.update(statistics.pairwise_improvement({a: finals[a], b: finals[b]}))
             else:
-                table[f"{a} > {b}"] = {"value": None, "ci95": [None, None], "experiments": counts,
-                                       "withheld": reason}
+                table[f"{a} > {b}"] = {
+                    "value": None,
+                    "ci95": [None, None],
+                    "experiments": counts,
+                    "withheld": reason,
+                }
     return table
 
 
-def compare_final_returns(finals: dict[str, Sequence[float]],
-                          level: float = SIGNIFICANCE_LEVEL) -> list[dict[str, Any]]:
+def compare_final_returns(
+    finals: dict[str, Sequence[float]], level: float = SIGNIFICANCE_LEVEL
+) -> list[dict[str, Any]]:
     """Welch's t-test (unequal variances, two-sided) of every pair of learners' final returns.
 
     Args:
@@ -365,20 +406,27 @@ def compare_final_returns(finals: dict[str, Sequence[float]],
     names = list(finals)
     tests = []
     for i, a in enumerate(names):
-        for b in names[i + 1:]:
+        for b in names[i + 1 :]:
             x, y = np.asarray(finals[a], dtype=float), np.asarray(finals[b], dtype=float)
             p_value = None
             if len(x) >= 2 and len(y) >= 2:
                 from scipy import stats  # lazily, as in confidence_interval
+
                 p = float(stats.ttest_ind(x, y, equal_var=False).pvalue)
                 p_value = p if np.isfinite(p) else None
             difference = float(x.mean() - y.mean()) if len(x) and len(y) else None
             better = None
             if p_value is not None and p_value < level and difference:
                 better = a if difference > 0 else b
-            tests.append({"test": "Welch t-test, two-sided", "learners": [a, b],
-                          "experiments": [len(x), len(y)], "difference": difference,
-                          "p_value": p_value, "better": better, "level": level})
+            tests.append(
+                {
+                    "test": "Welch t-test, two-sided",
+                    "learners": [a, b],
+                    "experiments": [len(x), len(y)],
+                    "difference": difference,
+                    "p_value": p_value,
+                    "better": better,
+                    "level": level,
+                }
+            )
     return tests
-
-

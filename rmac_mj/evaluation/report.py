@@ -6,7 +6,8 @@ words them, the same way for ``reproduce``, ``compare`` and ``sweep``.
 
 from __future__ import annotations
 
-from typing import Any, Iterable
+from collections.abc import Iterable
+from typing import Any
 
 from rmac_mj.agents import ALGORITHMS
 from rmac_mj.evaluation import metrics
@@ -16,16 +17,22 @@ def describe_test(test: dict[str, Any]) -> str:
     """One line for a result of :func:`compare_final_returns`."""
     a, b = test["learners"]
     if test["p_value"] is None:
-        return (f"final returns, {a} vs {b}: no test possible ({test['experiments'][0]} and "
-                f"{test['experiments'][1]} experiments; Welch's t-test needs 2 or more, with spread)")
+        return (
+            f"final returns, {a} vs {b}: no test possible ({test['experiments'][0]} and "
+            f"{test['experiments'][1]} experiments; Welch's t-test needs 2 or more, with spread)"
+        )
     p = test["p_value"]
     p_text = f"p = {p:.2g}" if p >= 1e-4 else "p < 0.0001"
     if test["better"] is None:
-        return (f"final returns, {a} vs {b}: difference {test['difference']:+.1f}, not significant "
-                f"({p_text}, Welch's t-test; a difference this size needs more experiments to rank them)")
+        return (
+            f"final returns, {a} vs {b}: difference {test['difference']:+.1f}, not significant "
+            f"({p_text}, Welch's t-test; a difference this size needs more experiments to rank them)"
+        )
     worse = b if test["better"] == a else a
-    return (f"final returns: {test['better']} better than {worse} by {abs(test['difference']):.1f}, "
-            f"{p_text} (Welch's t-test, significant at {test['level']:g})")
+    return (
+        f"final returns: {test['better']} better than {worse} by {abs(test['difference']):.1f}, "
+        f"{p_text} (Welch's t-test, significant at {test['level']:g})"
+    )
 
 
 def _estimate(value: float | None, ci95: list | None, digits: int = 0) -> str:
@@ -50,35 +57,46 @@ def describe_improvement(pair: str, estimate: dict[str, Any]) -> str:
     verdict = ""
     if low is not None and (low > 0.5 or high < 0.5):
         verdict = f": {a if low > 0.5 else b} better"
-    return (f"final returns: P({pair}) = {_estimate(estimate['value'], estimate['ci95'], 2)}, "
-            f"probability of improvement{verdict}")
+    return (
+        f"final returns: P({pair}) = {_estimate(estimate['value'], estimate['ci95'], 2)}, "
+        f"probability of improvement{verdict}"
+    )
 
 
 def across_runs(summaries: dict[str, dict[str, Any]]) -> list[str]:
     """The probability of improvement of the final returns between every pair of (run, learner)
     of several runs (``rmac-mj compare``), one line each: a comparison across runs, not only within
     one."""
-    finals = {f"{label}: {algorithm}": summary[algorithm]["final_return_per_experiment"]
-              for label, summary in summaries.items() for algorithm in ALGORITHMS
-              if algorithm in summary and "final_return_per_experiment" in summary[algorithm]}
-    return [describe_improvement(pair, estimate)
-            for pair, estimate in metrics.improvement(finals).items()]
+    finals = {
+        f"{label}: {algorithm}": summary[algorithm]["final_return_per_experiment"]
+        for label, summary in summaries.items()
+        for algorithm in ALGORITHMS
+        if algorithm in summary and "final_return_per_experiment" in summary[algorithm]
+    }
+    return [
+        describe_improvement(pair, estimate)
+        for pair, estimate in metrics.improvement(finals).items()
+    ]
 
 
 def few_experiments_note(experiments: int) -> str:
     """The warning printed and drawn when ``experiments`` < :data:`FEW_EXPERIMENTS`."""
-    return (f"note: {experiments} experiment{'s' if experiments != 1 else ''} per learner: too few to rank "
-            f"the learners; the 95% intervals and probabilities are withheld (n/a) and the t-test "
-            f"assumes normally distributed returns, which fewer than {metrics.FEW_EXPERIMENTS} "
-            "experiments cannot show")
+    return (
+        f"note: {experiments} experiment{'s' if experiments != 1 else ''} per learner: too few to rank "
+        f"the learners; the 95% intervals and probabilities are withheld (n/a) and the t-test "
+        f"assumes normally distributed returns, which fewer than {metrics.FEW_EXPERIMENTS} "
+        "experiments cannot show"
+    )
 
 
 def summary_table(summary: dict[str, Any], algorithms: Iterable[str] | None = None) -> str:
     """The end-of-run table: one row per learner, then whether their final returns differ
     significantly, and a warning when too few experiments make the intervals meaningless."""
     algorithms = [a for a in (algorithms or ALGORITHMS) if a in summary]
-    header = (f"{'learner':>8} {'experiments':>11} {'final return':>13} {'95% CI':>19} "
-              f"{'IQM [95% CI]':>25} {'min to 90%':>10} {'first 10 min':>12} {'stuck':>5}")
+    header = (
+        f"{'learner':>8} {'experiments':>11} {'final return':>13} {'95% CI':>19} "
+        f"{'IQM [95% CI]':>25} {'min to 90%':>10} {'first 10 min':>12} {'stuck':>5}"
+    )
     lines = [header, "-" * len(header)]
     shorter = False
     for algorithm in algorithms:
@@ -88,37 +106,60 @@ def summary_table(summary: dict[str, Any], algorithms: Iterable[str] | None = No
         low, high = row["final_return_ci95"]
         ci = f"[{low:.0f}, {high:.0f}]" if low is not None and not few else "n/a"
         stuck = "n/a" if row.get("stuck_experiments") is None else str(row["stuck_experiments"])
-        iqm = _estimate(row.get("final_return_iqm"), None if few else row.get("final_return_iqm_ci95"))
+        iqm = _estimate(
+            row.get("final_return_iqm"), None if few else row.get("final_return_iqm_ci95")
+        )
         early = row.get("mean_return_first_10min")
-        if early is not None and summary.get("trial_seconds") and row.get("trials") and \
-                metrics.shorter_than(metrics.EARLY_MINUTES, row["trials"], summary["trial_seconds"]):
+        if (
+            early is not None
+            and summary.get("trial_seconds")
+            and row.get("trials")
+            and metrics.shorter_than(metrics.EARLY_MINUTES, row["trials"], summary["trial_seconds"])
+        ):
             early = None  # written before the window was left empty for a shorter run
         shorter = shorter or early is None
-        lines.append(f"{algorithm:>8} {row['experiments']:>11d} {row['final_return_mean']:>13.1f} "
-                     f"{ci:>19} {iqm:>25} {row['minutes_to_90pct']:>10.1f} "
-                     f"{'n/a' if early is None else f'{early:.1f}':>12} {stuck:>5}")
+        lines.append(
+            f"{algorithm:>8} {row['experiments']:>11d} {row['final_return_mean']:>13.1f} "
+            f"{ci:>19} {iqm:>25} {row['minutes_to_90pct']:>10.1f} "
+            f"{'n/a' if early is None else f'{early:.1f}':>12} {stuck:>5}"
+        )
     if summary.get("optimal_return") is not None:
         lines.append(f"near-optimal return: {summary['optimal_return']:.1f}")
     if summary.get("trial_seconds") is not None:
-        measured = {a: summary[a].get("trial_seconds_mean") for a in algorithms
-                    if summary[a].get("trial_seconds_mean") is not None}
-        if measured and any(abs(v - summary["trial_seconds"]) > 1e-9 * summary["trial_seconds"]
-                            for v in measured.values()):
-            lines.append(f"one trial = at most {summary['trial_seconds']:g} s of simulated time; "
-                         "as run, on average: " + ", ".join(f"{a} {v:.3g} s" for a, v in
-                                                            measured.items()))
+        measured = {
+            a: summary[a].get("trial_seconds_mean")
+            for a in algorithms
+            if summary[a].get("trial_seconds_mean") is not None
+        }
+        if measured and any(
+            abs(v - summary["trial_seconds"]) > 1e-9 * summary["trial_seconds"]
+            for v in measured.values()
+        ):
+            lines.append(
+                f"one trial = at most {summary['trial_seconds']:g} s of simulated time; "
+                "as run, on average: " + ", ".join(f"{a} {v:.3g} s" for a, v in measured.items())
+            )
         else:
             lines.append(f"one trial = {summary['trial_seconds']:g} s of simulated time")
     tests = metrics.compare_final_returns(
-        {a: summary[a]["final_return_per_experiment"] for a in algorithms
-         if "final_return_per_experiment" in summary[a]})
+        {
+            a: summary[a]["final_return_per_experiment"]
+            for a in algorithms
+            if "final_return_per_experiment" in summary[a]
+        }
+    )
     lines.extend(describe_test(test) for test in tests)
     improvement = summary.get("probability_of_improvement", {})
-    lines.extend(describe_improvement(pair, estimate) for pair, estimate in improvement.items()
-                 if all(name in algorithms for name in pair.split(" > ")))
+    lines.extend(
+        describe_improvement(pair, estimate)
+        for pair, estimate in improvement.items()
+        if all(name in algorithms for name in pair.split(" > "))
+    )
     if shorter:
-        lines.append(f"first 10 min: n/a, the run is shorter than {metrics.EARLY_MINUTES:g} simulated "
-                     "minutes")
+        lines.append(
+            f"first 10 min: n/a, the run is shorter than {metrics.EARLY_MINUTES:g} simulated "
+            "minutes"
+        )
     fewest = min((summary[a]["experiments"] for a in algorithms), default=None)
     if fewest is not None and fewest < metrics.FEW_EXPERIMENTS:
         lines.append(few_experiments_note(fewest))

@@ -21,7 +21,8 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
-from typing import Any, Mapping, Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -34,6 +35,7 @@ SEED = 0
 #: The fraction trimmed from each end for the interquartile mean.
 IQM_TRIM = 0.25
 
+
 @dataclasses.dataclass(frozen=True)
 class Estimate:
     """A point estimate with its confidence interval [low, high] (NaN where it cannot be computed)."""
@@ -44,8 +46,10 @@ class Estimate:
 
     def as_dict(self) -> dict[str, Any]:
         """``{"value": v, "ci95": [low, high]}`` with None for NaN (JSON has no NaN)."""
+
         def clean(v: float) -> float | None:
             return None if np.isnan(v) else float(v)
+
         return {"value": clean(self.value), "ci95": [clean(self.low), clean(self.high)]}
 
 
@@ -57,8 +61,10 @@ def _strata(scores: Any, name: str = "scores") -> tuple[np.ndarray, ...]:
     else:
         parts = [np.asarray(part, dtype=float) for part in scores]
     if not parts or any(p.ndim != 1 or p.size == 0 for p in parts):
-        raise ValueError(f"{name} must be a non-empty 1-D array of per-experiment scores, or a "
-                         f"sequence of them (one per task)")
+        raise ValueError(
+            f"{name} must be a non-empty 1-D array of per-experiment scores, or a "
+            f"sequence of them (one per task)"
+        )
     if not all(np.all(np.isfinite(p)) for p in parts):
         raise ValueError(f"{name} must be finite")
     return tuple(parts)
@@ -72,22 +78,31 @@ def iqm(scores: Any, axis: int = -1) -> np.ndarray | float:
     return stats.trim_mean(np.asarray(scores, dtype=float), IQM_TRIM, axis=axis)
 
 
-def _bootstrap(strata: tuple[np.ndarray, ...], statistic, confidence: float, n_resamples: int,
-               seed: int):
+def _bootstrap(
+    strata: tuple[np.ndarray, ...], statistic, confidence: float, n_resamples: int, seed: int
+):
     """The stratified percentile bootstrap interval of ``statistic(*strata, axis)``; NaNs when a
     stratum has fewer than two experiments (nothing to resample)."""
     if min(len(s) for s in strata) < 2:
         return None
     from scipy import stats
 
-    result = stats.bootstrap(strata, statistic, vectorized=True, paired=False,
-                                   confidence_level=confidence, n_resamples=n_resamples,
-                                   method="percentile", rng=np.random.default_rng(seed))
+    result = stats.bootstrap(
+        strata,
+        statistic,
+        vectorized=True,
+        paired=False,
+        confidence_level=confidence,
+        n_resamples=n_resamples,
+        method="percentile",
+        rng=np.random.default_rng(seed),
+    )
     return result.confidence_interval
 
 
-def iqm_interval(scores: Any, confidence: float = CONFIDENCE, n_resamples: int = N_RESAMPLES,
-                 seed: int = SEED) -> Estimate:
+def iqm_interval(
+    scores: Any, confidence: float = CONFIDENCE, n_resamples: int = N_RESAMPLES, seed: int = SEED
+) -> Estimate:
     """The IQM of ``scores`` (pooled over tasks) with its stratified-bootstrap interval.
 
     Args:
@@ -111,8 +126,9 @@ def _improvement(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return (xs > ys).mean(axis=(-2, -1)) + 0.5 * (xs == ys).mean(axis=(-2, -1))
 
 
-def probability_of_improvement(x: Any, y: Any, confidence: float = CONFIDENCE,
-                               n_resamples: int = N_RESAMPLES, seed: int = SEED) -> Estimate:
+def probability_of_improvement(
+    x: Any, y: Any, confidence: float = CONFIDENCE, n_resamples: int = N_RESAMPLES, seed: int = SEED
+) -> Estimate:
     """P(X > Y): the probability that an experiment of learner X scores higher than one of learner Y
     (ties count half; the Mann-Whitney U statistic over n m), averaged over tasks, with its interval
     from resampling both learners' experiments, each within its task.
@@ -125,7 +141,9 @@ def probability_of_improvement(x: Any, y: Any, confidence: float = CONFIDENCE,
     """
     xs, ys = _strata(x, "x"), _strata(y, "y")
     if len(xs) != len(ys):
-        raise ValueError(f"x and y must have scores for the same tasks, got {len(xs)} and {len(ys)}")
+        raise ValueError(
+            f"x and y must have scores for the same tasks, got {len(xs)} and {len(ys)}"
+        )
     k = len(xs)
 
     def statistic(*samples: np.ndarray, axis: int = -1) -> np.ndarray:
@@ -138,8 +156,12 @@ def probability_of_improvement(x: Any, y: Any, confidence: float = CONFIDENCE,
     return Estimate(value, float(interval.low), float(interval.high))
 
 
-def pairwise_improvement(scores: Mapping[str, Any], confidence: float = CONFIDENCE,
-                         n_resamples: int = N_RESAMPLES, seed: int = SEED) -> dict[str, dict]:
+def pairwise_improvement(
+    scores: Mapping[str, Any],
+    confidence: float = CONFIDENCE,
+    n_resamples: int = N_RESAMPLES,
+    seed: int = SEED,
+) -> dict[str, dict]:
     """:func:`probability_of_improvement` of every pair of learners, in the order given, keyed
     ``"A > B"`` (P(B > A) is 1 - P(A > B)), as JSON-ready dicts ``{"value", "ci95", "experiments":
     [n_A, n_B]}`` (one task each; the counts are summed over tasks otherwise)."""
@@ -151,9 +173,13 @@ def pairwise_improvement(scores: Mapping[str, Any], confidence: float = CONFIDEN
     return table
 
 
-def performance_profile(scores: Any, thresholds: Sequence[float], confidence: float = CONFIDENCE,
-                        n_resamples: int = N_RESAMPLES, seed: int = SEED
-                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def performance_profile(
+    scores: Any,
+    thresholds: Sequence[float],
+    confidence: float = CONFIDENCE,
+    n_resamples: int = N_RESAMPLES,
+    seed: int = SEED,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The fraction of experiments scoring above each threshold (averaged over tasks), with its
     pointwise stratified-bootstrap interval.
 
@@ -165,8 +191,9 @@ def performance_profile(scores: Any, thresholds: Sequence[float], confidence: fl
     taus = np.asarray(thresholds, dtype=float).reshape(-1)
 
     def statistic(*samples: np.ndarray, axis: int = -1) -> np.ndarray:
-        fractions = [(np.moveaxis(s, axis, -1)[..., None, :] > taus[:, None]).mean(axis=-1)
-                     for s in samples]
+        fractions = [
+            (np.moveaxis(s, axis, -1)[..., None, :] > taus[:, None]).mean(axis=-1) for s in samples
+        ]
         return np.moveaxis(np.mean(fractions, axis=0), -1, 0)
 
     fraction = statistic(*strata)

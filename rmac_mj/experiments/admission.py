@@ -18,16 +18,23 @@ import json
 import os
 import threading
 import time
-from typing import Any, Callable, Iterable
+from collections.abc import Callable, Iterable
+from typing import Any
 
 from rmac_mj import agents
 from rmac_mj.agents import make_agent
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
 from rmac_mj.errors import UserInputError
 from rmac_mj.experiments import prior_transitions as prior_data
-from rmac_mj.rollout import (action_space_of, learner_state_of, run_trial,
-                                         state_space_of, trial_seconds, env_step_seconds)
 from rmac_mj.experiments.protocol import Protocol
+from rmac_mj.rollout import (
+    action_space_of,
+    env_step_seconds,
+    learner_state_of,
+    run_trial,
+    state_space_of,
+    trial_seconds,
+)
 from rmac_mj.tasks.common import LearnerStateSpec
 
 
@@ -38,12 +45,19 @@ class TaskFacts:
     def __init__(self) -> None:
         self._facts: dict[str, tuple[StateSpace, ActionSpace, float, LearnerStateSpec, float]] = {}
 
-    def _of(self, protocol: Protocol) -> tuple[StateSpace, ActionSpace, float, LearnerStateSpec, float]:
+    def _of(
+        self, protocol: Protocol
+    ) -> tuple[StateSpace, ActionSpace, float, LearnerStateSpec, float]:
         key = json.dumps(protocol.environment_description(), sort_keys=True, default=repr)
         if key not in self._facts:
             env = protocol.make_environment()
-            self._facts[key] = (state_space_of(env), action_space_of(env), trial_seconds(env),
-                                learner_state_of(env), env_step_seconds(env))
+            self._facts[key] = (
+                state_space_of(env),
+                action_space_of(env),
+                trial_seconds(env),
+                learner_state_of(env),
+                env_step_seconds(env),
+            )
         return self._facts[key]
 
     def of(self, protocol: Protocol) -> tuple[StateSpace, ActionSpace]:
@@ -64,8 +78,9 @@ class TaskFacts:
         return self._of(protocol)[3]
 
 
-def read_prior_file(protocol: Protocol, spaces: TaskFacts
-                    ) -> tuple[prior_data.Demonstration | None, str | None]:
+def read_prior_file(
+    protocol: Protocol, spaces: TaskFacts
+) -> tuple[prior_data.Demonstration | None, str | None]:
     """The protocol's recorded prior knowledge, checked against its task, and the file's SHA-256
     (stored in config.json, so that ``resume`` refuses a file that changed); (None, None) without."""
     path = protocol.prior_file
@@ -82,8 +97,13 @@ def resolve_agents(protocol: Protocol, spaces: TaskFacts) -> dict[str, dict[str,
     resolved = {}
     for algorithm in protocol.algorithms:
         try:
-            agent = make_agent(algorithm, state_space, action_space,
-                               config=protocol.agent_configs.get(algorithm), seed=0)
+            agent = make_agent(
+                algorithm,
+                state_space,
+                action_space,
+                config=protocol.agent_configs.get(algorithm),
+                seed=0,
+            )
         except (ValueError, TypeError) as error:
             raise UserInputError(f"{algorithm} on {protocol.environment_name}: {error}") from None
         resolved[algorithm] = agent.config_dict()
@@ -93,8 +113,11 @@ def resolve_agents(protocol: Protocol, spaces: TaskFacts) -> dict[str, dict[str,
 def memory_estimate(protocol: Protocol, algorithm: str, spaces: TaskFacts) -> int:
     """Bytes one experiment of ``algorithm`` needs, estimated from its config before anything is
     allocated (``rmac_mj.agents.memory_estimate``: the learner class's own estimate)."""
-    return int(agents.memory_estimate(algorithm, *spaces.of(protocol),
-                                      config=protocol.agent_configs.get(algorithm)))
+    return int(
+        agents.memory_estimate(
+            algorithm, *spaces.of(protocol), config=protocol.agent_configs.get(algorithm)
+        )
+    )
 
 
 def machine_memory() -> int | None:
@@ -109,8 +132,9 @@ def _gb(size: float) -> str:
     return f"{size / 1e9:.1f} GB"
 
 
-def check_memory(protocols: Iterable[Protocol], workers: int, spaces: TaskFacts,
-                 available: int | None = None) -> None:
+def check_memory(
+    protocols: Iterable[Protocol], workers: int, spaces: TaskFacts, available: int | None = None
+) -> None:
     """Refuse, in one line, learners that cannot fit: ``workers`` experiments of the largest at once
     (plus this driver's one of it, for the warm-up) must fit the machine's memory (``available``,
     default :func:`machine_memory`)."""
@@ -131,7 +155,8 @@ def check_memory(protocols: Iterable[Protocol], workers: int, spaces: TaskFacts,
         f"{algorithm}{f' with {json.dumps(overrides)}' if overrides else ''} needs about "
         f"{_gb(largest)} per experiment; {workers} worker{'s' * (workers != 1)} and the driver need "
         f"{_gb((workers + 1) * largest)}, more than this machine's {_gb(available)}: use smaller "
-        "memories or fewer --jobs")
+        "memories or fewer --jobs"
+    )
 
 
 def warm_up(protocol: Protocol) -> None:
@@ -143,8 +168,13 @@ def warm_up(protocol: Protocol) -> None:
     """
     env = protocol.make_environment(task_seed=0)
     for algorithm in protocol.algorithms:
-        agent = make_agent(algorithm, state_space_of(env), action_space_of(env),
-                           config=protocol.agent_configs.get(algorithm), seed=0)
+        agent = make_agent(
+            algorithm,
+            state_space_of(env),
+            action_space_of(env),
+            config=protocol.agent_configs.get(algorithm),
+            seed=0,
+        )
         run_trial(env, agent, learn=True)
         run_trial(env, agent, learn=False)
 
@@ -153,8 +183,11 @@ def warm_up(protocol: Protocol) -> None:
 COMPILE_PROGRESS_SECONDS = 10.0
 
 
-def warm_up_announced(protocols: Iterable[Protocol], log: Callable[[str], None] | None,
-                      interval: float = COMPILE_PROGRESS_SECONDS) -> None:
+def warm_up_announced(
+    protocols: Iterable[Protocol],
+    log: Callable[[str], None] | None,
+    interval: float = COMPILE_PROGRESS_SECONDS,
+) -> None:
     """:func:`warm_up` once per distinct task, learner and back end (the kernels do not depend on
     the other settings), saying so when numba really compiles (the first run only): which learners'
     kernels, then every ``interval`` seconds how long it has taken so far, then the total."""
@@ -162,9 +195,15 @@ def warm_up_announced(protocols: Iterable[Protocol], log: Callable[[str], None] 
 
     seen, chosen = set(), []
     for protocol in protocols:
-        key = json.dumps([protocol.environment_description(), protocol.algorithms,
-                          [protocol.agent_configs.get(a, {}).get("backend") for a in protocol.algorithms]],
-                         sort_keys=True, default=repr)
+        key = json.dumps(
+            [
+                protocol.environment_description(),
+                protocol.algorithms,
+                [protocol.agent_configs.get(a, {}).get("backend") for a in protocol.algorithms],
+            ],
+            sort_keys=True,
+            default=repr,
+        )
         if key not in seen:
             seen.add(key)
             chosen.append(protocol)
@@ -175,14 +214,19 @@ def warm_up_announced(protocols: Iterable[Protocol], log: Callable[[str], None] 
     def first_compile() -> None:
         compiling.set()
         if log is not None:
-            log(f"compiling the kernels of {learners}, first run only (cached in "
-                f"{_cache.numba_cache_location()})")
+            log(
+                f"compiling the kernels of {learners}, first run only (cached in "
+                f"{_cache.numba_cache_location()})"
+            )
 
     def tick() -> None:  # numba holds the interpreter for seconds at a time: a line now and then
         while not done.wait(interval):
             if compiling.is_set():
-                log(f"compiling the kernels of {learners}: "
-                    f"{time.perf_counter() - compile_started:.0f} s so far")
+                log(
+                    f"compiling the kernels of {learners}: "
+                    f"{time.perf_counter() - compile_started:.0f} s so far"
+                )
+
     ticker = threading.Thread(target=tick, name="rmac-mj compile progress", daemon=True)
     if log is not None:
         ticker.start()

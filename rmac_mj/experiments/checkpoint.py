@@ -49,8 +49,10 @@ def _gymnasium_random(env: Any) -> np.random.Generator | None:
     if gymnasium_env is None or getattr(base, "_seed", None) is not None:
         return None  # not Gymnasium's, or not yet reset: its seed is still to be applied
     random = getattr(gymnasium_env, "np_random", None)
-    if isinstance(random, np.random.Generator) and random.bit_generator.state.get(
-            "bit_generator") == "PCG64":
+    if (
+        isinstance(random, np.random.Generator)
+        and random.bit_generator.state.get("bit_generator") == "PCG64"
+    ):
         return random
     return None
 
@@ -62,9 +64,11 @@ def environment_state(env: Any) -> dict[str, np.ndarray] | None:
     random = _task_random(env)
     if random is not None:
         _, keys, position, has_gauss, gauss = random.get_state()
-        return {"mt19937_keys": np.asarray(keys, dtype=np.uint32),
-                "mt19937_position": np.array([position, has_gauss], dtype=np.int64),
-                "mt19937_gauss": np.array(gauss, dtype=np.float64)}
+        return {
+            "mt19937_keys": np.asarray(keys, dtype=np.uint32),
+            "mt19937_position": np.array([position, has_gauss], dtype=np.int64),
+            "mt19937_gauss": np.array(gauss, dtype=np.float64),
+        }
     generator = _gymnasium_random(env)
     if generator is not None:
         return {"pcg64": generator_state_array(generator)}
@@ -75,27 +79,48 @@ def restore_environment(env: Any, state: dict[str, np.ndarray]) -> None:
     """Put :func:`environment_state`'s arrays back into ``env`` (built afresh from the same seed)."""
     if "mt19937_keys" in state:
         position, has_gauss = (int(v) for v in state["mt19937_position"])
-        _task_random(env).set_state(("MT19937", np.asarray(state["mt19937_keys"], dtype=np.uint32),
-                                     position, has_gauss, float(state["mt19937_gauss"])))
+        _task_random(env).set_state(
+            (
+                "MT19937",
+                np.asarray(state["mt19937_keys"], dtype=np.uint32),
+                position,
+                has_gauss,
+                float(state["mt19937_gauss"]),
+            )
+        )
         return
     base = env.base
     base.reset()  # applies the pending seed once, as the first trial did; then the saved stream
     set_generator_state(base.env.np_random, state["pcg64"])
 
 
-def write(path: pathlib.Path, *, digest: str, agent: Agent, environment: dict[str, np.ndarray],
-          returns: list[float], env_steps: list[int], greedy_trials: list[int],
-          greedy_returns: list[float], wall_time_s: float, cpu_time_s: float) -> None:
+def write(
+    path: pathlib.Path,
+    *,
+    digest: str,
+    agent: Agent,
+    environment: dict[str, np.ndarray],
+    returns: list[float],
+    env_steps: list[int],
+    greedy_trials: list[int],
+    greedy_returns: list[float],
+    wall_time_s: float,
+    cpu_time_s: float,
+) -> None:
     """Write the checkpoint of an experiment after ``len(returns)`` trials."""
     arrays = {_AGENT + key: np.asarray(value) for key, value in agent.state_dict().items()}
     arrays.update({_ENV + key: value for key, value in environment.items()})
-    arrays.update({
-        _CURVE + "returns": np.asarray(returns, dtype=float),
-        _CURVE + "env_steps": np.asarray(env_steps, dtype=np.int64),
-        _CURVE + "greedy_trials": np.asarray(greedy_trials, dtype=int),
-        _CURVE + "greedy_returns": np.asarray(greedy_returns, dtype=float),
-        "wall_time_s": np.float64(wall_time_s), "cpu_time_s": np.float64(cpu_time_s),
-        "digest": np.array(digest)})
+    arrays.update(
+        {
+            _CURVE + "returns": np.asarray(returns, dtype=float),
+            _CURVE + "env_steps": np.asarray(env_steps, dtype=np.int64),
+            _CURVE + "greedy_trials": np.asarray(greedy_trials, dtype=int),
+            _CURVE + "greedy_returns": np.asarray(greedy_returns, dtype=float),
+            "wall_time_s": np.float64(wall_time_s),
+            "cpu_time_s": np.float64(cpu_time_s),
+            "digest": np.array(digest),
+        }
+    )
     files.write_npz(path, **arrays)
 
 
@@ -111,15 +136,19 @@ def read(path: pathlib.Path, digest: str) -> dict[str, Any] | None:
     try:
         if str(arrays["digest"]) != digest:
             return None
-        curve = {key[len(_CURVE):]: arrays[key] for key in arrays if key.startswith(_CURVE)}
+        curve = {key[len(_CURVE) :]: arrays[key] for key in arrays if key.startswith(_CURVE)}
         checkpoint = {
-            "agent": {key[len(_AGENT):]: arrays[key] for key in arrays if key.startswith(_AGENT)},
-            "environment": {key[len(_ENV):]: arrays[key] for key in arrays if key.startswith(_ENV)},
+            "agent": {key[len(_AGENT) :]: arrays[key] for key in arrays if key.startswith(_AGENT)},
+            "environment": {
+                key[len(_ENV) :]: arrays[key] for key in arrays if key.startswith(_ENV)
+            },
             "returns": [float(v) for v in curve["returns"]],
             "env_steps": [int(v) for v in curve["env_steps"]],
             "greedy_trials": [int(v) for v in curve["greedy_trials"]],
             "greedy_returns": [float(v) for v in curve["greedy_returns"]],
-            "wall_time_s": float(arrays["wall_time_s"]), "cpu_time_s": float(arrays["cpu_time_s"])}
+            "wall_time_s": float(arrays["wall_time_s"]),
+            "cpu_time_s": float(arrays["cpu_time_s"]),
+        }
     except (KeyError, ValueError, TypeError):
         return None
     if not checkpoint["returns"] or len(checkpoint["env_steps"]) != len(checkpoint["returns"]):

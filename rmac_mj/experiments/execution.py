@@ -19,7 +19,8 @@ import queue
 import signal
 import threading
 import time
-from typing import Any, Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
+from typing import Any
 
 from rmac_mj.errors import UserInputError
 
@@ -47,6 +48,7 @@ def start_worker(driver: int) -> None:
         while os.getppid() == driver:
             time.sleep(WATCHDOG_SECONDS)
         os._exit(1)
+
     threading.Thread(target=watch, name="rmac-mj driver watchdog", daemon=True).start()
 
 
@@ -57,10 +59,14 @@ def _started(items: Iterable, on_start: Callable[[Any], None] | None) -> Iterato
         yield item
 
 
-def local_outcomes(items: Iterable, run: Callable, jobs: int,
-                   on_trial: Callable[..., None] | None = None,
-                   poll: Callable[[], None] | None = None,
-                   on_start: Callable[[Any], None] | None = None) -> Iterator:
+def local_outcomes(
+    items: Iterable,
+    run: Callable,
+    jobs: int,
+    on_trial: Callable[..., None] | None = None,
+    poll: Callable[[], None] | None = None,
+    on_start: Callable[[Any], None] | None = None,
+) -> Iterator:
     """``run(item)`` of every item, in the order they finish.
 
     With ``jobs == 1``, or a single item, they run in this process, one after another, as
@@ -77,16 +83,21 @@ def local_outcomes(items: Iterable, run: Callable, jobs: int,
     # "spawn": workers start clean (no inherited GL contexts or numba state); the numba cache (filled
     # by the driver's warm-up) makes their start-up cheap.
     context = multiprocessing.get_context("spawn")
-    pool = context.Pool(processes=min(jobs, len(first)), initializer=start_worker,
-                        initargs=(os.getpid(),))
+    pool = context.Pool(
+        processes=min(jobs, len(first)), initializer=start_worker, initargs=(os.getpid(),)
+    )
     finished: queue.SimpleQueue = queue.SimpleQueue()
     pending = itertools.chain(first, items)
     in_flight = 0
     try:
         while True:
             for item in itertools.islice(pending, max(0, jobs + _AHEAD - in_flight)):
-                pool.apply_async(run, (item,), callback=lambda result: finished.put((True, result)),
-                                 error_callback=lambda error: finished.put((False, error)))
+                pool.apply_async(
+                    run,
+                    (item,),
+                    callback=lambda result: finished.put((True, result)),
+                    error_callback=lambda error: finished.put((False, error)),
+                )
                 in_flight += 1
             if not in_flight:
                 break
@@ -119,20 +130,28 @@ def connect_dask(address: str, timeout: float | None = None):
     try:
         parse_address(address, strict=True)
     except ValueError:
-        raise BackendError(f"--scheduler {address!r} is not a scheduler address (expected e.g. "
-                           "tcp://host:8786)") from None
+        raise BackendError(
+            f"--scheduler {address!r} is not a scheduler address (expected e.g. tcp://host:8786)"
+        ) from None
     # A lost scheduler is reported once, in one line (dask_outcomes), not by the client's own
     # tracebacks of its reconnection attempts.
     logging.getLogger("distributed.client").setLevel(logging.CRITICAL)
     try:
         return Client(address, timeout=DASK_CONNECT_SECONDS if timeout is None else timeout)
     except (OSError, TimeoutError) as error:
-        raise BackendError(f"cannot reach the Dask scheduler at {address} ({error}); is "
-                           "`dask scheduler` running there?") from None
+        raise BackendError(
+            f"cannot reach the Dask scheduler at {address} ({error}); is "
+            "`dask scheduler` running there?"
+        ) from None
 
 
-def dask_outcomes(items: Iterable, run: Callable, client, window: int | None = None,
-                  on_start: Callable[[Any], None] | None = None) -> Iterator:
+def dask_outcomes(
+    items: Iterable,
+    run: Callable,
+    client,
+    window: int | None = None,
+    on_start: Callable[[Any], None] | None = None,
+) -> Iterator:
     """``run(item)`` of every item on the Dask cluster of ``client``, in the order they finish.
 
     At most ``window`` items (default: twice the cluster's worker threads, at least 2) are submitted
@@ -144,8 +163,9 @@ def dask_outcomes(items: Iterable, run: Callable, client, window: int | None = N
     try:
         if window is None:
             window = max(2, 2 * sum(client.nthreads().values()))
-        futures = collections.deque(client.submit(run, item, pure=False)
-                                    for item in itertools.islice(items, window))
+        futures = collections.deque(
+            client.submit(run, item, pure=False) for item in itertools.islice(items, window)
+        )
         running = as_completed(futures)
         try:
             for future in running:
@@ -161,4 +181,6 @@ def dask_outcomes(items: Iterable, run: Callable, client, window: int | None = N
     except (OSError, TimeoutError, concurrent.futures.CancelledError) as error:
         # a dropped connection cancels every pending future ("scheduler-connection-lost")
         reason = str(error).splitlines()[0] if str(error) else type(error).__name__
-        raise BackendError(f"lost the Dask scheduler at {client.scheduler.address} ({reason})") from None
+        raise BackendError(
+            f"lost the Dask scheduler at {client.scheduler.address} ({reason})"
+        ) from None

@@ -13,7 +13,8 @@ from __future__ import annotations
 import dataclasses
 import os
 import pathlib
-from typing import Any, Callable, Sequence
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -47,16 +48,22 @@ class PanelTask:
     goal_text: str
     reached_by_return: float | None = None
 
-    def make_protocol(self, algorithms: Sequence[str], experiments: int, seed: int,
-                      trials: int | None = None) -> Protocol:
+    def make_protocol(
+        self, algorithms: Sequence[str], experiments: int, seed: int, trials: int | None = None
+    ) -> Protocol:
         """The task's protocol for ``algorithms``; ``trials``: a shorter run (a smoke test)."""
         fields = dict(self.protocol)
         if trials is not None:
             fields["trials"] = trials
             fields["evaluate_every"] = 1
             fields["evaluate_starts"] = min(fields.get("evaluate_starts", 0), 1)
-        return Protocol(algorithms=tuple(algorithms), experiments=experiments, seed=seed,
-                        snapshot_trials=(), **fields)
+        return Protocol(
+            algorithms=tuple(algorithms),
+            experiments=experiments,
+            seed=seed,
+            snapshot_trials=(),
+            **fields,
+        )
 
 
 _CARTPOLE = {"learner_state": {"action_cost": [0.0]}, "action_repeat": 5}
@@ -64,32 +71,74 @@ _CARTPOLE = {"learner_state": {"action_cost": [0.0]}, "action_repeat": 5}
 #: The panel, with the issue's budgets and goals. Trials end at the task's time limit (none of these
 #: terminates but MountainCar, at its flag), so a budget in trials is one in environment steps.
 TASKS: tuple[PanelTask, ...] = (
-    PanelTask("dc_pendulum", {"domain": "dc_pendulum", "task": "swingup", "trials": 50,
-                              "evaluate_every": 5},
-              goal=-823.0, goal_trial=10,
-              goal_text="greedy >= -823 (within 10% of the optimum -748) by trial 10 (1k steps)"),
-    PanelTask("two_link_arm", {"domain": "two_link_arm", "task": "reach", "trials": 50,
-                               "evaluate_every": 5},
-              goal=-41.415, goal_trial=50,
-              goal_text="greedy >= -41.4 (within 10% of -37.65) by trial 50"),
-    PanelTask("pendulum_v1", {"env": "gymnasium:Pendulum-v1", "trials": 25, "evaluate_every": 5,
-                              "evaluate_starts": 10,
-                              "learner_state": {"action_cost": [0.001]}},
-              goal=-160.0, goal_trial=25,
-              goal_text="greedy >= -160 (mean of 10 starts) at 5k steps (trial 25)"),
-    PanelTask("cartpole_balance", {"env": "dm_control:cartpole/balance", "trials": 10,
-                                   "evaluate_every": 1, "evaluate_starts": 3, **_CARTPOLE},
-              goal=900.0, goal_trial=10,
-              goal_text="greedy >= 900 (mean of 3 starts) at 10k env steps (trial 10)"),
-    PanelTask("cartpole_swingup", {"env": "dm_control:cartpole/swingup", "trials": 100,
-                                   "evaluate_every": 10, "evaluate_starts": 3, **_CARTPOLE},
-              goal=800.0, goal_trial=100,
-              goal_text="greedy >= 800 (mean of 3 starts) at 100k env steps (trial 100)"),
-    PanelTask("mountaincar", {"env": "gymnasium:MountainCarContinuous-v0", "trials": 30,
-                              "evaluate_every": 5, "evaluate_starts": 5, "control_timestep": 0.05,
-                              "learner_state": {"action_cost": [0.1]}},
-              goal=90.0, goal_trial=30, reached_by_return=0.0,
-              goal_text="the flag (a return > 0) in every experiment within 30 episodes; greedy > 90"),
+    PanelTask(
+        "dc_pendulum",
+        {"domain": "dc_pendulum", "task": "swingup", "trials": 50, "evaluate_every": 5},
+        goal=-823.0,
+        goal_trial=10,
+        goal_text="greedy >= -823 (within 10% of the optimum -748) by trial 10 (1k steps)",
+    ),
+    PanelTask(
+        "two_link_arm",
+        {"domain": "two_link_arm", "task": "reach", "trials": 50, "evaluate_every": 5},
+        goal=-41.415,
+        goal_trial=50,
+        goal_text="greedy >= -41.4 (within 10% of -37.65) by trial 50",
+    ),
+    PanelTask(
+        "pendulum_v1",
+        {
+            "env": "gymnasium:Pendulum-v1",
+            "trials": 25,
+            "evaluate_every": 5,
+            "evaluate_starts": 10,
+            "learner_state": {"action_cost": [0.001]},
+        },
+        goal=-160.0,
+        goal_trial=25,
+        goal_text="greedy >= -160 (mean of 10 starts) at 5k steps (trial 25)",
+    ),
+    PanelTask(
+        "cartpole_balance",
+        {
+            "env": "dm_control:cartpole/balance",
+            "trials": 10,
+            "evaluate_every": 1,
+            "evaluate_starts": 3,
+            **_CARTPOLE,
+        },
+        goal=900.0,
+        goal_trial=10,
+        goal_text="greedy >= 900 (mean of 3 starts) at 10k env steps (trial 10)",
+    ),
+    PanelTask(
+        "cartpole_swingup",
+        {
+            "env": "dm_control:cartpole/swingup",
+            "trials": 100,
+            "evaluate_every": 10,
+            "evaluate_starts": 3,
+            **_CARTPOLE,
+        },
+        goal=800.0,
+        goal_trial=100,
+        goal_text="greedy >= 800 (mean of 3 starts) at 100k env steps (trial 100)",
+    ),
+    PanelTask(
+        "mountaincar",
+        {
+            "env": "gymnasium:MountainCarContinuous-v0",
+            "trials": 30,
+            "evaluate_every": 5,
+            "evaluate_starts": 5,
+            "control_timestep": 0.05,
+            "learner_state": {"action_cost": [0.1]},
+        },
+        goal=90.0,
+        goal_trial=30,
+        reached_by_return=0.0,
+        goal_text="the flag (a return > 0) in every experiment within 30 episodes; greedy > 90",
+    ),
 )
 TASKS_BY_NAME = {task.name: task for task in TASKS}
 
@@ -101,23 +150,36 @@ def tasks_named(names: Sequence[str] | None) -> tuple[PanelTask, ...]:
         return TASKS
     unknown = [name for name in names if name not in TASKS_BY_NAME]
     if unknown:
-        raise ValueError(f"unknown panel task {', '.join(map(repr, unknown))}; the panel's: "
-                         f"{', '.join(TASKS_BY_NAME)}")
+        raise ValueError(
+            f"unknown panel task {', '.join(map(repr, unknown))}; the panel's: "
+            f"{', '.join(TASKS_BY_NAME)}"
+        )
     return tuple(task for task in TASKS if task.name in names)
 
 
-def run_panel(out: str | os.PathLike, algorithms: Sequence[str], experiments: int = EXPERIMENTS,
-              seed: int = 0, tasks: Sequence[str] | None = None, jobs: int | None = None,
-              resume: bool = False, trials: int | None = None, progress: bool = True,
-              log: Callable[[str], None] | None = None, started: float | None = None
-              ) -> list[dict[str, Any]]:
+def run_panel(
+    out: str | os.PathLike,
+    algorithms: Sequence[str],
+    experiments: int = EXPERIMENTS,
+    seed: int = 0,
+    tasks: Sequence[str] | None = None,
+    jobs: int | None = None,
+    resume: bool = False,
+    trials: int | None = None,
+    progress: bool = True,
+    log: Callable[[str], None] | None = None,
+    started: float | None = None,
+) -> list[dict[str, Any]]:
     """Run the panel's tasks for ``algorithms`` into ``out/<task>/`` (one worker pool for all);
     return their summaries. ``trials``: every task this short (a smoke test, not the panel)."""
     chosen = tasks_named(tasks)
-    runs = [(task.make_protocol(algorithms, experiments, seed, trials), pathlib.Path(out) / task.name)
-            for task in chosen]
-    return runner.run_protocols(runs, jobs=jobs, resume=resume, progress=progress, log=log,
-                                started=started)
+    runs = [
+        (task.make_protocol(algorithms, experiments, seed, trials), pathlib.Path(out) / task.name)
+        for task in chosen
+    ]
+    return runner.run_protocols(
+        runs, jobs=jobs, resume=resume, progress=progress, log=log, started=started
+    )
 
 
 def env_steps_of(curves, protocol: dict[str, Any], task: PanelTask) -> np.ndarray | None:
@@ -133,8 +195,9 @@ def env_steps_of(curves, protocol: dict[str, Any], task: PanelTask) -> np.ndarra
 
     made = Protocol.from_dict(protocol).make_environment(0)
     per_trial = steps_per_trial(made) * protocol.get("action_repeat", 1)
-    return np.broadcast_to(np.arange(1, curves.returns.shape[1] + 1) * float(per_trial),
-                           curves.returns.shape)
+    return np.broadcast_to(
+        np.arange(1, curves.returns.shape[1] + 1) * float(per_trial), curves.returns.shape
+    )
 
 
 def _score(greedy: np.ndarray) -> dict[str, Any]:
@@ -165,41 +228,62 @@ def panel_rows(task: PanelTask, directories: Sequence[str | os.PathLike]) -> lis
             at = trials.index(task.goal_trial)
             greedy = curves.greedy_returns[:, at]
             if task.reached_by_return is not None:  # an event: any episode up to the goal trial
-                learned = curves.returns[:, :task.goal_trial] > task.reached_by_return
-                evaluated = curves.greedy_returns[:, :at + 1] > task.reached_by_return
+                learned = curves.returns[:, : task.goal_trial] > task.reached_by_return
+                evaluated = curves.greedy_returns[:, : at + 1] > task.reached_by_return
                 reached = int(np.sum(learned.any(axis=1) | evaluated.any(axis=1)))
             else:
                 reached = int(np.sum(greedy >= task.goal))
             counted = env_steps_of(curves, protocol, task)
             steps = counted[:, task.goal_trial - 1] if counted is not None else None
-            rows.append({
-                "learner": algorithm, "directory": str(directory), "experiments": len(saved),
-                "greedy": _score(greedy), "reached": reached, "goal_trial": task.goal_trial,
-                "env_steps": (None if steps is None or not np.all(np.isfinite(steps))
-                              else float(np.mean(steps))),
-                "cpu_s_per_experiment": (float(np.mean(curves.cpu_times))
-                                         if np.all(np.isfinite(curves.cpu_times)) else None),
-                "greedy_trials": trials,
-                "greedy_per_experiment": curves.greedy_returns.tolist(),
-                "code": config.get("code", {}).get("commit")})
+            rows.append(
+                {
+                    "learner": algorithm,
+                    "directory": str(directory),
+                    "experiments": len(saved),
+                    "greedy": _score(greedy),
+                    "reached": reached,
+                    "goal_trial": task.goal_trial,
+                    "env_steps": (
+                        None
+                        if steps is None or not np.all(np.isfinite(steps))
+                        else float(np.mean(steps))
+                    ),
+                    "cpu_s_per_experiment": (
+                        float(np.mean(curves.cpu_times))
+                        if np.all(np.isfinite(curves.cpu_times))
+                        else None
+                    ),
+                    "greedy_trials": trials,
+                    "greedy_per_experiment": curves.greedy_returns.tolist(),
+                    "code": config.get("code", {}).get("commit"),
+                }
+            )
     return rows
 
 
 def format_rows(task: PanelTask, rows: list[dict[str, Any]]) -> str:
     """The rows of :func:`panel_rows` as a Markdown table."""
-    sac = [r["cpu_s_per_experiment"] for r in rows if r["learner"] == "sb3-sac"
-           and r["cpu_s_per_experiment"]]
-    lines = [f"{task.name}: {task.goal_text}", "",
-             "| learner | experiments | greedy at trial {} (IQM [95% CI]) | reached goal | env steps "
-             "| CPU s / experiment | CPU vs SAC |".format(task.goal_trial),
-             "|---|---|---|---|---|---|---|"]
+    sac = [
+        r["cpu_s_per_experiment"]
+        for r in rows
+        if r["learner"] == "sb3-sac" and r["cpu_s_per_experiment"]
+    ]
+    lines = [
+        f"{task.name}: {task.goal_text}",
+        "",
+        f"| learner | experiments | greedy at trial {task.goal_trial} (IQM [95% CI]) | reached goal | env steps "
+        "| CPU s / experiment | CPU vs SAC |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for row in rows:
         low, high = row["greedy"]["ci95"]
         ci = f"[{low:.1f}, {high:.1f}]" if low is not None else "[n/a]"
         cpu = row["cpu_s_per_experiment"]
         ratio = f"{cpu / sac[0]:.3f}" if sac and cpu else ""
         steps = f"{row['env_steps']:.0f}" if row["env_steps"] is not None else "n/a"
-        lines.append(f"| {row['learner']} | {row['experiments']} | {row['greedy']['iqm']:.1f} {ci} | "
-                     f"{row['reached']}/{row['experiments']} | {steps} | "
-                     f"{'' if cpu is None else f'{cpu:.1f}'} | {ratio} |")
+        lines.append(
+            f"| {row['learner']} | {row['experiments']} | {row['greedy']['iqm']:.1f} {ci} | "
+            f"{row['reached']}/{row['experiments']} | {steps} | "
+            f"{'' if cpu is None else f'{cpu:.1f}'} | {ratio} |"
+        )
     return "\n".join(lines)

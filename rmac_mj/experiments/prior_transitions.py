@@ -37,7 +37,8 @@ import dataclasses
 import os
 import pathlib
 import zipfile
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 from dm_control.rl import control
@@ -99,18 +100,25 @@ class Demonstration:
         """ValueError unless the recording fits a task: n and m agree, actions inside the bounds."""
         n, m = self.states.shape[1], self.actions.shape[1]
         if n != state_space.dim:
-            raise ValueError(f"states have n={n} entries per row, the task's state has "
-                             f"{state_space.dim}")
+            raise ValueError(
+                f"states have n={n} entries per row, the task's state has {state_space.dim}"
+            )
         if m != action_space.dim:
-            raise ValueError(f"actions have m={m} entries per row, the task's action has "
-                             f"{action_space.dim}")
+            raise ValueError(
+                f"actions have m={m} entries per row, the task's action has {action_space.dim}"
+            )
         tolerance = 1e-9 * np.maximum(1.0, np.abs(action_space.high - action_space.low))
-        outside = np.any((self.actions < action_space.low - tolerance) |
-                         (self.actions > action_space.high + tolerance), axis=1)
+        outside = np.any(
+            (self.actions < action_space.low - tolerance)
+            | (self.actions > action_space.high + tolerance),
+            axis=1,
+        )
         if outside.any():
-            raise ValueError(f"actions: {int(outside.sum())} of {len(outside)} rows lie outside the "
-                             f"task's action range [{action_space.low.tolist()}, "
-                             f"{action_space.high.tolist()}] (record the applied, saturated action)")
+            raise ValueError(
+                f"actions: {int(outside.sum())} of {len(outside)} rows lie outside the "
+                f"task's action range [{action_space.low.tolist()}, "
+                f"{action_space.high.tolist()}] (record the applied, saturated action)"
+            )
 
 
 def save_demonstration(path: str | os.PathLike, demo: Demonstration) -> pathlib.Path:
@@ -120,8 +128,11 @@ def save_demonstration(path: str | os.PathLike, demo: Demonstration) -> pathlib.
     return files.write_npz(path, **demo.arrays())
 
 
-def load_demonstration(path: str | os.PathLike, state_space: StateSpace | None = None,
-                       action_space: ActionSpace | None = None) -> Demonstration:
+def load_demonstration(
+    path: str | os.PathLike,
+    state_space: StateSpace | None = None,
+    action_space: ActionSpace | None = None,
+) -> Demonstration:
     """Read a demonstration file; with the task's spaces, also check that it fits the task.
 
     Raises:
@@ -134,8 +145,10 @@ def load_demonstration(path: str | os.PathLike, state_space: StateSpace | None =
     if not path.is_file():
         raise MissingInputError(f"{path}: no such demonstration file")
     if not zipfile.is_zipfile(path):
-        raise UserInputError(f"{path}: not an .npz file (numpy.savez writes one; see "
-                             "docs/prior-knowledge.md for the keys)")
+        raise UserInputError(
+            f"{path}: not an .npz file (numpy.savez writes one; see "
+            "docs/prior-knowledge.md for the keys)"
+        )
     try:
         with np.load(path, allow_pickle=False) as data:
             keys = set(data.files)
@@ -144,8 +157,11 @@ def load_demonstration(path: str | os.PathLike, state_space: StateSpace | None =
             if missing or unexpected:
                 raise UserInputError(
                     f"{path}: a demonstration holds exactly the keys {list(FIELDS)}; "
-                    + "; ".join(([f"missing {missing}"] if missing else []) +
-                                ([f"unexpected {unexpected}"] if unexpected else [])))
+                    + "; ".join(
+                        ([f"missing {missing}"] if missing else [])
+                        + ([f"unexpected {unexpected}"] if unexpected else [])
+                    )
+                )
             arrays = {k: data[k] for k in FIELDS}
     except UserInputError:
         raise
@@ -162,8 +178,13 @@ def load_demonstration(path: str | os.PathLike, state_space: StateSpace | None =
     return demo
 
 
-def record(env: control.Environment, controller: Callable[[np.ndarray], Any], trials: int,
-           seed: int | np.random.Generator | None = None, action_noise: float = 0.0) -> Demonstration:
+def record(
+    env: control.Environment,
+    controller: Callable[[np.ndarray], Any],
+    trials: int,
+    seed: int | np.random.Generator | None = None,
+    action_noise: float = 0.0,
+) -> Demonstration:
     """Run ``controller`` (x -> u) for ``trials`` episodes of ``env`` and record the transitions.
 
     Args:
@@ -199,6 +220,10 @@ def record(env: control.Environment, controller: Callable[[np.ndarray], Any], tr
             for field, value in zip(FIELDS, (x, u, float(timestep.reward), x_next, index)):
                 rows[field].append(value)
             x = x_next
-    return Demonstration(states=np.array(rows["states"]), actions=np.array(rows["actions"]),
-                         rewards=np.array(rows["rewards"]), next_states=np.array(rows["next_states"]),
-                         trial=np.array(rows["trial"], dtype=np.int64))
+    return Demonstration(
+        states=np.array(rows["states"]),
+        actions=np.array(rows["actions"]),
+        rewards=np.array(rows["rewards"]),
+        next_states=np.array(rows["next_states"]),
+        trial=np.array(rows["trial"], dtype=np.int64),
+    )

@@ -11,7 +11,8 @@ import math
 import pathlib
 import sys
 import time
-from typing import Sequence, TextIO
+from collections.abc import Sequence
+from typing import TextIO
 
 import numpy as np
 
@@ -55,23 +56,42 @@ class Progress:
     #: Trials over which the live mean return is taken, per learner.
     RECENT = 10
 
-    def __init__(self, protocols: Sequence, finished: Sequence[dict[str, int]], enabled: bool,
-                 stream: TextIO | None = None, interval: float = 10.0):
+    def __init__(
+        self,
+        protocols: Sequence,
+        finished: Sequence[dict[str, int]],
+        enabled: bool,
+        stream: TextIO | None = None,
+        interval: float = 10.0,
+    ):
         self.algorithms = list(dict.fromkeys(a for p in protocols for a in p.algorithms))
         self.trials = {k: p.trials for k, p in enumerate(protocols)}
         self.runs = len(protocols)
-        self.runs_left = {k: sum(p.experiments - finished[k].get(a, 0) for a in p.algorithms)
-                          for k, p in enumerate(protocols)}
+        self.runs_left = {
+            k: sum(p.experiments - finished[k].get(a, 0) for a in p.algorithms)
+            for k, p in enumerate(protocols)
+        }
         self.runs_done = sum(1 for left in self.runs_left.values() if left == 0)
-        self.experiments = {a: sum(p.experiments for p in protocols if a in p.algorithms)
-                            for a in self.algorithms}
-        self.done = {a: sum(finished[k].get(a, 0) for k, p in enumerate(protocols)
-                            if a in p.algorithms) for a in self.algorithms}
-        total_trials = {a: sum(p.experiments * p.trials for p in protocols if a in p.algorithms)
-                        for a in self.algorithms}
+        self.experiments = {
+            a: sum(p.experiments for p in protocols if a in p.algorithms) for a in self.algorithms
+        }
+        self.done = {
+            a: sum(finished[k].get(a, 0) for k, p in enumerate(protocols) if a in p.algorithms)
+            for a in self.algorithms
+        }
+        total_trials = {
+            a: sum(p.experiments * p.trials for p in protocols if a in p.algorithms)
+            for a in self.algorithms
+        }
         self.total_trials = {"all": sum(total_trials.values()), **total_trials}
-        self.trials_done = {a: sum(finished[k].get(a, 0) * p.trials for k, p in enumerate(protocols)
-                                   if a in p.algorithms) for a in self.algorithms}
+        self.trials_done = {
+            a: sum(
+                finished[k].get(a, 0) * p.trials
+                for k, p in enumerate(protocols)
+                if a in p.algorithms
+            )
+            for a in self.algorithms
+        }
         self.experiments["all"] = sum(self.experiments[a] for a in self.algorithms)
         self.done["all"] = sum(self.done[a] for a in self.algorithms)
         self.trials_done["all"] = sum(self.trials_done[a] for a in self.algorithms)
@@ -93,11 +113,20 @@ class Progress:
             self._line()
             return
         from tqdm.auto import tqdm
+
         for position, key in enumerate(["all", *self.algorithms]):
-            label = ("all learners" if self.runs == 1 else f"{self.runs} runs") if key == "all" else key
-            self.bars[key] = tqdm(total=self.total_trials[key], initial=self.trials_done[key],
-                                  file=self.stream, desc=f"{label:>12}", unit="trial",
-                                  position=position, dynamic_ncols=True)
+            label = (
+                ("all learners" if self.runs == 1 else f"{self.runs} runs") if key == "all" else key
+            )
+            self.bars[key] = tqdm(
+                total=self.total_trials[key],
+                initial=self.trials_done[key],
+                file=self.stream,
+                desc=f"{label:>12}",
+                unit="trial",
+                position=position,
+                dynamic_ncols=True,
+            )
             self.bars[key].set_postfix_str(self._postfix(key))
 
     def _recent_mean(self, algorithm: str) -> str:
@@ -125,7 +154,9 @@ class Progress:
         run, algorithm, _ = key
         previous = self.credited.pop(key, 0)
         if returns is not None:
-            self.recent[algorithm].extend(np.asarray(returns, dtype=float)[previous:][-self.RECENT:])
+            self.recent[algorithm].extend(
+                np.asarray(returns, dtype=float)[previous:][-self.RECENT :]
+            )
         self.done["all"] += 1
         self.done[algorithm] += 1
         self.runs_left[run] -= 1
@@ -157,11 +188,15 @@ class Progress:
         rate = (done - self.first_trials) / learning if learning > 0 else 0.0
         eta = f", about {duration((total - done) / rate)} left" if rate > 0 and done < total else ""
         runs = "" if self.runs == 1 else f", {self.runs_done}/{self.runs} runs"
-        parts = [f"[{duration(elapsed)}] {done}/{total} trials ({self.done['all']}/"
-                 f"{self.experiments['all']} experiments{runs}), {rate:.0f} trials/s{eta}"]
+        parts = [
+            f"[{duration(elapsed)}] {done}/{total} trials ({self.done['all']}/"
+            f"{self.experiments['all']} experiments{runs}), {rate:.0f} trials/s{eta}"
+        ]
         for algorithm in self.algorithms:
-            parts.append(f"{algorithm} {self.trials_done[algorithm]}/"
-                         f"{self.total_trials[algorithm]} trials, {self._recent_mean(algorithm)}")
+            parts.append(
+                f"{algorithm} {self.trials_done[algorithm]}/"
+                f"{self.total_trials[algorithm]} trials, {self._recent_mean(algorithm)}"
+            )
         print(" | ".join(parts), file=self.stream, flush=True)
         self.last_line = time.monotonic()
 

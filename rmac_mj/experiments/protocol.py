@@ -30,19 +30,31 @@ import json
 import numbers
 import pathlib
 import time
-from typing import Any, Callable, ClassVar
+from collections.abc import Callable
+from typing import Any, ClassVar
 
 import numpy as np
 from dm_control.rl import control
 
 from rmac_mj import constraints, envs, tasks
-from rmac_mj.agents import (ALGORITHMS, PRIOR_PARTS, ActionSpace, Agent, StateSpace, agent_class,
-                            config_class, config_from_dict, make_agent, unknown_algorithm)
+from rmac_mj.agents import (
+    ALGORITHMS,
+    PRIOR_PARTS,
+    ActionSpace,
+    Agent,
+    StateSpace,
+    agent_class,
+    config_class,
+    config_from_dict,
+    make_agent,
+    unknown_algorithm,
+)
+from rmac_mj.experiments import checkpoint as checkpoints
+from rmac_mj.experiments import prior_transitions as prior_data
 from rmac_mj.results import files
-from rmac_mj.experiments import checkpoint as checkpoints, prior_transitions as prior_data
-from rmac_mj.rollout import action_space_of, run_counted_trial, run_trial, state_space_of
 from rmac_mj.results.snapshots import snapshot_arrays
 from rmac_mj.results.store import ExperimentResult, ResultStore, TrialLog
+from rmac_mj.rollout import action_space_of, run_counted_trial, run_trial, state_space_of
 
 
 class _Empty(constraints.Constraint):
@@ -133,15 +145,20 @@ class Protocol:
         "domain": [constraints.InstanceOf(str), None],
         "task": [constraints.InstanceOf(str), None],
         "task_kwargs": [constraints.InstanceOf(dict)],
-        "algorithms": [constraints.TupleOf(constraints.InstanceOf(str),
-                                           what="a list of one or more algorithm names")],
+        "algorithms": [
+            constraints.TupleOf(
+                constraints.InstanceOf(str), what="a list of one or more algorithm names"
+            )
+        ],
         "experiments": [constraints.Interval(numbers.Integral, 1, None)],
         "trials": [constraints.Interval(numbers.Integral, 1, None)],
         "steps": [constraints.Interval(numbers.Integral, 1, None), None],
         "seed": [constraints.Interval(numbers.Integral, 0, None)],
         "evaluate_every": [constraints.Interval(numbers.Integral, 0, None)],
-        "snapshot_trials": [constraints.TupleOf(constraints.Interval(numbers.Integral, 1, None)),
-                            _EMPTY],
+        "snapshot_trials": [
+            constraints.TupleOf(constraints.Interval(numbers.Integral, 1, None)),
+            _EMPTY,
+        ],
         "agent_configs": [constraints.InstanceOf(dict)],
         "prior": [constraints.InstanceOf(str), None],
         "prior_trials": [constraints.Interval(numbers.Integral, 1, None)],
@@ -154,8 +171,12 @@ class Protocol:
         "control_timestep": [constraints.Interval(numbers.Real, 0, None, closed="neither"), None],
     }
     #: The fields that describe an outside environment (``env``); they mean nothing without it.
-    ENV_FIELDS: ClassVar[tuple[str, ...]] = ("learner_state", "action_repeat", "trial_steps",
-                                              "control_timestep")
+    ENV_FIELDS: ClassVar[tuple[str, ...]] = (
+        "learner_state",
+        "action_repeat",
+        "trial_steps",
+        "control_timestep",
+    )
 
     def __post_init__(self) -> None:
         if isinstance(self.algorithms, (tuple, list)):
@@ -165,9 +186,11 @@ class Protocol:
         constraints.check_config(self)
         if len(set(self.algorithms)) != len(self.algorithms):
             raise ValueError(f"algorithms must not repeat, got {self.algorithms}")
-        object.__setattr__(self, "snapshot_trials",
-                           tuple(sorted({t for t in self.snapshot_trials if t <= self.trials}
-                                        | {self.trials})))
+        object.__setattr__(
+            self,
+            "snapshot_trials",
+            tuple(sorted({t for t in self.snapshot_trials if t <= self.trials} | {self.trials})),
+        )
         if self.env is not None:
             self._check_env()
         else:
@@ -179,16 +202,19 @@ class Protocol:
         self._check_prior()
 
     def _check_suite_task(self) -> None:
-        given = [name for name in self.ENV_FIELDS
-                 if getattr(self, name) != _FIELD_DEFAULTS[name]]
+        given = [name for name in self.ENV_FIELDS if getattr(self, name) != _FIELD_DEFAULTS[name]]
         if given:
             raise ValueError(f"{', '.join(given)} describe an outside environment: give env too")
         if self.domain not in tasks.TASKS_BY_DOMAIN:
-            raise ValueError(f"unknown domain {self.domain!r}; available: "
-                             f"{', '.join(sorted(tasks.TASKS_BY_DOMAIN))}{envs.hint_for(self.domain)}")
+            raise ValueError(
+                f"unknown domain {self.domain!r}; available: "
+                f"{', '.join(sorted(tasks.TASKS_BY_DOMAIN))}{envs.hint_for(self.domain)}"
+            )
         if self.task not in tasks.TASKS_BY_DOMAIN[self.domain]:
-            raise ValueError(f"unknown task {self.task!r} of domain {self.domain!r}; available: "
-                             f"{', '.join(tasks.TASKS_BY_DOMAIN[self.domain])}")
+            raise ValueError(
+                f"unknown task {self.task!r} of domain {self.domain!r}; available: "
+                f"{', '.join(tasks.TASKS_BY_DOMAIN[self.domain])}"
+            )
         if "random" in self.task_kwargs:
             raise ValueError("task_kwargs must not set 'random': the task's seed comes from `seed`")
 
@@ -196,8 +222,10 @@ class Protocol:
         """An outside environment: domain/task give way (None); the spec is resolved now, so that a
         learner state that cannot be inferred is refused before anything runs."""
         if (self.domain, self.task) not in ((None, None), tasks.DEFAULT_TASK):
-            raise ValueError(f"env {self.env!r} and domain/task {self.domain}/{self.task} name two "
-                             f"environments: give one")
+            raise ValueError(
+                f"env {self.env!r} and domain/task {self.domain}/{self.task} name two "
+                f"environments: give one"
+            )
         object.__setattr__(self, "domain", None)
         object.__setattr__(self, "task", None)
         _resolved(self.environment_spec)
@@ -208,21 +236,29 @@ class Protocol:
                 raise ValueError("prior_parts needs prior knowledge: set prior too")
             return
         if not self.prior:
-            raise ValueError(f"prior must be a demonstrator name or a .npz path, got {self.prior!r}")
+            raise ValueError(
+                f"prior must be a demonstrator name or a .npz path, got {self.prior!r}"
+            )
         if not self.prior.endswith(".npz"):
-            self.knowledge.demonstrator(self.prior, self.environment_name)  # raises, naming what exists
+            self.knowledge.demonstrator(
+                self.prior, self.environment_name
+            )  # raises, naming what exists
         refusing = [a for a in self.algorithms if not agent_class(a).prior_parts]
         if refusing:
             taking = [a for a in ALGORITHMS if agent_class(a).prior_parts]
             verb = "does" if len(refusing) == 1 else "do"
-            raise ValueError(f"{', '.join(refusing)} {verb} not take prior knowledge: run only "
-                             f"learners that do ({', '.join(taking)}), e.g. --algorithms "
-                             f"{','.join(taking)}")
+            raise ValueError(
+                f"{', '.join(refusing)} {verb} not take prior knowledge: run only "
+                f"learners that do ({', '.join(taking)}), e.g. --algorithms "
+                f"{','.join(taking)}"
+            )
         for name in self.algorithms:
             lacking = sorted(set(self.prior_parts) - set(agent_class(name).prior_parts))
             if lacking:
-                raise ValueError(f"{name} takes no {', '.join(lacking)} prior (it takes "
-                                 f"{', '.join(agent_class(name).prior_parts)})")
+                raise ValueError(
+                    f"{name} takes no {', '.join(lacking)} prior (it takes "
+                    f"{', '.join(agent_class(name).prior_parts)})"
+                )
 
     @property
     def knowledge(self) -> tasks.common.TaskKnowledge:
@@ -242,9 +278,14 @@ class Protocol:
         """The outside environment as declared (``rmac_mj.envs.EnvSpec``), None for the suite's."""
         if self.env is None:
             return None
-        return envs.EnvSpec(self.env, kwargs=self.task_kwargs, learner_state=self.learner_state,
-                            action_repeat=self.action_repeat, trial_steps=self.trial_steps,
-                            control_timestep=self.control_timestep)
+        return envs.EnvSpec(
+            self.env,
+            kwargs=self.task_kwargs,
+            learner_state=self.learner_state,
+            action_repeat=self.action_repeat,
+            trial_steps=self.trial_steps,
+            control_timestep=self.control_timestep,
+        )
 
     @property
     def measured_bounds(self) -> dict[str, list[float]] | None:
@@ -282,17 +323,34 @@ class Protocol:
     def is_paper_protocol(self) -> bool:
         """True when the paper's protocol is run unchanged (both learners, default settings)."""
         default = Protocol()
-        return (self.env, self.domain, self.task, self.task_kwargs, set(self.algorithms),
-                self.experiments, self.trials, self.agent_configs, self.prior) == (
-            default.env, default.domain, default.task, default.task_kwargs, set(default.algorithms),
-            default.experiments, default.trials, default.agent_configs, default.prior)
+        return (
+            self.env,
+            self.domain,
+            self.task,
+            self.task_kwargs,
+            set(self.algorithms),
+            self.experiments,
+            self.trials,
+            self.agent_configs,
+            self.prior,
+        ) == (
+            default.env,
+            default.domain,
+            default.task,
+            default.task_kwargs,
+            set(default.algorithms),
+            default.experiments,
+            default.trials,
+            default.agent_configs,
+            default.prior,
+        )
 
     def as_dict(self) -> dict[str, Any]:
         """The protocol as JSON data (what ``config.json`` stores); :meth:`from_dict` reads it back."""
         return files.as_jsonable(self)
 
     @classmethod
-    def from_dict(cls, document: dict[str, Any]) -> "Protocol":
+    def from_dict(cls, document: dict[str, Any]) -> Protocol:
         """The protocol of :meth:`as_dict`'s document (lists back to tuples); ValueError or TypeError
         naming what is wrong with it."""
         if not isinstance(document, dict):
@@ -335,12 +393,17 @@ def demonstration_for(protocol: Protocol, index: int) -> prior_data.Demonstratio
     sequence itself the demonstrator's action noise."""
     demonstrator = protocol.knowledge.demonstrator(protocol.prior, protocol.environment_name)
     sequence = np.random.SeedSequence(protocol.seed, spawn_key=(index, 1))
-    task_seed = int(np.random.SeedSequence(protocol.seed, spawn_key=(index, 1, 0))
-                    .generate_state(1)[0])
+    task_seed = int(
+        np.random.SeedSequence(protocol.seed, spawn_key=(index, 1, 0)).generate_state(1)[0]
+    )
     env = protocol.make_environment(task_seed)
-    return prior_data.record(env, demonstrator.controller(env), protocol.prior_trials,
-                             seed=np.random.default_rng(sequence),
-                             action_noise=demonstrator.action_noise)
+    return prior_data.record(
+        env,
+        demonstrator.controller(env),
+        protocol.prior_trials,
+        seed=np.random.default_rng(sequence),
+        action_noise=demonstrator.action_noise,
+    )
 
 
 @dataclasses.dataclass
@@ -365,24 +428,39 @@ class Experiment:
     demonstration: prior_data.Demonstration | None
 
 
-def build_experiment(protocol: Protocol, algorithm: str, index: int,
-                     demonstration: prior_data.Demonstration | None = None) -> Experiment:
+def build_experiment(
+    protocol: Protocol,
+    algorithm: str,
+    index: int,
+    demonstration: prior_data.Demonstration | None = None,
+) -> Experiment:
     """Assemble experiment ``index`` of ``algorithm`` exactly as the runner does: its environment and
     fresh agent from the experiment's seeds, then the prior knowledge (``demonstration`` when the
     protocol's prior is a file the caller read; else recorded here from the protocol's demonstrator)."""
     agent_seq, task_seed = experiment_seeds(protocol.seed, index)
     env = protocol.make_environment(task_seed)
     state_space, action_space = state_space_of(env), action_space_of(env)
-    agent = make_agent(algorithm, state_space, action_space,
-                       config=protocol.agent_configs.get(algorithm),
-                       seed=np.random.default_rng(agent_seq))
+    agent = make_agent(
+        algorithm,
+        state_space,
+        action_space,
+        config=protocol.agent_configs.get(algorithm),
+        seed=np.random.default_rng(agent_seq),
+    )
     if protocol.prior is not None:
         if demonstration is None:
             demonstration = demonstration_for(protocol, index)
         agent.seed_from(**demonstration.arrays(), parts=protocol.prior_parts or None)
-    return Experiment(algorithm=algorithm, index=index, env=env, agent=agent,
-                      state_space=state_space, action_space=action_space, task_seed=task_seed,
-                      demonstration=demonstration if protocol.prior is not None else None)
+    return Experiment(
+        algorithm=algorithm,
+        index=index,
+        env=env,
+        agent=agent,
+        state_space=state_space,
+        action_space=action_space,
+        task_seed=task_seed,
+        demonstration=demonstration if protocol.prior is not None else None,
+    )
 
 
 def evaluation(protocol: Protocol, index: int) -> Callable[[control.Environment, Agent], float]:
@@ -394,8 +472,11 @@ def evaluation(protocol: Protocol, index: int) -> Callable[[control.Environment,
 
     def evaluate(env: control.Environment, agent: Agent) -> float:
         starts = protocol.make_environment(seed)  # the same starts at every evaluation
-        return float(np.mean([run_trial(starts, agent, learn=False)
-                              for _ in range(protocol.evaluate_starts)]))
+        return float(
+            np.mean(
+                [run_trial(starts, agent, learn=False) for _ in range(protocol.evaluate_starts)]
+            )
+        )
 
     return evaluate
 
@@ -420,8 +501,9 @@ class ExperimentSpec:
     checkpoint_seconds: float = checkpoints.CHECKPOINT_SECONDS
 
 
-def run_experiment(spec: ExperimentSpec,
-                   on_trial: Callable[[str, int, int, float], None] | None = None) -> ExperimentResult:
+def run_experiment(
+    spec: ExperimentSpec, on_trial: Callable[[str, int, int, float], None] | None = None
+) -> ExperimentResult:
     """Run one learning experiment; return its curve, greedy evaluations and snapshots.
 
     Nothing is written but the live trial log in ``spec.stream_to`` (if any), so it runs unchanged in
@@ -440,8 +522,11 @@ def run_experiment(spec: ExperimentSpec,
     log_path = store.progress_path(spec.algorithm, spec.index) if store is not None else None
     digest = checkpoints.protocol_digest(protocol.as_dict())
     earlier_wall = earlier_cpu = 0.0
-    saved = (checkpoints.read(store.checkpoint_path(spec.algorithm, spec.index), digest)
-             if store is not None else None)
+    saved = (
+        checkpoints.read(store.checkpoint_path(spec.algorithm, spec.index), digest)
+        if store is not None
+        else None
+    )
     if saved is not None:  # continue where the checkpoint left off, exactly
         agent.load_state_dict(saved["agent"])
         checkpoints.restore_environment(env, saved["environment"])
@@ -455,8 +540,12 @@ def run_experiment(spec: ExperimentSpec,
     taken, trial = (env_steps[-1] if env_steps else 0), len(returns)
     with TrialLog(log_path) as log:
         for done, value in enumerate(returns, start=1):  # a continued experiment's earlier trials
-            log.write(done, value, greedy_returns[greedy_trials.index(done)]
-                      if done in greedy_trials else None, env_steps[done - 1])
+            log.write(
+                done,
+                value,
+                greedy_returns[greedy_trials.index(done)] if done in greedy_trials else None,
+                env_steps[done - 1],
+            )
         while trial < protocol.trials and (protocol.steps is None or taken < protocol.steps):
             trial += 1
             value, steps = run_counted_trial(env, agent, learn=True)
@@ -468,34 +557,51 @@ def run_experiment(spec: ExperimentSpec,
                 greedy = evaluate(env, agent)
                 greedy_trials.append(trial)
                 greedy_returns.append(greedy)
-            last = trial == protocol.trials or (protocol.steps is not None and taken >= protocol.steps)
+            last = trial == protocol.trials or (
+                protocol.steps is not None and taken >= protocol.steps
+            )
             if trial in snapshot_trials or last:
-                snapshots[trial] = snapshot_arrays(agent, experiment.state_space,
-                                                   experiment.action_space, trial=trial, **meta)
+                snapshots[trial] = snapshot_arrays(
+                    agent, experiment.state_space, experiment.action_space, trial=trial, **meta
+                )
             log.write(trial, value, greedy, taken)
             now = time.perf_counter()
             if store is not None and not last and now - last_checkpoint >= spec.checkpoint_seconds:
                 environment = checkpoints.environment_state(env)
                 if environment is not None:
-                    for done, arrays in snapshots.items():  # written once; the curve's save rewrites
+                    for (
+                        done,
+                        arrays,
+                    ) in snapshots.items():  # written once; the curve's save rewrites
                         store.write_snapshot_arrays(spec.algorithm, spec.index, done, arrays)
                     checkpoints.write(
-                        store.checkpoint_path(spec.algorithm, spec.index), digest=digest, agent=agent,
-                        environment=environment, returns=returns, env_steps=env_steps,
-                        greedy_trials=greedy_trials, greedy_returns=greedy_returns,
+                        store.checkpoint_path(spec.algorithm, spec.index),
+                        digest=digest,
+                        agent=agent,
+                        environment=environment,
+                        returns=returns,
+                        env_steps=env_steps,
+                        greedy_trials=greedy_trials,
+                        greedy_returns=greedy_returns,
                         wall_time_s=earlier_wall + now - start,
-                        cpu_time_s=earlier_cpu + time.process_time() - cpu_start)
+                        cpu_time_s=earlier_cpu + time.process_time() - cpu_start,
+                    )
                 last_checkpoint = time.perf_counter()
             if on_trial is not None:
                 on_trial(spec.algorithm, spec.index, trial, float(value))
     demonstration = experiment.demonstration
     return ExperimentResult(
-        algorithm=spec.algorithm, index=spec.index, returns=np.asarray(returns, dtype=float),
+        algorithm=spec.algorithm,
+        index=spec.index,
+        returns=np.asarray(returns, dtype=float),
         env_steps=np.asarray(env_steps, dtype=np.int64),
         greedy_trials=np.asarray(greedy_trials, dtype=int),
-        greedy_returns=np.asarray(greedy_returns, dtype=float), snapshots=snapshots,
+        greedy_returns=np.asarray(greedy_returns, dtype=float),
+        snapshots=snapshots,
         wall_time_s=earlier_wall + time.perf_counter() - start,
         cpu_time_s=earlier_cpu + time.process_time() - cpu_start,
         task_seed=experiment.task_seed,
-        demonstration_returns=(demonstration.trial_returns() if demonstration is not None
-                               else np.zeros(0)))
+        demonstration_returns=(
+            demonstration.trial_returns() if demonstration is not None else np.zeros(0)
+        ),
+    )

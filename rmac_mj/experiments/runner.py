@@ -17,20 +17,21 @@ import itertools
 import json
 import multiprocessing
 import os
-import queue
 import threading
 import time
-from typing import Any, Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
+from typing import Any
 
 import numpy as np
 
-from rmac_mj.experiments import admission, execution, prior_transitions as prior_data
-from rmac_mj.results import files
 from rmac_mj.evaluation import metrics
-from rmac_mj.solvers import optimum
+from rmac_mj.experiments import admission, execution
+from rmac_mj.experiments import prior_transitions as prior_data
 from rmac_mj.experiments.progress import Progress, TrialFeed
 from rmac_mj.experiments.protocol import ExperimentSpec, Protocol, run_experiment
+from rmac_mj.results import files
 from rmac_mj.results.store import ExperimentResult, ResultStore
+from rmac_mj.solvers import optimum
 
 
 class WallClock:
@@ -43,8 +44,11 @@ class WallClock:
         self.store = store
         self.started = started
         self.earlier: list[dict[str, Any]] = store.read_wall_times() if resume else []
-        self.part = {"started": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-                     "wall_s": 0.0, "experiments": 0}
+        self.part = {
+            "started": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+            "wall_s": 0.0,
+            "experiments": 0,
+        }
 
     def record(self, experiments: int = 0) -> None:
         self.part["wall_s"] = time.perf_counter() - self.started
@@ -59,18 +63,21 @@ class WallClock:
 def finished_experiments(out: str | os.PathLike, protocol: Protocol) -> int:
     """How many of ``protocol``'s experiments have their results in ``out``."""
     store = ResultStore(out)
-    return sum(sum(1 for i in store.finished(a) if i < protocol.experiments)
-               for a in protocol.algorithms)
+    return sum(
+        sum(1 for i in store.finished(a) if i < protocol.experiments) for a in protocol.algorithms
+    )
 
 
-def run_tagged(item: tuple[Any, ExperimentSpec],
-               on_trial: Callable[..., None] | None = None) -> tuple[Any, ExperimentResult]:
+def run_tagged(
+    item: tuple[Any, ExperimentSpec], on_trial: Callable[..., None] | None = None
+) -> tuple[Any, ExperimentResult]:
     """``(tag, run_experiment(spec))`` for ``item = (tag, spec)``: lets one pool serve several runs.
     ``on_trial`` is called as ``on_trial((tag, algorithm, index), trial, return)``."""
     tag, spec = item
 
     def report(algorithm: str, index: int, trial: int, value: float) -> None:
         on_trial((tag, algorithm, index), trial, value)
+
     return tag, run_experiment(spec, report if on_trial is not None else None)
 
 
@@ -93,8 +100,10 @@ def _announce(message: str) -> None:
 def near_optimal(protocol: Protocol, announce: Callable[[str], None] | None = None) -> NearOptimal:
     """The near-optimal return of the protocol's task and each learner's exploration floor (None
     where there is none): what its summary and Fig. 2 are measured against."""
-    return (optimum.run_optimum(protocol, announce),
-            {a: optimum.run_exploration_floor(protocol, a, announce) for a in protocol.algorithms})
+    return (
+        optimum.run_optimum(protocol, announce),
+        {a: optimum.run_exploration_floor(protocol, a, announce) for a in protocol.algorithms},
+    )
 
 
 class NearOptimalService:
@@ -106,8 +115,13 @@ class NearOptimalService:
     messages reach ``log`` through the driver. Without, each is computed when asked for, here.
     """
 
-    def __init__(self, protocols: list[Protocol | None], log: Callable[[str], None] | None,
-                 background: bool, compute: Callable[..., NearOptimal] = near_optimal):
+    def __init__(
+        self,
+        protocols: list[Protocol | None],
+        log: Callable[[str], None] | None,
+        background: bool,
+        compute: Callable[..., NearOptimal] = near_optimal,
+    ):
         self.protocols, self.log, self.compute = protocols, log, compute
         self.pending: dict[int, Any] = {}
         self.pool = self.relay = None
@@ -115,14 +129,16 @@ class NearOptimalService:
             return
         context = multiprocessing.get_context("spawn")
         self.messages = context.Queue()
-        self.pool = context.Pool(1, initializer=_start_near_optimal,
-                                 initargs=(os.getpid(), self.messages))
+        self.pool = context.Pool(
+            1, initializer=_start_near_optimal, initargs=(os.getpid(), self.messages)
+        )
         for k, protocol in enumerate(protocols):
             if protocol is not None:
                 self.pending[k] = self.pool.apply_async(compute, (protocol, _announce))
         self.pool.close()
-        self.relay = threading.Thread(target=self._relay, name="rmac-mj near-optimal messages",
-                                      daemon=True)
+        self.relay = threading.Thread(
+            target=self._relay, name="rmac-mj near-optimal messages", daemon=True
+        )
         self.relay.start()
 
     def _relay(self) -> None:
@@ -159,8 +175,14 @@ class _Run:
     its config written, on a resume its saved experiments checked) before its first experiment
     starts: at once when the directory exists, else when its first experiment is handed out."""
 
-    def __init__(self, protocol: Protocol, out: str | os.PathLike, document: dict[str, Any],
-                 demonstration: prior_data.Demonstration | None, resume: bool):
+    def __init__(
+        self,
+        protocol: Protocol,
+        out: str | os.PathLike,
+        document: dict[str, Any],
+        demonstration: prior_data.Demonstration | None,
+        resume: bool,
+    ):
         self.protocol, self.store = protocol, ResultStore(out)
         self.document, self.demonstration, self.resume = document, demonstration, resume
         self.finished: dict[str, set[int]] = {a: set() for a in protocol.algorithms}
@@ -180,7 +202,9 @@ class _Run:
         self.store.begin(self.document, self.resume)
         protocol = self.protocol
         for algorithm in protocol.algorithms:
-            for index in sorted(i for i in self.store.finished(algorithm) if i < protocol.experiments):
+            for index in sorted(
+                i for i in self.store.finished(algorithm) if i < protocol.experiments
+            ):
                 problem = self.store.experiment_problem(protocol, algorithm, index)
                 if problem is None:
                     self.finished[algorithm].add(index)
@@ -192,7 +216,9 @@ class _Run:
 
     @property
     def left(self) -> int:
-        return sum(self.protocol.experiments - len(self.finished[a]) for a in self.protocol.algorithms)
+        return sum(
+            self.protocol.experiments - len(self.finished[a]) for a in self.protocol.algorithms
+        )
 
     def pending(self, tag: int, stream: bool) -> Iterator[tuple[int, ExperimentSpec]]:
         """The experiments not yet saved, drawn one at a time (experiment-major, as their seeds)."""
@@ -200,8 +226,16 @@ class _Run:
         for index in range(self.protocol.experiments):
             for algorithm in self.protocol.algorithms:
                 if index not in self.finished[algorithm]:
-                    yield tag, ExperimentSpec(self.protocol, algorithm, index, stream_to=stream_to,
-                                              demonstration=self.demonstration)
+                    yield (
+                        tag,
+                        ExperimentSpec(
+                            self.protocol,
+                            algorithm,
+                            index,
+                            stream_to=stream_to,
+                            demonstration=self.demonstration,
+                        ),
+                    )
 
     def finalise(self, **options) -> dict[str, Any]:
         """Summarise the run (:func:`finalise`) and let go of its directory."""
@@ -214,11 +248,19 @@ class _Run:
         return self.summary
 
 
-def run_protocol(protocol: Protocol, out: str | os.PathLike, jobs: int | None = None,
-                 resume: bool = False, scheduler: str | None = None, progress: bool = True,
-                 references: bool = False, figures: bool = True,
-                 log: Callable[[str], None] | None = None, started: float | None = None,
-                 smooth: int = 1) -> dict[str, Any]:
+def run_protocol(
+    protocol: Protocol,
+    out: str | os.PathLike,
+    jobs: int | None = None,
+    resume: bool = False,
+    scheduler: str | None = None,
+    progress: bool = True,
+    references: bool = False,
+    figures: bool = True,
+    log: Callable[[str], None] | None = None,
+    started: float | None = None,
+    smooth: int = 1,
+) -> dict[str, Any]:
     """Run (or finish, with ``resume``) ``protocol`` into ``out``; return the summary document.
 
     Args:
@@ -235,16 +277,32 @@ def run_protocol(protocol: Protocol, out: str | os.PathLike, jobs: int | None = 
         summary counts from there, summed over every part of a resumed run.
       smooth: Fig. 2's running mean, in trials (1: none).
     """
-    return run_protocols([(protocol, out)], jobs=jobs, resume=resume, scheduler=scheduler,
-                         progress=progress, references=references, figures=figures, log=log,
-                         started=started, smooth=smooth)[0]
+    return run_protocols(
+        [(protocol, out)],
+        jobs=jobs,
+        resume=resume,
+        scheduler=scheduler,
+        progress=progress,
+        references=references,
+        figures=figures,
+        log=log,
+        started=started,
+        smooth=smooth,
+    )[0]
 
 
-def run_protocols(runs: Iterable[tuple[Protocol, str | os.PathLike]], jobs: int | None = None,
-                  resume: bool = False, scheduler: str | None = None, progress: bool = True,
-                  references: bool = False, figures: bool = True,
-                  log: Callable[[str], None] | None = None, started: float | None = None,
-                  smooth: int = 1) -> list[dict[str, Any]]:
+def run_protocols(
+    runs: Iterable[tuple[Protocol, str | os.PathLike]],
+    jobs: int | None = None,
+    resume: bool = False,
+    scheduler: str | None = None,
+    progress: bool = True,
+    references: bool = False,
+    figures: bool = True,
+    log: Callable[[str], None] | None = None,
+    started: float | None = None,
+    smooth: int = 1,
+) -> list[dict[str, Any]]:
     """Run several ``(protocol, out)`` pairs through ONE worker pool (or one Dask cluster).
 
     Each ``out`` becomes exactly what :func:`run_protocol` writes (config.json, curves, snapshots,
@@ -266,30 +324,57 @@ def run_protocols(runs: Iterable[tuple[Protocol, str | os.PathLike]], jobs: int 
         key = json.dumps(protocol.as_dict(), sort_keys=True)
         if key not in resolved:
             resolved[key] = admission.resolve_agents(protocol, spaces)
-        document = {"protocol": protocol.as_dict(), "code": code, "agents": resolved[key],
-                    "references": references}  # a resume computes them only if the run did
+        document = {
+            "protocol": protocol.as_dict(),
+            "code": code,
+            "agents": resolved[key],
+            "references": references,
+        }  # a resume computes them only if the run did
         if prior_sha256 is not None:
             document["prior_sha256"] = prior_sha256
         measured = protocol.measured_bounds
-        if measured:  # what the run chose where the specs say nothing: said once, kept in config.json
+        if (
+            measured
+        ):  # what the run chose where the specs say nothing: said once, kept in config.json
             document["measured_bounds"] = measured
             if log is not None:
-                log(f"{protocol.environment_name}: no bounds in the specs for "
+                log(
+                    f"{protocol.environment_name}: no bounds in the specs for "
                     f"{', '.join(measured)}; measured from random actions ("
                     + ", ".join(f"{k} [{lo:.3g}, {hi:.3g}]" for k, (lo, hi) in measured.items())
-                    + "; declare learner_state.bounds to choose them)")
+                    + "; declare learner_state.bounds to choose them)"
+                )
         state.append(_Run(protocol, out, document, demonstration, resume))
     client = execution.connect_dask(scheduler) if scheduler else None
     # With one local process (--jobs 1) the run uses one core: the references wait for the end.
-    service = NearOptimalService([run.protocol if references else None for run in state], log,
-                                 background=references and (client is not None or jobs > 1))
+    service = NearOptimalService(
+        [run.protocol if references else None for run in state],
+        log,
+        background=references and (client is not None or jobs > 1),
+    )
     try:
-        for run in state:  # what exists is begun now: locked, checked (a sweep's others as they start)
+        for (
+            run
+        ) in state:  # what exists is begun now: locked, checked (a sweep's others as they start)
             if run.store.root.exists() and any(run.store.root.iterdir()):
                 run.begin(started, log)
-        return _run_all(state, client, jobs, progress, started, log, service,
-                        dict(references=references, figures=figures, smooth=smooth, log=log,
-                             started=started, facts=spaces))
+        return _run_all(
+            state,
+            client,
+            jobs,
+            progress,
+            started,
+            log,
+            service,
+            dict(
+                references=references,
+                figures=figures,
+                smooth=smooth,
+                log=log,
+                started=started,
+                facts=spaces,
+            ),
+        )
     finally:
         service.close()
         for run in state:
@@ -298,16 +383,25 @@ def run_protocols(runs: Iterable[tuple[Protocol, str | os.PathLike]], jobs: int 
             client.close()
 
 
-def _run_all(state: list[_Run], client, jobs: int, progress: bool, started: float,
-             log: Callable[[str], None] | None, service: NearOptimalService,
-             options: dict[str, Any]) -> list[dict[str, Any]]:
+def _run_all(
+    state: list[_Run],
+    client,
+    jobs: int,
+    progress: bool,
+    started: float,
+    log: Callable[[str], None] | None,
+    service: NearOptimalService,
+    options: dict[str, Any],
+) -> list[dict[str, Any]]:
     local = client is None
     busy = [run for run in state if run.left]
     if busy and local:
         admission.warm_up_announced([run.protocol for run in busy], log)
-    display = Progress([run.protocol for run in state],
-                       [{a: len(run.finished[a]) for a in run.finished} for run in state],
-                       progress and bool(busy))
+    display = Progress(
+        [run.protocol for run in state],
+        [{a: len(run.finished[a]) for a in run.finished} for run in state],
+        progress and bool(busy),
+    )
     feed = TrialFeed(display)
 
     def on_start(item: tuple[int, ExperimentSpec]) -> None:
@@ -319,11 +413,21 @@ def _run_all(state: list[_Run], client, jobs: int, progress: bool, started: floa
             feed.watch((k, spec.algorithm, spec.index), path)
 
     # the workers stream their trials to progress/ (a Dask worker may not see the directory)
-    pending = itertools.chain.from_iterable(run.pending(k, stream=local) for k, run in enumerate(state))
-    outcomes = (execution.local_outcomes(pending, run_tagged, jobs, on_trial=display.trial,
-                                         poll=feed.poll if display.enabled else None,
-                                         on_start=on_start)
-                if local else execution.dask_outcomes(pending, run_tagged, client, on_start=on_start))
+    pending = itertools.chain.from_iterable(
+        run.pending(k, stream=local) for k, run in enumerate(state)
+    )
+    outcomes = (
+        execution.local_outcomes(
+            pending,
+            run_tagged,
+            jobs,
+            on_trial=display.trial,
+            poll=feed.poll if display.enabled else None,
+            on_start=on_start,
+        )
+        if local
+        else execution.dask_outcomes(pending, run_tagged, client, on_start=on_start)
+    )
     try:
         with contextlib.closing(outcomes):  # on an interrupt, stop the workers at once
             for k, result in outcomes:
@@ -338,15 +442,26 @@ def _run_all(state: list[_Run], client, jobs: int, progress: bool, started: floa
                     run.finalise(**options, computed=service.result(k))
     finally:
         display.close()
-    return [run.summary if run.summary is not None
-            else run.finalise(**options, computed=service.result(k)) for k, run in enumerate(state)]
+    return [
+        run.summary
+        if run.summary is not None
+        else run.finalise(**options, computed=service.result(k))
+        for k, run in enumerate(state)
+    ]
 
 
-def finalise(store: ResultStore, protocol: Protocol, wall_time_s: float | None = None,
-             references: bool = False, figures: bool = True, clock: WallClock | None = None,
-             smooth: int = 1, log: Callable[[str], None] | None = None,
-             facts: admission.TaskFacts | None = None,
-             computed: NearOptimal | None = None) -> dict[str, Any]:
+def finalise(
+    store: ResultStore,
+    protocol: Protocol,
+    wall_time_s: float | None = None,
+    references: bool = False,
+    figures: bool = True,
+    clock: WallClock | None = None,
+    smooth: int = 1,
+    log: Callable[[str], None] | None = None,
+    facts: admission.TaskFacts | None = None,
+    computed: NearOptimal | None = None,
+) -> dict[str, Any]:
     """Summarise the finished curves in ``store``: returns.csv, Fig. 2, then summary.json.
 
     The wall time in the summary is ``wall_time_s``, or with ``clock`` the total over every part of
@@ -362,28 +477,38 @@ def finalise(store: ResultStore, protocol: Protocol, wall_time_s: float | None =
     shared_floor = set(floors.values())  # one line in Fig. 2 when every learner explores alike
     facts = facts or admission.TaskFacts()
     seconds = facts.trial_seconds(protocol)
-    summary: dict[str, Any] = {"paper_protocol": protocol.is_paper_protocol,
-                               "optimal_return": optimal_return,
-                               "exploration_floor": shared_floor.pop() if len(shared_floor) == 1
-                               else None,
-                               "trial_seconds": seconds,
-                               "env_step_seconds": facts.env_step_seconds(protocol),
-                               "plot_hints": dataclasses.asdict(protocol.knowledge.plot_hints),
-                               # What x was (inferred, for an outside environment): its provenance.
-                               "learner_state": dataclasses.asdict(facts.learner_state(protocol)),
-                               "protocol": protocol.as_dict()}
+    summary: dict[str, Any] = {
+        "paper_protocol": protocol.is_paper_protocol,
+        "optimal_return": optimal_return,
+        "exploration_floor": shared_floor.pop() if len(shared_floor) == 1 else None,
+        "trial_seconds": seconds,
+        "env_step_seconds": facts.env_step_seconds(protocol),
+        "plot_hints": dataclasses.asdict(protocol.knowledge.plot_hints),
+        # What x was (inferred, for an outside environment): its provenance.
+        "learner_state": dataclasses.asdict(facts.learner_state(protocol)),
+        "protocol": protocol.as_dict(),
+    }
     rows = []
     for algorithm in protocol.algorithms:
         curves = store.load_curves(algorithm, protocol.experiments)
-        summary[algorithm] = metrics.summarise(curves.returns, curves.greedy_returns,
-                                               curves.greedy_trials, optimal_return,
-                                               trial_seconds=seconds, wall_times=curves.wall_times,
-                                               cpu_times=curves.cpu_times, env_steps=curves.env_steps,
-                                               env_step_seconds=facts.env_step_seconds(protocol))
+        summary[algorithm] = metrics.summarise(
+            curves.returns,
+            curves.greedy_returns,
+            curves.greedy_trials,
+            optimal_return,
+            trial_seconds=seconds,
+            wall_times=curves.wall_times,
+            cpu_times=curves.cpu_times,
+            env_steps=curves.env_steps,
+            env_step_seconds=facts.env_step_seconds(protocol),
+        )
         summary[algorithm]["exploration_floor"] = floors.get(algorithm)
-        rows.extend((algorithm, i, t + 1, float(r), "" if not np.isfinite(n) else int(n))
-                    for i, (curve, counted) in enumerate(zip(curves.returns, curves.env_steps))
-                    for t, (r, n) in enumerate(zip(curve, counted)) if np.isfinite(r))
+        rows.extend(
+            (algorithm, i, t + 1, float(r), "" if not np.isfinite(n) else int(n))
+            for i, (curve, counted) in enumerate(zip(curves.returns, curves.env_steps))
+            for t, (r, n) in enumerate(zip(curve, counted))
+            if np.isfinite(r)
+        )
     finals = {a: summary[a]["final_return_per_experiment"] for a in protocol.algorithms}
     summary["final_return_tests"] = metrics.compare_final_returns(finals)
     summary["probability_of_improvement"] = metrics.improvement(finals)
@@ -391,11 +516,17 @@ def finalise(store: ResultStore, protocol: Protocol, wall_time_s: float | None =
     store.write_returns(rows)
     if figures:
         from rmac_mj.figures import plots
-        plots.plot_learning_curves({store.root.name or str(store.root): summary}, store.figure_stem,
-                                   optimal_return=optimal_return, smooth=smooth,
-                                   exploration_floor=summary["exploration_floor"])
-        plots.plot_performance_profiles({("", a): finals[a] for a in protocol.algorithms},
-                                        store.profiles_stem)
+
+        plots.plot_learning_curves(
+            {store.root.name or str(store.root): summary},
+            store.figure_stem,
+            optimal_return=optimal_return,
+            smooth=smooth,
+            exploration_floor=summary["exploration_floor"],
+        )
+        plots.plot_performance_profiles(
+            {("", a): finals[a] for a in protocol.algorithms}, store.profiles_stem
+        )
     if clock is not None:
         clock.record()
         summary["wall_time_s"] = sum(clock.parts)

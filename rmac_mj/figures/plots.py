@@ -18,12 +18,17 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from rmac_mj.agents import display_name  # noqa: E402
-from rmac_mj.evaluation.metrics import FEW_EXPERIMENTS, FINAL_WINDOW, FIRST_MINUTES  # noqa: E402
+from rmac_mj.evaluation.metrics import FEW_EXPERIMENTS, FINAL_WINDOW  # noqa: E402
 
 #: Colour per learner (in every figure); in a comparison of runs the line style tells the runs apart.
-_STYLES = {"rmac": {"color": "tab:blue"}, "s-ac": {"color": "tab:orange"},
-           "mlac": {"color": "tab:green"}, "sb3-sac": {"color": "tab:red"},
-           "sb3-td3": {"color": "tab:purple"}, "sb3-ppo": {"color": "tab:brown"}}
+_STYLES = {
+    "rmac": {"color": "tab:blue"},
+    "s-ac": {"color": "tab:orange"},
+    "mlac": {"color": "tab:green"},
+    "sb3-sac": {"color": "tab:red"},
+    "sb3-td3": {"color": "tab:purple"},
+    "sb3-ppo": {"color": "tab:brown"},
+}
 _RUN_STYLES = ("-", "--", ":", "-.", (0, (5, 1, 1, 1)), (0, (1, 3)))
 #: The least margin around curves when a summary gives no plot hints (``tasks.common.PlotHints``).
 _RETURN_MARGIN = 10.0
@@ -32,8 +37,10 @@ _RETURN_MARGIN = 10.0
 def _trial_seconds(label: str, summary: dict[str, Any]) -> float:
     seconds = summary.get("trial_seconds")
     if not (isinstance(seconds, (int, float)) and np.isfinite(seconds) and seconds > 0):
-        raise ValueError(f"summary {label!r} has no valid trial_seconds (simulated seconds per "
-                         f"trial), got {seconds!r}")
+        raise ValueError(
+            f"summary {label!r} has no valid trial_seconds (simulated seconds per "
+            f"trial), got {seconds!r}"
+        )
     return float(seconds)
 
 
@@ -62,7 +69,9 @@ def running_mean(values, window: int) -> np.ndarray:
 
 
 def _learners(summary: dict[str, Any]) -> list[str]:
-    return [k for k in summary if isinstance(summary[k], dict) and "mean_return_per_trial" in summary[k]]
+    return [
+        k for k in summary if isinstance(summary[k], dict) and "mean_return_per_trial" in summary[k]
+    ]
 
 
 def _padded(low: float, high: float, fraction: float = 0.05, minimum: float = _RETURN_MARGIN):
@@ -74,8 +83,15 @@ def _padded(low: float, high: float, fraction: float = 0.05, minimum: float = _R
 X_AXES = ("minutes", "env_steps")
 
 
-def _x_of(row: dict[str, Any], summary: dict[str, Any], trials: np.ndarray, seconds: float,
-          x_axis: str, key: str = "env_steps_per_trial", at: np.ndarray | None = None) -> np.ndarray:
+def _x_of(
+    row: dict[str, Any],
+    summary: dict[str, Any],
+    trials: np.ndarray,
+    seconds: float,
+    x_axis: str,
+    key: str = "env_steps_per_trial",
+    at: np.ndarray | None = None,
+) -> np.ndarray:
     """The x of the trials ``trials`` (1-based): their environment steps, or the simulated minutes
     those steps took; where the summary does not hold the steps (written before they were
     counted), trials of the task's full length."""
@@ -87,14 +103,21 @@ def _x_of(row: dict[str, Any], summary: dict[str, Any], trials: np.ndarray, seco
         if summary.get("env_step_seconds"):
             return steps * float(summary["env_step_seconds"]) / 60.0
     if x_axis == "env_steps":
-        raise ValueError("this summary holds no environment steps (written before they were "
-                         "counted): draw it against minutes")
+        raise ValueError(
+            "this summary holds no environment steps (written before they were "
+            "counted): draw it against minutes"
+        )
     return np.asarray(trials, dtype=float) * seconds / 60.0
 
 
-def learning_curves_figure(summaries: dict[str, dict[str, Any]], optimal_return: float | None = None,
-                           detail_ylim: tuple[float, float] | None = None, smooth: int = 1,
-                           exploration_floor: float | None = None, x_axis: str = "minutes"):
+def learning_curves_figure(
+    summaries: dict[str, dict[str, Any]],
+    optimal_return: float | None = None,
+    detail_ylim: tuple[float, float] | None = None,
+    smooth: int = 1,
+    exploration_floor: float | None = None,
+    x_axis: str = "minutes",
+):
     """The figure of :func:`plot_learning_curves` (see it), not yet saved."""
     if not isinstance(smooth, (int, np.integer)) or smooth < 1:
         raise ValueError(f"smooth must be a positive integer (trials), got {smooth!r}")
@@ -103,8 +126,9 @@ def learning_curves_figure(summaries: dict[str, dict[str, Any]], optimal_return:
     seconds = {label: _trial_seconds(label, summary) for label, summary in summaries.items()}
     fig, axes = plt.subplots(1, 2, figsize=(15, 4.8), constrained_layout=True)
     colours = {algorithm: style["color"] for algorithm, style in _STYLES.items()}
-    palette = [c for c in plt.rcParams["axes.prop_cycle"].by_key()["color"]
-               if c not in colours.values()]
+    palette = [
+        c for c in plt.rcParams["axes.prop_cycle"].by_key()["color"] if c not in colours.values()
+    ]
     several = len(summaries) > 1
     drawn, ends, fewest = [], [], None
     for ax in axes:
@@ -112,56 +136,111 @@ def learning_curves_figure(summaries: dict[str, dict[str, Any]], optimal_return:
             for algorithm in _learners(summary):
                 row = summary[algorithm]
                 mean = running_mean(row["mean_return_per_trial"], smooth)
-                low = running_mean([np.nan if v is None else v for v in row["ci95_low_per_trial"]], smooth)
-                high = running_mean([np.nan if v is None else v for v in row["ci95_high_per_trial"]],
-                                    smooth)
+                low = running_mean(
+                    [np.nan if v is None else v for v in row["ci95_low_per_trial"]], smooth
+                )
+                high = running_mean(
+                    [np.nan if v is None else v for v in row["ci95_high_per_trial"]], smooth
+                )
                 minutes = _x_of(row, summary, np.arange(1, mean.size + 1), seconds[label], x_axis)
                 name = display_name(algorithm)
                 if algorithm not in colours:
                     colours[algorithm] = palette[len(colours) % len(palette)]
-                style = {"color": colours[algorithm], "linestyle": _RUN_STYLES[run % len(_RUN_STYLES)]}
+                style = {
+                    "color": colours[algorithm],
+                    "linestyle": _RUN_STYLES[run % len(_RUN_STYLES)],
+                }
                 if several:
                     name = f"{label}: {name}"
-                ax.plot(minutes, mean, label=f"{name} (mean of {row['experiments']})",
-                        linewidth=1.3, **style)
-                ax.fill_between(minutes, low, high, color=style["color"],
-                                alpha=0.15 if several else 0.25, linewidth=0)
+                ax.plot(
+                    minutes,
+                    mean,
+                    label=f"{name} (mean of {row['experiments']})",
+                    linewidth=1.3,
+                    **style,
+                )
+                ax.fill_between(
+                    minutes,
+                    low,
+                    high,
+                    color=style["color"],
+                    alpha=0.15 if several else 0.25,
+                    linewidth=0,
+                )
                 drawn.append(mean)
                 ends.append(mean[-FINAL_WINDOW:])
                 if row.get("greedy_eval_trials"):
-                    eval_minutes = _x_of(row, summary, np.asarray(row["greedy_eval_trials"]),
-                                         seconds[label], x_axis, key="greedy_eval_env_steps")
-                    ax.plot(eval_minutes, row["greedy_return_per_eval"], marker=".", linewidth=0.8,
-                            alpha=0.8, label=f"{name}, greedy trial", **style)
+                    eval_minutes = _x_of(
+                        row,
+                        summary,
+                        np.asarray(row["greedy_eval_trials"]),
+                        seconds[label],
+                        x_axis,
+                        key="greedy_eval_env_steps",
+                    )
+                    ax.plot(
+                        eval_minutes,
+                        row["greedy_return_per_eval"],
+                        marker=".",
+                        linewidth=0.8,
+                        alpha=0.8,
+                        label=f"{name}, greedy trial",
+                        **style,
+                    )
                     drawn.append(np.asarray(row["greedy_return_per_eval"], dtype=float))
                 fewest = row["experiments"] if fewest is None else min(fewest, row["experiments"])
         if optimal_return is not None:
-            ax.axhline(optimal_return, color="black", linewidth=1.0, linestyle="-.",
-                       label=f"near-optimal ({optimal_return:.0f})")
+            ax.axhline(
+                optimal_return,
+                color="black",
+                linewidth=1.0,
+                linestyle="-.",
+                label=f"near-optimal ({optimal_return:.0f})",
+            )
         if exploration_floor is not None:
-            ax.axhline(exploration_floor, color="grey", linewidth=1.0, linestyle=":",
-                       label=f"near-optimal, exploring ({exploration_floor:.0f})")
+            ax.axhline(
+                exploration_floor,
+                color="grey",
+                linewidth=1.0,
+                linestyle=":",
+                label=f"near-optimal, exploring ({exploration_floor:.0f})",
+            )
         lengths = sorted(set(seconds.values()))
         if x_axis == "env_steps":
             ax.set_xlabel("environment steps")
         else:
-            ax.set_xlabel("time [min] (simulated" + (f"; one trial = {lengths[0]:g} s)"
-                                                     if len(lengths) == 1 else ")"))
+            ax.set_xlabel(
+                "time [min] (simulated"
+                + (f"; one trial = {lengths[0]:g} s)" if len(lengths) == 1 else ")")
+            )
         ax.set_ylabel("sum of rewards per trial")
         ax.grid(alpha=0.3)
         ax.set_xlim(left=0)
-        uniform = all(abs(row.get("trial_seconds_mean", seconds[label]) - seconds[label])
-                      <= 1e-9 * seconds[label] for label, summary in summaries.items()
-                      for row in (summary[a] for a in _learners(summary)))
+        uniform = all(
+            abs(row.get("trial_seconds_mean", seconds[label]) - seconds[label])
+            <= 1e-9 * seconds[label]
+            for label, summary in summaries.items()
+            for row in (summary[a] for a in _learners(summary))
+        )
         if len(lengths) == 1 and x_axis == "minutes" and uniform:
             # trials on the top axis (with several trial lengths it would be ambiguous)
-            trials_axis = ax.secondary_xaxis("top", functions=(lambda m, s=lengths[0]: m * 60.0 / s,
-                                                               lambda t, s=lengths[0]: t * s / 60.0))
+            trials_axis = ax.secondary_xaxis(
+                "top",
+                functions=(
+                    lambda m, s=lengths[0]: m * 60.0 / s,
+                    lambda t, s=lengths[0]: t * s / 60.0,
+                ),
+            )
             trials_axis.set_xlabel("trial")
     # The axes follow the curves, not the bands: with few experiments a 95% band spans thousands.
     # Their least margin is the task's (its plot hints): a return difference worth seeing.
-    margin = min((float(s.get("plot_hints", {}).get("return_margin", _RETURN_MARGIN))
-                  for s in summaries.values()), default=_RETURN_MARGIN)
+    margin = min(
+        (
+            float(s.get("plot_hints", {}).get("return_margin", _RETURN_MARGIN))
+            for s in summaries.values()
+        ),
+        default=_RETURN_MARGIN,
+    )
     references = [r for r in (optimal_return, exploration_floor) if r is not None]
     values = np.concatenate([d[np.isfinite(d)] for d in drawn] + [np.array(references)])
     if values.size:
@@ -178,22 +257,38 @@ def learning_curves_figure(summaries: dict[str, dict[str, Any]], optimal_return:
     legend_title = f"running mean over {smooth} trials" if smooth > 1 else None
     axes[0].legend(loc="lower right", fontsize="small", title=legend_title, title_fontsize="small")
     # The detail's curves fill it up to its right edge (the levels reached): its legend goes beside it.
-    axes[1].legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize="small",
-                   title=legend_title, title_fontsize="small")
+    axes[1].legend(
+        loc="upper left",
+        bbox_to_anchor=(1.02, 1.0),
+        borderaxespad=0.0,
+        fontsize="small",
+        title=legend_title,
+        title_fontsize="small",
+    )
     if fewest is not None and fewest < FEW_EXPERIMENTS:
-        fig.text(0.5, -0.01, f"{fewest} experiment{'s' if fewest != 1 else ''} per learner: too few "
-                 f"to rank the learners; 95% intervals from fewer than {FEW_EXPERIMENTS} mean little "
-                 "(bands clipped to the plot)", ha="center", va="top", fontsize="small",
-                 color="firebrick")
+        fig.text(
+            0.5,
+            -0.01,
+            f"{fewest} experiment{'s' if fewest != 1 else ''} per learner: too few "
+            f"to rank the learners; 95% intervals from fewer than {FEW_EXPERIMENTS} mean little "
+            "(bands clipped to the plot)",
+            ha="center",
+            va="top",
+            fontsize="small",
+            color="firebrick",
+        )
     return fig
 
 
-def plot_learning_curves(summaries: dict[str, dict[str, Any]], stem: str | os.PathLike,
-                         optimal_return: float | None = None,
-                         detail_ylim: tuple[float, float] | None = None,
-                         smooth: int = 1,
-                         exploration_floor: float | None = None,
-                         x_axis: str = "minutes") -> list[pathlib.Path]:
+def plot_learning_curves(
+    summaries: dict[str, dict[str, Any]],
+    stem: str | os.PathLike,
+    optimal_return: float | None = None,
+    detail_ylim: tuple[float, float] | None = None,
+    smooth: int = 1,
+    exploration_floor: float | None = None,
+    x_axis: str = "minutes",
+) -> list[pathlib.Path]:
     """Fig. 2: sum of rewards per trial against simulated minutes (trials on the top axis), mean and
     95% confidence band.
 
@@ -220,13 +315,15 @@ def plot_learning_curves(summaries: dict[str, dict[str, Any]], stem: str | os.Pa
       x_axis: "minutes", simulated time from the steps that ran (the paper's axis), or "env_steps",
         the environment steps taken (equal interaction across tasks and learners).
     """
-    fig = learning_curves_figure(summaries, optimal_return, detail_ylim, smooth, exploration_floor,
-                                 x_axis)
+    fig = learning_curves_figure(
+        summaries, optimal_return, detail_ylim, smooth, exploration_floor, x_axis
+    )
     return save_figure(fig, stem)
 
 
-def performance_profiles_figure(scores: dict[tuple[str, str], Any],
-                                what: str = "final return (mean of the last trials)"):
+def performance_profiles_figure(
+    scores: dict[tuple[str, str], Any], what: str = "final return (mean of the last trials)"
+):
     """The figure of :func:`plot_performance_profiles` (see it), not yet saved."""
     from rmac_mj.evaluation import statistics
 
@@ -242,11 +339,24 @@ def performance_profiles_figure(scores: dict[tuple[str, str], Any],
             band_low = band_high = np.full_like(fraction, np.nan)
         colour = _STYLES.get(algorithm, {}).get("color")
         name = display_name(algorithm) + (f" ({run})" if run else "")
-        line, = ax.plot(thresholds, fraction, color=colour, drawstyle="steps-post", linewidth=1.4,
-                        linestyle=_RUN_STYLES[runs.index(run) % len(_RUN_STYLES)],
-                        label=f"{name}, {len(values)} experiments")
-        ax.fill_between(thresholds, band_low, band_high, color=line.get_color(), alpha=0.15,
-                        step="post", linewidth=0)
+        (line,) = ax.plot(
+            thresholds,
+            fraction,
+            color=colour,
+            drawstyle="steps-post",
+            linewidth=1.4,
+            linestyle=_RUN_STYLES[runs.index(run) % len(_RUN_STYLES)],
+            label=f"{name}, {len(values)} experiments",
+        )
+        ax.fill_between(
+            thresholds,
+            band_low,
+            band_high,
+            color=line.get_color(),
+            alpha=0.15,
+            step="post",
+            linewidth=0,
+        )
     ax.set_xlabel(f"{what}, tau")
     ax.set_ylabel("fraction of experiments above tau")
     ax.set_ylim(-0.02, 1.02)
@@ -254,15 +364,24 @@ def performance_profiles_figure(scores: dict[tuple[str, str], Any],
     ax.set_title("Performance profiles, 95% stratified-bootstrap bands")
     ax.legend(loc="lower left", fontsize="small")
     if fewest < FEW_EXPERIMENTS:
-        fig.text(0.5, -0.01, f"{fewest} experiment{'s' if fewest != 1 else ''}: too few for "
-                 f"bands (they need {FEW_EXPERIMENTS} or more per learner); each step is one experiment",
-                 ha="center", va="top", fontsize="small", color="firebrick")
+        fig.text(
+            0.5,
+            -0.01,
+            f"{fewest} experiment{'s' if fewest != 1 else ''}: too few for "
+            f"bands (they need {FEW_EXPERIMENTS} or more per learner); each step is one experiment",
+            ha="center",
+            va="top",
+            fontsize="small",
+            color="firebrick",
+        )
     return fig
 
 
-def plot_performance_profiles(scores: dict[tuple[str, str], Any], stem: str | os.PathLike,
-                              what: str = "final return (mean of the last trials)"
-                              ) -> list[pathlib.Path]:
+def plot_performance_profiles(
+    scores: dict[tuple[str, str], Any],
+    stem: str | os.PathLike,
+    what: str = "final return (mean of the last trials)",
+) -> list[pathlib.Path]:
     """Performance profiles (Agarwal et al. 2021): per learner, the fraction of its experiments whose
     score exceeds each threshold tau, with pointwise 95% bootstrap bands; a profile above another
     is better over the whole distribution, not only on average.

@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import os
 import pathlib
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import matplotlib
 
@@ -37,8 +38,14 @@ def policy_actions(agent, states: np.ndarray) -> np.ndarray:
     return np.array(actions)
 
 
-def policy_slice(agent, low: Sequence[float], high: Sequence[float], anchor: Sequence[float],
-                 dims: tuple[int, int] = (0, 1), resolution: tuple[int, int] = (101, 101)):
+def policy_slice(
+    agent,
+    low: Sequence[float],
+    high: Sequence[float],
+    anchor: Sequence[float],
+    dims: tuple[int, int] = (0, 1),
+    resolution: tuple[int, int] = (101, 101),
+):
     """Policy and critic of ``agent`` on a grid over two state dimensions (see :func:`policy_actions`).
 
     The grid spans ``[low[i], high[i]]`` along ``i, j = dims``; every other dimension is held at its
@@ -55,8 +62,9 @@ def policy_slice(agent, low: Sequence[float], high: Sequence[float], anchor: Seq
     n = anchor.shape[0]
     low, high = np.asarray(low, dtype=float), np.asarray(high, dtype=float)
     if low.shape != (n,) or high.shape != (n,):
-        raise ValueError(f"low and high must have the anchor's {n} entries, got {low.shape} and "
-                         f"{high.shape}")
+        raise ValueError(
+            f"low and high must have the anchor's {n} entries, got {low.shape} and {high.shape}"
+        )
     i, j = _check_dims(dims, n)
     xs = np.linspace(low[i], high[i], resolution[0])
     ys = np.linspace(low[j], high[j], resolution[1])
@@ -95,8 +103,9 @@ def greedy_trajectory(env, agent) -> tuple[np.ndarray, float]:
     return np.array(states), total
 
 
-def _draw_trajectory(ax, states: np.ndarray, dims: tuple[int, int], learner_state,
-                     label: str | None) -> None:
+def _draw_trajectory(
+    ax, states: np.ndarray, dims: tuple[int, int], learner_state, label: str | None
+) -> None:
     """The path of ``states`` over the dims (i, j), broken where a periodic dimension wraps."""
     i, j = dims
     x, y = states[:, i], states[:, j]
@@ -113,31 +122,46 @@ def _draw_trajectory(ax, states: np.ndarray, dims: tuple[int, int], learner_stat
     ax.plot(x[-1], y[-1], "X", color="black", markerfacecolor="white", markersize=7)
 
 
-def policies_figure(snapshots: Sequence[tuple[Any, dict[str, Any]]], learner_state,
-                    anchor: Sequence[float], dims: tuple[int, int] = (0, 1),
-                    limits: dict[int, tuple[float, float]] | None = None, resolution: int = 101,
-                    envs: Sequence[Any] | None = None):
+def policies_figure(
+    snapshots: Sequence[tuple[Any, dict[str, Any]]],
+    learner_state,
+    anchor: Sequence[float],
+    dims: tuple[int, int] = (0, 1),
+    limits: dict[int, tuple[float, float]] | None = None,
+    resolution: int = 101,
+    envs: Sequence[Any] | None = None,
+):
     """The figure of :func:`plot_policies` (see it), not yet saved."""
     n = len(learner_state.low)
     i, j = _check_dims(dims, n)
     low, high = np.array(learner_state.low), np.array(learner_state.high)
     for d, (lo, hi) in (limits or {}).items():
         if not (0 <= d < n and np.isfinite(lo) and np.isfinite(hi) and lo < hi):
-            raise ValueError(f"limits[{d}] must be a finite (low, high) with low < high for a state "
-                             f"dimension in [0, {n}), got {(lo, hi)!r}")
+            raise ValueError(
+                f"limits[{d}] must be a finite (low, high) with low < high for a state "
+                f"dimension in [0, {n}), got {(lo, hi)!r}"
+            )
         low[d], high[d] = lo, hi
     if envs is not None and len(envs) != len(snapshots):
-        raise ValueError(f"envs must give one environment per snapshot ({len(snapshots)}), got {len(envs)}")
-    grids = [policy_slice(agent, low, high, anchor, (i, j), (resolution, resolution))
-             for agent, _ in snapshots]
+        raise ValueError(
+            f"envs must give one environment per snapshot ({len(snapshots)}), got {len(envs)}"
+        )
+    grids = [
+        policy_slice(agent, low, high, anchor, (i, j), (resolution, resolution))
+        for agent, _ in snapshots
+    ]
     every_value = np.concatenate([grid[3].ravel() for grid in grids])
     value_range = (float(every_value.min()), float(every_value.max()))
     m = grids[0][2].shape[-1]
-    action_labels = list(learner_state.action_labels) if len(learner_state.action_labels) == m else [
-        f"u{k + 1}" for k in range(m)]
+    action_labels = (
+        list(learner_state.action_labels)
+        if len(learner_state.action_labels) == m
+        else [f"u{k + 1}" for k in range(m)]
+    )
     rows = len(snapshots)
-    fig, axes = plt.subplots(rows, m + 1, figsize=(5.5 * (m + 1), 4.2 * rows), constrained_layout=True,
-                             squeeze=False)
+    fig, axes = plt.subplots(
+        rows, m + 1, figsize=(5.5 * (m + 1), 4.2 * rows), constrained_layout=True, squeeze=False
+    )
     images = [None] * (m + 1)
     for row, ((agent, meta), (xs, ys, actions, values)) in enumerate(zip(snapshots, grids)):
         algorithm = meta.get("algorithm", "")
@@ -147,18 +171,38 @@ def policies_figure(snapshots: Sequence[tuple[Any, dict[str, Any]]], learner_sta
         a_low, a_high = agent.action_space.low, agent.action_space.high
         extent = (xs[0], xs[-1], ys[0], ys[-1])
         for k in range(m):
-            images[k] = axes[row, k].imshow(actions[..., k], origin="lower", extent=extent,
-                                            aspect="auto", cmap="RdBu_r", vmin=a_low[k], vmax=a_high[k])
-            axes[row, k].set_title(f"{name} {policy_name}" + (f", {action_labels[k]}" if m > 1 else "")
-                                   + after)
-        images[m] = axes[row, m].imshow(values, origin="lower", extent=extent, aspect="auto",
-                                        cmap="viridis", vmin=value_range[0], vmax=value_range[1])
+            images[k] = axes[row, k].imshow(
+                actions[..., k],
+                origin="lower",
+                extent=extent,
+                aspect="auto",
+                cmap="RdBu_r",
+                vmin=a_low[k],
+                vmax=a_high[k],
+            )
+            axes[row, k].set_title(
+                f"{name} {policy_name}" + (f", {action_labels[k]}" if m > 1 else "") + after
+            )
+        images[m] = axes[row, m].imshow(
+            values,
+            origin="lower",
+            extent=extent,
+            aspect="auto",
+            cmap="viridis",
+            vmin=value_range[0],
+            vmax=value_range[1],
+        )
         axes[row, m].set_title(f"{name} critic $V(x)${after}")
         if envs is not None:
             states, total = greedy_trajectory(envs[row], agent)
             for ax in axes[row]:
-                _draw_trajectory(ax, states, (i, j), learner_state,
-                                 f"greedy trial from $x_0$ (return {total:.0f})")
+                _draw_trajectory(
+                    ax,
+                    states,
+                    (i, j),
+                    learner_state,
+                    f"greedy trial from $x_0$ (return {total:.0f})",
+                )
                 ax.set_xlim(extent[0], extent[1])
                 ax.set_ylim(extent[2], extent[3])
             axes[row, 0].legend(loc="lower left", fontsize="small")
@@ -167,24 +211,33 @@ def policies_figure(snapshots: Sequence[tuple[Any, dict[str, Any]]], learner_sta
             ax.set_ylabel(learner_state.labels[j])
     for k in range(m):
         fig.colorbar(images[k], ax=axes[:, k], label=action_labels[k])
-    fig.colorbar(images[m], ax=axes[:, m], label="$V(x)$" + (" (one scale for all rows)" if rows > 1 else ""))
+    fig.colorbar(
+        images[m], ax=axes[:, m], label="$V(x)$" + (" (one scale for all rows)" if rows > 1 else "")
+    )
     title = []
     experiments = {meta.get("experiment") for _, meta in snapshots}
     if len(experiments) == 1 and None not in experiments:
         title.append(f"experiment {experiments.pop()}")
     others = [d for d in range(n) if d not in (i, j)]
     if others:
-        title.append("slice at " + ", ".join(f"{learner_state.labels[d]} = {anchor[d]:.3g}"
-                                              for d in others))
+        title.append(
+            "slice at " + ", ".join(f"{learner_state.labels[d]} = {anchor[d]:.3g}" for d in others)
+        )
     if title:
         fig.suptitle("; ".join(title))
     return fig
 
 
-def plot_policies(snapshots: Sequence[tuple[Any, dict[str, Any]]], stem: str | os.PathLike,
-                  learner_state, anchor: Sequence[float], dims: tuple[int, int] = (0, 1),
-                  limits: dict[int, tuple[float, float]] | None = None, resolution: int = 101,
-                  envs: Sequence[Any] | None = None) -> list[pathlib.Path]:
+def plot_policies(
+    snapshots: Sequence[tuple[Any, dict[str, Any]]],
+    stem: str | os.PathLike,
+    learner_state,
+    anchor: Sequence[float],
+    dims: tuple[int, int] = (0, 1),
+    limits: dict[int, tuple[float, float]] | None = None,
+    resolution: int = 101,
+    envs: Sequence[Any] | None = None,
+) -> list[pathlib.Path]:
     """Figs. 3 and 4 for one or more agents: the policy (one map per action dimension) and the critic
     as heat maps, one row per agent, each column on one colour scale shared by all rows, so that
     learners compare side by side.
@@ -203,13 +256,30 @@ def plot_policies(snapshots: Sequence[tuple[Any, dict[str, Any]]], stem: str | o
       envs: per snapshot, the environment of its greedy trial from the start state, drawn over its
         maps (start: circle, end: cross); None draws none.
     """
-    return save_figure(policies_figure(snapshots, learner_state, anchor, dims, limits, resolution, envs), stem)
+    return save_figure(
+        policies_figure(snapshots, learner_state, anchor, dims, limits, resolution, envs), stem
+    )
 
 
-def plot_policy(agent, meta: dict[str, Any], stem: str | os.PathLike, learner_state,
-                anchor: Sequence[float], dims: tuple[int, int] = (0, 1),
-                limits: dict[int, tuple[float, float]] | None = None,
-                resolution: int = 101, env=None) -> list[pathlib.Path]:
+def plot_policy(
+    agent,
+    meta: dict[str, Any],
+    stem: str | os.PathLike,
+    learner_state,
+    anchor: Sequence[float],
+    dims: tuple[int, int] = (0, 1),
+    limits: dict[int, tuple[float, float]] | None = None,
+    resolution: int = 101,
+    env=None,
+) -> list[pathlib.Path]:
     """Figs. 3 and 4 for one agent (see :func:`plot_policies`); ``env``: draw its greedy trial."""
-    return plot_policies([(agent, meta)], stem, learner_state, anchor, dims, limits, resolution,
-                         envs=None if env is None else [env])
+    return plot_policies(
+        [(agent, meta)],
+        stem,
+        learner_state,
+        anchor,
+        dims,
+        limits,
+        resolution,
+        envs=None if env is None else [env],
+    )

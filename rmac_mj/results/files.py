@@ -18,7 +18,8 @@ import pathlib
 import platform
 import subprocess
 import tempfile
-from typing import Any, Iterable, Sequence
+from collections.abc import Iterable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -32,8 +33,9 @@ def write_atomic(path: str | os.PathLike, write) -> pathlib.Path:
     """
     path = pathlib.Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    handle = tempfile.NamedTemporaryFile(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp",
-                                         delete=False)
+    handle = tempfile.NamedTemporaryFile(
+        dir=path.parent, prefix=f".{path.name}.", suffix=".tmp", delete=False
+    )
     try:
         with handle:
             write(handle)
@@ -57,8 +59,14 @@ def write_json(path: str | os.PathLike, document: Any) -> pathlib.Path:
     return write_atomic(path, lambda handle: handle.write(text.encode() + b"\n"))
 
 
-def cached_json(path: str | os.PathLike, decode, compute, refresh: bool = False,
-                announce=None, message: str = ""):
+def cached_json(
+    path: str | os.PathLike,
+    decode,
+    compute,
+    refresh: bool = False,
+    announce=None,
+    message: str = "",
+):
     """A result cached as JSON at ``path``: ``decode(document)`` of the file when it is there and
     readable (an unreadable or foreign entry is recomputed and overwritten), else ``compute()``,
     written with ``.to_json_dict()``. ``announce(message)`` is called before a computation."""
@@ -79,9 +87,11 @@ def cached_json(path: str | os.PathLike, decode, compute, refresh: bool = False,
     return result
 
 
-def write_csv(path: str | os.PathLike, header: Sequence[str], rows: Iterable[Sequence[Any]]
-              ) -> pathlib.Path:
+def write_csv(
+    path: str | os.PathLike, header: Sequence[str], rows: Iterable[Sequence[Any]]
+) -> pathlib.Path:
     """A UTF-8 CSV file of ``header`` then ``rows``, written atomically (see :func:`write_atomic`)."""
+
     def write(handle) -> None:
         text = io.TextIOWrapper(handle, newline="", encoding="utf-8")
         writer = csv.writer(text)
@@ -89,6 +99,7 @@ def write_csv(path: str | os.PathLike, header: Sequence[str], rows: Iterable[Seq
         writer.writerows(rows)
         text.flush()
         text.detach()
+
     return write_atomic(path, write)
 
 
@@ -101,10 +112,22 @@ def code_version() -> dict[str, Any]:
     version = {"package": _version("rmac-mj")}
     root = pathlib.Path(__file__).resolve().parents[2]
     try:
-        commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True,
-                                text=True, timeout=10, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=root,
-                               capture_output=True, text=True, timeout=10, check=True).stdout.strip()
+        commit = subprocess.run(
+            ["git", "rev-parse", "HEAD"],
+            cwd=root,
+            capture_output=True,
+            text=True,
+            timeout=10,
+            check=True,
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            cwd=root,
+            capture_output=True,
+            text=True,
+            timeout=10,
+            check=True,
+        ).stdout.strip()
         version["commit"] = commit
         version["dirty"] = bool(dirty)
     except (OSError, subprocess.SubprocessError):
@@ -123,11 +146,16 @@ def provenance() -> dict[str, Any]:
     """Package versions, code version and machine: stored beside every result."""
     return {
         "code": code_version(),
-        "packages": {name: _version(name) for name in
-                     ("mujoco", "dm-control", "numpy", "scipy", "numba", "matplotlib")},
+        "packages": {
+            name: _version(name)
+            for name in ("mujoco", "dm-control", "numpy", "scipy", "numba", "matplotlib")
+        },
         "python": platform.python_version(),
-        "machine": {"cpus": os.cpu_count(), "processor": platform.processor() or platform.machine(),
-                    "system": platform.system()},
+        "machine": {
+            "cpus": os.cpu_count(),
+            "processor": platform.processor() or platform.machine(),
+            "system": platform.system(),
+        },
     }
 
 

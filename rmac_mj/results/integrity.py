@@ -25,8 +25,14 @@ from rmac_mj.errors import UserInputError
 
 #: The keys every curve file holds (``ResultStore.save``); files of older versions may lack
 #: ``cpu_time_s``, which is optional.
-CURVE_KEYS = ("returns", "greedy_trials", "greedy_returns", "wall_time_s", "task_seed",
-              "demonstration_returns")
+CURVE_KEYS = (
+    "returns",
+    "greedy_trials",
+    "greedy_returns",
+    "wall_time_s",
+    "task_seed",
+    "demonstration_returns",
+)
 _LOCK_NAME = ".lock"
 
 
@@ -59,18 +65,26 @@ class DirectoryLock:
                 handle.seek(0)
                 holder = handle.read().strip()
                 handle.close()
-                raise DirectoryBusy(f"{self.path.parent} is in use by another run "
-                                    f"({_describe(holder)}); wait for it to end or choose another "
-                                    "--out") from None
+                raise DirectoryBusy(
+                    f"{self.path.parent} is in use by another run "
+                    f"({_describe(holder)}); wait for it to end or choose another "
+                    "--out"
+                ) from None
             if _same_file(handle, self.path):
                 break
             handle.close()  # its holder removed that file as it let go: lock the one there now
         handle.seek(0)
         handle.truncate()
-        handle.write(json.dumps({
-            "pid": os.getpid(), "host": socket.gethostname(),
-            "since": datetime.datetime.now().isoformat(timespec="seconds"),
-            "command": " ".join(["rmac-mj", *sys.argv[1:]]) if sys.argv else "python"}))
+        handle.write(
+            json.dumps(
+                {
+                    "pid": os.getpid(),
+                    "host": socket.gethostname(),
+                    "since": datetime.datetime.now().isoformat(timespec="seconds"),
+                    "command": " ".join(["rmac-mj", *sys.argv[1:]]) if sys.argv else "python",
+                }
+            )
+        )
         handle.flush()
         self.handle = handle
 
@@ -82,7 +96,7 @@ class DirectoryLock:
             self.handle.close()
             self.handle = None
 
-    def __enter__(self) -> "DirectoryLock":
+    def __enter__(self) -> DirectoryLock:
         self.acquire()
         return self
 
@@ -123,8 +137,9 @@ def _finite_numbers(array: np.ndarray) -> bool:
     return array.dtype.kind in "biuf" and bool(np.all(np.isfinite(array)))
 
 
-def curve_problem(path: pathlib.Path, trials: int, greedy_trials: list[int],
-                  steps: int | None = None) -> str | None:
+def curve_problem(
+    path: pathlib.Path, trials: int, greedy_trials: list[int], steps: int | None = None
+) -> str | None:
     """None when the curve file at ``path`` is whole and holds ``trials`` finite returns and greedy
     trials after exactly ``greedy_trials``; else what is wrong with it. With a budget of ``steps``
     environment steps, ``trials`` is the most it may hold: it holds the trials until its
@@ -141,19 +156,28 @@ def curve_problem(path: pathlib.Path, trials: int, greedy_trials: list[int],
     returns, greedy = arrays["returns"], arrays["greedy_returns"]
     if steps is not None and returns.ndim == 1 and 1 <= returns.size <= trials:
         counted = arrays["env_steps"]
-        reached = counted.shape == returns.shape and counted[-1] >= steps and (
-            returns.size == 1 or counted[-2] < steps)
+        reached = (
+            counted.shape == returns.shape
+            and counted[-1] >= steps
+            and (returns.size == 1 or counted[-2] < steps)
+        )
         if not reached and returns.size < trials:
-            return (f"its {returns.size} trials do not end where the budget of {steps} environment "
-                    f"steps is reached")
+            return (
+                f"its {returns.size} trials do not end where the budget of {steps} environment "
+                f"steps is reached"
+            )
         trials = returns.size
         greedy_trials = [t for t in greedy_trials if t <= trials]
     if returns.shape != (trials,) or not _finite_numbers(returns):
         return f"returns are not {trials} finite numbers (shape {returns.shape}, dtype {returns.dtype})"
     if "env_steps" in arrays:
         counted = arrays["env_steps"]
-        if (counted.shape != (trials,) or counted.dtype.kind not in "iu"
-                or np.any(np.diff(counted) < 0) or (counted.size and counted[0] < 1)):
+        if (
+            counted.shape != (trials,)
+            or counted.dtype.kind not in "iu"
+            or np.any(np.diff(counted) < 0)
+            or (counted.size and counted[0] < 1)
+        ):
             return f"env_steps are not {trials} increasing counts of environment steps"
     if arrays["greedy_trials"].tolist() != greedy_trials:
         return f"greedy trials {arrays['greedy_trials'].tolist()[:5]}... are not the protocol's"
@@ -162,7 +186,9 @@ def curve_problem(path: pathlib.Path, trials: int, greedy_trials: list[int],
     for key in ("wall_time_s", "task_seed"):
         if arrays[key].shape != () or not _finite_numbers(arrays[key]):
             return f"{key} is not a number"
-    if arrays["demonstration_returns"].ndim != 1 or not _finite_numbers(arrays["demonstration_returns"]):
+    if arrays["demonstration_returns"].ndim != 1 or not _finite_numbers(
+        arrays["demonstration_returns"]
+    ):
         return "demonstration_returns are not finite numbers"
     return None
 
@@ -192,7 +218,10 @@ def snapshot_problem(path: pathlib.Path, algorithm: str, trial: int) -> str | No
         meta: Any = json.loads(str(arrays["meta"]))
     except ValueError:
         return "its meta document is not JSON"
-    if not isinstance(meta, dict) or (meta.get("algorithm"), meta.get("trial")) != (algorithm, trial):
+    if not isinstance(meta, dict) or (meta.get("algorithm"), meta.get("trial")) != (
+        algorithm,
+        trial,
+    ):
         return f"its meta document is not of {algorithm} after trial {trial}"
     for key, value in arrays.items():
         if key != "meta" and value.size and not _finite_numbers(value):

@@ -16,15 +16,23 @@ from typing import Any
 import numpy as np
 from dm_control.rl import control
 
-from rmac_mj.agents import ActionSpace, Agent, StateSpace, config_class, config_from_dict, make_agent
+from rmac_mj.agents import (
+    ActionSpace,
+    Agent,
+    StateSpace,
+    config_class,
+    config_from_dict,
+    make_agent,
+)
 from rmac_mj.errors import MissingInputError, UserInputError
 from rmac_mj.results.files import write_npz
 
 _PREFIX = "agent/"
 
 
-def snapshot_arrays(agent: Agent, state_space: StateSpace, action_space: ActionSpace,
-                    **meta: Any) -> dict[str, np.ndarray]:
+def snapshot_arrays(
+    agent: Agent, state_space: StateSpace, action_space: ActionSpace, **meta: Any
+) -> dict[str, np.ndarray]:
     """The arrays of a snapshot of ``agent`` (what :func:`save_snapshot` writes).
 
     ``meta`` (JSON-ready) conventionally holds ``domain``, ``task``, ``task_kwargs`` (or, for an outside
@@ -34,24 +42,35 @@ def snapshot_arrays(agent: Agent, state_space: StateSpace, action_space: ActionS
     document = {
         "algorithm": agent.name,
         "config": agent.config_dict(),
-        "state_space": {"low": state_space.low.tolist(), "high": state_space.high.tolist(),
-                        "periodic": state_space.periodic.tolist(),
-                        "input_weights": state_space.input_weights.tolist()},
-        "action_space": {"low": action_space.low.tolist(), "high": action_space.high.tolist(),
-                         "input_weights": action_space.input_weights.tolist(),
-                         "cost": None if action_space.cost is None else action_space.cost.tolist()},
+        "state_space": {
+            "low": state_space.low.tolist(),
+            "high": state_space.high.tolist(),
+            "periodic": state_space.periodic.tolist(),
+            "input_weights": state_space.input_weights.tolist(),
+        },
+        "action_space": {
+            "low": action_space.low.tolist(),
+            "high": action_space.high.tolist(),
+            "input_weights": action_space.input_weights.tolist(),
+            "cost": None if action_space.cost is None else action_space.cost.tolist(),
+        },
         **meta,
     }
     arrays = {_PREFIX + key: np.asarray(value) for key, value in agent.state_dict().items()}
     for key, value in arrays.items():
         if value.dtype == object:
-            raise TypeError(f"state_dict entry {key[len(_PREFIX):]!r} is not a numeric array")
+            raise TypeError(f"state_dict entry {key[len(_PREFIX) :]!r} is not a numeric array")
     arrays["meta"] = np.array(json.dumps(document))
     return arrays
 
 
-def save_snapshot(path: str | os.PathLike, agent: Agent, state_space: StateSpace,
-                  action_space: ActionSpace, **meta: Any) -> pathlib.Path:
+def save_snapshot(
+    path: str | os.PathLike,
+    agent: Agent,
+    state_space: StateSpace,
+    action_space: ActionSpace,
+    **meta: Any,
+) -> pathlib.Path:
     """Write a snapshot of ``agent`` to ``path`` atomically (see :func:`snapshot_arrays`)."""
     return write_npz(path, **snapshot_arrays(agent, state_space, action_space, **meta))
 
@@ -65,22 +84,32 @@ def load_snapshot(path: str | os.PathLike) -> tuple[Agent, dict[str, Any]]:
         if "meta" not in data.files:
             raise UserInputError(f"{path} is not an rmac-mj snapshot (no 'meta' entry)")
         meta = json.loads(str(data["meta"]))
-        state = {key[len(_PREFIX):]: data[key] for key in data.files if key.startswith(_PREFIX)}
+        state = {key[len(_PREFIX) :]: data[key] for key in data.files if key.startswith(_PREFIX)}
     # Snapshots written before the spaces had weights lack them (their configs hold explicit ones);
     # older ones call them "weights".
     state_space, action_space = (
-        cls(**{"input_weights" if key == "weights" else key: value
-               for key, value in meta[name].items()})
-        for cls, name in ((StateSpace, "state_space"), (ActionSpace, "action_space")))
+        cls(
+            **{
+                "input_weights" if key == "weights" else key: value
+                for key, value in meta[name].items()
+            }
+        )
+        for cls, name in ((StateSpace, "state_space"), (ActionSpace, "action_space"))
+    )
     config = config_from_dict(config_class(meta["algorithm"]), meta["config"], stored=True)
     agent = make_agent(meta["algorithm"], state_space, action_space, config=config, seed=0)
     agent.load_state_dict(state)
     return agent, meta
 
 
-def snapshot_environment(agent: Agent, meta: dict, domain: str | None = None,
-                         task: str | None = None, env: str | None = None,
-                         render: bool = False) -> control.Environment:
+def snapshot_environment(
+    agent: Agent,
+    meta: dict,
+    domain: str | None = None,
+    task: str | None = None,
+    env: str | None = None,
+    render: bool = False,
+) -> control.Environment:
     """The environment a snapshot's agent acts in: the one it learned on (its domain, task and
     task_kwargs, or the outside environment its meta records under ``environment``), or
     ``domain``/``task`` of the suite with their defaults, or the outside environment ``env`` (a
@@ -89,11 +118,12 @@ def snapshot_environment(agent: Agent, meta: dict, domain: str | None = None,
     from rmac_mj import envs, tasks
     from rmac_mj.rollout import action_space_of, state_space_of
 
-    learned_on = (envs.EnvSpec(**meta["environment"]) if "environment" in meta else None)
+    learned_on = envs.EnvSpec(**meta["environment"]) if "environment" in meta else None
     name = learned_on.env if learned_on is not None else f"{meta['domain']}/{meta['task']}"
     if env is not None and (domain is not None or task is not None):
-        raise UserInputError("give an outside environment (env) or a suite task (domain/task), "
-                             "not both")
+        raise UserInputError(
+            "give an outside environment (env) or a suite task (domain/task), not both"
+        )
     if (learned_on is not None and domain is None and task is None) or env is not None:
         spec = learned_on if env is None else envs.EnvSpec(env)
         try:
@@ -105,8 +135,9 @@ def snapshot_environment(agent: Agent, meta: dict, domain: str | None = None,
         domain = domain or meta.get("domain")
         task = task or (meta.get("task") if domain == meta.get("domain") else None)
         if task is None:
-            raise UserInputError(f"give the task of domain {domain!r} too (the snapshot learned "
-                                 f"{name})")
+            raise UserInputError(
+                f"give the task of domain {domain!r} too (the snapshot learned {name})"
+            )
         own = learned_on is None and (domain, task) == (meta["domain"], meta["task"])
         try:
             made = tasks.load(domain, task, task_kwargs=meta.get("task_kwargs") if own else None)
@@ -117,7 +148,9 @@ def snapshot_environment(agent: Agent, meta: dict, domain: str | None = None,
         return made
     n, m = state_space_of(made).dim, action_space_of(made).dim
     if (n, m) != (agent.state_space.dim, agent.action_space.dim):
-        raise UserInputError(f"{where} has {n} state and {m} action dimensions, the agent "
-                             f"(learned on {name}) {agent.state_space.dim} and "
-                             f"{agent.action_space.dim}")
+        raise UserInputError(
+            f"{where} has {n} state and {m} action dimensions, the agent "
+            f"(learned on {name}) {agent.state_space.dim} and "
+            f"{agent.action_space.dim}"
+        )
     return made

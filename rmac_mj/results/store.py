@@ -23,7 +23,8 @@ import json
 import os
 import pathlib
 import re
-from typing import Any, Iterator
+from collections.abc import Iterator
+from typing import Any
 
 import numpy as np
 
@@ -118,7 +119,7 @@ class TrialLog:
     def __init__(self, path: pathlib.Path | None):
         self.path, self.handle = path, None
 
-    def __enter__(self) -> "TrialLog":
+    def __enter__(self) -> TrialLog:
         if self.path is not None:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             self.handle = open(self.path, "w", encoding="utf-8")
@@ -126,8 +127,9 @@ class TrialLog:
             self.handle.flush()
         return self
 
-    def write(self, trial: int, value: float, greedy: float | None, env_steps: int | None = None
-              ) -> None:
+    def write(
+        self, trial: int, value: float, greedy: float | None, env_steps: int | None = None
+    ) -> None:
         if self.handle is not None:
             text = "" if greedy is None else repr(float(greedy))
             steps = "" if env_steps is None else str(int(env_steps))
@@ -206,8 +208,9 @@ class ResultStore:
                 found[int(match.group(1))] = trials
         return found
 
-    def write_snapshot_arrays(self, algorithm: str, index: int, trial: int,
-                              arrays: dict[str, np.ndarray]) -> None:
+    def write_snapshot_arrays(
+        self, algorithm: str, index: int, trial: int, arrays: dict[str, np.ndarray]
+    ) -> None:
         """Write one snapshot (the arrays of ``snapshots.snapshot_arrays``)."""
         files.write_npz(self.snapshot_path(algorithm, index, trial), **arrays)
 
@@ -233,12 +236,16 @@ class ResultStore:
         try:
             document = json.loads(text)
         except ValueError as error:
-            raise DamagedDirectory(f"{self.config_path} is damaged (not JSON: {error}); the directory's "
-                                   "run cannot be told, so nothing in it is trusted: choose another "
-                                   "--out") from None
+            raise DamagedDirectory(
+                f"{self.config_path} is damaged (not JSON: {error}); the directory's "
+                "run cannot be told, so nothing in it is trusted: choose another "
+                "--out"
+            ) from None
         if not isinstance(document, dict) or not isinstance(document.get("protocol"), dict):
-            raise DamagedDirectory(f"{self.config_path} is damaged (not a run's config: no protocol "
-                                   "object); choose another --out")
+            raise DamagedDirectory(
+                f"{self.config_path} is damaged (not a run's config: no protocol "
+                "object); choose another --out"
+            )
         return document
 
     def read_protocol(self) -> dict[str, Any] | None:
@@ -269,9 +276,11 @@ class ResultStore:
         if existing is None:
             orphans = [name for name in ("curves", "snapshots") if (self.root / name).exists()]
             if orphans:
-                raise ResumeRefused(f"{self.root} holds {' and '.join(orphans)} but no config.json: "
-                                    "which run they belong to cannot be told; refusing to mix "
-                                    "results (move them away, or choose another --out)")
+                raise ResumeRefused(
+                    f"{self.root} holds {' and '.join(orphans)} but no config.json: "
+                    "which run they belong to cannot be told; refusing to mix "
+                    "results (move them away, or choose another --out)"
+                )
             self.write_config({**document, "provenance": files.provenance()})
             return
         stored = existing.get("protocol", {})
@@ -282,30 +291,50 @@ class ResultStore:
         if resume and more > 0 and len(differences) == 1:  # only the count grows: same seeds, more
             differences = []
         elif resume and more < 0 and len(differences) == 1:
-            differences[0] += (" (a resume adds experiments, whose seeds do not depend on the count; "
-                               "it never drops any)")
+            differences[0] += (
+                " (a resume adds experiments, whose seeds do not depend on the count; "
+                "it never drops any)"
+            )
         if not resume:
             if differences:
-                raise ResumeRefused(f"{self.root} already holds another run ({'; '.join(differences)}); "
-                                    "choose another --out")
+                raise ResumeRefused(
+                    f"{self.root} already holds another run ({'; '.join(differences)}); "
+                    "choose another --out"
+                )
             if self._complete(document["protocol"]):
-                raise ResumeRefused(f"{self.root} already holds this run, finished (summary.json); "
-                                    "choose another --out to repeat it")
-            raise ResumeRefused(f"{self.root} already holds this run, unfinished; pass --resume to "
-                                "finish it, or choose another --out")
+                raise ResumeRefused(
+                    f"{self.root} already holds this run, finished (summary.json); "
+                    "choose another --out to repeat it"
+                )
+            raise ResumeRefused(
+                f"{self.root} already holds this run, unfinished; pass --resume to "
+                "finish it, or choose another --out"
+            )
         if differences:
-            raise ResumeRefused(f"{self.root} was written with a different config "
-                                f"({'; '.join(differences)}); refusing to mix results (give the same "
-                                "settings, or another --out)")
+            raise ResumeRefused(
+                f"{self.root} was written with a different config "
+                f"({'; '.join(differences)}); refusing to mix results (give the same "
+                "settings, or another --out)"
+            )
         old, new = existing.get("code", {}), document["code"]
         if (old.get("package"), old.get("commit")) != (new.get("package"), new.get("commit")):
-            raise ResumeRefused(f"{self.root} was written by another code version "
-                                f"({old.get('commit')}, now {new.get('commit')}); refusing to mix "
-                                "results")
+            raise ResumeRefused(
+                f"{self.root} was written by another code version "
+                f"({old.get('commit')}, now {new.get('commit')}); refusing to mix "
+                "results"
+            )
         if resume and more > 0:
             grown = {**stored, "experiments": document["protocol"]["experiments"]}
-            self.write_config({**existing, "protocol": grown, "experiments_grown_from":
-                               [*existing.get("experiments_grown_from", []), stored["experiments"]]})
+            self.write_config(
+                {
+                    **existing,
+                    "protocol": grown,
+                    "experiments_grown_from": [
+                        *existing.get("experiments_grown_from", []),
+                        stored["experiments"],
+                    ],
+                }
+            )
         self.remove_temporaries()
 
     def remove_temporaries(self) -> None:
@@ -322,13 +351,17 @@ class ResultStore:
             names = os.listdir(folder)
         except (FileNotFoundError, NotADirectoryError):
             return set()
-        return {int(match.group(1)) for name in names if (match := _EXPERIMENT_FILE.fullmatch(name))}
+        return {
+            int(match.group(1)) for name in names if (match := _EXPERIMENT_FILE.fullmatch(name))
+        }
 
     def _complete(self, protocol: dict[str, Any]) -> bool:
         """Every experiment of the protocol (as data) saved, and the summary written."""
         return self.summary_path.is_file() and all(
-            sum(1 for i in self.finished(a) if i < protocol["experiments"]) == protocol["experiments"]
-            for a in protocol["algorithms"])
+            sum(1 for i in self.finished(a) if i < protocol["experiments"])
+            == protocol["experiments"]
+            for a in protocol["algorithms"]
+        )
 
     def holds_finished(self, protocol) -> bool:
         """Whether this directory holds ``protocol``'s run, finished: the same protocol, every
@@ -375,13 +408,17 @@ class ResultStore:
         """Write an experiment's snapshots, then its curve: the curve file marks the experiment done."""
         for trial, arrays in result.snapshots.items():
             files.write_npz(self.snapshot_path(result.algorithm, result.index, trial), **arrays)
-        files.write_npz(self.curve_path(result.algorithm, result.index), returns=result.returns,
-                        greedy_trials=result.greedy_trials, greedy_returns=result.greedy_returns,
-                        wall_time_s=np.float64(result.wall_time_s),
-                        cpu_time_s=np.float64(result.cpu_time_s),
-                        task_seed=np.int64(result.task_seed),
-                        demonstration_returns=result.demonstration_returns,
-                        **({} if result.env_steps is None else {"env_steps": result.env_steps}))
+        files.write_npz(
+            self.curve_path(result.algorithm, result.index),
+            returns=result.returns,
+            greedy_trials=result.greedy_trials,
+            greedy_returns=result.greedy_returns,
+            wall_time_s=np.float64(result.wall_time_s),
+            cpu_time_s=np.float64(result.cpu_time_s),
+            task_seed=np.int64(result.task_seed),
+            demonstration_returns=result.demonstration_returns,
+            **({} if result.env_steps is None else {"env_steps": result.env_steps}),
+        )
         self.checkpoint_path(result.algorithm, result.index).unlink(missing_ok=True)
 
     def load_curves(self, algorithm: str, experiments: int | None = None) -> Curves:
@@ -389,22 +426,33 @@ class ResultStore:
         None: every saved experiment, in order of index."""
         returns, greedy, wall, cpu, demonstrations, steps = [], [], [], [], [], []
         greedy_trials = np.zeros(0, dtype=int)
-        indices = range(experiments) if experiments is not None else sorted(self.finished(algorithm))
+        indices = (
+            range(experiments) if experiments is not None else sorted(self.finished(algorithm))
+        )
         for index in indices:
             with np.load(self.curve_path(algorithm, index), allow_pickle=False) as data:
                 returns.append(data["returns"])
                 # written before environment steps were recorded: unknown (see Curves)
-                steps.append(data["env_steps"] if "env_steps" in data.files
-                             else np.full(data["returns"].shape, np.nan))
+                steps.append(
+                    data["env_steps"]
+                    if "env_steps" in data.files
+                    else np.full(data["returns"].shape, np.nan)
+                )
                 greedy.append(data["greedy_returns"])
                 if data["greedy_trials"].size >= greedy_trials.size:
                     greedy_trials = data["greedy_trials"]
                 wall.append(float(data["wall_time_s"]))
                 cpu.append(float(data["cpu_time_s"]) if "cpu_time_s" in data.files else np.nan)
                 demonstrations.append(data["demonstration_returns"])
-        return Curves(returns=_padded(returns), greedy_returns=_padded(greedy),
-                      greedy_trials=greedy_trials, wall_times=np.array(wall), cpu_times=np.array(cpu),
-                      demonstration_returns=np.array(demonstrations), env_steps=_padded(steps))
+        return Curves(
+            returns=_padded(returns),
+            greedy_returns=_padded(greedy),
+            greedy_trials=greedy_trials,
+            wall_times=np.array(wall),
+            cpu_times=np.array(cpu),
+            demonstration_returns=np.array(demonstrations),
+            env_steps=_padded(steps),
+        )
 
     # -- snapshots -----------------------------------------------------------------------------------
     def snapshot_algorithms(self) -> list[str]:
@@ -415,11 +463,16 @@ class ResultStore:
     def snapshot_trials(self, algorithm: str, index: int = 0) -> dict[int, pathlib.Path]:
         """Trial number -> snapshot path, for one experiment; MissingInputError when it has none."""
         folder = self.snapshot_dir(algorithm, index)
-        found = {int(match.group(1)): path for path in folder.glob("trial_*.npz")
-                 if (match := _TRIAL_FILE.fullmatch(path.name))}
+        found = {
+            int(match.group(1)): path
+            for path in folder.glob("trial_*.npz")
+            if (match := _TRIAL_FILE.fullmatch(path.name))
+        }
         if not found:
-            raise MissingInputError(f"no snapshots in {folder} (algorithms with snapshots in "
-                                    f"{self.root}: {self.snapshot_algorithms() or 'none'})")
+            raise MissingInputError(
+                f"no snapshots in {folder} (algorithms with snapshots in "
+                f"{self.root}: {self.snapshot_algorithms() or 'none'})"
+            )
         return dict(sorted(found.items()))
 
     # -- summaries -----------------------------------------------------------------------------------
@@ -427,8 +480,9 @@ class ResultStore:
         """``returns.csv``: one row (algorithm, experiment, trial, return, env_steps) per learning
         trial; env_steps, the environment steps taken by the end of the trial, is empty for curves
         written before they were counted."""
-        files.write_csv(self.returns_path, ["algorithm", "experiment", "trial", "return", "env_steps"],
-                        rows)
+        files.write_csv(
+            self.returns_path, ["algorithm", "experiment", "trial", "return", "env_steps"], rows
+        )
 
     def write_summary(self, summary: dict[str, Any]) -> None:
         """``summary.json``; non-finite numbers (a learner that diverged) are written as null."""
@@ -437,7 +491,9 @@ class ResultStore:
     def read_summary(self) -> dict[str, Any]:
         """The run's ``summary.json``; MissingInputError when the run has none (not finished)."""
         if not self.summary_path.is_file():
-            raise MissingInputError(f"{self.root} has no summary.json (not a finished `reproduce` run)")
+            raise MissingInputError(
+                f"{self.root} has no summary.json (not a finished `reproduce` run)"
+            )
         try:
             return json.loads(self.summary_path.read_text())
         except ValueError as error:
@@ -463,7 +519,7 @@ def _padded(rows: list[np.ndarray]) -> np.ndarray:
         return np.array(rows)
     padded = np.full((len(rows), max(lengths)), np.nan)
     for i, row in enumerate(rows):
-        padded[i, :len(row)] = row
+        padded[i, : len(row)] = row
     return padded
 
 
@@ -473,8 +529,9 @@ def added_experiments(stored: Any, protocol: Any) -> int | None:
     count is missing. Experiment i's seeds do not depend on the count
     (:func:`~rmac_mj.experiments.protocol.experiment_seeds`), so a run of N experiments grown to M
     holds exactly what a fresh run of M would. The runner's and the sweep's resume both ask it."""
-    if not all(isinstance(p, dict) and isinstance(p.get("experiments"), int)
-               for p in (stored, protocol)):
+    if not all(
+        isinstance(p, dict) and isinstance(p.get("experiments"), int) for p in (stored, protocol)
+    ):
         return None
     if _differences({**stored, "experiments": 0}, {**protocol, "experiments": 0}):
         return None

@@ -51,7 +51,8 @@ from __future__ import annotations
 import dataclasses
 import os
 import time
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -105,25 +106,36 @@ class OptimalConfig:
         if self.n_phi_dot < 3:
             raise ValueError(f"OptimalConfig.n_phi_dot must be >= 3, got {self.n_phi_dot}")
         if self.n_actions < 2:
-            raise ValueError(f"OptimalConfig.n_actions must be >= 2 (the two extremes), got {self.n_actions}")
+            raise ValueError(
+                f"OptimalConfig.n_actions must be >= 2 (the two extremes), got {self.n_actions}"
+            )
         if self.lookahead_actions < 2:
-            raise ValueError(f"OptimalConfig.lookahead_actions must be >= 2, got {self.lookahead_actions}")
-        if not (np.isscalar(self.max_phi_dot) and np.isfinite(self.max_phi_dot) and self.max_phi_dot > 0):
-            raise ValueError(f"OptimalConfig.max_phi_dot must be a positive finite number, "
-                             f"got {self.max_phi_dot!r}")
+            raise ValueError(
+                f"OptimalConfig.lookahead_actions must be >= 2, got {self.lookahead_actions}"
+            )
+        if not (
+            np.isscalar(self.max_phi_dot) and np.isfinite(self.max_phi_dot) and self.max_phi_dot > 0
+        ):
+            raise ValueError(
+                f"OptimalConfig.max_phi_dot must be a positive finite number, "
+                f"got {self.max_phi_dot!r}"
+            )
         if not isinstance(self.n_threads, (int, np.integer)) or self.n_threads < 0:
             raise ValueError(f"OptimalConfig.n_threads must be an int >= 0, got {self.n_threads!r}")
         object.__setattr__(self, "max_phi_dot", float(self.max_phi_dot))
 
-    def coarser(self) -> "OptimalConfig":
+    def coarser(self) -> OptimalConfig:
         """The convergence check's problem: about half the nodes per state dimension, half the action
         intervals of the DP and of the look-ahead (the extremes and every other action stay in each
         set), no further check."""
-        return dataclasses.replace(self, n_phi=max(4, self.n_phi // 2),
-                                   n_phi_dot=max(3, (self.n_phi_dot + 1) // 2),
-                                   n_actions=max(2, (self.n_actions + 1) // 2),
-                                   lookahead_actions=max(2, (self.lookahead_actions + 1) // 2),
-                                   check_convergence=False)
+        return dataclasses.replace(
+            self,
+            n_phi=max(4, self.n_phi // 2),
+            n_phi_dot=max(3, (self.n_phi_dot + 1) // 2),
+            n_actions=max(2, (self.n_actions + 1) // 2),
+            lookahead_actions=max(2, (self.lookahead_actions + 1) // 2),
+            check_convergence=False,
+        )
 
 
 class Problem(TrialProblem):
@@ -144,13 +156,17 @@ class Problem(TrialProblem):
         super().__init__(env)
         model, physics = self.model, env.physics
         if model.nq != 1 or model.nv != 1 or model.na != 0 or model.nu != 1:
-            raise ValueError(f"optimal: the DP needs a one-joint model with one actuator and no "
-                             f"activation state (x = [angle, speed]), got nq={model.nq}, nv={model.nv}, "
-                             f"na={model.na}, nu={model.nu}")
+            raise ValueError(
+                f"optimal: the DP needs a one-joint model with one actuator and no "
+                f"activation state (x = [angle, speed]), got nq={model.nq}, nv={model.nv}, "
+                f"na={model.na}, nu={model.nu}"
+            )
         learner_state = learner_state_of(env)
         if tuple(learner_state.periodic) != (True, False):
-            raise ValueError(f"optimal: the DP needs x = [angle (periodic), speed], got periodic "
-                             f"{learner_state.periodic}")
+            raise ValueError(
+                f"optimal: the DP needs x = [angle (periodic), speed], got periodic "
+                f"{learner_state.periodic}"
+            )
         self.angle_low = float(learner_state.low[0])
         self.period = float(learner_state.high[0]) - self.angle_low
         spec = env.action_spec()
@@ -159,8 +175,10 @@ class Problem(TrialProblem):
         env.reset()
         self.start = self._full_state(physics.data.ptr)
         self._check_deterministic_start(self.start)
-        self.describe = (f"horizon {self.horizon} of {self.control_timestep:g} s, actions in "
-                         f"[{self.low:g}, {self.high:g}]")
+        self.describe = (
+            f"horizon {self.horizon} of {self.control_timestep:g} s, actions in "
+            f"[{self.low:g}, {self.high:g}]"
+        )
 
     @property
     def start_z(self) -> np.ndarray:
@@ -177,9 +195,14 @@ class Problem(TrialProblem):
 
     def identity(self) -> dict[str, Any]:
         """What :func:`cache_key` hashes besides the grid: the problem as numbers."""
-        return {"horizon": self.horizon, "control_timestep": self.control_timestep,
-                "n_substeps": self.n_substeps, "action_range": [self.low, self.high],
-                "start": self.start.tolist(), "angle_range": [self.angle_low, self.period]}
+        return {
+            "horizon": self.horizon,
+            "control_timestep": self.control_timestep,
+            "n_substeps": self.n_substeps,
+            "action_range": [self.low, self.high],
+            "start": self.start.tolist(),
+            "angle_range": [self.angle_low, self.period],
+        }
 
 
 @dataclasses.dataclass(frozen=True)
@@ -238,17 +261,21 @@ class OptimalResult:
     def describe(self) -> str:
         """A few lines for people: the return, its check, the convergence and the cost."""
         c = self.config
-        lines = [f"near-optimal return per trial (greedy DP policy simulated on the model): "
-                 f"{self.simulated_return:.2f}",
-                 f"DP value V_0(x_0): {self.dp_value:.2f}  "
-                 f"(grid {c.n_phi} x {c.n_phi_dot} over the angle's period x speeds in "
-                 f"[-{c.max_phi_dot:g}, {c.max_phi_dot:g}], {c.n_actions} actions in the DP, "
-                 f"{c.lookahead_actions} in the look-ahead, horizon {self.problem['horizon']})"]
+        lines = [
+            f"near-optimal return per trial (greedy DP policy simulated on the model): "
+            f"{self.simulated_return:.2f}",
+            f"DP value V_0(x_0): {self.dp_value:.2f}  "
+            f"(grid {c.n_phi} x {c.n_phi_dot} over the angle's period x speeds in "
+            f"[-{c.max_phi_dot:g}, {c.max_phi_dot:g}], {c.n_actions} actions in the DP, "
+            f"{c.lookahead_actions} in the look-ahead, horizon {self.problem['horizon']})",
+        ]
         if self.coarse is not None:
-            lines.append(f"coarser grid {self.coarse.n_phi} x {self.coarse.n_phi_dot}, "
-                         f"{self.coarse.n_actions} actions: {self.coarse.simulated_return:.2f} "
-                         f"(DP {self.coarse.dp_value:.2f}); "
-                         f"convergence gap {self.convergence_gap:.2f}")
+            lines.append(
+                f"coarser grid {self.coarse.n_phi} x {self.coarse.n_phi_dot}, "
+                f"{self.coarse.n_actions} actions: {self.coarse.simulated_return:.2f} "
+                f"(DP {self.coarse.dp_value:.2f}); "
+                f"convergence gap {self.convergence_gap:.2f}"
+            )
         cached = " (read from the cache)" if self.from_cache else ""
         lines.append(f"computed in {self.runtime_s:.1f} s{cached}")
         return "\n".join(lines)
@@ -272,15 +299,21 @@ class OptimalResult:
         }
 
     @classmethod
-    def from_json_dict(cls, d: dict[str, Any], from_cache: bool = True) -> "OptimalResult":
-        return cls(simulated_return=float(d["simulated_return"]), dp_value=float(d["dp_value"]),
-                   config=OptimalConfig(**d["config"]), fine=SolveSummary(**d["fine"]),
-                   coarse=None if d["coarse"] is None else SolveSummary(**d["coarse"]),
-                   states=np.asarray(d["states"], dtype=float).reshape(-1, 2),
-                   actions=np.asarray(d["actions"], dtype=float),
-                   rewards=np.asarray(d["rewards"], dtype=float),
-                   problem=dict(d["problem"]), runtime_s=float(d["runtime_s"]),
-                   versions=dict(d["versions"]), from_cache=from_cache)
+    def from_json_dict(cls, d: dict[str, Any], from_cache: bool = True) -> OptimalResult:
+        return cls(
+            simulated_return=float(d["simulated_return"]),
+            dp_value=float(d["dp_value"]),
+            config=OptimalConfig(**d["config"]),
+            fine=SolveSummary(**d["fine"]),
+            coarse=None if d["coarse"] is None else SolveSummary(**d["coarse"]),
+            states=np.asarray(d["states"], dtype=float).reshape(-1, 2),
+            actions=np.asarray(d["actions"], dtype=float),
+            rewards=np.asarray(d["rewards"], dtype=float),
+            problem=dict(d["problem"]),
+            runtime_s=float(d["runtime_s"]),
+            versions=dict(d["versions"]),
+            from_cache=from_cache,
+        )
 
 
 # --------------------------------------------------------------------------------------------------
@@ -300,9 +333,16 @@ def state_grid(config: OptimalConfig, problem: Problem) -> tuple[np.ndarray, np.
     return phi, phi_dot
 
 
-def simulate_transitions(model: mujoco.MjModel, phi: np.ndarray, phi_dot: np.ndarray, u: np.ndarray,
-                         n_substeps: int, n_threads: int = 1, chunk: int = 1 << 17,
-                         progress: Callable[[str], None] | None = None) -> np.ndarray:
+def simulate_transitions(
+    model: mujoco.MjModel,
+    phi: np.ndarray,
+    phi_dot: np.ndarray,
+    u: np.ndarray,
+    n_substeps: int,
+    n_threads: int = 1,
+    chunk: int = 1 << 17,
+    progress: Callable[[str], None] | None = None,
+) -> np.ndarray:
     """One control step of a one-joint MuJoCo model from many states, batched with ``mujoco.rollout``.
 
     Args:
@@ -323,16 +363,18 @@ def simulate_transitions(model: mujoco.MjModel, phi: np.ndarray, phi_dot: np.nda
         state0[:, 1] = phi[start:stop]
         state0[:, 2] = phi_dot[start:stop]
         control = u[start:stop].reshape(-1, 1, 1)
-        states, _ = rollout.rollout(model, datas if len(datas) > 1 else datas[0], state0, control,
-                                    nstep=n_substeps)
+        states, _ = rollout.rollout(
+            model, datas if len(datas) > 1 else datas[0], state0, control, nstep=n_substeps
+        )
         out[start:stop] = states[:, -1, 1:3]
         if progress is not None:
             progress(f"simulated {stop:,} of {n:,} transitions")
     return out
 
 
-def interpolation_matrix(config: OptimalConfig, problem: Problem,
-                         next_states: np.ndarray) -> scipy.sparse.csr_matrix:
+def interpolation_matrix(
+    config: OptimalConfig, problem: Problem, next_states: np.ndarray
+) -> scipy.sparse.csr_matrix:
     """Bilinear interpolation on the grid as a sparse matrix.
 
     Args:
@@ -346,28 +388,34 @@ def interpolation_matrix(config: OptimalConfig, problem: Problem,
     d_dot = 2.0 * config.max_phi_dot / (n_dot - 1)
     s = (next_states[:, 0] - problem.angle_low) / d_phi
     i0 = np.floor(s)
-    a = s - i0                                   # weight of the upper angle node, in [0, 1)
+    a = s - i0  # weight of the upper angle node, in [0, 1)
     i0 = i0.astype(np.int64) % n_phi
-    i1 = (i0 + 1) % n_phi                        # periodic in the angle
-    w = (np.clip(next_states[:, 1], -config.max_phi_dot, config.max_phi_dot) + config.max_phi_dot) / d_dot
+    i1 = (i0 + 1) % n_phi  # periodic in the angle
+    w = (
+        np.clip(next_states[:, 1], -config.max_phi_dot, config.max_phi_dot) + config.max_phi_dot
+    ) / d_dot
     j0 = np.clip(np.floor(w).astype(np.int64), 0, n_dot - 2)
-    b = np.clip(w - j0, 0.0, 1.0)                # weight of the upper speed node
+    b = np.clip(w - j0, 0.0, 1.0)  # weight of the upper speed node
     m = next_states.shape[0]
     # 32-bit indices where they fit: the default table has 2.2 M rows, and this halves its index memory.
     index = np.int32 if max(4 * m, n_phi * n_dot) < np.iinfo(np.int32).max else np.int64
-    cols = np.stack([i0 * n_dot + j0, i0 * n_dot + j0 + 1, i1 * n_dot + j0, i1 * n_dot + j0 + 1],
-                    axis=1).astype(index)
+    cols = np.stack(
+        [i0 * n_dot + j0, i0 * n_dot + j0 + 1, i1 * n_dot + j0, i1 * n_dot + j0 + 1], axis=1
+    ).astype(index)
     vals = np.stack([(1 - a) * (1 - b), (1 - a) * b, a * (1 - b), a * b], axis=1)
-    return scipy.sparse.csr_matrix((vals.ravel(), cols.ravel(), np.arange(0, 4 * m + 1, 4, dtype=index)),
-                                   shape=(m, n_phi * n_dot))
+    return scipy.sparse.csr_matrix(
+        (vals.ravel(), cols.ravel(), np.arange(0, 4 * m + 1, 4, dtype=index)),
+        shape=(m, n_phi * n_dot),
+    )
 
 
 # --------------------------------------------------------------------------------------------------
 # The solver
 
 
-def solve_values(config: OptimalConfig, problem: Problem,
-                 announce: Callable[[str], None] | None = None) -> np.ndarray:
+def solve_values(
+    config: OptimalConfig, problem: Problem, announce: Callable[[str], None] | None = None
+) -> np.ndarray:
     """Backward finite-horizon DP on the grid; ``announce`` hears its progress (about every 10 s).
 
     Returns:
@@ -380,8 +428,15 @@ def solve_values(config: OptimalConfig, problem: Problem,
     pp, dd, uu = np.meshgrid(phi, phi_dot, actions, indexing="ij")
     threads = config.n_threads or os.cpu_count() or 1
     ticker = Ticker(announce)
-    next_states = simulate_transitions(problem.model, pp.ravel(), dd.ravel(), uu.ravel(),
-                                       problem.n_substeps, threads, progress=ticker)
+    next_states = simulate_transitions(
+        problem.model,
+        pp.ravel(),
+        dd.ravel(),
+        uu.ravel(),
+        problem.n_substeps,
+        threads,
+        progress=ticker,
+    )
     transition = interpolation_matrix(config, problem, next_states)
     rewards = problem.reward(np.stack([pp, dd], axis=-1), uu).reshape(n_states, n_act)
     values = np.zeros((problem.horizon + 1, n_states), dtype=np.float32)
@@ -393,16 +448,20 @@ def solve_values(config: OptimalConfig, problem: Problem,
     return values.reshape(problem.horizon + 1, config.n_phi, config.n_phi_dot)
 
 
-def interpolate_value(config: OptimalConfig, problem: Problem, value: np.ndarray,
-                      states: np.ndarray) -> np.ndarray:
+def interpolate_value(
+    config: OptimalConfig, problem: Problem, value: np.ndarray, states: np.ndarray
+) -> np.ndarray:
     """Bilinear interpolation of one grid function ``value`` (n_phi, n_phi_dot) at ``states`` (m, 2);
     shape (m,)."""
-    return interpolation_matrix(config, problem, np.asarray(states, dtype=float).reshape(-1, 2)) @ \
-        value.astype(float).ravel()
+    return (
+        interpolation_matrix(config, problem, np.asarray(states, dtype=float).reshape(-1, 2))
+        @ value.astype(float).ravel()
+    )
 
 
-def greedy_rollout(config: OptimalConfig, problem: Problem, values: np.ndarray
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def greedy_rollout(
+    config: OptimalConfig, problem: Problem, values: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Simulate the DP's greedy policy on the model from the task's start.
 
     At step k, from the exact (off-grid) state z_k, each of ``config.lookahead_actions`` actions is
@@ -422,10 +481,16 @@ def greedy_rollout(config: OptimalConfig, problem: Problem, values: np.ndarray
     for k in range(problem.horizon):
         z = np.concatenate([data.qpos, data.qvel])
         states[k] = problem.state_of(z)
-        candidates = simulate_transitions(model, np.full(len(actions), z[0]),
-                                          np.full(len(actions), z[1]), actions, problem.n_substeps)
-        scores = (problem.reward(np.broadcast_to(z, (len(actions), 2)), actions)
-                  + interpolate_value(config, problem, values[k + 1], candidates))
+        candidates = simulate_transitions(
+            model,
+            np.full(len(actions), z[0]),
+            np.full(len(actions), z[1]),
+            actions,
+            problem.n_substeps,
+        )
+        scores = problem.reward(np.broadcast_to(z, (len(actions), 2)), actions) + interpolate_value(
+            config, problem, values[k + 1], candidates
+        )
         u = actions[int(np.argmax(scores))]
         rewards[k] = problem.reward(z, u)
         applied[k] = u
@@ -436,9 +501,12 @@ def greedy_rollout(config: OptimalConfig, problem: Problem, values: np.ndarray
     return states, applied, rewards
 
 
-def _solve_once(config: OptimalConfig, problem: Problem, values: np.ndarray | None = None,
-                announce: Callable[[str], None] | None = None
-                ) -> tuple[SolveSummary, np.ndarray, np.ndarray, np.ndarray]:
+def _solve_once(
+    config: OptimalConfig,
+    problem: Problem,
+    values: np.ndarray | None = None,
+    announce: Callable[[str], None] | None = None,
+) -> tuple[SolveSummary, np.ndarray, np.ndarray, np.ndarray]:
     """Solve (or take the given ``values``), then simulate the greedy policy."""
     start = time.perf_counter()
     if values is None:
@@ -447,16 +515,27 @@ def _solve_once(config: OptimalConfig, problem: Problem, values: np.ndarray | No
     states, actions, rewards = greedy_rollout(config, problem, values)
     peak = float(np.max(np.abs(states[:, 1])))
     if peak > 0.9 * config.max_phi_dot:
-        raise ValueError(f"optimal: the greedy trajectory reaches a speed of {peak:.1f}, within 10% "
-                         f"of the grid edge max_phi_dot={config.max_phi_dot}; widen the grid")
-    summary = SolveSummary(n_phi=config.n_phi, n_phi_dot=config.n_phi_dot, n_actions=config.n_actions,
-                           dp_value=dp_value, simulated_return=float(np.sum(rewards)),
-                           runtime_s=time.perf_counter() - start)
+        raise ValueError(
+            f"optimal: the greedy trajectory reaches a speed of {peak:.1f}, within 10% "
+            f"of the grid edge max_phi_dot={config.max_phi_dot}; widen the grid"
+        )
+    summary = SolveSummary(
+        n_phi=config.n_phi,
+        n_phi_dot=config.n_phi_dot,
+        n_actions=config.n_actions,
+        dp_value=dp_value,
+        simulated_return=float(np.sum(rewards)),
+        runtime_s=time.perf_counter() - start,
+    )
     return summary, states, actions, rewards
 
 
-def solve(env: control.Environment, config: OptimalConfig = OptimalConfig(),
-          announce: Callable[[str], None] | None = None, key: str | None = None) -> OptimalResult:
+def solve(
+    env: control.Environment,
+    config: OptimalConfig = OptimalConfig(),
+    announce: Callable[[str], None] | None = None,
+    key: str | None = None,
+) -> OptimalResult:
     """Solve the trial of ``env`` without the cache (see :func:`optimal_return`); with ``key`` (its
     :func:`cache_key`), the values are kept for :func:`solved_values`."""
     start = time.perf_counter()
@@ -465,12 +544,24 @@ def solve(env: control.Environment, config: OptimalConfig = OptimalConfig(),
     if key is not None:
         _remember(key, problem, values)
     fine, states, actions, rewards = _solve_once(config, problem, values)
-    coarse = (_solve_once(config.coarser(), problem, announce=announce)[0]
-              if config.check_convergence else None)
-    return OptimalResult(simulated_return=fine.simulated_return, dp_value=fine.dp_value, config=config,
-                         fine=fine, coarse=coarse, states=states, actions=actions, rewards=rewards,
-                         problem=problem.identity(), runtime_s=time.perf_counter() - start,
-                         versions=versions())
+    coarse = (
+        _solve_once(config.coarser(), problem, announce=announce)[0]
+        if config.check_convergence
+        else None
+    )
+    return OptimalResult(
+        simulated_return=fine.simulated_return,
+        dp_value=fine.dp_value,
+        config=config,
+        fine=fine,
+        coarse=coarse,
+        states=states,
+        actions=actions,
+        rewards=rewards,
+        problem=problem.identity(),
+        runtime_s=time.perf_counter() - start,
+        versions=versions(),
+    )
 
 
 #: The last solved DP (its values are 35 MB at the default grid and not cached on disk, only its
@@ -484,8 +575,12 @@ def _remember(key: str, problem: Problem, values: np.ndarray) -> None:
     _SOLVED[key] = problem, values
 
 
-def solved_values(env: control.Environment, identity: dict[str, Any], config: OptimalConfig,
-                  announce: Callable[[str], None] | None = None) -> tuple[Problem, np.ndarray]:
+def solved_values(
+    env: control.Environment,
+    identity: dict[str, Any],
+    config: OptimalConfig,
+    announce: Callable[[str], None] | None = None,
+) -> tuple[Problem, np.ndarray]:
     """The problem of ``env`` and its DP values V_t (:func:`solve_values`): those this process
     last solved for the same :func:`cache_key` if any, else solved now (and kept)."""
     key = cache_key(env, identity, config)
@@ -504,10 +599,14 @@ def cache_key(env: control.Environment, identity: dict[str, Any], config: Optima
     return problem_cache_key(env, identity, config, SOLVER_VERSION)
 
 
-def optimal_return(env: control.Environment, identity: dict[str, Any],
-                   config: OptimalConfig = OptimalConfig(), cache_dir: str | os.PathLike | None = None,
-                   refresh: bool = False, announce: Callable[[str], None] | None = None
-                   ) -> OptimalResult:
+def optimal_return(
+    env: control.Environment,
+    identity: dict[str, Any],
+    config: OptimalConfig = OptimalConfig(),
+    cache_dir: str | os.PathLike | None = None,
+    refresh: bool = False,
+    announce: Callable[[str], None] | None = None,
+) -> OptimalResult:
     """The near-optimal return per trial of ``env``, from the cache if there, else solved and cached.
 
     Args:
@@ -520,12 +619,19 @@ def optimal_return(env: control.Environment, identity: dict[str, Any],
       announce: called with a one-line message before a solve and with its progress, e.g. ``print``.
     """
     if not isinstance(config, OptimalConfig):
-        raise TypeError(f"optimal_return: config must be an OptimalConfig, got {type(config).__name__}")
+        raise TypeError(
+            f"optimal_return: config must be an OptimalConfig, got {type(config).__name__}"
+        )
     directory = cache_directory(cache_dir)
     key = cache_key(env, identity, config)
     return cached_json(
         directory / f"optimal-{key}.json",
         lambda document: OptimalResult.from_json_dict(document, from_cache=True),
-        lambda: solve(env, config, announce, key=key), refresh=refresh, announce=announce,
-        message=(f"computing the near-optimal return by dynamic programming (about a minute on 2 "
-                 f"idle cores; cached after, in {directory})"))
+        lambda: solve(env, config, announce, key=key),
+        refresh=refresh,
+        announce=announce,
+        message=(
+            f"computing the near-optimal return by dynamic programming (about a minute on 2 "
+            f"idle cores; cached after, in {directory})"
+        ),
+    )

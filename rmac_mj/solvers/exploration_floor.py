@@ -14,7 +14,8 @@ import hashlib
 import json
 import os
 import time
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 from dm_control.rl import control
@@ -59,28 +60,49 @@ class ExplorationFloor:
 
     def describe(self) -> str:
         low, high = self.ci95
-        cached = ", read from the cache" if self.from_cache else f", computed in {self.runtime_s:.1f} s"
-        return (f"exploration floor (the same policy with N(0, {self.sigma:g}^2) added every "
-                f"{_ordinal(self.period)} step, saturated): {self.mean:.1f} per trial, std "
-                f"{self.std:.1f}, 95% CI [{low:.1f}, {high:.1f}] over {self.rollouts} noisy trials "
-                f"(seed {self.seed}{cached})")
+        cached = (
+            ", read from the cache" if self.from_cache else f", computed in {self.runtime_s:.1f} s"
+        )
+        return (
+            f"exploration floor (the same policy with N(0, {self.sigma:g}^2) added every "
+            f"{_ordinal(self.period)} step, saturated): {self.mean:.1f} per trial, std "
+            f"{self.std:.1f}, 95% CI [{low:.1f}, {high:.1f}] over {self.rollouts} noisy trials "
+            f"(seed {self.seed}{cached})"
+        )
 
     def to_json_dict(self) -> dict[str, Any]:
-        return {"mean": self.mean, "std": self.std, "ci95": list(self.ci95),
-                "returns": self.returns.tolist(), "sigma": self.sigma, "period": self.period,
-                "phase": self.phase, "rollouts": self.rollouts, "seed": self.seed,
-                "config": dataclasses.asdict(self.config), "runtime_s": self.runtime_s,
-                "solver_version": optimal.SOLVER_VERSION}
+        return {
+            "mean": self.mean,
+            "std": self.std,
+            "ci95": list(self.ci95),
+            "returns": self.returns.tolist(),
+            "sigma": self.sigma,
+            "period": self.period,
+            "phase": self.phase,
+            "rollouts": self.rollouts,
+            "seed": self.seed,
+            "config": dataclasses.asdict(self.config),
+            "runtime_s": self.runtime_s,
+            "solver_version": optimal.SOLVER_VERSION,
+        }
 
     @classmethod
-    def from_json_dict(cls, d: dict[str, Any], from_cache: bool = True) -> "ExplorationFloor":
+    def from_json_dict(cls, d: dict[str, Any], from_cache: bool = True) -> ExplorationFloor:
         config = optimal.OptimalConfig(**d["config"])
-        return cls(mean=float(d["mean"]), std=float(d["std"]),
-                   ci95=(float(d["ci95"][0]), float(d["ci95"][1])),
-                   returns=np.asarray(d["returns"], dtype=float), sigma=float(d["sigma"]),
-                   period=int(d["period"]), phase=int(d["phase"]), rollouts=int(d["rollouts"]),
-                   seed=int(d["seed"]), config=config, runtime_s=float(d["runtime_s"]),
-                   from_cache=from_cache)
+        return cls(
+            mean=float(d["mean"]),
+            std=float(d["std"]),
+            ci95=(float(d["ci95"][0]), float(d["ci95"][1])),
+            returns=np.asarray(d["returns"], dtype=float),
+            sigma=float(d["sigma"]),
+            period=int(d["period"]),
+            phase=int(d["phase"]),
+            rollouts=int(d["rollouts"]),
+            seed=int(d["seed"]),
+            config=config,
+            runtime_s=float(d["runtime_s"]),
+            from_cache=from_cache,
+        )
 
 
 def _ordinal(n: int) -> str:
@@ -90,10 +112,17 @@ def _ordinal(n: int) -> str:
     return f"{n}{suffix}"
 
 
-def noisy_rollouts(config: optimal.OptimalConfig, problem: optimal.Problem, values: np.ndarray,
-                   sigma: float,
-                   period: int, phase: int, rollouts: int, rng: np.random.Generator,
-                   announce: Callable[[str], None] | None = None) -> np.ndarray:
+def noisy_rollouts(
+    config: optimal.OptimalConfig,
+    problem: optimal.Problem,
+    values: np.ndarray,
+    sigma: float,
+    period: int,
+    phase: int,
+    rollouts: int,
+    rng: np.random.Generator,
+    announce: Callable[[str], None] | None = None,
+) -> np.ndarray:
     """Returns of ``rollouts`` trials of the DP's greedy policy with exploration noise.
 
     Every trial starts at the task's start; at step k the greedy action is chosen exactly as in
@@ -115,28 +144,44 @@ def noisy_rollouts(config: optimal.OptimalConfig, problem: optimal.Problem, valu
     ticker = Ticker(announce)
     for k in range(problem.horizon):
         ticker(f"noisy trials, step {k}/{problem.horizon}")
-        candidates = optimal.simulate_transitions(problem.model, np.repeat(phi, n_act),
-                                                  np.repeat(phi_dot, n_act),
-                                          np.tile(actions, rollouts), problem.n_substeps, threads)
+        candidates = optimal.simulate_transitions(
+            problem.model,
+            np.repeat(phi, n_act),
+            np.repeat(phi_dot, n_act),
+            np.tile(actions, rollouts),
+            problem.n_substeps,
+            threads,
+        )
         z = np.stack([phi, phi_dot], axis=-1)
-        scores = (problem.reward(np.broadcast_to(z[:, None, :], (rollouts, n_act, 2)), actions[None, :])
-                  + optimal.interpolate_value(config, problem, values[k + 1], candidates)
-                  .reshape(rollouts, n_act))
+        scores = problem.reward(
+            np.broadcast_to(z[:, None, :], (rollouts, n_act, 2)), actions[None, :]
+        ) + optimal.interpolate_value(config, problem, values[k + 1], candidates).reshape(
+            rollouts, n_act
+        )
         u = actions[np.argmax(scores, axis=1)]  # ties: the lowest action, as greedy_rollout
         if sigma > 0 and k % period == phase:
             u = np.clip(u + rng.normal(0.0, sigma, size=rollouts), problem.low, problem.high)
         total += problem.reward(z, u)
-        next_states = optimal.simulate_transitions(problem.model, phi, phi_dot, u, problem.n_substeps,
-                                                   threads)
+        next_states = optimal.simulate_transitions(
+            problem.model, phi, phi_dot, u, problem.n_substeps, threads
+        )
         phi, phi_dot = next_states[:, 0], next_states[:, 1]
     return total
 
 
-def exploration_floor(env: control.Environment, identity: dict[str, Any], sigma: float = 1.0,
-                      period: int = 3, phase: int = 0, rollouts: int = 100, seed: int = 0,
-                      config: optimal.OptimalConfig = optimal.OptimalConfig(),
-                      cache_dir: str | os.PathLike | None = None, refresh: bool = False,
-                      announce: Callable[[str], None] | None = None) -> ExplorationFloor:
+def exploration_floor(
+    env: control.Environment,
+    identity: dict[str, Any],
+    sigma: float = 1.0,
+    period: int = 3,
+    phase: int = 0,
+    rollouts: int = 100,
+    seed: int = 0,
+    config: optimal.OptimalConfig = optimal.OptimalConfig(),
+    cache_dir: str | os.PathLike | None = None,
+    refresh: bool = False,
+    announce: Callable[[str], None] | None = None,
+) -> ExplorationFloor:
     """The near-optimal policy's return under exploration, from the cache if there, else computed.
 
     The DP's values come from :func:`optimal.solved_values` (those this process solved for the
@@ -151,35 +196,74 @@ def exploration_floor(env: control.Environment, identity: dict[str, Any], sigma:
       seed: seed of the noise.
     """
     if not isinstance(config, optimal.OptimalConfig):
-        raise TypeError(f"exploration_floor: config must be an OptimalConfig, got {type(config).__name__}")
+        raise TypeError(
+            f"exploration_floor: config must be an OptimalConfig, got {type(config).__name__}"
+        )
     if isinstance(sigma, bool) or not (np.isscalar(sigma) and np.isfinite(sigma) and sigma >= 0):
         raise ValueError(f"exploration_floor: sigma must be a finite number >= 0, got {sigma!r}")
-    for name, value, minimum in (("period", period, 1), ("phase", phase, 0), ("rollouts", rollouts, 2),
-                                 ("seed", seed, 0)):
+    for name, value, minimum in (
+        ("period", period, 1),
+        ("phase", phase, 0),
+        ("rollouts", rollouts, 2),
+        ("seed", seed, 0),
+    ):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-            raise ValueError(f"exploration_floor: {name} must be an integer >= {minimum}, got {value!r}")
+            raise ValueError(
+                f"exploration_floor: {name} must be an integer >= {minimum}, got {value!r}"
+            )
     if phase >= period:
         raise ValueError(f"exploration_floor: phase must be in [0, period={period}), got {phase}")
-    sigma, period, phase, rollouts, seed = float(sigma), int(period), int(phase), int(rollouts), int(seed)
+    sigma, period, phase, rollouts, seed = (
+        float(sigma),
+        int(period),
+        int(phase),
+        int(rollouts),
+        int(seed),
+    )
     dp_key = optimal.cache_key(env, identity, config)
-    key = hashlib.sha256(json.dumps([dp_key, sigma, period, phase, rollouts, seed])
-                         .encode()).hexdigest()[:20]
+    key = hashlib.sha256(
+        json.dumps([dp_key, sigma, period, phase, rollouts, seed]).encode()
+    ).hexdigest()[:20]
     directory = cache_directory(cache_dir)
 
     def compute() -> ExplorationFloor:
         start = time.perf_counter()
         problem, values = optimal.solved_values(env, identity, config, announce)
-        returns = noisy_rollouts(config, problem, values, sigma, period, phase, rollouts,
-                                 np.random.default_rng(seed), announce)
+        returns = noisy_rollouts(
+            config,
+            problem,
+            values,
+            sigma,
+            period,
+            phase,
+            rollouts,
+            np.random.default_rng(seed),
+            announce,
+        )
         mean, low, high = confidence_interval(returns)
-        return ExplorationFloor(mean=float(mean), std=float(returns.std(ddof=1)),
-                                ci95=(float(low), float(high)), returns=returns, sigma=sigma,
-                                period=period, phase=phase, rollouts=rollouts, seed=seed,
-                                config=config, runtime_s=time.perf_counter() - start)
+        return ExplorationFloor(
+            mean=float(mean),
+            std=float(returns.std(ddof=1)),
+            ci95=(float(low), float(high)),
+            returns=returns,
+            sigma=sigma,
+            period=period,
+            phase=phase,
+            rollouts=rollouts,
+            seed=seed,
+            config=config,
+            runtime_s=time.perf_counter() - start,
+        )
+
     return cached_json(
         directory / f"exploration-floor-{key}.json",
-        lambda document: ExplorationFloor.from_json_dict(document, from_cache=True), compute,
-        refresh=refresh, announce=announce,
-        message=(f"computing the exploration floor ({rollouts} noisy trials of the near-optimal "
-                 f"policy, after its dynamic programming: about a minute; cached after, in "
-                 f"{directory})"))
+        lambda document: ExplorationFloor.from_json_dict(document, from_cache=True),
+        compute,
+        refresh=refresh,
+        announce=announce,
+        message=(
+            f"computing the exploration floor ({rollouts} noisy trials of the near-optimal "
+            f"policy, after its dynamic programming: about a minute; cached after, in "
+            f"{directory})"
+        ),
+    )

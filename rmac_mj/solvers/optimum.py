@@ -20,10 +20,13 @@ and an environment from outside the suite declares none.
 from __future__ import annotations
 
 import os
-from typing import Any, Callable, Protocol as Interface
+from collections.abc import Callable
+from typing import Any
+from typing import Protocol as Interface
 
 from rmac_mj import tasks
-from rmac_mj.solvers import dynamic_programming, exploration_floor as floors, trajopt
+from rmac_mj.solvers import dynamic_programming, trajopt
+from rmac_mj.solvers import exploration_floor as floors
 from rmac_mj.solvers.problem import Announce, problem_identity
 
 
@@ -39,13 +42,24 @@ class Optimum(Interface):
 
 def _dynamic_programming(env, identity, settings, cache_dir, refresh, announce) -> Optimum:
     return dynamic_programming.optimal_return(
-        env, identity, dynamic_programming.OptimalConfig(**settings), cache_dir=cache_dir,
-        refresh=refresh, announce=announce)
+        env,
+        identity,
+        dynamic_programming.OptimalConfig(**settings),
+        cache_dir=cache_dir,
+        refresh=refresh,
+        announce=announce,
+    )
 
 
 def _trajectory_optimisation(env, identity, settings, cache_dir, refresh, announce) -> Optimum:
-    return trajopt.cached_optimise(env, identity, trajopt.TrajoptConfig(**settings),
-                                   cache_dir=cache_dir, refresh=refresh, announce=announce)
+    return trajopt.cached_optimise(
+        env,
+        identity,
+        trajopt.TrajoptConfig(**settings),
+        cache_dir=cache_dir,
+        refresh=refresh,
+        announce=announce,
+    )
 
 
 #: Solver name (``Reference.method``) -> the function that computes and caches it.
@@ -60,9 +74,14 @@ def has_optimum(domain: str, task: str) -> bool:
     return tasks.knowledge(domain, task).optimum is not None
 
 
-def optimum(domain: str, task: str, cache_dir: str | os.PathLike | None = None,
-              refresh: bool = False, announce: Announce | None = None,
-              settings: dict[str, Any] | None = None) -> Optimum:
+def optimum(
+    domain: str,
+    task: str,
+    cache_dir: str | os.PathLike | None = None,
+    refresh: bool = False,
+    announce: Announce | None = None,
+    settings: dict[str, Any] | None = None,
+) -> Optimum:
     """The near-optimal result of ``domain``/``task`` (default task_kwargs), from the cache if
     there, else computed and cached.
 
@@ -80,34 +99,62 @@ def optimum(domain: str, task: str, cache_dir: str | os.PathLike | None = None,
         available = ", ".join(f"{d}/{t}" for d, t in tasks.ALL_TASKS if has_optimum(d, t))
         raise ValueError(f"no near-optimal return for {domain}/{task}; available: {available}")
     if declared.method not in SOLVERS:
-        raise ValueError(f"{domain}/{task} declares the solver {declared.method!r}; "
-                         f"known: {', '.join(SOLVERS)}")
+        raise ValueError(
+            f"{domain}/{task} declares the solver {declared.method!r}; known: {', '.join(SOLVERS)}"
+        )
     env = tasks.load(domain, task)
-    return SOLVERS[declared.method](env, problem_identity(domain, task),
-                                    {**declared.settings, **(settings or {})}, cache_dir, refresh,
-                                    announce)
+    return SOLVERS[declared.method](
+        env,
+        problem_identity(domain, task),
+        {**declared.settings, **(settings or {})},
+        cache_dir,
+        refresh,
+        announce,
+    )
 
 
-def optimum_return(domain: str, task: str, cache_dir: str | os.PathLike | None = None,
-                     refresh: bool = False, announce: Announce | None = None) -> float:
+def optimum_return(
+    domain: str,
+    task: str,
+    cache_dir: str | os.PathLike | None = None,
+    refresh: bool = False,
+    announce: Announce | None = None,
+) -> float:
     """The near-optimal return per trial of ``domain``/``task`` (see :func:`optimum`)."""
-    return float(optimum(domain, task, cache_dir=cache_dir, refresh=refresh,
-                           announce=announce).simulated_return)
+    return float(
+        optimum(
+            domain, task, cache_dir=cache_dir, refresh=refresh, announce=announce
+        ).simulated_return
+    )
 
 
-def exploration_floor(domain: str, task: str, sigma: float, period: int, phase: int,
-                      cache_dir: str | os.PathLike | None = None, refresh: bool = False,
-                      announce: Announce | None = None):
+def exploration_floor(
+    domain: str,
+    task: str,
+    sigma: float,
+    period: int,
+    phase: int,
+    cache_dir: str | os.PathLike | None = None,
+    refresh: bool = False,
+    announce: Announce | None = None,
+):
     """The near-optimal policy's return while exploring with N(0, sigma^2) every ``period``-th step
     (``exploration_floor.ExplorationFloor``), or None when the task's solver gives none (only the
     dynamic programme has a policy to explore with)."""
     declared = tasks.knowledge(domain, task).optimum
     if declared is None or declared.method != "dynamic programming":
         return None
-    return floors.exploration_floor(tasks.load(domain, task), problem_identity(domain, task),
-                                    sigma, period, phase,
-                                    config=dynamic_programming.OptimalConfig(**declared.settings),
-                                    cache_dir=cache_dir, refresh=refresh, announce=announce)
+    return floors.exploration_floor(
+        tasks.load(domain, task),
+        problem_identity(domain, task),
+        sigma,
+        period,
+        phase,
+        config=dynamic_programming.OptimalConfig(**declared.settings),
+        cache_dir=cache_dir,
+        refresh=refresh,
+        announce=announce,
+    )
 
 
 def run_optimum(protocol, announce: Announce | None = None) -> float | None:
@@ -118,8 +165,9 @@ def run_optimum(protocol, announce: Announce | None = None) -> float | None:
     return optimum_return(protocol.domain, protocol.task, announce=announce)
 
 
-def run_exploration_floor(protocol, algorithm: str, announce: Announce | None = None
-                          ) -> float | None:
+def run_exploration_floor(
+    protocol, algorithm: str, announce: Announce | None = None
+) -> float | None:
     """The exploration floor of ``algorithm``'s exploration on a run's task, else None.
 
     A decaying exploration is taken at its last trial's noise level (the final return averages the
@@ -128,6 +176,7 @@ def run_exploration_floor(protocol, algorithm: str, announce: Announce | None = 
     if protocol.task_kwargs or protocol.knowledge.optimum is None:
         return None
     from rmac_mj.agents import config_class, config_from_dict
+
     config = config_from_dict(config_class(algorithm), protocol.agent_configs.get(algorithm, {}))
     exploration = getattr(config, "exploration", None)
     if exploration is None or exploration.where != "always":
@@ -135,9 +184,15 @@ def run_exploration_floor(protocol, algorithm: str, announce: Announce | None = 
     if exploration.sigma is None:  # the task's: the learner resolves it against the action range
         from rmac_mj.agents.task_knowledge import with_task_units
         from rmac_mj.rollout import action_space_of, state_space_of
+
         env = protocol.make_environment()
         exploration = with_task_units(exploration, state_space_of(env), action_space_of(env))
-    floor = exploration_floor(protocol.domain, protocol.task,
-                              exploration.sigma_at(protocol.trials - 1), exploration.period,
-                              exploration.phase, announce=announce)
+    floor = exploration_floor(
+        protocol.domain,
+        protocol.task,
+        exploration.sigma_at(protocol.trials - 1),
+        exploration.period,
+        exploration.phase,
+        announce=announce,
+    )
     return None if floor is None else float(floor.mean)

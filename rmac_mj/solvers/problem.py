@@ -15,7 +15,8 @@ import json
 import os
 import pathlib
 import time
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -45,8 +46,10 @@ class TrialProblem:
         task, physics = env.task, env.physics
         for owner, name in ((task, "reward_of"), (physics, "state_of")):
             if not callable(getattr(owner, name, None)):
-                raise ValueError(f"{self.owner}: {type(owner).__name__} has no {name}(); the task "
-                                 "must give its reward of batched states and actions")
+                raise ValueError(
+                    f"{self.owner}: {type(owner).__name__} has no {name}(); the task "
+                    "must give its reward of batched states and actions"
+                )
         self.env = env
         self.model = physics.model.ptr
         self.n_substeps = int(round(env.control_timestep() / physics.timestep()))
@@ -61,12 +64,15 @@ class TrialProblem:
         """Reset once more and refuse a start that differs from ``start`` (a random start)."""
         self.env.reset()
         if not np.array_equal(self._full_state(self.env.physics.data.ptr), start):
-            raise ValueError(f"{self.owner}: the task's start state is random (two resets differ); "
-                             "the near-optimal return is for a deterministic task (start_noise=0)")
+            raise ValueError(
+                f"{self.owner}: the task's start state is random (two resets differ); "
+                "the near-optimal return is for a deterministic task (start_noise=0)"
+            )
 
 
-def problem_identity(domain: str, task: str, task_kwargs: dict[str, Any] | None = None
-                     ) -> dict[str, Any]:
+def problem_identity(
+    domain: str, task: str, task_kwargs: dict[str, Any] | None = None
+) -> dict[str, Any]:
     """What names a task's problem for the caches: domain, task and task_kwargs."""
     return {"domain": domain, "task": task, "task_kwargs": dict(task_kwargs or {})}
 
@@ -78,20 +84,34 @@ def problem_digest(env: control.Environment, identity: dict[str, Any]) -> str:
     buffer = np.zeros(mujoco.mj_sizeModel(model), dtype=np.uint8)
     mujoco.mj_saveModel(model, None, buffer)
     module = inspect.getmodule(type(env.task))
-    blob = json.dumps({**identity, "model": hashlib.sha256(buffer.tobytes()).hexdigest(),
-                       "task_source": hashlib.sha256(inspect.getsource(module).encode()).hexdigest()},
-                      sort_keys=True, default=repr)
+    blob = json.dumps(
+        {
+            **identity,
+            "model": hashlib.sha256(buffer.tobytes()).hexdigest(),
+            "task_source": hashlib.sha256(inspect.getsource(module).encode()).hexdigest(),
+        },
+        sort_keys=True,
+        default=repr,
+    )
     return hashlib.sha256(blob.encode()).hexdigest()
 
 
-def cache_key(env: control.Environment, identity: dict[str, Any], config: Any,
-              solver_version: int) -> str:
+def cache_key(
+    env: control.Environment, identity: dict[str, Any], config: Any, solver_version: int
+) -> str:
     """Hex digest identifying a solver's result: the problem (:func:`problem_digest`), every field
     of the solver's ``config`` (a dataclass) but ``n_threads``, and the solver's version."""
     fields = dataclasses.asdict(config)
     fields.pop("n_threads", None)  # changes the speed, never the numbers
-    blob = json.dumps({"problem": problem_digest(env, identity), "config": fields,
-                       "solver_version": solver_version}, sort_keys=True, default=repr)
+    blob = json.dumps(
+        {
+            "problem": problem_digest(env, identity),
+            "config": fields,
+            "solver_version": solver_version,
+        },
+        sort_keys=True,
+        default=repr,
+    )
     return hashlib.sha256(blob.encode()).hexdigest()[:20]
 
 
@@ -129,5 +149,10 @@ def versions() -> dict[str, str]:
     import scipy
 
     from rmac_mj import __version__
-    return {"rmac_mj": __version__, "mujoco": mujoco.__version__, "numpy": np.__version__,
-            "scipy": scipy.__version__}
+
+    return {
+        "rmac_mj": __version__,
+        "mujoco": mujoco.__version__,
+        "numpy": np.__version__,
+        "scipy": scipy.__version__,
+    }

@@ -57,7 +57,6 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
-import json
 import os
 import time
 from typing import Any
@@ -112,9 +111,13 @@ class TrajoptConfig:
             if value < 0:
                 raise ValueError(f"TrajoptConfig.{name} must be >= 0, got {value}")
         if self.max_iterations < 1:
-            raise ValueError(f"TrajoptConfig.max_iterations must be >= 1, got {self.max_iterations}")
+            raise ValueError(
+                f"TrajoptConfig.max_iterations must be >= 1, got {self.max_iterations}"
+            )
         if not isinstance(self.corner_starts, (bool, np.bool_)):
-            raise TypeError(f"TrajoptConfig.corner_starts must be a bool, got {self.corner_starts!r}")
+            raise TypeError(
+                f"TrajoptConfig.corner_starts must be a bool, got {self.corner_starts!r}"
+            )
         for name in ("tolerance", "fd_step", "reward_fd_step"):
             value = getattr(self, name)
             if not (np.isscalar(value) and np.isfinite(value) and 0 < value < 1):
@@ -176,34 +179,47 @@ class TrajoptResult:
         p = self.problem
         name = f"{p['domain']}/{p['task']}: " if p.get("domain") else ""
         returns = sorted((s.simulated_return for s in self.starts), reverse=True)
-        lines = [f"{name}near-optimal return per trial (iLQR, best of {len(self.starts)} starts, "
-                 f"replayed on the model): {self.simulated_return:.2f}",
-                 f"{p['horizon']} steps of {p['control_timestep']:g} s, {p['n_actions']} action(s); "
-                 f"{self.starts_within(1e-3)} of {len(self.starts)} starts within 0.1% of the best",
-                 "returns of the starts: " + ", ".join(f"{r:.2f}" for r in returns)]
+        lines = [
+            f"{name}near-optimal return per trial (iLQR, best of {len(self.starts)} starts, "
+            f"replayed on the model): {self.simulated_return:.2f}",
+            f"{p['horizon']} steps of {p['control_timestep']:g} s, {p['n_actions']} action(s); "
+            f"{self.starts_within(1e-3)} of {len(self.starts)} starts within 0.1% of the best",
+            "returns of the starts: " + ", ".join(f"{r:.2f}" for r in returns),
+        ]
         cached = " (read from the cache)" if self.from_cache else ""
         lines.append(f"computed in {self.runtime_s:.1f} s{cached}")
         return "\n".join(lines)
 
     def to_json_dict(self) -> dict[str, Any]:
         """A plain dict (lists and numbers) that ``json.dump`` writes and ``from_json_dict`` reads."""
-        return {"simulated_return": self.simulated_return, "actions": self.actions.tolist(),
-                "states": self.states.tolist(), "rewards": self.rewards.tolist(),
-                "starts": [dataclasses.asdict(s) for s in self.starts],
-                "config": dataclasses.asdict(self.config), "problem": self.problem,
-                "runtime_s": self.runtime_s, "versions": dict(self.versions),
-                "solver_version": SOLVER_VERSION}
+        return {
+            "simulated_return": self.simulated_return,
+            "actions": self.actions.tolist(),
+            "states": self.states.tolist(),
+            "rewards": self.rewards.tolist(),
+            "starts": [dataclasses.asdict(s) for s in self.starts],
+            "config": dataclasses.asdict(self.config),
+            "problem": self.problem,
+            "runtime_s": self.runtime_s,
+            "versions": dict(self.versions),
+            "solver_version": SOLVER_VERSION,
+        }
 
     @classmethod
-    def from_json_dict(cls, d: dict[str, Any], from_cache: bool = True) -> "TrajoptResult":
+    def from_json_dict(cls, d: dict[str, Any], from_cache: bool = True) -> TrajoptResult:
         problem = dict(d["problem"])
-        return cls(simulated_return=float(d["simulated_return"]),
-                   actions=np.asarray(d["actions"], dtype=float).reshape(problem["horizon"], -1),
-                   states=np.asarray(d["states"], dtype=float).reshape(problem["horizon"] + 1, -1),
-                   rewards=np.asarray(d["rewards"], dtype=float),
-                   starts=tuple(StartSummary(**s) for s in d["starts"]),
-                   config=TrajoptConfig(**d["config"]), problem=problem,
-                   runtime_s=float(d["runtime_s"]), versions=dict(d["versions"]), from_cache=from_cache)
+        return cls(
+            simulated_return=float(d["simulated_return"]),
+            actions=np.asarray(d["actions"], dtype=float).reshape(problem["horizon"], -1),
+            states=np.asarray(d["states"], dtype=float).reshape(problem["horizon"] + 1, -1),
+            rewards=np.asarray(d["rewards"], dtype=float),
+            starts=tuple(StartSummary(**s) for s in d["starts"]),
+            config=TrajoptConfig(**d["config"]),
+            problem=problem,
+            runtime_s=float(d["runtime_s"]),
+            versions=dict(d["versions"]),
+            from_cache=from_cache,
+        )
 
 
 # --------------------------------------------------------------------------------------------------
@@ -231,15 +247,22 @@ class Problem(TrialProblem):
         physics = env.physics
         model = self.model
         if model.nq != model.nv or model.na != 0:
-            raise ValueError(f"trajopt: needs hinge or slide joints and no activation state, got "
-                             f"nq={model.nq}, nv={model.nv}, na={model.na}")
+            raise ValueError(
+                f"trajopt: needs hinge or slide joints and no activation state, got "
+                f"nq={model.nq}, nv={model.nv}, na={model.na}"
+            )
         spec = env.action_spec()
         self.low = np.broadcast_to(np.asarray(spec.minimum, dtype=float), spec.shape).copy()
         self.high = np.broadcast_to(np.asarray(spec.maximum, dtype=float), spec.shape).copy()
-        if spec.shape != (model.nu,) or not (np.all(np.isfinite(self.low)) and np.all(np.isfinite(self.high))
-                                             and np.all(self.low < self.high)):
-            raise ValueError(f"trajopt: the action spec must be a finite box of shape (nu,) = "
-                             f"({model.nu},), got {spec}")
+        if spec.shape != (model.nu,) or not (
+            np.all(np.isfinite(self.low))
+            and np.all(np.isfinite(self.high))
+            and np.all(self.low < self.high)
+        ):
+            raise ValueError(
+                f"trajopt: the action spec must be a finite box of shape (nu,) = "
+                f"({model.nu},), got {spec}"
+            )
         if model.nu > MAX_ACTION_DIM:
             raise ValueError(f"trajopt: at most {MAX_ACTION_DIM} actions, got {model.nu}")
         # The trial's length from the environment itself: run it once with the box's centre.
@@ -259,7 +282,7 @@ class Problem(TrialProblem):
         zero = np.zeros((1 + self.nz, self.nz))
         zero[1:] = np.eye(self.nz)
         xs = self.state_of(zero)
-        self.state_jacobian = (xs[1:] - xs[0]).T          # (n, nz)
+        self.state_jacobian = (xs[1:] - xs[0]).T  # (n, nz)
         self.n = self.state_jacobian.shape[0]
         self._z0 = self.initial_state[self._z].copy()
         self._x0 = self.state_of(self._z0)
@@ -297,14 +320,20 @@ class Problem(TrialProblem):
         Returns:
           states x_0..x_H of shape (B, H + 1, n) and rewards r_1..r_H of shape (B, H).
         """
-        control = np.repeat(actions, self.n_substeps, axis=1)                # held over the substeps
-        ends = self.rollout(self.initial_state, control)[:, self.n_substeps - 1::self.n_substeps]
+        control = np.repeat(actions, self.n_substeps, axis=1)  # held over the substeps
+        ends = self.rollout(self.initial_state, control)[:, self.n_substeps - 1 :: self.n_substeps]
         z0 = np.broadcast_to(self.initial_state[self._z], (actions.shape[0], 1, self.nz))
         states = self.state_of(np.concatenate([z0, ends[..., self._z]], axis=1))
         return states, self.env.task.reward_of(states[:, :-1], actions)
 
-    def simulate_policy(self, z_ref: np.ndarray, u_ref: np.ndarray, feedforward: np.ndarray,
-                        gains: np.ndarray, alpha: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def simulate_policy(
+        self,
+        z_ref: np.ndarray,
+        u_ref: np.ndarray,
+        feedforward: np.ndarray,
+        gains: np.ndarray,
+        alpha: float,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One forward pass: u_k = clip(u_ref_k + alpha k_k + K_k (z_k - z_ref_k)) simulated from x_0.
 
         Returns:
@@ -321,15 +350,19 @@ class Problem(TrialProblem):
         for k in range(horizon):
             z[k, :nq], z[k, nq:] = data.qpos, data.qvel
             mujoco.mj_getState(model, data, full[k], _FULL)
-            u[k] = np.clip(u_ref[k] + alpha * feedforward[k] + gains[k] @ (z[k] - z_ref[k]),
-                           self.low, self.high)
+            u[k] = np.clip(
+                u_ref[k] + alpha * feedforward[k] + gains[k] @ (z[k] - z_ref[k]),
+                self.low,
+                self.high,
+            )
             data.ctrl[:] = u[k]
             mujoco.mj_step(model, data, self.n_substeps)
         z[-1, :nq], z[-1, nq:] = data.qpos, data.qvel
         return z, full, u
 
-    def dynamics_jacobians(self, full: np.ndarray, u: np.ndarray, step: float
-                           ) -> tuple[np.ndarray, np.ndarray]:
+    def dynamics_jacobians(
+        self, full: np.ndarray, u: np.ndarray, step: float
+    ) -> tuple[np.ndarray, np.ndarray]:
         """A_k = df/dz of shape (H, nz, nz) and B_k = df/du of shape (H, nz, m) by central differences.
 
         All 2 (nz + m) perturbed control steps of every k run in one batched rollout; an action at a
@@ -337,21 +370,31 @@ class Problem(TrialProblem):
         """
         horizon, nz, m = u.shape[0], self.nz, self.low.size
         dz = np.eye(nz) * step
-        du_up = np.minimum(u[:, None, :] + np.eye(m) * step * (self.high - self.low), self.high) - u[:, None, :]
-        du_down = np.maximum(u[:, None, :] - np.eye(m) * step * (self.high - self.low), self.low) - u[:, None, :]
+        du_up = (
+            np.minimum(u[:, None, :] + np.eye(m) * step * (self.high - self.low), self.high)
+            - u[:, None, :]
+        )
+        du_down = (
+            np.maximum(u[:, None, :] - np.eye(m) * step * (self.high - self.low), self.low)
+            - u[:, None, :]
+        )
         rows = 2 * nz + 2 * m
-        initial = np.repeat(full[:, None, :], rows, axis=1)                  # (H, rows, nstate)
+        initial = np.repeat(full[:, None, :], rows, axis=1)  # (H, rows, nstate)
         initial[:, :nz, self._z] += dz
-        initial[:, nz:2 * nz, self._z] -= dz
+        initial[:, nz : 2 * nz, self._z] -= dz
         controls = np.repeat(u[:, None, :], rows, axis=1)
-        controls[:, 2 * nz:2 * nz + m] += du_up
-        controls[:, 2 * nz + m:] += du_down
-        ends = self.rollout(initial.reshape(horizon * rows, -1),
-                             np.repeat(controls.reshape(horizon * rows, 1, m), self.n_substeps, axis=1))
+        controls[:, 2 * nz : 2 * nz + m] += du_up
+        controls[:, 2 * nz + m :] += du_down
+        ends = self.rollout(
+            initial.reshape(horizon * rows, -1),
+            np.repeat(controls.reshape(horizon * rows, 1, m), self.n_substeps, axis=1),
+        )
         z_next = ends[:, -1, self._z].reshape(horizon, rows, nz)
-        a = (z_next[:, :nz] - z_next[:, nz:2 * nz]).transpose(0, 2, 1) / (2 * step)
-        width = np.einsum("kjj->kj", du_up - du_down)                        # (H, m)
-        b = (z_next[:, 2 * nz:2 * nz + m] - z_next[:, 2 * nz + m:]).transpose(0, 2, 1) / width[:, None, :]
+        a = (z_next[:, :nz] - z_next[:, nz : 2 * nz]).transpose(0, 2, 1) / (2 * step)
+        width = np.einsum("kjj->kj", du_up - du_down)  # (H, m)
+        b = (z_next[:, 2 * nz : 2 * nz + m] - z_next[:, 2 * nz + m :]).transpose(0, 2, 1) / width[
+            :, None, :
+        ]
         return a, b
 
     def cost_expansion(self, z: np.ndarray, u: np.ndarray, step: float, wrap: bool = True):
@@ -361,18 +404,20 @@ class Problem(TrialProblem):
           l_z (H, nz), l_u (H, m), l_zz (H, nz, nz), l_uu (H, m, m), l_uz (H, m, nz).
         """
         x = self.state_of(z[:-1], wrap)
-        y = np.concatenate([x, u], axis=1)                                   # (H, n + m)
+        y = np.concatenate([x, u], axis=1)  # (H, n + m)
         n, d = self.n, y.shape[1]
         e = np.eye(d) * step
         # Perturbations: +-e_i (gradient) and +-e_i +-e_j (Hessian), all evaluated in one call.
-        signs = np.array(list(itertools.product((1.0, -1.0), repeat=2)))   # (4, 2)
-        pairs = (signs[:, 0, None, None, None] * e[None, :, None, :]
-                 + signs[:, 1, None, None, None] * e[None, None, :, :])     # (4, d, d, d)
+        signs = np.array(list(itertools.product((1.0, -1.0), repeat=2)))  # (4, 2)
+        pairs = (
+            signs[:, 0, None, None, None] * e[None, :, None, :]
+            + signs[:, 1, None, None, None] * e[None, None, :, :]
+        )  # (4, d, d, d)
         points = np.concatenate([np.stack([e, -e]).reshape(2 * d, d), pairs.reshape(4 * d * d, d)])
-        shifted = y[:, None, :] + points[None]                               # (H, P, d)
+        shifted = y[:, None, :] + points[None]  # (H, P, d)
         rho = self.env.task.reward_of(shifted[..., :n], shifted[..., n:])
-        grad = (rho[:, :d] - rho[:, d:2 * d]) / (2 * step)
-        quad = rho[:, 2 * d:].reshape(-1, 4, d, d)
+        grad = (rho[:, :d] - rho[:, d : 2 * d]) / (2 * step)
+        quad = rho[:, 2 * d :].reshape(-1, 4, d, d)
         hess = (quad[:, 0] - quad[:, 1] - quad[:, 2] + quad[:, 3]) / (4 * step * step)
         hess = (hess + hess.transpose(0, 2, 1)) / 2
         s = self.state_jacobian
@@ -385,8 +430,9 @@ class Problem(TrialProblem):
 # iLQR with control limits
 
 
-def box_qp(hessian: np.ndarray, gradient: np.ndarray, lower: np.ndarray, upper: np.ndarray
-           ) -> tuple[np.ndarray, np.ndarray]:
+def box_qp(
+    hessian: np.ndarray, gradient: np.ndarray, lower: np.ndarray, upper: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """argmin_d 0.5 d^T H d + g^T d subject to lower <= d <= upper, for a small positive definite H.
 
     The minimum of a convex quadratic over a box is a stationary point of one face; every face (each
@@ -396,12 +442,12 @@ def box_qp(hessian: np.ndarray, gradient: np.ndarray, lower: np.ndarray, upper: 
       d of shape (m,) and the boolean mask of its free (not clamped) dimensions.
     """
     m = gradient.size
-    if m == 1:                                   # the common case in closed form
+    if m == 1:  # the common case in closed form
         d = min(max(-gradient[0] / hessian[0, 0], lower[0]), upper[0])
         return np.array([d]), np.array([lower[0] < d < upper[0]])
     d = np.linalg.solve(hessian, -gradient)
     if np.all(d >= lower) and np.all(d <= upper):
-        return d, np.ones(m, dtype=bool)         # the unconstrained minimum lies inside the box
+        return d, np.ones(m, dtype=bool)  # the unconstrained minimum lies inside the box
     best, best_value, best_free = None, np.inf, None
     for faces in itertools.product((0, 1, 2), repeat=m):
         faces = np.array(faces)
@@ -454,8 +500,9 @@ def _backward_pass(problem: Problem, derivatives, u: np.ndarray, mu: float):
     return feedforward, gains, expected
 
 
-def ilqr(problem: Problem, actions: np.ndarray, config: TrajoptConfig, wrap: bool = True
-         ) -> tuple[np.ndarray, float, int, str]:
+def ilqr(
+    problem: Problem, actions: np.ndarray, config: TrajoptConfig, wrap: bool = True
+) -> tuple[np.ndarray, float, int, str]:
     """Improve an action sequence of shape (h, m) by iLQR; return (actions, return, iterations, why).
 
     h <= H: a shorter sequence optimises the sum of the first h rewards of the trial. ``wrap=False``
@@ -467,17 +514,20 @@ def ilqr(problem: Problem, actions: np.ndarray, config: TrajoptConfig, wrap: boo
     mu, mu_factor, mu_min, mu_max = 1.0, 1.0, 1e-6, 1e10
     u = np.clip(actions, problem.low, problem.high)
     zero_gains = np.zeros((u.shape[0], problem.low.size, problem.nz))
-    z, full, u = problem.simulate_policy(np.zeros((u.shape[0] + 1, problem.nz)), u,
-                                         np.zeros_like(u), zero_gains, 0.0)
+    z, full, u = problem.simulate_policy(
+        np.zeros((u.shape[0] + 1, problem.nz)), u, np.zeros_like(u), zero_gains, 0.0
+    )
     value = problem.returns_of(z, u, wrap)
     why = "max_iterations"
     for iteration in range(1, config.max_iterations + 1):
-        derivatives = (*problem.dynamics_jacobians(full, u, config.fd_step),
-                       *problem.cost_expansion(z, u, config.reward_fd_step, wrap))
+        derivatives = (
+            *problem.dynamics_jacobians(full, u, config.fd_step),
+            *problem.cost_expansion(z, u, config.reward_fd_step, wrap),
+        )
         accepted = False
         while not accepted:
             backward = _backward_pass(problem, derivatives, u, mu)
-            if backward is None:                      # Q_uu not positive definite: regularise more
+            if backward is None:  # Q_uu not positive definite: regularise more
                 mu_factor = max(mu_factor * 1.6, 1.6)
                 mu = max(mu * mu_factor, mu_min)
                 if mu > mu_max:
@@ -487,7 +537,7 @@ def ilqr(problem: Problem, actions: np.ndarray, config: TrajoptConfig, wrap: boo
             # The quadratic model's predicted gain of the full step (cost decrease = return increase).
             predicted = -(expected[0] + expected[1])
             if predicted < config.tolerance * (1.0 + abs(value)):
-                return u, value, iteration, "converged"   # the model sees nothing left to gain
+                return u, value, iteration, "converged"  # the model sees nothing left to gain
             for alpha in alphas:
                 z_new, full_new, u_new = problem.simulate_policy(z, u, feedforward, gains, alpha)
                 new = problem.returns_of(z_new, u_new, wrap)
@@ -511,8 +561,10 @@ def _starts(problem: Problem, config: TrajoptConfig) -> list[tuple[str, np.ndarr
     m, horizon = problem.low.size, problem.horizon
     starts = [("zero", np.clip(np.zeros((horizon, m)), problem.low, problem.high))]
     if config.corner_starts:
-        corners = [np.where([(c >> i) & 1 for i in range(m)], problem.high, problem.low)
-                   for c in range(2 ** m)]
+        corners = [
+            np.where([(c >> i) & 1 for i in range(m)], problem.high, problem.low)
+            for c in range(2**m)
+        ]
         for corner in corners:
             label = ", ".join(f"{v:+g}" for v in corner)
             starts.append((f"corner ({label})", np.tile(corner, (horizon, 1))))
@@ -520,8 +572,12 @@ def _starts(problem: Problem, config: TrajoptConfig) -> list[tuple[str, np.ndarr
         for corner in corners:
             label = ", ".join(f"{v:+g}" for v in corner)
             opposite = problem.low + problem.high - corner
-            starts.append((f"switch ({label}) half way",
-                           np.vstack([np.tile(corner, (half, 1)), np.tile(opposite, (horizon - half, 1))])))
+            starts.append(
+                (
+                    f"switch ({label}) half way",
+                    np.vstack([np.tile(corner, (half, 1)), np.tile(opposite, (horizon - half, 1))]),
+                )
+            )
     rng = np.random.default_rng(config.seed)
     for i in range(config.random_starts):
         starts.append((f"random {i}", rng.uniform(problem.low, problem.high, size=(horizon, m))))
@@ -547,18 +603,38 @@ def optimise(env: control.Environment, config: TrajoptConfig = TrajoptConfig()) 
         # around; phase 2 optimises the task's own reward from there.
         u, _, unwrapped_iterations, _ = ilqr(problem, guess, config, wrap=False)
         u, value, iterations, why = ilqr(problem, u, config, wrap=True)
-        summaries.append(StartSummary(start=name, initial_return=initial, simulated_return=value,
-                                      iterations=unwrapped_iterations + iterations, stopped=why))
+        summaries.append(
+            StartSummary(
+                start=name,
+                initial_return=initial,
+                simulated_return=value,
+                iterations=unwrapped_iterations + iterations,
+                stopped=why,
+            )
+        )
         if value > best_value:
             best_u, best_value = u, value
-    states, rewards = problem.trajectories(best_u[None])   # the open-loop replay is what is reported
-    problem_info = {"horizon": problem.horizon, "n_actions": int(problem.low.size),
-                    "control_timestep": float(env.control_timestep()), "n_substeps": problem.n_substeps,
-                    "start_state": states[0, 0].tolist(), "action_low": problem.low.tolist(),
-                    "action_high": problem.high.tolist()}
-    return TrajoptResult(simulated_return=float(rewards[0].sum()), actions=best_u, states=states[0],
-                         rewards=rewards[0], starts=tuple(summaries), config=config, problem=problem_info,
-                         runtime_s=time.perf_counter() - start_time, versions=versions())
+    states, rewards = problem.trajectories(best_u[None])  # the open-loop replay is what is reported
+    problem_info = {
+        "horizon": problem.horizon,
+        "n_actions": int(problem.low.size),
+        "control_timestep": float(env.control_timestep()),
+        "n_substeps": problem.n_substeps,
+        "start_state": states[0, 0].tolist(),
+        "action_low": problem.low.tolist(),
+        "action_high": problem.high.tolist(),
+    }
+    return TrajoptResult(
+        simulated_return=float(rewards[0].sum()),
+        actions=best_u,
+        states=states[0],
+        rewards=rewards[0],
+        starts=tuple(summaries),
+        config=config,
+        problem=problem_info,
+        runtime_s=time.perf_counter() - start_time,
+        versions=versions(),
+    )
 
 
 # --------------------------------------------------------------------------------------------------
@@ -570,9 +646,14 @@ def cache_key(env: control.Environment, identity: dict[str, Any], config: Trajop
     return problem_cache_key(env, identity, config, SOLVER_VERSION)
 
 
-def cached_optimise(env: control.Environment, identity: dict[str, Any],
-                    config: TrajoptConfig = TrajoptConfig(), cache_dir: str | os.PathLike | None = None,
-                    refresh: bool = False, announce=None) -> TrajoptResult:
+def cached_optimise(
+    env: control.Environment,
+    identity: dict[str, Any],
+    config: TrajoptConfig = TrajoptConfig(),
+    cache_dir: str | os.PathLike | None = None,
+    refresh: bool = False,
+    announce=None,
+) -> TrajoptResult:
     """``optimise`` of ``env``, from the cache if there.
 
     Args:
@@ -584,17 +665,32 @@ def cached_optimise(env: control.Environment, identity: dict[str, Any],
       announce: called with a one-line message before a solve (not for a cache hit), e.g. ``print``.
     """
     if not isinstance(config, TrajoptConfig):
-        raise TypeError(f"cached_optimise: config must be a TrajoptConfig, got {type(config).__name__}")
+        raise TypeError(
+            f"cached_optimise: config must be a TrajoptConfig, got {type(config).__name__}"
+        )
     directory = cache_directory(cache_dir)
     path = directory / f"trajopt-{cache_key(env, identity, config)}.json"
     name = f"{identity.get('domain')}/{identity.get('task')}"
 
     def compute() -> TrajoptResult:
         result = optimise(env, config)
-        return dataclasses.replace(result, problem={"domain": identity.get("domain"),
-                                                    "task": identity.get("task"), **result.problem})
+        return dataclasses.replace(
+            result,
+            problem={
+                "domain": identity.get("domain"),
+                "task": identity.get("task"),
+                **result.problem,
+            },
+        )
+
     return cached_json(
-        path, lambda document: TrajoptResult.from_json_dict(document, from_cache=True), compute,
-        refresh=refresh, announce=announce,
-        message=(f"computing the near-optimal return of {name} by trajectory optimisation "
-                 f"(iLQR, under a minute on 2 cores), cached in {directory}"))
+        path,
+        lambda document: TrajoptResult.from_json_dict(document, from_cache=True),
+        compute,
+        refresh=refresh,
+        announce=announce,
+        message=(
+            f"computing the near-optimal return of {name} by trajectory optimisation "
+            f"(iLQR, under a minute on 2 cores), cached in {directory}"
+        ),
+    )

@@ -31,14 +31,30 @@ def _sweep_metrics(rows: list[dict]) -> dict[str, tuple[str, str | None, str | N
     thresholds = sorted({row["stuck_below"] for row in rows if row.get("stuck_below") is not None})
     stuck = f" (final level < {thresholds[0]:.0f})" if len(thresholds) == 1 else ""
     return {
-        "final_return": ("final_return_mean", "final_return_ci95_low", "final_return_ci95_high",
-                         f"final return (mean of {window})"),
-        "greedy_return": ("greedy_return_mean", "greedy_return_ci95_low", "greedy_return_ci95_high",
-                          "greedy return (last evaluation)"),
-        "minutes_to_90pct": ("minutes_to_90pct", None, None,
-                             "simulated minutes to within 10% of the final level"),
-        "first_5min": ("mean_return_first_5min", "first_5min_ci95_low", "first_5min_ci95_high",
-                       f"mean return of the first {FIRST_MINUTES:g} simulated minutes"),
+        "final_return": (
+            "final_return_mean",
+            "final_return_ci95_low",
+            "final_return_ci95_high",
+            f"final return (mean of {window})",
+        ),
+        "greedy_return": (
+            "greedy_return_mean",
+            "greedy_return_ci95_low",
+            "greedy_return_ci95_high",
+            "greedy return (last evaluation)",
+        ),
+        "minutes_to_90pct": (
+            "minutes_to_90pct",
+            None,
+            None,
+            "simulated minutes to within 10% of the final level",
+        ),
+        "first_5min": (
+            "mean_return_first_5min",
+            "first_5min_ci95_low",
+            "first_5min_ci95_high",
+            f"mean return of the first {FIRST_MINUTES:g} simulated minutes",
+        ),
         "stuck": ("stuck_experiments", None, None, f"stuck experiments{stuck}"),
         "gap_to_optimal": ("gap_to_optimal", None, None, "near-optimal return - final return"),
         "wall_time": ("wall_time_s", None, None, "wall time of its experiments, summed [s]"),
@@ -59,9 +75,14 @@ def plot_sweep(sweep: Sweep, rows: list[dict], out: pathlib.Path) -> list[pathli
             continue  # e.g. no greedy evaluations, no optimum
         # a panel of many named values (variants) gets the width their tick labels need
         widths = [max(4.8, 0.9 * len({json.dumps(row.get(p)) for row in rows})) for p in parameters]
-        fig, axes = plt.subplots(1, len(parameters), figsize=(max(sum(widths), 6.4), 3.8),
-                                 squeeze=False, constrained_layout=True,
-                                 gridspec_kw={"width_ratios": widths})
+        fig, axes = plt.subplots(
+            1,
+            len(parameters),
+            figsize=(max(sum(widths), 6.4), 3.8),
+            squeeze=False,
+            constrained_layout=True,
+            gridspec_kw={"width_ratios": widths},
+        )
         for ax, parameter in zip(axes[0], parameters):
             choices = []
             for row in rows:
@@ -71,35 +92,55 @@ def plot_sweep(sweep: Sweep, rows: list[dict], out: pathlib.Path) -> list[pathli
             others = [p for p in parameters if p != parameter]
             series: dict[str, list] = {}
             for row in rows:
-                key = ", ".join([f"{short_names(others).get(p, p) if p != 'variant' else 'variant'}"
-                                 f"={value_label(row.get(p))}" for p in others] +
-                                ([row["algorithm"]] if len({r["algorithm"] for r in rows}) > 1
-                                 else []))
-                x = positions[[json.dumps(c) for c in choices].index(json.dumps(row.get(parameter)))]
+                key = ", ".join(
+                    [
+                        f"{short_names(others).get(p, p) if p != 'variant' else 'variant'}"
+                        f"={value_label(row.get(p))}"
+                        for p in others
+                    ]
+                    + ([row["algorithm"]] if len({r["algorithm"] for r in rows}) > 1 else [])
+                )
+                x = positions[
+                    [json.dumps(c) for c in choices].index(json.dumps(row.get(parameter)))
+                ]
                 series.setdefault(key, []).append((x, row))
-            logarithmic = ticks is None and all(p > 0 for p in positions) and \
-                max(positions) >= 10 * min(positions)
-            span = (np.log10(max(positions) / min(positions)) if logarithmic
-                    else max(positions) - min(positions)) or 1.0
+            logarithmic = (
+                ticks is None
+                and all(p > 0 for p in positions)
+                and max(positions) >= 10 * min(positions)
+            )
+            span = (
+                np.log10(max(positions) / min(positions))
+                if logarithmic
+                else max(positions) - min(positions)
+            ) or 1.0
             for number, (key, points) in enumerate(series.items()):
                 points.sort(key=lambda p: p[0])
                 # Lines side by side, a little apart, so that their error bars do not hide each other.
                 dodge = 0.012 * span * (number - (len(series) - 1) / 2)
-                xs = [x * 10 ** dodge if logarithmic else x + dodge for x, _ in points]
+                xs = [x * 10**dodge if logarithmic else x + dodge for x, _ in points]
                 ys = [np.nan if r.get(column) is None else r[column] for _, r in points]
                 if low_column is not None:
-                    low = [np.nan if r.get(low_column) is None else r[low_column] for _, r in points]
-                    high = [np.nan if r.get(high_column) is None else r[high_column]
-                            for _, r in points]
+                    low = [
+                        np.nan if r.get(low_column) is None else r[low_column] for _, r in points
+                    ]
+                    high = [
+                        np.nan if r.get(high_column) is None else r[high_column] for _, r in points
+                    ]
                     errors = np.abs(np.array([np.subtract(ys, low), np.subtract(high, ys)]))
-                    ax.errorbar(xs, ys, yerr=errors, marker="o", capsize=3, linewidth=1.2,
-                                label=key or None)
+                    ax.errorbar(
+                        xs, ys, yerr=errors, marker="o", capsize=3, linewidth=1.2, label=key or None
+                    )
                 else:
                     ax.plot(xs, ys, marker="o", linewidth=1.2, label=key or None)
             if ticks is not None:
                 slanted = max(map(len, ticks)) > 6
-                ax.set_xticks(positions, ticks, rotation=30 if slanted else 0,
-                              ha="right" if slanted else "center")
+                ax.set_xticks(
+                    positions,
+                    ticks,
+                    rotation=30 if slanted else 0,
+                    ha="right" if slanted else "center",
+                )
             elif logarithmic:
                 ax.set_xscale("log")
                 ax.set_xticks(positions, [value_label(c) for c in choices])
@@ -111,9 +152,16 @@ def plot_sweep(sweep: Sweep, rows: list[dict], out: pathlib.Path) -> list[pathli
         fig.suptitle(f"{sweep.path.name}: {label}", fontsize="medium")
         fewest = min(row["experiments"] for row in rows)
         if fewest < FEW_EXPERIMENTS and low_column is not None:
-            fig.text(0.5, -0.02, f"{fewest} experiment{'s' if fewest != 1 else ''} per configuration: "
-                     f"95% intervals from fewer than {FEW_EXPERIMENTS} mean little", ha="center",
-                     va="top", fontsize="small", color="firebrick")
+            fig.text(
+                0.5,
+                -0.02,
+                f"{fewest} experiment{'s' if fewest != 1 else ''} per configuration: "
+                f"95% intervals from fewer than {FEW_EXPERIMENTS} mean little",
+                ha="center",
+                va="top",
+                fontsize="small",
+                color="firebrick",
+            )
         path = out / f"sweep_{metric}.png"
         fig.savefig(path, dpi=120, bbox_inches="tight")
         plt.close(fig)

@@ -14,19 +14,35 @@ from __future__ import annotations
 import json
 import math
 import pathlib
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
-from rmac_mj.results import files
 from rmac_mj.evaluation import metrics, report
 from rmac_mj.experiments import runner
+from rmac_mj.results import files
 from rmac_mj.results.store import ResultStore, ResumeRefused, added_experiments
 from rmac_mj.sweeps.sweep_file import Sweep
 
 #: sweep.csv's columns after the configuration, the swept parameters and the learner.
-COLUMNS = ("experiments", "final_return_mean", "final_return_ci95_low", "final_return_ci95_high",
-           "greedy_trial", "greedy_return_mean", "greedy_return_ci95_low", "greedy_return_ci95_high",
-           "minutes_to_90pct", "mean_return_first_5min", "first_5min_ci95_low", "first_5min_ci95_high",
-           "stuck_experiments", "optimal_return", "gap_to_optimal", "exploration_floor", "wall_time_s")
+COLUMNS = (
+    "experiments",
+    "final_return_mean",
+    "final_return_ci95_low",
+    "final_return_ci95_high",
+    "greedy_trial",
+    "greedy_return_mean",
+    "greedy_return_ci95_low",
+    "greedy_return_ci95_high",
+    "minutes_to_90pct",
+    "mean_return_first_5min",
+    "first_5min_ci95_low",
+    "first_5min_ci95_high",
+    "stuck_experiments",
+    "optimal_return",
+    "gap_to_optimal",
+    "exploration_floor",
+    "wall_time_s",
+)
 
 
 class SweepResumeRefused(ResumeRefused):
@@ -36,28 +52,38 @@ class SweepResumeRefused(ResumeRefused):
 def _prepare(out: pathlib.Path, sweep: Sweep, resume: bool) -> None:
     """Write (or, resuming, check) ``out/sweep.json``: the parsed file and the index of directories."""
     index = out / "sweep.json"
-    document = {"sweep": sweep.as_dict(), "parameters": sweep.parameters,
-                "configurations": [{"directory": c.name, "variant": c.variant,
-                                    "values": files.as_jsonable(c.values)}
-                                   for c in sweep.configurations]}
+    document = {
+        "sweep": sweep.as_dict(),
+        "parameters": sweep.parameters,
+        "configurations": [
+            {"directory": c.name, "variant": c.variant, "values": files.as_jsonable(c.values)}
+            for c in sweep.configurations
+        ],
+    }
     if index.exists():
         if not resume:
-            raise SweepResumeRefused(f"{out} already holds a sweep; pass --resume to finish it, or "
-                                     "choose another --out")
+            raise SweepResumeRefused(
+                f"{out} already holds a sweep; pass --resume to finish it, or choose another --out"
+            )
         try:
             existing = json.loads(index.read_text())
         except (OSError, ValueError) as error:  # unreadable, not UTF-8, not JSON
-            raise SweepResumeRefused(f"{index} is damaged ({error}); which sweep {out} holds cannot "
-                                     "be told: choose another --out") from None
+            raise SweepResumeRefused(
+                f"{index} is damaged ({error}); which sweep {out} holds cannot "
+                "be told: choose another --out"
+            ) from None
         if not isinstance(existing, dict):
-            raise SweepResumeRefused(f"{index} is damaged (not a sweep's index: no JSON object); "
-                                     "choose another --out")
+            raise SweepResumeRefused(
+                f"{index} is damaged (not a sweep's index: no JSON object); choose another --out"
+            )
         stored = {k: existing.get(k) for k in document}
         if stored == document:
             return
         if not (_added_experiments(stored, document) or 0) > 0:
-            raise SweepResumeRefused(f"{out} holds a sweep of a different file; refusing to mix "
-                                     "results (use another --out; a resume may only add experiments)")
+            raise SweepResumeRefused(
+                f"{out} holds a sweep of a different file; refusing to mix "
+                "results (use another --out; a resume may only add experiments)"
+            )
         # the file adds experiments and changes nothing else: each configuration's run grows too
         before = stored["sweep"]["protocol"]["experiments"]
         grown = [*existing.get("experiments_grown_from", []), before]
@@ -80,17 +106,26 @@ def _added_experiments(stored: dict[str, Any], document: dict[str, Any]) -> int 
     before, now = stored.get("sweep"), document["sweep"]
     if not isinstance(before, dict):
         return None
-    if ({**stored, "sweep": {**before, "protocol": None}}
-            != {**document, "sweep": {**now, "protocol": None}}):
+    if {**stored, "sweep": {**before, "protocol": None}} != {
+        **document,
+        "sweep": {**now, "protocol": None},
+    }:
         return None
     return added_experiments(before.get("protocol"), now["protocol"])
 
 
-def run_sweep(sweep: Sweep, out: str | pathlib.Path, jobs: int | None = None,
-              scheduler: str | None = None, resume: bool = False, progress: bool = True,
-              references: bool = False, figures: bool = True,
-              log: Callable[[str], None] | None = None,
-              started: float | None = None) -> list[dict[str, Any]]:
+def run_sweep(
+    sweep: Sweep,
+    out: str | pathlib.Path,
+    jobs: int | None = None,
+    scheduler: str | None = None,
+    resume: bool = False,
+    progress: bool = True,
+    references: bool = False,
+    figures: bool = True,
+    log: Callable[[str], None] | None = None,
+    started: float | None = None,
+) -> list[dict[str, Any]]:
     """Run (or finish, with ``resume``) every configuration of ``sweep`` into ``out``.
 
     Writes ``out/sweep.json`` (the index), one result directory per configuration, ``out/sweep.csv``
@@ -98,16 +133,27 @@ def run_sweep(sweep: Sweep, out: str | pathlib.Path, jobs: int | None = None,
     ``log`` and ``started`` mean what they mean for :func:`runner.run_protocol`.
     """
     out = pathlib.Path(out)
-    with ResultStore(out).lock():  # one sweep at a time in a directory (each run also locks its own)
+    with ResultStore(
+        out
+    ).lock():  # one sweep at a time in a directory (each run also locks its own)
         _prepare(out, sweep, resume)
         runs = [(c.protocol, out / c.name) for c in sweep.configurations]
-        summaries = runner.run_protocols(runs, jobs=jobs, resume=resume, scheduler=scheduler,
-                                         progress=progress, references=references, figures=figures,
-                                         log=log, started=started)
+        summaries = runner.run_protocols(
+            runs,
+            jobs=jobs,
+            resume=resume,
+            scheduler=scheduler,
+            progress=progress,
+            references=references,
+            figures=figures,
+            log=log,
+            started=started,
+        )
     rows = sweep_rows(sweep, summaries)
     write_csv(out / "sweep.csv", sweep, rows)
     if figures:
         from rmac_mj.sweeps import figure
+
         figure.plot_sweep(sweep, rows, out)
     return rows
 
@@ -126,12 +172,15 @@ def sweep_rows(sweep: Sweep, summaries: list[dict[str, Any]]) -> list[dict]:
             row["algorithm"] = algorithm
             row["experiments"] = learner["experiments"]
             row["final_return_mean"] = learner["final_return_mean"]
-            row["final_return_ci95_low"], row["final_return_ci95_high"] = learner["final_return_ci95"]
+            row["final_return_ci95_low"], row["final_return_ci95_high"] = learner[
+                "final_return_ci95"
+            ]
             if learner.get("greedy_eval_trials"):
                 row["greedy_trial"] = learner["greedy_eval_trials"][-1]
                 row["greedy_return_mean"] = learner["greedy_return_last_mean"]
-                (row["greedy_return_ci95_low"],
-                 row["greedy_return_ci95_high"]) = learner["greedy_return_last_ci95"]
+                (row["greedy_return_ci95_low"], row["greedy_return_ci95_high"]) = learner[
+                    "greedy_return_last_ci95"
+                ]
             row["minutes_to_90pct"] = learner["minutes_to_90pct"]
             row["mean_return_first_5min"] = learner["mean_return_first_5min"]
             row["first_5min_ci95_low"], row["first_5min_ci95_high"] = learner["first_5min_ci95"]
@@ -142,8 +191,12 @@ def sweep_rows(sweep: Sweep, summaries: list[dict[str, Any]]) -> list[dict]:
             row["wall_time_s"] = learner["experiment_wall_s_total"]
             row["final_window"] = learner["final_window"]
             row["stuck_below"] = learner["stuck_below"]
-            rows.append({k: (None if isinstance(v, float) and not math.isfinite(v) else v)
-                         for k, v in row.items()})
+            rows.append(
+                {
+                    k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+                    for k, v in row.items()
+                }
+            )
     return rows
 
 
@@ -159,17 +212,25 @@ def write_csv(path: pathlib.Path, sweep: Sweep, rows: list[dict]) -> pathlib.Pat
     """``sweep.csv``: configuration, [variant,] one column per grid key, algorithm, :data:`COLUMNS`.
     Lists (e.g. input weights) are written as JSON; a missing value (no greedy evaluation, no
     optimum, a CI of one experiment) as an empty cell."""
-    header = ["configuration", *(["variant"] if sweep.variants else []), *sweep.grid, "algorithm",
-              *COLUMNS]
-    return files.write_csv(path, header,
-                           ([_cell(row.get(column)) for column in header] for row in rows))
+    header = [
+        "configuration",
+        *(["variant"] if sweep.variants else []),
+        *sweep.grid,
+        "algorithm",
+        *COLUMNS,
+    ]
+    return files.write_csv(
+        path, header, ([_cell(row.get(column)) for column in header] for row in rows)
+    )
 
 
 def format_table(sweep: Sweep, rows: list[dict]) -> str:
     """The end-of-sweep table for the terminal: one line per configuration and learner."""
     width = max([len(r["configuration"]) for r in rows] + [13])
-    header = (f"{'configuration':<{width}} {'learner':>7} {'final return [95% CI]':>24} "
-              f"{'greedy':>7} {'min to 90%':>10} {'first 5 min':>11} {'stuck':>5}")
+    header = (
+        f"{'configuration':<{width}} {'learner':>7} {'final return [95% CI]':>24} "
+        f"{'greedy':>7} {'min to 90%':>10} {'first 5 min':>11} {'stuck':>5}"
+    )
     lines = [header, "-" * len(header)]
     for row in rows:
         low, high = row["final_return_ci95_low"], row["final_return_ci95_high"]
@@ -177,15 +238,19 @@ def format_table(sweep: Sweep, rows: list[dict]) -> str:
         greedy = row.get("greedy_return_mean")
         first = row["mean_return_first_5min"]  # None for a run shorter than the window
         stuck = row["stuck_experiments"]  # None without a reference return to judge "stuck" by
-        lines.append(f"{row['configuration']:<{width}} {row['algorithm']:>7} "
-                     f"{row['final_return_mean']:>9.1f}{ci:>15} "
-                     f"{'' if greedy is None else f'{greedy:.1f}':>7} "
-                     f"{row['minutes_to_90pct']:>10.1f} {'n/a' if first is None else f'{first:.1f}':>11} "
-                     f"{'' if stuck is None else stuck:>5}")
+        lines.append(
+            f"{row['configuration']:<{width}} {row['algorithm']:>7} "
+            f"{row['final_return_mean']:>9.1f}{ci:>15} "
+            f"{'' if greedy is None else f'{greedy:.1f}':>7} "
+            f"{row['minutes_to_90pct']:>10.1f} {'n/a' if first is None else f'{first:.1f}':>11} "
+            f"{'' if stuck is None else stuck:>5}"
+        )
     windows = sorted({row["final_window"] for row in rows})
-    lines.append(f"final return: mean of the last {', '.join(map(str, windows))} trials per experiment; "
-                 f"first 5 min: of the trials within the first {metrics.FIRST_MINUTES:g} simulated "
-                 "minutes")
+    lines.append(
+        f"final return: mean of the last {', '.join(map(str, windows))} trials per experiment; "
+        f"first 5 min: of the trials within the first {metrics.FIRST_MINUTES:g} simulated "
+        "minutes"
+    )
     fewest = min(row["experiments"] for row in rows)
     if fewest < metrics.FEW_EXPERIMENTS:
         lines.append(report.few_experiments_note(fewest))

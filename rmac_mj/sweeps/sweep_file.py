@@ -39,7 +39,8 @@ import math
 import pathlib
 import re
 import sys
-from typing import Any, Callable, Iterable
+from collections.abc import Callable, Iterable
+from typing import Any
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -49,14 +50,16 @@ else:  # pragma: no cover - Python 3.10
 from rmac_mj import constraints
 from rmac_mj.agents import ALGORITHMS, config_class, config_from_dict
 from rmac_mj.errors import MissingInputError, UserInputError
-from rmac_mj.results import files
 from rmac_mj.experiments.protocol import Protocol
+from rmac_mj.results import files
 
 #: The tables a sweep file may have. [learner_state] is the Protocol option of that name written as a
 #: table of its own: what x is in an outside environment (``env``) where it cannot be inferred.
 SECTIONS = ("protocol", "grid", "variant", "learner_state")
 #: Protocol options a [protocol] table may set: the fields of Protocol but agent_configs.
-PROTOCOL_KEYS = tuple(field.name for field in dataclasses.fields(Protocol) if field.name != "agent_configs")
+PROTOCOL_KEYS = tuple(
+    field.name for field in dataclasses.fields(Protocol) if field.name != "agent_configs"
+)
 
 
 class SweepFileError(UserInputError):
@@ -108,11 +111,14 @@ class Sweep:
 
     def as_dict(self) -> dict[str, Any]:
         """The parsed file as JSON data (what a resumed sweep must match)."""
-        return {"protocol": files.as_jsonable(self.options),
-                "fixed": files.as_jsonable(self.fixed),
-                "grid": files.as_jsonable(self.grid),
-                "variants": [{"name": name, **files.as_jsonable(values)}
-                             for name, values in self.variants]}
+        return {
+            "protocol": files.as_jsonable(self.options),
+            "fixed": files.as_jsonable(self.fixed),
+            "grid": files.as_jsonable(self.grid),
+            "variants": [
+                {"name": name, **files.as_jsonable(values)} for name, values in self.variants
+            ],
+        }
 
 
 @dataclasses.dataclass(frozen=True)
@@ -125,6 +131,7 @@ class SingleConfiguration:
 
 # ----------------------------------------------------------------------------------------------------
 # Reading and validating a file.
+
 
 def read_toml(path: str | pathlib.Path) -> dict[str, Any]:
     """The TOML document at ``path``; a missing or malformed file is a :class:`UserInputError`."""
@@ -157,8 +164,11 @@ def load_sweep(path: str | pathlib.Path, announce: Callable[[str], None] | None 
         where = f'[grid] "{key}"'
         hint = check.hyperparameter(key, algorithms, where)
         if not isinstance(values, list):
-            raise check.error(where, f"expected a list of values to sweep, e.g. [{_toml(values)}, ...]; "
-                                     f"got {_toml(values)}")
+            raise check.error(
+                where,
+                f"expected a list of values to sweep, e.g. [{_toml(values)}, ...]; "
+                f"got {_toml(values)}",
+            )
         if not values:
             raise check.error(where, "the list of values is empty")
         for value in values:
@@ -172,12 +182,20 @@ def load_sweep(path: str | pathlib.Path, announce: Callable[[str], None] | None 
     if announce is not None:
         count = max(1, len(variants)) * math.prod(len(values) for values in grid.values())
         per = options.get("experiments", Protocol().experiments) * len(algorithms)
-        announce(f"{path}: {count} configuration{'s' * (count != 1)} x {per} experiments = "
-                 f"{count * per} experiments of {options.get('trials', Protocol().trials)} trials; "
-                 "checking every configuration")
+        announce(
+            f"{path}: {count} configuration{'s' * (count != 1)} x {per} experiments = "
+            f"{count * per} experiments of {options.get('trials', Protocol().trials)} trials; "
+            "checking every configuration"
+        )
     configurations = _configurations(check, options, fixed, grid, variants)
-    return Sweep(path=path, options=options, fixed=fixed, grid=grid, variants=variants,
-                 configurations=configurations)
+    return Sweep(
+        path=path,
+        options=options,
+        fixed=fixed,
+        grid=grid,
+        variants=variants,
+        configurations=configurations,
+    )
 
 
 def load_configuration(path: str | pathlib.Path) -> SingleConfiguration:
@@ -197,18 +215,25 @@ def load_configuration(path: str | pathlib.Path) -> SingleConfiguration:
         hint = check.hyperparameter(key, algorithms, where)
         if constraints.unmet(value, hint) is not None and isinstance(value, list):
             if len(value) != 1:
-                raise check.error(where, f"lists {len(value)} values; --config runs one configuration "
-                                         "(give one value, or run the file with `rmac-mj sweep`)")
+                raise check.error(
+                    where,
+                    f"lists {len(value)} values; --config runs one configuration "
+                    "(give one value, or run the file with `rmac-mj sweep`)",
+                )
             value = value[0]
         check.value(value, hint, where, key, fixed)
         if key in fixed:
             raise check.error(where, "is also set in [protocol]; set it in one place")
         overrides[key] = value
-    variants = check.variants(document, algorithms, fixed, {k: [v] for k, v in overrides.items()
-                                                            if k not in fixed})
+    variants = check.variants(
+        document, algorithms, fixed, {k: [v] for k, v in overrides.items() if k not in fixed}
+    )
     if len(variants) > 1:
-        raise check.error("[[variant]]", f"{len(variants)} variants; --config runs one configuration "
-                                         "(keep one, or run the file with `rmac-mj sweep`)")
+        raise check.error(
+            "[[variant]]",
+            f"{len(variants)} variants; --config runs one configuration "
+            "(keep one, or run the file with `rmac-mj sweep`)",
+        )
     for _, values in variants:
         overrides.update(values)
     agent_configs = nest(overrides)
@@ -288,11 +313,16 @@ class _Checker:
             if section not in SECTIONS:
                 close = difflib.get_close_matches(section, SECTIONS, n=1)
                 hint = f" (did you mean [{close[0]}]?)" if close else ""
-                raise self.error(f"[{section}]", f"unknown section{hint}; a sweep file has "
-                                                 "[protocol], [grid], [[variant]] and "
-                                                 "[learner_state]")
-        if "variant" in document and not (isinstance(document["variant"], list) and
-                                          all(isinstance(v, dict) for v in document["variant"])):
+                raise self.error(
+                    f"[{section}]",
+                    f"unknown section{hint}; a sweep file has "
+                    "[protocol], [grid], [[variant]] and "
+                    "[learner_state]",
+                )
+        if "variant" in document and not (
+            isinstance(document["variant"], list)
+            and all(isinstance(v, dict) for v in document["variant"])
+        ):
             raise self.error("[variant]", "variants are an array of tables: write [[variant]]")
         options, hyper = {}, {}
         for key, value in self.table(document, "protocol").items():
@@ -303,13 +333,19 @@ class _Checker:
             else:
                 close = difflib.get_close_matches(key, PROTOCOL_KEYS, n=1)
                 hint = f" (did you mean {close[0]}?)" if close else ""
-                raise self.error(f"[protocol] {key}", f"unknown key{hint}; known: "
-                                 f"{', '.join(PROTOCOL_KEYS)}, or a hyperparameter \"ALGO.FIELD\"")
+                raise self.error(
+                    f"[protocol] {key}",
+                    f"unknown key{hint}; known: "
+                    f'{", ".join(PROTOCOL_KEYS)}, or a hyperparameter "ALGO.FIELD"',
+                )
         if "learner_state" in document:
             if "learner_state" in options:
-                raise self.error("[learner_state]", "is also set in [protocol]; set it in one place")
-            options["learner_state"] = self.option("learner_state",
-                                                   self.table(document, "learner_state"))
+                raise self.error(
+                    "[learner_state]", "is also set in [protocol]; set it in one place"
+                )
+            options["learner_state"] = self.option(
+                "learner_state", self.table(document, "learner_state")
+            )
         algorithms = options.get("algorithms", Protocol().algorithms)
         for key, value in hyper.items():
             where = f'[protocol] "{key}"'
@@ -329,8 +365,9 @@ class _Checker:
         if key == "algorithms":
             for name in value:
                 if name not in ALGORITHMS:
-                    raise self.error(where, f"unknown algorithm {name!r}; available: "
-                                            f"{', '.join(ALGORITHMS)}")
+                    raise self.error(
+                        where, f"unknown algorithm {name!r}; available: {', '.join(ALGORITHMS)}"
+                    )
         return tuple(value) if isinstance(value, list) else value
 
     def protocol_object(self, options: dict, agent_configs: dict, where: str) -> Protocol:
@@ -342,11 +379,16 @@ class _Checker:
         # An outside environment (env) is checked by Protocol, with no domain/task beside it.
         if options.get("env") is None:
             if domain not in tasks.TASKS_BY_DOMAIN:
-                raise self.error("[protocol] domain", f"unknown domain {domain!r}; available: "
-                                                      f"{', '.join(tasks.TASKS_BY_DOMAIN)}")
+                raise self.error(
+                    "[protocol] domain",
+                    f"unknown domain {domain!r}; available: {', '.join(tasks.TASKS_BY_DOMAIN)}",
+                )
             if task not in tasks.TASKS_BY_DOMAIN[domain]:
-                raise self.error("[protocol] task", f"unknown task {task!r} of {domain}; "
-                                                    f"available: {', '.join(tasks.TASKS_BY_DOMAIN[domain])}")
+                raise self.error(
+                    "[protocol] task",
+                    f"unknown task {task!r} of {domain}; "
+                    f"available: {', '.join(tasks.TASKS_BY_DOMAIN[domain])}",
+                )
         try:
             return Protocol(**options, agent_configs=agent_configs)
         except (ValueError, TypeError) as error:
@@ -365,8 +407,13 @@ class _Checker:
         state_space, action_space = self._spaces[key]
         for algorithm in protocol.algorithms:
             try:
-                make_agent(algorithm, state_space, action_space,
-                           config=protocol.agent_configs.get(algorithm), seed=0)
+                make_agent(
+                    algorithm,
+                    state_space,
+                    action_space,
+                    config=protocol.agent_configs.get(algorithm),
+                    seed=0,
+                )
             except (ValueError, TypeError) as error:
                 raise self.error(where, f"{algorithm}: {error}") from None
 
@@ -377,17 +424,28 @@ class _Checker:
         if not path or not all(path):
             raise self.error(where, 'expected a hyperparameter "ALGO.FIELD", e.g. "rmac.alpha_r"')
         if algorithm not in ALGORITHMS:
-            raise self.error(where, f"unknown algorithm {algorithm!r}; available: {', '.join(ALGORITHMS)}")
+            raise self.error(
+                where, f"unknown algorithm {algorithm!r}; available: {', '.join(ALGORITHMS)}"
+            )
         if algorithm not in algorithms:
-            raise self.error(where, f"sets {algorithm}, which the protocol does not run (algorithms = "
-                                    f"{_toml(list(algorithms))})")
+            raise self.error(
+                where,
+                f"sets {algorithm}, which the protocol does not run (algorithms = "
+                f"{_toml(list(algorithms))})",
+            )
         try:
             return constraints.lookup(config_class(algorithm), path)
         except constraints.InvalidParameterError as error:
             raise self.error(where, str(error)) from None
 
-    def value(self, value: Any, allowed: list, where: str, key: str | None = None,
-              base: dict[str, Any] | None = None) -> None:
+    def value(
+        self,
+        value: Any,
+        allowed: list,
+        where: str,
+        key: str | None = None,
+        base: dict[str, Any] | None = None,
+    ) -> None:
         """Check ``value`` against the constraints ``allowed``; with ``key``, also that the
         learner's config accepts it on top of the ``base`` hyperparameters (rules that tie values
         together)."""
@@ -402,15 +460,19 @@ class _Checker:
             except (ValueError, TypeError) as error:
                 raise self.error(where, str(error)) from None
 
-    def variants(self, document: dict, algorithms, fixed: dict, grid: dict
-                 ) -> tuple[tuple[str, dict[str, Any]], ...]:
+    def variants(
+        self, document: dict, algorithms, fixed: dict, grid: dict
+    ) -> tuple[tuple[str, dict[str, Any]], ...]:
         variants, names = [], set()
         for number, table in enumerate(document.get("variant", []), start=1):
             name = table.get("name")
             label = f"[[variant]] #{number}"
             if not isinstance(name, str) or not name.strip():
-                raise self.error(f"{label} name", f"each variant needs a name (a non-empty string), "
-                                                  f"got {_toml(name) if name is not None else 'none'}")
+                raise self.error(
+                    f"{label} name",
+                    f"each variant needs a name (a non-empty string), "
+                    f"got {_toml(name) if name is not None else 'none'}",
+                )
             if name in names:
                 raise self.error(f"{label} name", f"repeats the variant name {name!r}")
             names.add(name)
@@ -437,6 +499,7 @@ def is_number(value: Any) -> bool:
 
 # ----------------------------------------------------------------------------------------------------
 # Configurations and their names.
+
 
 def value_label(value: Any) -> str:
     if isinstance(value, list):
@@ -467,31 +530,39 @@ _UNSAFE = re.compile(r"[^A-Za-z0-9._,=+-]")
 
 def configuration_name(variant: str | None, values: dict[str, Any], short: dict[str, str]) -> str:
     """A directory name from the swept values: ``[variant__]sigma=0.5__period=3``."""
-    parts = ([variant] if variant is not None else []) + \
-        [f"{short[key]}={value_label(value)}" for key, value in values.items()]
+    parts = ([variant] if variant is not None else []) + [
+        f"{short[key]}={value_label(value)}" for key, value in values.items()
+    ]
     name = _UNSAFE.sub("_", "__".join(parts)) or "base"
     return name.lstrip(".") or "base"
 
 
-def _configurations(check: _Checker, options: dict, fixed: dict, grid: dict,
-                    variants: tuple) -> tuple[Configuration, ...]:
+def _configurations(
+    check: _Checker, options: dict, fixed: dict, grid: dict, variants: tuple
+) -> tuple[Configuration, ...]:
     short = short_names(list(grid))
     configurations, seen = [], {}
-    for variant, variant_values in (variants or ((None, {}),)):
+    for variant, variant_values in variants or ((None, {}),):
         for point in itertools.product(*grid.values()):
             values = dict(zip(grid, point))
             agent_configs = nest({**fixed, **variant_values, **values})
-            where = ", ".join([f"variant {variant!r}"] * (variant is not None) +
-                              [f'"{k}" = {_toml(v)}' for k, v in values.items()]) or "[protocol]"
+            where = (
+                ", ".join(
+                    [f"variant {variant!r}"] * (variant is not None)
+                    + [f'"{k}" = {_toml(v)}' for k, v in values.items()]
+                )
+                or "[protocol]"
+            )
             protocol = check.protocol_object(options, agent_configs, f"configuration {where}")
             check.agents(protocol, f"configuration {where}")
             name = configuration_name(variant, values, short)
             if len(name) > 120 or name in seen:  # very long or (after sanitising) not unique
-                digest = hashlib.sha256(json.dumps([variant, values], sort_keys=True).encode()).hexdigest()[:8]
+                digest = hashlib.sha256(
+                    json.dumps([variant, values], sort_keys=True).encode()
+                ).hexdigest()[:8]
                 name = f"{name[:100]}-{digest}"
             seen[name] = True
-            configurations.append(Configuration(name=name, variant=variant, values=values,
-                                                protocol=protocol))
+            configurations.append(
+                Configuration(name=name, variant=variant, values=values, protocol=protocol)
+            )
     return tuple(configurations)
-
-

@@ -10,7 +10,7 @@ import functools
 import math
 import os
 import pathlib
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
@@ -20,10 +20,10 @@ from rmac_mj.errors import UserInputError
 #: Video formats :func:`write_video` writes, by file suffix.
 VIDEO_SUFFIXES: tuple[str, ...] = (".mp4", ".gif")
 
-_PANEL_GAP = 4                       # px of background between side-by-side panels
-_BACKGROUND = (24, 24, 28)           # RGB of gaps and padding
+_PANEL_GAP = 4  # px of background between side-by-side panels
+_BACKGROUND = (24, 24, 28)  # RGB of gaps and padding
 _TEXT_COLOUR = (240, 240, 240)
-_BOX_SHADE = 0.35                    # brightness factor of the box behind overlay text
+_BOX_SHADE = 0.35  # brightness factor of the box behind overlay text
 
 
 # --------------------------------------------------------------------------------------------------
@@ -52,10 +52,13 @@ def draw_text(frame: np.ndarray, lines: Sequence[str], corner: str = "top-left")
     x = margin if corner.endswith("left") else max(0, width - box_w - margin)
     y = margin if corner.startswith("top") else max(0, height - box_h - margin)
     out = frame.copy()
-    out[y:y + box_h, x:x + box_w] = (out[y:y + box_h, x:x + box_w] * _BOX_SHADE).astype(np.uint8)
+    out[y : y + box_h, x : x + box_w] = (out[y : y + box_h, x : x + box_w] * _BOX_SHADE).astype(
+        np.uint8
+    )
     image = Image.fromarray(out)
-    ImageDraw.Draw(image).multiline_text((x + margin - left, y + margin - top), text, font=font,
-                                         fill=_TEXT_COLOUR, spacing=2)
+    ImageDraw.Draw(image).multiline_text(
+        (x + margin - left, y + margin - top), text, font=font, fill=_TEXT_COLOUR, spacing=2
+    )
     return np.asarray(image)
 
 
@@ -68,8 +71,10 @@ def label_frames(frames: np.ndarray, label: str) -> np.ndarray:
 def _check_frames(frames, name: str) -> np.ndarray:
     frames = np.asarray(frames)
     if frames.ndim != 4 or frames.shape[-1] != 3 or frames.dtype != np.uint8 or len(frames) == 0:
-        raise ValueError(f"{name} must be a non-empty uint8 array of shape (T, H, W, 3), got "
-                         f"dtype {frames.dtype} and shape {frames.shape}")
+        raise ValueError(
+            f"{name} must be a non-empty uint8 array of shape (T, H, W, 3), got "
+            f"dtype {frames.dtype} and shape {frames.shape}"
+        )
     return frames
 
 
@@ -89,8 +94,9 @@ def _pad_time(frames: np.ndarray, length: int) -> np.ndarray:
     return np.concatenate([frames, np.repeat(frames[-1:], length - len(frames), axis=0)])
 
 
-def side_by_side(clips: Sequence[np.ndarray], labels: Sequence[str] | None = None,
-                 gap: int = _PANEL_GAP) -> np.ndarray:
+def side_by_side(
+    clips: Sequence[np.ndarray], labels: Sequence[str] | None = None, gap: int = _PANEL_GAP
+) -> np.ndarray:
     """Clips of one frame size played together, left to right; uint8 (T, H, W_total, 3).
 
     Shorter clips hold their last frame; ``labels`` (one per clip) are drawn top-left of each panel.
@@ -99,11 +105,15 @@ def side_by_side(clips: Sequence[np.ndarray], labels: Sequence[str] | None = Non
     if not clips:
         raise ValueError("side_by_side needs at least one clip")
     if len({clip.shape[1:] for clip in clips}) != 1:
-        raise ValueError(f"clips must share one frame size, got {[clip.shape[1:3] for clip in clips]}")
+        raise ValueError(
+            f"clips must share one frame size, got {[clip.shape[1:3] for clip in clips]}"
+        )
     labels = _check_labels(labels, len(clips))
     length = max(len(clip) for clip in clips)
-    panels = [_pad_time(label_frames(clip, label) if label else clip, length)
-              for clip, label in zip(clips, labels)]
+    panels = [
+        _pad_time(label_frames(clip, label) if label else clip, length)
+        for clip, label in zip(clips, labels)
+    ]
     _, height, _, _ = panels[0].shape
     spacer = np.empty((length, height, gap, 3), dtype=np.uint8)
     spacer[:] = _BACKGROUND
@@ -113,8 +123,9 @@ def side_by_side(clips: Sequence[np.ndarray], labels: Sequence[str] | None = Non
     return np.concatenate(parts, axis=2)
 
 
-def sequence(clips: Sequence[np.ndarray], labels: Sequence[str] | None = None,
-             hold: int = 0) -> np.ndarray:
+def sequence(
+    clips: Sequence[np.ndarray], labels: Sequence[str] | None = None, hold: int = 0
+) -> np.ndarray:
     """Clips of one frame size played one after another; uint8 (sum T_i + hold * n, H, W, 3).
 
     ``labels`` (one per clip) are drawn top-left; each clip's last frame is held ``hold`` extra frames.
@@ -123,12 +134,16 @@ def sequence(clips: Sequence[np.ndarray], labels: Sequence[str] | None = None,
     if not clips:
         raise ValueError("sequence needs at least one clip")
     if len({clip.shape[1:] for clip in clips}) != 1:
-        raise ValueError(f"clips must share one frame size, got {[clip.shape[1:3] for clip in clips]}")
+        raise ValueError(
+            f"clips must share one frame size, got {[clip.shape[1:3] for clip in clips]}"
+        )
     if not isinstance(hold, (int, np.integer)) or hold < 0:
         raise ValueError(f"hold must be an integer >= 0 (frames), got {hold!r}")
     labels = _check_labels(labels, len(clips))
-    parts = [_pad_time(label_frames(clip, label) if label else clip, len(clip) + hold)
-             for clip, label in zip(clips, labels)]
+    parts = [
+        _pad_time(label_frames(clip, label) if label else clip, len(clip) + hold)
+        for clip, label in zip(clips, labels)
+    ]
     return np.concatenate(parts, axis=0)
 
 
@@ -136,8 +151,9 @@ def sequence(clips: Sequence[np.ndarray], labels: Sequence[str] | None = None,
 # Video files
 
 
-def write_video(frames: np.ndarray, path: str | os.PathLike, fps: float, scale: float = 1.0,
-                frame_step: int = 1) -> pathlib.Path:
+def write_video(
+    frames: np.ndarray, path: str | os.PathLike, fps: float, scale: float = 1.0, frame_step: int = 1
+) -> pathlib.Path:
     """Write ``frames`` (uint8, (T, H, W, 3)) to ``path``: ``.mp4`` (H.264) or ``.gif``.
 
     Args:
@@ -167,8 +183,9 @@ def write_video(frames: np.ndarray, path: str | os.PathLike, fps: float, scale: 
     if scale != 1:
         _, height, width, _ = frames.shape
         size = (max(2, round(width * scale)), max(2, round(height * scale)))
-        frames = np.stack([np.asarray(Image.fromarray(f).resize(size, Image.Resampling.LANCZOS))
-                           for f in frames])
+        frames = np.stack(
+            [np.asarray(Image.fromarray(f).resize(size, Image.Resampling.LANCZOS)) for f in frames]
+        )
     path.parent.mkdir(parents=True, exist_ok=True)
     if suffix == ".mp4":
         _write_mp4(frames, path, fps)
@@ -183,9 +200,16 @@ def _write_mp4(frames: np.ndarray, path: pathlib.Path, fps: float) -> None:
     _, height, width, _ = frames.shape
     # yuv420p halves the chroma resolution, so H.264 needs even sizes: pad with the last row/column.
     frames = np.pad(frames, ((0, 0), (0, height % 2), (0, width % 2), (0, 0)), mode="edge")
-    writer = imageio_ffmpeg.write_frames(str(path), (frames.shape[2], frames.shape[1]), fps=fps,
-                                         codec="libx264", pix_fmt_out="yuv420p", macro_block_size=1,
-                                         quality=7, ffmpeg_log_level="error")
+    writer = imageio_ffmpeg.write_frames(
+        str(path),
+        (frames.shape[2], frames.shape[1]),
+        fps=fps,
+        codec="libx264",
+        pix_fmt_out="yuv420p",
+        macro_block_size=1,
+        quality=7,
+        ffmpeg_log_level="error",
+    )
     writer.send(None)  # start ffmpeg
     try:
         for frame in frames:
@@ -217,10 +241,15 @@ def gif_timing(count: int, fps: float) -> tuple[int, np.ndarray]:
 def _write_gif(frames: np.ndarray, path: pathlib.Path, fps: float) -> None:
     step, delays = gif_timing(len(frames), fps)
     images = [Image.fromarray(frame) for frame in frames[::step]]
-    images[0].save(path, save_all=True, append_images=images[1:], loop=0, optimize=True, disposal=1,
-                   duration=[int(10 * d) for d in delays])  # ms, whole centiseconds
-
-
+    images[0].save(
+        path,
+        save_all=True,
+        append_images=images[1:],
+        loop=0,
+        optimize=True,
+        disposal=1,
+        duration=[int(10 * d) for d in delays],
+    )  # ms, whole centiseconds
 
 
 def check_video_path(out_path) -> None:

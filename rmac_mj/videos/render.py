@@ -20,7 +20,8 @@ import os
 import pathlib
 import re
 import time
-from typing import TYPE_CHECKING, Callable, Union
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Union
 
 import numpy as np
 from dm_control.rl import control
@@ -28,8 +29,8 @@ from PIL import Image
 
 from rmac_mj._gl import open_renderer
 from rmac_mj.agents import Agent
-from rmac_mj.videos import encode as video
 from rmac_mj.rollout import learner_state_of, n_sub_steps, state_of
+from rmac_mj.videos import encode as video
 
 if TYPE_CHECKING:  # mujoco is imported after the GL back end is chosen (rmac_mj._gl)
     import mujoco
@@ -40,7 +41,6 @@ Policy = Callable[[np.ndarray], np.ndarray]
 #: A camera: a name or id of the model's cameras, a ``mujoco.MjvCamera``, or None for the model's first
 #: camera (the free camera if it has none).
 Camera = Union[str, int, None, "mujoco.MjvCamera"]
-
 
 
 @dataclasses.dataclass(frozen=True)
@@ -79,10 +79,17 @@ class RenderedEpisode:
 # Rendering
 
 
-def render_episode(env: control.Environment, agent: Agent | None = None, policy: Policy | None = None,
-                   width: int = 320, height: int = 240, camera: Camera = None,
-                   frames_per_step: int = 1, overlay: bool = True,
-                   label: str | None = None) -> RenderedEpisode:
+def render_episode(
+    env: control.Environment,
+    agent: Agent | None = None,
+    policy: Policy | None = None,
+    width: int = 320,
+    height: int = 240,
+    camera: Camera = None,
+    frames_per_step: int = 1,
+    overlay: bool = True,
+    label: str | None = None,
+) -> RenderedEpisode:
     """Run one greedy episode of ``env`` and render it.
 
     Args:
@@ -105,19 +112,30 @@ def render_episode(env: control.Environment, agent: Agent | None = None, policy:
     physics = getattr(env, "physics", None)
     if physics is None:
         if frames_per_step != 1:
-            raise ValueError(f"frames_per_step must be 1 for an environment that draws its own "
-                             f"frames, got {frames_per_step!r}")
+            raise ValueError(
+                f"frames_per_step must be 1 for an environment that draws its own "
+                f"frames, got {frames_per_step!r}"
+            )
         return _render_own_frames(env, act, overlay, label)
     learner_state = learner_state_of(env)
     n_sub = n_sub_steps(env)
-    if (not isinstance(frames_per_step, (int, np.integer)) or isinstance(frames_per_step, bool)
-            or frames_per_step < 1 or n_sub % frames_per_step):
-        raise ValueError(f"frames_per_step must be a positive divisor of the {n_sub} physics substeps "
-                         f"per control step, got {frames_per_step!r}")
+    if (
+        not isinstance(frames_per_step, (int, np.integer))
+        or isinstance(frames_per_step, bool)
+        or frames_per_step < 1
+        or n_sub % frames_per_step
+    ):
+        raise ValueError(
+            f"frames_per_step must be a positive divisor of the {n_sub} physics substeps "
+            f"per control step, got {frames_per_step!r}"
+        )
     import mujoco
 
     spec = env.action_spec()
-    a_low, a_high = np.broadcast_to(spec.minimum, spec.shape), np.broadcast_to(spec.maximum, spec.shape)
+    a_low, a_high = (
+        np.broadcast_to(spec.minimum, spec.shape),
+        np.broadcast_to(spec.maximum, spec.shape),
+    )
     substeps_per_frame = n_sub // frames_per_step
     frames, times, states, actions, returns = [], [], [], [], []
     total = 0.0
@@ -148,15 +166,22 @@ def render_episode(env: control.Environment, agent: Agent | None = None, policy:
                 for substep in range(1, n_sub):
                     mujoco.mj_step(scratch.model.ptr, scratch.data.ptr)
                     if substep % substeps_per_frame == 0:
-                        mujoco.mj_forward(scratch.model.ptr, scratch.data.ptr)  # positions for drawing
+                        mujoco.mj_forward(
+                            scratch.model.ptr, scratch.data.ptr
+                        )  # positions for drawing
                         record(scratch, state_of(observe(scratch), learner_state), applied)
             total += float(timestep.reward)
             record(physics, state_of(timestep.observation, learner_state), applied)
-    episode = RenderedEpisode(frames=np.stack(frames), times=np.array(times), states=np.array(states),
-                              actions=np.array(actions).reshape(len(frames), -1),
-                              returns=np.array(returns), fps=frames_per_step / env.control_timestep(),
-                              state_labels=learner_state.labels,
-                              action_labels=learner_state.action_labels)
+    episode = RenderedEpisode(
+        frames=np.stack(frames),
+        times=np.array(times),
+        states=np.array(states),
+        actions=np.array(actions).reshape(len(frames), -1),
+        returns=np.array(returns),
+        fps=frames_per_step / env.control_timestep(),
+        state_labels=learner_state.labels,
+        action_labels=learner_state.action_labels,
+    )
     if overlay:
         episode = dataclasses.replace(episode, frames=draw_overlay(episode, label=label))
     return episode
@@ -166,7 +191,10 @@ def _render_own_frames(env, act: Policy, overlay: bool, label: str | None) -> Re
     """A greedy episode of an environment that draws its own frames (``env.render_frame()``)."""
     learner_state = learner_state_of(env)
     spec = env.action_spec()
-    a_low, a_high = np.broadcast_to(spec.minimum, spec.shape), np.broadcast_to(spec.maximum, spec.shape)
+    a_low, a_high = (
+        np.broadcast_to(spec.minimum, spec.shape),
+        np.broadcast_to(spec.maximum, spec.shape),
+    )
     frames, states, actions, returns = [], [], [], []
     total, u = 0.0, np.zeros(spec.shape)
     timestep = env.reset()
@@ -182,10 +210,16 @@ def _render_own_frames(env, act: Policy, overlay: bool, label: str | None) -> Re
         timestep = env.step(u)
         total += float(timestep.reward)
     dt = env.control_timestep()
-    episode = RenderedEpisode(frames=np.stack(frames), times=dt * np.arange(len(frames)),
-                              states=np.array(states), actions=np.array(actions).reshape(len(frames), -1),
-                              returns=np.array(returns), fps=1.0 / dt, state_labels=learner_state.labels,
-                              action_labels=learner_state.action_labels)
+    episode = RenderedEpisode(
+        frames=np.stack(frames),
+        times=dt * np.arange(len(frames)),
+        states=np.array(states),
+        actions=np.array(actions).reshape(len(frames), -1),
+        returns=np.array(returns),
+        fps=1.0 / dt,
+        state_labels=learner_state.labels,
+        action_labels=learner_state.action_labels,
+    )
     if overlay:
         episode = dataclasses.replace(episode, frames=draw_overlay(episode, label=label))
     return episode
@@ -200,8 +234,10 @@ def _camera(model, camera):
 
 def _acting_function(agent: Agent | None, policy: Policy | None) -> Policy:
     if (agent is None) == (policy is None):
-        raise ValueError("give exactly one of agent (an Agent) and policy (a function x -> u), got "
-                         f"agent={agent!r}, policy={policy!r}")
+        raise ValueError(
+            "give exactly one of agent (an Agent) and policy (a function x -> u), got "
+            f"agent={agent!r}, policy={policy!r}"
+        )
     if agent is not None:
         if not isinstance(agent, Agent):
             raise TypeError(f"agent must be an rmac_mj Agent, got {type(agent).__name__}")
@@ -212,8 +248,9 @@ def _acting_function(agent: Agent | None, policy: Policy | None) -> Policy:
     return policy
 
 
-def render_state(env: control.Environment, qpos, width: int = 480, height: int = 360,
-                 camera: Camera = None) -> np.ndarray:
+def render_state(
+    env: control.Environment, qpos, width: int = 480, height: int = 360, camera: Camera = None
+) -> np.ndarray:
     """One picture of ``env``'s model at rest at joint positions ``qpos`` (shape (nq,), or a scalar
     for a one-joint model); uint8 (H, W, 3)."""
     import mujoco
@@ -240,8 +277,15 @@ def free_camera(model, azimuth: float = 65.0, elevation: float = -12.0, zoom: fl
     return camera
 
 
-def model_picture(domain: str, task: str, out_path: str | os.PathLike, qpos=None,
-                  camera: Camera = None, width: int = 480, height: int = 360) -> pathlib.Path:
+def model_picture(
+    domain: str,
+    task: str,
+    out_path: str | os.PathLike,
+    qpos=None,
+    camera: Camera = None,
+    width: int = 480,
+    height: int = 360,
+) -> pathlib.Path:
     """Write a picture of a domain's model (e.g. the one in its ``models/<name>/README.md``).
 
     ``qpos`` (default: the task's start) poses the model; ``camera`` as in :func:`render_state`.
@@ -260,8 +304,13 @@ def model_picture(domain: str, task: str, out_path: str | os.PathLike, qpos=None
     return out_path
 
 
-def measure_fps(domain: str | None = None, task: str | None = None, width: int = 320,
-                height: int = 240, frames: int = 200) -> float:
+def measure_fps(
+    domain: str | None = None,
+    task: str | None = None,
+    width: int = 320,
+    height: int = 240,
+    frames: int = 200,
+) -> float:
     """Frames per second of the off-screen renderer here (scene update + render + read-back), on
     ``domain``/``task`` (default: the suite's default task)."""
     from rmac_mj import tasks
@@ -312,10 +361,14 @@ def draw_overlay(episode: RenderedEpisode, label: str | None = None) -> np.ndarr
     without labels, as x1, x2, ... and u1, ....
     """
     n, m = episode.states.shape[1], episode.actions.shape[1]
-    state_labels = episode.state_labels if len(episode.state_labels) == n else [
-        f"x{k + 1}" for k in range(n)]
-    action_labels = episode.action_labels if len(episode.action_labels) == m else [
-        f"u{k + 1}" for k in range(m)]
+    state_labels = (
+        episode.state_labels if len(episode.state_labels) == n else [f"x{k + 1}" for k in range(n)]
+    )
+    action_labels = (
+        episode.action_labels
+        if len(episode.action_labels) == m
+        else [f"u{k + 1}" for k in range(m)]
+    )
     out = np.empty_like(episode.frames)
     for i, frame in enumerate(episode.frames):
         lines = [f"t = {episode.times[i]:4.2f} s"]

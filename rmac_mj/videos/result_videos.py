@@ -9,21 +9,28 @@ from __future__ import annotations
 
 import os
 import pathlib
-from typing import Sequence
+from collections.abc import Sequence
 
 from rmac_mj.agents import display_name
 from rmac_mj.errors import MissingInputError, UserInputError
-from rmac_mj.videos import encode as video
-from rmac_mj.videos.render import Camera, RenderedEpisode, render_episode
 from rmac_mj.results.snapshots import load_snapshot, snapshot_environment
 from rmac_mj.results.store import ResultStore
+from rmac_mj.videos import encode as video
+from rmac_mj.videos.render import Camera, RenderedEpisode, render_episode
 
 
-def render_snapshot_episode(snapshot_path: str | os.PathLike, width: int = 320, height: int = 240,
-                            camera: Camera = None, frames_per_step: int = 1,
-                            overlay: bool = True, label: str | None = None,
-                            domain: str | None = None, task: str | None = None,
-                            env: str | None = None) -> RenderedEpisode:
+def render_snapshot_episode(
+    snapshot_path: str | os.PathLike,
+    width: int = 320,
+    height: int = 240,
+    camera: Camera = None,
+    frames_per_step: int = 1,
+    overlay: bool = True,
+    label: str | None = None,
+    domain: str | None = None,
+    task: str | None = None,
+    env: str | None = None,
+) -> RenderedEpisode:
     """Render the greedy episode of the agent saved at ``snapshot_path``.
 
     The episode runs on the task the agent learned on, or on ``domain``/``task`` when given (with
@@ -37,37 +44,76 @@ def render_snapshot_episode(snapshot_path: str | os.PathLike, width: int = 320, 
         label = display_name(meta["algorithm"])
         if meta.get("trial") is not None:
             label += f", trial {meta['trial']}"
-    return render_episode(env, agent, width=width, height=height, camera=camera,
-                          frames_per_step=frames_per_step, overlay=overlay, label=label)
+    return render_episode(
+        env,
+        agent,
+        width=width,
+        height=height,
+        camera=camera,
+        frames_per_step=frames_per_step,
+        overlay=overlay,
+        label=label,
+    )
 
 
-def render_snapshot(snapshot_path: str | os.PathLike, out_path: str | os.PathLike, width: int = 320,
-                    height: int = 240, camera: Camera = None, frames_per_step: int = 1,
-                    overlay: bool = True, scale: float = 1.0, frame_step: int = 1,
-                    domain: str | None = None, task: str | None = None,
-                    env: str | None = None) -> pathlib.Path:
+def render_snapshot(
+    snapshot_path: str | os.PathLike,
+    out_path: str | os.PathLike,
+    width: int = 320,
+    height: int = 240,
+    camera: Camera = None,
+    frames_per_step: int = 1,
+    overlay: bool = True,
+    scale: float = 1.0,
+    frame_step: int = 1,
+    domain: str | None = None,
+    task: str | None = None,
+    env: str | None = None,
+) -> pathlib.Path:
     """Render a snapshot's greedy episode to ``out_path`` (.mp4 or .gif) at real-time speed (on
     ``domain``/``task`` or ``env`` when given, see :func:`render_snapshot_episode`)."""
     video.check_video_path(out_path)
-    episode = render_snapshot_episode(snapshot_path, width, height, camera, frames_per_step, overlay,
-                                      domain=domain, task=task, env=env)
-    return video.write_video(episode.frames, out_path, episode.fps, scale=scale,
-                             frame_step=frame_step)
+    episode = render_snapshot_episode(
+        snapshot_path,
+        width,
+        height,
+        camera,
+        frames_per_step,
+        overlay,
+        domain=domain,
+        task=task,
+        env=env,
+    )
+    return video.write_video(
+        episode.frames, out_path, episode.fps, scale=scale, frame_step=frame_step
+    )
 
 
-def _pick_trials(available: dict[int, pathlib.Path], trials: Sequence[int], where: str) -> list[int]:
+def _pick_trials(
+    available: dict[int, pathlib.Path], trials: Sequence[int], where: str
+) -> list[int]:
     missing = [t for t in trials if t not in available]
     if missing:
-        raise MissingInputError(f"no snapshot after trial(s) {missing} in {where}; "
-                                f"available: {sorted(available)}")
+        raise MissingInputError(
+            f"no snapshot after trial(s) {missing} in {where}; available: {sorted(available)}"
+        )
     return list(trials)
 
 
-def render_progression(result_dir: str | os.PathLike, out_path: str | os.PathLike, experiment: int = 0,
-                       algorithm: str | None = None, trials: Sequence[int] | None = None,
-                       layout: str = "sequence", width: int = 320, height: int = 240,
-                       frames_per_step: int = 1, overlay: bool = True, scale: float = 1.0,
-                       frame_step: int = 1) -> pathlib.Path:
+def render_progression(
+    result_dir: str | os.PathLike,
+    out_path: str | os.PathLike,
+    experiment: int = 0,
+    algorithm: str | None = None,
+    trials: Sequence[int] | None = None,
+    layout: str = "sequence",
+    width: int = 320,
+    height: int = 240,
+    frames_per_step: int = 1,
+    overlay: bool = True,
+    scale: float = 1.0,
+    frame_step: int = 1,
+) -> pathlib.Path:
     """One experiment's greedy episode after several trials, labelled, to ``out_path``.
 
     Args:
@@ -82,29 +128,56 @@ def render_progression(result_dir: str | os.PathLike, out_path: str | os.PathLik
     if algorithm is None:
         algorithms = ResultStore(result_dir).snapshot_algorithms()
         if not algorithms:
-            raise MissingInputError(f"no snapshots in {result_dir} (expected {result_dir}/snapshots/"
-                                    "<algorithm>/exp_<iii>/trial_<tttt>.npz)")
+            raise MissingInputError(
+                f"no snapshots in {result_dir} (expected {result_dir}/snapshots/"
+                "<algorithm>/exp_<iii>/trial_<tttt>.npz)"
+            )
         if "rmac" not in algorithms and len(algorithms) > 1:
-            raise UserInputError(f"several algorithms have snapshots in {result_dir} ({algorithms}); "
-                             "choose one with algorithm=")
+            raise UserInputError(
+                f"several algorithms have snapshots in {result_dir} ({algorithms}); "
+                "choose one with algorithm="
+            )
         algorithm = "rmac" if "rmac" in algorithms else algorithms[0]
     available = ResultStore(result_dir).snapshot_trials(algorithm, experiment)
-    chosen = _pick_trials(available, list(available) if trials is None else list(trials),
-                          f"{result_dir} ({algorithm}, experiment {experiment})")
-    episodes = [render_snapshot_episode(available[t], width, height, frames_per_step=frames_per_step,
-                                        overlay=overlay, label=f"{display_name(algorithm)}, trial {t}")
-                for t in chosen]
+    chosen = _pick_trials(
+        available,
+        list(available) if trials is None else list(trials),
+        f"{result_dir} ({algorithm}, experiment {experiment})",
+    )
+    episodes = [
+        render_snapshot_episode(
+            available[t],
+            width,
+            height,
+            frames_per_step=frames_per_step,
+            overlay=overlay,
+            label=f"{display_name(algorithm)}, trial {t}",
+        )
+        for t in chosen
+    ]
     clips = [episode.frames for episode in episodes]
     fps = episodes[0].fps
-    frames = (video.sequence(clips, hold=int(round(0.5 * fps))) if layout == "sequence"
-              else video.side_by_side(clips))
+    frames = (
+        video.sequence(clips, hold=int(round(0.5 * fps)))
+        if layout == "sequence"
+        else video.side_by_side(clips)
+    )
     return video.write_video(frames, out_path, fps, scale=scale, frame_step=frame_step)
 
 
-def render_comparison(result_dir: str | os.PathLike, out_path: str | os.PathLike, trial: int | None = None,
-                      experiment: int = 0, algorithms: Sequence[str] = ("s-ac", "rmac"),
-                      width: int = 320, height: int = 240, frames_per_step: int = 1,
-                      overlay: bool = True, scale: float = 1.0, frame_step: int = 1) -> pathlib.Path:
+def render_comparison(
+    result_dir: str | os.PathLike,
+    out_path: str | os.PathLike,
+    trial: int | None = None,
+    experiment: int = 0,
+    algorithms: Sequence[str] = ("s-ac", "rmac"),
+    width: int = 320,
+    height: int = 240,
+    frames_per_step: int = 1,
+    overlay: bool = True,
+    scale: float = 1.0,
+    frame_step: int = 1,
+) -> pathlib.Path:
     """``algorithms`` side by side after the same ``trial`` (None: the last both have), to ``out_path``."""
     video.check_video_path(out_path)
     store = ResultStore(result_dir)
@@ -112,14 +185,19 @@ def render_comparison(result_dir: str | os.PathLike, out_path: str | os.PathLike
     if trial is None:
         common = set.intersection(*(set(trials) for trials in available.values()))
         if not common:
-            raise MissingInputError(f"{list(algorithms)} share no snapshot trial in {result_dir} "
-                                    f"(experiment {experiment}): "
-                                    f"{ {a: sorted(t) for a, t in available.items()} }")
+            raise MissingInputError(
+                f"{list(algorithms)} share no snapshot trial in {result_dir} "
+                f"(experiment {experiment}): "
+                f"{ {a: sorted(t) for a, t in available.items()} }"
+            )
         trial = max(common)
     for algorithm, trials in available.items():
         _pick_trials(trials, [trial], f"{result_dir} ({algorithm}, experiment {experiment})")
-    episodes = [render_snapshot_episode(available[a][trial], width, height,
-                                        frames_per_step=frames_per_step, overlay=overlay)
-                for a in algorithms]
+    episodes = [
+        render_snapshot_episode(
+            available[a][trial], width, height, frames_per_step=frames_per_step, overlay=overlay
+        )
+        for a in algorithms
+    ]
     frames = video.side_by_side([episode.frames for episode in episodes])
     return video.write_video(frames, out_path, episodes[0].fps, scale=scale, frame_step=frame_step)

@@ -9,7 +9,14 @@ import numpy as np
 import pytest
 from learners import quick_config
 
-from rmac_mj.agents import ALGORITHMS, ActionSpace, Exploration, StateSpace, config_class, make_agent
+from rmac_mj.agents import (
+    ALGORITHMS,
+    ActionSpace,
+    Exploration,
+    StateSpace,
+    config_class,
+    make_agent,
+)
 
 BACKENDS = ("numba", "numpy")
 
@@ -61,8 +68,10 @@ def test_spaces_and_exploration_reject_bad_values():
 
 # -- the shared boundary and a whole state, for every registered learner ---------------------------
 
+
 def _pendulum_env():
     from rmac_mj import tasks
+
     return tasks.load("dc_pendulum", "swingup")
 
 
@@ -121,8 +130,9 @@ def test_a_copy_restored_mid_trial_continues_exactly_like_the_original(algorithm
 
     env = _pendulum_env()
     S, U = state_space_of(env), action_space_of(env)
-    original = make_agent(algorithm, S, U, config=quick_config(algorithm),
-                          seed=np.random.default_rng(4))
+    original = make_agent(
+        algorithm, S, U, config=quick_config(algorithm), seed=np.random.default_rng(4)
+    )
     for _ in range(3):
         run_trial(env, original)
     # Stop in the middle of a trial (step 37 of 100), after exploring steps have drawn from the rng.
@@ -169,14 +179,32 @@ def test_learn_is_the_update_of_a_control_step(learner, backend):
     1-3): a step acts, then learns its transition with V_{k-1}. ``model=False`` (a simulated
     transition) leaves the process model as it was and learns the rest."""
     rng = np.random.default_rng(0)
-    A, B, c = np.eye(2) + 0.1 * rng.normal(size=(2, 2)), rng.normal(size=(2, 1)), 0.1 * rng.normal(size=2)
+    A, B, c = (
+        np.eye(2) + 0.1 * rng.normal(size=(2, 2)),
+        rng.normal(size=(2, 1)),
+        0.1 * rng.normal(size=2),
+    )
     S = StateSpace(low=-10 * np.ones(2), high=10 * np.ones(2), periodic=np.zeros(2, bool))
     U = ActionSpace(low=-3.0 * np.ones(1), high=3.0 * np.ones(1), cost=np.ones(1))
-    small = (dict(critic_capacity=30, reference_capacity=25, process_capacity=12,
-                  critic_neighbours=5, reference_neighbours=4, process_neighbours=4)
-             if learner == "rmac" else
-             dict(critic_capacity=30, actor_capacity=25, process_capacity=12, critic_neighbours=5,
-                  actor_neighbours=4, process_neighbours=4))
+    small = (
+        dict(
+            critic_capacity=30,
+            reference_capacity=25,
+            process_capacity=12,
+            critic_neighbours=5,
+            reference_neighbours=4,
+            process_neighbours=4,
+        )
+        if learner == "rmac"
+        else dict(
+            critic_capacity=30,
+            actor_capacity=25,
+            process_capacity=12,
+            critic_neighbours=5,
+            actor_neighbours=4,
+            process_neighbours=4,
+        )
+    )
     agent = make_agent(learner, S, U, config=dict(backend=backend, **small), seed=1)
     rng = np.random.default_rng(2)
     for _ in range(3):  # fill (and overfill) the memories
@@ -198,8 +226,9 @@ def test_learn_is_the_update_of_a_control_step(learner, backend):
     v1 = twin.learn(x0, u0, -1.5, x1, v=float(before["v_prev"]))
     assert v1 == float(stepped["v_prev"])  # V(x1), as the step's V_k
     learned = twin.state_dict()
-    memories = [key for key in before if key.split(".")[0] in ("process", "reference", "critic",
-                                                                 "actor")]
+    memories = [
+        key for key in before if key.split(".")[0] in ("process", "reference", "critic", "actor")
+    ]
     for key in memories + ["traces"]:
         np.testing.assert_array_equal(learned[key], stepped[key], err_msg=key)
     assert not np.array_equal(learned["critic.Y"], before["critic.Y"])
@@ -225,7 +254,9 @@ PAPER_LEARNERS = ("rmac", "s-ac", "mlac")
 
 @pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("algorithm", PAPER_LEARNERS)
-def test_a_state_that_overflows_the_arithmetic_is_refused_before_anything_changes(algorithm, backend):
+def test_a_state_that_overflows_the_arithmetic_is_refused_before_anything_changes(
+    algorithm, backend
+):
     # Issue 20: agent.step(-1., [0.5, 1e300]) made RMAC's actions NaN and its memories hold NaN.
     agent = make_agent(algorithm, STATES, ACTIONS, config=dict(backend=backend), seed=0)
     agent.start(np.array([0.5, 0.0]))
@@ -247,12 +278,16 @@ def test_a_state_that_overflows_the_arithmetic_is_refused_before_anything_change
 
 @pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("algorithm", PAPER_LEARNERS)
-def test_a_transition_that_overflows_is_refused_and_nothing_non_finite_is_stored(algorithm, backend):
+def test_a_transition_that_overflows_is_refused_and_nothing_non_finite_is_stored(
+    algorithm, backend
+):
     # Finite rewards near the largest float drive the TD error past it: refused, never stored.
     agent = make_agent(algorithm, STATES, ACTIONS, config=dict(backend=backend), seed=0)
     agent.start(np.array([0.5, 0.0]))
-    with pytest.raises(ValueError, match="overflows the learner's arithmetic"), \
-            np.errstate(over="ignore", invalid="ignore"):  # the numpy version meets the overflow
+    with (
+        pytest.raises(ValueError, match="overflows the learner's arithmetic"),
+        np.errstate(over="ignore", invalid="ignore"),
+    ):  # the numpy version meets the overflow
         for k in range(1, 50):
             agent.step(1.7e308, np.array([0.5, 0.01 * k]))
     for key, value in agent.state_dict().items():
@@ -292,15 +327,17 @@ def test_restore_names_what_is_wrong_before_anything_changes(algorithm):
 def test_restore_checks_the_learners_own_rules():
     agent = make_agent("rmac", STATES, ACTIONS, seed=0)
     state = agent.state_dict()
-    for change, named in ((("critic.meta", np.array([3000, 3000])), "'critic.meta'"),
-                          (("traces", np.full_like(state["traces"], 2.0)), "'traces'"),
-                          (("k", np.array(-1)), "'k'")):
+    for change, named in (
+        (("critic.meta", np.array([3000, 3000])), "'critic.meta'"),
+        (("traces", np.full_like(state["traces"], 2.0)), "'traces'"),
+        (("k", np.array(-1)), "'k'"),
+    ):
         with pytest.raises(ValueError, match=named):
             agent.load_state_dict({**state, change[0]: change[1]})
     sac = make_agent("s-ac", STATES, ACTIONS, seed=0)
     state = sac.state_dict()
     with pytest.raises(ValueError, match="'tiles'"):
-        sac.load_state_dict({**state, "tiles": state["tiles"] + 10 ** 6})
+        sac.load_state_dict({**state, "tiles": state["tiles"] + 10**6})
 
 
 @pytest.mark.parametrize("algorithm", PAPER_LEARNERS)
@@ -308,10 +345,14 @@ def test_memory_estimate_is_what_the_learner_allocates(algorithm):
     """The estimate from the config alone matches what building the learner and taking two copies
     of its state (a snapshot) allocate."""
     import tracemalloc
+
     from rmac_mj.agents import memory_estimate
-    big = {"rmac": dict(critic_capacity=60000, reference_capacity=50000, process_capacity=20000),
-           "mlac": dict(critic_capacity=60000, actor_capacity=50000, process_capacity=20000),
-           "s-ac": dict(tile_coding={"num_tilings": 64, "tiles": 60})}[algorithm]
+
+    big = {
+        "rmac": dict(critic_capacity=60000, reference_capacity=50000, process_capacity=20000),
+        "mlac": dict(critic_capacity=60000, actor_capacity=50000, process_capacity=20000),
+        "s-ac": dict(tile_coding={"num_tilings": 64, "tiles": 60}),
+    }[algorithm]
     estimate = memory_estimate(algorithm, STATES, ACTIONS, big)
     tracemalloc.start()
     agent = make_agent(algorithm, STATES, ACTIONS, config=big, seed=0)
@@ -338,25 +379,32 @@ def test_memory_estimate_needs_no_memory_for_what_cannot_fit(tmp_path):
         "try:\n"
         "    make_agent('rmac', S, U, config=big)\n"
         "except MemoryError:\n"
-        "    print('MemoryError')\n")
-    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                            timeout=300)
+        "    print('MemoryError')\n"
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=300
+    )
     estimate, outcome = result.stdout.split()
     assert int(estimate) > 24 * 2**30 and outcome == "MemoryError", result.stderr
 
 
 #: Per learner, the hyperparameter its memory grows with, at two sizes.
-_SIZES = {"rmac": ("critic_capacity", 2000, 20000), "mlac": ("actor_capacity", 2000, 20000),
-          "s-ac": ("tile_coding", {"tiles": 7}, {"tiles": 70}),
-          "recommended": ("tile_coding", {"tiles": 7}, {"tiles": 70}),
-          "sb3-sac": ("buffer_size", 10 ** 4, 10 ** 6), "sb3-td3": ("buffer_size", 10 ** 4, 10 ** 6),
-          "sb3-ppo": ("n_steps", 256, 8192)}
+_SIZES = {
+    "rmac": ("critic_capacity", 2000, 20000),
+    "mlac": ("actor_capacity", 2000, 20000),
+    "s-ac": ("tile_coding", {"tiles": 7}, {"tiles": 70}),
+    "recommended": ("tile_coding", {"tiles": 7}, {"tiles": 70}),
+    "sb3-sac": ("buffer_size", 10**4, 10**6),
+    "sb3-td3": ("buffer_size", 10**4, 10**6),
+    "sb3-ppo": ("n_steps", 256, 8192),
+}
 
 
 @pytest.mark.parametrize("algorithm", ALGORITHMS)
 def test_every_learner_estimates_its_memory_from_its_config(algorithm):
     # What a runner asks before it starts workers: an answer for every registered learner.
     from rmac_mj.agents import memory_estimate
+
     name, small, large = _SIZES[algorithm]
     at_small = memory_estimate(algorithm, STATES, ACTIONS, {name: small})
     at_large = memory_estimate(algorithm, STATES, ACTIONS, {name: large})

@@ -4,9 +4,8 @@ the real update, and both back ends rehearse alike."""
 import itertools
 
 import numpy as np
-import pytest
-
 import plain_pendulum
+import pytest
 
 from rmac_mj.agents import make_agent
 from rmac_mj.agents.base import ActionSpace, StateSpace
@@ -17,15 +16,37 @@ from rmac_mj.constraints import InvalidParameterError
 LEARNERS = ("rmac", "s-ac", "mlac")
 
 #: The pendulum's spaces as the dc_pendulum task gives them (Table 2's weights, the reward's costs).
-PENDULUM = (StateSpace(low=[-np.pi, -8 * np.pi], high=[np.pi, 8 * np.pi], periodic=[True, False],
-                       input_weights=[1.0, 0.1], cost=[5.0, 0.1], reward_scale=PAPER_REWARD_SCALE),
-            ActionSpace(low=[-3.0], high=[3.0], cost=[1.0]))
+PENDULUM = (
+    StateSpace(
+        low=[-np.pi, -8 * np.pi],
+        high=[np.pi, 8 * np.pi],
+        periodic=[True, False],
+        input_weights=[1.0, 0.1],
+        cost=[5.0, 0.1],
+        reward_scale=PAPER_REWARD_SCALE,
+    ),
+    ActionSpace(low=[-3.0], high=[3.0], cost=[1.0]),
+)
 #: Memories small enough to fill (and replace) within the first trials of these tests.
-SMALL = {"rmac": dict(critic_capacity=60, reference_capacity=50, process_capacity=20,
-                      critic_neighbours=5, reference_neighbours=4, process_neighbours=4),
-         "mlac": dict(actor_capacity=60, critic_capacity=60, process_capacity=20,
-                      actor_neighbours=5, critic_neighbours=5, process_neighbours=4),
-         "s-ac": {}}
+SMALL = {
+    "rmac": dict(
+        critic_capacity=60,
+        reference_capacity=50,
+        process_capacity=20,
+        critic_neighbours=5,
+        reference_neighbours=4,
+        process_neighbours=4,
+    ),
+    "mlac": dict(
+        actor_capacity=60,
+        critic_capacity=60,
+        process_capacity=20,
+        actor_neighbours=5,
+        critic_neighbours=5,
+        process_neighbours=4,
+    ),
+    "s-ac": {},
+}
 
 
 def _pendulum_trial(agent, steps=30, x0=(-np.pi, 0.0)):
@@ -48,9 +69,18 @@ def _pendulum_trial(agent, steps=30, x0=(-np.pi, 0.0)):
 @pytest.mark.parametrize("learner", LEARNERS)
 def test_zero_steps_is_the_learner_without_planning_bit_for_bit(learner):
     # Every other planning and replay setting changed: with 0 steps none of them may matter.
-    off = dict(planning=Planning(steps=0, horizon=7, start="memory", reward="task",
-                                 model_capacity=50, model_neighbours=3, clip=False),
-               replay=Replay(steps=0, order="forward", capacity=10))
+    off = dict(
+        planning=Planning(
+            steps=0,
+            horizon=7,
+            start="memory",
+            reward="task",
+            model_capacity=50,
+            model_neighbours=3,
+            clip=False,
+        ),
+        replay=Replay(steps=0, order="forward", capacity=10),
+    )
     plain = make_agent(learner, *PENDULUM, config=SMALL[learner], seed=5)
     switched_off = make_agent(learner, *PENDULUM, config=dict(SMALL[learner], **off), seed=5)
     assert switched_off.rehearsal is None
@@ -64,9 +94,12 @@ def test_zero_steps_is_the_learner_without_planning_bit_for_bit(learner):
 # -- a model that holds the true dynamics --------------------------------------------------------
 
 DT = 0.1
-INTEGRATOR = (StateSpace(low=[-2, -2], high=[2, 2], periodic=[False, False], input_weights=[1, 1],
-                         cost=[1, 0.1]),
-              ActionSpace(low=[-1], high=[1], cost=[0.1]))
+INTEGRATOR = (
+    StateSpace(
+        low=[-2, -2], high=[2, 2], periodic=[False, False], input_weights=[1, 1], cost=[1, 0.1]
+    ),
+    ActionSpace(low=[-1], high=[1], cost=[0.1]),
+)
 
 
 def _integrator(x, u):
@@ -104,17 +137,33 @@ def test_planning_in_the_true_model_learns_in_fewer_real_trials():
         for seed in range(3):
             # The paper's actor rate and noise, as this test was set for (not the task's units).
             paper = dict(alpha_a=0.005, exploration={"sigma": 1.0})
-            agent = make_agent("s-ac", *INTEGRATOR, seed=seed, config=dict(
-                paper, planning=Planning(steps=steps, reward="task")) if steps else paper)
+            agent = make_agent(
+                "s-ac",
+                *INTEGRATOR,
+                seed=seed,
+                config=dict(paper, planning=Planning(steps=steps, reward="task"))
+                if steps
+                else paper,
+            )
             if steps:
                 agent.rehearsal.model.memory.fit(Z, Y)
-            needed.append(next((t for t in range(1, 9) if _integrator_trial(agent) is not None
-                                and _integrator_trial(agent, learn=False) > -16.0), 99))
+            needed.append(
+                next(
+                    (
+                        t
+                        for t in range(1, 9)
+                        if _integrator_trial(agent) is not None
+                        and _integrator_trial(agent, learn=False) > -16.0
+                    ),
+                    99,
+                )
+            )
         trials_needed[steps] = needed
     assert max(trials_needed[10]) <= 8 and min(trials_needed[0]) == 99, trials_needed
 
 
 # -- replay --------------------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("learner", LEARNERS)
 def test_replaying_a_recorded_trial_makes_the_real_updates(learner):
@@ -152,9 +201,11 @@ def test_learn_from_checks_the_record():
     agent = make_agent("s-ac", *PENDULUM, seed=0)
     good = (np.zeros((4, 2)), np.zeros((3, 1)), np.zeros(3))
     agent.learn_from(*good)
-    for bad, word in [((np.zeros((3, 2)),) + good[1:], "states"),
-                      (good[:1] + (np.full((3, 1), 5.0),) + good[2:], "bounds"),
-                      (good[:2] + (np.array([0.0, np.nan, 0.0]),), "finite")]:
+    for bad, word in [
+        ((np.zeros((3, 2)),) + good[1:], "states"),
+        (good[:1] + (np.full((3, 1), 5.0),) + good[2:], "bounds"),
+        (good[:2] + (np.array([0.0, np.nan, 0.0]),), "finite"),
+    ]:
         with pytest.raises(ValueError, match=word):
             agent.learn_from(*bad)
 
@@ -168,8 +219,9 @@ OPTIONS = {
     "planning from the trajectory": dict(planning=Planning(steps=1, horizon=6, start="trajectory")),
     "planning from the memory": dict(planning=Planning(steps=1, horizon=6, start="memory")),
     "planning with the task's reward": dict(planning=Planning(steps=1, horizon=6, reward="task")),
-    "planning unclipped, small model": dict(planning=Planning(
-        steps=1, horizon=6, clip=False, model_capacity=25, model_neighbours=5)),
+    "planning unclipped, small model": dict(
+        planning=Planning(steps=1, horizon=6, clip=False, model_capacity=25, model_neighbours=5)
+    ),
     "replay backward": dict(replay=Replay(steps=1)),
     "replay forward, small store": dict(replay=Replay(steps=2, order="forward", capacity=40)),
     "planning and replay": dict(planning=Planning(steps=1, horizon=10), replay=Replay(steps=1)),
@@ -196,8 +248,9 @@ def test_back_ends_rehearse_alike(learner, options):
             slow.load_state_dict(fast.state_dict())
             if k < 24:
                 u = fast.step(reward, x)
-                np.testing.assert_allclose(u, slow.step(reward, x), atol=tol,
-                                           err_msg=f"trial {trial} step {k}")
+                np.testing.assert_allclose(
+                    u, slow.step(reward, x), atol=tol, err_msg=f"trial {trial} step {k}"
+                )
             else:  # the rehearsal runs here, after the trial's last transition
                 fast.stop(reward, x)
                 slow.stop(reward, x)
@@ -208,8 +261,9 @@ def test_back_ends_rehearse_alike(learner, options):
             a["trace_idx"], b["trace_idx"] = (np.sort(d["trace_idx"][:n]) for d in (a, b))
         for key in a:
             if a[key].dtype.kind == "f":
-                np.testing.assert_allclose(a[key], b[key], rtol=tol, atol=tol,
-                                           err_msg=f"{key} after trial {trial}")
+                np.testing.assert_allclose(
+                    a[key], b[key], rtol=tol, atol=tol, err_msg=f"{key} after trial {trial}"
+                )
             else:
                 np.testing.assert_array_equal(a[key], b[key], err_msg=f"{key} after trial {trial}")
 
@@ -226,9 +280,13 @@ def test_a_restored_copy_rehearses_like_the_original(learner):
 
 
 def test_settings_are_checked_by_name():
-    for kwargs, name in [(dict(steps=-1), "steps"), (dict(steps=2.0), "steps"),
-                         (dict(start="anywhere"), "start"), (dict(reward="oracle"), "reward"),
-                         (dict(model_capacity=5, model_neighbours=9), "model_neighbours")]:
+    for kwargs, name in [
+        (dict(steps=-1), "steps"),
+        (dict(steps=2.0), "steps"),
+        (dict(start="anywhere"), "start"),
+        (dict(reward="oracle"), "reward"),
+        (dict(model_capacity=5, model_neighbours=9), "model_neighbours"),
+    ]:
         with pytest.raises(InvalidParameterError, match=f"Planning.{name}"):
             Planning(**kwargs)
     with pytest.raises(InvalidParameterError, match="Replay.order"):
@@ -243,10 +301,14 @@ def test_the_bench_prices_planning_and_replay_for_every_learner():
     configured with either or neither; each keeps the parts it holds and is priced."""
     from rmac_mj.bench import planning as bench_planning
 
-    report = bench_planning.rehearsal_costs("dc_pendulum", "swingup", repeats=1, trials=1, steps=(0, 5))
+    report = bench_planning.rehearsal_costs(
+        "dc_pendulum", "swingup", repeats=1, trials=1, steps=(0, 5)
+    )
     assert set(report) == {"s-ac", "rmac", "mlac"}
     for figures in report.values():
         assert figures["planning_update_us"] > 0 and figures["replay_update_us"] > 0
         for kind in bench_planning.KINDS:
             per_minute = figures["cpu_per_simulated_minute"][kind]
-            assert set(per_minute) == {0, 5} and all(np.isfinite(v) and v > 0 for v in per_minute.values())
+            assert set(per_minute) == {0, 5} and all(
+                np.isfinite(v) and v > 0 for v in per_minute.values()
+            )

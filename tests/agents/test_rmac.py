@@ -3,9 +3,8 @@
 import itertools
 
 import numpy as np
-import pytest
-
 import plain_pendulum
+import pytest
 
 from rmac_mj.agents import ActionSpace, Exploration, StateSpace
 from rmac_mj.agents.rmac import EXACT_TOLERANCE, RMAC, RMACConfig
@@ -25,9 +24,14 @@ def _linear_system(n=2, m=1, seed=0):
 def _agent(n, m, backend, **config):
     state_space = StateSpace(low=-10 * np.ones(n), high=10 * np.ones(n), periodic=np.zeros(n, bool))
     action_space = ActionSpace(low=-3 * np.ones(m), high=3 * np.ones(m), cost=np.ones(m))
-    defaults = dict(critic_weights=(1.0,) * n, reference_weights=(1.0,) * n,
-                    process_weights=(1.0,) * (n + m), exploration=NO_EXPLORATION, backend=backend,
-                    conditioning="svd")  # exact local models, so that results are exact
+    defaults = dict(
+        critic_weights=(1.0,) * n,
+        reference_weights=(1.0,) * n,
+        process_weights=(1.0,) * (n + m),
+        exploration=NO_EXPLORATION,
+        backend=backend,
+        conditioning="svd",
+    )  # exact local models, so that results are exact
     defaults.update(config)
     return RMAC(state_space, action_space, RMACConfig(**defaults), seed=0)
 
@@ -45,8 +49,9 @@ def test_inverse_process_model_returns_the_exact_input(backend, n, m):
         x_desired = A @ x + B @ u_true + c
         agent.reference.fit(x[None], x_desired[None])  # R(x) = x_desired
         np.testing.assert_allclose(agent.greedy_action(x), u_true, atol=1e-8)
-        np.testing.assert_allclose(agent.policy(x[None], rng.uniform(-1, 1, m))[0], u_true,
-                                   atol=1e-8)
+        np.testing.assert_allclose(
+            agent.policy(x[None], rng.uniform(-1, 1, m))[0], u_true, atol=1e-8
+        )
         # Unreachable desired states saturate at the bounds.
         agent.reference.fit(x[None], (A @ x + B @ (10 * np.ones(m)) + c)[None])
         assert np.all(np.abs(agent.greedy_action(x)) <= 3.0)
@@ -78,9 +83,9 @@ def test_reference_target_is_best_vertex_under_a_linear_critic(backend, m):
     agent.step(-1.0, x1)
     vertices = [A @ x0 + B @ np.array(v) + c for v in itertools.product((3.0, -3.0), repeat=m)]
     best = vertices[int(np.argmax([g @ v for v in vertices]))]
-    slot = int(np.argmax(agent.reference.stamp_[:agent.reference.n_samples_]))
+    slot = int(np.argmax(agent.reference.stamp_[: agent.reference.n_samples_]))
     np.testing.assert_allclose(agent.reference.Y_[slot], best, atol=1e-8)
-    assert len(agent.vertices) == 2 ** m
+    assert len(agent.vertices) == 2**m
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
@@ -92,8 +97,17 @@ def test_reference_insert_rate_writes_the_target_or_the_moved_estimate(backend, 
     n, m, alpha_r = 2, 1, 0.25
     A, B, c = _linear_system(n, m, seed=3)
     g = np.array([-2.0, 0.7])
-    agent = _agent(n, m, backend, critic_clip=False, reference_clip=False, reference_capacity=60,
-                   reference_neighbours=6, alpha_r=alpha_r, reference_insert_rate=rate)
+    agent = _agent(
+        n,
+        m,
+        backend,
+        critic_clip=False,
+        reference_clip=False,
+        reference_capacity=60,
+        reference_neighbours=6,
+        alpha_r=alpha_r,
+        reference_insert_rate=rate,
+    )
     rng = np.random.default_rng(2)
     X, U = rng.uniform(-1, 1, (100, n)), rng.uniform(-3, 3, (100, m))
     agent.process.fit(np.c_[X, U], X @ A.T + U @ B.T + c)
@@ -127,13 +141,21 @@ def test_learning_rates_decay_linearly_to_their_final_values():
     assert config.rates_at(0) == (0.4, 0.02)  # alpha_r has no final value: constant
     assert config.rates_at(100) == pytest.approx((0.25, 0.02))
     assert config.rates_at(200) == pytest.approx((0.1, 0.02)) == config.rates_at(599)
-    assert RMACConfig(alpha_r=0.02, alpha_r_final=0.005, rate_decay_trials=3).rates_at(1) == \
-        pytest.approx((0.1, 0.015))
+    assert RMACConfig(alpha_r=0.02, alpha_r_final=0.005, rate_decay_trials=3).rates_at(
+        1
+    ) == pytest.approx((0.1, 0.015))
 
 
-@pytest.mark.parametrize("field, value", [("alpha_c_final", 1.5), ("alpha_r_final", -0.1),
-                                          ("alpha_c_final", "0.1"), ("rate_decay_trials", 0),
-                                          ("rate_decay_trials", 2.5)])
+@pytest.mark.parametrize(
+    "field, value",
+    [
+        ("alpha_c_final", 1.5),
+        ("alpha_r_final", -0.1),
+        ("alpha_c_final", "0.1"),
+        ("rate_decay_trials", 0),
+        ("rate_decay_trials", 2.5),
+    ],
+)
 def test_learning_rate_schedule_is_validated(field, value):
     with pytest.raises(ValueError, match=field):
         RMACConfig(**{field: value})
@@ -143,13 +165,21 @@ def test_learning_rate_schedule_is_validated(field, value):
 def test_the_critic_learns_at_the_scheduled_rate_of_each_trial(backend):
     # A schedule whose final rate equals its start changes nothing, bit for bit; a decaying critic
     # rate changes what the second trial learns (rate_decay_trials=1: trial 2 learns at the final).
-    S = StateSpace(low=[-np.pi, -8 * np.pi], high=[np.pi, 8 * np.pi], periodic=[True, False],
-                   input_weights=[1.0, 0.1])
+    S = StateSpace(
+        low=[-np.pi, -8 * np.pi],
+        high=[np.pi, 8 * np.pi],
+        periodic=[True, False],
+        input_weights=[1.0, 0.1],
+    )
     U = ActionSpace(low=[-3.0], high=[3.0], cost=[1.0])
 
     def learned(**rates):
-        agent = RMAC(S, U, RMACConfig(backend=backend, rate_decay_trials=1, **_SMALL_MEMORIES,
-                                      **rates), seed=2)
+        agent = RMAC(
+            S,
+            U,
+            RMACConfig(backend=backend, rate_decay_trials=1, **_SMALL_MEMORIES, **rates),
+            seed=2,
+        )
         returns = _plain_pendulum_returns(agent, 2, steps=30)
         return returns, agent.critic.memory.Y_.copy()
 
@@ -172,20 +202,31 @@ def _lq_reachable_case(rule, backend, action_cost):
     """
     a, b, xs = 0.9, 0.5, 0.5
     # conditioning 'none': a truncated SVD would drop the slope of two samples 0.005 apart.
-    agent = _agent(1, 1, backend, critic_neighbours=2, critic_capacity=1000, critic_clip=False,
-                   conditioning="none", reachable_rule=rule, action_cost=action_cost,
-                   process_capacity=100, process_neighbours=9, reference_capacity=2000,
-                   reference_neighbours=20)
+    agent = _agent(
+        1,
+        1,
+        backend,
+        critic_neighbours=2,
+        critic_capacity=1000,
+        critic_clip=False,
+        conditioning="none",
+        reachable_rule=rule,
+        action_cost=action_cost,
+        process_capacity=100,
+        process_neighbours=9,
+        reference_capacity=2000,
+        reference_neighbours=20,
+    )
     rng = np.random.default_rng(0)
     X, U = rng.uniform(-2, 2, (100, 1)), rng.uniform(-3, 3, (100, 1))
     agent.process.fit(np.c_[X, U], a * X + b * U)
     Xc = (0.9 + 0.005 * np.arange(-400, 401))[:, None]
-    agent.critic.memory.fit(Xc, -(Xc - xs) ** 2)
+    agent.critic.memory.fit(Xc, -((Xc - xs) ** 2))
     x0 = np.array([1.0])
     agent.reference.fit(x0[None], (a * x0 + b * -2.0)[None])
     np.testing.assert_allclose(agent.start(x0), [-2.0], atol=1e-9)
     agent.step(-1.0, a * x0 + b * np.array([-2.0]))
-    slot = int(np.argmax(agent.reference.stamp_[:agent.reference.n_samples_]))
+    slot = int(np.argmax(agent.reference.stamp_[: agent.reference.n_samples_]))
     return float(agent.reference.Y_[slot, 0])
 
 
@@ -230,8 +271,17 @@ def test_reachable_rule_is_validated_by_name():
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_traces_and_td_updates_on_a_hand_worked_example(backend):
     gamma, lam, alpha = 0.9, 0.5, 0.2
-    agent = _agent(1, 1, backend, gamma=gamma, lam=lam, alpha_c=alpha, critic_neighbours=1,
-                   critic_capacity=10, critic_clip=True)
+    agent = _agent(
+        1,
+        1,
+        backend,
+        gamma=gamma,
+        lam=lam,
+        alpha_c=alpha,
+        critic_neighbours=1,
+        critic_capacity=10,
+        critic_clip=True,
+    )
     agent.start(np.array([0.0]))  # V_0 = V(x_0) = 0 on the empty critic
     # k = 1: V_1 = V(1) = 0 (empty), insert [0 | 0] in slot 0, delta = -1, e = [1].
     agent.step(-1.0, np.array([1.0]))
@@ -259,6 +309,7 @@ def test_traces_and_td_updates_on_a_hand_worked_example(backend):
 def _pendulum():
     from rmac_mj import tasks
     from rmac_mj.rollout import action_space_of, state_space_of
+
     env = tasks.load("dc_pendulum", "swingup")
     return env, state_space_of(env), action_space_of(env)
 
@@ -267,11 +318,22 @@ _plain_pendulum_returns = plain_pendulum.returns
 
 
 #: Every option away from its default, with memories small enough to fill up within a trial.
-_SMALL_OPTIONS = dict(critic_capacity=150, reference_capacity=120, process_capacity=30,
-                      critic_neighbours=7, reference_neighbours=6, process_neighbours=5,
-                      critic_replacement="oldest", conditioning="svd", norm=2,
-                      critic_gradient_at="previous", inverse_query="zero", initial_value="zero",
-                      process_clip=True, reference_clip=False)
+_SMALL_OPTIONS = dict(
+    critic_capacity=150,
+    reference_capacity=120,
+    process_capacity=30,
+    critic_neighbours=7,
+    reference_neighbours=6,
+    process_neighbours=5,
+    critic_replacement="oldest",
+    conditioning="svd",
+    norm=2,
+    critic_gradient_at="previous",
+    inverse_query="zero",
+    initial_value="zero",
+    process_clip=True,
+    reference_clip=False,
+)
 
 #: (config, backend, trials) -> first return, last return, sum of returns, and the sums of the
 #: critic's values, the reference's and the process model's outputs and the critic's inputs after
@@ -281,25 +343,55 @@ _SMALL_OPTIONS = dict(critic_capacity=150, reference_capacity=120, process_capac
 #: with OpenBLAS's Haswell kernels (tests/conftest.py) from the same code, which still gave the
 #: first recording's values with the SkylakeX kernels they were recorded with.
 _PINNED = {
-    ("default", "numba", 25): (-3852.3085695860086, -1926.797841599581, -86257.97051901842,
-                               -1006801.2101008773, -3273.165089873761, -14.406799630153984,
-                               -3029.9321243398745),
-    ("default", "numpy", 2): (-3852.308569586835, -5754.821613864886, -9607.130183451722,
-                              -61510.91043067245, 471.3051990901476, -144.30932134808728,
-                              676.685419191281),
-    ("small", "numba", 6): (-3897.65121712942, -3793.5328728836425, -24178.158577071645,
-                            -36760.53678396107, 111.75487047688269, 19.941037979490368,
-                            253.55920392095513),
-    ("small", "numpy", 6): (-3897.6512191713628, -4155.501607301423, -23846.701110284725,
-                            -32482.635606523312, 282.6681154009117, -49.12430378755677,
-                            69.61788029151825),
+    ("default", "numba", 25): (
+        -3852.3085695860086,
+        -1926.797841599581,
+        -86257.97051901842,
+        -1006801.2101008773,
+        -3273.165089873761,
+        -14.406799630153984,
+        -3029.9321243398745,
+    ),
+    ("default", "numpy", 2): (
+        -3852.308569586835,
+        -5754.821613864886,
+        -9607.130183451722,
+        -61510.91043067245,
+        471.3051990901476,
+        -144.30932134808728,
+        676.685419191281,
+    ),
+    ("small", "numba", 6): (
+        -3897.65121712942,
+        -3793.5328728836425,
+        -24178.158577071645,
+        -36760.53678396107,
+        111.75487047688269,
+        19.941037979490368,
+        253.55920392095513,
+    ),
+    ("small", "numpy", 6): (
+        -3897.6512191713628,
+        -4155.501607301423,
+        -23846.701110284725,
+        -32482.635606523312,
+        282.6681154009117,
+        -49.12430378755677,
+        69.61788029151825,
+    ),
 }
 
 
 #: Memories that fill up within the first of the two trials of the lock-step comparison, so that
 #: every replacement policy acts.
-_SMALL_MEMORIES = dict(critic_capacity=30, reference_capacity=25, process_capacity=12,
-                       critic_neighbours=5, reference_neighbours=4, process_neighbours=4)
+_SMALL_MEMORIES = dict(
+    critic_capacity=30,
+    reference_capacity=25,
+    process_capacity=12,
+    critic_neighbours=5,
+    reference_neighbours=4,
+    process_neighbours=4,
+)
 
 #: One entry per value of every option of RMACConfig and of the LLR memories (replacement,
 #: conditioning incl. its parameters, clipping, norm, critic_gradient_at, inverse_query,
@@ -307,21 +399,29 @@ _SMALL_MEMORIES = dict(critic_capacity=30, reference_capacity=25, process_capaci
 #: "defaults" entry covers each option's default value.
 _OPTION_VALUES = {
     "defaults": {},
-    "replacement oldest everywhere": dict(critic_replacement="oldest", process_replacement="oldest",
-                                          reference_replacement="oldest"),
+    "replacement oldest everywhere": dict(
+        critic_replacement="oldest", process_replacement="oldest", reference_replacement="oldest"
+    ),
     "critic replacement oldest": dict(critic_replacement="oldest"),
     "process replacement oldest": dict(process_replacement="oldest"),
     "reference replacement oldest": dict(reference_replacement="oldest"),
-    "replacement redundancy everywhere": dict(critic_replacement="redundancy",
-                                              process_replacement="redundancy",
-                                              reference_replacement="redundancy"),
+    "replacement redundancy everywhere": dict(
+        critic_replacement="redundancy",
+        process_replacement="redundancy",
+        reference_replacement="redundancy",
+    ),
     "critic replacement redundancy": dict(critic_replacement="redundancy"),
     "process replacement redundancy": dict(process_replacement="redundancy"),
     "reference replacement redundancy": dict(reference_replacement="redundancy"),
     "redundancy by the other measures, smoothing 0.5": dict(
-        critic_replacement="redundancy", process_replacement="redundancy",
-        reference_replacement="redundancy", critic_redundancy="misfit",
-        process_redundancy="distance", reference_redundancy="misfit", redundancy_smoothing=0.5),
+        critic_replacement="redundancy",
+        process_replacement="redundancy",
+        reference_replacement="redundancy",
+        critic_redundancy="misfit",
+        process_redundancy="distance",
+        reference_redundancy="misfit",
+        redundancy_smoothing=0.5,
+    ),
     "conditioning svd": dict(conditioning="svd"),
     "conditioning svd rcond 0.2": dict(conditioning="svd", rcond=0.2),
     "conditioning none": dict(conditioning="none"),
@@ -329,40 +429,48 @@ _OPTION_VALUES = {
     "critic unclipped": dict(critic_clip=False),
     "reference unclipped": dict(reference_clip=False),
     "process clipped": dict(process_clip=True),
-    "nothing clipped, no conditioning": dict(critic_clip=False, reference_clip=False,
-                                             conditioning="none"),
+    "nothing clipped, no conditioning": dict(
+        critic_clip=False, reference_clip=False, conditioning="none"
+    ),
     "norm 2": dict(norm=2),
     "critic gradient at previous": dict(critic_gradient_at="previous"),
     "inverse query zero": dict(inverse_query="zero"),
     "initial value zero": dict(initial_value="zero"),
     "two actions": dict(process_weights=(1.0, 0.1, 1.0, 0.5)),
     "reachable vertices_value": dict(reachable_rule="vertices_value"),
-    "reachable vertices_value, two actions": dict(reachable_rule="vertices_value",
-                                                  process_weights=(1.0, 0.1, 1.0, 0.5)),
+    "reachable vertices_value, two actions": dict(
+        reachable_rule="vertices_value", process_weights=(1.0, 0.1, 1.0, 0.5)
+    ),
     "reachable grid, action cost 0.3": dict(reachable_rule="grid", action_cost=0.3),
-    "reachable grid 5, two actions": dict(reachable_rule="grid", reachable_grid=5,
-                                          process_weights=(1.0, 0.1, 1.0, 0.5)),
+    "reachable grid 5, two actions": dict(
+        reachable_rule="grid", reachable_grid=5, process_weights=(1.0, 0.1, 1.0, 0.5)
+    ),
     "reachable exact": dict(reachable_rule="exact"),
     "reachable exact, grid 4": dict(reachable_rule="exact", reachable_grid=4),
     # The exploration is drawn outside the compiled step, which takes Delta u as given; these check
     # that both back ends draw the same noise (the second trial's decayed sigma, the uncertainty
     # read from the process memory before the step) and count the trials alike.
-    "exploration decays exponentially": dict(exploration=Exploration(
-        decay="exponential", decay_rate=0.5, sigma_min=0.1)),
-    "exploration decays linearly, sigma 2": dict(exploration=Exploration(
-        sigma=2.0, decay="linear", decay_trials=1, sigma_min=0.5)),
+    "exploration decays exponentially": dict(
+        exploration=Exploration(decay="exponential", decay_rate=0.5, sigma_min=0.1)
+    ),
+    "exploration decays linearly, sigma 2": dict(
+        exploration=Exploration(sigma=2.0, decay="linear", decay_trials=1, sigma_min=0.5)
+    ),
     # (thresholds at which about half of the scheduled steps explore in this run)
-    "explore where uncertain": dict(exploration=Exploration(where="uncertain",
-                                                            uncertainty_threshold=1.5)),
+    "explore where uncertain": dict(
+        exploration=Exploration(where="uncertain", uncertainty_threshold=1.5)
+    ),
     "explore where uncertain, inverse query zero": dict(
-        exploration=Exploration(where="uncertain", uncertainty_threshold=2.0),
-        inverse_query="zero"),
-    "learning rates decay": dict(alpha_c=0.4, alpha_c_final=0.1, alpha_r=0.02,
-                                 alpha_r_final=0.005, rate_decay_trials=1),
+        exploration=Exploration(where="uncertain", uncertainty_threshold=2.0), inverse_query="zero"
+    ),
+    "learning rates decay": dict(
+        alpha_c=0.4, alpha_c_final=0.1, alpha_r=0.02, alpha_r_final=0.005, rate_decay_trials=1
+    ),
     "critic rate decays alone": dict(alpha_c=0.3, alpha_c_final=0.05, rate_decay_trials=2),
     "reference insert rate 0.3": dict(reference_insert_rate=0.3),
-    "reference insert rate 0, oldest": dict(reference_insert_rate=0.0,
-                                            reference_replacement="oldest"),
+    "reference insert rate 0, oldest": dict(
+        reference_insert_rate=0.0, reference_replacement="oldest"
+    ),
 }
 
 
@@ -381,8 +489,9 @@ def _assert_same_state(fast, slow, when, tol):
     for key in a:
         if a[key].dtype.kind == "f":
             if not np.allclose(a[key], b[key], rtol=tol, atol=tol):  # (fast path of the assert)
-                np.testing.assert_allclose(a[key], b[key], rtol=tol, atol=tol,
-                                           err_msg=f"{key} {when}")
+                np.testing.assert_allclose(
+                    a[key], b[key], rtol=tol, atol=tol, err_msg=f"{key} {when}"
+                )
         elif not np.array_equal(a[key], b[key]):
             # Slots, stamps, counts, generator: every neighbour and replacement decision.
             np.testing.assert_array_equal(a[key], b[key], err_msg=f"{key} {when}")
@@ -402,8 +511,12 @@ def test_back_ends_take_the_same_steps_for_every_option(options):
         # Near its maximum the golden-section search compares two scores equal up to rounding, so
         # the back ends may keep different points of the final bracket (EXACT_TOLERANCE wide).
         tol = 10 * EXACT_TOLERANCE
-    S = StateSpace(low=[-np.pi, -8 * np.pi], high=[np.pi, 8 * np.pi], periodic=[True, False],
-                   input_weights=[1.0, 0.1])  # Table 2's weighting, as the dc_pendulum task gives
+    S = StateSpace(
+        low=[-np.pi, -8 * np.pi],
+        high=[np.pi, 8 * np.pi],
+        periodic=[True, False],
+        input_weights=[1.0, 0.1],
+    )  # Table 2's weighting, as the dc_pendulum task gives
     U = ActionSpace(low=-3.0 * np.ones(m), high=3.0 * np.ones(m), cost=np.ones(m))
     kwargs = dict(_SMALL_MEMORIES, **_OPTION_VALUES[options])
     fast = RMAC(S, U, RMACConfig(backend="numba", **kwargs), seed=3)
@@ -421,8 +534,9 @@ def test_back_ends_take_the_same_steps_for_every_option(options):
             slow.load_state_dict(fast.state_dict())
             if k < 30:
                 u_fast, u_slow = fast.step(reward, x), slow.step(reward, x)
-                np.testing.assert_allclose(u_fast, u_slow, rtol=0, atol=tol,
-                                           err_msg=f"action, trial {trial} step {k}")
+                np.testing.assert_allclose(
+                    u_fast, u_slow, rtol=0, atol=tol, err_msg=f"action, trial {trial} step {k}"
+                )
             else:
                 fast.stop(reward, x)
                 slow.stop(reward, x)
@@ -441,8 +555,13 @@ def test_a_pickled_copy_continues_like_the_original(backend):
     # must get views of its own arrays, not share or lose the original's.
     import copy
     import pickle
-    S = StateSpace(low=[-np.pi, -8 * np.pi], high=[np.pi, 8 * np.pi], periodic=[True, False],
-                   input_weights=[1.0, 0.1])  # Table 2's weighting, as the dc_pendulum task gives
+
+    S = StateSpace(
+        low=[-np.pi, -8 * np.pi],
+        high=[np.pi, 8 * np.pi],
+        periodic=[True, False],
+        input_weights=[1.0, 0.1],
+    )  # Table 2's weighting, as the dc_pendulum task gives
     U = ActionSpace(low=[-3.0], high=[3.0], cost=[1.0])
     agent = RMAC(S, U, RMACConfig(backend=backend, **_SMALL_MEMORIES), seed=1)
     _plain_pendulum_returns(agent, 2, steps=30)
@@ -454,20 +573,31 @@ def test_a_pickled_copy_continues_like_the_original(backend):
 
 @pytest.mark.parametrize("config, backend, trials", list(_PINNED))
 def test_seeded_run_is_pinned_bit_for_bit(config, backend, trials):
-    S = StateSpace(low=[-np.pi, -8 * np.pi], high=[np.pi, 8 * np.pi], periodic=[True, False],
-                   input_weights=[1.0, 0.1])  # Table 2's weighting, as the dc_pendulum task gives
+    S = StateSpace(
+        low=[-np.pi, -8 * np.pi],
+        high=[np.pi, 8 * np.pi],
+        periodic=[True, False],
+        input_weights=[1.0, 0.1],
+    )  # Table 2's weighting, as the dc_pendulum task gives
     U = ActionSpace(low=[-3.0], high=[3.0], cost=[1.0])
     options = _SMALL_OPTIONS if config == "small" else {}
     agent = RMAC(S, U, RMACConfig(backend=backend, **options), seed=2024)
     returns = _plain_pendulum_returns(agent, trials)
-    got = (returns[0], returns[-1], sum(returns), float(agent.critic.memory.Y_.sum()),
-           float(agent.reference.Y_.sum()), float(agent.process.Y_.sum()),
-           float(agent.critic.memory.X_.sum()))
+    got = (
+        returns[0],
+        returns[-1],
+        sum(returns),
+        float(agent.critic.memory.Y_.sum()),
+        float(agent.reference.Y_.sum()),
+        float(agent.process.Y_.sum()),
+        float(agent.critic.memory.X_.sum()),
+    )
     assert got == _PINNED[(config, backend, trials)]
 
 
 def test_same_seed_same_curve_and_state_dict_round_trip():
     from rmac_mj.rollout import run_trial
+
     env, S, U = _pendulum()
     a, b = RMAC(S, U, seed=7), RMAC(S, U, seed=7)
     assert [run_trial(env, a) for _ in range(3)] == [run_trial(env, b) for _ in range(3)]
@@ -481,6 +611,7 @@ def test_same_seed_same_curve_and_state_dict_round_trip():
 
 def test_rmac_improves_on_pendulum_swingup():
     from rmac_mj.rollout import run_trial
+
     env, S, U = _pendulum()
     for seed in np.random.SeedSequence(11).spawn(2):
         agent = RMAC(S, U, seed=np.random.default_rng(seed))
@@ -494,21 +625,28 @@ def test_rmac_improves_on_pendulum_swingup():
         # does not keep every single sample <= 0 (a positive TD error lifts a neighbour's value).
         assert agent.value([np.pi, 0.0]) < agent.value([0.0, 0.0]) - 100.0
         visited = []
-        run_trial(env, agent, on_step=lambda e, u, r: visited.append(e.physics.state()))
+        run_trial(env, agent, on_step=lambda e, u, r: visited.append(e.physics.state()))  # noqa: B023
         assert np.mean([agent.value(x) for x in visited]) < 0.0
 
 
-@pytest.mark.parametrize("kwargs, name", [
-    (dict(gamma=1.5), "gamma"), (dict(alpha_r=-0.1), "alpha_r"),
-    (dict(critic_capacity=0), "critic_capacity"), (dict(process_capacity=100, process_neighbours=200), "process"),
-    (dict(reference_weights=(1.0, -1.0)), "reference_weights"),
-    (dict(conditioning="qr"), "conditioning"), (dict(inverse_query="x"), "inverse_query"),
-    (dict(critic_replacement="lru"), "critic_replacement"), (dict(backend="jax"), "backend"),
-    (dict(process_redundancy="age"), "process_redundancy"),
-    (dict(critic_redundancy=None), "critic_redundancy"),
-    (dict(redundancy_smoothing=0.0), "redundancy_smoothing"),
-    (dict(redundancy_smoothing=float("nan")), "redundancy_smoothing"),
-])
+@pytest.mark.parametrize(
+    "kwargs, name",
+    [
+        (dict(gamma=1.5), "gamma"),
+        (dict(alpha_r=-0.1), "alpha_r"),
+        (dict(critic_capacity=0), "critic_capacity"),
+        (dict(process_capacity=100, process_neighbours=200), "process"),
+        (dict(reference_weights=(1.0, -1.0)), "reference_weights"),
+        (dict(conditioning="qr"), "conditioning"),
+        (dict(inverse_query="x"), "inverse_query"),
+        (dict(critic_replacement="lru"), "critic_replacement"),
+        (dict(backend="jax"), "backend"),
+        (dict(process_redundancy="age"), "process_redundancy"),
+        (dict(critic_redundancy=None), "critic_redundancy"),
+        (dict(redundancy_smoothing=0.0), "redundancy_smoothing"),
+        (dict(redundancy_smoothing=float("nan")), "redundancy_smoothing"),
+    ],
+)
 def test_bad_configuration_names_the_parameter(kwargs, name):
     with pytest.raises(ValueError, match=name):
         RMACConfig(**kwargs)
@@ -519,14 +657,28 @@ def test_each_memory_gets_its_redundancy_measure():
     # (issue 14's account of the authors' code), unless told otherwise.
     S = StateSpace(low=-np.ones(2), high=np.ones(2), periodic=np.zeros(2, bool))
     U = ActionSpace(low=-np.ones(1), high=np.ones(1), cost=[1.0])
-    agent = RMAC(S, U, RMACConfig(critic_replacement="redundancy", process_replacement="redundancy",
-                                  reference_replacement="redundancy", redundancy_smoothing=0.3))
+    agent = RMAC(
+        S,
+        U,
+        RMACConfig(
+            critic_replacement="redundancy",
+            process_replacement="redundancy",
+            reference_replacement="redundancy",
+            redundancy_smoothing=0.3,
+        ),
+    )
     critic = agent.critic.memory
     assert (agent.process.redundancy, critic.redundancy, agent.reference.redundancy) == (
-        "misfit", "distance", "distance")
+        "misfit",
+        "distance",
+        "distance",
+    )
     assert agent.process.replacement == "redundancy" and critic.redundancy_smoothing == 0.3
     default = RMAC(S, U)
-    assert (default.process.replacement, default.critic.memory.replacement) == ("nearest", "nearest")
+    assert (default.process.replacement, default.critic.memory.replacement) == (
+        "nearest",
+        "nearest",
+    )
 
 
 def test_weighting_must_match_the_task_dimensions():

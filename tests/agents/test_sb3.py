@@ -9,7 +9,6 @@ from learners import quick_config
 
 from rmac_mj.agents import agent_class, config_class, make_agent, sb3, sb3_config
 
-
 ENV_ID = "rmac_mj/DCPendulum-Swingup-v0"
 
 
@@ -40,9 +39,11 @@ def _drive(agent, steps: int, seed: int) -> None:
 # SAC and TD3 learn 160 steps: SB3's 100 random ones, then 60 updates, across the first trial's end (a
 # time-out, bootstrapped); their networks are narrowed for speed (the defaults are checked below).
 # PPO's rollouts of 40 steps end once inside a trial and once exactly at a trial's end.
-CASES = [("sb3-sac", {"net_arch": (64, 64), "batch_size": 64}, 160),
-         ("sb3-td3", {"net_arch": (64, 64), "batch_size": 64}, 160),
-         ("sb3-ppo", {"n_steps": 40, "batch_size": 20, "n_epochs": 2}, 200)]
+CASES = [
+    ("sb3-sac", {"net_arch": (64, 64), "batch_size": 64}, 160),
+    ("sb3-td3", {"net_arch": (64, 64), "batch_size": 64}, 160),
+    ("sb3-ppo", {"n_steps": 40, "batch_size": 20, "n_epochs": 2}, 200),
+]
 
 
 @pytest.mark.slow
@@ -60,16 +61,24 @@ def test_learning_step_by_step_equals_sb3s_own_learn(algorithm, overrides, steps
     from rmac_mj.rollout import action_space_of, state_space_of
 
     env = tasks.load("dc_pendulum", "swingup")
-    agent = make_agent(algorithm, state_space_of(env), action_space_of(env), config=overrides,
-                       seed=np.random.default_rng(7))
+    agent = make_agent(
+        algorithm,
+        state_space_of(env),
+        action_space_of(env),
+        config=overrides,
+        seed=np.random.default_rng(7),
+    )
     sb3_overrides = dict(overrides)
     if "net_arch" in sb3_overrides:
         sb3_overrides["policy_kwargs"] = {"net_arch": list(sb3_overrides.pop("net_arch"))}
     if algorithm == "sb3-td3":  # SB3's TD3 takes the exploration noise as an object
         sigma = sb3_overrides.pop("action_noise", agent.config.action_noise)
-        sb3_overrides["action_noise"] = NormalActionNoise(np.zeros(1), sigma * np.ones(1)) if sigma else None
+        sb3_overrides["action_noise"] = (
+            NormalActionNoise(np.zeros(1), sigma * np.ones(1)) if sigma else None
+        )
     reference = getattr(stable_baselines3, agent.sb3_class)(
-        "MlpPolicy", gymnasium.make(ENV_ID), seed=agent.sb3_seed_, device="cpu", **sb3_overrides)
+        "MlpPolicy", gymnasium.make(ENV_ID), seed=agent.sb3_seed_, device="cpu", **sb3_overrides
+    )
     reference.learn(total_timesteps=steps)
     _drive(agent, steps, seed=agent.sb3_seed_)
 
@@ -127,8 +136,9 @@ def test_network_input_is_the_gymnasium_observation():
     env = gymnasium.make("rmac_mj/TwoLinkArm-Reach-v0")
     observation, _ = env.reset(seed=1)
     dm_env = env.unwrapped.dm_env
-    x = state_of(dm_env.physics and dm_env.task.get_observation(dm_env.physics),
-                 dm_env.task.learner_state)
+    x = state_of(
+        dm_env.physics and dm_env.task.get_observation(dm_env.physics), dm_env.task.learner_state
+    )
     periodic = np.asarray(dm_env.task.learner_state.periodic)
     np.testing.assert_array_equal(sb3.network_input(x, periodic), observation.astype(np.float32))
     assert tasks  # the suite's ids are registered on import
@@ -141,8 +151,14 @@ def test_without_the_extra_the_learners_name_it(monkeypatch):  # runs without th
     assert config_class("sb3-sac")().learning_rate == 3e-4  # the configs need no torch
 
 
-TINY = dict(algorithms=("sb3-sac",), experiments=2, trials=2, evaluate_every=1,
-            snapshot_trials=(1,), agent_configs={"sb3-sac": quick_config("sb3-sac")})
+TINY = dict(
+    algorithms=("sb3-sac",),
+    experiments=2,
+    trials=2,
+    evaluate_every=1,
+    snapshot_trials=(1,),
+    agent_configs={"sb3-sac": quick_config("sb3-sac")},
+)
 
 
 @pytest.mark.slow
@@ -152,10 +168,10 @@ def test_reproduce_runs_a_baseline_and_resumes_it_alike(tmp_path):
     an uninterrupted one (serial equals parallel: tests/experiments/test_runner.py), and the last snapshot
     rebuilds the learner."""
     from rmac_mj.experiments import runner
-    from rmac_mj.rollout import run_trial
     from rmac_mj.experiments.protocol import Protocol, build_experiment
     from rmac_mj.results.snapshots import load_snapshot
     from rmac_mj.results.store import ResultStore
+    from rmac_mj.rollout import run_trial
 
     protocol, store = Protocol(**TINY), ResultStore(tmp_path)
     summary = runner.run_protocol(protocol, tmp_path, jobs=1, progress=False, figures=False)

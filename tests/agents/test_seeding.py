@@ -5,15 +5,16 @@ import json
 import numpy as np
 import pytest
 
+from rmac_mj import tasks
 from rmac_mj.agents import discounted_returns, make_agent
 from rmac_mj.agents.rmac import RMACConfig
 from rmac_mj.errors import MissingInputError, UserInputError
-from rmac_mj import tasks
-from rmac_mj.experiments import prior_transitions as prior, runner
-from rmac_mj.tasks.energy_swingup import lqr_gains
+from rmac_mj.experiments import prior_transitions as prior
+from rmac_mj.experiments import runner
 from rmac_mj.experiments.protocol import Protocol, demonstration_for, experiment_seeds
 from rmac_mj.results.store import ResumeRefused
 from rmac_mj.rollout import action_space_of, run_trial, state_space_of
+from rmac_mj.tasks.energy_swingup import lqr_gains
 
 
 @pytest.fixture(scope="module")
@@ -29,9 +30,13 @@ def synthetic(T=30, trials=2, seed=0):
     """T transitions split into ``trials`` trials, with unwrapped angles beyond pi."""
     rng = np.random.default_rng(seed)
     states = np.c_[rng.uniform(-5, 5, T), rng.uniform(-20, 20, T)]
-    return dict(states=states, actions=rng.uniform(-3, 3, (T, 1)), rewards=-rng.uniform(0, 50, T),
-                next_states=states + rng.normal(0, 0.1, (T, 2)),
-                trial=np.sort(rng.integers(0, trials, T)))
+    return dict(
+        states=states,
+        actions=rng.uniform(-3, 3, (T, 1)),
+        rewards=-rng.uniform(0, 50, T),
+        next_states=states + rng.normal(0, 0.1, (T, 2)),
+        trial=np.sort(rng.integers(0, trials, T)),
+    )
 
 
 def wrapped(x):
@@ -39,6 +44,7 @@ def wrapped(x):
 
 
 # -- seeding the learners -------------------------------------------------------------------------
+
 
 def test_discounted_returns_restart_at_each_trial_end():
     rewards = np.array([-1.0, -2.0, -4.0, -8.0, -16.0])
@@ -55,9 +61,10 @@ def test_seeded_memories_hold_exactly_the_given_samples(env, backend):
     agent.seed_from(**data)
     x, x_next = wrapped(data["states"]), wrapped(data["next_states"])
     for memory, X, Y in (
-            (agent.process, np.c_[x, data["actions"]], x_next),
-            (agent.reference, x, x_next),
-            (agent.critic.memory, x, discounted_returns(data["rewards"], data["trial"], 0.97)[:, None])):
+        (agent.process, np.c_[x, data["actions"]], x_next),
+        (agent.reference, x, x_next),
+        (agent.critic.memory, x, discounted_returns(data["rewards"], data["trial"], 0.97)[:, None]),
+    ):
         assert memory.n_samples_ == 30
         np.testing.assert_allclose(memory.X_[:30], X, atol=1e-12)
         np.testing.assert_allclose(memory.Y_[:30], Y, atol=1e-12)
@@ -72,9 +79,14 @@ def test_mlac_memories_hold_exactly_the_given_samples(env):
     x, x_next = wrapped(data["states"]), wrapped(data["next_states"])
     gamma = agent.config.gamma
     for memory, X, Y in (
-            (agent.actor, x, data["actions"]),
-            (agent.process, np.c_[x, data["actions"]], x_next),
-            (agent.critic.memory, x, discounted_returns(data["rewards"], data["trial"], gamma)[:, None])):
+        (agent.actor, x, data["actions"]),
+        (agent.process, np.c_[x, data["actions"]], x_next),
+        (
+            agent.critic.memory,
+            x,
+            discounted_returns(data["rewards"], data["trial"], gamma)[:, None],
+        ),
+    ):
         assert memory.n_samples_ == 30
         np.testing.assert_allclose(memory.X_[:30], X, atol=1e-12)
         np.testing.assert_allclose(memory.Y_[:30], Y, atol=1e-12)
@@ -106,8 +118,13 @@ def test_redundancy_replacement_scores_the_seeded_samples_and_keeps_recorded_one
     data = synthetic(T=150)
     memories = []
     for backend in ("numba", "numpy"):
-        cfg = RMACConfig(process_replacement="redundancy", critic_replacement="redundancy",
-                         critic_capacity=40, critic_neighbours=10, backend=backend)
+        cfg = RMACConfig(
+            process_replacement="redundancy",
+            critic_replacement="redundancy",
+            critic_capacity=40,
+            critic_neighbours=10,
+            backend=backend,
+        )
         agent = make_agent("rmac", *spaces(env), config=cfg, seed=0)
         agent.seed_from(**data)
         memories.append((agent.process, agent.critic.memory))
@@ -115,7 +132,9 @@ def test_redundancy_replacement_scores_the_seeded_samples_and_keeps_recorded_one
         X = np.c_[wrapped(data["states"]), data["actions"]]
         for row in agent.process.X_:
             assert np.min(np.abs(X - row).sum(axis=1)) < 1e-12
-        assert np.all(agent.process.redundancy_ <= 0) and np.all(agent.critic.memory.redundancy_ < 0)
+        assert np.all(agent.process.redundancy_ <= 0) and np.all(
+            agent.critic.memory.redundancy_ < 0
+        )
         # Samples were replaced, and not only the last ones kept (as 'oldest' would).
         assert agent.process.stamp_.min() < 50
     for fast, slow in zip(*memories):
@@ -126,8 +145,11 @@ def test_redundancy_replacement_scores_the_seeded_samples_and_keeps_recorded_one
 def test_parts_select_what_is_seeded(env):
     agent = make_agent("rmac", *spaces(env), seed=0)
     agent.seed_from(**synthetic(), parts=["process"])
-    assert (agent.process.n_samples_, agent.reference.n_samples_, agent.critic.memory.n_samples_) == (
-        30, 0, 0)
+    assert (
+        agent.process.n_samples_,
+        agent.reference.n_samples_,
+        agent.critic.memory.n_samples_,
+    ) == (30, 0, 0)
     with pytest.raises(ValueError, match="parts must name some of"):
         agent.seed_from(**synthetic(), parts=["actor"])
 
@@ -138,13 +160,16 @@ def test_learners_without_prior_knowledge_refuse_it_by_name(env):
         agent.seed_from(**synthetic())
 
 
-@pytest.mark.parametrize("field, value, message", [
-    ("states", np.zeros((30, 3)), r"states must have shape \(T, 2\)"),
-    ("actions", np.zeros((29, 1)), r"actions must have shape \(30, 1\)"),
-    ("rewards", np.full(30, np.nan), "rewards must be finite; 30 of 30 rows"),
-    ("trial", np.arange(30)[::-1], "trial must be non-decreasing"),
-    ("trial", np.zeros(30), "trial must hold integers"),
-])
+@pytest.mark.parametrize(
+    "field, value, message",
+    [
+        ("states", np.zeros((30, 3)), r"states must have shape \(T, 2\)"),
+        ("actions", np.zeros((29, 1)), r"actions must have shape \(30, 1\)"),
+        ("rewards", np.full(30, np.nan), "rewards must be finite; 30 of 30 rows"),
+        ("trial", np.arange(30)[::-1], "trial must be non-decreasing"),
+        ("trial", np.zeros(30), "trial must hold integers"),
+    ],
+)
 def test_seed_from_checks_its_arrays(env, field, value, message):
     agent = make_agent("rmac", *spaces(env), seed=0)
     with pytest.raises(ValueError, match=message):
@@ -159,6 +184,7 @@ def test_seeding_inside_a_trial_is_refused(env):
 
 
 # -- the demonstrator ------------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("name", ["demo", "poor-demo"])
 def test_demonstrator_swings_the_model_up_from_hanging(env, name):
@@ -177,16 +203,21 @@ def test_lqr_gains_stabilise_the_linearised_model(env):
     assert np.all(gains > 0)
     controller = tasks.knowledge("dc_pendulum", "swingup").demonstrator("demo").controller(env)
     # Near upright the controller is the LQR: u = -K x.
-    np.testing.assert_allclose(controller(np.array([0.1, -0.5])), [-(0.1 * gains[0] - 0.5 * gains[1])])
+    np.testing.assert_allclose(
+        controller(np.array([0.1, -0.5])), [-(0.1 * gains[0] - 0.5 * gains[1])]
+    )
 
 
 def test_unknown_demonstrator_is_named():
-    with pytest.raises(ValueError, match="no demonstrator 'expert' for dc_pendulum/swingup; "
-                                         "available: demo, poor-demo"):
+    with pytest.raises(
+        ValueError,
+        match="no demonstrator 'expert' for dc_pendulum/swingup; available: demo, poor-demo",
+    ):
         tasks.knowledge("dc_pendulum", "swingup").demonstrator("expert", "dc_pendulum/swingup")
 
 
 # -- recording and the file format ------------------------------------------------------------------
+
 
 def test_record_save_load_round_trip(env, tmp_path):
     controller = tasks.knowledge("dc_pendulum", "swingup").demonstrator("demo").controller(env)
@@ -220,20 +251,28 @@ def _write(path, **arrays):
     return path
 
 
-@pytest.mark.parametrize("change, message", [
-    (dict(drop="rewards"), r"missing \['rewards'\]"),
-    (dict(extra=np.zeros(3)), r"unexpected \['extra'\]"),
-    (dict(states=np.zeros((30, 2, 1))), r"states must have shape \(T, d\)"),
-    (dict(next_states=np.zeros((30, 3))), r"next_states must have shape \(T, 2\)"),
-    (dict(actions=np.zeros(30)), r"actions must have shape"),
-    (dict(states=np.full((30, 2), np.inf)), "states must be finite; 30 of 30 rows"),
-    (dict(trial=np.r_[np.zeros(20), np.ones(10)]), "trial must hold integers"),
-    (dict(trial=np.r_[np.ones(20), np.zeros(10)].astype(int)), "row 20 goes back from 1 to 0"),
-    (dict(states=np.zeros((30, 3)), next_states=np.zeros((30, 3))),
-     "states have n=3 entries per row, the task's state has 2"),
-    (dict(actions=np.zeros((30, 2))), "actions have m=2 entries per row, the task's action has 1"),
-    (dict(actions=np.full((30, 1), 12.0)), "30 of 30 rows lie outside the task's action range"),
-])
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        (dict(drop="rewards"), r"missing \['rewards'\]"),
+        (dict(extra=np.zeros(3)), r"unexpected \['extra'\]"),
+        (dict(states=np.zeros((30, 2, 1))), r"states must have shape \(T, d\)"),
+        (dict(next_states=np.zeros((30, 3))), r"next_states must have shape \(T, 2\)"),
+        (dict(actions=np.zeros(30)), r"actions must have shape"),
+        (dict(states=np.full((30, 2), np.inf)), "states must be finite; 30 of 30 rows"),
+        (dict(trial=np.r_[np.zeros(20), np.ones(10)]), "trial must hold integers"),
+        (dict(trial=np.r_[np.ones(20), np.zeros(10)].astype(int)), "row 20 goes back from 1 to 0"),
+        (
+            dict(states=np.zeros((30, 3)), next_states=np.zeros((30, 3))),
+            "states have n=3 entries per row, the task's state has 2",
+        ),
+        (
+            dict(actions=np.zeros((30, 2))),
+            "actions have m=2 entries per row, the task's action has 1",
+        ),
+        (dict(actions=np.full((30, 1), 12.0)), "30 of 30 rows lie outside the task's action range"),
+    ],
+)
 def test_malformed_prior_file_is_refused_naming_what_is_wrong(env, tmp_path, change, message):
     arrays = {k: v for k, v in synthetic().items()}
     drop = change.pop("drop", None)
@@ -261,6 +300,7 @@ def test_unreadable_or_missing_prior_file_is_refused(env, tmp_path):
 
 # -- the runner and the command line ------------------------------------------------------------------
 
+
 def test_seeded_rmac_reaches_upright_in_its_first_trial(env):
     protocol = Protocol(algorithms=("rmac",), experiments=1, trials=1, prior="demo")
     demo = demonstration_for(protocol, 0)
@@ -275,8 +315,11 @@ def test_seeded_rmac_reaches_upright_in_its_first_trial(env):
 
 
 def test_protocol_refuses_learners_and_parts_that_take_no_prior():
-    with pytest.raises(ValueError, match=r"^s-ac does not take prior knowledge: run only learners "
-                                         r"that do \(rmac"):
+    with pytest.raises(
+        ValueError,
+        match=r"^s-ac does not take prior knowledge: run only learners "
+        r"that do \(rmac",
+    ):
         Protocol(algorithms=("rmac", "s-ac"), prior="demo")
     with pytest.raises(ValueError, match="rmac takes no actor prior"):
         Protocol(algorithms=("rmac",), prior="demo", prior_parts=("actor",))
@@ -290,8 +333,19 @@ def test_protocol_refuses_learners_and_parts_that_take_no_prior():
 def test_reproduce_with_prior_end_to_end(env, tmp_path, capsys):
     from rmac_mj.cli import main
 
-    common = ["reproduce", "--algorithms", "rmac", "--experiments", "1", "--trials", "2",
-              "--jobs", "1", "--no-optimal", "--no-progress"]
+    common = [
+        "reproduce",
+        "--algorithms",
+        "rmac",
+        "--experiments",
+        "1",
+        "--trials",
+        "2",
+        "--jobs",
+        "1",
+        "--no-optimal",
+        "--no-progress",
+    ]
     out = tmp_path / "demo"
     assert main([*common, "--prior", "demo", "--prior-trials", "2", "--out", str(out)]) == 0
     config = json.loads((out / "config.json").read_text())["protocol"]
@@ -299,21 +353,25 @@ def test_reproduce_with_prior_end_to_end(env, tmp_path, capsys):
     with np.load(out / "curves/rmac/exp_000.npz") as curve:
         demonstration_returns, returns = curve["demonstration_returns"], curve["returns"]
     assert demonstration_returns.shape == (2,) and returns.shape == (2,)
-    protocol = Protocol(algorithms=("rmac",), experiments=1, trials=2, prior="demo",
-                               prior_trials=2)
-    np.testing.assert_allclose(demonstration_returns,
-                               demonstration_for(protocol, 0).trial_returns())
+    protocol = Protocol(algorithms=("rmac",), experiments=1, trials=2, prior="demo", prior_trials=2)
+    np.testing.assert_allclose(
+        demonstration_returns, demonstration_for(protocol, 0).trial_returns()
+    )
     # The run is the seeded agent's: its first trial is the one a seeded agent makes.
-    agent = make_agent("rmac", *spaces(env), seed=np.random.default_rng(
-        experiment_seeds(0, 0)[0]))
+    agent = make_agent("rmac", *spaces(env), seed=np.random.default_rng(experiment_seeds(0, 0)[0]))
     agent.seed_from(**demonstration_for(protocol, 0).arrays())
     assert run_trial(env, agent) == pytest.approx(returns[0], abs=1e-9)
 
     # A user's own recording.
     path = prior.save_demonstration(tmp_path / "logs.npz", demonstration_for(protocol, 0))
     out = tmp_path / "file"
-    from_file = Protocol(algorithms=("rmac",), experiments=1, trials=1, prior=str(path),
-                                prior_parts=("process", "critic"))
+    from_file = Protocol(
+        algorithms=("rmac",),
+        experiments=1,
+        trials=1,
+        prior=str(path),
+        prior_parts=("process", "critic"),
+    )
     runner.run_protocol(from_file, out, jobs=1, progress=False, figures=False)
     document = json.loads((out / "config.json").read_text())
     assert document["protocol"]["prior_parts"] == ["process", "critic"]
@@ -325,12 +383,13 @@ def test_reproduce_with_prior_end_to_end(env, tmp_path, capsys):
     capsys.readouterr()
 
     for args, message in (
-            (["--prior", "demo", "--algorithms", "rmac,s-ac"], "s-ac does not take prior knowledge"),
-            (["--prior", str(tmp_path / "missing.npz")], "no such demonstration file"),
-            (["--prior", str(path), "--prior-trials", "3"], "a recorded file is used whole"),
-            (["--prior", "expert"], "no demonstrator 'expert'"),
-            (["--prior", "demo", "--prior-parts", "actor"], "rmac takes no actor prior"),
-            (["--prior-trials", "3"], "need --prior")):
+        (["--prior", "demo", "--algorithms", "rmac,s-ac"], "s-ac does not take prior knowledge"),
+        (["--prior", str(tmp_path / "missing.npz")], "no such demonstration file"),
+        (["--prior", str(path), "--prior-trials", "3"], "a recorded file is used whole"),
+        (["--prior", "expert"], "no demonstrator 'expert'"),
+        (["--prior", "demo", "--prior-parts", "actor"], "rmac takes no actor prior"),
+        (["--prior-trials", "3"], "need --prior"),
+    ):
         assert main([*common, "--out", str(tmp_path / "refused"), *args]) == 2
         stderr = capsys.readouterr().err
         assert message in stderr and len(stderr.strip().splitlines()) == 1, stderr

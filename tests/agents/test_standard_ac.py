@@ -4,13 +4,14 @@ import numpy as np
 import pytest
 
 from rmac_mj.agents import ActionSpace, Exploration, StateSpace
-from rmac_mj.agents.standard_ac import StandardActorCritic, StandardACConfig
-from rmac_mj.approximators.tile_coding import TileCodingConfig
+from rmac_mj.agents.standard_ac import StandardACConfig, StandardActorCritic
 from rmac_mj.agents.task_knowledge import PAPER_REWARD_SCALE
+from rmac_mj.approximators.tile_coding import TileCodingConfig
 
 #: The pendulum's box; its reward scale, as dc_pendulum declares it, keeps alpha_a at the paper's.
-PENDULUM = StateSpace(low=[-np.pi, -60.0], high=[np.pi, 60.0], periodic=[True, False],
-                      reward_scale=PAPER_REWARD_SCALE)
+PENDULUM = StateSpace(
+    low=[-np.pi, -60.0], high=[np.pi, 60.0], periodic=[True, False], reward_scale=PAPER_REWARD_SCALE
+)
 VOLTS = ActionSpace(low=[-3.0], high=[3.0])
 LINE = StateSpace(low=[0.0], high=[1.0], periodic=[False])
 NO_EXPLORATION = Exploration(sigma=0.0)
@@ -18,9 +19,16 @@ NO_EXPLORATION = Exploration(sigma=0.0)
 
 def line_agent(backend="numba", **kwargs):
     """1-D state in [0, 1], one tiling of 2 tiles: x = 0.25 is tile 0, x = 0.75 is tile 1."""
-    config = dict(gamma=0.9, lam=0.5, alpha_c=0.5, alpha_a=0.1, rate_split="none",
-                  tile_coding=TileCodingConfig(num_tilings=1, tiles=2), exploration=NO_EXPLORATION,
-                  backend=backend)
+    config = dict(
+        gamma=0.9,
+        lam=0.5,
+        alpha_c=0.5,
+        alpha_a=0.1,
+        rate_split="none",
+        tile_coding=TileCodingConfig(num_tilings=1, tiles=2),
+        exploration=NO_EXPLORATION,
+        backend=backend,
+    )
     config.update(kwargs)
     return StandardActorCritic(LINE, VOLTS, StandardACConfig(**config), seed=0)
 
@@ -41,8 +49,9 @@ def test_two_step_td_with_traces(backend):
     theta = agent.critic_[:2].copy()
     delta3 = -1.0 + 0.9 * theta[1] - theta[0]
     agent.stop(-1.0, [0.75])
-    np.testing.assert_allclose(agent.critic_[:2],
-                               [theta[0] + 0.5 * delta3, theta[1] + 0.5 * delta3 * 0.45])
+    np.testing.assert_allclose(
+        agent.critic_[:2], [theta[0] + 0.5 * delta3, theta[1] + 0.5 * delta3 * 0.45]
+    )
     np.testing.assert_array_equal(agent.actor_, 0.0)  # no exploration, no actor update
 
 
@@ -100,7 +109,9 @@ def test_saturated_exploration_is_not_credited():
     x0 = np.array([np.pi, 0.0])
     for seed in range(6):
         draw = np.random.default_rng(seed).normal(0.0, 1.0, size=1)[0]  # the agent's first Delta u
-        agent = StandardActorCritic(PENDULUM, VOLTS, StandardACConfig(exploration=Exploration(sigma=1.0)), seed=seed)
+        agent = StandardActorCritic(
+            PENDULUM, VOLTS, StandardACConfig(exploration=Exploration(sigma=1.0)), seed=seed
+        )
         state = agent.state_dict()
         state["actor"][agent.coder.active_tiles(x0)] = 3.0 / 16
         agent.load_state_dict(state)
@@ -162,7 +173,9 @@ def test_state_dict_round_trip():
 
 def test_generic_dimensions():
     """Three state dimensions (one periodic) and two actions: every dimension is coded and learned."""
-    space = StateSpace(low=[-np.pi, -1.0, 0.0], high=[np.pi, 1.0, 2.0], periodic=[True, False, False])
+    space = StateSpace(
+        low=[-np.pi, -1.0, 0.0], high=[np.pi, 1.0, 2.0], periodic=[True, False, False]
+    )
     actions = ActionSpace(low=[-1.0, 0.0], high=[1.0, 5.0])
     config = StandardACConfig(tile_coding=TileCodingConfig(num_tilings=8, tiles=4))
     agent = StandardActorCritic(space, actions, config, seed=0)
@@ -184,12 +197,24 @@ def test_generic_dimensions():
         assert tuple(agent.coder.active_tiles(moved)) != tuple(agent.coder.active_tiles(base)), d
 
 
-@pytest.mark.parametrize("field, value", [
-    ("gamma", 1.0), ("gamma", -0.1), ("lam", 1.5), ("alpha_a", -0.01), ("alpha_c", 2.0),
-    ("alpha_c", float("nan")), ("rate_split", "half"), ("trace_cutoff", 1.0),
-    ("backend", "cuda"), ("tile_low", [0.0, "1"]), ("tile_high", (0.0, float("inf"))),
-    ("exploration", 1.0), ("tile_coding", 16),
-])
+@pytest.mark.parametrize(
+    "field, value",
+    [
+        ("gamma", 1.0),
+        ("gamma", -0.1),
+        ("lam", 1.5),
+        ("alpha_a", -0.01),
+        ("alpha_c", 2.0),
+        ("alpha_c", float("nan")),
+        ("rate_split", "half"),
+        ("trace_cutoff", 1.0),
+        ("backend", "cuda"),
+        ("tile_low", [0.0, "1"]),
+        ("tile_high", (0.0, float("inf"))),
+        ("exploration", 1.0),
+        ("tile_coding", 16),
+    ],
+)
 def test_config_validation(field, value):
     with pytest.raises(ValueError, match=f"StandardACConfig.{field}"):
         StandardACConfig(**{field: value})
@@ -199,9 +224,14 @@ def test_boundary_errors_and_config_round_trip():
     with pytest.raises(ValueError, match="tile_high"):
         StandardActorCritic(PENDULUM, VOLTS, StandardACConfig(tile_high=(1.0,)))
     from rmac_mj.agents import config_from_dict
-    config = StandardACConfig(alpha_c=0.2, rate_split="actor", tile_high=(None, 30.0),
-                       exploration=Exploration(sigma=0.5, period=2),
-                       tile_coding=TileCodingConfig(num_tilings=8, tiles=5))
+
+    config = StandardACConfig(
+        alpha_c=0.2,
+        rate_split="actor",
+        tile_high=(None, 30.0),
+        exploration=Exploration(sigma=0.5, period=2),
+        tile_coding=TileCodingConfig(num_tilings=8, tiles=5),
+    )
     agent = StandardActorCritic(PENDULUM, VOLTS, config, seed=0)
     # The JSON form of the config (what results and snapshots store) rebuilds the same config.
     assert config_from_dict(StandardACConfig, agent.config_dict()) == agent.config
@@ -213,7 +243,9 @@ def test_improves_on_swingup():
     from rmac_mj.rollout import action_space_of, run_trial, state_space_of
 
     env = tasks.load("dc_pendulum", "swingup", task_kwargs={"random": 0})
-    agent = StandardActorCritic(state_space_of(env), action_space_of(env), seed=np.random.default_rng(11))
+    agent = StandardActorCritic(
+        state_space_of(env), action_space_of(env), seed=np.random.default_rng(11)
+    )
     untrained = run_trial(env, agent, learn=False)
     returns = [run_trial(env, agent) for _ in range(150)]
     assert np.mean(returns[-20:]) > untrained + 1000.0, (untrained, np.mean(returns[-20:]))

@@ -19,15 +19,20 @@ def _pendulum_spaces():
 
 
 def _spaces(n=4, m=2, timestep=0.05, reward_scale=None, action_high=1.0):
-    state = StateSpace(low=-np.ones(n), high=np.ones(n), periodic=np.zeros(n, bool),
-                       timestep=timestep, reward_scale=reward_scale)
+    state = StateSpace(
+        low=-np.ones(n),
+        high=np.ones(n),
+        periodic=np.zeros(n, bool),
+        timestep=timestep,
+        reward_scale=reward_scale,
+    )
     return state, ActionSpace(low=-action_high * np.ones(m), high=action_high * np.ones(m))
 
 
 def test_the_pendulum_declares_its_step_and_reward_scale():
     state, _ = _pendulum_spaces()
     assert state.timestep == 0.03
-    assert state.reward_scale == PAPER_REWARD_SCALE == 5.0 * math.pi ** 2
+    assert state.reward_scale == PAPER_REWARD_SCALE == 5.0 * math.pi**2
 
 
 def test_resolved_on_the_paper_pendulum_every_default_is_table_2():
@@ -35,11 +40,21 @@ def test_resolved_on_the_paper_pendulum_every_default_is_table_2():
     state, action = _pendulum_spaces()
     rmac = make_agent("rmac", state, action, seed=0, config={"planning": {"steps": 1}}).config
     assert (rmac.gamma, rmac.lam, rmac.alpha_c, rmac.alpha_r) == (0.97, 0.65, 0.1, 0.005)
-    assert (rmac.critic_capacity, rmac.critic_neighbours, rmac.critic_weights) == (2000, 20, (1.0, 0.1))
-    assert (rmac.process_capacity, rmac.process_neighbours, rmac.process_weights) == \
-        (100, 9, (1.0, 0.1, 1.0))
-    assert (rmac.reference_capacity, rmac.reference_neighbours, rmac.reference_weights) == \
-        (2000, 20, (1.0, 0.1))
+    assert (rmac.critic_capacity, rmac.critic_neighbours, rmac.critic_weights) == (
+        2000,
+        20,
+        (1.0, 0.1),
+    )
+    assert (rmac.process_capacity, rmac.process_neighbours, rmac.process_weights) == (
+        100,
+        9,
+        (1.0, 0.1, 1.0),
+    )
+    assert (rmac.reference_capacity, rmac.reference_neighbours, rmac.reference_weights) == (
+        2000,
+        20,
+        (1.0, 0.1),
+    )
     assert (rmac.planning.model_capacity, rmac.planning.model_neighbours) == (2000, 9)
     sac = make_agent("s-ac", state, action, seed=0)
     c = sac.config
@@ -47,9 +62,14 @@ def test_resolved_on_the_paper_pendulum_every_default_is_table_2():
     assert sac.rate_a == 0.005 / 16 and "reward_scale" not in sac.state_dict()
     mlac = make_agent("mlac", state, action, seed=0).config
     assert (mlac.gamma, mlac.lam, mlac.alpha_a, mlac.alpha_c) == (0.97, 0.65, 0.05, 0.3)
-    assert (mlac.actor_capacity, mlac.actor_neighbours, mlac.critic_capacity,
-            mlac.critic_neighbours, mlac.process_capacity, mlac.process_neighbours) == \
-        (2000, 25, 2000, 15, 100, 10)
+    assert (
+        mlac.actor_capacity,
+        mlac.actor_neighbours,
+        mlac.critic_capacity,
+        mlac.critic_neighbours,
+        mlac.process_capacity,
+        mlac.process_neighbours,
+    ) == (2000, 25, 2000, 15, 100, 10)
     for config in (rmac, c, mlac):
         assert (config.exploration.sigma, config.exploration.period) == (1.0, 3)
 
@@ -60,18 +80,27 @@ def test_elsewhere_the_settings_follow_the_task(name):
     state, action = _spaces(n=4, m=2, timestep=0.06, action_high=1.5)
     overrides = {"planning": {"steps": 1}, **({"action_cost": 0.0} if name == "mlac" else {})}
     config = make_agent(name, state, action, seed=0, config=overrides).config
-    assert config.gamma == pytest.approx(0.97 ** 2) and config.lam == pytest.approx(0.65 ** 2)
+    assert config.gamma == pytest.approx(0.97**2) and config.lam == pytest.approx(0.65**2)
     assert config.exploration.sigma == pytest.approx(1.0 * 3.0 / 6.0)
     assert (config.planning.model_capacity, config.planning.model_neighbours) == (4000, 18)
     if name == "rmac":
-        assert (config.critic_capacity, config.critic_neighbours, config.process_capacity,
-                config.process_neighbours) == (4000, 40, 200, 18)
+        assert (
+            config.critic_capacity,
+            config.critic_neighbours,
+            config.process_capacity,
+            config.process_neighbours,
+        ) == (4000, 40, 200, 18)
 
 
 def test_a_value_set_explicitly_wins():
     state, action = _spaces()
-    config = make_agent("rmac", state, action, seed=0, config={
-        "gamma": 0.99, "critic_capacity": 300, "exploration": {"sigma": 0.7}}).config
+    config = make_agent(
+        "rmac",
+        state,
+        action,
+        seed=0,
+        config={"gamma": 0.99, "critic_capacity": 300, "exploration": {"sigma": 0.7}},
+    ).config
     assert (config.gamma, config.critic_capacity, config.exploration.sigma) == (0.99, 300, 0.7)
 
 
@@ -131,9 +160,13 @@ def test_the_recommended_learner_on_the_pendulum():
 @pytest.mark.parametrize("interpolate", [False, True])
 def test_an_interpolating_model_never_predicts_a_reward_beyond_the_real_ones(interpolate):
     from rmac_mj.agents.planning import Planning, TransitionModel
+
     state, action = _spaces(n=1, m=1)
-    model = TransitionModel(Planning(steps=1, interpolate=interpolate, model_capacity=50,
-                                     model_neighbours=5), state, action)
+    model = TransitionModel(
+        Planning(steps=1, interpolate=interpolate, model_capacity=50, model_neighbours=5),
+        state,
+        action,
+    )
     for x in np.linspace(-0.5, 0.5, 11):
         model.observe(np.array([x]), np.array([0.0]), -1.0 + x, np.array([x]))
     _, r = model.predict(np.array([0.9]), np.array([0.9]))

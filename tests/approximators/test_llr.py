@@ -16,8 +16,9 @@ def test_recovers_affine_function_exactly(backend, conditioning):
     A = np.array([[1.0, -2.0, 0.5], [0.3, 0.0, 4.0]])
     b = np.array([0.7, -1.2])
     X = rng.uniform(-1, 1, size=(50, 3))
-    memory = LLRMemory(3, 2, 100, 10, input_weights=[1, 0.5, 2], conditioning=conditioning,
-                       backend=backend).fit(X, X @ A.T + b)
+    memory = LLRMemory(
+        3, 2, 100, 10, input_weights=[1, 0.5, 2], conditioning=conditioning, backend=backend
+    ).fit(X, X @ A.T + b)
     for xq in rng.uniform(-1, 1, size=(5, 3)):
         pred, beta, idx = memory.query(xq)
         np.testing.assert_allclose(pred, A @ xq + b, atol=1e-10)
@@ -29,10 +30,13 @@ def test_recovers_affine_function_exactly(backend, conditioning):
 def test_minimum_norm_with_one_and_two_samples(backend):
     w = np.array([1.0, 0.1])
     xq = np.array([0.2, 3.0])
-    for X, Y in ((np.array([[0.5, 1.0]]), np.array([[2.0]])),
-                 (np.array([[0.5, 1.0], [-0.1, 7.0]]), np.array([[2.0], [-1.0]]))):
-        memory = LLRMemory(2, 1, 10, 5, input_weights=w, conditioning="none",
-                           backend=backend).fit(X, Y)
+    for X, Y in (
+        (np.array([[0.5, 1.0]]), np.array([[2.0]])),
+        (np.array([[0.5, 1.0], [-0.1, 7.0]]), np.array([[2.0], [-1.0]])),
+    ):
+        memory = LLRMemory(2, 1, 10, 5, input_weights=w, conditioning="none", backend=backend).fit(
+            X, Y
+        )
         pred, beta, idx = memory.query(xq)
         assert len(idx) == len(X)
         # The minimum-norm solution of the under-determined fit in centred, weighted coordinates.
@@ -69,8 +73,9 @@ def test_neighbours_match_brute_force_with_weights_and_periodic_input(backend, n
     rng = np.random.default_rng(1)
     w, period = np.array([1.0, 0.1]), np.array([TWO_PI, 0.0])
     X = np.c_[rng.uniform(-np.pi, np.pi, 300), rng.uniform(-20, 20, 300)]
-    memory = LLRMemory(2, 1, 300, 15, input_weights=w, input_period=period, norm=norm,
-                       backend=backend).fit(X, np.zeros((300, 1)))
+    memory = LLRMemory(
+        2, 1, 300, 15, input_weights=w, input_period=period, norm=norm, backend=backend
+    ).fit(X, np.zeros((300, 1)))
     for xq in np.r_[[[np.pi - 0.01, 0.0], [-np.pi, 5.0]], rng.uniform(-3, 3, size=(20, 2))]:
         expected = _brute_force_neighbours(X, xq, w, period, 15, norm)
         np.testing.assert_array_equal(memory.neighbours(xq), expected)
@@ -81,18 +86,20 @@ def test_compiled_search_orders_ties_like_a_stable_sort(norm):
     # Inputs on a coarse grid: many equal distances. The compiled search (bounded by lane minima
     # when unseeded, by the last list when seeded) must return what a stable argsort returns.
     from rmac_mj.approximators.llr import llr_nearest, search_numpy
+
     rng = np.random.default_rng(7)
     X = np.c_[rng.integers(-6, 6, 700) * 0.5, rng.integers(-10, 10, 700) * 2.0]
-    memory = LLRMemory(2, 1, 700, 20, input_weights=[1.0, 0.25], input_period=[TWO_PI, 0.0],
-                       norm=norm).fit(X, np.zeros((700, 1)))
+    memory = LLRMemory(
+        2, 1, 700, 20, input_weights=[1.0, 0.25], input_period=[TWO_PI, 0.0], norm=norm
+    ).fit(X, np.zeros((700, 1)))
     for xq in np.c_[rng.integers(-6, 6, 40) * 0.5, rng.integers(-10, 10, 40) * 2.0]:
         # (queries inside one period, so already wrapped, as llr_nearest wants them)
-        expected = search_numpy(memory.X_, xq, np.array([1.0, 0.25]), np.array([TWO_PI, 0.0]),
-                                    norm, 20)
+        expected = search_numpy(
+            memory.X_, xq, np.array([1.0, 0.25]), np.array([TWO_PI, 0.0]), norm, 20
+        )
         np.testing.assert_array_equal(memory.neighbours(xq), expected)
         idx, k = llr_nearest(memory.kernel_state, xq)  # seeded with the list searched before
         np.testing.assert_array_equal(idx[:k], expected)
-
 
 
 def test_angles_near_plus_and_minus_pi_are_neighbours():
@@ -109,8 +116,9 @@ def test_periodic_fit_spans_the_seam(backend):
     phis = np.linspace(np.pi - 0.2, np.pi + 0.2, 9)
     X = ((phis + np.pi) % TWO_PI - np.pi)[:, None]
     Y = ((phis + 0.1 + np.pi) % TWO_PI - np.pi)[:, None]
-    memory = LLRMemory(1, 1, 20, 9, input_period=[TWO_PI], output_period=[TWO_PI],
-                       backend=backend).fit(X, Y)
+    memory = LLRMemory(
+        1, 1, 20, 9, input_period=[TWO_PI], output_period=[TWO_PI], backend=backend
+    ).fit(X, Y)
     pred, beta, _ = memory.query([np.pi - 0.05])
     assert abs(((pred[0] - (np.pi + 0.05)) + np.pi) % TWO_PI - np.pi) < 1e-10
     np.testing.assert_allclose(beta[0, 0], 1.0, atol=1e-10)
@@ -147,8 +155,7 @@ def test_replace_oldest(backend):
 
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_replace_nearest(backend):
-    memory = LLRMemory(2, 1, 3, 1, input_weights=[1, 0.01], replacement="nearest",
-                       backend=backend)
+    memory = LLRMemory(2, 1, 3, 1, input_weights=[1, 0.01], replacement="nearest", backend=backend)
     for x in ([0.0, 0.0], [1.0, 0.0], [2.0, 0.0]):
         memory.insert(x, [0.0])
     assert memory.insert([1.1, 50.0], [7.0]) == 1  # nearest under the weighting
@@ -161,18 +168,28 @@ def test_redundancy_by_distance_evicts_the_duplicate(backend):
     # K = 2, eta = 0.5, 1-norm; scores worked by hand: rho_i <- rho_i / 2 - d_i / 2 over K(x_*),
     # rho_* = mean_i rho_i / 2 - min d / 2. a 0 -> a 0; b 1 -> a -0.5, b -0.75;
     # c 3 -> b -1.375, a -1.75, c -1.78125; d 1 (b's duplicate) -> b -0.6875, a -1.375, d -0.515625.
-    memory = LLRMemory(1, 1, 4, 2, replacement="redundancy", redundancy="distance",
-                       redundancy_smoothing=0.5, backend=backend)
+    memory = LLRMemory(
+        1,
+        1,
+        4,
+        2,
+        replacement="redundancy",
+        redundancy="distance",
+        redundancy_smoothing=0.5,
+        backend=backend,
+    )
     for v in (0.0, 1.0, 3.0, 1.0):
         memory.insert([v], [v])
-    np.testing.assert_allclose(memory.redundancy_, [-1.375, -0.6875, -1.78125, -0.515625],
-                               atol=1e-12)
+    np.testing.assert_allclose(
+        memory.redundancy_, [-1.375, -0.6875, -1.78125, -0.515625], atol=1e-12
+    )
     # Full. 10 is nearest to c (which 'nearest' would replace) and 'oldest' would replace a; the
     # duplicate, at distance 0 from b when it came, is the most redundant (c -4.390625,
     # b -4.84375); the newcomer starts at -4.6171875 / 2 - 7 / 2.
     assert memory.insert([10.0], [0.0]) == 3
-    np.testing.assert_allclose(memory.redundancy_, [-1.375, -4.84375, -4.390625, -5.80859375],
-                               atol=1e-12)
+    np.testing.assert_allclose(
+        memory.redundancy_, [-1.375, -4.84375, -4.390625, -5.80859375], atol=1e-12
+    )
     np.testing.assert_array_equal(memory.X_[:, 0], [0.0, 1.0, 3.0, 10.0])
 
 
@@ -183,8 +200,17 @@ def test_redundancy_by_misfit_evicts_the_sample_on_the_line(backend):
     # sample at x = 0 lies on the line and the local model predicts it exactly.
     X = np.arange(-2.0, 3.0)[:, None]
     Y = 2 * X + np.array([[1.0], [-1.0], [0.0], [-1.0], [1.0]])
-    memory = LLRMemory(1, 1, 5, 5, replacement="redundancy", redundancy="misfit",
-                       redundancy_smoothing=0.5, conditioning="none", backend=backend)
+    memory = LLRMemory(
+        1,
+        1,
+        5,
+        5,
+        replacement="redundancy",
+        redundancy="misfit",
+        redundancy_smoothing=0.5,
+        conditioning="none",
+        backend=backend,
+    )
     memory.fit(X, Y)  # each scored among the other four
     np.testing.assert_allclose(memory.redundancy_, [-1, -1, 0, -1, -1], atol=1e-12)
     # (3, 6) lies on the line too: the six-sample fit is still y = 2 x, so the neighbours keep
@@ -204,11 +230,22 @@ def test_scores_are_kept_only_under_redundancy_replacement():
 
 def test_back_ends_agree_on_a_random_history():
     rng = np.random.default_rng(3)
-    kwargs = dict(input_dim=3, output_dim=2, capacity=60, n_neighbours=9,
-                  input_weights=[1, 0.1, 1], input_period=[TWO_PI, 0, 0],
-                  output_period=[TWO_PI, 0], clip=True)
-    for replacement, measure in (("nearest", "distance"), ("oldest", "distance"),
-                                 ("redundancy", "distance"), ("redundancy", "misfit")):
+    kwargs = dict(
+        input_dim=3,
+        output_dim=2,
+        capacity=60,
+        n_neighbours=9,
+        input_weights=[1, 0.1, 1],
+        input_period=[TWO_PI, 0, 0],
+        output_period=[TWO_PI, 0],
+        clip=True,
+    )
+    for replacement, measure in (
+        ("nearest", "distance"),
+        ("oldest", "distance"),
+        ("redundancy", "distance"),
+        ("redundancy", "misfit"),
+    ):
         fast = LLRMemory(**kwargs, replacement=replacement, redundancy=measure, backend="numba")
         slow = LLRMemory(**kwargs, replacement=replacement, redundancy=measure, backend="numpy")
         for _ in range(200):
@@ -257,6 +294,7 @@ def test_add_weighted_adds_delta_times_weight_to_stored_samples(backend):
 
 def test_kernel_state_is_the_memory_itself():
     from rmac_mj.approximators.llr import llr_insert, llr_query
+
     memory = LLRMemory(2, 1, 10, 3, input_period=[TWO_PI, 0.0])
     slot = llr_insert(memory.kernel_state, np.array([4.0, 1.0]), np.array([5.0]), -1)
     assert slot == 0 and memory.n_samples_ == 1
@@ -278,11 +316,13 @@ def test_kept_neighbour_lists_stay_exact_across_insertions(replacement, norm):
     # neighbours included. Inputs on a coarse grid make many distances equal; the queries come
     # back to the last few points after one to four insertions, as a learner's states do.
     from rmac_mj.approximators.llr import llr_insert, llr_nearest, search_numpy
+
     rng = np.random.default_rng(5)
     K = 4
     weights, period = np.array([1.0, 0.5]), np.array([TWO_PI, 0.0])
-    memory = LLRMemory(2, 1, 25, K, input_weights=weights, input_period=period, norm=norm,
-                       replacement=replacement)
+    memory = LLRMemory(
+        2, 1, 25, K, input_weights=weights, input_period=period, norm=norm, replacement=replacement
+    )
     state = memory.kernel_state
     points, replaced_a_neighbour = [], 0
     for step in range(600):
@@ -293,14 +333,16 @@ def test_kept_neighbour_lists_stay_exact_across_insertions(replacement, norm):
             points.append(xq)
         idx, k = llr_nearest(state, xq)
         before = idx[:k].copy()
-        np.testing.assert_array_equal(before, search_numpy(
-            memory.X_[:memory.n_samples_], xq, weights, period, norm, K))
+        np.testing.assert_array_equal(
+            before, search_numpy(memory.X_[: memory.n_samples_], xq, weights, period, norm, K)
+        )
         if rng.random() < 0.7:
             x_new = xq + np.r_[rng.integers(-2, 3), rng.integers(-2, 3)] * 0.5
             slot = llr_insert(state, x_new, np.zeros(1), before[0] if step % 2 and k else -1)
             replaced_a_neighbour += slot in before
-    assert memory.n_samples_ == 25 and replaced_a_neighbour > (5 if replacement == "redundancy"
-                                                               else 20)
+    assert memory.n_samples_ == 25 and replaced_a_neighbour > (
+        5 if replacement == "redundancy" else 20
+    )
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
@@ -345,16 +387,25 @@ def test_initialise_from_samples_and_state_dict_round_trip():
     np.testing.assert_allclose(memory.predict(X[:3]), np.array([memory.query(x)[0] for x in X[:3]]))
 
 
-@pytest.mark.parametrize("kwargs, name", [
-    (dict(capacity=0), "capacity"), (dict(n_neighbours=0), "n_neighbours"),
-    (dict(capacity=5, n_neighbours=6), "n_neighbours"), (dict(input_weights=[1.0]), "input_weights"),
-    (dict(input_weights=[1.0, -0.1]), "input_weights"), (dict(norm=3), "norm"),
-    (dict(conditioning="qr"), "conditioning"), (dict(rcond=1.5), "rcond"),
-    (dict(replacement="random"), "replacement"), (dict(backend="kd_tree"), "backend"),
-    (dict(redundancy="age"), "redundancy"), (dict(redundancy_smoothing=0.0), "redundancy_smoothing"),
-    (dict(redundancy_smoothing=1.5), "redundancy_smoothing"),
-    (dict(input_period=[1.0]), "input_period"),
-])
+@pytest.mark.parametrize(
+    "kwargs, name",
+    [
+        (dict(capacity=0), "capacity"),
+        (dict(n_neighbours=0), "n_neighbours"),
+        (dict(capacity=5, n_neighbours=6), "n_neighbours"),
+        (dict(input_weights=[1.0]), "input_weights"),
+        (dict(input_weights=[1.0, -0.1]), "input_weights"),
+        (dict(norm=3), "norm"),
+        (dict(conditioning="qr"), "conditioning"),
+        (dict(rcond=1.5), "rcond"),
+        (dict(replacement="random"), "replacement"),
+        (dict(backend="kd_tree"), "backend"),
+        (dict(redundancy="age"), "redundancy"),
+        (dict(redundancy_smoothing=0.0), "redundancy_smoothing"),
+        (dict(redundancy_smoothing=1.5), "redundancy_smoothing"),
+        (dict(input_period=[1.0]), "input_period"),
+    ],
+)
 def test_bad_configuration_names_the_parameter(kwargs, name):
     args = dict(input_dim=2, output_dim=1, capacity=10, n_neighbours=3)
     args.update(kwargs)

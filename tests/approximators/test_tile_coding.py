@@ -3,26 +3,38 @@
 import numpy as np
 import pytest
 
-from rmac_mj.approximators.tile_coding import (LinearTileApproximator, TileCoder, TileCodingConfig,
-                                               tiling_offsets)
+from rmac_mj.approximators.tile_coding import (
+    LinearTileApproximator,
+    TileCoder,
+    TileCodingConfig,
+    tiling_offsets,
+)
 
 PI = np.pi
 
 
 def pendulum_coder(num_tilings=2, backend="numba", offsets="uniform"):
     """phi periodic over [-pi, pi), phi_dot in [-10, 10]; 7 tiles each (7 x 8 per tiling)."""
-    return TileCoder([-PI, -10.0], [PI, 10.0], [True, False],
-                     TileCodingConfig(num_tilings=num_tilings, tiles=7, offsets=offsets), backend)
+    return TileCoder(
+        [-PI, -10.0],
+        [PI, 10.0],
+        [True, False],
+        TileCodingConfig(num_tilings=num_tilings, tiles=7, offsets=offsets),
+        backend,
+    )
 
 
 @pytest.mark.parametrize("backend", ["numba", "numpy"])
-@pytest.mark.parametrize("x, expected", [
-    # Tile coordinates c = floor((x - low) * 7 / range + j / 2); index = j * 56 + c_phi * 8 + c_vel.
-    ((-3.0, -9.9), [0 * 8 + 0, 56 + 0 * 8 + 0]),     # s = (0.158, 0.035)
-    ((2.0, 5.0), [5 * 8 + 5, 56 + 6 * 8 + 5]),       # s = (5.728, 5.25): phi's tiling 1 moves up
-    ((0.1, 1.0), [3 * 8 + 3, 56 + 4 * 8 + 4]),       # s = (3.611, 3.85)
-    ((3.0, 9.0), [6 * 8 + 6, 56 + 0 * 8 + 7]),       # s = (6.842, 6.65): tiling 1 wraps phi to 0
-])
+@pytest.mark.parametrize(
+    "x, expected",
+    [
+        # Tile coordinates c = floor((x - low) * 7 / range + j / 2); index = j * 56 + c_phi * 8 + c_vel.
+        ((-3.0, -9.9), [0 * 8 + 0, 56 + 0 * 8 + 0]),  # s = (0.158, 0.035)
+        ((2.0, 5.0), [5 * 8 + 5, 56 + 6 * 8 + 5]),  # s = (5.728, 5.25): phi's tiling 1 moves up
+        ((0.1, 1.0), [3 * 8 + 3, 56 + 4 * 8 + 4]),  # s = (3.611, 3.85)
+        ((3.0, 9.0), [6 * 8 + 6, 56 + 0 * 8 + 7]),  # s = (6.842, 6.65): tiling 1 wraps phi to 0
+    ],
+)
 def test_active_tiles_hand_computed(backend, x, expected):
     coder = pendulum_coder(backend=backend)
     assert coder.sizes.tolist() == [7, 8] and coder.num_features == 2 * 56
@@ -45,8 +57,9 @@ def test_periodic_wrap(backend):
 
 
 def test_offsets():
-    np.testing.assert_allclose(tiling_offsets(4, 2, "uniform"),
-                               [[0, 0], [0.25, 0.25], [0.5, 0.5], [0.75, 0.75]])
+    np.testing.assert_allclose(
+        tiling_offsets(4, 2, "uniform"), [[0, 0], [0.25, 0.25], [0.5, 0.5], [0.75, 0.75]]
+    )
     grid = tiling_offsets(16, 2, "grid")
     assert grid.shape == (16, 2)
     assert {tuple(row) for row in grid} == {(a / 4, b / 4) for a in range(4) for b in range(4)}
@@ -63,8 +76,12 @@ def test_offsets():
 @pytest.mark.parametrize("offsets", ["uniform", "grid"])
 def test_one_active_tile_per_tiling(offsets):
     rng = np.random.default_rng(0)
-    coder = TileCoder([-PI, -60.0, 0.0], [PI, 60.0, 1.0], [True, False, False],
-                      TileCodingConfig(num_tilings=8, tiles=(7, 5, 3), offsets=offsets))
+    coder = TileCoder(
+        [-PI, -60.0, 0.0],
+        [PI, 60.0, 1.0],
+        [True, False, False],
+        TileCodingConfig(num_tilings=8, tiles=(7, 5, 3), offsets=offsets),
+    )
     assert coder.sizes.tolist() == [7, 6, 4] and coder.num_features == 8 * 7 * 6 * 4
     for x in rng.uniform([-10, -100, -1], [10, 100, 2], size=(200, 3)):
         tiles = coder.active_tiles(x)
@@ -90,16 +107,24 @@ def test_bad_states_raise(bad):
 
 def test_backends_agree():
     rng = np.random.default_rng(1)
-    fast, ref = (TileCoder([-PI, -60.0], [PI, 60.0], [True, False], TileCodingConfig(), b)
-                 for b in ("numba", "numpy"))
+    fast, ref = (
+        TileCoder([-PI, -60.0], [PI, 60.0], [True, False], TileCodingConfig(), b)
+        for b in ("numba", "numpy")
+    )
     for x in rng.uniform([-20, -80], [20, 80], size=(2000, 2)):
         np.testing.assert_array_equal(fast.active_tiles(x), ref.active_tiles(x))
 
 
-@pytest.mark.parametrize("kwargs, name", [
-    ({"num_tilings": 0}, "num_tilings"), ({"num_tilings": 2.5}, "num_tilings"),
-    ({"tiles": 0}, "tiles"), ({"tiles": (7, -1)}, "tiles"), ({"offsets": "random"}, "offsets"),
-])
+@pytest.mark.parametrize(
+    "kwargs, name",
+    [
+        ({"num_tilings": 0}, "num_tilings"),
+        ({"num_tilings": 2.5}, "num_tilings"),
+        ({"tiles": 0}, "tiles"),
+        ({"tiles": (7, -1)}, "tiles"),
+        ({"offsets": "random"}, "offsets"),
+    ],
+)
 def test_config_validation(kwargs, name):
     with pytest.raises(ValueError, match=name):
         TileCodingConfig(**kwargs)

@@ -41,23 +41,31 @@ def rmac_mj(*args, cwd=None) -> Result:
     return Result(code, out.getvalue(), err.getvalue())
 
 
-@pytest.mark.parametrize("args, message", [
-    (["reproduce", "--experiments", "-2"], "positive integer"),
-    (["reproduce", "--trials", "zero"], "positive integer"),
-    (["reproduce", "--algorithms", "rmac,dqn", "--out", "{tmp}/x"], "unknown algorithm 'dqn'"),
-    (["reproduce", "--out", "{tmp}/file/sub"], "cannot write"),
-    (["policy", "{tmp}/missing.npz"], "no snapshot"),
-    (["compare", "{tmp}"], "no summary.json"),
-    (["render", "--out", "{tmp}/x.mp4"], "exactly one of"),
-    (["reproduce", "--domain", "cartpole", "--out", "{tmp}/x"], "unknown domain 'cartpole'"),
-    (["reproduce", "--task", "spin", "--out", "{tmp}/x"], "unknown task 'spin'"),
-    (["bench", "--domain", "cartpole"], "unknown domain 'cartpole'; available: dc_pendulum, "
-                                        "two_link_arm; dm-control has 'cartpole', an outside "
-                                        "environment: env dm_control:cartpole/"),
-    (["policy", "{tmp}/missing.npz", "--dims", "1"], "two state dimensions"),
-    (["render", "--progression", "{tmp}", "--task", "swingup", "--out", "{tmp}/x.mp4"],
-     "single SNAPSHOT"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["reproduce", "--experiments", "-2"], "positive integer"),
+        (["reproduce", "--trials", "zero"], "positive integer"),
+        (["reproduce", "--algorithms", "rmac,dqn", "--out", "{tmp}/x"], "unknown algorithm 'dqn'"),
+        (["reproduce", "--out", "{tmp}/file/sub"], "cannot write"),
+        (["policy", "{tmp}/missing.npz"], "no snapshot"),
+        (["compare", "{tmp}"], "no summary.json"),
+        (["render", "--out", "{tmp}/x.mp4"], "exactly one of"),
+        (["reproduce", "--domain", "cartpole", "--out", "{tmp}/x"], "unknown domain 'cartpole'"),
+        (["reproduce", "--task", "spin", "--out", "{tmp}/x"], "unknown task 'spin'"),
+        (
+            ["bench", "--domain", "cartpole"],
+            "unknown domain 'cartpole'; available: dc_pendulum, "
+            "two_link_arm; dm-control has 'cartpole', an outside "
+            "environment: env dm_control:cartpole/",
+        ),
+        (["policy", "{tmp}/missing.npz", "--dims", "1"], "two state dimensions"),
+        (
+            ["render", "--progression", "{tmp}", "--task", "swingup", "--out", "{tmp}/x.mp4"],
+            "single SNAPSHOT",
+        ),
+    ],
+)
 def test_bad_arguments_give_one_line(tmp_path, args, message):
     (tmp_path / "file").write_text("not a directory")
     result = rmac_mj(*[a.replace("{tmp}", str(tmp_path)) for a in args])
@@ -69,25 +77,32 @@ def test_bad_arguments_give_one_line(tmp_path, args, message):
 
 def test_reproduce_and_compare_and_policy(tmp_path):
     out = tmp_path / "run"
-    result = rmac_mj("reproduce", "--algorithms", "s-ac", "--experiments", "2", "--trials", "3",
-                     "--jobs", "1", "--out", str(out), "--no-optimal", "--no-progress")
+    result = rmac_mj(
+        "reproduce",
+        "--algorithms",
+        "s-ac",
+        "--experiments",
+        "2",
+        "--trials",
+        "3",
+        "--jobs",
+        "1",
+        "--out",
+        str(out),
+        "--no-optimal",
+        "--no-progress",
+    )
     assert result.returncode == 0, result.stderr
     assert "s-ac" in result.stdout and "final return" in result.stdout
     result = rmac_mj("compare", str(out), str(out), "--out", str(tmp_path / "cmp"))
     assert result.returncode == 0, result.stderr
     assert (tmp_path / "cmp.png").is_file()
-
-
-def test_compare_draws_next_to_the_first_run_by_default(tmp_path):
-    _fake_run(tmp_path / "a" / "run", 0)
-    _fake_run(tmp_path / "b" / "run", 1)
-    result = rmac_mj("compare", "a/run", "b/run", cwd=tmp_path)
-    assert result.returncode == 0, result.stderr
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["a", "b"]  # nothing in the working directory
-    for name in ("compare.png", "compare.pdf", "compare_profiles.png", "compare_profiles.pdf"):
-        assert (tmp_path / "a" / "run" / name).is_file(), name
-    result = rmac_mj("policy", str(out / "snapshots/s-ac/exp_000/trial_0003.npz"), "--out",
-                     str(tmp_path / "policy"))
+    result = rmac_mj(
+        "policy",
+        str(out / "snapshots/s-ac/exp_000/trial_0003.npz"),
+        "--out",
+        str(tmp_path / "policy"),
+    )
     assert result.returncode == 0, result.stderr
     assert (tmp_path / "policy.png").is_file()
 
@@ -96,18 +111,21 @@ def test_set_overrides_parse_into_nested_agent_configs():
     from rmac_mj.cli.common import UsageError
     from rmac_mj.cli.runs import parse_overrides
 
-    assert parse_overrides(["rmac.exploration.sigma=0.5", "s-ac.rate_split=actor",
-                            "s-ac.tile_high=[null, 60]"]) == {
+    assert parse_overrides(
+        ["rmac.exploration.sigma=0.5", "s-ac.rate_split=actor", "s-ac.tile_high=[null, 60]"]
+    ) == {
         "rmac": {"exploration": {"sigma": 0.5}},
-        "s-ac": {"rate_split": "actor", "tile_high": [None, 60]}}
+        "s-ac": {"rate_split": "actor", "tile_high": [None, 60]},
+    }
     for bad in ("rmac", "rmac=1", "sigma=0.5", "rmac..x=1"):
         with pytest.raises(UsageError, match="ALGO.FIELD=VALUE"):
             parse_overrides([bad])
 
 
 def test_unknown_hyperparameter_is_one_line(tmp_path):
-    result = rmac_mj("reproduce", "--algorithms", "s-ac", "--out", str(tmp_path / "x"),
-                     "--set", "s-ac.bogus=1")
+    result = rmac_mj(
+        "reproduce", "--algorithms", "s-ac", "--out", str(tmp_path / "x"), "--set", "s-ac.bogus=1"
+    )
     assert result.returncode == 2 and "StandardACConfig has no parameter 'bogus'" in result.stderr
 
 
@@ -117,26 +135,36 @@ def test_a_bug_keeps_its_traceback(tmp_path, monkeypatch):
 
     def broken(*args, **kwargs):
         raise ValueError("deep inside a learner")
+
     monkeypatch.setattr(runner, "run_protocol", broken)
     with pytest.raises(ValueError, match="deep inside a learner"):  # not caught, not shortened
         main(["reproduce", "--out", str(tmp_path / "x"), "--no-progress"])
 
 
 def test_bad_hyperparameter_value_is_one_line(tmp_path):
-    result = rmac_mj("reproduce", "--algorithms", "rmac", "--out", str(tmp_path / "x"),
-                     "--set", "rmac.gamma=1.5")
-    assert result.returncode == 2 and "RMACConfig.gamma must be a number in [0, 1), or None, got 1.5" in result.stderr
+    result = rmac_mj(
+        "reproduce", "--algorithms", "rmac", "--out", str(tmp_path / "x"), "--set", "rmac.gamma=1.5"
+    )
+    assert (
+        result.returncode == 2
+        and "RMACConfig.gamma must be a number in [0, 1), or None, got 1.5" in result.stderr
+    )
     assert len(result.stderr.strip().splitlines()) == 1
 
 
 def test_version_and_python_dash_m():
     from rmac_mj import __version__
 
-    result = subprocess.run([sys.executable, "-m", "rmac_mj.cli", "--version"], capture_output=True,
-                            text=True, timeout=120)
+    result = subprocess.run(
+        [sys.executable, "-m", "rmac_mj.cli", "--version"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert result.returncode == 0 and result.stdout.strip() == f"rmac-mj {__version__}"
-    result = subprocess.run([sys.executable, "-m", "rmac_mj", "--help"], capture_output=True, text=True,
-                            timeout=120)
+    result = subprocess.run(
+        [sys.executable, "-m", "rmac_mj", "--help"], capture_output=True, text=True, timeout=120
+    )
     assert result.returncode == 0 and "usage: rmac-mj" in result.stdout
     assert "``" not in result.stdout  # no raw reST markup
 
@@ -145,7 +173,9 @@ def test_no_arguments_prints_the_usage_and_the_commands():
     result = rmac_mj()
     assert result.returncode == 0 and result.stdout.startswith("usage: rmac-mj")
     for command in ("reproduce", "compare", "policy", "optimal", "render", "bench"):
-        assert f"\n    {command} " in result.stdout or f"\n    {command}\n" in result.stdout, command
+        assert f"\n    {command} " in result.stdout or f"\n    {command}\n" in result.stdout, (
+            command
+        )
 
 
 def test_every_option_has_help_and_the_help_shows_defaults():
@@ -170,9 +200,14 @@ def test_set_without_algorithms_runs_only_the_learners_it_names(capsys):
 
     from rmac_mj.cli.runs import algorithms_to_run
 
-    assert algorithms_to_run(argparse.Namespace(algorithms=None), {"rmac": {"gamma": 0.9}}) == ("rmac",)
+    assert algorithms_to_run(argparse.Namespace(algorithms=None), {"rmac": {"gamma": 0.9}}) == (
+        "rmac",
+    )
     assert "running it alone" in capsys.readouterr().err
-    assert algorithms_to_run(argparse.Namespace(algorithms="rmac,s-ac"), {"rmac": {}}) == ("rmac", "s-ac")
+    assert algorithms_to_run(argparse.Namespace(algorithms="rmac,s-ac"), {"rmac": {}}) == (
+        "rmac",
+        "s-ac",
+    )
     assert algorithms_to_run(argparse.Namespace(algorithms=None), {}) == ("rmac", "s-ac")
 
 
@@ -185,10 +220,17 @@ def _fake_run(directory, seed, agent_configs=None):
 
     rng = np.random.default_rng(seed)
     directory.mkdir(parents=True)
-    summary = {"trial_seconds": 3.0, "optimal_return": None,
-               "protocol": {"experiments": 3, "trials": 60, "seed": seed,
-                            "agent_configs": agent_configs or {}},
-               "rmac": metrics.summarise(-1000 + rng.normal(0, 50, (3, 60)), trial_seconds=3.0)}
+    summary = {
+        "trial_seconds": 3.0,
+        "optimal_return": None,
+        "protocol": {
+            "experiments": 3,
+            "trials": 60,
+            "seed": seed,
+            "agent_configs": agent_configs or {},
+        },
+        "rmac": metrics.summarise(-1000 + rng.normal(0, 50, (3, 60)), trial_seconds=3.0),
+    }
     (directory / "summary.json").write_text(json.dumps(summary))
 
 
@@ -198,7 +240,10 @@ def test_compare_shows_same_named_directories_apart(tmp_path):
     result = rmac_mj("compare", "a/run", "b/run", "--out", "cmp", cwd=tmp_path)
     assert result.returncode == 0, result.stderr
     assert "== a/run: 3 experiments of 60 trials, seed 0; default hyperparameters" in result.stdout
-    assert "== b/run: 3 experiments of 60 trials, seed 1; --set rmac.exploration.sigma=0.5" in result.stdout
+    assert (
+        "== b/run: 3 experiments of 60 trials, seed 1; --set rmac.exploration.sigma=0.5"
+        in result.stdout
+    )
     assert (tmp_path / "cmp.png").is_file()
 
 
@@ -207,7 +252,10 @@ def test_compare_draws_next_to_the_first_run_by_default(tmp_path):
     _fake_run(tmp_path / "b" / "run", 1)
     result = rmac_mj("compare", "a/run", "b/run", cwd=tmp_path)
     assert result.returncode == 0, result.stderr
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["a", "b"]  # nothing in the working directory
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "a",
+        "b",
+    ]  # nothing in the working directory
     for name in ("compare.png", "compare.pdf", "compare_profiles.png", "compare_profiles.pdf"):
         assert (tmp_path / "a" / "run" / name).is_file(), name
 
@@ -217,9 +265,18 @@ def test_shortest_distinct_suffixes():
 
     from rmac_mj.cli.views import shortest_distinct_suffixes
 
-    assert shortest_distinct_suffixes([pathlib.Path("/r/a/run"), pathlib.Path("/r/b/run")]) == ["a/run", "b/run"]
-    assert shortest_distinct_suffixes([pathlib.Path("/r/ten"), pathlib.Path("/s/oldest")]) == ["ten", "oldest"]
-    assert shortest_distinct_suffixes([pathlib.Path("/x/run"), pathlib.Path("/y/x/run")]) == ["/x/run", "y/x/run"]
+    assert shortest_distinct_suffixes([pathlib.Path("/r/a/run"), pathlib.Path("/r/b/run")]) == [
+        "a/run",
+        "b/run",
+    ]
+    assert shortest_distinct_suffixes([pathlib.Path("/r/ten"), pathlib.Path("/s/oldest")]) == [
+        "ten",
+        "oldest",
+    ]
+    assert shortest_distinct_suffixes([pathlib.Path("/x/run"), pathlib.Path("/y/x/run")]) == [
+        "/x/run",
+        "y/x/run",
+    ]
 
 
 def test_an_interrupt_before_any_result_says_nothing_is_saved(tmp_path, monkeypatch):
@@ -227,18 +284,39 @@ def test_an_interrupt_before_any_result_says_nothing_is_saved(tmp_path, monkeypa
 
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
+
     monkeypatch.setattr(runner, "run_protocol", interrupted)
     result = rmac_mj("reproduce", "--out", str(tmp_path / "x"), "--no-progress")
     assert result.returncode == 130
     assert "nothing is saved" in result.stderr and "are saved" not in result.stderr
-    assert result.stderr.endswith(f"finish it with: rmac-mj reproduce --resume --out {tmp_path / 'x'}\n")
+    assert result.stderr.endswith(
+        f"finish it with: rmac-mj reproduce --resume --out {tmp_path / 'x'}\n"
+    )
 
 
 def test_a_resume_takes_its_settings_from_the_directory(tmp_path, capsys):
     out = tmp_path / "run"
-    args = ["reproduce", "--algorithms", "s-ac", "--experiments", "2", "--trials", "3", "--seed", "5",
-            "--evaluate-every", "3", "--set", "s-ac.alpha_a=0.02", "--jobs", "1", "--no-optimal",
-            "--no-progress", "--out", str(out)]
+    args = [
+        "reproduce",
+        "--algorithms",
+        "s-ac",
+        "--experiments",
+        "2",
+        "--trials",
+        "3",
+        "--seed",
+        "5",
+        "--evaluate-every",
+        "3",
+        "--set",
+        "s-ac.alpha_a=0.02",
+        "--jobs",
+        "1",
+        "--no-optimal",
+        "--no-progress",
+        "--out",
+        str(out),
+    ]
     assert main(args) == 0
     whole = json.loads((out / "summary.json").read_text())
     (out / "curves" / "s-ac" / "exp_001.npz").unlink()  # as if interrupted before the last one
@@ -259,8 +337,10 @@ def test_a_resume_takes_its_settings_from_the_directory(tmp_path, capsys):
     assert main(["reproduce", "--resume", "--out", str(out), "--set", "s-ac.alpha_a=0.05"]) == 2
     assert "agent_configs.s-ac.alpha_a: 0.02 in the directory, 0.05 now" in capsys.readouterr().err
     # A finished run grows by more experiments (the settings from the directory, the count given).
-    assert main(["reproduce", "--resume", "--out", str(out), "--experiments", "3",
-                 "--no-progress"]) == 0
+    assert (
+        main(["reproduce", "--resume", "--out", str(out), "--experiments", "3", "--no-progress"])
+        == 0
+    )
     grown = json.loads((out / "summary.json").read_text())
     assert grown["s-ac"]["experiments"] == 3 and grown["protocol"]["seed"] == 5
     assert grown["protocol"]["agent_configs"] == whole["protocol"]["agent_configs"]
@@ -269,8 +349,21 @@ def test_a_resume_takes_its_settings_from_the_directory(tmp_path, capsys):
 
 def test_running_a_finished_run_again_prints_its_summary(tmp_path, capsys):
     out = tmp_path / "run"
-    args = ["reproduce", "--algorithms", "s-ac", "--experiments", "2", "--trials", "3", "--jobs", "1",
-            "--no-optimal", "--no-progress", "--out", str(out)]
+    args = [
+        "reproduce",
+        "--algorithms",
+        "s-ac",
+        "--experiments",
+        "2",
+        "--trials",
+        "3",
+        "--jobs",
+        "1",
+        "--no-optimal",
+        "--no-progress",
+        "--out",
+        str(out),
+    ]
     assert main(args) == 0
     first = capsys.readouterr().out
     stamp = (out / "summary.json").stat().st_mtime_ns
@@ -297,16 +390,30 @@ def test_policy_maps_keep_the_labels_the_run_declared():
     from rmac_mj.cli.views import _declared_labels
     from rmac_mj.tasks.common import LearnerState
 
-    inferred = LearnerState(keys=("atan2(observation[1], observation[0])", "observation[2]"),
-                            low=(-3.2, -10.0), high=(3.2, 10.0), periodic=(True, False),
-                            labels=("atan2(observation[1],observation[0]) [rad]", "observation[2]"),
-                            input_weights=(1.0, 0.3), action_input_weights=(1.0,),
-                            action_labels=("u[0]",))
-    meta = {"environment": {"env": "my_task.py:make", "learner_state": {
-        "keys": list(inferred.keys), "labels": ["angle phi [rad]", "speed [rad/s]"],
-        "action_labels": ["torque [N m]"]}}}
+    inferred = LearnerState(
+        keys=("atan2(observation[1], observation[0])", "observation[2]"),
+        low=(-3.2, -10.0),
+        high=(3.2, 10.0),
+        periodic=(True, False),
+        labels=("atan2(observation[1],observation[0]) [rad]", "observation[2]"),
+        input_weights=(1.0, 0.3),
+        action_input_weights=(1.0,),
+        action_labels=("u[0]",),
+    )
+    meta = {
+        "environment": {
+            "env": "my_task.py:make",
+            "learner_state": {
+                "keys": list(inferred.keys),
+                "labels": ["angle phi [rad]", "speed [rad/s]"],
+                "action_labels": ["torque [N m]"],
+            },
+        }
+    }
     named = _declared_labels(inferred, meta)
-    assert named.labels == ("angle phi [rad]", "speed [rad/s]") and named.action_labels == ("torque [N m]",)
+    assert named.labels == ("angle phi [rad]", "speed [rad/s]") and named.action_labels == (
+        "torque [N m]",
+    )
     other = {"environment": {"learner_state": {"keys": ["observation[0]"], "labels": ["x"]}}}
     assert _declared_labels(inferred, other) == inferred  # another state: nothing borrowed
     assert _declared_labels(inferred, {"domain": "dc_pendulum"}) == inferred

@@ -11,21 +11,30 @@ import numpy as np
 import pytest
 from dm_env import specs
 
-gymnasium = pytest.importorskip("gymnasium", reason="needs the [gymnasium] extra: "
-                                "pip install -c constraints.txt -e \".[gymnasium]\"")
+gymnasium = pytest.importorskip(
+    "gymnasium",
+    reason='needs the [gymnasium] extra: pip install -c constraints.txt -e ".[gymnasium]"',
+)
 
 from rmac_mj import envs
 from rmac_mj.agents import make_agent
 from rmac_mj.agents.standard_ac import StandardACConfig
 from rmac_mj.envs.observations import ObservationMap, inferred_entries, layout_of_dm_env
-from rmac_mj.rollout import (action_space_of, run_trial, state_of, state_space_of,
-                                         steps_per_trial, trial_seconds)
+from rmac_mj.rollout import (
+    action_space_of,
+    run_trial,
+    state_of,
+    state_space_of,
+    steps_per_trial,
+    trial_seconds,
+)
 
 SMALL_SAC = StandardACConfig(backend="numpy")
 
 
 # ----------------------------------------------------------------------------------------------------
 # A user's own environments, defined here and loaded by SPEC (this file's path:function).
+
 
 class Slider(dm_env.Environment):
     """A user's dm_env: a mass on a rail of +-1 m, pushed by u in [-1, 1] N for 0.1 s a step; it
@@ -45,14 +54,16 @@ class Slider(dm_env.Environment):
         self.x += 0.1 * self.v
         if abs(self.x) > 1.0:
             return dm_env.termination(-10.0, self._observation())
-        return dm_env.transition(-self.x ** 2, self._observation())
+        return dm_env.transition(-(self.x**2), self._observation())
 
     def _observation(self):
         return {"position": np.array([self.x]), "velocity": np.array([self.v])}
 
     def observation_spec(self):
-        return {"position": specs.BoundedArray((1,), float, -1.0, 1.0, name="position"),
-                "velocity": specs.BoundedArray((1,), float, -2.0, 2.0, name="velocity")}
+        return {
+            "position": specs.BoundedArray((1,), float, -1.0, 1.0, name="position"),
+            "velocity": specs.BoundedArray((1,), float, -2.0, 2.0, name="velocity"),
+        }
 
     def action_spec(self):
         return specs.BoundedArray((1,), float, -1.0, 1.0)
@@ -66,8 +77,9 @@ class Wheel(gymnasium.Env):
     """A user's Gymnasium env: a wheel turned by torque, observed as (cos, sin, speed)."""
 
     def __init__(self, steps: int = 12):
-        self.observation_space = gymnasium.spaces.Box(np.array([-1, -1, -4.0]),
-                                                      np.array([1, 1, 4.0]), dtype=np.float64)
+        self.observation_space = gymnasium.spaces.Box(
+            np.array([-1, -1, -4.0]), np.array([1, 1, 4.0]), dtype=np.float64
+        )
         self.action_space = gymnasium.spaces.Box(-1.0, 1.0, (1,), dtype=np.float32)
         self.steps, self.dt = steps, 0.05
         self.angle = self.speed = 0.0
@@ -120,6 +132,7 @@ def tiny_run(env) -> list[float]:
 # ----------------------------------------------------------------------------------------------------
 # Each SPEC form end to end.
 
+
 def test_gymnasium_pendulum_is_inferred_and_runs():
     env = envs.load("gymnasium:Pendulum-v1", {"max_episode_steps": 15}, seed=3)
     ls = env.learner_state
@@ -130,18 +143,29 @@ def test_gymnasium_pendulum_is_inferred_and_runs():
 
 
 def test_gymnasium_seed_gives_the_same_starts():
-    starts = [[state_of(e.reset().observation, e.learner_state) for _ in range(3)]
-              for e in (envs.load("gymnasium:Pendulum-v1", seed=7) for _ in range(2))]
+    starts = [
+        [state_of(e.reset().observation, e.learner_state) for _ in range(3)]
+        for e in (envs.load("gymnasium:Pendulum-v1", seed=7) for _ in range(2))
+    ]
     np.testing.assert_array_equal(starts[0], starts[1])
     assert not np.array_equal(starts[0][0], starts[0][1])  # later resets continue the stream
 
 
 def test_dm_control_with_declared_bounds_and_action_repeat():
     bounds = {"position[0]": [-1.8, 1.8], "velocity[0]": [-5, 5], "velocity[1]": [-20, 20]}
-    env = envs.load("dm_control:cartpole/swingup", {"time_limit": 0.2}, seed=0,
-                    learner_state={"bounds": bounds}, action_repeat=2)
-    assert env.learner_state.keys == ("position[0]", "atan2(position[2], position[1])",
-                                      "velocity[0]", "velocity[1]")
+    env = envs.load(
+        "dm_control:cartpole/swingup",
+        {"time_limit": 0.2},
+        seed=0,
+        learner_state={"bounds": bounds},
+        action_repeat=2,
+    )
+    assert env.learner_state.keys == (
+        "position[0]",
+        "atan2(position[2], position[1])",
+        "velocity[0]",
+        "velocity[1]",
+    )
     assert env.learner_state.periodic == (False, True, False, False)
     assert steps_per_trial(env) == 10 and env.control_timestep() == pytest.approx(0.02)
     # The angle is the pole's, pi when it hangs down.
@@ -151,25 +175,29 @@ def test_dm_control_with_declared_bounds_and_action_repeat():
 
 
 def test_factory_from_a_file_returning_dm_env_with_its_seed():
-    env = envs.load(f"{HERE}:make_slider", {"start": 0.5}, seed=4, trial_steps=6,
-                    control_timestep=0.1)
+    env = envs.load(
+        f"{HERE}:make_slider", {"start": 0.5}, seed=4, trial_steps=6, control_timestep=0.1
+    )
     assert env.learner_state.keys == ("position", "velocity")
     assert steps_per_trial(env) == 6 and trial_seconds(env) == pytest.approx(0.6)
-    again = envs.load(f"{HERE}:make_slider", {"start": 0.5}, seed=4, trial_steps=6,
-                      control_timestep=0.1)
+    again = envs.load(
+        f"{HERE}:make_slider", {"start": 0.5}, seed=4, trial_steps=6, control_timestep=0.1
+    )
     assert env.reset().observation["position"] == again.reset().observation["position"]
     tiny_run(env)
 
 
 def test_factory_from_a_module_returning_gymnasium(tmp_path, monkeypatch):
-    (tmp_path / "my_tasks.py").write_text(textwrap.dedent(f"""
+    (tmp_path / "my_tasks.py").write_text(
+        textwrap.dedent(f"""
         import importlib.util
         spec = importlib.util.spec_from_file_location("source", {HERE!r})
         source = importlib.util.module_from_spec(spec)
         spec.loader.exec_module(source)
         def wheel(steps=12):
             return source.Wheel(steps)
-    """))
+    """)
+    )
     monkeypatch.syspath_prepend(str(tmp_path))
     env = envs.load("my_tasks:wheel", {"steps": 8}, seed=1)
     assert env.learner_state.keys == ("atan2(observation[1], observation[0])", "observation[2]")
@@ -193,6 +221,7 @@ def test_a_task_that_declares_its_learner_state_is_taken_at_its_word():
 
 # ----------------------------------------------------------------------------------------------------
 # The learner state: folding, refusals.
+
 
 def test_cos_sin_folding_recovers_the_angle():
     angles = np.random.default_rng(0).uniform(-np.pi, np.pi, 50)
@@ -218,24 +247,36 @@ def test_pendulum_v1_angle_is_the_simulators():
 
 
 def test_an_ambiguous_observation_is_refused_naming_the_key():
-    with pytest.raises(ValueError, match=r"observation 'angles' is ambiguous.*angles\[0\], angles\[1\]"):
+    with pytest.raises(
+        ValueError, match=r"observation 'angles' is ambiguous.*angles\[0\], angles\[1\]"
+    ):
         envs.load(f"{HERE}:make_double_cos", trial_steps=5, control_timestep=0.1)
     # Declared, it runs.
-    env = envs.load(f"{HERE}:make_double_cos", trial_steps=5, control_timestep=0.1,
-                    learner_state={"keys": ["atan2(angles[1], angles[0])"]})
+    env = envs.load(
+        f"{HERE}:make_double_cos",
+        trial_steps=5,
+        control_timestep=0.1,
+        learner_state={"keys": ["atan2(angles[1], angles[0])"]},
+    )
     assert env.learner_state.periodic == (True,)
 
 
-@pytest.mark.parametrize("spec, kwargs, message", [
-    (f"{HERE}:make_slider", {}, r"does not say its time step.*control_timestep"),
-    ("gymnasium:CartPole-v1", {}, r"action space is Discrete"),
-    ("gymnasium:NoSuchEnv-v0", {}, r"gymnasium:NoSuchEnv-v0"),
-    ("dm_control:cartpole/swingupp", {}, r"its tasks: .*cartpole/swingup"),
-    ("no_such_module:make", {}, r"cannot import 'no_such_module'"),
-    ("gymnasium:Pendulum-v1", {"learner_state": {"bound": {}}}, r"did you mean 'bounds'"),
-    ("gymnasium:Pendulum-v1", {"learner_state": {"bounds": {"theta": [0, 1]}}},
-     r"names 'theta'.*x = \[atan2"),
-])
+@pytest.mark.parametrize(
+    "spec, kwargs, message",
+    [
+        (f"{HERE}:make_slider", {}, r"does not say its time step.*control_timestep"),
+        ("gymnasium:CartPole-v1", {}, r"action space is Discrete"),
+        ("gymnasium:NoSuchEnv-v0", {}, r"gymnasium:NoSuchEnv-v0"),
+        ("dm_control:cartpole/swingupp", {}, r"its tasks: .*cartpole/swingup"),
+        ("no_such_module:make", {}, r"cannot import 'no_such_module'"),
+        ("gymnasium:Pendulum-v1", {"learner_state": {"bound": {}}}, r"did you mean 'bounds'"),
+        (
+            "gymnasium:Pendulum-v1",
+            {"learner_state": {"bounds": {"theta": [0, 1]}}},
+            r"names 'theta'.*x = \[atan2",
+        ),
+    ],
+)
 def test_what_is_missing_or_wrong_is_refused_in_one_line(spec, kwargs, message):
     with pytest.raises(ValueError, match=message) as error:
         envs.load(spec, seed=0, **kwargs)
@@ -243,8 +284,11 @@ def test_what_is_missing_or_wrong_is_refused_in_one_line(spec, kwargs, message):
 
 
 def test_a_box_the_specs_do_not_give_is_measured_and_a_declared_one_wins():
-    spec = envs.EnvSpec("dm_control:cartpole/swingup", action_repeat=5,
-                        learner_state={"bounds": {"position[0]": [-1.8, 1.8]}}).resolve()
+    spec = envs.EnvSpec(
+        "dm_control:cartpole/swingup",
+        action_repeat=5,
+        learner_state={"bounds": {"position[0]": [-1.8, 1.8]}},
+    ).resolve()
     state = spec.learner_state
     assert set(spec.measured_bounds) == {"velocity[0]", "velocity[1]"}
     assert (state.low[0], state.high[0]) == (-1.8, 1.8)  # declared
@@ -253,11 +297,21 @@ def test_a_box_the_specs_do_not_give_is_measured_and_a_declared_one_wins():
     low, high = spec.measured_bounds["velocity[1]"]
     assert low < -5.0 and high > 5.0 and (state.low[3], state.high[3]) == (low, high)
     # the same seed, the same box: every worker and every resume sees one learner state
-    assert envs.EnvSpec("dm_control:cartpole/swingup", action_repeat=5, learner_state={
-        "bounds": {"position[0]": [-1.8, 1.8]}}).resolve().measured_bounds == spec.measured_bounds
+    assert (
+        envs.EnvSpec(
+            "dm_control:cartpole/swingup",
+            action_repeat=5,
+            learner_state={"bounds": {"position[0]": [-1.8, 1.8]}},
+        )
+        .resolve()
+        .measured_bounds
+        == spec.measured_bounds
+    )
     # the measured box travels with the spec (snapshots, config.json) and rebuilds it as it was
     again = envs.EnvSpec(**spec.as_dict()).resolve()
-    assert again.measured_bounds == spec.measured_bounds and again.learner_state == spec.learner_state
+    assert (
+        again.measured_bounds == spec.measured_bounds and again.learner_state == spec.learner_state
+    )
 
 
 def test_measured_box_widens_the_visited_range_about_its_centre():
@@ -269,26 +323,34 @@ def test_measured_box_widens_the_visited_range_about_its_centre():
 
 
 def test_without_a_measurement_an_unbounded_dimension_is_refused_naming_it():
-    from rmac_mj.envs.observations import infer_learner_state, layout_of_dm_env
     from dm_env import specs
 
+    from rmac_mj.envs.observations import infer_learner_state, layout_of_dm_env
+
     layout = layout_of_dm_env({"velocity": specs.Array((1,), float, "velocity")})
-    with pytest.raises(ValueError, match=r"no finite bounds for velocity .*learner_state.bounds = "
-                                         r"\{\"velocity\" = \[LOW, HIGH\]\}"):
+    with pytest.raises(
+        ValueError,
+        match=r"no finite bounds for velocity .*learner_state.bounds = "
+        r"\{\"velocity\" = \[LOW, HIGH\]\}",
+    ):
         infer_learner_state(layout, np.zeros((1, 1)), np.array([-1.0]), np.array([1.0]))
 
 
 def test_slider_needs_a_time_limit():
-    with pytest.raises(ValueError, match=r"has no time limit and does not truncate its episodes; set trial_steps"):
+    with pytest.raises(
+        ValueError, match=r"has no time limit and does not truncate its episodes; set trial_steps"
+    ):
         envs.load(f"{HERE}:make_slider", control_timestep=0.1)
 
 
 # ----------------------------------------------------------------------------------------------------
 # Terminations end a trial with discount 0; truncations and time limits with discount 1.
 
+
 def test_termination_and_truncation_reach_the_trial_loop():
-    env = envs.load(f"{HERE}:make_slider", {"start": 0.9}, seed=0, trial_steps=50,
-                    control_timestep=0.1)
+    env = envs.load(
+        f"{HERE}:make_slider", {"start": 0.9}, seed=0, trial_steps=50, control_timestep=0.1
+    )
     env.reset()
     steps, timestep = 0, None
     while timestep is None or not timestep.last():
@@ -306,14 +368,22 @@ def test_run_trial_tells_the_learner_a_termination_from_a_time_limit(monkeypatch
     from rmac_mj.agents.base import Agent
 
     told, stop = [], Agent.stop
-    monkeypatch.setattr(Agent, "stop", lambda self, reward, x, terminal=False: (
-        told.append(terminal), stop(self, reward, x, terminal))[1])
-    slider = envs.load(f"{HERE}:make_slider", {"start": 0.95}, seed=0, trial_steps=50,
-                       control_timestep=0.1)
+    monkeypatch.setattr(
+        Agent,
+        "stop",
+        lambda self, reward, x, terminal=False: (
+            told.append(terminal),
+            stop(self, reward, x, terminal),
+        )[1],
+    )
+    slider = envs.load(
+        f"{HERE}:make_slider", {"start": 0.95}, seed=0, trial_steps=50, control_timestep=0.1
+    )
     wheel = envs.load(f"{HERE}:make_wheel", seed=0)
     for env in (slider, wheel):
-        agent = make_agent("s-ac", state_space_of(env), action_space_of(env), config=SMALL_SAC,
-                           seed=0)
+        agent = make_agent(
+            "s-ac", state_space_of(env), action_space_of(env), config=SMALL_SAC, seed=0
+        )
         while not told or (env is wheel and len(told) < 2):
             run_trial(env, agent)
             if env is slider and not told[-1]:
@@ -348,8 +418,9 @@ def test_a_terminal_states_value_is_not_bootstrapped(name):
 
 def test_action_repeat_sums_the_rewards():
     one = envs.load(f"{HERE}:make_slider", seed=2, trial_steps=4, control_timestep=0.1)
-    two = envs.load(f"{HERE}:make_slider", seed=2, trial_steps=2, control_timestep=0.1,
-                    action_repeat=2)
+    two = envs.load(
+        f"{HERE}:make_slider", seed=2, trial_steps=2, control_timestep=0.1, action_repeat=2
+    )
     one.reset(), two.reset()
     rewards = [one.step(np.array([0.5])).reward for _ in range(4)]
     repeated = [two.step(np.array([0.5])).reward for _ in range(2)]
@@ -360,26 +431,41 @@ def test_action_repeat_sums_the_rewards():
 # ----------------------------------------------------------------------------------------------------
 # The runner: a protocol on an outside environment, its snapshots, its sweep file.
 
+
 def tiny_protocol(**fields):
     from rmac_mj.experiments.protocol import Protocol
 
-    return Protocol(**{"algorithms": ("s-ac",), "experiments": 1, "trials": 2, "evaluate_every": 1,
-                       "snapshot_trials": (), "agent_configs": {"s-ac": {"backend": "numpy"}},
-                       **fields})
+    return Protocol(
+        **{
+            "algorithms": ("s-ac",),
+            "experiments": 1,
+            "trials": 2,
+            "evaluate_every": 1,
+            "snapshot_trials": (),
+            "agent_configs": {"s-ac": {"backend": "numpy"}},
+            **fields,
+        }
+    )
 
 
 def test_a_protocol_runs_an_outside_environment_and_its_snapshot_acts_in_it(tmp_path):
     from rmac_mj.experiments import runner
     from rmac_mj.results.snapshots import load_snapshot, snapshot_environment
 
-    protocol = tiny_protocol(env="gymnasium:Pendulum-v1", task_kwargs={"max_episode_steps": 10},
-                             learner_state={"action_cost": [0.001]}, evaluate_starts=3)
+    protocol = tiny_protocol(
+        env="gymnasium:Pendulum-v1",
+        task_kwargs={"max_episode_steps": 10},
+        learner_state={"action_cost": [0.001]},
+        evaluate_starts=3,
+    )
     assert (protocol.domain, protocol.task) == (None, None)
     assert protocol.environment_name == "gymnasium:Pendulum-v1"
     summary = runner.run_protocol(protocol, tmp_path, jobs=1, progress=False, figures=False)
     assert summary["trial_seconds"] == pytest.approx(0.5)
-    assert list(summary["learner_state"]["keys"]) == ["atan2(observation[1], observation[0])",
-                                                      "observation[2]"]
+    assert list(summary["learner_state"]["keys"]) == [
+        "atan2(observation[1], observation[0])",
+        "observation[2]",
+    ]
     assert list(summary["learner_state"]["action_cost"]) == [0.001]
     agent, meta = load_snapshot(tmp_path / "snapshots" / "s-ac" / "exp_000" / "trial_0002.npz")
     env = snapshot_environment(agent, meta)
@@ -390,27 +476,33 @@ def test_a_protocol_runs_an_outside_environment_and_its_snapshot_acts_in_it(tmp_
 def test_an_evaluation_is_the_mean_over_the_same_seeded_starts():
     from rmac_mj.experiments.protocol import build_experiment, evaluation
 
-    protocol = tiny_protocol(env="gymnasium:Pendulum-v1", task_kwargs={"max_episode_steps": 10},
-                             evaluate_starts=4)
+    protocol = tiny_protocol(
+        env="gymnasium:Pendulum-v1", task_kwargs={"max_episode_steps": 10}, evaluate_starts=4
+    )
     experiment = build_experiment(protocol, "s-ac", 0)
     evaluate = evaluation(protocol, 0)
     first = evaluate(experiment.env, experiment.agent)
     assert evaluate(experiment.env, experiment.agent) == first  # the same starts, nothing learned
-    assert evaluation(protocol, 1)(experiment.env, experiment.agent) != first  # another experiment's
+    assert (
+        evaluation(protocol, 1)(experiment.env, experiment.agent) != first
+    )  # another experiment's
 
 
 def test_env_fields_need_env_and_exclude_a_suite_task():
-    with pytest.raises(ValueError, match="action_repeat, trial_steps describe an outside environment"):
+    with pytest.raises(
+        ValueError, match="action_repeat, trial_steps describe an outside environment"
+    ):
         tiny_protocol(action_repeat=2, trial_steps=5)
     with pytest.raises(ValueError, match="name two environments"):
         tiny_protocol(env="gymnasium:Pendulum-v1", domain="two_link_arm", task="reach")
 
 
 def test_a_sweep_file_takes_env_and_a_learner_state_table(tmp_path):
-    from rmac_mj.sweeps.sweep_file import SweepFileError, load_sweep
+    from rmac_mj.sweeps.sweep_file import load_sweep
 
     path = tmp_path / "cartpole.toml"
-    path.write_text(textwrap.dedent("""
+    path.write_text(
+        textwrap.dedent("""
         [protocol]
         env = "dm_control:cartpole/swingup"
         action_repeat = 2
@@ -421,7 +513,8 @@ def test_a_sweep_file_takes_env_and_a_learner_state_table(tmp_path):
         bounds = { "position[0]" = [-1.8, 1.8], "velocity[0]" = [-5, 5], "velocity[1]" = [-20, 20] }
         [grid]
         "s-ac.alpha_a" = [0.005, 0.02]
-    """))
+    """)
+    )
     sweep = load_sweep(path)
     protocol = sweep.configurations[0].protocol
     assert protocol.env == "dm_control:cartpole/swingup" and protocol.action_repeat == 2
@@ -436,11 +529,13 @@ def test_a_sweep_file_takes_env_and_a_learner_state_table(tmp_path):
 # ----------------------------------------------------------------------------------------------------
 # The command line.
 
+
 def test_cli_config_reproduce_policy_resume_on_a_users_factory(tmp_path, capsys):
     from rmac_mj.cli import main
 
     config = tmp_path / "slider.toml"
-    config.write_text(textwrap.dedent(f"""
+    config.write_text(
+        textwrap.dedent(f"""
         [protocol]
         env = "{HERE}:make_slider"
         task_kwargs = {{ start = 0.5 }}
@@ -450,11 +545,32 @@ def test_cli_config_reproduce_policy_resume_on_a_users_factory(tmp_path, capsys)
         "s-ac.backend" = "numpy"
         [learner_state]
         labels = ["position x [m]", "velocity v [m/s]"]
-    """))
+    """)
+    )
     out = tmp_path / "slider"
-    assert main(["reproduce", "--config", str(config), "--experiments", "1", "--trials", "2",
-                 "--evaluate-every", "1", "--evaluate-starts", "2", "--jobs", "1", "--no-progress",
-                 "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "reproduce",
+                "--config",
+                str(config),
+                "--experiments",
+                "1",
+                "--trials",
+                "2",
+                "--evaluate-every",
+                "1",
+                "--evaluate-starts",
+                "2",
+                "--jobs",
+                "1",
+                "--no-progress",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     assert "one trial = 0.6 s of simulated time" in capsys.readouterr().out
     snapshot = out / "snapshots" / "s-ac" / "exp_000" / "trial_0002.npz"
     assert main(["policy", str(snapshot), "--out", str(tmp_path / "map")]) == 0
@@ -467,23 +583,36 @@ def test_cli_config_reproduce_policy_resume_on_a_users_factory(tmp_path, capsys)
 def test_render_a_dm_control_environment_between_its_control_steps():
     from rmac_mj.videos.render import render_episode
 
-    env = envs.load("dm_control:cartpole/swingup", seed=0, action_repeat=5, trial_steps=6,
-                    learner_state={"bounds": {"position[0]": [-1.8, 1.8], "velocity[0]": [-5, 5],
-                                              "velocity[1]": [-20, 20]}})
-    episode = render_episode(env, policy=lambda x: np.array([0.5]), width=64, height=48,
-                             frames_per_step=5)
+    env = envs.load(
+        "dm_control:cartpole/swingup",
+        seed=0,
+        action_repeat=5,
+        trial_steps=6,
+        learner_state={
+            "bounds": {"position[0]": [-1.8, 1.8], "velocity[0]": [-5, 5], "velocity[1]": [-20, 20]}
+        },
+    )
+    episode = render_episode(
+        env, policy=lambda x: np.array([0.5]), width=64, height=48, frames_per_step=5
+    )
     assert episode.frames.shape == (6 * 5 + 1, 48, 64, 3) and episode.fps == pytest.approx(100)
     # The frames between control steps come from a scratch physics: the episode is env.step's own.
-    again = envs.load("dm_control:cartpole/swingup", seed=0, action_repeat=5, trial_steps=6,
-                      learner_state=env.learner_state)
+    again = envs.load(
+        "dm_control:cartpole/swingup",
+        seed=0,
+        action_repeat=5,
+        trial_steps=6,
+        learner_state=env.learner_state,
+    )
     again.reset()
-    assert episode.returns[-1] == pytest.approx(sum(again.step(np.array([0.5])).reward
-                                                    for _ in range(6)))
+    assert episode.returns[-1] == pytest.approx(
+        sum(again.step(np.array([0.5])).reward for _ in range(6))
+    )
 
 
 def test_cli_optimal_and_bench_on_an_outside_environment(capsys):
-    from rmac_mj.cli import main
     from rmac_mj.bench import bench
+    from rmac_mj.cli import main
 
     assert main(["optimal", "--env", "gymnasium:Pendulum-v1"]) == 2
     assert "no near-optimal return for gymnasium:Pendulum-v1" in capsys.readouterr().err
@@ -497,8 +626,8 @@ def test_the_readmes_worked_example_runs_as_it_stands(tmp_path, monkeypatch, cap
     import re
 
     readme = (pathlib.Path(__file__).parents[2] / "README.md").read_text()
-    section = readme[readme.index("## Your own task"):]
-    section = section[:section.index("\n## ", 1)]
+    section = readme[readme.index("## Your own task") :]
+    section = section[: section.index("\n## ", 1)]
     task_file, usage = re.findall(r"```python\n(.*?)```", section, re.S)[:2]
     assert task_file.startswith("# my_task.py")
     (tmp_path / "my_task.py").write_text(task_file)
@@ -510,7 +639,7 @@ def test_the_readmes_worked_example_runs_as_it_stands(tmp_path, monkeypatch, cap
     assert len(namespace["returns"]) == 30 and all(np.isfinite(namespace["returns"]))
 
 
-_DRAWN = '''
+_DRAWN = """
 import gymnasium
 import numpy as np
 
@@ -541,7 +670,7 @@ def drawn(render_mode=None):
 
 def undrawn():
     return gymnasium.wrappers.TimeLimit(Dot(), max_episode_steps=5)
-'''
+"""
 
 
 def test_render_asks_a_factory_for_frames_through_render_mode(tmp_path):

@@ -5,8 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from rmac_mj.results import files
 from rmac_mj.evaluation import metrics, report
+from rmac_mj.results import files
 
 
 def test_confidence_interval_by_hand():
@@ -40,7 +40,9 @@ def test_summary_keys_shapes_and_stuck_count():
     returns = np.vstack([np.linspace(-3000, -1000, 300), np.linspace(-3000, -1800, 300)])
     returns = returns + rng.normal(0, 1, returns.shape)
     greedy = np.array([[-2000.0, -900.0], [-2500.0, -1700.0]])
-    summary = metrics.summarise(returns, greedy, [100, 200], optimal_return=-800.0, trial_seconds=3.0)
+    summary = metrics.summarise(
+        returns, greedy, [100, 200], optimal_return=-800.0, trial_seconds=3.0
+    )
     assert summary["experiments"] == 2 and summary["trials"] == 300
     for key in ("mean_return_per_trial", "ci95_low_per_trial", "ci95_high_per_trial"):
         assert len(summary[key]) == 300
@@ -66,11 +68,13 @@ def test_greedy_trial_within_reaches_the_levels_of_issue_23():
     assert metrics.first_reaching(greedy.mean(axis=0), trials, -822.8) == 8
     assert metrics.first_reaching(greedy.mean(axis=0), trials, -825.0) == 6  # at the level counts
     assert metrics.first_reaching(greedy.mean(axis=0), trials, -800.0) is None
-    summary = metrics.summarise(np.full((2, 8), -1000.0), greedy, trials, optimal_return=-748.0,
-                                trial_seconds=3.0)
+    summary = metrics.summarise(
+        np.full((2, 8), -1000.0), greedy, trials, optimal_return=-748.0, trial_seconds=3.0
+    )
     assert summary["greedy_trial_within_20pct"] == 4 and summary["greedy_trial_within_10pct"] == 8
-    assert "greedy_trial_within_10pct" not in metrics.summarise(np.full((2, 8), -1000.0), greedy,
-                                                                trials, trial_seconds=3.0)
+    assert "greedy_trial_within_10pct" not in metrics.summarise(
+        np.full((2, 8), -1000.0), greedy, trials, trial_seconds=3.0
+    )
 
 
 def test_first_minutes_and_stuck_follow_the_task_and_the_reference():
@@ -81,7 +85,8 @@ def test_first_minutes_and_stuck_follow_the_task_and_the_reference():
     assert six["mean_return_first_10min"] == pytest.approx(-50.5)
     assert metrics.trials_in(10, 0.05 * 60) == 200 and metrics.trials_in(10, 0.03 * 100) == 200
     assert six["minutes_to_90pct"] == pytest.approx(
-        metrics.minutes_to_within(returns[0], window=50, trial_seconds=6.0))
+        metrics.minutes_to_within(returns[0], window=50, trial_seconds=6.0)
+    )
     assert six["stuck_below"] is None and six["stuck_experiments"] is None  # no reference
     assert metrics.stuck_threshold(-748.0) == -1496.0 and metrics.stuck_threshold(10.0) == 0.0
 
@@ -105,11 +110,12 @@ def test_result_files_honour_the_umask(tmp_path):
     import os
     import stat
 
-
     old = os.umask(0o022)
     try:
-        paths = [files.write_json(tmp_path / "a.json", {"x": 1}),
-                 files.write_npz(tmp_path / "b.npz", x=np.zeros(2))]
+        paths = [
+            files.write_json(tmp_path / "a.json", {"x": 1}),
+            files.write_npz(tmp_path / "b.npz", x=np.zeros(2)),
+        ]
     finally:
         os.umask(old)
     for path in paths:
@@ -128,19 +134,23 @@ def _welch_p_by_hand(x, y):
 
     vx, vy = np.var(x, ddof=1) / len(x), np.var(y, ddof=1) / len(y)
     t = (np.mean(x) - np.mean(y)) / np.sqrt(vx + vy)
-    dof = (vx + vy) ** 2 / (vx ** 2 / (len(x) - 1) + vy ** 2 / (len(y) - 1))
+    dof = (vx + vy) ** 2 / (vx**2 / (len(x) - 1) + vy**2 / (len(y) - 1))
     return 2 * stats.t.sf(abs(t), dof)
 
 
 def test_final_returns_are_compared_with_welchs_t_test():
     rng = np.random.default_rng(1)
-    rmac, sac = -950 + rng.normal(0, 10, 8), -990 + rng.normal(0, 60, 12)  # unequal spreads and sizes
+    rmac, sac = (
+        -950 + rng.normal(0, 10, 8),
+        -990 + rng.normal(0, 60, 12),
+    )  # unequal spreads and sizes
     (test,) = metrics.compare_final_returns({"rmac": rmac, "s-ac": sac})
     assert test["p_value"] == pytest.approx(_welch_p_by_hand(rmac, sac), rel=1e-9)
     assert test["p_value"] < 0.05 and test["better"] == "rmac"
     assert "rmac better than s-ac" in report.describe_test(test)
-    close = metrics.compare_final_returns({"rmac": [-943.0, -990.0, -1010.0, -960.0],
-                                           "s-ac": [-950.0, -930.0, -1000.0, -940.0]})[0]
+    close = metrics.compare_final_returns(
+        {"rmac": [-943.0, -990.0, -1010.0, -960.0], "s-ac": [-950.0, -930.0, -1000.0, -940.0]}
+    )[0]
     assert close["p_value"] > 0.05 and close["better"] is None
     assert "not significant (p = " in report.describe_test(close)
     single = metrics.compare_final_returns({"rmac": [-900.0], "s-ac": [-950.0, -940.0]})[0]
@@ -152,9 +162,13 @@ def test_summary_table_states_significance_and_warns_of_few_experiments():
     summary_table = report.summary_table
 
     rng = np.random.default_rng(2)
+
     def summary(n):
-        return {"rmac": metrics.summarise(-950 + rng.normal(0, 30, (n, 60)), trial_seconds=3.0),
-                "s-ac": metrics.summarise(-990 + rng.normal(0, 30, (n, 60)), trial_seconds=3.0)}
+        return {
+            "rmac": metrics.summarise(-950 + rng.normal(0, 30, (n, 60)), trial_seconds=3.0),
+            "s-ac": metrics.summarise(-990 + rng.normal(0, 30, (n, 60)), trial_seconds=3.0),
+        }
+
     small, large = summary_table(summary(4)), summary_table(summary(5))
     assert "final returns" in small and "Welch" in small
     assert "4 experiments per learner" in small and "per learner" not in large

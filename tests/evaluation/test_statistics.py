@@ -61,8 +61,9 @@ def test_probability_of_improvement_known_answers():
 
 
 def test_pairwise_improvement_names_every_pair_once():
-    table = statistics.pairwise_improvement({"a": np.arange(5.0), "b": np.arange(5.0) + 10,
-                                             "c": np.arange(5.0)})
+    table = statistics.pairwise_improvement(
+        {"a": np.arange(5.0), "b": np.arange(5.0) + 10, "c": np.arange(5.0)}
+    )
     assert list(table) == ["a > b", "a > c", "b > c"]
     assert table["a > b"] == {"value": 0.0, "ci95": [0.0, 0.0], "experiments": [5, 5]}
     assert table["a > c"]["value"] == 0.5
@@ -89,6 +90,7 @@ def test_bad_scores_are_refused(bad):
 
 # -- in the results: summary.json, the end-of-run table, compare ----------------------------------
 
+
 def test_summary_has_the_iqm_of_final_and_first_returns_and_the_cpu_per_simulated_minute():
     from rmac_mj.evaluation import metrics
 
@@ -109,17 +111,29 @@ def test_reproduce_and_compare_report_the_probability_of_improvement(tmp_path, c
     from rmac_mj.experiments.protocol import Protocol
 
     for seed in (0, 1):
-        protocol = Protocol(algorithms=("s-ac", "rmac"), experiments=2, trials=3, seed=seed,
-                            snapshot_trials=())
-        summary = runner.run_protocol(protocol, tmp_path / f"seed{seed}", jobs=1, progress=False,
-                                      figures=seed == 1)
+        protocol = Protocol(
+            algorithms=("s-ac", "rmac"), experiments=2, trials=3, seed=seed, snapshot_trials=()
+        )
+        summary = runner.run_protocol(
+            protocol, tmp_path / f"seed{seed}", jobs=1, progress=False, figures=seed == 1
+        )
     pair = summary["probability_of_improvement"]["s-ac > rmac"]
     # 2 experiments each: withheld, saying why, not 1.00 [1.00, 1.00]
     assert pair["value"] is None and pair["ci95"] == [None, None] and pair["experiments"] == [2, 2]
     assert pair["withheld"].startswith("2 and 2 experiments: too few")
     assert (tmp_path / "seed1" / "performance_profiles.png").is_file()
-    assert main(["compare", str(tmp_path / "seed0"), str(tmp_path / "seed1"),
-                 "--out", str(tmp_path / "both")]) == 0
+    assert (
+        main(
+            [
+                "compare",
+                str(tmp_path / "seed0"),
+                str(tmp_path / "seed1"),
+                "--out",
+                str(tmp_path / "both"),
+            ]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     assert "P(s-ac > rmac), the probability of improvement, withheld: 2 and 2 experiments" in out
     assert "P(seed0: rmac > seed1: rmac), the probability of improvement, withheld" in out  # across
@@ -134,7 +148,9 @@ def test_the_probability_of_improvement_is_given_from_five_experiments_each():
     assert table["a > b"]["value"] == 1.0 and table["a > b"]["ci95"] == [1.0, 1.0]
     assert "withheld" not in table["a > b"]
     assert table["a > c"]["value"] is None and table["a > c"]["withheld"].startswith("5 and 4 ")
-    assert report.describe_improvement("a > b", table["a > b"]).endswith("probability of improvement: a better")
+    assert report.describe_improvement("a > b", table["a > b"]).endswith(
+        "probability of improvement: a better"
+    )
     # a summary written before the rule holds numbers from 2 experiments: they are not shown
     old = {"value": 1.0, "ci95": [1.0, 1.0], "experiments": [2, 2]}
     assert "withheld: 2 and 2 experiments" in report.describe_improvement("a > b", old)
@@ -144,10 +160,16 @@ def test_intervals_of_too_few_experiments_are_withheld_with_the_reason():
     from rmac_mj.evaluation import metrics, report
 
     rng = np.random.default_rng(0)
-    few = metrics.summarise(-1000 + rng.normal(0, 500, (2, 300)), np.full((2, 1), -900.0), [300],
-                            trial_seconds=3.0)
-    for key in ("final_return_ci95", "final_return_iqm_ci95", "first_5min_ci95",
-                "first_5min_iqm_ci95", "greedy_return_last_ci95"):
+    few = metrics.summarise(
+        -1000 + rng.normal(0, 500, (2, 300)), np.full((2, 1), -900.0), [300], trial_seconds=3.0
+    )
+    for key in (
+        "final_return_ci95",
+        "final_return_iqm_ci95",
+        "first_5min_ci95",
+        "first_5min_iqm_ci95",
+        "greedy_return_last_ci95",
+    ):
         assert few[key] == [None, None], key
     assert few["final_return_mean"] is not None and few["final_return_iqm"] is not None
     assert few["intervals_withheld"].startswith("2 experiments: too few for a 95% interval")

@@ -12,18 +12,32 @@ import pytest
 from rmac_mj import tasks
 from rmac_mj.agents import make_agent
 from rmac_mj.bench import bench
-from rmac_mj.figures import plots, policy_plots
-from rmac_mj.videos import render
 from rmac_mj.evaluation import report
 from rmac_mj.experiments import runner
 from rmac_mj.experiments.protocol import Protocol
-from rmac_mj.results.store import ResultStore
-from rmac_mj.rollout import (action_space_of, n_sub_steps, run_trial, state_of,
-                                         state_space_of, steps_per_trial, trial_seconds)
+from rmac_mj.figures import policy_plots
 from rmac_mj.results.snapshots import load_snapshot
+from rmac_mj.results.store import ResultStore
+from rmac_mj.rollout import (
+    action_space_of,
+    n_sub_steps,
+    run_trial,
+    state_of,
+    state_space_of,
+    steps_per_trial,
+    trial_seconds,
+)
+from rmac_mj.videos import render
 
-TINY = dict(domain="toy", task="settle", task_kwargs={"start_noise": 0.0}, experiments=2, trials=3,
-            snapshot_trials=(1,), evaluate_every=1)
+TINY = dict(
+    domain="toy",
+    task="settle",
+    task_kwargs={"start_noise": 0.0},
+    experiments=2,
+    trials=3,
+    snapshot_trials=(1,),
+    evaluate_every=1,
+)
 
 
 def test_spaces_and_trial_length_come_from_the_task(toy):
@@ -90,15 +104,25 @@ def test_runner_summary_and_figure_use_the_tasks_trial_length(toy, tmp_path, mon
 def test_the_runner_asks_the_task_for_what_it_declares(toy, tmp_path):
     """A new task declares its demonstrators and plot hints in its own module (toy_domain.KNOWLEDGE)
     and the experiments use them without naming it; it declares no reference, so none is computed."""
-    protocol = Protocol(domain="toy", task="settle", algorithms=("rmac",), experiments=1, trials=2,
-                        prior="demo", prior_trials=2)
-    summary = runner.run_protocol(protocol, tmp_path, jobs=1, progress=False, figures=False,
-                                  references=True)
+    protocol = Protocol(
+        domain="toy",
+        task="settle",
+        algorithms=("rmac",),
+        experiments=1,
+        trials=2,
+        prior="demo",
+        prior_trials=2,
+    )
+    summary = runner.run_protocol(
+        protocol, tmp_path, jobs=1, progress=False, figures=False, references=True
+    )
     assert summary["plot_hints"] == {"return_margin": 0.5}
     assert summary["optimal_return"] is None and summary["exploration_floor"] is None
     curves = ResultStore(tmp_path).load_curves("rmac", 1)
     assert curves.demonstration_returns.shape == (1, 2)  # two trials of the toy's own demonstrator
-    with pytest.raises(ValueError, match="no demonstrator 'expert' for toy/settle; available: demo"):
+    with pytest.raises(
+        ValueError, match="no demonstrator 'expert' for toy/settle; available: demo"
+    ):
         Protocol(domain="toy", task="settle", algorithms=("rmac",), prior="expert")
 
 
@@ -132,14 +156,15 @@ def test_policy_maps_slice_through_the_anchor_over_the_tasks_box(toy):
     learner_state = env.task.learner_state
     anchor = np.array([0.5, 0.25, 1.5, -0.5])
     agent = Recorder((1, 3))
-    xs, ys, actions, values = policy_plots.policy_slice(agent, learner_state.low, learner_state.high, anchor,
-                                                 dims=(1, 3), resolution=(5, 4))
+    xs, ys, actions, values = policy_plots.policy_slice(
+        agent, learner_state.low, learner_state.high, anchor, dims=(1, 3), resolution=(5, 4)
+    )
     np.testing.assert_allclose(xs, np.linspace(-1, 1, 5))
     np.testing.assert_allclose(ys, np.linspace(-5, 5, 4))
     assert actions.shape == (4, 5, 2) and values.shape == (4, 5)
     states = np.array(agent.states)
     np.testing.assert_array_equal(states[:, [0, 2]], np.tile(anchor[[0, 2]], (20, 1)))
-    np.testing.assert_allclose(actions[..., 0], np.tile(xs, (4, 1)))   # x axis: dims[0]
+    np.testing.assert_allclose(actions[..., 0], np.tile(xs, (4, 1)))  # x axis: dims[0]
     np.testing.assert_allclose(actions[..., 1], np.tile(ys[:, None], (1, 5)))
     with pytest.raises(ValueError, match="dims"):
         policy_plots.policy_slice(agent, learner_state.low, learner_state.high, anchor, dims=(2, 2))
@@ -149,8 +174,9 @@ def test_episode_render_records_the_tasks_state_and_action(toy):
     env = tasks.load("toy", "settle", task_kwargs={"start_noise": 0.0})  # every episode alike
     policy = lambda x: np.array([5.0, -0.5])  # noqa: E731 - the torque saturates at 1 N m
     coarse = render.render_episode(env, policy=policy, width=64, height=48, overlay=False)
-    fine = render.render_episode(env, policy=policy, width=64, height=48, frames_per_step=2,
-                                 overlay=False)
+    fine = render.render_episode(
+        env, policy=policy, width=64, height=48, frames_per_step=2, overlay=False
+    )
     assert coarse.states.shape == (11, 4) and coarse.actions.shape == (11, 2)
     np.testing.assert_array_equal(coarse.actions[1:], np.tile([1.0, -0.5], (10, 1)))
     assert fine.states.shape == (21, 4) and fine.fps == pytest.approx(100.0)
@@ -175,44 +201,130 @@ class _PolicyAgent:
 
 def test_bench_measures_the_tasks_own_control_step(toy):
     on = {"domain": "toy", "task": "settle"}
-    for value in (bench.physics_step_us(20, 1, **on), bench.env_step_us(20, 1, **on),
-                  bench.llr_query_insert_us(20, 1, **on),
-                  bench.learner_step_us("rmac", 1, warmup_trials=2, **on),
-                  bench.learner_step_us("s-ac", 1, warmup_trials=2, **on)):
+    for value in (
+        bench.physics_step_us(20, 1, **on),
+        bench.env_step_us(20, 1, **on),
+        bench.llr_query_insert_us(20, 1, **on),
+        bench.learner_step_us("rmac", 1, warmup_trials=2, **on),
+        bench.learner_step_us("s-ac", 1, warmup_trials=2, **on),
+    ):
         assert np.isfinite(value) and value > 0
     costs = bench.step_costs(20, 1, **on)
     assert costs["physics_step_us"] > 0 and costs["env_step_us"] > 0
-    report = {**costs, "llr_query_insert_us": 0.1, "sac_step_us": 0.1, "rmac_step_us": 0.1,
-              "mlac_step_us": 0.1,
-              "env_overhead_us": 0.1, "outside_physics_learner_us": 0.2, **on,
-              "experiment_s": {}, "steps_per_trial": 10, "protocol_projected_min": 1.0,
-              "run": {"experiments_per_learner": 1, "trials": 1, "workers": 1, "steps": 20,
-                      "physics_s": 0.1, "wall_s": 1.0, "x_physics": 10.0, "cpu_s": None,
-                      "in_experiments_s": 0.5, "in_experiments_x_physics": 5.0},
-              "machine": {"cores": 1, "cpu": "x", "python": "3", "mujoco": "3"},
-              "control_timestep_s": 0.02, "n_sub_steps": 2, "state_dim": 4}
+    report = {
+        **costs,
+        "llr_query_insert_us": 0.1,
+        "sac_step_us": 0.1,
+        "rmac_step_us": 0.1,
+        "mlac_step_us": 0.1,
+        "env_overhead_us": 0.1,
+        "outside_physics_learner_us": 0.2,
+        **on,
+        "experiment_s": {},
+        "steps_per_trial": 10,
+        "protocol_projected_min": 1.0,
+        "run": {
+            "experiments_per_learner": 1,
+            "trials": 1,
+            "workers": 1,
+            "steps": 20,
+            "physics_s": 0.1,
+            "wall_s": 1.0,
+            "x_physics": 10.0,
+            "cpu_s": None,
+            "in_experiments_s": 0.5,
+            "in_experiments_x_physics": 5.0,
+        },
+        "machine": {"cores": 1, "cpu": "x", "python": "3", "mujoco": "3"},
+        "control_timestep_s": 0.02,
+        "n_sub_steps": 2,
+        "state_dim": 4,
+    }
     table = bench.format_table(report)
-    assert "(2 x mj_step)" in table and "toy/settle: control step 0.02 s" in table and "n=4" in table
+    assert (
+        "(2 x mj_step)" in table and "toy/settle: control step 0.02 s" in table and "n=4" in table
+    )
 
 
 def test_cli_reproduce_policy_and_render_on_the_toy(toy, tmp_path, capsys):
     from rmac_mj.cli import main
 
     out = tmp_path / "run"
-    assert main(["reproduce", "--domain", "toy", "--task", "settle", "--experiments", "1",
-                 "--trials", "2", "--jobs", "1", "--no-optimal", "--no-progress",
-                 "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "reproduce",
+                "--domain",
+                "toy",
+                "--task",
+                "settle",
+                "--experiments",
+                "1",
+                "--trials",
+                "2",
+                "--jobs",
+                "1",
+                "--no-optimal",
+                "--no-progress",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     assert json.loads((out / "summary.json").read_text())["trial_seconds"] == pytest.approx(0.2)
     snapshot = out / "snapshots/rmac/exp_000/trial_0002.npz"
-    assert main(["policy", str(snapshot), "--dims", "2,1", "--xlim=-2,2", "--resolution", "11",
-                 "--out", str(tmp_path / "pol")]) == 0
+    assert (
+        main(
+            [
+                "policy",
+                str(snapshot),
+                "--dims",
+                "2,1",
+                "--xlim=-2,2",
+                "--resolution",
+                "11",
+                "--out",
+                str(tmp_path / "pol"),
+            ]
+        )
+        == 0
+    )
     assert (tmp_path / "pol.png").is_file()
     assert main(["policy", str(snapshot), "--dims", "0,4"]) == 2
     assert "--dims" in capsys.readouterr().err
-    assert main(["render", str(snapshot), "--out", str(tmp_path / "ep.gif"), "--width", "64",
-                 "--height", "48", "--frames-per-step", "2"]) == 0
+    assert (
+        main(
+            [
+                "render",
+                str(snapshot),
+                "--out",
+                str(tmp_path / "ep.gif"),
+                "--width",
+                "64",
+                "--height",
+                "48",
+                "--frames-per-step",
+                "2",
+            ]
+        )
+        == 0
+    )
     assert (tmp_path / "ep.gif").is_file()
     # The toy's agent cannot act on the pendulum: its state has 4 dimensions, the pendulum's 2.
-    assert main(["render", str(snapshot), "--out", str(tmp_path / "x.gif"), "--domain",
-                 "dc_pendulum", "--task", "swingup"]) == 2
+    assert (
+        main(
+            [
+                "render",
+                str(snapshot),
+                "--out",
+                str(tmp_path / "x.gif"),
+                "--domain",
+                "dc_pendulum",
+                "--task",
+                "swingup",
+            ]
+        )
+        == 2
+    )
     assert "2 state and 1 action dimensions" in capsys.readouterr().err

@@ -8,7 +8,8 @@ import pathlib
 import numpy as np
 import pytest
 
-from rmac_mj.experiments import checkpoint as checkpoints, runner
+from rmac_mj.experiments import checkpoint as checkpoints
+from rmac_mj.experiments import runner
 from rmac_mj.experiments.protocol import ExperimentSpec, Protocol, run_experiment
 from rmac_mj.results.store import ResultStore
 
@@ -23,6 +24,7 @@ def stopping_after(trial: int):
     def on_trial(algorithm, index, done, value):
         if done == trial:
             raise Stop
+
     return on_trial
 
 
@@ -37,16 +39,32 @@ def assert_same_result(a, b):
             assert value.tobytes() == b.snapshots[trial][key].tobytes(), (trial, key)
 
 
-@pytest.mark.parametrize("algorithm, where", [
-    ("s-ac", {}),
-    ("rmac", {}),
-    # Gymnasium's Pendulum-v1 starts anywhere: its np_random must come back too
-    ("s-ac", {"env": "gymnasium:Pendulum-v1", "trial_steps": 20, "evaluate_starts": 0,
-              "learner_state": {"action_cost": [0.001]}}),
-])
+@pytest.mark.parametrize(
+    "algorithm, where",
+    [
+        ("s-ac", {}),
+        ("rmac", {}),
+        # Gymnasium's Pendulum-v1 starts anywhere: its np_random must come back too
+        (
+            "s-ac",
+            {
+                "env": "gymnasium:Pendulum-v1",
+                "trial_steps": 20,
+                "evaluate_starts": 0,
+                "learner_state": {"action_cost": [0.001]},
+            },
+        ),
+    ],
+)
 def test_a_stopped_experiment_continues_from_its_checkpoint_bit_for_bit(tmp_path, algorithm, where):
-    protocol = Protocol(algorithms=(algorithm,), experiments=1, trials=6, snapshot_trials=(2, 5),
-                        evaluate_every=2, **where)
+    protocol = Protocol(
+        algorithms=(algorithm,),
+        experiments=1,
+        trials=6,
+        snapshot_trials=(2, 5),
+        evaluate_every=2,
+        **where,
+    )
     whole = run_experiment(ExperimentSpec(protocol, algorithm, 0))
     spec = ExperimentSpec(protocol, algorithm, 0, stream_to=str(tmp_path), checkpoint_seconds=0.0)
     with pytest.raises(Stop):
@@ -76,7 +94,9 @@ def test_a_checkpoint_of_another_protocol_or_damaged_is_not_used(tmp_path):
     np.testing.assert_array_equal(run_experiment(spec).returns, whole.returns)  # from trial 1
 
 
-def test_a_saved_experiment_leaves_no_checkpoint_and_the_run_resumes_from_one(tmp_path, monkeypatch):
+def test_a_saved_experiment_leaves_no_checkpoint_and_the_run_resumes_from_one(
+    tmp_path, monkeypatch
+):
     protocol = Protocol(algorithms=("s-ac",), experiments=1, trials=5, snapshot_trials=(2,))
     whole = runner.run_protocol(protocol, tmp_path / "whole", jobs=1, progress=False, figures=False)
 
@@ -99,15 +119,26 @@ def test_a_saved_experiment_leaves_no_checkpoint_and_the_run_resumes_from_one(tm
 
 def test_a_budget_in_environment_steps_ends_each_experiment_where_its_steps_reach_it(tmp_path):
     # the slider ends an episode when it leaves its rail: trials of different lengths
-    protocol = Protocol(env=SLIDER, trial_steps=30, control_timestep=0.1, action_repeat=2,
-                        algorithms=("s-ac",), experiments=3, trials=1000, steps=150,
-                        evaluate_every=1, snapshot_trials=(1,))
+    protocol = Protocol(
+        env=SLIDER,
+        trial_steps=30,
+        control_timestep=0.1,
+        action_repeat=2,
+        algorithms=("s-ac",),
+        experiments=3,
+        trials=1000,
+        steps=150,
+        evaluate_every=1,
+        snapshot_trials=(1,),
+    )
     summary = runner.run_protocol(protocol, tmp_path, jobs=1, progress=False, figures=False)
     store = ResultStore(tmp_path)
     curves = store.load_curves("s-ac", 3)
     for row, steps in zip(curves.returns, curves.env_steps):
         ran = int(np.isfinite(row).sum())
-        assert steps[ran - 1] >= 150 and (ran == 1 or steps[ran - 2] < 150)  # the last runs to its end
+        assert steps[ran - 1] >= 150 and (
+            ran == 1 or steps[ran - 2] < 150
+        )  # the last runs to its end
         assert np.all(np.diff(steps[:ran]) <= 2 * 30)  # a trial: at most 30 steps of 2
     row = summary["s-ac"]
     assert row["env_steps_per_experiment"] == [int(s[np.isfinite(s)][-1]) for s in curves.env_steps]
@@ -116,12 +147,14 @@ def test_a_budget_in_environment_steps_ends_each_experiment_where_its_steps_reac
     ran_minutes = np.array(row["env_steps_per_experiment"]) * 0.1 / 60.0
     np.testing.assert_allclose(row["simulated_minutes_per_experiment"], ran_minutes)
     assert row["cpu_s_per_simulated_minute"] == pytest.approx(
-        row["experiment_cpu_s_mean"] / ran_minutes.mean())
+        row["experiment_cpu_s_mean"] / ran_minutes.mean()
+    )
     lines = store.returns_path.read_text().splitlines()
     assert lines[0].endswith(",env_steps") and len(lines) == 1 + sum(curves.trials_run)
     # a resume trusts the saved experiments as they are (their lengths differ)
-    again = runner.run_protocol(protocol, tmp_path, jobs=1, resume=True, progress=False,
-                                figures=False)
+    again = runner.run_protocol(
+        protocol, tmp_path, jobs=1, resume=True, progress=False, figures=False
+    )
     assert again["s-ac"]["env_steps_per_experiment"] == row["env_steps_per_experiment"]
 
 
@@ -138,24 +171,43 @@ def test_a_directory_written_before_env_steps_were_counted_still_resumes_and_sum
     del config["protocol"]["steps"]
     store.config_path.write_text(json.dumps(config))
     assert store.holds_finished(protocol)
-    summary = runner.run_protocol(protocol, tmp_path, jobs=1, resume=True, progress=False,
-                                  figures=False)
-    assert summary["s-ac"]["minutes_to_90pct"] is not None and "env_steps_per_trial" not in summary["s-ac"]
+    summary = runner.run_protocol(
+        protocol, tmp_path, jobs=1, resume=True, progress=False, figures=False
+    )
+    assert (
+        summary["s-ac"]["minutes_to_90pct"] is not None
+        and "env_steps_per_trial" not in summary["s-ac"]
+    )
     assert store.returns_path.read_text().splitlines()[1].endswith(",")  # steps not known
 
 
 def test_fig2_reads_against_environment_steps_and_refuses_a_summary_without_them(tmp_path):
     from rmac_mj.figures import plots
 
-    protocol = Protocol(env=SLIDER, trial_steps=30, control_timestep=0.1, algorithms=("s-ac",),
-                        experiments=2, trials=1000, steps=60, evaluate_every=1, snapshot_trials=())
+    protocol = Protocol(
+        env=SLIDER,
+        trial_steps=30,
+        control_timestep=0.1,
+        algorithms=("s-ac",),
+        experiments=2,
+        trials=1000,
+        steps=60,
+        evaluate_every=1,
+        snapshot_trials=(),
+    )
     summary = runner.run_protocol(protocol, tmp_path, jobs=1, progress=False, figures=False)
     figure = plots.learning_curves_figure({"run": summary}, x_axis="env_steps")
     line = figure.axes[0].get_lines()[0]
     np.testing.assert_array_equal(line.get_xdata(), summary["s-ac"]["env_steps_per_trial"])
     assert figure.axes[0].get_xlabel() == "environment steps"
-    older = {**summary, "s-ac": {k: v for k, v in summary["s-ac"].items()
-                                 if not k.startswith(("env_steps", "greedy_eval_env"))}}
+    older = {
+        **summary,
+        "s-ac": {
+            k: v
+            for k, v in summary["s-ac"].items()
+            if not k.startswith(("env_steps", "greedy_eval_env"))
+        },
+    }
     with pytest.raises(ValueError, match="holds no environment steps"):
         plots.learning_curves_figure({"run": older}, x_axis="env_steps")
     plots.learning_curves_figure({"run": older})  # against minutes, as before

@@ -10,23 +10,48 @@ from rmac_mj.experiments import panel
 from rmac_mj.rollout import steps_per_trial
 
 
-@pytest.mark.parametrize("name, env_steps", [("pendulum_v1", 5_000), ("cartpole_balance", 10_000),
-                                             ("cartpole_swingup", 100_000),
-                                             ("mountaincar", 30 * 999)])
+@pytest.mark.parametrize(
+    "name, env_steps",
+    [
+        ("pendulum_v1", 5_000),
+        ("cartpole_balance", 10_000),
+        ("cartpole_swingup", 100_000),
+        ("mountaincar", 30 * 999),
+    ],
+)
 def test_each_budget_is_the_issues_in_environment_steps(name, env_steps):
     task = panel.TASKS_BY_NAME[name]
     protocol = task.make_protocol(["s-ac"], 1, 0)
     env = protocol.make_environment(0)
     assert steps_per_trial(env) * protocol.action_repeat * protocol.trials == env_steps
-    assert task.goal_trial in range(protocol.evaluate_every, protocol.trials + 1,
-                                    protocol.evaluate_every)  # the goal is read at an evaluation
+    assert task.goal_trial in range(
+        protocol.evaluate_every, protocol.trials + 1, protocol.evaluate_every
+    )  # the goal is read at an evaluation
 
 
 def test_the_panel_command_runs_every_task_into_its_own_directory(tmp_path, capsys):
     out = tmp_path / "panel"
-    assert main(["panel", "--out", str(out), "--algorithms", "s-ac", "--experiments", "1",
-                 "--tasks", "dc_pendulum,pendulum_v1", "--trials", "2", "--jobs", "1",
-                 "--no-progress"]) == 0
+    assert (
+        main(
+            [
+                "panel",
+                "--out",
+                str(out),
+                "--algorithms",
+                "s-ac",
+                "--experiments",
+                "1",
+                "--tasks",
+                "dc_pendulum,pendulum_v1",
+                "--trials",
+                "2",
+                "--jobs",
+                "1",
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     assert sorted(p.name for p in out.iterdir()) == ["dc_pendulum", "pendulum_v1"]
     assert (out / "pendulum_v1" / "summary.json").is_file()
     task = dataclasses.replace(panel.TASKS_BY_NAME["pendulum_v1"], goal_trial=2, goal=-1e9)

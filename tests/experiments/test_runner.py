@@ -11,44 +11,68 @@ import time
 import numpy as np
 import pytest
 
-from rmac_mj.experiments import progress as progress_module, runner
-from rmac_mj.rollout import run_trial
+from rmac_mj.experiments import progress as progress_module
+from rmac_mj.experiments import runner
 from rmac_mj.experiments.progress import Progress, TrialFeed
 from rmac_mj.experiments.protocol import ExperimentSpec, Protocol, run_experiment
 from rmac_mj.results.snapshots import load_snapshot
 from rmac_mj.results.store import ResultStore, ResumeRefused
+from rmac_mj.rollout import run_trial
 
 TINY = dict(algorithms=("s-ac",), experiments=2, trials=4, snapshot_trials=(1, 2), evaluate_every=2)
 
 
 def returns_of(out, protocol):
-    return {a: ResultStore(out).load_curves(a, protocol.experiments).returns for a in protocol.algorithms}
+    return {
+        a: ResultStore(out).load_curves(a, protocol.experiments).returns
+        for a in protocol.algorithms
+    }
 
 
 def test_tiny_protocol_end_to_end(tmp_path, monkeypatch):
     from rmac_mj.solvers import optimum
 
     monkeypatch.setattr(optimum, "run_optimum", lambda protocol, log=None: -900.0)
-    monkeypatch.setattr(optimum, "run_exploration_floor",
-                        lambda protocol, algorithm, log=None: -950.0)
+    monkeypatch.setattr(
+        optimum, "run_exploration_floor", lambda protocol, algorithm, log=None: -950.0
+    )
     protocol = Protocol(**TINY)
     summary = runner.run_protocol(protocol, tmp_path, jobs=1, progress=False, references=True)
-    for name in ("config.json", "summary.json", "returns.csv", "fig2_learning_curves.png",
-                 "fig2_learning_curves.pdf"):
+    for name in (
+        "config.json",
+        "summary.json",
+        "returns.csv",
+        "fig2_learning_curves.png",
+        "fig2_learning_curves.pdf",
+    ):
         assert (tmp_path / name).is_file(), name
     on_disk = json.loads((tmp_path / "summary.json").read_text())
     assert on_disk["paper_protocol"] is False and on_disk["optimal_return"] == -900.0
     assert on_disk["exploration_floor"] == -950.0
     row = on_disk["s-ac"]
-    for key in ("experiments", "trials", "mean_return_per_trial", "ci95_low_per_trial",
-                "ci95_high_per_trial", "final_return_mean", "final_return_ci95", "minutes_to_90pct",
-                "mean_return_first_10min", "stuck_experiments", "greedy_return_per_eval"):
+    for key in (
+        "experiments",
+        "trials",
+        "mean_return_per_trial",
+        "ci95_low_per_trial",
+        "ci95_high_per_trial",
+        "final_return_mean",
+        "final_return_ci95",
+        "minutes_to_90pct",
+        "mean_return_first_10min",
+        "stuck_experiments",
+        "greedy_return_per_eval",
+    ):
         assert key in row, key
     assert len(row["mean_return_per_trial"]) == 4 and len(row["greedy_return_per_eval"]) == 2
     assert row == summary["s-ac"]
     config = json.loads((tmp_path / "config.json").read_text())
     assert config["protocol"]["trials"] == 4 and "numpy" in config["provenance"]["packages"]
-    assert config["protocol"]["snapshot_trials"] == [1, 2, 4]  # the final trial's snapshot is listed
+    assert config["protocol"]["snapshot_trials"] == [
+        1,
+        2,
+        4,
+    ]  # the final trial's snapshot is listed
     snapshots = sorted(p.name for p in (tmp_path / "snapshots/s-ac/exp_001").iterdir())
     assert snapshots == ["trial_0001.npz", "trial_0002.npz", "trial_0004.npz"]
     with np.load(tmp_path / "curves/s-ac/exp_000.npz", allow_pickle=False) as data:
@@ -64,14 +88,20 @@ def test_serial_and_parallel_runs_are_identical(tmp_path):
 
     # a deep-RL baseline too, when installed: its torch and numpy streams are the learner's own
     algorithms = ("s-ac", "sb3-sac") if sb3_config.available() else ("s-ac",)
-    protocol = Protocol(**{**TINY, "algorithms": algorithms},
-                        agent_configs={"sb3-sac": quick_config("sb3-sac")})
+    protocol = Protocol(
+        **{**TINY, "algorithms": algorithms}, agent_configs={"sb3-sac": quick_config("sb3-sac")}
+    )
     runner.run_protocol(protocol, tmp_path / "serial", jobs=1, progress=False, figures=False)
     runner.run_protocol(protocol, tmp_path / "parallel", jobs=2, progress=False, figures=False)
-    serial, parallel = returns_of(tmp_path / "serial", protocol), returns_of(tmp_path / "parallel", protocol)
+    serial, parallel = (
+        returns_of(tmp_path / "serial", protocol),
+        returns_of(tmp_path / "parallel", protocol),
+    )
     for algorithm in algorithms:
         np.testing.assert_array_equal(serial[algorithm], parallel[algorithm])
-        assert not np.array_equal(serial[algorithm][0], serial[algorithm][1])  # independent experiments
+        assert not np.array_equal(
+            serial[algorithm][0], serial[algorithm][1]
+        )  # independent experiments
 
 
 def test_resume_with_a_changed_config_is_refused(tmp_path):
@@ -100,13 +130,22 @@ def test_a_resume_adds_experiments_and_never_drops_any(tmp_path):
     config = json.loads((grown / "config.json").read_text())
     assert config["protocol"]["experiments"] == 3 and config["experiments_grown_from"] == [2]
     whole = runner.run_protocol(large, fresh, jobs=1, progress=False, figures=False)
-    np.testing.assert_array_equal(returns_of(grown, large)["s-ac"], returns_of(fresh, large)["s-ac"])
+    np.testing.assert_array_equal(
+        returns_of(grown, large)["s-ac"], returns_of(fresh, large)["s-ac"]
+    )
     assert summary["s-ac"]["final_return_mean"] == whole["s-ac"]["final_return_mean"]
     with pytest.raises(ResumeRefused, match="never drops any"):
         runner.run_protocol(small, grown, jobs=1, resume=True, progress=False)
-    with pytest.raises(ResumeRefused, match="trials: 4 in the directory, 5 now"):  # and nothing else
-        runner.run_protocol(Protocol(**{**TINY, "experiments": 4, "trials": 5}), grown, jobs=1,
-                            resume=True, progress=False)
+    with pytest.raises(
+        ResumeRefused, match="trials: 4 in the directory, 5 now"
+    ):  # and nothing else
+        runner.run_protocol(
+            Protocol(**{**TINY, "experiments": 4, "trials": 5}),
+            grown,
+            jobs=1,
+            resume=True,
+            progress=False,
+        )
 
 
 def _hooked_cli(marker: pathlib.Path) -> list[str]:
@@ -124,7 +163,8 @@ def _hooked_cli(marker: pathlib.Path) -> list[str]:
         "    time.sleep(600)\n"
         "ResultStore.save = save_then_wait\n"
         "from rmac_mj.cli import main\n"
-        "sys.exit(main(sys.argv[1:]))\n")
+        "sys.exit(main(sys.argv[1:]))\n"
+    )
     return [sys.executable, "-c", script]
 
 
@@ -137,11 +177,25 @@ def _wait_for(path: pathlib.Path, process: subprocess.Popen, timeout: float = 24
 
 
 def test_killed_run_resumed_equals_uninterrupted(tmp_path):
-    args = ["reproduce", "--algorithms", "s-ac", "--experiments", "4", "--trials", "10", "--jobs",
-            "1", "--no-optimal", "--no-progress"]
+    args = [
+        "reproduce",
+        "--algorithms",
+        "s-ac",
+        "--experiments",
+        "4",
+        "--trials",
+        "10",
+        "--jobs",
+        "1",
+        "--no-optimal",
+        "--no-progress",
+    ]
     killed, marker = tmp_path / "killed", tmp_path / "saved-one"
-    process = subprocess.Popen([*_hooked_cli(marker), *args, "--out", str(killed)],
-                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    process = subprocess.Popen(
+        [*_hooked_cli(marker), *args, "--out", str(killed)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     _wait_for(marker, process)
     process.send_signal(signal.SIGKILL)
     process.wait()
@@ -156,8 +210,9 @@ def test_killed_run_resumed_equals_uninterrupted(tmp_path):
     whole = tmp_path / "whole"
     assert main([*args, "--out", str(whole)]) == 0
     protocol = Protocol(algorithms=("s-ac",), experiments=4, trials=10)
-    np.testing.assert_array_equal(returns_of(killed, protocol)["s-ac"],
-                                  returns_of(whole, protocol)["s-ac"])
+    np.testing.assert_array_equal(
+        returns_of(killed, protocol)["s-ac"], returns_of(whole, protocol)["s-ac"]
+    )
     assert not list(killed.rglob("*.tmp"))
 
 
@@ -173,10 +228,14 @@ def test_snapshot_round_trip_reproduces_the_policy(tmp_path):
 
 
 def test_protocol_validation_names_the_parameter():
-    for kwargs, name in [({"experiments": 0}, "experiments"), ({"trials": -1}, "trials"),
-                         ({"algorithms": ("q-learning",)}, "unknown algorithm"),
-                         ({"seed": -3}, "seed"), ({"evaluate_every": -1}, "evaluate_every"),
-                         ({"task_kwargs": {"random": 1}}, "random")]:
+    for kwargs, name in [
+        ({"experiments": 0}, "experiments"),
+        ({"trials": -1}, "trials"),
+        ({"algorithms": ("q-learning",)}, "unknown algorithm"),
+        ({"seed": -3}, "seed"),
+        ({"evaluate_every": -1}, "evaluate_every"),
+        ({"task_kwargs": {"random": 1}}, "random"),
+    ]:
         with pytest.raises(ValueError, match=name):
             Protocol(**kwargs)
     assert Protocol().is_paper_protocol
@@ -187,22 +246,47 @@ def test_dask_scheduler_path_matches_local_run(tmp_path):
     distributed = pytest.importorskip("distributed")
     protocol = Protocol(**TINY)
     runner.run_protocol(protocol, tmp_path / "local", jobs=1, progress=False, figures=False)
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster:
-        runner.run_protocol(protocol, tmp_path / "dask", scheduler=cluster.scheduler_address,
-                            progress=False, figures=False)
-    np.testing.assert_array_equal(returns_of(tmp_path / "local", protocol)["s-ac"],
-                                  returns_of(tmp_path / "dask", protocol)["s-ac"])
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as cluster:
+        runner.run_protocol(
+            protocol,
+            tmp_path / "dask",
+            scheduler=cluster.scheduler_address,
+            progress=False,
+            figures=False,
+        )
+    np.testing.assert_array_equal(
+        returns_of(tmp_path / "local", protocol)["s-ac"],
+        returns_of(tmp_path / "dask", protocol)["s-ac"],
+    )
 
 
 def test_ctrl_c_stops_workers_and_says_how_to_resume(tmp_path):
     out, marker = tmp_path / "run", tmp_path / "saved-one"
-    args = ["reproduce", "--algorithms", "s-ac", "--experiments", "4", "--trials", "5", "--jobs",
-            "2", "--no-optimal", "--no-progress", "--out", str(out)]
-    process = subprocess.Popen([*_hooked_cli(marker), *args], stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True,
-                               start_new_session=True,  # its own process group, like a terminal's
-                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    args = [
+        "reproduce",
+        "--algorithms",
+        "s-ac",
+        "--experiments",
+        "4",
+        "--trials",
+        "5",
+        "--jobs",
+        "2",
+        "--no-optimal",
+        "--no-progress",
+        "--out",
+        str(out),
+    ]
+    process = subprocess.Popen(
+        [*_hooked_cli(marker), *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,  # its own process group, like a terminal's
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
     _wait_for(marker, process)
     os.killpg(process.pid, signal.SIGINT)  # Ctrl-C reaches the driver and its workers
     _, stderr = process.communicate(timeout=60)
@@ -229,8 +313,13 @@ def test_every_result_file_is_readable_by_others(tmp_path):
 
     from rmac_mj.agents import ALGORITHMS
 
-    protocol = Protocol(algorithms=ALGORITHMS, experiments=1, trials=2, snapshot_trials=(1,),
-                        agent_configs={a: quick_config(a) for a in ALGORITHMS})
+    protocol = Protocol(
+        algorithms=ALGORITHMS,
+        experiments=1,
+        trials=2,
+        snapshot_trials=(1,),
+        agent_configs={a: quick_config(a) for a in ALGORITHMS},
+    )
     old = os.umask(0o022)
     try:
         runner.run_protocol(protocol, tmp_path, jobs=1, progress=False)
@@ -246,9 +335,28 @@ def test_every_result_file_is_readable_by_others(tmp_path):
 def test_a_non_terminal_run_prints_plain_progress_lines(tmp_path):
     """Under nohup or Slurm (output not a terminal): periodic plain lines, no carriage returns or
     escape codes; the mean return of the last trials per learner is in them."""
-    result = subprocess.run([sys.executable, "-m", "rmac_mj", "reproduce", "--algorithms", "s-ac",
-                             "--experiments", "2", "--trials", "3", "--jobs", "1", "--no-optimal",
-                             "--out", str(tmp_path / "run")], capture_output=True, text=True, timeout=300)
+    result = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "rmac_mj",
+            "reproduce",
+            "--algorithms",
+            "s-ac",
+            "--experiments",
+            "2",
+            "--trials",
+            "3",
+            "--jobs",
+            "1",
+            "--no-optimal",
+            "--out",
+            str(tmp_path / "run"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert result.returncode == 0, result.stderr
     for text in (result.stdout, result.stderr):
         assert "\x1b" not in text and "\r" not in text
@@ -265,14 +373,19 @@ def test_trials_are_streamed_to_disk_as_they_happen(tmp_path):
     def on_trial(algorithm, index, trial, value):  # the log already holds this trial
         seen.append(log.read_text().splitlines()[-1].split(",")[0])
 
-    streamed = run_experiment(ExperimentSpec(protocol, "s-ac", 0, stream_to=str(tmp_path)),
-                              on_trial=on_trial)
+    streamed = run_experiment(
+        ExperimentSpec(protocol, "s-ac", 0, stream_to=str(tmp_path)), on_trial=on_trial
+    )
     assert seen == ["1", "2", "3", "4"]
     lines = log.read_text().splitlines()
     assert lines[0] == "trial,return,greedy_return,env_steps"
-    np.testing.assert_array_equal([float(line.split(",")[1]) for line in lines[1:]], streamed.returns)
+    np.testing.assert_array_equal(
+        [float(line.split(",")[1]) for line in lines[1:]], streamed.returns
+    )
     assert [line.split(",")[2] != "" for line in lines[1:]] == [False, True, False, True]
-    np.testing.assert_array_equal([int(line.split(",")[3]) for line in lines[1:]], streamed.env_steps)
+    np.testing.assert_array_equal(
+        [int(line.split(",")[3]) for line in lines[1:]], streamed.env_steps
+    )
     silent = run_experiment(ExperimentSpec(protocol, "s-ac", 0))
     np.testing.assert_array_equal(silent.returns, streamed.returns)  # streaming changes nothing
 
@@ -286,7 +399,9 @@ def test_the_driver_reads_only_complete_lines_of_the_live_logs(tmp_path):
     log.parent.mkdir(parents=True)
     log.write_text("trial,return,greedy_return\n1,-4000.5,\n2,-39")  # trial 2 half written
     feed.poll()
-    assert display.trials_done == {"all": 1, "s-ac": 1} and list(display.recent["s-ac"]) == [-4000.5]
+    assert display.trials_done == {"all": 1, "s-ac": 1} and list(display.recent["s-ac"]) == [
+        -4000.5
+    ]
     with open(log, "a") as handle:
         handle.write("00.25,-3800.0\n")
     feed.poll()
@@ -324,7 +439,11 @@ def test_the_trial_rate_counts_only_the_experiments_own_time(monkeypatch):
     display.experiment((0, "s-ac", 1))  # 8 trials in 2 s
     clock[0] += 60.0  # then a minute of something else (the reference, the figures)
     display.close()
-    assert stream.getvalue().splitlines()[-1].startswith("[1 min 02 s] 8/8 trials (2/2 experiments), 4 trials/s")
+    assert (
+        stream.getvalue()
+        .splitlines()[-1]
+        .startswith("[1 min 02 s] 8/8 trials (2/2 experiments), 4 trials/s")
+    )
 
 
 def _fake_near_optimal(protocol, announce):
@@ -334,8 +453,9 @@ def _fake_near_optimal(protocol, announce):
 
 def test_the_near_optimal_returns_are_computed_in_a_process_of_their_own():
     messages = []
-    service = runner.NearOptimalService([Protocol(**TINY), None], messages.append, background=True,
-                                        compute=_fake_near_optimal)
+    service = runner.NearOptimalService(
+        [Protocol(**TINY), None], messages.append, background=True, compute=_fake_near_optimal
+    )
     try:
         assert service.result(0) == (-748.0, {"s-ac": -870.0}) and service.result(1) is None
     finally:
@@ -355,11 +475,14 @@ def test_compiling_says_what_and_how_long_while_it_lasts(monkeypatch):
         deadline = time.monotonic() + 60
         while not any("so far" in line for line in lines) and time.monotonic() < deadline:
             time.sleep(0.01)
+
     monkeypatch.setattr(admission, "warm_up", warm_up)
     admission.warm_up_announced([Protocol(**TINY)], lines.append, interval=0.01)
     assert lines[0].startswith("compiling the kernels of s-ac, first run only (cached in ")
-    assert any(line.startswith("compiling the kernels of s-ac: ") and line.endswith(" s so far")
-               for line in lines[1:-1])
+    assert any(
+        line.startswith("compiling the kernels of s-ac: ") and line.endswith(" s so far")
+        for line in lines[1:-1]
+    )
     assert lines[-1].startswith("kernels compiled in ")
 
 
@@ -368,7 +491,9 @@ def test_a_resumed_run_reports_the_wall_time_of_all_its_parts(tmp_path):
     first = runner.run_protocol(protocol, tmp_path, jobs=1, progress=False, figures=False)
     assert first["wall_time_parts_s"] == [first["wall_time_s"]] and first["wall_time_s"] > 0
     ResultStore(tmp_path).curve_path("s-ac", 1).unlink()  # as if killed before the last experiment
-    resumed = runner.run_protocol(protocol, tmp_path, jobs=1, resume=True, progress=False, figures=False)
+    resumed = runner.run_protocol(
+        protocol, tmp_path, jobs=1, resume=True, progress=False, figures=False
+    )
     parts = resumed["wall_time_parts_s"]
     assert len(parts) == 2 and parts[0] == pytest.approx(first["wall_time_s"], abs=0.5)
     assert resumed["wall_time_s"] == pytest.approx(sum(parts))

@@ -38,8 +38,15 @@ ROLLOUTS = [
 def _rollout(task: str, task_kwargs: dict, actions: str) -> dict[str, list]:
     env = tasks.load("dc_pendulum", task, task_kwargs=dict(task_kwargs))
     rng = np.random.default_rng(12)
-    record: dict[str, list] = {"angle": [], "velocity": [], "orientation": [], "reward": [],
-                               "discount": [], "step_type": [], "action": []}
+    record: dict[str, list] = {
+        "angle": [],
+        "velocity": [],
+        "orientation": [],
+        "reward": [],
+        "discount": [],
+        "step_type": [],
+        "action": [],
+    }
 
     def keep(timestep):
         obs = timestep.observation
@@ -69,8 +76,9 @@ class _ScriptedAgent(PolicyAgent):
     """A seeded random-voltage 'learner' that writes down every state and reward it is shown."""
 
     def __init__(self, state_space, action_space, seed):
-        super().__init__(state_space, action_space, policy=lambda x: np.array([np.tanh(x[0])]),
-                         seed=seed)
+        super().__init__(
+            state_space, action_space, policy=lambda x: np.array([np.tanh(x[0])]), seed=seed
+        )
         self.seen: list[list[float]] = []
 
     def _act_randomly(self) -> np.ndarray:
@@ -95,17 +103,23 @@ class _ScriptedAgent(PolicyAgent):
 def _run_trials() -> dict[str, list]:
     env = tasks.load("dc_pendulum", "balance", task_kwargs={"random": 5})
     agent = _ScriptedAgent(state_space_of(env), action_space_of(env), seed=4)
-    returns = [run_trial(env, agent, learn=True), run_trial(env, agent, learn=False),
-               run_trial(env, agent, learn=True)]
+    returns = [
+        run_trial(env, agent, learn=True),
+        run_trial(env, agent, learn=False),
+        run_trial(env, agent, learn=True),
+    ]
     # NaN/inf mark start/greedy rows; JSON has no NaN, so they are written as strings.
     seen = [[repr(v) if not np.isfinite(v) else v for v in row] for row in agent.seen]
     return {"returns": returns, "seen": seen}
 
 
 def _record() -> dict:
-    return {"rollouts": {name: _rollout(task, kwargs, actions)
-                         for name, task, kwargs, actions in ROLLOUTS},
-            "run_trial": _run_trials()}
+    return {
+        "rollouts": {
+            name: _rollout(task, kwargs, actions) for name, task, kwargs, actions in ROLLOUTS
+        },
+        "run_trial": _run_trials(),
+    }
 
 
 def _pinned() -> dict:

@@ -12,31 +12,50 @@ from rmac_mj.figures import plots, policy_plots
 def old_summary(trial_seconds: float, trials: int = 4) -> dict:
     """A summary.json as the first version wrote it (no first_10min_trials, no stuck_below)."""
     curve = np.linspace(-3000.0, -1000.0, trials)
-    row = {"experiments": 2, "trials": trials, "mean_return_per_trial": curve.tolist(),
-           "ci95_low_per_trial": (curve - 50).tolist(), "ci95_high_per_trial": (curve + 50).tolist(),
-           "final_return_mean": -1000.0, "final_return_ci95": [-1050.0, -950.0],
-           "final_return_per_experiment": [-1000.0, -1000.0], "minutes_to_90pct": 0.2,
-           "mean_return_first_10min": -2000.0, "stuck_experiments": 0, "greedy_eval_trials": [2, 4],
-           "greedy_return_per_eval": [-1500.0, -900.0]}
-    return {"paper_protocol": False, "optimal_return": -748.1, "trial_seconds": trial_seconds,
-            "protocol": {}, "rmac": row}
+    row = {
+        "experiments": 2,
+        "trials": trials,
+        "mean_return_per_trial": curve.tolist(),
+        "ci95_low_per_trial": (curve - 50).tolist(),
+        "ci95_high_per_trial": (curve + 50).tolist(),
+        "final_return_mean": -1000.0,
+        "final_return_ci95": [-1050.0, -950.0],
+        "final_return_per_experiment": [-1000.0, -1000.0],
+        "minutes_to_90pct": 0.2,
+        "mean_return_first_10min": -2000.0,
+        "stuck_experiments": 0,
+        "greedy_eval_trials": [2, 4],
+        "greedy_return_per_eval": [-1500.0, -900.0],
+    }
+    return {
+        "paper_protocol": False,
+        "optimal_return": -748.1,
+        "trial_seconds": trial_seconds,
+        "protocol": {},
+        "rmac": row,
+    }
 
 
 @pytest.fixture
 def drawn(monkeypatch):
     """The figures plot_learning_curves draws, kept instead of written."""
     figures = []
-    monkeypatch.setattr(plots, "save_figure", lambda fig, stem, formats=("png", "pdf"): figures.append(fig))
+    monkeypatch.setattr(
+        plots, "save_figure", lambda fig, stem, formats=("png", "pdf"): figures.append(fig)
+    )
     return figures
 
 
 def test_each_summary_uses_its_own_trial_length(drawn):
-    plots.plot_learning_curves({"pendulum": old_summary(3.0), "arm": old_summary(0.05 * 60 / 2)},
-                               "unused")
+    plots.plot_learning_curves(
+        {"pendulum": old_summary(3.0), "arm": old_summary(0.05 * 60 / 2)}, "unused"
+    )
     ax = drawn[0].axes[0]
     curves = [line for line in ax.get_lines() if line.get_label().endswith("(mean of 2)")]
-    assert [line.get_label() for line in curves] == ["pendulum: RMAC (mean of 2)",
-                                                     "arm: RMAC (mean of 2)"]
+    assert [line.get_label() for line in curves] == [
+        "pendulum: RMAC (mean of 2)",
+        "arm: RMAC (mean of 2)",
+    ]
     np.testing.assert_allclose(curves[0].get_xdata(), np.arange(1, 5) * 3.0 / 60)
     np.testing.assert_allclose(curves[1].get_xdata(), np.arange(1, 5) * 1.5 / 60)
     assert ax.get_xlabel() == "time [min] (simulated)"  # two trial lengths: none is named
@@ -62,10 +81,15 @@ def _summary(n_experiments, seed=0, level=-1000.0, **protocol):
     rng = np.random.default_rng(seed)
     trials = np.arange(1, 101)
     curves = level - 3000.0 * np.exp(-trials / 20.0) + rng.normal(0, 40, (n_experiments, 100))
-    curves[0] -= 20000.0 * (n_experiments < 5)  # one bad experiment: a huge interval when n is small
-    return {"trial_seconds": 3.0, "protocol": protocol,
-            "rmac": metrics.summarise(curves, trial_seconds=3.0),
-            "s-ac": metrics.summarise(curves - 50.0, trial_seconds=3.0)}
+    curves[0] -= 20000.0 * (
+        n_experiments < 5
+    )  # one bad experiment: a huge interval when n is small
+    return {
+        "trial_seconds": 3.0,
+        "protocol": protocol,
+        "rmac": metrics.summarise(curves, trial_seconds=3.0),
+        "s-ac": metrics.summarise(curves - 50.0, trial_seconds=3.0),
+    }
 
 
 def test_axes_follow_the_curves_not_the_bands():
@@ -74,14 +98,19 @@ def test_axes_follow_the_curves_not_the_bands():
     means = np.concatenate([summary[a]["mean_return_per_trial"] for a in ("rmac", "s-ac")])
     low, high = fig.axes[0].get_ylim()
     span = means.max() - means.min()
-    assert means.min() - 0.1 * span <= low < means.min() and means.max() < high <= means.max() + 0.1 * span
+    assert (
+        means.min() - 0.1 * span <= low < means.min()
+        and means.max() < high <= means.max() + 0.1 * span
+    )
     assert high < 0  # the band reaches far above 0; every reward is negative
     assert summary["rmac"]["ci95_high_per_trial"][50] > 0
 
 
 def test_every_panel_has_a_legend_and_a_trial_axis():
     fig = plots.learning_curves_figure({"run": _summary(6)}, optimal_return=-748.0)
-    panels = [ax for ax in fig.axes if ax.get_label() != "<colorbar>" and ax.get_legend() is not None]
+    panels = [
+        ax for ax in fig.axes if ax.get_label() != "<colorbar>" and ax.get_legend() is not None
+    ]
     assert len(panels) == 2
     secondary = [child for ax in panels for child in ax.child_axes]
     assert len(secondary) == 2 and all(s.get_xlabel().startswith("trial") for s in secondary)
@@ -97,8 +126,9 @@ def test_smoothing_is_a_running_mean_stated_in_the_legend():
     for ax in fig.axes[:2]:
         assert ax.get_legend().get_title().get_text() == "running mean over 5 trials"
     line = fig.axes[0].get_lines()[0]
-    np.testing.assert_allclose(line.get_ydata(),
-                               plots.running_mean(_summary(6)["rmac"]["mean_return_per_trial"], 5))
+    np.testing.assert_allclose(
+        line.get_ydata(), plots.running_mean(_summary(6)["rmac"]["mean_return_per_trial"], 5)
+    )
     with pytest.raises(ValueError, match="smooth"):
         plots.learning_curves_figure({"run": _summary(6)}, smooth=0)
 
@@ -115,13 +145,16 @@ def test_the_detail_legend_covers_none_of_the_curves():
 def test_profiles_of_too_few_experiments_draw_no_bands_and_say_why():
     def profile(n):
         rng = np.random.default_rng(0)
-        fig = plots.performance_profiles_figure({("", "rmac"): rng.normal(-900, 30, n),
-                                                 ("", "s-ac"): rng.normal(-950, 30, n)})
+        fig = plots.performance_profiles_figure(
+            {("", "rmac"): rng.normal(-900, 30, n), ("", "s-ac"): rng.normal(-950, 30, n)}
+        )
         return fig, [t.get_text() for t in fig.texts]
+
     few, notes = profile(2)
     assert len(few.axes[0].collections) == 0 or all(
         len(c.get_paths()) == 0 or not np.isfinite(c.get_paths()[0].vertices).all()
-        for c in few.axes[0].collections)
+        for c in few.axes[0].collections
+    )
     assert any(text.startswith("2 experiments: too few for bands") for text in notes)
     enough, notes = profile(6)
     assert notes == [] and len(enough.axes[0].collections) == 2
@@ -131,6 +164,7 @@ def test_few_experiments_are_flagged_in_the_figure():
     def notes(n):
         fig = plots.learning_curves_figure({"run": _summary(n)})
         return [t.get_text() for t in fig.texts]
+
     assert any("4 experiments per learner" in text for text in notes(4))
     assert notes(5) == []
 
@@ -170,16 +204,21 @@ def _pendulum():
 
 def test_side_by_side_policies_share_their_colour_scales():
     _, learner_state = _pendulum()
-    fig = policy_plots.policies_figure([(_MapAgent(10.0), {"algorithm": "rmac"}),
-                                 (_MapAgent(1000.0), {"algorithm": "s-ac"})],
-                                learner_state, anchor=[np.pi, 0.0], resolution=9)
+    fig = policy_plots.policies_figure(
+        [(_MapAgent(10.0), {"algorithm": "rmac"}), (_MapAgent(1000.0), {"algorithm": "s-ac"})],
+        learner_state,
+        anchor=[np.pi, 0.0],
+        resolution=9,
+    )
     images = [ax.images[0] for ax in fig.axes if ax.images]
     assert len(images) == 4
     policy_limits = {image.get_clim() for image in images if image.get_cmap().name == "RdBu_r"}
     value_limits = {image.get_clim() for image in images if image.get_cmap().name == "viridis"}
     assert policy_limits == {(-3.0, 3.0)} and value_limits == {(-1000.0, 1000.0)}
     titles = [ax.get_title() for ax in fig.axes]
-    assert any("$V(x)$" in title for title in titles) and any(r"$\pi(x)$" in title for title in titles)
+    assert any("$V(x)$" in title for title in titles) and any(
+        r"$\pi(x)$" in title for title in titles
+    )
 
 
 def test_the_greedy_trajectory_is_drawn_from_the_start_state():
@@ -192,9 +231,18 @@ def test_the_greedy_trajectory_is_drawn_from_the_start_state():
     agent = _MapAgent(1.0)
     agent.begin_greedy_trial = lambda: None
     agent.greedy_action = lambda x: np.array([3.0])
-    fig = policy_plots.policies_figure([(agent, {"algorithm": "rmac"})], learner_state, anchor=[np.pi, 0.0],
-                                resolution=5, envs=[env])
-    lines = [line for line in fig.axes[0].get_lines() if "greedy trial from $x_0$" in str(line.get_label())]
+    fig = policy_plots.policies_figure(
+        [(agent, {"algorithm": "rmac"})],
+        learner_state,
+        anchor=[np.pi, 0.0],
+        resolution=5,
+        envs=[env],
+    )
+    lines = [
+        line
+        for line in fig.axes[0].get_lines()
+        if "greedy trial from $x_0$" in str(line.get_label())
+    ]
     assert len(lines) == 1
 
 

@@ -33,14 +33,23 @@ def max_error_against_ode(model, x0, voltages):
         data.ctrl[0] = u
         for _ in range(n_sub):
             mujoco.mj_step(model, data)
-        y = solve_ivp(ode, (0.0, CONTROL_DT), y, args=(u,), method="DOP853",
-                      rtol=1e-12, atol=1e-12).y[:, -1]
+        y = solve_ivp(
+            ode, (0.0, CONTROL_DT), y, args=(u,), method="DOP853", rtol=1e-12, atol=1e-12
+        ).y[:, -1]
         worst = max(worst, abs(data.qpos[0] - y[0]))
     return worst
 
 
-@pytest.mark.parametrize("case", ["free_near_upright", "constant_3V_from_down", "random_uniform_0",
-                                  "random_uniform_1", "random_uniform_2"])
+@pytest.mark.parametrize(
+    "case",
+    [
+        "free_near_upright",
+        "constant_3V_from_down",
+        "random_uniform_0",
+        "random_uniform_1",
+        "random_uniform_2",
+    ],
+)
 def test_trajectory_matches_equation_of_motion(model, case):
     rng = np.random.default_rng(int(case[-1]) if case[-1].isdigit() else 0)
     x0, voltages = {
@@ -67,8 +76,9 @@ def test_each_control_step_matches_equation_of_motion_under_bang_bang(model):
         y0 = np.array([data.qpos[0], data.qvel[0]])
         for _ in range(n_sub):
             mujoco.mj_step(model, data)
-        y = solve_ivp(ode, (0.0, CONTROL_DT), y0, args=(u,), method="DOP853",
-                      rtol=1e-12, atol=1e-12).y[:, -1]
+        y = solve_ivp(
+            ode, (0.0, CONTROL_DT), y0, args=(u,), method="DOP853", rtol=1e-12, atol=1e-12
+        ).y[:, -1]
         worst = max(worst, abs(data.qpos[0] - y[0]))
     assert worst < 5e-6  # rad per 0.03 s step (measured: 1.3e-6)
 
@@ -94,7 +104,9 @@ def test_motor_torque_is_gain_and_back_emf(model, u, phi_dot):
     data.qvel[0] = phi_dot
     data.ctrl[0] = u
     mujoco.mj_forward(model, data)
-    assert data.actuator_force[0] == pytest.approx(K / R * u - K * K / R * phi_dot, rel=1e-9, abs=1e-12)
+    assert data.actuator_force[0] == pytest.approx(
+        K / R * u - K * K / R * phi_dot, rel=1e-9, abs=1e-12
+    )
 
 
 def test_visual_geoms_have_no_mass_and_no_contacts(model):
@@ -107,7 +119,9 @@ def test_zero_is_upright_and_pi_hangs_down(model):
     for phi, z_sign in [(0.0, 1.0), (np.pi, -1.0)]:
         data.qpos[0] = phi
         mujoco.mj_forward(model, data)
-        com_height = data.xipos[model.body("pendulum").id][2] - data.xpos[model.body("pendulum").id][2]
+        com_height = (
+            data.xipos[model.body("pendulum").id][2] - data.xpos[model.body("pendulum").id][2]
+        )
         assert com_height == pytest.approx(z_sign * L)
 
 

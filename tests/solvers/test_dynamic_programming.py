@@ -9,26 +9,36 @@ import numpy as np
 import pytest
 
 from rmac_mj import tasks
-from rmac_mj.solvers import dynamic_programming as optimal, exploration_floor
-from rmac_mj.solvers.problem import problem_identity
+from rmac_mj.solvers import dynamic_programming as optimal
+from rmac_mj.solvers import exploration_floor
 from rmac_mj.solvers.dynamic_programming import OptimalConfig
+from rmac_mj.solvers.problem import problem_identity
 
 # Coarse enough for a unit test; the converged default is about -748 (docs/optimal.md).
-_COARSE = OptimalConfig(n_phi=91, n_phi_dot=61, n_actions=7, lookahead_actions=13, check_convergence=False)
-_FINER = OptimalConfig(n_phi=121, n_phi_dot=81, n_actions=13, lookahead_actions=25, check_convergence=False)
-_TINY = OptimalConfig(n_phi=24, n_phi_dot=15, n_actions=3, lookahead_actions=3, check_convergence=False)
+_COARSE = OptimalConfig(
+    n_phi=91, n_phi_dot=61, n_actions=7, lookahead_actions=13, check_convergence=False
+)
+_FINER = OptimalConfig(
+    n_phi=121, n_phi_dot=81, n_actions=13, lookahead_actions=25, check_convergence=False
+)
+_TINY = OptimalConfig(
+    n_phi=24, n_phi_dot=15, n_actions=3, lookahead_actions=3, check_convergence=False
+)
 
 
 def swingup(steps: int | None = None, **task_kwargs):
     """The swing-up (``steps`` control steps per trial: a shorter problem) and its cache identity."""
     if steps is not None:
         task_kwargs["time_limit"] = steps * 0.03
-    return (tasks.load("dc_pendulum", "swingup", task_kwargs=task_kwargs),
-            problem_identity("dc_pendulum", "swingup", task_kwargs))
+    return (
+        tasks.load("dc_pendulum", "swingup", task_kwargs=task_kwargs),
+        problem_identity("dc_pendulum", "swingup", task_kwargs),
+    )
 
 
 def problem(steps: int | None = None) -> optimal.Problem:
     return optimal.Problem(swingup(steps)[0])
+
 
 #: Stated tolerance of the grid-convergence test: the simulated returns of _COARSE and _FINER agree within
 #: 1% (measured: -752.98 vs -749.41, 0.5%), and both lie within 1.5% of the default grid's -748.1.
@@ -44,7 +54,9 @@ def coarse_and_finer():
 @pytest.mark.slow
 def test_coarse_grid_agrees_with_finer_grid_within_tolerance(coarse_and_finer):
     coarse, finer = coarse_and_finer
-    assert abs(coarse.simulated_return - finer.simulated_return) <= _REL_TOL * abs(finer.simulated_return)
+    assert abs(coarse.simulated_return - finer.simulated_return) <= _REL_TOL * abs(
+        finer.simulated_return
+    )
     # A swing-up must actually happen (hanging for 3 s costs 100 * 5 pi^2 = 4935) in about 1 s, as the
     # paper says, and the pendulum then stays up (the last steps are left out: with nothing after the
     # horizon to pay for, the policy lets it start to fall).
@@ -91,18 +103,21 @@ def test_interpolation_is_bilinear_periodic_in_phi_and_clipped_in_phi_dot():
     assert phi[0] == -np.pi and phi[-1] < np.pi
     rng = np.random.default_rng(0)
     g = rng.normal(size=8)
-    value = g[:, None] + 3.0 * phi_dot[None, :]           # arbitrary in phi, affine in phi_dot
+    value = g[:, None] + 3.0 * phi_dot[None, :]  # arbitrary in phi, affine in phi_dot
     d_phi = 2 * np.pi / 8
-    points = np.array([
-        [phi[2], 0.7],                                     # on a phi node: exact in phi_dot
-        [phi[2] + 0.25 * d_phi, -1.3],                     # between nodes 2 and 3
-        [np.pi - 0.5 * d_phi, 0.0],                        # between the last node and -pi (wraps)
-        [phi[1] + 4 * np.pi, 0.0],                         # two periods away
-        [phi[1], 5.0],                                     # beyond the phi_dot edge: clipped to 2
-    ])
+    points = np.array(
+        [
+            [phi[2], 0.7],  # on a phi node: exact in phi_dot
+            [phi[2] + 0.25 * d_phi, -1.3],  # between nodes 2 and 3
+            [np.pi - 0.5 * d_phi, 0.0],  # between the last node and -pi (wraps)
+            [phi[1] + 4 * np.pi, 0.0],  # two periods away
+            [phi[1], 5.0],  # beyond the phi_dot edge: clipped to 2
+        ]
+    )
     expected = [g[2] + 2.1, 0.75 * g[2] + 0.25 * g[3] - 3.9, 0.5 * (g[7] + g[0]), g[1], g[1] + 6.0]
-    np.testing.assert_allclose(optimal.interpolate_value(config, grid, value, points), expected,
-                               atol=1e-12)
+    np.testing.assert_allclose(
+        optimal.interpolate_value(config, grid, value, points), expected, atol=1e-12
+    )
     weights = optimal.interpolation_matrix(config, grid, points)
     assert weights.shape == (5, 40) and np.all(weights.data >= 0)
     np.testing.assert_allclose(np.asarray(weights.sum(axis=1)).ravel(), 1.0)
@@ -110,10 +125,13 @@ def test_interpolation_is_bilinear_periodic_in_phi_and_clipped_in_phi_dot():
 
 def test_batched_transitions_match_stepping_one_state_at_a_time():
     import mujoco
+
     model = problem().model
     rng = np.random.default_rng(1)
     phi, phi_dot, u = rng.uniform(-np.pi, np.pi, 6), rng.uniform(-15, 15, 6), rng.uniform(-3, 3, 6)
-    batched = optimal.simulate_transitions(model, phi, phi_dot, u, n_substeps=3, n_threads=2, chunk=4)
+    batched = optimal.simulate_transitions(
+        model, phi, phi_dot, u, n_substeps=3, n_threads=2, chunk=4
+    )
     serial = optimal.simulate_transitions(model, phi, phi_dot, u, n_substeps=3, n_threads=1)
     np.testing.assert_array_equal(batched, serial)  # threads and chunks never change the numbers
     data = mujoco.MjData(model)
@@ -137,15 +155,18 @@ def test_cache_round_trip_refresh_and_key(tmp_path):
     assert second.simulated_return == first.simulated_return and second.dp_value == first.dp_value
     assert second.config == first.config and second.problem == first.problem
     np.testing.assert_array_equal(second.states, first.states)
-    assert not optimal.optimal_return(env, identity, _TINY, cache_dir=tmp_path, refresh=True).from_cache
+    assert not optimal.optimal_return(
+        env, identity, _TINY, cache_dir=tmp_path, refresh=True
+    ).from_cache
     # Threads change the speed, never the numbers: same entry. Anything else: a new one.
-    assert optimal.optimal_return(env, identity, dataclasses.replace(_TINY, n_threads=1),
-                                  cache_dir=tmp_path).from_cache
+    assert optimal.optimal_return(
+        env, identity, dataclasses.replace(_TINY, n_threads=1), cache_dir=tmp_path
+    ).from_cache
     other = optimal.optimal_return(*swingup(steps=10, action_weight=2.0), _TINY, cache_dir=tmp_path)
     assert not other.from_cache and len(list(tmp_path.glob("optimal-*.json"))) == 2
     assert other.simulated_return < first.simulated_return  # the task's reward: P = 2 costs more
     env.physics.model.dof_damping[:] *= 1.5  # another model: another key
-    assert optimal.cache_key(env, identity, _TINY) != files[0].name[len("optimal-"):-len(".json")]
+    assert optimal.cache_key(env, identity, _TINY) != files[0].name[len("optimal-") : -len(".json")]
 
 
 def test_convergence_check_reports_a_coarser_solve():
@@ -153,15 +174,25 @@ def test_convergence_check_reports_a_coarser_solve():
     result = optimal.solve(swingup(steps=10)[0], config)
     assert result.coarse is not None
     assert (result.coarse.n_phi, result.coarse.n_phi_dot, result.coarse.n_actions) == (12, 8, 2)
-    assert result.convergence_gap == abs(result.fine.simulated_return - result.coarse.simulated_return)
+    assert result.convergence_gap == abs(
+        result.fine.simulated_return - result.coarse.simulated_return
+    )
     assert f"{result.simulated_return:.2f}" in result.describe()
     assert "convergence gap" in result.describe()
 
 
-@pytest.mark.parametrize("field, value", [
-    ("n_phi", 3), ("n_phi_dot", 2), ("n_actions", 1), ("lookahead_actions", 1),
-    ("max_phi_dot", -1.0), ("max_phi_dot", float("nan")), ("n_threads", -1),
-])
+@pytest.mark.parametrize(
+    "field, value",
+    [
+        ("n_phi", 3),
+        ("n_phi_dot", 2),
+        ("n_actions", 1),
+        ("lookahead_actions", 1),
+        ("max_phi_dot", -1.0),
+        ("max_phi_dot", float("nan")),
+        ("n_threads", -1),
+    ],
+)
 def test_bad_config_raises_value_error_naming_the_field(field, value):
     with pytest.raises(ValueError, match=field):
         OptimalConfig(**{field: value})
@@ -183,19 +214,27 @@ def test_non_int_grid_size_raises_type_error():
         OptimalConfig(n_phi=100.0)
 
 
-_SMALL = OptimalConfig(n_phi=61, n_phi_dot=41, n_actions=5, lookahead_actions=9, check_convergence=False)
+_SMALL = OptimalConfig(
+    n_phi=61, n_phi_dot=41, n_actions=5, lookahead_actions=9, check_convergence=False
+)
 
 
 def test_noisy_rollouts_without_noise_are_the_greedy_rollout():
     grid = problem(steps=40)
     values = optimal.solve_values(_SMALL, grid)
     _, _, rewards = optimal.greedy_rollout(_SMALL, grid, values)
-    quiet = exploration_floor.noisy_rollouts(_SMALL, grid, values, 0.0, 3, 0, 3, np.random.default_rng(0))
+    quiet = exploration_floor.noisy_rollouts(
+        _SMALL, grid, values, 0.0, 3, 0, 3, np.random.default_rng(0)
+    )
     np.testing.assert_allclose(quiet, np.sum(rewards), rtol=0, atol=1e-9)
-    noisy = exploration_floor.noisy_rollouts(_SMALL, grid, values, 1.0, 3, 0, 20, np.random.default_rng(0))
+    noisy = exploration_floor.noisy_rollouts(
+        _SMALL, grid, values, 1.0, 3, 0, 20, np.random.default_rng(0)
+    )
     # Noise on a third of the steps makes every trial differ and costs reward on average.
     assert len(set(noisy.round(6))) == 20 and noisy.mean() < np.sum(rewards)
-    every_step = exploration_floor.noisy_rollouts(_SMALL, grid, values, 1.0, 1, 0, 20, np.random.default_rng(0))
+    every_step = exploration_floor.noisy_rollouts(
+        _SMALL, grid, values, 1.0, 1, 0, 20, np.random.default_rng(0)
+    )
     assert every_step.mean() < noisy.mean()
 
 
@@ -203,8 +242,14 @@ def test_exploration_floor_is_cached_per_schedule(tmp_path):
     env, identity = swingup(steps=40)
 
     def floor(**kwargs):
-        return exploration_floor.exploration_floor(env, identity, **{"sigma": 1.0, "period": 3, "rollouts": 8,
-                                                           **kwargs}, config=_SMALL, cache_dir=tmp_path)
+        return exploration_floor.exploration_floor(
+            env,
+            identity,
+            **{"sigma": 1.0, "period": 3, "rollouts": 8, **kwargs},
+            config=_SMALL,
+            cache_dir=tmp_path,
+        )
+
     first, again = floor(), floor()
     assert not first.from_cache and again.from_cache
     assert again.mean == first.mean and np.array_equal(again.returns, first.returns)

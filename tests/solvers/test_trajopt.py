@@ -31,7 +31,7 @@ def test_coarse_setting_recovers_the_pendulums_dp_value():
 
 def test_arm_reference_replayed_in_the_task_gives_the_same_return():
     result = trajopt.optimise(tasks.load("two_link_arm", "reach"), _COARSE)
-    assert result.simulated_return > -40.0     # measured -37.65; doing nothing costs -296
+    assert result.simulated_return > -40.0  # measured -37.65; doing nothing costs -296
     env = tasks.load("two_link_arm", "reach")
     env.reset()
     total, steps = 0.0, 0
@@ -55,16 +55,20 @@ def test_problem_reads_horizon_bounds_and_start_from_the_environment(arm_problem
     assert (p.horizon, p.n_substeps, p.nz) == (60, 5, 4)
     np.testing.assert_array_equal(p.low, [-1.5, -1.0])
     np.testing.assert_array_equal(p.high, [1.5, 1.0])
-    assert p.centre_return == pytest.approx(-60 * np.pi**2 / 2)     # at rest at x_0 for 60 steps
+    assert p.centre_return == pytest.approx(-60 * np.pi**2 / 2)  # at rest at x_0 for 60 steps
     with pytest.raises(ValueError, match="random"):
-        trajopt.Problem(tasks.load("two_link_arm", "reach", task_kwargs={"start_noise": 0.1, "random": 0}))
+        trajopt.Problem(
+            tasks.load("two_link_arm", "reach", task_kwargs={"start_noise": 0.1, "random": 0})
+        )
 
 
 def test_dynamics_jacobians_predict_small_perturbations(arm_problem):
     p = arm_problem
     rng = np.random.default_rng(0)
     u = rng.uniform(p.low, p.high, (p.horizon, 2)) * 0.9
-    z, full, u = p.simulate_policy(np.zeros((61, 4)), u, np.zeros_like(u), np.zeros((60, 2, 4)), 0.0)
+    z, full, u = p.simulate_policy(
+        np.zeros((61, 4)), u, np.zeros_like(u), np.zeros((60, 2, 4)), 0.0
+    )
     a, b = p.dynamics_jacobians(full[:5], u[:5], 1e-6)
     for k in range(5):
         dz, du = rng.normal(size=4) * 1e-4, rng.normal(size=2) * 1e-4
@@ -72,7 +76,7 @@ def test_dynamics_jacobians_predict_small_perturbations(arm_problem):
         moved[1:5] += dz
         end = p.rollout(moved[None], np.tile(u[k] + du, (1, 5, 1)))[0, -1, 1:5]
         predicted = z[k + 1] + a[k] @ dz + b[k] @ du
-        assert np.max(np.abs(end - predicted)) < 1e-7        # second order: |d|^2 ~ 1e-8
+        assert np.max(np.abs(end - predicted)) < 1e-7  # second order: |d|^2 ~ 1e-8
 
 
 def test_cost_expansion_of_the_quadratic_reward_is_exact(arm_problem):
@@ -81,11 +85,11 @@ def test_cost_expansion_of_the_quadratic_reward_is_exact(arm_problem):
     u = np.zeros((60, 2))
     l_z, l_u, l_zz, l_uu, l_uz = p.cost_expansion(z, u, 1e-4)
     q = np.diag([1.0, 0.05, 1.0, 0.05])
-    s = p.state_jacobian                                     # x = S z (up to wrapping)
+    s = p.state_jacobian  # x = S z (up to wrapping)
     x = p.state_of(z[:-1])
     np.testing.assert_allclose(l_zz, np.broadcast_to(2 * s.T @ q @ s, l_zz.shape), atol=1e-6)
     np.testing.assert_allclose(l_z, 2 * x @ q @ s, atol=1e-8)
-    np.testing.assert_allclose(l_uu, 0.0, atol=1e-6)         # R = 0
+    np.testing.assert_allclose(l_uu, 0.0, atol=1e-6)  # R = 0
     np.testing.assert_allclose(l_u, 0.0, atol=1e-8)
     np.testing.assert_allclose(l_uz, 0.0, atol=1e-6)
 
@@ -93,7 +97,7 @@ def test_cost_expansion_of_the_quadratic_reward_is_exact(arm_problem):
 def test_unwrapped_states_count_whole_turns(arm_problem):
     p = arm_problem
     z = p.initial_state[1:5].copy()
-    z[0] += 2 * np.pi                                         # one turn of the shoulder
+    z[0] += 2 * np.pi  # one turn of the shoulder
     np.testing.assert_allclose(p.state_of(z), p.state_of(p.initial_state[1:5]), atol=1e-12)
     assert p.state_of(z, wrap=False)[0] == pytest.approx(-np.pi / 2 + 2 * np.pi)
 
@@ -106,8 +110,14 @@ def test_box_qp_against_a_dense_search(seed):
     gradient = rng.normal(size=2) * 3
     lower, upper = -rng.uniform(0.1, 1, 2), rng.uniform(0.1, 1, 2)
     d, free = trajopt.box_qp(hessian, gradient, lower, upper)
-    grid = np.stack(np.meshgrid(np.linspace(lower[0], upper[0], 401), np.linspace(lower[1], upper[1], 401),
-                                indexing="ij"), axis=-1).reshape(-1, 2)
+    grid = np.stack(
+        np.meshgrid(
+            np.linspace(lower[0], upper[0], 401),
+            np.linspace(lower[1], upper[1], 401),
+            indexing="ij",
+        ),
+        axis=-1,
+    ).reshape(-1, 2)
     values = 0.5 * np.einsum("ni,ij,nj->n", grid, hessian, grid) + grid @ gradient
     assert 0.5 * d @ hessian @ d + gradient @ d <= values.min() + 1e-12
     assert np.all(d >= lower) and np.all(d <= upper)
@@ -130,8 +140,16 @@ def test_cache_round_trip_and_key(tmp_path):
     assert key != trajopt.cache_key(env, {**arm, "task_kwargs": {"time_limit": 1.5}}, _TINY)
 
 
-@pytest.mark.parametrize("field, value", [("max_iterations", 0), ("tolerance", 0.0), ("fd_step", 2.0),
-                                          ("random_starts", -1), ("seed", 1.5)])
+@pytest.mark.parametrize(
+    "field, value",
+    [
+        ("max_iterations", 0),
+        ("tolerance", 0.0),
+        ("fd_step", 2.0),
+        ("random_starts", -1),
+        ("seed", 1.5),
+    ],
+)
 def test_bad_config_names_the_field(field, value):
     with pytest.raises((ValueError, TypeError), match=field):
         TrajoptConfig(**{field: value})
@@ -149,6 +167,7 @@ def test_reference_registry_dispatches_and_rejects_unknown_tasks(tmp_path, monke
     def tiny(env, identity, config=None, cache_dir=None, refresh=False, announce=None):
         calls.append((identity["domain"], identity["task"]))
         return real(env, identity, _TINY, cache_dir=tmp_path, refresh=refresh)
+
     monkeypatch.setattr(trajopt, "cached_optimise", tiny)
     value = optimum.optimum_return("two_link_arm", "reach")
     assert calls == [("two_link_arm", "reach")] and np.isfinite(value)
@@ -156,9 +175,13 @@ def test_reference_registry_dispatches_and_rejects_unknown_tasks(tmp_path, monke
 
 def test_cli_optimal_takes_domain_and_task(tmp_path, monkeypatch, capsys):
     real = trajopt.cached_optimise
-    monkeypatch.setattr(trajopt, "cached_optimise",
-                        lambda env, identity, config=None, cache_dir=None, refresh=False, announce=None:
-                        real(env, identity, _TINY, cache_dir=tmp_path, refresh=refresh))
+    monkeypatch.setattr(
+        trajopt,
+        "cached_optimise",
+        lambda env, identity, config=None, cache_dir=None, refresh=False, announce=None: real(
+            env, identity, _TINY, cache_dir=tmp_path, refresh=refresh
+        ),
+    )
     assert cli.main(["optimal", "--domain", "two_link_arm", "--task", "reach"]) == 0
     assert "two_link_arm/reach: near-optimal return per trial" in capsys.readouterr().out
     assert cli.main(["optimal", "--domain", "two_link_arm", "--task", "spin"]) == 2

@@ -35,15 +35,20 @@ def write(tmp_path, text, name="sweep.toml"):
 
 
 def curves(out):
-    return {p.relative_to(out).as_posix(): np.load(p, allow_pickle=False)["returns"]
-            for p in sorted(pathlib.Path(out).glob("*/curves/*/exp_*.npz"))}
+    return {
+        p.relative_to(out).as_posix(): np.load(p, allow_pickle=False)["returns"]
+        for p in sorted(pathlib.Path(out).glob("*/curves/*/exp_*.npz"))
+    }
 
 
 # ----------------------------------------------------------------------------------------------------
 # The file format.
 
+
 def test_grid_and_variants_cross_into_named_configurations(tmp_path):
-    path = write(tmp_path, """
+    path = write(
+        tmp_path,
+        """
 [protocol]
 algorithms = ["rmac", "s-ac"]
 experiments = 3
@@ -57,48 +62,93 @@ name = "paper"
 [[variant]]
 name = "oldest"
 "rmac.critic_replacement" = "oldest"
-""")
+""",
+    )
     plan = sweep_file.load_sweep(path)
-    assert plan.parameters == ["variant", "rmac.exploration.sigma", "s-ac.exploration.sigma",
-                               "rmac.critic_weights"]
+    assert plan.parameters == [
+        "variant",
+        "rmac.exploration.sigma",
+        "s-ac.exploration.sigma",
+        "rmac.critic_weights",
+    ]
     names = [c.name for c in plan.configurations]
     assert len(names) == 2 * 2 * 1 * 2 == len(set(names))
     # The same last field in two learners keeps its learner in the name; others are shortened.
-    assert names[0] == "paper__rmac.exploration.sigma=0.5__s-ac.exploration.sigma=1.0__critic_weights=1,0.1"
-    assert names[-1] == "oldest__rmac.exploration.sigma=2__s-ac.exploration.sigma=1.0__critic_weights=1,0.3"
+    assert (
+        names[0]
+        == "paper__rmac.exploration.sigma=0.5__s-ac.exploration.sigma=1.0__critic_weights=1,0.1"
+    )
+    assert (
+        names[-1]
+        == "oldest__rmac.exploration.sigma=2__s-ac.exploration.sigma=1.0__critic_weights=1,0.3"
+    )
     last = plan.configurations[-1].protocol
     assert last.experiments == 3 and last.algorithms == ("rmac", "s-ac")
     assert last.agent_configs == {
-        "rmac": {"exploration": {"sigma": 2}, "critic_weights": [1, 0.3], "critic_replacement": "oldest"},
-        "s-ac": {"rate_split": "actor", "exploration": {"sigma": 1.0}}}
+        "rmac": {
+            "exploration": {"sigma": 2},
+            "critic_weights": [1, 0.3],
+            "critic_replacement": "oldest",
+        },
+        "s-ac": {"rate_split": "actor", "exploration": {"sigma": 1.0}},
+    }
     assert "critic_replacement" not in plan.configurations[0].protocol.agent_configs["rmac"]
 
 
-@pytest.mark.parametrize("text, named", [
-    ("[grdi]\n", "[grdi]: unknown section (did you mean [grid]?)"),
-    ("[protocol]\nexperimentz = 3\n", "[protocol] experimentz: unknown key (did you mean experiments?)"),
-    ('[grid]\n"rmac.alpha_rr" = [0.01]\n', "\"rmac.alpha_rr\": RMACConfig has no parameter 'alpha_rr' "
-                                           "(did you mean 'alpha_r'?)"),
-    ('[grid]\n"rmac.exploration.sigmaa" = [1]\n', "Exploration has no parameter 'sigmaa'"),
-    ('[grid]\n"dqn.alpha" = [1]\n', "\"dqn.alpha\": unknown algorithm 'dqn'"),
-    ('[protocol]\nalgorithms = ["s-ac"]\n[grid]\n"rmac.alpha_r" = [0.01]\n',
-     "\"rmac.alpha_r\": sets rmac, which the protocol does not run"),
-    ('[grid]\n"rmac.alpha_r" = ["fast"]\n', "\"rmac.alpha_r\" value \"fast\": expected a number in [0, 1]"),
-    ('[grid]\n"rmac.critic_capacity" = [2000.5]\n', "\"rmac.critic_capacity\" value 2000.5: expected an integer >= 1"),
-    ('[protocol]\nexperiments = "ten"\n', "[protocol] experiments: expected an integer >= 1"),
-    ('[grid]\n"rmac.alpha_r" = 0.01\n', "\"rmac.alpha_r\": expected a list of values to sweep"),
-    ('[grid]\n"rmac.critic_weights" = [1, 0.1]\n', "\"rmac.critic_weights\" value 1: expected a list of finite numbers >= 0"),
-    ('[grid]\n"rmac.gamma" = [0.9, 1.5]\n', "\"rmac.gamma\" value 1.5: expected a number in [0, 1)"),
-    ('[grid]\n"rmac.critic_weights" = [[1, 0.1, 3]]\n', "config.critic_weights has 3 entries"),
-    ('[protocol]\n"rmac.critic_replacement" = "newest"\n', "\"rmac.critic_replacement\": expected one of 'oldest', 'nearest', 'redundancy', got \"newest\""),
-    ('[grid]\n"rmac.alpha_r" = [0.01, 0.01]\n', "\"rmac.alpha_r\": repeats a value"),
-    ('[[variant]]\n"rmac.alpha_r" = 0.01\n', "[[variant]] #1 name: each variant needs a name"),
-    ('[grid]\n"rmac.alpha_r" = [0.01]\n[[variant]]\nname = "a"\n"rmac.alpha_r" = 0.02\n',
-     "[[variant]] \"a\" \"rmac.alpha_r\": is also swept in [grid]"),
-    ("[grid\n", "not valid TOML"),
-    ('[[variant]]\nname = "u"\n"rmac.exploration.where" = "uncertain"\n',
-     "[[variant]] \"u\" \"rmac.exploration.where\": Exploration.uncertainty_threshold must be a finite number >= 0 with where='uncertain'"),
-])
+@pytest.mark.parametrize(
+    "text, named",
+    [
+        ("[grdi]\n", "[grdi]: unknown section (did you mean [grid]?)"),
+        (
+            "[protocol]\nexperimentz = 3\n",
+            "[protocol] experimentz: unknown key (did you mean experiments?)",
+        ),
+        (
+            '[grid]\n"rmac.alpha_rr" = [0.01]\n',
+            "\"rmac.alpha_rr\": RMACConfig has no parameter 'alpha_rr' (did you mean 'alpha_r'?)",
+        ),
+        ('[grid]\n"rmac.exploration.sigmaa" = [1]\n', "Exploration has no parameter 'sigmaa'"),
+        ('[grid]\n"dqn.alpha" = [1]\n', "\"dqn.alpha\": unknown algorithm 'dqn'"),
+        (
+            '[protocol]\nalgorithms = ["s-ac"]\n[grid]\n"rmac.alpha_r" = [0.01]\n',
+            '"rmac.alpha_r": sets rmac, which the protocol does not run',
+        ),
+        (
+            '[grid]\n"rmac.alpha_r" = ["fast"]\n',
+            '"rmac.alpha_r" value "fast": expected a number in [0, 1]',
+        ),
+        (
+            '[grid]\n"rmac.critic_capacity" = [2000.5]\n',
+            '"rmac.critic_capacity" value 2000.5: expected an integer >= 1',
+        ),
+        ('[protocol]\nexperiments = "ten"\n', "[protocol] experiments: expected an integer >= 1"),
+        ('[grid]\n"rmac.alpha_r" = 0.01\n', '"rmac.alpha_r": expected a list of values to sweep'),
+        (
+            '[grid]\n"rmac.critic_weights" = [1, 0.1]\n',
+            '"rmac.critic_weights" value 1: expected a list of finite numbers >= 0',
+        ),
+        (
+            '[grid]\n"rmac.gamma" = [0.9, 1.5]\n',
+            '"rmac.gamma" value 1.5: expected a number in [0, 1)',
+        ),
+        ('[grid]\n"rmac.critic_weights" = [[1, 0.1, 3]]\n', "config.critic_weights has 3 entries"),
+        (
+            '[protocol]\n"rmac.critic_replacement" = "newest"\n',
+            "\"rmac.critic_replacement\": expected one of 'oldest', 'nearest', 'redundancy', got \"newest\"",
+        ),
+        ('[grid]\n"rmac.alpha_r" = [0.01, 0.01]\n', '"rmac.alpha_r": repeats a value'),
+        ('[[variant]]\n"rmac.alpha_r" = 0.01\n', "[[variant]] #1 name: each variant needs a name"),
+        (
+            '[grid]\n"rmac.alpha_r" = [0.01]\n[[variant]]\nname = "a"\n"rmac.alpha_r" = 0.02\n',
+            '[[variant]] "a" "rmac.alpha_r": is also swept in [grid]',
+        ),
+        ("[grid\n", "not valid TOML"),
+        (
+            '[[variant]]\nname = "u"\n"rmac.exploration.where" = "uncertain"\n',
+            '[[variant]] "u" "rmac.exploration.where": Exploration.uncertainty_threshold must be a finite number >= 0 with where=\'uncertain\'',
+        ),
+    ],
+)
 def test_a_malformed_file_names_the_key(tmp_path, text, named):
     with pytest.raises(UserInputError) as error:
         sweep_file.load_sweep(write(tmp_path, text))
@@ -119,29 +169,43 @@ def test_every_study_in_docs_loads(path):
 
 def test_a_variant_sets_fields_that_depend_on_each_other(tmp_path):
     # Each key is checked with the variant's other values: where='uncertain' needs its threshold.
-    plan = sweep_file.load_sweep(write(tmp_path, """
+    plan = sweep_file.load_sweep(
+        write(
+            tmp_path,
+            """
 [[variant]]
 name = "uncertain"
 "rmac.exploration.where" = "uncertain"
 "rmac.exploration.uncertainty_threshold" = 0.8
-"""))
+""",
+        )
+    )
     assert plan.configurations[0].protocol.agent_configs["rmac"] == {
-        "exploration": {"where": "uncertain", "uncertainty_threshold": 0.8}}
+        "exploration": {"where": "uncertain", "uncertainty_threshold": 0.8}
+    }
 
 
 def test_a_malformed_file_exits_2_with_one_line_before_running_anything(tmp_path):
     path = write(tmp_path, '[protocol]\nalgorithms = ["s-ac"]\n[grid]\n"s-ac.alpha_a" = 0.01\n')
-    result = subprocess.run([sys.executable, "-m", "rmac_mj.cli", "sweep", str(path), "--out",
-                             str(tmp_path / "out")], capture_output=True, text=True, timeout=120)
+    result = subprocess.run(
+        [sys.executable, "-m", "rmac_mj.cli", "sweep", str(path), "--out", str(tmp_path / "out")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert result.returncode == 2
     assert result.stderr.strip().splitlines() == [
         f'rmac-mj: error: {path}: [grid] "s-ac.alpha_a": expected a list of values to sweep, '
-        "e.g. [0.01, ...]; got 0.01"]
+        "e.g. [0.01, ...]; got 0.01"
+    ]
     assert not (tmp_path / "out").exists()
 
 
 def test_a_config_file_takes_single_values_only(tmp_path):
-    single = sweep_file.load_configuration(write(tmp_path, """
+    single = sweep_file.load_configuration(
+        write(
+            tmp_path,
+            """
 [protocol]
 algorithms = ["rmac"]
 trials = 5
@@ -149,15 +213,23 @@ trials = 5
 [grid]
 "rmac.critic_weights" = [1, 0.3]     # one value of a list-valued field
 "rmac.alpha_r" = [0.01]              # a one-value grid is one configuration
-"""))
+""",
+        )
+    )
     assert single.options == {"algorithms": ("rmac",), "trials": 5}
-    assert single.agent_configs == {"rmac": {"alpha_c": 0.2, "critic_weights": [1, 0.3],
-                                             "alpha_r": 0.01}}
-    with pytest.raises(UserInputError, match=r'"rmac.alpha_r": lists 2 values; --config runs one '
-                                             r"configuration"):
+    assert single.agent_configs == {
+        "rmac": {"alpha_c": 0.2, "critic_weights": [1, 0.3], "alpha_r": 0.01}
+    }
+    with pytest.raises(
+        UserInputError,
+        match=r'"rmac.alpha_r": lists 2 values; --config runs one '
+        r"configuration",
+    ):
         sweep_file.load_configuration(write(tmp_path, '[grid]\n"rmac.alpha_r" = [0.01, 0.02]\n'))
     with pytest.raises(UserInputError, match="2 variants"):
-        sweep_file.load_configuration(write(tmp_path, '[[variant]]\nname = "a"\n[[variant]]\nname = "b"\n'))
+        sweep_file.load_configuration(
+            write(tmp_path, '[[variant]]\nname = "a"\n[[variant]]\nname = "b"\n')
+        )
 
 
 # ----------------------------------------------------------------------------------------------------
@@ -169,9 +241,19 @@ from test_runner import _hooked_cli  # noqa: E402  (tests/ is on sys.path, as py
 def test_tiny_sweep_killed_resumed_and_summarised(tmp_path, capsys):
     path = write(tmp_path, TINY)
     killed, marker = tmp_path / "killed", tmp_path / "saved-one"
-    args = ["sweep", str(path), "--jobs", "1", "--no-optimal", "--no-progress", "--out", str(killed)]
-    process = subprocess.Popen([*_hooked_cli(marker), *args], stdout=subprocess.DEVNULL,
-                               stderr=subprocess.DEVNULL)
+    args = [
+        "sweep",
+        str(path),
+        "--jobs",
+        "1",
+        "--no-optimal",
+        "--no-progress",
+        "--out",
+        str(killed),
+    ]
+    process = subprocess.Popen(
+        [*_hooked_cli(marker), *args], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
     deadline = time.time() + 240
     while not marker.exists():
         assert process.poll() is None, "the sweep ended before saving its first experiment"
@@ -185,41 +267,53 @@ def test_tiny_sweep_killed_resumed_and_summarised(tmp_path, capsys):
 
     # The same sweep uninterrupted, all experiments through one pool of two workers.
     whole = tmp_path / "whole"
-    from rmac_mj.solvers import optimum
-
     from rmac_mj.experiments import runner
+    from rmac_mj.solvers import optimum
 
     service = runner.NearOptimalService
     with pytest.MonkeyPatch.context() as patch:  # the task's reference and floor, as if computed
         patch.setattr(optimum, "run_optimum", lambda protocol, log=None: -748.0)
-        patch.setattr(optimum, "run_exploration_floor", lambda protocol, algorithm, log=None: -870.0)
+        patch.setattr(
+            optimum, "run_exploration_floor", lambda protocol, algorithm, log=None: -870.0
+        )
         # in this process, where the patches are (a process of their own would compute them)
-        patch.setattr(runner, "NearOptimalService",
-                      lambda protocols, log, background: service(protocols, log, background=False))
-        rows = sweep.run_sweep(sweep_file.load_sweep(path), whole, jobs=2, progress=False,
-                               references=True)
+        patch.setattr(
+            runner,
+            "NearOptimalService",
+            lambda protocols, log, background: service(protocols, log, background=False),
+        )
+        rows = sweep.run_sweep(
+            sweep_file.load_sweep(path), whole, jobs=2, progress=False, references=True
+        )
     resumed_curves, whole_curves = curves(killed), curves(whole)
     assert sorted(resumed_curves) == sorted(whole_curves) and len(whole_curves) == 2 * 2
     for key in whole_curves:
         np.testing.assert_array_equal(resumed_curves[key], whole_curves[key])
-    assert not np.array_equal(whole_curves["alpha_a=0.005/curves/s-ac/exp_000.npz"],
-                              whole_curves["alpha_a=0.02/curves/s-ac/exp_000.npz"])
+    assert not np.array_equal(
+        whole_curves["alpha_a=0.005/curves/s-ac/exp_000.npz"],
+        whole_curves["alpha_a=0.02/curves/s-ac/exp_000.npz"],
+    )
 
     for out in (killed, whole):
         with open(out / "sweep.csv", newline="") as handle:
             table = list(csv.DictReader(handle))
         assert [(r["configuration"], r["s-ac.alpha_a"], r["algorithm"]) for r in table] == [
-            ("alpha_a=0.005", "0.005", "s-ac"), ("alpha_a=0.02", "0.02", "s-ac")]
+            ("alpha_a=0.005", "0.005", "s-ac"),
+            ("alpha_a=0.02", "0.02", "s-ac"),
+        ]
         index = json.loads((out / "sweep.json").read_text())
-        assert [c["directory"] for c in index["configurations"]] == ["alpha_a=0.005",
-                                                                     "alpha_a=0.02"]
+        assert [c["directory"] for c in index["configurations"]] == [
+            "alpha_a=0.005",
+            "alpha_a=0.02",
+        ]
     summary = json.loads((whole / "alpha_a=0.02" / "summary.json").read_text())
     assert summary["exploration_floor"] == -870.0 and summary["optimal_return"] == -748.0
     row = rows[1]
     assert row["final_return_mean"] == pytest.approx(summary["s-ac"]["final_return_mean"])
     assert row["gap_to_optimal"] == pytest.approx(-748.0 - row["final_return_mean"])
     assert row["greedy_trial"] == 3 and row["greedy_return_mean"] == pytest.approx(
-        summary["s-ac"]["greedy_return_per_eval"][-1])
+        summary["s-ac"]["greedy_return_per_eval"][-1]
+    )
     assert row["mean_return_first_5min"] is None  # a run shorter than the window: empty
     for metric in ("final_return", "greedy_return", "minutes_to_90pct", "gap_to_optimal"):
         assert (whole / f"sweep_{metric}.png").is_file(), metric
@@ -233,13 +327,15 @@ def test_tiny_sweep_killed_resumed_and_summarised(tmp_path, capsys):
 
 def test_a_resumed_sweep_adds_experiments_to_every_configuration(tmp_path):
     out = tmp_path / "out"
-    sweep.run_sweep(sweep_file.load_sweep(write(tmp_path, TINY)), out, jobs=1, progress=False,
-                    figures=False)
+    sweep.run_sweep(
+        sweep_file.load_sweep(write(tmp_path, TINY)), out, jobs=1, progress=False, figures=False
+    )
     larger = write(tmp_path, TINY.replace("experiments = 2", "experiments = 3"), "larger.toml")
     with pytest.raises(UserInputError, match="already holds a sweep"):
         sweep.run_sweep(sweep_file.load_sweep(larger), out, jobs=1, progress=False, figures=False)
-    rows = sweep.run_sweep(sweep_file.load_sweep(larger), out, jobs=1, resume=True, progress=False,
-                           figures=False)
+    rows = sweep.run_sweep(
+        sweep_file.load_sweep(larger), out, jobs=1, resume=True, progress=False, figures=False
+    )
     assert [r["experiments"] for r in rows] == [3, 3] and len(curves(out)) == 2 * 3
     index = json.loads((out / "sweep.json").read_text())
     assert index["sweep"]["protocol"]["experiments"] == 3 and index["experiments_grown_from"] == [2]
@@ -252,15 +348,18 @@ def test_a_resumed_sweep_adds_experiments_to_every_configuration(tmp_path):
     smaller = write(tmp_path, TINY, "smaller.toml")  # a resume never drops experiments
     with pytest.raises(UserInputError, match="a resume may only add experiments"):
         sweep.run_sweep(sweep_file.load_sweep(smaller), out, jobs=1, resume=True, progress=False)
-    both = write(tmp_path, TINY.replace("experiments = 2", "experiments = 4").replace("trials = 3",
-                                                                                      "trials = 4"),
-                 "both.toml")
+    both = write(
+        tmp_path,
+        TINY.replace("experiments = 2", "experiments = 4").replace("trials = 3", "trials = 4"),
+        "both.toml",
+    )
     with pytest.raises(UserInputError, match="a different file"):
         sweep.run_sweep(sweep_file.load_sweep(both), out, jobs=1, resume=True, progress=False)
 
 
-def test_a_small_sweep_says_its_final_window_and_that_few_experiments_mean_little(tmp_path,
-                                                                                   monkeypatch):
+def test_a_small_sweep_says_its_final_window_and_that_few_experiments_mean_little(
+    tmp_path, monkeypatch
+):
     """Issue 20: sweep tables and figures said "the last 50 trials" of a 5-trial run and drew 95%
     intervals of 2 experiments without a word; they carry reproduce's small-n note."""
     from rmac_mj.sweeps import figure as plots
@@ -268,12 +367,26 @@ def test_a_small_sweep_says_its_final_window_and_that_few_experiments_mean_littl
     plan = sweep_file.load_sweep(write(tmp_path, TINY))
 
     def rows(experiments):
-        return [{"configuration": c.name, **c.values, "algorithm": "s-ac", "experiments": experiments,
-                 "final_return_mean": -900.0, "final_return_ci95_low": -2600.0,
-                 "final_return_ci95_high": 800.0, "minutes_to_90pct": 0.1,
-                 "mean_return_first_5min": -900.0, "first_5min_ci95_low": -2600.0,
-                 "first_5min_ci95_high": 800.0, "stuck_experiments": None, "wall_time_s": 1.0,
-                 "final_window": 3, "stuck_below": None} for c in plan.configurations]
+        return [
+            {
+                "configuration": c.name,
+                **c.values,
+                "algorithm": "s-ac",
+                "experiments": experiments,
+                "final_return_mean": -900.0,
+                "final_return_ci95_low": -2600.0,
+                "final_return_ci95_high": 800.0,
+                "minutes_to_90pct": 0.1,
+                "mean_return_first_5min": -900.0,
+                "first_5min_ci95_low": -2600.0,
+                "first_5min_ci95_high": 800.0,
+                "stuck_experiments": None,
+                "wall_time_s": 1.0,
+                "final_window": 3,
+                "stuck_below": None,
+            }
+            for c in plan.configurations
+        ]
 
     few, enough = sweep.format_table(plan, rows(2)), sweep.format_table(plan, rows(5))
     assert "final return: mean of the last 3 trials per experiment" in few
@@ -303,21 +416,42 @@ def test_a_small_sweep_says_its_final_window_and_that_few_experiments_mean_littl
     assert not any("per configuration" in text for texts in notes[5].values() for text in texts)
 
 
-@pytest.mark.parametrize("text, named", [('{"sweep": {"protocol"', "is damaged (Expecting ':' delimiter"),
-                                         ("[1, 2]", "is damaged (not a sweep's index")])
+@pytest.mark.parametrize(
+    "text, named",
+    [
+        ('{"sweep": {"protocol"', "is damaged (Expecting ':' delimiter"),
+        ("[1, 2]", "is damaged (not a sweep's index"),
+    ],
+)
 def test_a_damaged_sweep_index_is_one_line_not_a_traceback(tmp_path, capsys, text, named):
     out = tmp_path / "sweep"
     out.mkdir()
     (out / "sweep.json").write_text(text)
-    assert cli.main(["sweep", str(write(tmp_path, TINY)), "--resume", "--jobs", "1", "--no-optimal",
-                     "--no-progress", "--out", str(out)]) == 2
+    assert (
+        cli.main(
+            [
+                "sweep",
+                str(write(tmp_path, TINY)),
+                "--resume",
+                "--jobs",
+                "1",
+                "--no-optimal",
+                "--no-progress",
+                "--out",
+                str(out),
+            ]
+        )
+        == 2
+    )
     errors = [line for line in capsys.readouterr().err.splitlines() if "error" in line]
     assert len(errors) == 1 and named in errors[0] and "sweep.json" in errors[0]
     assert not any(p.is_dir() for p in out.iterdir())  # nothing ran
 
 
 def test_reproduce_config_equals_the_same_set_overrides(tmp_path, capsys):
-    path = write(tmp_path, """
+    path = write(
+        tmp_path,
+        """
 [protocol]
 algorithms = ["s-ac"]
 experiments = 1
@@ -326,22 +460,64 @@ seed = 7
 [grid]
 "s-ac.alpha_a" = 0.02
 "s-ac.exploration.sigma" = 0.5
-""", "one.toml")
+""",
+        "one.toml",
+    )
     common = ["--jobs", "1", "--no-optimal", "--no-progress"]
-    assert cli.main(["reproduce", "--config", str(path), "--trials", "3", "--set",
-                     "s-ac.exploration.period=2", "--out", str(tmp_path / "config"), *common]) == 0
-    assert cli.main(["reproduce", "--algorithms", "s-ac", "--experiments", "1", "--trials", "3",
-                     "--seed", "7", "--set", "s-ac.alpha_a=0.02", "--set",
-                     "s-ac.exploration.sigma=0.5", "--set", "s-ac.exploration.period=2", "--out",
-                     str(tmp_path / "set"), *common]) == 0
+    assert (
+        cli.main(
+            [
+                "reproduce",
+                "--config",
+                str(path),
+                "--trials",
+                "3",
+                "--set",
+                "s-ac.exploration.period=2",
+                "--out",
+                str(tmp_path / "config"),
+                *common,
+            ]
+        )
+        == 0
+    )
+    assert (
+        cli.main(
+            [
+                "reproduce",
+                "--algorithms",
+                "s-ac",
+                "--experiments",
+                "1",
+                "--trials",
+                "3",
+                "--seed",
+                "7",
+                "--set",
+                "s-ac.alpha_a=0.02",
+                "--set",
+                "s-ac.exploration.sigma=0.5",
+                "--set",
+                "s-ac.exploration.period=2",
+                "--out",
+                str(tmp_path / "set"),
+                *common,
+            ]
+        )
+        == 0
+    )
     from_config = json.loads((tmp_path / "config" / "config.json").read_text())["protocol"]
     from_set = json.loads((tmp_path / "set" / "config.json").read_text())["protocol"]
     assert from_config == from_set
     assert from_config["trials"] == 3 and from_config["agent_configs"] == {
-        "s-ac": {"alpha_a": 0.02, "exploration": {"sigma": 0.5, "period": 2}}}
-    np.testing.assert_array_equal(*(np.load(tmp_path / d / "curves/s-ac/exp_000.npz")["returns"]
-                                    for d in ("config", "set")))
+        "s-ac": {"alpha_a": 0.02, "exploration": {"sigma": 0.5, "period": 2}}
+    }
+    np.testing.assert_array_equal(
+        *(np.load(tmp_path / d / "curves/s-ac/exp_000.npz")["returns"] for d in ("config", "set"))
+    )
 
-    grid = write(tmp_path, '[protocol]\nalgorithms = ["s-ac"]\n[grid]\n"s-ac.alpha_a" = [0.01, 0.02]\n')
+    grid = write(
+        tmp_path, '[protocol]\nalgorithms = ["s-ac"]\n[grid]\n"s-ac.alpha_a" = [0.01, 0.02]\n'
+    )
     assert cli.main(["reproduce", "--config", str(grid), "--out", str(tmp_path / "x")]) == 2
     assert "lists 2 values; --config runs one configuration" in capsys.readouterr().err

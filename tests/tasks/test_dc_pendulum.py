@@ -71,11 +71,15 @@ def test_physics_named_accessors():
     physics.forward()  # actuator_force is otherwise from the last substep's first RK4 stage
     assert physics.voltage() == 2.0
     K, R = 0.0536, 9.5
-    assert physics.motor_torque() == pytest.approx(K / R * 2.0 - K * K / R * physics.angular_velocity())
+    assert physics.motor_torque() == pytest.approx(
+        K / R * 2.0 - K * K / R * physics.angular_velocity()
+    )
 
 
-@pytest.mark.parametrize("action, match", [([np.nan], "finite"), ([np.inf], "finite"),
-                                           ([1.0, 2.0], "shape"), ([[1.0]], "shape")])
+@pytest.mark.parametrize(
+    "action, match",
+    [([np.nan], "finite"), ([np.inf], "finite"), ([1.0, 2.0], "shape"), ([[1.0]], "shape")],
+)
 def test_bad_actions_raise_before_stepping(action, match):
     env = tasks.load("dc_pendulum", "swingup")
     env.reset()
@@ -84,22 +88,38 @@ def test_bad_actions_raise_before_stepping(action, match):
     assert env.physics.data.time == 0.0
 
 
-@pytest.mark.parametrize("kwargs, name", [
-    ({"time_limit": -1.0}, "time_limit"), ({"time_limit": 3.01}, "time_limit"),
-    ({"control_timestep": 0.025}, "control_timestep"), ({"control_timestep": 0.0}, "control_timestep"),
-    ({"state_weights": (1.0, -1.0)}, "state_weights"), ({"state_weights": (1.0,)}, "state_weights"),
-    ({"action_weight": np.nan}, "action_weight"), ({"start_state": (0.0,)}, "start_state"),
-    ({"start_noise": -0.1}, "start_noise"), ({"bogus": 1}, "bogus"),
-])
+@pytest.mark.parametrize(
+    "kwargs, name",
+    [
+        ({"time_limit": -1.0}, "time_limit"),
+        ({"time_limit": 3.01}, "time_limit"),
+        ({"control_timestep": 0.025}, "control_timestep"),
+        ({"control_timestep": 0.0}, "control_timestep"),
+        ({"state_weights": (1.0, -1.0)}, "state_weights"),
+        ({"state_weights": (1.0,)}, "state_weights"),
+        ({"action_weight": np.nan}, "action_weight"),
+        ({"start_state": (0.0,)}, "start_state"),
+        ({"start_noise": -0.1}, "start_noise"),
+        ({"bogus": 1}, "bogus"),
+    ],
+)
 def test_bad_task_kwargs_name_the_parameter(kwargs, name):
     with pytest.raises(ValueError, match=name):
         tasks.load("dc_pendulum", "swingup", task_kwargs=kwargs)
 
 
 def test_task_kwargs_change_the_task():
-    env = tasks.load("dc_pendulum", "swingup",
-                     task_kwargs={"time_limit": 1.5, "control_timestep": 0.05, "state_weights": (1, 0),
-                                  "action_weight": 0.0, "start_state": (1.0, 0.0)})
+    env = tasks.load(
+        "dc_pendulum",
+        "swingup",
+        task_kwargs={
+            "time_limit": 1.5,
+            "control_timestep": 0.05,
+            "state_weights": (1, 0),
+            "action_weight": 0.0,
+            "start_state": (1.0, 0.0),
+        },
+    )
     timestep = env.reset()
     assert timestep.observation["angle"][0] == pytest.approx(1.0)
     rewards = []

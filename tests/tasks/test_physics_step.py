@@ -9,13 +9,30 @@ from dm_control.rl import control
 from rmac_mj import tasks
 
 #: MjData fields compared after every step: the state and what the step's last mj_step1 recomputes.
-FIELDS = ("time", "qpos", "qvel", "qacc", "act", "ctrl", "xpos", "xquat", "cdof", "actuator_force",
-          "actuator_velocity", "qfrc_bias", "qfrc_actuator", "energy", "warning")
+FIELDS = (
+    "time",
+    "qpos",
+    "qvel",
+    "qacc",
+    "act",
+    "ctrl",
+    "xpos",
+    "xquat",
+    "cdof",
+    "actuator_force",
+    "actuator_velocity",
+    "qfrc_bias",
+    "qfrc_actuator",
+    "energy",
+    "warning",
+)
 
 
 def _pair(legacy_step: bool, integrator: int | None):
-    envs = [tasks.load("dc_pendulum", "swingup",
-                       environment_kwargs={"legacy_step": legacy_step}) for _ in range(2)]
+    envs = [
+        tasks.load("dc_pendulum", "swingup", environment_kwargs={"legacy_step": legacy_step})
+        for _ in range(2)
+    ]
     for env in envs:
         env.reset()
         if integrator is not None:
@@ -60,8 +77,10 @@ def test_an_exploding_state_raises_physics_error_or_logs_when_suppressed(step):
     do_step(3)  # no new warning: no error
 
 
-@pytest.mark.parametrize("counts", [(0, 0, 0, 0, 0, 0, 0), (0, 0, 0, 0, 5, 0, 0), (0, 0, 0, 0, 1, 0, 0),
-                                    (2, 0, 0, 0, 0, 0, 0)])
+@pytest.mark.parametrize(
+    "counts",
+    [(0, 0, 0, 0, 0, 0, 0), (0, 0, 0, 0, 5, 0, 0), (0, 0, 0, 0, 1, 0, 0), (2, 0, 0, 0, 0, 0, 0)],
+)
 def test_errors_exactly_when_dm_controls_step_does(counts):
     # MuJoCo's automatic reset after a NaN velocity zeroes the warning counters, then counts
     # BADQVEL once: with a higher count before, no counter grows and dm-control raises nothing.
@@ -70,7 +89,7 @@ def test_errors_exactly_when_dm_controls_step_does(counts):
         env = tasks.load("dc_pendulum", "swingup")
         env.reset()
         physics = env.physics
-        physics.data.warning.number[:] = counts[:len(physics.data.warning.number)]
+        physics.data.warning.number[:] = counts[: len(physics.data.warning.number)]
         physics.set_state_vector(0.0, np.nan)
         try:
             physics.step(3) if step == "fast" else engine.Physics.step(physics, 3)

@@ -11,10 +11,10 @@ import math
 
 import numpy as np
 import pytest
+import toy_domain
 from absl.testing import absltest
 from dm_env import test_utils
 
-import toy_domain
 from rmac_mj import tasks
 from rmac_mj.rollout import state_of, steps_per_trial, trial_seconds
 from rmac_mj.tasks.common import LearnerStateSpec
@@ -89,7 +89,9 @@ def test_same_seed_same_trajectory_and_observations_share_no_memory(domain, task
     def run(seed):
         env = load(domain, task, random=seed)
         actions = random_actions(env, 2 * steps_per_trial(env), seed=1)
-        return rollout(env, actions) + rollout(env, actions)  # two episodes: the task's stream moves on
+        return rollout(env, actions) + rollout(
+            env, actions
+        )  # two episodes: the task's stream moves on
 
     first, second = run(3), run(3)
     for a, b in zip(first, second):
@@ -106,9 +108,14 @@ def test_bad_actions_raise_before_anything_is_stepped(domain, task):
     env.reset()
     good = random_actions(env, 1)[0]
     time = env.physics.data.time
-    bad = [np.full_like(good, np.nan), np.full_like(good, np.inf), np.zeros(good.size + 1),
-           np.zeros((2, good.size)), good + 1j,  # a complex action: refused, not cut to its real part
-           np.array(["1"] * good.size)]
+    bad = [
+        np.full_like(good, np.nan),
+        np.full_like(good, np.inf),
+        np.zeros(good.size + 1),
+        np.zeros((2, good.size)),
+        good + 1j,  # a complex action: refused, not cut to its real part
+        np.array(["1"] * good.size),
+    ]
     for action in bad:
         with pytest.raises(ValueError, match="action"):
             env.step(action)
@@ -118,15 +125,18 @@ def test_bad_actions_raise_before_anything_is_stepped(domain, task):
 
 
 @pytest.mark.parametrize("domain, task", tasks.ALL_TASKS)
-@pytest.mark.parametrize("kwargs, named", [
-    ({"time_limit": "3"}, "time_limit must be a positive finite number, got '3'"),
-    ({"control_timestep": True}, "control_timestep must be a positive finite number"),
-    ({"random": "x"}, "random must be None, a seed"),
-    ({"random": -1}, "random must be None, a seed"),
-    ({"start_noise": "0.1"}, "start_noise must be a number in [0, 3.14159] rad"),
-    ({"state_weights": "x"}, "state_weights must be a diagonal"),
-    ({"start_state": "x"}, "start_state must be finite"),
-])
+@pytest.mark.parametrize(
+    "kwargs, named",
+    [
+        ({"time_limit": "3"}, "time_limit must be a positive finite number, got '3'"),
+        ({"control_timestep": True}, "control_timestep must be a positive finite number"),
+        ({"random": "x"}, "random must be None, a seed"),
+        ({"random": -1}, "random must be None, a seed"),
+        ({"start_noise": "0.1"}, "start_noise must be a number in [0, 3.14159] rad"),
+        ({"state_weights": "x"}, "state_weights must be a diagonal"),
+        ({"start_state": "x"}, "start_state must be finite"),
+    ],
+)
 def test_bad_task_kwargs_are_refused_at_load_naming_them(domain, task, kwargs, named):
     with pytest.raises(ValueError) as refusal:
         tasks.load(domain, task, task_kwargs=kwargs)
@@ -171,8 +181,10 @@ def test_batched_reward_is_the_step_reward(domain, task):
 def test_the_declared_action_cost_is_what_the_reward_charges(domain, task):
     """learner_state.action_cost P is the reward's whole dependence on u: r(x, u) = r(x, 0) -
     sum_i P_i u_i^2, for the task's defaults and for a changed reward; what learners rely on."""
-    for task_kwargs in ({}, {"action_weight": 0.3} if domain == "dc_pendulum" else
-                        {"action_weights": (0.5, 2.0)}):
+    for task_kwargs in (
+        {},
+        {"action_weight": 0.3} if domain == "dc_pendulum" else {"action_weights": (0.5, 2.0)},
+    ):
         env = tasks.load(domain, task, task_kwargs=task_kwargs)
         cost = env.task.learner_state.action_cost
         assert cost is not None and len(cost) == env.action_spec().shape[0]
@@ -199,25 +211,39 @@ def test_the_declared_costs_are_the_whole_reward(domain, task):
         x = rng.uniform(hints.low, hints.high, (20, len(hints.low)))
         u = rng.uniform(-2, 2, (20, len(hints.action_cost)))
         declared = -(np.asarray(hints.state_cost) * x * x).sum(axis=1) - (
-            np.asarray(hints.action_cost) * u * u).sum(axis=1)
+            np.asarray(hints.action_cost) * u * u
+        ).sum(axis=1)
         assert np.allclose(env.task.reward_of(x, u), declared, rtol=1e-12, atol=1e-12)
     full = np.diag(q) + 0.1 * (np.ones((len(q), len(q))) - np.eye(len(q)))
-    assert tasks.load(domain, task, task_kwargs={"state_weights": full}).task.learner_state \
-        .state_cost is None
+    assert (
+        tasks.load(domain, task, task_kwargs={"state_weights": full}).task.learner_state.state_cost
+        is None
+    )
 
 
 def test_learner_state_rejects_inconsistent_hints():
-    good = dict(keys=("a",), low=(-1.0,), high=(1.0,), periodic=(False,), labels=("a [m]",),
-                input_weights=(1.0,), action_input_weights=(1.0,), action_labels=("u [V]",))
+    good = dict(
+        keys=("a",),
+        low=(-1.0,),
+        high=(1.0,),
+        periodic=(False,),
+        labels=("a [m]",),
+        input_weights=(1.0,),
+        action_input_weights=(1.0,),
+        action_labels=("u [V]",),
+    )
     LearnerStateSpec(**good)
-    for change, name in [({"high": (1.0, 2.0)}, "high"), ({"low": (1.0,)}, "low"),
-                         ({"input_weights": (-1.0,)}, "input_weights"),
-                         ({"action_labels": ()}, "action_input_weights"),
-                         ({"action_cost": (1.0, 2.0)}, "action_cost"),
-                         ({"action_cost": (-1.0,)}, "action_cost"),
-                         ({"state_cost": (1.0, 2.0)}, "state_cost"),
-                         ({"state_cost": (-1.0,)}, "state_cost"),
-                         ({"keys": ()}, "keys")]:
+    for change, name in [
+        ({"high": (1.0, 2.0)}, "high"),
+        ({"low": (1.0,)}, "low"),
+        ({"input_weights": (-1.0,)}, "input_weights"),
+        ({"action_labels": ()}, "action_input_weights"),
+        ({"action_cost": (1.0, 2.0)}, "action_cost"),
+        ({"action_cost": (-1.0,)}, "action_cost"),
+        ({"state_cost": (1.0, 2.0)}, "state_cost"),
+        ({"state_cost": (-1.0,)}, "state_cost"),
+        ({"keys": ()}, "keys"),
+    ]:
         with pytest.raises(ValueError, match=name):
             LearnerStateSpec(**{**good, **change})
 

@@ -17,11 +17,18 @@ def _code_strings(path: pathlib.Path) -> list[tuple[int, str]]:
     """The string constants of a module's code: docstrings (of modules, classes, functions and
     attributes: prose and examples) left out."""
     tree = ast.parse(path.read_text())
-    docstrings = {id(node.value) for node in ast.walk(tree)
-                  if isinstance(node, ast.Expr) and isinstance(node.value, ast.Constant)}
-    return [(node.lineno, node.value) for node in ast.walk(tree)
-            if isinstance(node, ast.Constant) and isinstance(node.value, str)
-            and id(node) not in docstrings]
+    docstrings = {
+        id(node.value)
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Expr) and isinstance(node.value, ast.Constant)
+    }
+    return [
+        (node.lineno, node.value)
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Constant)
+        and isinstance(node.value, str)
+        and id(node) not in docstrings
+    ]
 
 
 def test_nothing_outside_the_tasks_names_a_task_of_the_suite():
@@ -31,10 +38,12 @@ def test_nothing_outside_the_tasks_names_a_task_of_the_suite():
     task_names = {t for ts in tasks.TASKS_BY_DOMAIN.values() for t in ts}
     # The public panel is a fixed list of named tasks: naming them is what that module is for.
     exempt = {PACKAGE / "experiments" / "panel.py"}
-    found = [f"{path.relative_to(PACKAGE.parent)}:{line}: {text!r}"
-             for path in sorted(set(PACKAGE.rglob("*.py")) - exempt)
-             for line, text in _code_strings(path)
-             if any(domain in text for domain in tasks.TASKS_BY_DOMAIN) or text in task_names]
+    found = [
+        f"{path.relative_to(PACKAGE.parent)}:{line}: {text!r}"
+        for path in sorted(set(PACKAGE.rglob("*.py")) - exempt)
+        for line, text in _code_strings(path)
+        if any(domain in text for domain in tasks.TASKS_BY_DOMAIN) or text in task_names
+    ]
     assert not found, "\n".join(found)
 
 

@@ -4,8 +4,10 @@ episodes as the dm-control tasks."""
 import numpy as np
 import pytest
 
-gymnasium = pytest.importorskip("gymnasium", reason="needs the [gymnasium] extra: "
-                                "pip install -c constraints.txt -e \".[gymnasium]\"")
+gymnasium = pytest.importorskip(
+    "gymnasium",
+    reason='needs the [gymnasium] extra: pip install -c constraints.txt -e ".[gymnasium]"',
+)
 
 from gymnasium.utils.env_checker import check_env  # noqa: E402
 
@@ -25,8 +27,11 @@ def test_every_task_of_the_suite_is_registered():
 
 #: What Gymnasium's checker may advise and the suite declines: the tasks keep their own action units
 #: (volts, newton-metres), and speeds have no hard bound.
-ADVICE = ("symmetric and normalized space", "minimum value is -infinity",
-          "maximum value is infinity")
+ADVICE = (
+    "symmetric and normalized space",
+    "minimum value is -infinity",
+    "maximum value is infinity",
+)
 
 
 @pytest.mark.parametrize("name", IDS)
@@ -47,10 +52,15 @@ def test_gymnasiums_checker_passes(name):
 def test_an_episode_equals_the_dm_control_episode_step_for_step(domain, task):
     """Same seed, same actions: the same observations (x with periodic entries as cos, sin), rewards
     and trial length, and the trial ends as a truncation."""
-    env = gymnasium.make(gymnasium_env.env_id(domain, task), task_kwargs={"start_noise": 0.1}
-                         if task != "balance" else None)
-    reference = tasks.load(domain, task, task_kwargs={"random": 5, **(
-        {"start_noise": 0.1} if task != "balance" else {})})
+    env = gymnasium.make(
+        gymnasium_env.env_id(domain, task),
+        task_kwargs={"start_noise": 0.1} if task != "balance" else None,
+    )
+    reference = tasks.load(
+        domain,
+        task,
+        task_kwargs={"random": 5, **({"start_noise": 0.1} if task != "balance" else {})},
+    )
     learner_state = reference.task.learner_state
     periodic = np.asarray(learner_state.periodic)
 
@@ -87,8 +97,9 @@ def test_seeding_repeats_the_start_and_continues_the_stream():
 
 
 def test_rgb_array_rendering_draws_the_current_state():
-    env = gymnasium.make("rmac_mj/DCPendulum-Swingup-v0", render_mode="rgb_array", width=64,
-                         height=48)
+    env = gymnasium.make(
+        "rmac_mj/DCPendulum-Swingup-v0", render_mode="rgb_array", width=64, height=48
+    )
     env.reset(seed=0)
     hanging = env.render()
     assert hanging.shape == (48, 64, 3) and hanging.dtype == np.uint8

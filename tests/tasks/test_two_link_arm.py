@@ -19,7 +19,7 @@ TAU_MAX = np.array([1.5, 1.0])
 P1 = M1 * C1**2 + M2 * L1**2 + I1
 P2 = M2 * C2**2 + I2
 P3 = M2 * L1 * C2
-DT = 0.05          # the benchmark's sampling time
+DT = 0.05  # the benchmark's sampling time
 X0 = np.array([-np.pi / 2, 0.0, np.pi / 2, 0.0])
 
 
@@ -32,8 +32,9 @@ def benchmark_ode(t, x, tau):
     """M(q) q'' + C(q, q') q' = tau, x = [theta1, omega1, theta2, omega2] (the benchmark's order)."""
     _, omega1, theta2, omega2 = x
     s = np.sin(theta2)
-    coriolis = np.array([[B1 - P3 * omega2 * s, -P3 * (omega1 + omega2) * s],
-                         [P3 * omega1 * s, B2]])
+    coriolis = np.array(
+        [[B1 - P3 * omega2 * s, -P3 * (omega1 + omega2) * s], [P3 * omega1 * s, B2]]
+    )
     accel = np.linalg.solve(mass_matrix(theta2), tau - coriolis @ np.array([omega1, omega2]))
     return [omega1, accel[0], omega2, accel[1]]
 
@@ -53,8 +54,15 @@ def max_error_against_benchmark(model, x0, torques) -> float:
     for tau in torques:
         data.ctrl[:] = tau
         mujoco.mj_step(model, data, n_sub)
-        x = solve_ivp(benchmark_ode, (0.0, DT), x, args=(np.clip(tau, -TAU_MAX, TAU_MAX),),
-                      method="DOP853", rtol=1e-12, atol=1e-12).y[:, -1]
+        x = solve_ivp(
+            benchmark_ode,
+            (0.0, DT),
+            x,
+            args=(np.clip(tau, -TAU_MAX, TAU_MAX),),
+            method="DOP853",
+            rtol=1e-12,
+            atol=1e-12,
+        ).y[:, -1]
         worst = max(worst, float(np.max(np.abs(data.qpos - x[[0, 2]]))))
     return worst
 
@@ -73,7 +81,9 @@ def test_out_of_range_torques_are_saturated_like_the_benchmark(model):
     assert max_error_against_benchmark(model, X0, rng.uniform(-3, 3, (20, 2))) < 1e-4
 
 
-@pytest.mark.parametrize("q", [(0.0, 0.0), (0.3, 0.7), (-2.0, 2.0), (1.0, -np.pi / 2), (0.0, np.pi)])
+@pytest.mark.parametrize(
+    "q", [(0.0, 0.0), (0.3, 0.7), (-2.0, 2.0), (1.0, -np.pi / 2), (0.0, np.pi)]
+)
 def test_mass_matrix_is_the_benchmarks(model, q):
     """mj_fullM equals [[P1 + P2 + 2 P3 cos t2, P2 + P3 cos t2], [P2 + P3 cos t2, P2]] everywhere."""
     data = mujoco.MjData(model)
@@ -146,8 +156,9 @@ def test_reach_is_60_steps_from_x0():
     timestep = env.reset()
     np.testing.assert_allclose(timestep.observation["position"], [-np.pi / 2, np.pi / 2])
     np.testing.assert_array_equal(timestep.observation["velocity"], [0.0, 0.0])
-    np.testing.assert_allclose(np.concatenate([timestep.observation[k] for k in
-                                               env.task.learner_state.keys]), X0)
+    np.testing.assert_allclose(
+        np.concatenate([timestep.observation[k] for k in env.task.learner_state.keys]), X0
+    )
     steps = 0
     while not timestep.last():
         timestep = env.step([0.0, 0.0])
@@ -161,7 +172,9 @@ def test_reward_of_a_hand_worked_state():
     env = tasks.load("two_link_arm", "reach")
     env.reset()
     with env.physics.reset_context():
-        env.physics.set_state_vector([0.5, -2.0, 0.3 - 2 * np.pi, 1.0])   # theta2 wrapped before charged
+        env.physics.set_state_vector(
+            [0.5, -2.0, 0.3 - 2 * np.pi, 1.0]
+        )  # theta2 wrapped before charged
     assert env.step([1.5, -1.0]).reward == pytest.approx(-0.59, abs=1e-12)
     env = tasks.load("two_link_arm", "reach", task_kwargs={"action_weights": (2.0, 0.5)})
     env.reset()
@@ -179,7 +192,9 @@ def test_reward_of_matches_the_step_reward_along_a_trajectory():
     for tau in rng.uniform(-1, 1, (10, 2)) * TAU_MAX:
         x = env.physics.state()
         reward = env.step(tau).reward
-        assert reward == pytest.approx(-(x[0]**2 + 0.05 * x[1]**2 + x[2]**2 + 0.05 * x[3]**2), abs=1e-12)
+        assert reward == pytest.approx(
+            -(x[0] ** 2 + 0.05 * x[1] ** 2 + x[2] ** 2 + 0.05 * x[3] ** 2), abs=1e-12
+        )
 
 
 def test_learner_state_is_the_benchmarks_order():
@@ -190,7 +205,9 @@ def test_learner_state_is_the_benchmarks_order():
     observation = env.task.get_observation(env.physics)
     hints = env.task.learner_state
     assert hints.keys == ("shoulder", "elbow")
-    np.testing.assert_allclose(np.concatenate([observation[k] for k in hints.keys]), [0.1, 0.2, 0.3, 0.4])
+    np.testing.assert_allclose(
+        np.concatenate([observation[k] for k in hints.keys]), [0.1, 0.2, 0.3, 0.4]
+    )
     np.testing.assert_allclose(observation["position"], [0.1, 0.3])
     np.testing.assert_allclose(observation["velocity"], [0.2, 0.4])
     assert hints.periodic == (True, False, True, False)
@@ -201,20 +218,29 @@ def test_start_state_and_noise_kwargs():
     env = tasks.load("two_link_arm", "reach", task_kwargs={"start_state": (0.1, 0.0, -0.2, 0.5)})
     np.testing.assert_allclose(env.reset().observation["shoulder"], [0.1, 0.0])
     np.testing.assert_allclose(env.reset().observation["elbow"], [-0.2, 0.5])
-    starts = [tasks.load("two_link_arm", "reach", task_kwargs={"start_noise": 0.1, "random": seed})
-              .reset().observation["position"] for seed in (1, 1, 2)]
+    starts = [
+        tasks.load("two_link_arm", "reach", task_kwargs={"start_noise": 0.1, "random": seed})
+        .reset()
+        .observation["position"]
+        for seed in (1, 1, 2)
+    ]
     np.testing.assert_array_equal(starts[0], starts[1])
     assert not np.array_equal(starts[0], starts[2])
     assert np.all(np.abs(starts[0] - X0[[0, 2]]) <= 0.1)
 
 
-@pytest.mark.parametrize("kwargs, name", [
-    ({"time_limit": 3.02}, "time_limit"), ({"control_timestep": 0.015}, "control_timestep"),
-    ({"state_weights": (1.0, 0.05, 1.0)}, "state_weights"),
-    ({"state_weights": (1.0, -0.05, 1.0, 0.05)}, "state_weights"),
-    ({"action_weights": (np.nan, 0.0)}, "action_weights"),
-    ({"start_state": (0.0, 0.0)}, "start_state"), ({"start_noise": 4.0}, "start_noise"),
-])
+@pytest.mark.parametrize(
+    "kwargs, name",
+    [
+        ({"time_limit": 3.02}, "time_limit"),
+        ({"control_timestep": 0.015}, "control_timestep"),
+        ({"state_weights": (1.0, 0.05, 1.0)}, "state_weights"),
+        ({"state_weights": (1.0, -0.05, 1.0, 0.05)}, "state_weights"),
+        ({"action_weights": (np.nan, 0.0)}, "action_weights"),
+        ({"start_state": (0.0, 0.0)}, "start_state"),
+        ({"start_noise": 4.0}, "start_noise"),
+    ],
+)
 def test_bad_task_kwargs_name_the_parameter(kwargs, name):
     with pytest.raises(ValueError, match=name):
         tasks.load("two_link_arm", "reach", task_kwargs=kwargs)
@@ -222,13 +248,16 @@ def test_bad_task_kwargs_name_the_parameter(kwargs, name):
 
 def test_full_weight_matrices_are_accepted():
     q = np.diag([1.0, 0.05, 1.0, 0.05])
-    env = tasks.load("two_link_arm", "reach", task_kwargs={"state_weights": q, "action_weights": np.eye(2)})
+    env = tasks.load(
+        "two_link_arm", "reach", task_kwargs={"state_weights": q, "action_weights": np.eye(2)}
+    )
     env.reset()
     assert env.step([1.0, 0.0]).reward == pytest.approx(-(np.pi**2 / 2) - 1.0)
 
 
 def test_model_path_finds_folder_models_and_single_files():
     from rmac_mj.models import available_models
+
     assert model_path("two_link_arm").name == "two_link_arm.xml"
     assert model_path("two_link_arm").parent.name == "two_link_arm"
     assert model_path("two_link_arm", scene=True).name == "scene.xml"
@@ -250,9 +279,30 @@ def test_a_tiny_reproduce_on_the_arm_end_to_end(tmp_path):
     from rmac_mj.results.snapshots import load_snapshot
 
     out = tmp_path / "arm"
-    assert main(["reproduce", "--domain", "two_link_arm", "--task", "reach", "--algorithms",
-                 "rmac,s-ac", "--experiments", "1", "--trials", "2", "--jobs", "1", "--no-optimal",
-                 "--no-progress", "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "reproduce",
+                "--domain",
+                "two_link_arm",
+                "--task",
+                "reach",
+                "--algorithms",
+                "rmac,s-ac",
+                "--experiments",
+                "1",
+                "--trials",
+                "2",
+                "--jobs",
+                "1",
+                "--no-optimal",
+                "--no-progress",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     summary = json.loads((out / "summary.json").read_text())
     assert summary["trial_seconds"] == pytest.approx(3.0)
     for algorithm in ("rmac", "s-ac"):

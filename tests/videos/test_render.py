@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from rmac_mj import _gl, tasks
-from rmac_mj.agents import ActionSpace, PolicyAgent, StateSpace
-from rmac_mj.videos import render, result_videos, encode as video
 from rmac_mj.rollout import run_trial
+from rmac_mj.videos import encode as video
+from rmac_mj.videos import render, result_videos
 
 SHORT = {"time_limit": 0.3}  # 10 control steps: enough to see motion, quick to render
 
@@ -50,8 +50,9 @@ def test_substep_frames_follow_the_physics_and_the_episode_is_env_step():
     env = tasks.load("dc_pendulum", "swingup", task_kwargs=SHORT)
     agent = energy_pump_agent()
     coarse = render.render_episode(env, agent, width=64, height=48, overlay=False)
-    fine = render.render_episode(env, policy=agent.greedy_action, width=64, height=48,
-                                 frames_per_step=3, overlay=False)
+    fine = render.render_episode(
+        env, policy=agent.greedy_action, width=64, height=48, frames_per_step=3, overlay=False
+    )
     assert fine.frames.shape[0] == 31 and fine.fps == pytest.approx(100.0)
     np.testing.assert_array_equal(fine.states[::3], coarse.states)
     np.testing.assert_array_equal(fine.actions[::3], coarse.actions)
@@ -61,7 +62,7 @@ def test_substep_frames_follow_the_physics_and_the_episode_is_env_step():
     physics = env.physics
     env.reset()
     angles = [physics.angle()]
-    for k in range(10):
+    for _ in range(10):
         physics.set_control(agent.greedy_action(physics.state()))
         for _ in range(3):
             mujoco.mj_step(physics.model.ptr, physics.data.ptr)
@@ -75,7 +76,7 @@ def test_overlay_and_labels_draw_text():
     text = render.render_episode(env, energy_pump_agent(), width=160, height=120, label="RMAC")
     differs = np.any(plain.frames[0] != text.frames[0], axis=-1)
     assert differs[:60, :40].any() and differs[:60, 100:].any()  # label top-left, numbers top-right
-    assert not differs[80:].any()                                 # the rig below is untouched
+    assert not differs[80:].any()  # the rig below is untouched
 
 
 def test_invalid_arguments_are_rejected_with_their_names():
@@ -92,7 +93,7 @@ def test_invalid_arguments_are_rejected_with_their_names():
 def _moving_square(frames: int, height: int, width: int) -> np.ndarray:
     clip = np.full((frames, height, width, 3), 30, dtype=np.uint8)
     for t in range(frames):
-        clip[t, 10:20, 2 * t:2 * t + 10] = (230, 80, 40)
+        clip[t, 10:20, 2 * t : 2 * t + 10] = (230, 80, 40)
     return clip
 
 
@@ -123,7 +124,9 @@ def test_side_by_side_and_sequence_compose_clips():
     a, b = _moving_square(5, 40, 60), _moving_square(3, 40, 60)
     both = video.side_by_side([a, b], labels=["S-AC", "RMAC"])
     assert both.shape == (5, 40, 60 + 4 + 60, 3)
-    np.testing.assert_array_equal(both[4, 30:, 64:], b[2, 30:])  # the short clip holds its last frame
+    np.testing.assert_array_equal(
+        both[4, 30:, 64:], b[2, 30:]
+    )  # the short clip holds its last frame
     chain = video.sequence([a, b], hold=2)
     assert chain.shape == (5 + 2 + 3 + 2, 40, 60, 3)
     np.testing.assert_array_equal(chain[7], b[0])
@@ -141,8 +144,13 @@ def _fake_results(tmp_path, monkeypatch, trials=(1, 10)):
 
     def load(path):
         algorithm, trial = path.parent.parent.name, int(path.stem.split("_")[1])
-        return energy_pump_agent(), {"algorithm": algorithm, "domain": "dc_pendulum", "task": "swingup",
-                                   "task_kwargs": {"time_limit": 0.09}, "trial": trial}
+        return energy_pump_agent(), {
+            "algorithm": algorithm,
+            "domain": "dc_pendulum",
+            "task": "swingup",
+            "task_kwargs": {"time_limit": 0.09},
+            "trial": trial,
+        }
 
     monkeypatch.setattr(result_videos, "load_snapshot", load)
     return tmp_path
@@ -199,8 +207,14 @@ def test_a_3_s_episode_plays_3_s_as_a_gif(tmp_path, frames_per_step):
     from PIL import Image
 
     env = tasks.load("dc_pendulum", "swingup")  # the paper's 3 s trial
-    episode = render.render_episode(env, energy_pump_agent(), width=32, height=24, overlay=False,
-                                    frames_per_step=frames_per_step)
+    episode = render.render_episode(
+        env,
+        energy_pump_agent(),
+        width=32,
+        height=24,
+        overlay=False,
+        frames_per_step=frames_per_step,
+    )
     path = video.write_video(episode.frames, tmp_path / "swingup.gif", fps=episode.fps)
     delays = []
     with Image.open(path) as gif:
@@ -221,7 +235,8 @@ def test_gif_delays_add_up_to_real_time(fps):
 def test_the_camera_frames_the_pendulum():
     """Upright and hanging, the pendulum spans most of the frame's height, centred on the axis."""
     env = tasks.load("dc_pendulum", "swingup")
-    rows = np.concatenate([_arm_rows(render.render_state(env, phi, width=160, height=120))
-                           for phi in (0.0, np.pi)])
+    rows = np.concatenate(
+        [_arm_rows(render.render_state(env, phi, width=160, height=120)) for phi in (0.0, np.pi)]
+    )
     assert rows.max() - rows.min() > 0.6 * 120
     assert 0.35 * 120 < (rows.max() + rows.min()) / 2 < 0.65 * 120
