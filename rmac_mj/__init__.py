@@ -1,9 +1,8 @@
-"""rmac-mj: actor-critic control with reference model learning on MuJoCo.
+"""rmac-mj: Grondman et al.'s "Actor-Critic Control with Reference Model Learning" on MuJoCo.
 
-Reproduces Grondman et al., "Actor-Critic Control with Reference Model Learning": the DC-motor pendulum
-(``rmac_mj.models``, ``rmac_mj.tasks``), LLR and tile-coding approximators (``rmac_mj.approximators``),
-the RMAC and S-AC learners (``rmac_mj.agents``) and the experiments that compare them
-(``rmac_mj.experiments``).
+The models and tasks (``rmac_mj.models``, ``rmac_mj.tasks``), the approximators, the learners
+(``rmac_mj.agents``) and the experiments that compare them; importing it chooses the GL back end and
+the numba cache before anything imports ``mujoco`` or numba.
 """
 
 __version__ = "0.1.0"

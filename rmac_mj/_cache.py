@@ -1,17 +1,8 @@
-"""Where rmac-mj caches what is expensive to compute: compiled kernels and the near-optimal return.
+"""Where rmac-mj caches what is expensive: compiled numba kernels and the near-optimal returns.
 
-- The near-optimal return (``rmac_mj.solvers.dynamic_programming``) is cached in :func:`user_cache_dir`:
-  ``$RMAC_MJ_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/rmac-mj``, else ``~/.cache/rmac-mj``.
-- The numba kernels (``@njit(cache=True)``) are compiled once (tens of seconds) and reused by every later
-  process and worker, from ``user_cache_dir() / "numba" / <hash of the kernel sources>``
-  (:func:`configure_numba_cache`). numba's own cache checks only the timestamp of the file that defines a
-  kernel, not of the kernels it calls: after an edit of ``_llr_kernels.py`` it would load RMAC's step
-  compiled with the *old* LLR kernels. A folder per version of the kernel sources makes that
-  impossible (old folders can be deleted at any time). A ``NUMBA_CACHE_DIR`` set by the user is kept.
-
-numba reads ``NUMBA_CACHE_DIR`` when it is first imported, and a kernel's cache locator is chosen when the
-kernel is defined, so :func:`configure_numba_cache` runs from ``rmac_mj/__init__.py`` before anything
-imports numba. This module itself never imports numba at import time.
+:func:`user_cache_dir` is ``$RMAC_MJ_CACHE_DIR``, else ``$XDG_CACHE_HOME/rmac-mj``, else
+``~/.cache/rmac-mj``; :func:`configure_numba_cache` (run from ``rmac_mj/__init__.py`` before numba
+is imported) points numba at one folder per version of the kernel sources.
 """
 
 from __future__ import annotations
@@ -56,6 +47,11 @@ def configure_numba_cache(
     """Point ``NUMBA_CACHE_DIR`` at ``user_cache_dir() / "numba" / kernel_source_hash()``.
 
     Returns the value set, or None when the user set ``NUMBA_CACHE_DIR`` (kept as it is).
+
+    Why a folder per version: numba's own cache checks only the timestamp of the file that defines a
+    kernel, not of the kernels it calls, so after an edit of ``_llr_kernels.py`` it would load
+    RMAC's step compiled with the old LLR kernels. numba reads ``NUMBA_CACHE_DIR`` when first
+    imported (a value set by the user is kept), hence the early call.
     """
     environ = os.environ if environ is None else environ
     if environ.get(_NUMBA_ENV):

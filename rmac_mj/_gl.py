@@ -1,14 +1,9 @@
-"""Choose MuJoCo's OpenGL back end before ``mujoco`` is first imported.
+"""MuJoCo's OpenGL back end, chosen before ``mujoco`` is first imported.
 
-MuJoCo reads ``MUJOCO_GL`` once, when ``mujoco`` is imported, and PyOpenGL reads ``PYOPENGL_PLATFORM``
-when ``OpenGL`` is. On a Linux machine without a display the default (GLFW) cannot start, so
-:func:`select_gl_backend` (called by ``rmac_mj/__init__.py``) picks an off-screen back end: EGL when
-libEGL loads and finds a device, else OSMesa when libOSMesa loads. A ``MUJOCO_GL`` set by the user is
-always kept.
-:func:`require_gl_backend` is the check the renderers run first: it raises :class:`GLBackendError`
-with the system packages to install instead of a stack trace from deep inside OpenGL;
-:func:`open_renderer` opens every renderer of the package (videos, pictures, the Gymnasium
-environments' ``render()``) through it.
+:func:`select_gl_backend` picks EGL, else OSMesa, on a machine without a display (a ``MUJOCO_GL``
+set by the user is kept); :func:`require_gl_backend` raises :class:`GLBackendError` naming the
+system packages to install; :func:`open_renderer` opens every renderer of the package through that
+check.
 """
 
 from __future__ import annotations

@@ -1,33 +1,10 @@
-"""Parameter constraints, declared once (in the spirit of scikit-learn's ``_parameter_constraints``).
+"""Parameter constraints, declared once per configuration (as scikit-learn's).
 
-Every configuration (``RMACConfig``, ``SACConfig``, ``MLACConfig``, ``Exploration``,
-``TileCodingConfig``, ``LLRMemory``) declares a table ``{parameter: [constraint, ...]}``; a value is
-valid when it satisfies at least one constraint of its list (``None`` in the list allows None).
-:func:`check` validates all of a configuration's values against its table in one place, so that
-every learner refuses the same bad value the same way, with one kind of message::
-
-    RMACConfig.gamma must be a number in [0, 1), got 1.0
-    LLRMemory.n_neighbours must be an integer in [1, capacity=100], got 200
-    RMACConfig has no parameter 'alpha_x' (did you mean 'alpha_r'?)
-
-The sweep file checker (``rmac_mj.sweeps.sweep``) reads the same tables (:func:`lookup`,
-:func:`unmet`), so a TOML value is judged by the rule the config applies.
-
-The constraints:
-
-* :class:`Interval` (``Real`` or ``Integral``, with optional bounds, open or closed): real numbers are
-  finite ints or floats (numpy's too), never bools; integers are ints, never floats or bools.
-  A bound may be another parameter of the same configuration (:class:`Field`).
-* :class:`Options`: one of a few values (strings, or ints such as the norm's 1 and 2; never a bool).
-* :class:`Boolean`: True or False (numpy's bool too).
-* :class:`TupleOf`: a sequence (tuple, list or 1-D array) whose entries satisfy an element
-  constraint, normalised to a tuple, e.g. input weightings (finite numbers >= 0).
-* :class:`InstanceOf`: an instance of a class, e.g. an ``Exploration`` in a learner's config; the sweep
-  checker descends into a dataclass's own table.
-
-Rules that tie several values together beyond a bound (``where='uncertain'`` needs a threshold)
-stay in the configuration's ``__post_init__`` and raise through :func:`invalid`, so their messages
-read the same.
+A config declares ``{parameter: [constraint, ...]}`` (:class:`Interval`, :class:`Options`,
+:class:`Boolean`, :class:`TupleOf`, :class:`InstanceOf`; ``None`` allows None); :func:`check`
+validates all its values in one place with one kind of message, and the sweep checker reads the same
+tables (:func:`lookup`, :func:`unmet`). Rules tying several values stay in ``__post_init__`` and
+raise through :func:`invalid`.
 """
 
 from __future__ import annotations
@@ -345,6 +322,12 @@ def check(owner: str, table: Mapping[str, Sequence[Any]], values: Mapping[str, A
 
     Raises :class:`InvalidParameterError` naming the first refused parameter (in table order), its
     value and what was expected. Every name of ``values`` must be in ``table``.
+
+    The messages read::
+
+        RMACConfig.gamma must be a number in [0, 1), got 1.0 LLRMemory.n_neighbours must be an
+        integer in [1, capacity=100], got 200 RMACConfig has no parameter 'alpha_x' (did you mean
+        'alpha_r'?)
     """
     for name in values:
         if name not in table:

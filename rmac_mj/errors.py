@@ -1,8 +1,6 @@
-"""The project's exception for bad user input.
+""":class:`UserInputError`: bad user input, which the CLI prints in one line (exit status 2).
 
-Anything a user can get wrong (a command-line argument, a configuration value, a result directory, a
-snapshot or data file) raises :class:`UserInputError`; the ``rmac-mj`` command reports it as one line
-with exit status 2. Every other exception is a bug and keeps its traceback.
+Every other exception is a bug and keeps its traceback.
 """
 
 

@@ -1,10 +1,8 @@
-"""One trial of an agent on a dm-control environment: the glue between tasks and agents.
+"""The trial loop: one trial of an agent on a dm_env environment (:func:`run_trial`).
 
-Agents see a flat state ``x``; tasks give an observation dict. Every task of the suite says what x is
-through its ``learner_state`` (:class:`rmac_mj.tasks.common.LearnerStateSpec`): x is the concatenation of
-the observation entries ``learner_state.keys``, in order, and the state box, the periodic dimensions
-and the learners' default input weightings come with it. The trial length comes from the environment:
-its number of control steps times its control timestep.
+x is the concatenation of the observation entries ``learner_state.keys``
+(:class:`rmac_mj.tasks.common.LearnerStateSpec`); the trial length is the environment's number of
+control steps times its control timestep.
 """
 
 from __future__ import annotations

@@ -1,14 +1,9 @@
-"""The DC-motor pendulum's demonstrator: an energy-pumping swing-up with an LQR balancer.
+"""The DC-motor pendulum's demonstrator: energy-pumping swing-up, LQR balancer.
 
-:class:`EnergySwingUp` is the textbook swing-up of an underactuated pendulum (Astrom and Furuta,
-"Swinging up a pendulum by energy control", Automatica 36, 2000): pump energy with the largest allowed
-voltage in the direction of motion until the pendulum has the energy of the upright rest state, coast,
-and hand over to a linear balance controller near upright. It is tuned on the model, not on the
-learners' reward: the energy uses the model's mass, centre of mass and inertia, and the balance gains
-are the discrete LQR of the model linearised about upright. It is deliberately not optimal: it pumps
-at full voltage until the energy suffices instead of planning the swing, so it needs one more swing
-than the near-optimal policy (docs/prior-knowledge.md). ``dc_pendulum`` declares two of them as its
-tasks' demonstrators ('demo' and a poorer 'poor-demo'), recorded by ``rmac-mj reproduce --prior NAME``.
+Astrom and Furuta's swing-up (Automatica 36, 2000), tuned on the model rather than on the learners'
+reward (its mass, centre of mass and inertia; the discrete LQR about upright). It pumps at full
+voltage instead of planning the swing, so it is deliberately not optimal; ``dc_pendulum`` declares
+two ('demo' and a poorer 'poor-demo'), recorded by ``rmac-mj reproduce --prior NAME``.
 """
 
 from __future__ import annotations
@@ -26,7 +21,9 @@ from rmac_mj.tasks import common
 
 @dataclasses.dataclass(frozen=True)
 class EnergySwingUp:
-    """Energy-pumping swing-up with an LQR balancer for ``dc_pendulum`` (see the module docstring).
+    """Energy-pumping swing-up with an LQR balancer for ``dc_pendulum``: pump energy with the
+    largest allowed voltage in the direction of motion until the pendulum has the upright rest
+    state's energy, coast, and hand over to the linear balance controller near upright.
 
     Attributes:
       pump_voltage: voltage (V) applied in the direction of motion while the pendulum has less

@@ -1,27 +1,9 @@
 """The task suite as Gymnasium environments, registered when ``rmac_mj.tasks`` is imported.
 
-    import gymnasium
-    import rmac_mj.tasks  # registers rmac_mj/DCPendulum-Swingup-v0, rmac_mj/TwoLinkArm-Reach-v0, ...
-    env = gymnasium.make("rmac_mj/DCPendulum-Swingup-v0", render_mode="rgb_array")
-    observation, info = env.reset(seed=0)
-
-Every task of the suite gets the id ``rmac_mj/<Domain>-<Task>-v0`` (:func:`env_id`: each
-underscore-separated word capitalised, words of two letters upper-cased: ``dc_pendulum`` is
-``DCPendulum``). The environment is the dm-control task itself, stepped unchanged: the same dynamics,
-reward, trial length and start state; ``task_kwargs`` are those of ``rmac_mj.tasks.load``.
-
-* **Observation**: the task's learner state x (``learner_state.keys``, what the paper's learners see)
-  with every periodic dimension as (cos, sin), in order; float64. On the pendulum
-  ``[cos phi, sin phi, phi_dot]``, as Gymnasium's Pendulum-v1. Neural networks want the angle's
-  (cos, sin) rather than a wrapped angle that jumps at +-pi.
-* **Action**: the task's action box, float32 (Gymnasium's default dtype); applied as float64.
-* **Trial end** is a truncation (``truncated=True``, ``terminated`` never): a trial ends on its time
-  limit, so a learner should bootstrap from the last state.
-* **Seeding**: ``reset(seed=s)`` gives the task the random state of ``rmac_mj.tasks.load(...,
-  task_kwargs={"random": s})`` (start noise, if the task has any); a reset without a seed continues
-  that stream.
-* **Rendering**: ``render_mode="rgb_array"`` draws the model's first camera off-screen with the
-  package's renderer (:func:`rmac_mj._gl.open_renderer`), ``width`` x ``height`` pixels.
+``gymnasium.make("rmac_mj/DCPendulum-Swingup-v0", render_mode="rgb_array")``: every task gets the id
+``rmac_mj/<Domain>-<Task>-v0`` (:func:`env_id`) and is the dm-control task itself, stepped
+unchanged; the observation is the learner state with each periodic dimension as (cos, sin), the
+action the task's box in float32, and a trial ends in a truncation.
 """
 
 from __future__ import annotations
@@ -61,13 +43,25 @@ def register_suite() -> None:
 
 
 class SuiteEnv(gymnasium.Env):
-    """One task of the suite behind Gymnasium's API (see the module docstring).
+    """One task of the suite behind Gymnasium's API.
 
     Args:
       domain, task: the task, as for ``rmac_mj.tasks.load``.
       task_kwargs: its keyword arguments (not ``random``: seed through ``reset(seed=...)``).
       render_mode: None or ``"rgb_array"``.
       width, height: the size of rendered frames, in pixels.
+
+    * **Observation**: the task's learner state x (``learner_state.keys``) with every periodic
+      dimension as (cos, sin), in order; float64. On the pendulum ``[cos phi, sin phi, phi_dot]``,
+      as Gymnasium's Pendulum-v1 (neural networks want (cos, sin) rather than an angle that jumps at
+      +-pi).
+    * **Action**: the task's action box, float32 (Gymnasium's default dtype); applied as float64.
+    * **Trial end** is a truncation (``truncated=True``, ``terminated`` never): a learner
+      bootstraps.
+    * **Seeding**: ``reset(seed=s)`` gives the task the random state of ``rmac_mj.tasks.load(...,
+      task_kwargs={"random": s})``; a reset without a seed continues that stream.
+    * **Rendering**: ``render_mode="rgb_array"`` draws the model's first camera off-screen
+      (:func:`rmac_mj._gl.open_renderer`), ``width`` x ``height`` pixels.
     """
 
     metadata = {"render_modes": ["rgb_array"]}

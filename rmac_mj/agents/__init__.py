@@ -1,20 +1,8 @@
-"""The learners: RMAC (Algorithm 2), the S-AC baseline (Algorithm 1) and MLAC (Grondman et al.,
-2012), behind one interface, and the registry that builds them by name.
+"""The learners behind one interface: RMAC (Algorithm 2), S-AC (Algorithm 1) and MLAC.
 
-A learner is a module holding its config dataclass and its :class:`Agent` subclass; adding one is one
-line in ``_REGISTRY`` (key -> module, agent class, config class). The modules by concern:
-
-* ``base``: the Agent interface (the checked boundary, checked state dicts, one transition's
-  ``learn``, the memory estimate, task knowledge in configs);
-* ``spaces``: StateSpace and ActionSpace, what a learner sees of a task;
-* ``task_knowledge``: what a config left None takes from the task (weightings, action cost);
-* ``exploration``: the Exploration schedule (section 6.1);
-* ``seeding``: recorded transitions into memories (prior knowledge, section 7);
-* ``random_state``: a generator's state as numbers, for snapshots;
-* ``scripted``: PolicyAgent, a fixed policy behind the same interface;
-* ``critic``: the LLR critic (memory, traces, TD(lambda)) RMAC and MLAC share;
-* ``rmac`` (with ``rmac_config`` and the compiled ``_rmac_kernels``), ``standard_ac`` (S-AC), ``mlac``: the
-  learners; ``sb3``: the Stable-Baselines3 baselines.
+Each learner is a module holding its config dataclass and its :class:`Agent` subclass; the registry
+``_REGISTRY`` (key -> module, agent class, config class) builds them by name, and adding a learner
+is one line there.
 """
 
 from __future__ import annotations

@@ -1,43 +1,9 @@
-"""Compiled RMAC step (the fast back end of :class:`rmac_mj.agents.rmac.RMAC`), written after
-Algorithm 2 as the numpy version in ``rmac.py`` is, so that one control step is one compiled call
-instead of a few dozen numpy ones. ``tests/agents/test_rmac.py`` checks that both back ends take the same
-actions and leave the same memories, step by step, for every option.
+"""Compiled RMAC step, the ``backend='numba'`` twin of :mod:`rmac_mj.agents.rmac` (Algorithm 2).
 
-:func:`step` is lines 8-29: act with the models as they are (lines 10-12), then :func:`learn` the
-transition (lines 13-28), one function of (x, u, r, x') and V(x): insert it in the process model
-(line 14), select the best reachable state (line 16, :func:`best_reachable`), move the reference
-model (lines 17-20, :func:`update_reference`) and make the critic's TD(lambda) step (lines 22-28,
-``critic.td_update``). A simulated transition is learned by the same function without line 14.
-
-The kernels take an :class:`RMACState`, a numba structref that names what a step reads and writes,
-made from the memories' states, the trial's bookkeeping and the named :class:`RMACSettings`:
-
-======================  ============================================================================
-``process``             M^P, an ``LLRState`` over [x, u | x']
-``reference``           M^R over [x | x_hat]
-``critic``              the critic, a ``CriticState`` (M^C over [x | V], its traces, gamma, lambda,
-                        alpha_c; :mod:`rmac_mj.agents.critic`)
-``x_prev``, ``u_prev``  (n,), (m,): x_{k-1} and u_{k-1}, advanced by ``step``
-``v_prev``              (1,): V_{k-1}, advanced by ``step``
-``gamma``, ``alpha_r``  discount and the reference's learning rate
-``beta_u_zero``         beta_u counts as zero below this fraction of the state gains
-``inverse_previous``    linearise the inverse at u_{k-1} (else at 0)
-``gradient_at_next``    fit the critic's ranking model at x_k (else at x_{k-1})
-``rule``                index of ``RMACConfig.reachable_rule`` in ``rmac_config.REACHABLE_RULES``
-``action_cost``         (m,) P of the score -sum_i P_i u_i^2 + gamma V(x') (rules other than
-                        'vertices')
-``vertices``            (2^m, m) the combinations of action extremes that span the reachable set
-``candidates``          (c, m) candidate actions of the other rules (vertices or grid)
-``refine_steps``        golden-section steps of rule 'exact' (0: none)
-``insert_rate``         ``reference_insert_rate``: M^R gets R(x_{k-1}) + rate (x_r - R(x_{k-1}))
-``period``              (n,) period of each periodic state dimension, 0 elsewhere
-``low``, ``high``       (m,) action bounds
-======================  ============================================================================
-
-Its arrays are the agent's own (and the memories'), so Python and compiled code see one state. The
-memories are used only through the compiled interface of ``rmac_mj.approximators.llr``: a neighbour
-list the algorithm asks for twice (K(x_k) when acting, K(x_{k-1}) one step later) is searched once
-there, invisibly to this module.
+:func:`step` is lines 8-29 on an :class:`RMACState` (fields listed there): act (lines 10-12), then
+:func:`learn` the transition (lines 13-28: line 14 insert in M^P, line 16 :func:`best_reachable`,
+lines 17-20 :func:`update_reference`, lines 22-28 ``critic.td_update``); a simulated transition
+skips line 14. ``tests/agents/test_rmac.py`` checks both back ends step by step.
 """
 
 from __future__ import annotations
@@ -66,7 +32,7 @@ _RULE_VERTICES = REACHABLE_RULES.index("vertices")
 _RULE_EXACT = REACHABLE_RULES.index("exact")
 _INV_PHI = (5.0**0.5 - 1.0) / 2.0
 
-#: The settings of a compiled RMAC step (fields: see the module docstring).
+#: The settings of a compiled RMAC step (fields: see :class:`RMACState`).
 RMACSettings = collections.namedtuple(
     "RMACSettings",
     [
@@ -97,8 +63,37 @@ class RMACStateType(types.StructRef):
 
 
 class RMACState(structref.StructRefProxy):
-    """What one RMAC step reads and writes, named (fields: see the module docstring). Made by
-    :func:`new_state`; opaque to Python."""
+    """What one RMAC step reads and writes, named. Made by :func:`new_state`; opaque to Python.
+
+    Made from the memories' states, the trial's bookkeeping and the named :class:`RMACSettings`:
+
+    ======================  ========================================================================
+    ``process``             M^P, an ``LLRState`` over [x, u | x']
+    ``reference``           M^R over [x | x_hat]
+    ``critic``              the critic, a ``CriticState`` (M^C over [x | V], its traces, gamma,
+                            lambda, alpha_c; :mod:`rmac_mj.agents.critic`)
+    ``x_prev``, ``u_prev``  (n,), (m,): x_{k-1} and u_{k-1}, advanced by ``step``
+    ``v_prev``              (1,): V_{k-1}, advanced by ``step``
+    ``gamma``, ``alpha_r``  discount and the reference's learning rate
+    ``beta_u_zero``         beta_u counts as zero below this fraction of the state gains
+    ``inverse_previous``    linearise the inverse at u_{k-1} (else at 0)
+    ``gradient_at_next``    fit the critic's ranking model at x_k (else at x_{k-1})
+    ``rule``                index of ``RMACConfig.reachable_rule`` in ``REACHABLE_RULES``
+    ``action_cost``         (m,) P of the score -sum_i P_i u_i^2 + gamma V(x') (rules other than
+                            'vertices')
+    ``vertices``            (2^m, m) the combinations of action extremes that span the reachable set
+    ``candidates``          (c, m) candidate actions of the other rules (vertices or grid)
+    ``refine_steps``        golden-section steps of rule 'exact' (0: none)
+    ``insert_rate``         ``reference_insert_rate``: M^R gets R(x_{k-1}) + rate (x_r - R(x_{k-1}))
+    ``period``              (n,) period of each periodic state dimension, 0 elsewhere
+    ``low``, ``high``       (m,) action bounds
+    ======================  ========================================================================
+
+    Its arrays are the agent's own (and the memories'), so Python and compiled code see one state.
+    The memories are used only through the compiled interface of ``rmac_mj.approximators.llr``: a
+    neighbour list asked for twice (K(x_k) when acting, K(x_{k-1}) one step later) is searched once
+    there, invisibly to this module.
+    """
 
 
 structref.define_boxing(RMACStateType, RMACState)

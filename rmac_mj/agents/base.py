@@ -1,26 +1,8 @@
-"""The interface every learner shares: :class:`Agent`, one checked boundary.
+"""The interface every learner shares: :class:`Agent`, one checked boundary (Algorithms 1 and 2).
 
-Agents know no particular task. They see a flat state vector ``x`` (described by a
-:class:`~rmac_mj.agents.spaces.StateSpace`) and a bounded action vector ``u`` (an
-:class:`~rmac_mj.agents.spaces.ActionSpace`), and follow the online protocol of the paper's
-Algorithms 1 and 2::
-
-    u = agent.start(x0)            # lines 1-5: a new trial begins in x0, returns u_0
-    for k in 1, 2, ...:
-        u = agent.step(r_k, x_k)   # lines 6-14 (Alg. 1) / 8-29 (Alg. 2): learn, return u_k
-    agent.stop(r_K, x_K)           # the last transition of a trial: learn, no action
-                                   # (terminal=True: x_K is terminal, V(x_K) = 0)
-
-``greedy_action`` and ``value`` evaluate the current policy and critic without exploring or learning;
-a greedy trial begins with ``begin_greedy_trial()``.
-``state_dict``/``load_state_dict`` exchange the learned state as a flat dict of numpy arrays, so that
-snapshots are written with ``numpy.savez`` and read back with ``allow_pickle=False``.
-
-``seed_from`` initialises a learner's memories from recorded transitions before it learns (prior
-knowledge, section 7, :mod:`rmac_mj.agents.seeding`); learners that take none refuse it.
-
-The module is the one boundary every learner shares (the checks on the way in and on a restore, the
-hooks learners, planning and replay implement), which is why it runs past 400 lines.
+A learner sees a flat state x (:class:`~rmac_mj.agents.spaces.StateSpace`) and a bounded action u
+(:class:`~rmac_mj.agents.spaces.ActionSpace`), follows ``start``/``step``/``stop`` (the protocol is
+in :class:`Agent`), and exchanges its learned state as a flat dict of numpy arrays (``state_dict``).
 """
 
 from __future__ import annotations
@@ -41,7 +23,20 @@ from rmac_mj.agents.task_knowledge import with_task_units
 
 
 class Agent(abc.ABC):
-    """Interface of an online learner (see the module docstring for the protocol).
+    """Interface of an online learner, following the paper's online protocol::
+
+        u = agent.start(x0)            # lines 1-5: a new trial begins in x0, returns u_0
+        for k in 1, 2, ...:
+            u = agent.step(r_k, x_k)   # lines 6-14 (Alg. 1) / 8-29 (Alg. 2): learn, return u_k
+        agent.stop(r_K, x_K)           # the last transition of a trial: learn, no action
+                                       # (terminal=True: x_K is terminal, V(x_K) = 0)
+
+    ``greedy_action`` and ``value`` evaluate the current policy and critic without exploring or
+    learning; a greedy trial begins with ``begin_greedy_trial()``.
+    ``state_dict``/``load_state_dict`` exchange the learned state as a flat dict of numpy arrays
+    (``numpy.savez``, read back with ``allow_pickle=False``). ``seed_from`` initialises the memories
+    from recorded transitions (prior knowledge, section 7, :mod:`rmac_mj.agents.seeding`); learners
+    that take none refuse it.
 
     The public methods are the boundary: they check their arguments once (a state of shape (n,) and
     finite, a finite reward, ``step``/``stop`` only inside a trial) and then call the learner's

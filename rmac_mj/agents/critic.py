@@ -1,18 +1,8 @@
-"""The LLR critic RMAC and MLAC share: V(x) as an LLR memory of samples [x | V], learned by TD(lambda)
-with one eligibility trace per sample (Algorithm 2 lines 22-28 of the RMAC paper).
+"""The LLR critic RMAC and MLAC share: V(x) from samples [x | V], learned by TD(lambda).
 
-One transition (x, r, x') with V(x) = v is learned as
-
-    V' = V(x')                                                       line 22
-    insert [x | v] in M^C                                            line 23
-    delta = r + gamma V' - v                                         line 24
-    e_i = 1 for i in K_+(x) (K(x) and the inserted sample), lambda gamma e_i otherwise   line 26
-    V_i <- V_i + alpha_c delta e_i for every sample i                line 27
-
-:class:`LLRCritic` does this in Python (``backend='numpy'``: the readable reference, through the
-memory's public methods) or in one compiled call (``backend='numba'``); RMAC's compiled step calls the
-compiled functions below directly, on a :class:`CriticState` (the memory's ``LLRState``, the traces and
-the TD settings, named).
+Algorithm 2 lines 22-28, one eligibility trace per sample: :class:`LLRCritic` in Python
+(``backend='numpy'``) or compiled (``backend='numba'``); RMAC's compiled step calls
+:func:`td_update` directly on a :class:`CriticState`.
 """
 
 from __future__ import annotations
@@ -131,7 +121,15 @@ def _check_traces(owner: str, state: dict[str, np.ndarray]) -> None:
 
 
 class LLRCritic:
-    """V(x) by an LLR memory and TD(lambda) with one trace per sample (module docstring).
+    """V(x) by an LLR memory and TD(lambda) with one trace per sample.
+
+    One transition (x, r, x') with V(x) = v is learned as (Algorithm 2)::
+
+        V' = V(x')                                                       line 22
+        insert [x | v] in M^C                                            line 23
+        delta = r + gamma V' - v                                         line 24
+        e_i = 1 for i in K_+(x) (K(x) and the inserted sample), else lambda gamma e_i   line 26
+        V_i <- V_i + alpha_c delta e_i for every sample i                line 27
 
     Args:
       memory: the critic memory M^C, samples [x | V] (output_dim 1); its ``backend`` decides whether

@@ -19,7 +19,7 @@ class Exploration:
 
     The other steps are greedy (``Delta u = 0``). Step ``k`` of a trial is *scheduled* to explore when
     ``k % period == phase``; with the defaults, steps 0, 3, 6, ... explore, each with N(0, 1), in
-    every trial: the paper's setting. Two extensions (issue 14, study 4; the paper has neither):
+    every trial: the paper's setting. Two extensions (not in the paper; docs/studies/):
 
     * **A decaying noise level** (``decay``): the std for learning trial t (t = 0, 1, ... counts the
       learning trials the agent has begun; greedy trials do not count) is

@@ -1,44 +1,9 @@
-"""Model Learning Actor-Critic (MLAC) of Grondman et al., "Efficient Model Learning Methods for
-Actor-Critic Control", IEEE Trans. SMC-B 42(3), 2012.
+"""Model Learning Actor-Critic (MLAC; Grondman et al., IEEE SMC-B 42(3), 2012) and its config.
 
-MLAC learns three LLR memories (section 4 of the RMAC paper describes the memory):
-
-* the actor M^A, samples [x | u], an explicit policy u = pi(x);
-* the critic M^C, samples [x | V], learned by TD(lambda) with eligibility traces on its samples exactly
-  as RMAC's critic (RMAC paper, Algorithm 2 lines 22-28);
-* the process model M^P, samples [x, u | x'], the local model x' = f(x, u) = beta^P [x; u; 1].
-
-What sets MLAC apart from S-AC is the actor update: instead of moving the policy along the
-exploration Delta u weighted by the TD error (S-AC, eq. 4 of the RMAC paper), the actor's samples near
-x_{k-1} move along the gradient of the one-step return Q(x, u) = r(x, u) + gamma V(f(x, u)) with
-respect to u, evaluated at the policy's action u_pi = pi(x_{k-1}):
-
-    dQ/du = gamma (dV/dx at x_hat)^T (df/du at (x_{k-1}, u_pi)) + dr/du(u_pi),
-    x_hat = f(x_{k-1}, u_pi)                                    (the process model's prediction),
-
-so that learning does not rely on exploration alone. df/du is beta^P's u block from the same local fit
-that predicts x_hat; dV/dx is the slope of the critic's local fit at x_hat. Where the policy's action
-is saturated (beyond 0.92 of the half-range), the model's input gain means little: the model term is
-dropped there when it would push the action further out (``saturation_rule``). Per control step k (the
-order of the MLAC algorithm: model, critic, actor, then act):
-
-1. insert [x_{k-1}, u_{k-1} | x_k] in M^P;
-2. V_k = V(x_k); insert [x_{k-1} | V_{k-1}] in M^C; delta_k = r_k + gamma V_k - V_{k-1}; traces 1 on
-   K(x_{k-1}) and the inserted slot, lambda gamma e elsewhere; V_i += alpha_c delta_k e_i;
-3. u_pi = pi(x_{k-1}); insert [x_{k-1} | u_pi] in M^A; the samples K(x_{k-1}) and the inserted one
-   move by alpha_a dQ/du (each kept inside the action bounds);
-4. u_k = pi(x_k) + Delta u_k, saturated.
-
-The reward's action gradient is the one piece of reward knowledge MLAC uses: ``action_cost`` P gives
-dr/du = -2 P u, right for a reward with the term -sum_i P_i u_i^2. It comes from the task
-(``ActionSpace.cost``: dc_pendulum P = 1, two_link_arm 0); 0 drops the term (when the learner
-should not be told). Every other
-choice is a field of :class:`MLACConfig`; docs/mlac.md lists them with what was measured.
-
-Prior knowledge (recorded transitions) seeds the memories through :meth:`Agent.seed_from`.
-
-The module runs a little past 400 lines because its config (112 lines: every field with its
-default, the authors' group's choice and its constraint) stays beside the learner it configures.
+Three LLR memories (section 4 of the RMAC paper): the actor M^A [x | u], the critic M^C [x | V]
+(RMAC's, Algorithm 2 lines 22-28) and the process model M^P [x, u | x']; the actor moves along the
+model's gradient of the one-step return (the steps are in :class:`MLAC`), every open choice is a
+field of :class:`MLACConfig` (docs/mlac.md).
 """
 
 from __future__ import annotations
@@ -125,8 +90,8 @@ class MLACConfig:
     saturation_rule: str = "outward"
     """What the saturation rule drops: only the model term that would push a saturated action
     further out ('outward'; it may still pull the action back in), or df/du entirely ('zero', the
-    authors' group's rule). Measured (docs/mlac.md): the same with action_cost 1; with action_cost 0,
-    'zero' leaves a saturated action no gradient at all, and every experiment stayed saturated."""
+    authors' group's rule). With action_cost 0, 'zero' leaves a saturated action no gradient at all
+    (docs/mlac.md)."""
     model_action: str = "policy"
     """Where the process model is linearised and x_hat predicted: at (x_{k-1}, pi(x_{k-1})), the
     policy's action ('policy', the gradient of the policy's own return), or at (x_{k-1}, u_{k-1}),
@@ -157,7 +122,7 @@ class MLACConfig:
     process_replacement: str = "nearest"
     """Process memory management when full."""
     planning: Planning = Planning()
-    """Simulated transitions in learned models between trials (``agents.planning``, issue 23): the
+    """Simulated transitions in learned models between trials (``agents.planning``): the
     rollouts run this algorithm, step 1 excepted. None by default."""
     replay: Replay = Replay()
     """Replay of stored real trials between trials (``agents.planning``). None by default."""
@@ -204,7 +169,33 @@ class MLACConfig:
 
 
 class MLAC(Agent):
-    """The MLAC learner over a flat state box and a bounded action (see the module docstring).
+    """The MLAC learner over a flat state box and a bounded action.
+
+    What sets MLAC apart from S-AC is the actor update: instead of moving the policy along the
+    exploration Delta u weighted by the TD error (S-AC, eq. 4 of the RMAC paper), the actor's
+    samples near x_{k-1} move along the gradient of the one-step return Q(x, u) = r(x, u) + gamma
+    V(f(x, u))
+    with respect to u, at the policy's action u_pi = pi(x_{k-1})::
+
+        dQ/du = gamma (dV/dx at x_hat)^T (df/du at (x_{k-1}, u_pi)) + dr/du(u_pi),
+        x_hat = f(x_{k-1}, u_pi)                       (the process model's prediction)
+
+    df/du is beta^P's u block from the local fit that predicts x_hat; dV/dx the slope of the
+    critic's local fit at x_hat. Where the policy's action is saturated (``saturation_threshold``),
+    the model term is dropped when it would push the action further out (``saturation_rule``). Per
+    control step k (model, critic, actor, then act):
+
+    1. insert [x_{k-1}, u_{k-1} | x_k] in M^P;
+    2. V_k = V(x_k); insert [x_{k-1} | V_{k-1}] in M^C; delta_k = r_k + gamma V_k - V_{k-1}; traces
+       1 on K(x_{k-1}) and the inserted slot, lambda gamma e elsewhere; V_i += alpha_c delta_k e_i;
+    3. u_pi = pi(x_{k-1}); insert [x_{k-1} | u_pi] in M^A; the samples K(x_{k-1}) and the inserted
+       one move by alpha_a dQ/du (each kept inside the action bounds);
+    4. u_k = pi(x_k) + Delta u_k, saturated.
+
+    The reward's action gradient is the one piece of reward knowledge MLAC uses: ``action_cost`` P
+    gives dr/du = -2 P u, right for a reward with the term -sum_i P_i u_i^2; it comes from the task
+    (``ActionSpace.cost``), and 0 drops the term. Prior knowledge seeds the memories through
+    :meth:`Agent.seed_from`.
 
     Args:
       state_space: the n-dimensional state (periodic dimensions are wrapped in every memory).
@@ -447,7 +438,7 @@ class MLAC(Agent):
         policy: tuple[np.ndarray, np.ndarray] | None,
         terminal: bool = False,
     ) -> float:
-        """Steps 1-3 of the module docstring for canonical states; returns V(x') (0 for a
+        """Steps 1-3 of :class:`MLAC` for canonical states; returns V(x') (0 for a
         ``terminal`` x', whose value the TD error then does not bootstrap from)."""
         if model:  # 1. The process model learns the transition.
             self.process.insert(np.concatenate([x, u]), x_next)

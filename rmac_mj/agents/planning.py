@@ -1,42 +1,9 @@
-"""Planning and experience replay for every learner (issue 23): more learning per real step.
+"""Planning (Dyna) and experience replay for every learner: rehearsal after each real trial.
 
-A learner follows its own algorithm on every real transition (Algorithms 1 and 2, MLAC). With
-planning or replay it also *rehearses* after every real trial, through the same algorithm:
-
-* **Planning** (Dyna, Sutton 1991; the group's GRL ``agent/dyna``): ``Planning.steps`` simulated
-  transitions per real transition of the trial, in rollouts of ``Planning.horizon`` steps. A rollout
-  is a trial the learner runs in a learned model instead of the process: it starts in a state
-  chosen by ``Planning.start``, acts with its own action rule and exploration, and learns from
-  each simulated transition exactly as from a real one (critic, traces, actor or reference model).
-  The next state comes from the :class:`TransitionModel`, an LLR memory of the real transitions
-  [x, u] -> x' kept for prediction (larger than RMAC's and MLAC's process memory, which serves the
-  local inverse and gradient); the reward from the same memory's real rewards [x, u] -> r
-  (``reward='learned'``: the learner still knows no task), or from the task's reward given as prior
-  knowledge (``reward='task'``: -sum_i q_i x_i^2 - sum_j p_j u_j^2 with the task's declared
-  ``StateSpace.cost`` and ``ActionSpace.cost``).
-* **Replay** (Adam, Busoniu and Babuska 2012, "Experience replay for real-time reinforcement
-  learning control"): ``Replay.steps`` updates per real transition from the stored real trials,
-  each with the action that was applied. ``order='backward'`` replays a stored trial from its last
-  transition to its first, each transition on its own (traces reset: a TD(0)-like update that
-  carries a reward back along the whole trial in one pass); ``'forward'`` replays it as the trial
-  it was, traces and all, which is what the real updates did.
-
-What keeps model errors from being learned as truth: simulated transitions never enter any model
-(the learner's own process model included: the learner is told it is rehearsing, see
-``RehearsedLearner.set_rehearsing``), so the models hold only what the process did; and a predicted state
-is kept inside the task's nominal box (``Planning.clip``), where an extrapolating local fit
-cannot carry a rollout off to speeds no real trial reached. docs/planning.md has the
-measurements behind each default.
-
-Planning and replay run after the real trial's last transition is learned (``Agent.stop``), so
-the real trial's bookkeeping (traces, previous state and action) is never disturbed, and their
-budget is counted in real transitions of that trial. Simulated and replayed trials draw their
-exploration noise from the learner's generator and do not count as learning trials (a decaying
-exploration or learning rate reads the real trial's index). With ``steps = 0`` for both, nothing
-here runs and the learner is bit for bit the one without it.
-
-Two back ends compute the same thing: the model's prediction goes through the compiled LLR
-interface (``backend='numba'``, one call per simulated step) or the numpy version.
+:class:`Planning` runs simulated rollouts in a learned :class:`TransitionModel`, :class:`Replay`
+replays stored real trials; both drive the learner's own algorithm through the
+:class:`RehearsedLearner` interface (:class:`Rehearsal`). With ``steps = 0`` for both nothing here
+runs and the learner is bit for bit the one without it.
 """
 
 from __future__ import annotations
@@ -55,7 +22,18 @@ from rmac_mj.constraints import Boolean, InstanceOf, Interval, Options, check_co
 
 @dataclasses.dataclass(frozen=True)
 class Planning:
-    """Dyna-style planning in learned models (module docstring). 0 steps: none (the paper)."""
+    """Dyna-style planning in learned models (Sutton 1991; GRL's ``agent/dyna``). 0 steps: none (the
+    paper).
+
+    ``steps`` simulated transitions per real transition of the trial, in rollouts of ``horizon``
+    steps. A rollout is a trial the learner runs in a learned model instead of the process: it
+    starts in a state chosen by ``start``, acts with its own action rule and exploration, and learns
+    from each simulated transition exactly as from a real one. The next state comes from the
+    :class:`TransitionModel`, an LLR memory of the real transitions [x, u] -> x' kept for
+    prediction; the reward from the same memory's real rewards (``reward='learned'``: the learner
+    still knows no task) or from the task's declared costs (``reward='task'``: -sum_i q_i x_i^2 -
+    sum_j p_j u_j^2 with ``StateSpace.cost`` and ``ActionSpace.cost``).
+    """
 
     steps: int = 0
     """Simulated transitions per real transition, run after each real trial."""
@@ -111,7 +89,14 @@ class Planning:
 
 @dataclasses.dataclass(frozen=True)
 class Replay:
-    """Experience replay of stored real trials (module docstring). 0 steps: none (the paper)."""
+    """Experience replay of stored real trials (Adam, Busoniu and Babuska 2012). 0 steps: none (the
+    paper).
+
+    ``steps`` updates per real transition from the stored real trials, each with the action that was
+    applied. ``order='backward'`` replays a stored trial from its last transition to its first, each
+    on its own (traces reset: a TD(0)-like update that carries a reward back along the whole trial
+    in one pass); ``'forward'`` replays it as the trial it was, traces and all.
+    """
 
     steps: int = 0
     """Replayed transitions per real transition, run after each real trial."""
@@ -303,7 +288,15 @@ class Rehearsal:
 
     The learner's boundary (``Agent.start/step/stop``) shows it every real transition
     (:meth:`begin`, :meth:`record`); after the trial, :meth:`after_trial` replays and plans through
-    the learner's :class:`RehearsedLearner` interface (module docstring).
+    the learner's :class:`RehearsedLearner` interface.
+
+    Simulated transitions never enter any model (the learner is told it is rehearsing, see
+    ``RehearsedLearner.set_rehearsing``), so the models hold only what the process did; a predicted
+    state is kept inside the task's nominal box (``Planning.clip``). The rehearsal runs after the
+    real trial's last transition is learned (``Agent.stop``), so the real trial's bookkeeping is
+    never disturbed, and its budget is counted in real transitions of that trial. Simulated and
+    replayed trials draw their exploration noise from the learner's generator and do not count as
+    learning trials. The model's prediction runs compiled (``backend='numba'``) or in numpy.
 
     Learned state: the :class:`TransitionModel` (``model``, with planning), the stored trials
     (with replay) and the running trial's record.
@@ -362,7 +355,7 @@ class Rehearsal:
 
     # -- between trials ----------------------------------------------------------------------------
     def after_trial(self, agent: RehearsedLearner) -> None:
-        """Replay, then plan, with the real trial just ended (module docstring)."""
+        """Replay, then plan, with the real trial just ended."""
         steps = len(self._rewards)
         if steps == 0:
             return

@@ -1,8 +1,9 @@
-"""The learner to pick for a new task: S-AC (Algorithm 1) with Dyna planning in its learned local
-linear models (:mod:`rmac_mj.agents.planning`), every default in the task's own units
-(:func:`rmac_mj.agents.task_knowledge.with_task_units`), and optionally acting by a one-step
-lookahead in the learned model, u = argmax_u r(x, u) + gamma V(f(x, u)), the critic as its terminal
-value. docs/new-task.md has what it costs and what it reached."""
+"""The learner to pick for a new task: S-AC (Algorithm 1) with Dyna planning.
+
+Every default is in the task's own units (:func:`rmac_mj.agents.task_knowledge.with_task_units`);
+optionally it acts by a one-step lookahead in the learned model, u = argmax_u r(x, u) + gamma V(f(x,
+u)), the critic as its terminal value (docs/new-task.md).
+"""
 
 from __future__ import annotations
 
@@ -49,7 +50,8 @@ class RecommendedConfig(StandardACConfig):
 
 
 class Recommended(StandardActorCritic):
-    """S-AC with planning (module docstring); the same interface and state as :class:`StandardActorCritic`."""
+    """S-AC with planning (:class:`RecommendedConfig`); interface and state as
+    :class:`StandardActorCritic`."""
 
     name = "recommended"
     display_name = "S-AC + planning"

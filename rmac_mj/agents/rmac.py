@@ -1,29 +1,9 @@
 """Reference Model Actor-Critic (RMAC): section 5 and Algorithm 2 of Grondman et al.
 
-RMAC has no explicit actor. It learns three LLR memories (section 4):
-
-* the process model M^P, samples [x, u | x'], giving the local model x' = beta^P [x; u; 1];
-* the reference model M^R, samples [x | x_hat], mapping a state to the desired next state R(x);
-* the critic M^C, samples [x | V] (an :class:`~rmac_mj.agents.critic.LLRCritic`, shared with MLAC).
-
-The action is the least-squares inverse of the local process model for the desired state,
-u_k = f^-1(x_k, R(x_k)) (+ exploration). The reference model is moved towards the best reachable state
-x_r: the vertex of the reachable set (all 2^m combinations of action extremes applied to the local
-process model) with the highest value under the critic's local linear model. The critic learns by
-TD(lambda) with eligibility traces on its memory samples.
-
-Every choice the paper leaves open is a field of :class:`~rmac_mj.agents.rmac_config.RMACConfig`;
-docs/rmac.md lists them with what was measured for each. Two back ends compute the same thing:
-``backend='numpy'`` is the readable reference below, written line by line after Algorithm 2;
-``backend='numba'`` runs the same steps in the compiled kernels of :mod:`rmac_mj.agents._rmac_kernels`
-(the learner must cost at most about two ``env.step`` calls). ``learn`` (:meth:`Agent.learn`) is one
-transition's update (lines 13-28), the same for a real transition and a simulated one (which leaves
-the process model alone). The memories are used only through their public interface:
-``LLRMemory``'s methods here, its compiled counterparts (``llr_nearest``, ...) on
-``LLRMemory.kernel_state`` there.
-
-The module runs past 400 lines because it keeps the readable reference of every step of Algorithm 2
-(act, learn, the reachable rules) beside the dispatch to the compiled twin, to be read against it.
+No explicit actor: three LLR memories (section 4), the process model M^P [x, u | x'], the reference
+model M^R [x | x_hat] and the critic M^C [x | V]; u_k = f^-1(x_k, R(x_k)) (+ exploration). The numpy
+path here follows Algorithm 2 line by line; ``backend='numba'`` runs the same steps in
+:mod:`rmac_mj.agents._rmac_kernels`; the open choices are fields of :class:`RMACConfig`.
 """
 
 from __future__ import annotations
@@ -56,6 +36,14 @@ INV_PHI = (5.0**0.5 - 1.0) / 2.0
 
 class RMAC(Agent):
     """The RMAC learner (Algorithm 2) over a flat state box and a bounded action.
+
+    The action is the least-squares inverse of the local process model x' = beta^P [x; u; 1] for the
+    desired state, u_k = f^-1(x_k, R(x_k)) (+ exploration). The reference model is moved towards the
+    best reachable state x_r: the vertex of the reachable set (all 2^m combinations of action
+    extremes applied to the local process model) with the highest value under the critic's local
+    linear model. The critic (:class:`~rmac_mj.agents.critic.LLRCritic`, shared with MLAC) learns by
+    TD(lambda). ``learn`` (:meth:`Agent.learn`) is one transition's update (lines 13-28), the same
+    for a real and a simulated transition (which leaves the process model alone).
 
     Args:
       state_space: the n-dimensional state (periodic dimensions are wrapped in every memory).

@@ -1,6 +1,8 @@
-"""The hyperparameters of RMAC (:class:`RMACConfig`): the paper's values (section 6.2, Table 2) as
-defaults, then every choice the paper leaves open as a named field (docs/rmac.md lists them with what
-was measured for each), their constraints declared once (:mod:`rmac_mj.constraints`)."""
+"""RMAC's hyperparameters (:class:`RMACConfig`), the paper's (section 6.2, Table 2) as defaults.
+
+Every choice the paper leaves open is a named field (docs/rmac.md), the constraints declared once
+(:mod:`rmac_mj.constraints`).
+"""
 
 from __future__ import annotations
 
@@ -82,20 +84,17 @@ class RMACConfig:
     """1- or 2-norm of the weighted input difference in all memories (section 4 allows both)."""
     conditioning: str = "ridge"
     """How the local least-squares fits are conditioned: 'ridge' (``ridge`` on the slopes, as GRL),
-    'svd' (truncated SVD, ``rcond``) or 'none' (pseudo-inverse). Measured (docs/rmac.md): the three
-    end within noise of each other; unclipped and unconditioned fits give outlier early trials."""
+    'svd' (truncated SVD, ``rcond``) or 'none' (pseudo-inverse); docs/rmac.md compares them."""
     rcond: float = 0.01
     """Relative singular value cutoff for conditioning='svd'."""
     ridge: float = 1e-3
-    """Ridge term for conditioning='ridge', in weighted input units squared (1e-4 and 1e-2 were
-    measured no better)."""
+    """Ridge term for conditioning='ridge', in weighted input units squared."""
     critic_clip: bool = True
     """Clip critic predictions to the range of the neighbours' values (as GRL does); keeps the values
     sane when a fit extrapolates."""
     reference_clip: bool = True
     """Clip reference predictions to the range of the neighbours' desired states, so that no desired
-    state lies beyond those once found reachable. Measured no different within noise; kept as a
-    safeguard (docs/rmac.md)."""
+    state lies beyond those once found reachable; a safeguard (docs/rmac.md)."""
     process_clip: bool = False
     """Clip process model predictions to the neighbours' next states."""
     critic_replacement: str = "nearest"
@@ -109,7 +108,7 @@ class RMACConfig:
     critic_redundancy: str = "distance"
     """What the critic's redundancy score measures under critic_replacement='redundancy':
     'distance' (a sample close to new samples is redundant) or 'misfit' (a sample its local model
-    predicts well is redundant). Issue 14's account of the authors' code: distance for the critic
+    predicts well is redundant). As the authors' code is described: distance for the critic
     and reference memories, whose outputs move while learning (a misfit measured now says little
     about the sample later); the squared misfit for the process memory, whose samples are fixed
     observations of the dynamics."""
@@ -164,12 +163,12 @@ class RMACConfig:
     upright is a fit to the last ~20 bang-bang targets and the greedy policy's resting angle is
     redrawn every trial (docs/studies/upright-offset.md); below 1 each sample averages its targets,
     as the critic inserts its estimate V_{k-1} (line 23) and lets TD move it. 0 inserts R(x_{k-1})
-    unmoved: measured, the reference then never learns a swing-up."""
+    unmoved (docs/studies/upright-offset.md)."""
     initial_value: str = "critic"
     """V_0 of a trial (line 2): the critic's estimate V(x_0) ('critic'; 0 on the empty memory) or the
     literal 0 every trial ('zero')."""
     planning: Planning = Planning()
-    """Simulated transitions in learned models between trials (``agents.planning``, issue 23): the
+    """Simulated transitions in learned models between trials (``agents.planning``): the
     rollouts run this algorithm, line 14 excepted. Paper: none."""
     replay: Replay = Replay()
     """Replay of stored real trials between trials (``agents.planning``). Paper: none."""

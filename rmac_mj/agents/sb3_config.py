@@ -1,7 +1,7 @@
-"""The deep-RL baselines' hyperparameters: Stable-Baselines3's defaults (stable-baselines3 2.9),
-each checked by one constraint table (:mod:`rmac_mj.constraints`), and whether the baselines can run.
+"""The deep-RL baselines' hyperparameters (Stable-Baselines3's defaults); can they run.
 
-The configs import without torch; the learners are in :mod:`rmac_mj.agents.sb3`.
+Each config is checked by one constraint table (:mod:`rmac_mj.constraints`) and imports without
+torch; the learners are in :mod:`rmac_mj.agents.sb3`.
 """
 
 from __future__ import annotations

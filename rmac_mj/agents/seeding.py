@@ -1,8 +1,8 @@
-"""Prior knowledge (section 7): what every learner that takes recorded transitions shares.
+"""Prior knowledge (section 7): recorded transitions into a learner's memories.
 
-``Agent.seed_from`` checks the transitions (:func:`check_transitions`) and hands them to the learner,
-which turns them into memory samples (returns-to-go: :func:`discounted_returns`) and fills its
-memories (:func:`seed_memory`).
+``Agent.seed_from`` checks the transitions (:func:`check_transitions`); the learner turns them into
+memory samples (returns-to-go: :func:`discounted_returns`) and fills its memories
+(:func:`seed_memory`).
 """
 
 from __future__ import annotations

@@ -1,6 +1,8 @@
-"""The spaces a learner sees: a flat state box (:class:`StateSpace`) and a bounded action
-(:class:`ActionSpace`), with the task's default input weightings and its reward's costs. Agents know
-no particular task; everything they know of one comes through these two."""
+"""What a learner sees of a task: a state box (:class:`StateSpace`), an :class:`ActionSpace`.
+
+Both carry the task's default input weightings and its reward's costs; a learner knows nothing else
+of the task.
+"""
 
 from __future__ import annotations
 

@@ -1,36 +1,8 @@
-"""S-AC: the standard actor-critic baseline of the paper (section 3, Algorithm 1, section 6.1).
+"""S-AC, the paper's standard actor-critic (section 3, Algorithm 1, section 6.1), and its config.
 
-Critic V(x, theta) and actor pi(x, vartheta) are both linear in tile-coding features
-(:mod:`rmac_mj.approximators.tile_coding`). Per control step k (Algorithm 1):
-
-* line 6:  Delta u_k, Gaussian noise every ``exploration.period``-th step, else 0 (section 6.1);
-* line 8:  u_k = pi(x_k, vartheta_{k-1}) + Delta u_k, saturated to the action bounds;
-* line 10: delta_k = r_k + gamma V(x_k, theta_{k-1}) - V(x_{k-1}, theta_{k-1})                  (eq. 2);
-* line 11: replacing traces, e(tiles of x_{k-1}) = 1, all others decay by lambda * gamma;
-* line 12: theta_k = theta_{k-1} + alpha_c delta_k sum_x dV/dtheta(x) e_k(x)                  (eq. 3);
-* line 13: vartheta_k = vartheta_{k-1} + alpha_a delta_k Delta u_{k-1} dpi/dvartheta(x_{k-1}) (eq. 4).
-
-Choices where the paper is silent or ambiguous (each a :class:`StandardACConfig` field or documented here,
-and measured in docs/standard-ac.md):
-
-* **Whose trace is set (line 11).** Algorithm 1 writes e_k(x_k) = 1, but delta_k is the TD error of
-  x_{k-1} (eq. 2) and eq. 3 updates V at x_{k-1}; setting the trace of x_k would credit a state for an
-  error it has not yet made. The trace of the state being updated, x_{k-1}, is set to 1, which is
-  Sutton and Barto's TD(lambda) with replacing traces and reduces to eq. 3 for lambda = 0.
-* **Learning rate per tiling or split** (``rate_split``). With tile coding dV/dtheta is 1 on each of
-  the T active tiles, so a step of alpha on every active weight moves V(x) by T * alpha. ``"both"``
-  divides alpha_c and alpha_a by T (each update moves V(x) and pi(x) by the paper's alpha), ``"actor"``
-  only alpha_a, ``"none"`` applies both in full to every weight.
-* **The exploration in eq. 4** is the perturbation actually applied, u_{k-1} - pi(x_{k-1}) after
-  saturation: noise that the bounds cut off was not tried, so it is not credited.
-* **The actor's output stays within the action bounds**: pi(x) is read saturated, and an actor update
-  never pushes pi(x_{k-1}) beyond a bound (it may move it back inside).
-* **End of a trial** (``stop``): a trial that ends on a time limit bootstraps its last TD error
-  from V(x_K) like every other; one that ends in a terminal state (``stop(..., terminal=True)``, an
-  environment's termination) takes V(x_K) = 0.
-* **Finite traces** (paper footnote 1): traces are kept only for tiles whose trace is at least
-  ``trace_cutoff``; the others are exactly 0. With lambda gamma = 0.63 and the default 1e-5 that is the
-  last ~25 states.
+Critic V(x, theta) and actor pi(x, vartheta) are linear in tile-coding features
+(:mod:`rmac_mj.approximators.tile_coding`); :class:`StandardActorCritic` maps each step to Algorithm
+1's lines (eqs. 2-4) and lists the choices the paper leaves open (docs/standard-ac.md).
 """
 
 from __future__ import annotations
@@ -232,6 +204,33 @@ def _learn_numba(
 
 class StandardActorCritic(Agent):
     """Standard actor-critic (Algorithm 1) with tile-coded actor and critic.
+
+    Per control step k:
+
+    * line 6:  Delta u_k, Gaussian noise every ``exploration.period``-th step, else 0 (section 6.1);
+    * line 8:  u_k = pi(x_k, vartheta_{k-1}) + Delta u_k, saturated to the action bounds;
+    * line 10: delta_k = r_k + gamma V(x_k, theta_{k-1}) - V(x_{k-1}, theta_{k-1})          (eq. 2);
+    * line 11: replacing traces, e(tiles of x_{k-1}) = 1, all others decay by lambda * gamma;
+    * line 12: theta_k = theta_{k-1} + alpha_c delta_k sum_x dV/dtheta(x) e_k(x)           (eq. 3);
+    * line 13: vartheta_k = vartheta_{k-1} + alpha_a delta_k Delta u_{k-1} dpi/dvartheta(x_{k-1})
+      (eq. 4).
+
+    Where the paper is silent or ambiguous:
+
+    * **Whose trace is set (line 11).** Algorithm 1 writes e_k(x_k) = 1, but delta_k is the TD error
+      of x_{k-1} (eq. 2) and eq. 3 updates V at x_{k-1}; the trace of x_{k-1} is set to 1, Sutton
+      and Barto's TD(lambda) with replacing traces, which reduces to eq. 3 for lambda = 0.
+    * **Learning rate per tiling or split** (``rate_split``): dV/dtheta is 1 on each of the T active
+      tiles, so a step of alpha on every active weight moves V(x) by T alpha. ``"both"`` divides
+      alpha_c and alpha_a by T, ``"actor"`` only alpha_a, ``"none"`` applies both in full.
+    * **The exploration in eq. 4** is the perturbation actually applied, u_{k-1} - pi(x_{k-1}) after
+      saturation: noise that the bounds cut off was not tried, so it is not credited.
+    * **The actor's output stays within the action bounds**: pi(x) is read saturated, and an actor
+      update never pushes pi(x_{k-1}) beyond a bound (it may move it back inside).
+    * **End of a trial** (``stop``): a time limit bootstraps the last TD error from V(x_K); a
+      terminal state (``stop(..., terminal=True)``) takes V(x_K) = 0.
+    * **Finite traces** (footnote 1): traces below ``trace_cutoff`` are exactly 0 (with lambda gamma
+      = 0.63 and the default 1e-5: the last ~25 states).
 
     Args:
       state_space: the task's nominal state box (n dimensions).

@@ -1,8 +1,9 @@
-"""What a learner's config takes from the task, for the fields left None: the default input
-weightings of its LLR memories, the reward's action cost, and every default set for the paper's
-pendulum carried to the task's own units (its control step, action range, reward scale and
-dimensions: :func:`with_task_units`). The resolved config is the one the learner keeps, so results
-record the values actually used."""
+"""What a learner's config takes from the task for the fields left None.
+
+The default input weightings of its LLR memories, the reward's action cost, and every default set
+for the paper's pendulum carried to the task's own units (:func:`with_task_units`). The resolved
+config is the one the learner keeps, so results record the values used.
+"""
 
 from __future__ import annotations
 

@@ -1,63 +1,10 @@
-"""Numba kernels of Local Linear Regression on one memory (the fast path of
-:class:`rmac_mj.approximators.llr.LLRMemory`; the distances and the selection of neighbours are in
-``_llr_search``, the local fit in ``_llr_fit``).
+"""Numba kernels of LLR on one memory: the fast path of :class:`~.llr.LLRMemory`.
 
-Every function follows the numpy version (``llr_numpy``, ``LLRMemory``'s numpy back end) step by
-step, so the two back ends give the same neighbours and, up to rounding, the same local models;
-``tests/approximators/test_llr.py`` cross-checks them.
-
-A memory is passed to compiled code as an :class:`LLRState`, a numba structref whose named fields are
-the memory's own arrays (shared with ``LLRMemory``, so compiled updates change the memory), its
-settings and its scratch space. It is made from two named records, :class:`LLRArrays` and
-:class:`LLRSettings`:
-
-======================  ============================================================================
-``Xt``                  (n, N) inputs, stored by dimension so that the distance loop runs over
-                        contiguous memory and vectorises (5x faster than row-wise here); periodic
-                        inputs are kept in [-period/2, period/2)
-``Y``                   (N, m) outputs
-``stamp``               (N,) int64 insertion times
-``counters``            int64 (3,): ``counters[COUNT]`` samples stored, ``counters[CLOCK]`` the next
-                        stamp, ``counters[VERSION]`` changes to the inputs (any insert, fit, reset or
-                        load), so that a neighbour list can tell whether it is still current; read
-                        them with :func:`size` and :func:`version`
-``redundancy``          (N,) redundancy score of each sample (higher: more redundant), kept only
-                        under ``REPLACE_REDUNDANCY`` (see ``insert_among``)
-``weights``             (n,) input weights of the distance and of the regression
-``in_period``           (n,) period of each periodic input, 0 elsewhere
-``out_period``          (m,) period of each periodic output, 0 elsewhere
-``n_neighbours``        K
-``norm``                1 or 2
-``clip``                clip predictions to the neighbours' output range
-``replacement``         ``REPLACE_OLDEST``, ``REPLACE_NEAREST`` or ``REPLACE_REDUNDANCY``
-``eig_cutoff``          relative eigenvalue cutoff of the normal matrix (see ``_llr_fit.fit``)
-``ridge``               ridge added to the slopes' diagonal
-``measure``             ``MEASURE_DISTANCE`` or ``MEASURE_MISFIT``: what the redundancy measures
-``smoothing``           eta, the exponential smoothing factor of the scores
-``dist``, ``best``,     scratch space of the neighbour search: (N,) distances, (K+1,) the distances
-``seen``, ``lanes``     of a list, (N,) flags (all False between searches), (L,) lane minima
-``last_point``          (n,) where the last search was made, ``last_nearest`` the nearest sample
-                        it found (-1: none) and ``last_version`` the memory's version then
-``kept_*``              the neighbour lists the memory keeps (:func:`nearest`): ``kept_idx``
-                        (KEPT, K+1), ``kept_dist`` (KEPT, K+1), ``kept_count`` (KEPT,) entries
-                        (-1: none), ``kept_version`` (KEPT,), ``kept_point`` (KEPT, n),
-                        ``kept_used`` (KEPT,) when each was last asked for, on the clock
-                        ``kept_clock``; a new search replaces the least recently used
-======================  ============================================================================
-
-Kept neighbour lists. A learner comes back to the points it visits: RMAC asks for K(x_k) when it acts
-in x_k and again one step later, when x_k has become x_{k-1} and the memory has taken one insertion.
-:func:`nearest` keeps the K+1 nearest samples of the ``KEPT`` points it was last asked about, and every
-insertion carries each kept list across itself (:func:`refresh`: the replaced sample leaves, the new
-one is placed by its distance, every other sample keeps its distance), which gives exactly the list
-a new search would (docs/performance.md); a list that can no longer vouch for K entries, or whose
-memory changed otherwise (a fit, a reset, a load), is searched again. So a caller asks for K(x)
-wherever the algorithm needs it and never sees the caching. :func:`query` is the one-shot search and
-fit (a greedy action, a candidate's value), which keeps nothing; :func:`insert` takes the nearest
-sample from the last search when that was made at the same point on the memory as it is.
-
-The kernels run a little past 400 lines because the kept lists and the searches they replace
-must be read together to see that they give the same neighbours.
+Each follows the numpy reference (``llr_numpy``) step by step, so both back ends give the same
+neighbours and, up to rounding, the same local models (``tests/approximators/test_llr.py``). A
+memory is an :class:`LLRState` (fields listed there); :func:`nearest` keeps neighbour lists across
+insertions, :func:`query` is the one-shot search and fit. Search: ``_llr_search``; fit:
+``_llr_fit``.
 """
 
 from __future__ import annotations
@@ -82,12 +29,12 @@ COUNT, CLOCK, VERSION = 0, 1, 2
 #: that a search out of turn (the first state of a trial, a simulated transition) does not evict them.
 KEPT = 3
 
-#: The memory's own arrays (see the module docstring), shared with ``LLRMemory``.
+#: The memory's own arrays (see :class:`LLRState`), shared with ``LLRMemory``.
 LLRArrays = collections.namedtuple(
     "LLRArrays",
     ["Xt", "Y", "stamp", "counters", "redundancy", "weights", "in_period", "out_period"],
 )
-#: The memory's settings (see the module docstring).
+#: The memory's settings (see :class:`LLRState`).
 LLRSettings = collections.namedtuple(
     "LLRSettings",
     ["n_neighbours", "norm", "clip", "replacement", "eig_cutoff", "ridge", "measure", "smoothing"],
@@ -106,9 +53,45 @@ class LLRStateType(types.StructRef):
 
 
 class LLRState(structref.StructRefProxy):
-    """A memory's arrays and settings, named, for compiled code (fields: see the module docstring).
+    """A memory's arrays and settings, named, for compiled code.
 
-    Made by :func:`new_state`; opaque to Python (read the arrays through the owning ``LLRMemory``).
+    Made by :func:`new_state` from :class:`LLRArrays` and :class:`LLRSettings`; opaque to Python
+    (read the arrays through the owning ``LLRMemory``). Fields:
+
+    ======================  ========================================================================
+    ``Xt``                  (n, N) inputs, stored by dimension so that the distance loop runs over
+                            contiguous memory and vectorises; periodic inputs are kept in
+                            [-period/2, period/2)
+    ``Y``                   (N, m) outputs
+    ``stamp``               (N,) int64 insertion times
+    ``counters``            int64 (3,): ``counters[COUNT]`` samples stored, ``counters[CLOCK]`` the
+                            next stamp, ``counters[VERSION]`` changes to the inputs (any insert,
+                            fit, reset or load), so that a neighbour list can tell whether it is
+                            still current; read them with :func:`size` and :func:`version`
+    ``redundancy``          (N,) redundancy score of each sample (higher: more redundant), kept only
+                            under ``REPLACE_REDUNDANCY`` (see ``insert_among``)
+    ``weights``             (n,) input weights of the distance and of the regression
+    ``in_period``           (n,) period of each periodic input, 0 elsewhere
+    ``out_period``          (m,) period of each periodic output, 0 elsewhere
+    ``n_neighbours``        K
+    ``norm``                1 or 2
+    ``clip``                clip predictions to the neighbours' output range
+    ``replacement``         ``REPLACE_OLDEST``, ``REPLACE_NEAREST`` or ``REPLACE_REDUNDANCY``
+    ``eig_cutoff``          relative eigenvalue cutoff of the normal matrix (see ``_llr_fit.fit``)
+    ``ridge``               ridge added to the slopes' diagonal
+    ``measure``             ``MEASURE_DISTANCE`` or ``MEASURE_MISFIT``: what the redundancy measures
+    ``smoothing``           eta, the exponential smoothing factor of the scores
+    ``dist``, ``best``,     scratch space of the neighbour search: (N,) distances, (K+1,) the
+    ``seen``, ``lanes``     distances of a list, (N,) flags (all False between searches), (L,) lane
+                            minima
+    ``last_point``          (n,) where the last search was made, ``last_nearest`` the nearest sample
+                            it found (-1: none) and ``last_version`` the memory's version then
+    ``kept_*``              the neighbour lists the memory keeps (:func:`nearest`): ``kept_idx``
+                            (KEPT, K+1), ``kept_dist`` (KEPT, K+1), ``kept_count`` (KEPT,) entries
+                            (-1: none), ``kept_version`` (KEPT,), ``kept_point`` (KEPT, n),
+                            ``kept_used`` (KEPT,) when each was last asked for, on the clock
+                            ``kept_clock``; a new search replaces the least recently used
+    ======================  ========================================================================
     """
 
 
@@ -318,9 +301,18 @@ def _kept_at(state, xq):
 @njit(cache=True)
 def nearest(state, xq):
     """K(xq) for a canonical xq, nearest first: ``(indices, how many)``, exactly what a new search
-    gives. The list is kept for a later call at xq and carried across insertions (module
-    docstring). The indices are a view of the kept list: copy them to keep them past the next
-    change of the memory."""
+    gives. The indices are a view of the kept list: copy them to keep them past the next change of
+    the memory.
+
+    A learner comes back to the points it visits: RMAC asks for K(x_k) when it acts in x_k and again
+    one step later, when x_k has become x_{k-1} and the memory has taken one insertion. The K+1
+    nearest samples of the ``KEPT`` points last asked about are kept, and every insertion carries
+    each kept list across itself (:func:`refresh`: the replaced sample leaves, the new one is placed
+    by its distance, every other sample keeps its distance), which gives exactly the list a new
+    search would (docs/performance.md); a list that can no longer vouch for K entries, or whose
+    memory changed otherwise (a fit, a reset, a load), is searched again. :func:`insert` takes the
+    nearest sample from the last search when that was made at the same point on the memory as it
+    is."""
     c = _kept_at(state, xq)
     if c < 0:
         c = int(np.argmin(state.kept_used))  # the least recently used list gives way

@@ -1,6 +1,8 @@
-"""Numba kernels of the redundancy scores of ``replacement='redundancy'`` (the equations and our
-choices in them: :mod:`rmac_mj.approximators.llr_numpy`; the numpy version is
-``LLRMemory``'s numpy path). They read an ``LLRState``'s fields and write its ``redundancy``."""
+"""Numba kernels of the redundancy scores of ``replacement='redundancy'``.
+
+The equations are in ``LLRMemory``'s docstring; the numpy version is ``LLRMemory``'s numpy path.
+They read an ``LLRState``'s fields and write its ``redundancy``.
+"""
 
 from __future__ import annotations
 

@@ -1,11 +1,9 @@
-"""Numba kernels of LLR's geometry: wrapping periodic inputs, weighted distances and the selection
-of the K nearest samples (the fast path of ``search_numpy`` in
-:mod:`rmac_mj.approximators.llr_numpy`, which these follow step by step: same distance, same
-tie-breaking by index, as a stable sort).
+"""Numba kernels of LLR's geometry: periodic wrapping, weighted distances, the K nearest.
 
-Inputs are stored by dimension (``Xt``, shape (n, N)) so that the distance loop runs over contiguous
-memory and vectorises; the selection bounds the K-th distance first (from seeds, or from the
-minima of interleaved lanes) and skips every block of 16 distances above it.
+The fast path of ``search_numpy`` (:mod:`rmac_mj.approximators.llr_numpy`), step by step: same
+distance, same tie-breaking by index. Inputs are stored by dimension (``Xt``, (n, N)); the selection
+bounds the K-th distance first (from seeds, or from the minima of interleaved lanes) and skips every
+block of 16 distances above it.
 """
 
 from __future__ import annotations

@@ -1,62 +1,9 @@
-"""Local Linear Regression (LLR), section 4 of Grondman et al.
+"""Local Linear Regression (section 4): :class:`LLRMemory` and its compiled interface.
 
-A memory holds at most N samples s_i = [x_i | y_i], x_i in R^n, y_i in R^m. A query x_q selects the K
-nearest samples K(x_q) under a weighted distance, fits the affine model y = beta [x; 1] to them by
-least squares (minimum-norm when under-determined) and predicts y_q = beta [x_q; 1].
-
-Where the paper is silent, the choice is a constructor parameter (defaults in brackets):
-
-* ``norm`` [1]: 1- or 2-norm of the weighted input difference. The 1-norm is what the authors'
-  group's code uses; the ordering of neighbours is all that depends on it.
-* ``input_period`` [none periodic]: per input, the period of a periodic input (an angle: 2 pi) or 0.
-  Differences of periodic inputs are wrapped to [-period/2, period/2) both in the distance and in
-  the regression, so angles near +pi and -pi are neighbours and one affine model spans the seam.
-  ``output_period`` does the same for outputs (a desired or next angle): the neighbours' outputs are
-  unwrapped around the nearest one's before fitting, so predictions of periodic outputs may leave the
-  nominal range by up to half a period; callers wrap what they compare.
-* ``conditioning`` ['svd'] and ``rcond`` [0.01]: the K neighbours along a past trajectory lie almost on
-  a line, and the plain least-squares fit then extrapolates wildly (a trial here drove the critic's
-  values positive). The fit is made in the weighted, query-centred input space and singular values
-  below ``rcond`` times the largest are dropped ('svd', a truncated SVD); 'ridge' adds ``ridge`` to the
-  slopes' diagonal instead (as TU Delft's GRL does); 'none' is the plain pseudo-inverse.
-* ``clip`` [False]: clip each prediction to the range of its neighbours' outputs (GRL does this).
-* ``replacement`` ['nearest']: when the memory is full, a new sample replaces either the stored sample
-  most redundant with it, its nearest neighbour ('nearest'), the oldest sample ('oldest'), or the
-  sample with the highest redundancy score ('redundancy', below). The paper leaves memory management
-  open (section 7); replacing the oldest made RMAC's critic forget all but the last ~20 trials and
-  degrade late, replacing the nearest did not.
-* ``redundancy`` ['distance'] and ``redundancy_smoothing`` [0.1]: the score of
-  ``replacement='redundancy'``, the scheme issue 14 describes of the authors' code (a redundancy score
-  per sample, smoothed over the insertions near it; the squared model misfit for the process memory,
-  the distance for the others). Its equations and our choices in it are in
-  :mod:`rmac_mj.approximators.llr_numpy`.
-* A query on an empty memory predicts 0 with beta = 0 (Algorithm 2 line 2: V_0 = 0, beta^P = 0).
-
-Two back ends give the same results: ``backend='numba'`` (compiled kernels in ``_llr_kernels``,
-``_llr_search`` and ``_llr_fit``) and ``backend='numpy'`` (the readable reference:
-:mod:`~rmac_mj.approximators.llr_numpy` and this class's numpy paths). Compiled brute force finds
-the 20 nearest of 2000 samples in about 3 us and needs nothing rebuilt when samples change; scipy's
-cKDTree took 32 us per query and 720 us per rebuild here (measured; a memory changes every control
-step).
-
-Compiled interface. A learner whose own step is compiled with numba (RMAC) works on a memory through
-``LLRMemory.kernel_state``, an :class:`LLRState` (a numba structref naming the memory's arrays and
-settings), and the compiled functions exported here, each taking the state first:
-
-* ``llr_nearest(state, xq) -> (indices, k)``: K(xq), kept for the learner's return to xq and carried
-  across insertions (``_llr_kernels`` explains the kept lists), so a point is searched once however
-  often the algorithm asks; ``llr_local_fit(state, xq) -> LocalFit``: the local model from it;
-* ``llr_query``: a one-shot search and fit that keeps nothing (a greedy action, a candidate's value);
-* ``llr_fit_at``: the local model from given neighbours; ``llr_insert`` and ``llr_insert_among`` (an
-  insertion given the new sample's neighbours); ``llr_move_outputs``, ``llr_add_weighted``;
-* ``llr_size``: the number of samples; ``llr_canonical`` and ``wrap_scalar``: wrapping.
-
-``LLR_STATE_TYPE`` is the numba type of the state, for a learner's own structref fields.
-
-This module is the one class a learner uses, with its constraints and its compiled interface; it
-runs past 400 lines because ``LLRMemory`` keeps every operation's checked boundary, its numpy
-reference and its dispatch to the kernels side by side, so that the two back ends can be read
-against each other.
+A memory holds at most N samples [x | y]; a query x_q fits the affine model y = beta [x; 1] to its K
+nearest samples K(x_q) and predicts y_q = beta [x_q; 1]. The choices the paper leaves open are
+:class:`LLRMemory` parameters; compiled learners use ``LLRMemory.kernel_state`` (an ``LLRState``)
+with the ``llr_*`` functions below, each taking the state first.
 """
 
 from __future__ import annotations
@@ -78,7 +25,7 @@ from rmac_mj.approximators.llr_numpy import (
 )
 from rmac_mj.constraints import WEIGHTS, Boolean, Field, Interval, Options, TupleOf, check
 
-#: The compiled interface (see the module docstring): the functions take an LLRState first;
+#: The compiled interface: the functions take an LLRState first (``_llr_kernels`` has the details);
 #: ``wrap_scalar(d, period)`` is ``wrap`` for one number, for compiled callers.
 llr_nearest = _k.nearest
 llr_local_fit = _k.local_fit
@@ -141,7 +88,7 @@ class LLRMemory:
       conditioning: 'svd', 'ridge' or 'none'; rcond, ridge: their parameters.
       clip: clip predictions to the neighbours' output range.
       replacement: 'nearest', 'oldest' or 'redundancy'.
-      redundancy: the score of 'redundancy' replacement, 'distance' or 'misfit' (module docstring).
+      redundancy: the score of 'redundancy' replacement, 'distance' or 'misfit' (below).
       redundancy_smoothing: eta in (0, 1], the exponential smoothing factor of the scores.
       backend: 'numba' (compiled kernels) or 'numpy' (the readable reference); same results.
 
@@ -149,6 +96,39 @@ class LLRMemory:
     ``stamp_`` (N,), the insertion time of each sample, and ``redundancy_`` (N,), each sample's
     redundancy score (kept under 'redundancy' replacement only, 0 otherwise). ``kernel_state``
     names the same arrays for compiled code.
+
+    Where the paper is silent (defaults in brackets):
+
+    * ``norm`` [1]: 1- or 2-norm of the weighted input difference (the authors' group's code uses
+      the 1-norm); only the ordering of neighbours depends on it.
+    * ``input_period``: differences of periodic inputs are wrapped to [-period/2, period/2) in the
+      distance and in the regression, so angles near +pi and -pi are neighbours and one affine model
+      spans the seam. ``output_period``: the neighbours' outputs are unwrapped around the nearest
+      one's before fitting, so predictions may leave the nominal range by up to half a period;
+      callers wrap what they compare.
+    * ``conditioning`` ['svd'], ``rcond`` [0.01]: neighbours along a past trajectory lie almost on a
+      line, where a plain least-squares fit extrapolates wildly. The fit is made in the weighted,
+      query-centred input space; 'svd' drops singular values below ``rcond`` times the largest,
+      'ridge' adds ``ridge`` to the slopes' diagonal (as TU Delft's GRL does), 'none' is the
+      pseudo-inverse.
+    * ``clip`` [False]: clip each prediction to its neighbours' output range (GRL does this).
+    * ``replacement`` ['nearest']: a full memory replaces the new sample's nearest neighbour (the
+      most redundant with it), the oldest sample, or the sample of highest redundancy score.
+    * A query on an empty memory predicts 0 with beta = 0 (Algorithm 2 line 2: V_0 = 0, beta^P = 0).
+
+    Redundancy replacement (``redundancy``, ``redundancy_smoothing``), the scheme described of the
+    authors' code, with its details our own choices. Every sample i carries a score rho_i (higher:
+    more redundant). When [x_* | y_*] is inserted, with K(x_*) its K nearest stored samples, each
+    neighbour's score is smoothed towards a measure c_i, rho_i <- (1 - eta) rho_i + eta c_i for i in
+    K(x_*), and the new sample starts from its neighbourhood's level, rho_* = (1 - eta) mean_{i in
+    K(x_*)} rho_i + eta c_* (0 on an empty memory). 'distance': c_i = -d(x_i, x_*), c_* = -min_i
+    d(x_i, x_*); 'misfit': one affine model fitted at x_* to the new sample and its neighbours, c_j
+    = -|wrap(y_j - y_hat(x_j))|^2 for all of them (a sample its neighbourhood's model predicts well
+    is redundant). Once full, the new sample replaces the stored sample of highest score (first of
+    equals), after the neighbours' scores are updated; the new sample itself is always stored.
+    Scores change only on insertion (queries leave the memory unchanged); ``fit`` scores each sample
+    by its own measure among the others. eta = 0.1 averages a score over roughly its last ten
+    neighbourhood events.
     """
 
     def __init__(
@@ -369,7 +349,7 @@ class LLRMemory:
         self._counters[:2] = (s, s)
         self._counters[_k.VERSION] += 1
         if self.replacement == "redundancy":
-            # Each sample scored as if inserted last, among the others (module docstring).
+            # Each sample scored as if inserted last, among the others (LLRMemory's docstring).
             X_, Y_ = self.X_[:s], self.Y_[:s]
             for i in range(s):
                 others = np.delete(np.arange(s), i)
@@ -554,7 +534,7 @@ class LLRMemory:
         x = self._canonical(x)
         own = 0.0
         if self.replacement == "redundancy":
-            # rho_i <- (1 - eta) rho_i + eta c_i over K(x) (module docstring).
+            # rho_i <- (1 - eta) rho_i + eta c_i over K(x) (LLRMemory's docstring).
             idx = search_numpy(self.X_[:count], x, self._w, self._pin, self.norm, self.n_neighbours)
             neg_c = self._measures(x, y, idx)
             eta = float(self.redundancy_smoothing)

@@ -1,45 +1,9 @@
-"""Local Linear Regression in plain numpy: the readable reference of :mod:`rmac_mj.approximators.llr`
-(``LLRMemory(backend='numpy')``), which the compiled kernels (``_llr_search``, ``_llr_fit``,
-``_llr_kernels``) follow step by step.
+"""Local Linear Regression in plain numpy: the readable reference that the compiled kernels follow.
 
-The search (:func:`search_numpy`) orders samples by the weighted distance, ties by index as a
-stable sort; the fit (:func:`fit_numpy`) is the affine least-squares model of the neighbours in
-the weighted, query-centred input space, conditioned as the memory says. Redundancy scores (the
-``replacement='redundancy'`` rule) are measured by :func:`distance_numpy` and
-:func:`misfit_numpy`:
-
-``redundancy`` ['distance'] and ``redundancy_smoothing`` [0.1]: the score of
-  ``replacement='redundancy'``, the scheme issue 14 describes of the authors' code (a redundancy
-  score per sample, smoothed over updates; the squared model misfit for the process memory, the
-  distance for the others). Its details are our own choices, made precise here. Every sample i
-  carries a score rho_i (higher: more redundant). When a sample [x_* | y_*] is inserted, with K(x_*)
-  its K nearest stored samples (before the insertion), each neighbour's score is smoothed
-  exponentially towards a redundancy measure c_i,
-
-      rho_i <- (1 - eta) rho_i + eta c_i            for i in K(x_*),   eta = redundancy_smoothing,
-
-  and the new sample starts from its neighbourhood's level with one such step towards its own
-  measure, rho_* = (1 - eta) mean_{i in K(x_*)} rho_i + eta c_* (0 on an empty memory). The measures:
-
-  - 'distance': c_i = -d(x_i, x_*), the weighted distance of the memory (1- or 2-norm of
-    w * wrap(x_i - x_*)); c_* = -min_i d(x_i, x_*). A sample close to new samples is redundant.
-  - 'misfit': one affine model is fitted (as a query, unclipped) at x_* to the new sample and its
-    neighbours, and c_j = -e_j^2 with e_j^2 = |wrap(y_j - y_hat(x_j))|^2 its squared residual, for
-    the neighbours and for the new sample alike. A sample the local model of its neighbourhood
-    predicts well adds little and is redundant; one it misfits holds information (a bend of the
-    function, or noise: this measure keeps outliers, which the process memory's deterministic
-    dynamics make rare).
-
-  Once full, the new sample replaces the stored sample of highest score (first of equals), after
-  its neighbours' scores have been updated; the new sample itself is always stored. Our choices:
-  scores change only on insertion (a query leaves the memory unchanged, so greedy trials and
-  plots do not alter what is forgotten); the new sample's start above (a first version started it
-  at c_* itself: a new sample is then judged by its single nearest distance or its own misfit while
-  the others' scores are averages, so it was nearly always the most redundant, the next sample
-  replaced it, and the memories stopped taking in new states: RMAC got stuck in 5 of 10
-  experiments, docs/studies/memory-management.md); ``fit`` scores each given sample by its own
-  measure among the others (c_i as if inserted last). eta = 0.1 averages a score over roughly its
-  last ten neighbourhood events.
+:func:`search_numpy` orders samples by the weighted distance (ties by index, a stable sort);
+:func:`fit_numpy` is the affine least-squares model of the neighbours in the weighted, query-centred
+input space; :func:`distance_numpy` and :func:`misfit_numpy` are the redundancy measures
+(``LLRMemory``'s docstring has their equations).
 """
 
 from __future__ import annotations

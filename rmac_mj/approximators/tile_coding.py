@@ -1,27 +1,9 @@
-"""Tile coding (Sutton and Barto, 1998, section 8.3.2) and a linear approximator on top of it.
+"""Tile coding (Sutton and Barto 1998, 8.3.2) and a linear approximator on it (section 6.1).
 
-Section 6.1 of the paper: "16 partitions, each consisting of a uniform grid of 7 x 7 tiles [...]
-equidistantly distributed over each dimension of the state space". A *tiling* (the paper's
-partition) is a uniform grid of ``tiles[d]`` tiles along each state dimension ``d`` over
-``[low[d], high[d]]``; tiling ``j`` is the same grid shifted by a fraction ``offset[j, d]`` of one tile
-width. A state activates exactly one tile per tiling, so the binary feature vector has
-``num_tilings`` ones and the linear approximator's value is the sum of the active tiles' weights; its
-gradient with respect to the weights is that indicator vector.
-
-Offsets (``TileCodingConfig.offsets``):
-
-* ``"uniform"`` (Sutton and Barto's displacement): tiling ``j`` is shifted by ``j / T`` of a tile along
-  every dimension, ``T = num_tilings``.
-* ``"grid"``: the tilings form a ``T**(1/n)``-per-dimension grid of shifts (16 tilings in 2-D: a 4 x 4
-  grid of shifts ``(a / 4, b / 4)``), as the authors' group's public code is read.
-
-Range: a periodic dimension (an angle) wraps onto one period ``[low, high)``, and its ``tiles[d]``
-tiles cover it exactly (the shifted grid wraps too). A bounded dimension is clipped to
-``[low, high]`` (states outside are not an error) and gets ``tiles[d] + 1`` tiles per tiling, so that
-the shifted grids still cover the whole range. Non-finite states raise ``ValueError``.
-
-Two back ends compute the same features: ``"numpy"`` (readable reference) and ``"numba"`` (compiled,
-``cache=True``), selected by ``backend``; the tests check that they agree.
+A tiling (the paper's partition) is a uniform grid of ``tiles[d]`` tiles per state dimension over
+``[low, high]``, shifted per tiling (``TileCodingConfig.offsets``); a state activates one tile per
+tiling, so the features are ``num_tilings`` ones and the value is the sum of the active weights.
+Back ends ``"numpy"`` (reference) and ``"numba"`` compute the same features.
 """
 
 from __future__ import annotations
@@ -137,6 +119,11 @@ class TileCoder:
       sizes: ndarray of int of shape (n,), tiles per dimension of one tiling including the extra
         tile of a bounded dimension.
       offsets: ndarray of shape (num_tilings, n), shift of each tiling in tile widths.
+
+    Range: a periodic dimension (an angle) wraps onto one period ``[low, high)``, and its
+    ``tiles[d]`` tiles cover it exactly (the shifted grid wraps too). A bounded dimension is clipped
+    to ``[low, high]`` (states outside are not an error) and gets ``tiles[d] + 1`` tiles per tiling,
+    so that the shifted grids still cover the whole range. Non-finite states raise ``ValueError``.
     """
 
     def __init__(

@@ -1,19 +1,8 @@
-"""``rmac-mj bench``'s planning and replay figures (issue 23): what a rehearsed update costs, and the
-CPU a simulated minute takes as planning and replay grow.
+"""``rmac-mj bench``'s planning and replay figures: CPU per rehearsed update and per minute.
 
-Measured like the rest of the bench (``experiments.bench``): CPU time of the measuring thread, the
-learner's memories full. A learner first learns for 25 trials (2500 steps of dc_pendulum: RMAC's
-and the model's 2000-sample memories full) with one planning and one replay step per real step;
-every measured agent starts from its state (``load_state_dict``), so all settings are timed on the
-same memories.
-
-* One update (``planning_update_us``, ``replay_update_us``): a rehearsal of the last real trial with
-  one update per real transition, divided by the transitions. A planning update is one simulated
-  transition (the model's prediction and the learner's step); a replay update is one stored
-  transition learned (backwards, each on its own: the default order).
-* CPU per simulated minute (``cpu_per_simulated_minute``): real trials with ``steps`` planning
-  (or replay) updates per real step, environment included, in CPU seconds per minute of simulated
-  time; ``steps = 0`` is the learner without either.
+CPU time of the measuring thread on a learner whose memories are full (every setting starts from the
+same learned state, ``load_state_dict``): ``planning_update_us``/``replay_update_us`` per update,
+and ``cpu_per_simulated_minute`` (environment included) at each number of steps per real step.
 """
 
 from __future__ import annotations

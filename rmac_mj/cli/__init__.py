@@ -1,24 +1,7 @@
-"""The rmac-mj command: reproduce the paper's comparison, draw its figures, render videos, benchmark.
+"""The ``rmac-mj`` command: reproduce, sweep, panel, compare, policy, optimal, render, bench.
 
-    rmac-mj reproduce [--domain D --task T | --env SPEC [--learner-state JSON] [--action-repeat N]]
-                      [--experiments 40] [--trials 600] [--evaluate-starts N]
-                      [--algorithms rmac,s-ac] [--seed 0] [--jobs N] [--out DIR] [--resume]
-                      [--evaluate-every N] [--scheduler ADDRESS]
-                      [--prior demo|FILE.npz] [--prior-trials N] [--prior-parts process,...]
-                      [--config FILE.toml]
-    rmac-mj sweep SWEEP.toml --out DIR [--jobs N | --scheduler ADDRESS] [--resume]
-    rmac-mj panel --out DIR [--algorithms ...] [--experiments 5] [--tasks ...] [--resume]
-    rmac-mj compare DIR [DIR ...] [--out STEM]
-    rmac-mj policy SNAPSHOT [SNAPSHOT] [--out STEM] [--dims 0,1] [--xlim LO,HI] [--ylim LO,HI]
-    rmac-mj optimal [--domain D --task T] [--refresh]          (a task of the suite: --env has none)
-    rmac-mj render SNAPSHOT --out episode.mp4 | rmac-mj render --progression DIR --out progression.mp4
-    rmac-mj bench [--domain D --task T | --env SPEC] [--json FILE] [--quick] [--markdown]
-
-``--env SPEC`` runs an outside environment (``rmac_mj.envs``): ``dm_control:DOMAIN/TASK``,
-``gymnasium:ID``, ``package.module:factory`` or ``path/file.py:factory``; ``policy`` and ``render``
-take it too, to act in another environment than a snapshot's own.
-``rmac-mj`` alone prints the commands; ``rmac-mj COMMAND --help`` their options and defaults.
-The options are declared in :mod:`rmac_mj.cli.options`, the commands that run experiments in
+``rmac-mj`` alone prints the commands, ``rmac-mj COMMAND --help`` their options and defaults; the
+options are declared in :mod:`rmac_mj.cli.options`, the commands that run experiments in
 :mod:`rmac_mj.cli.runs`, those that look at results in :mod:`rmac_mj.cli.views`.
 """
 
@@ -48,7 +31,7 @@ _COMMANDS = {
 
 
 def _announcing_compilation(command: str):
-    """Say so when a command starts compiling kernels (the first time only: tens of seconds).
+    """Say so when a command starts compiling kernels (the first time only).
     ``reproduce`` and ``sweep`` say it themselves, as they compile them before starting their workers."""
     if command in (
         "reproduce",

@@ -392,7 +392,7 @@ def build_parser(reproduce_defaults: Mapping[str, Any] | None = None) -> argpars
     panel = command(
         "panel",
         "the public panel (docs/panel.md): six tasks nobody tuned for, every "
-        "learner at equal interaction, against the issue's goals",
+        "learner at equal interaction, against fixed goals",
     )
     panel.add_argument(
         "--out",

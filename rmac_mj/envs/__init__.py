@@ -1,19 +1,10 @@
 """Any environment for the learners: dm-control's suite, Gymnasium, or a factory of the user's.
 
-    from rmac_mj import envs
-    env = envs.load("gymnasium:Pendulum-v1", seed=0)      # x = [atan2(obs[1], obs[0]), obs[2]]
-    env = envs.load("dm_control:cartpole/swingup", seed=0,
-                    learner_state={"low": [-1.8, -3.1416, -5, -20], "high": [1.8, 3.1416, 5, 20]})
-    env = envs.load("my_package.tasks:make_env", kwargs={"mass": 2.0})
-
-The result is a ``dm_env.Environment`` (:class:`Environment`) that the trial loop
-(:func:`rmac_mj.rollout.run_trial`) and the learners use as they use a task of the suite:
-its observation holds the entries of ``env.learner_state.keys``. What x is comes from the
-environment's specs where they say enough (finite bounds; a (cos, sin) pair folded into one periodic
-angle; the trial length from the time limit), otherwise from the user (``learner_state``: a
-``LearnerStateSpec`` or some of its fields); anything still missing or ambiguous is refused in one line
-naming it. Rewards are the environment's; a termination (not a truncation) ends a trial with
-discount 0, so the learner does not bootstrap from the last state.
+``envs.load("gymnasium:Pendulum-v1", seed=0)`` (or ``"dm_control:cartpole/swingup"``,
+``"my_package.tasks:make_env"``) returns an :class:`Environment` that the trial loop drives like a
+task of the suite. x comes from the specs where they say enough, else from ``learner_state``;
+anything missing or ambiguous is refused in one line. A termination (not a truncation) ends a trial
+with discount 0.
 """
 
 from __future__ import annotations

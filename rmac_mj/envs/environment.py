@@ -1,11 +1,9 @@
 """What the trial loop drives: any dm_env environment, its observation mapped to the learner's x.
 
-:class:`Environment` wraps a ``dm_env.Environment`` (dm-control's, a user's, or a Gymnasium one
-through :class:`~rmac_mj.envs.from_gymnasium.GymnasiumEnvironment`). It hands the trial loop
-(:func:`rmac_mj.rollout.run_trial`) what a task of the suite does: an observation whose
-entries are the ``learner_state.keys``, the learner state itself, and the trial's length; and it
-can repeat each action ``action_repeat`` times (rewards summed), the usual way to give a learner a
-longer control step than the environment's.
+:class:`Environment` wraps a ``dm_env.Environment`` (dm-control's, a user's, or a Gymnasium one) and
+gives :func:`rmac_mj.rollout.run_trial` what a task of the suite does: observation entries
+``learner_state.keys``, the learner state, the trial's length, and ``action_repeat`` (rewards
+summed).
 """
 
 from __future__ import annotations

@@ -1,9 +1,8 @@
 """A Gymnasium environment seen through dm_env, the interface of the suite and of the trial loop.
 
-Gymnasium's ``terminated`` becomes a dm_env termination (discount 0: the trial ends and the learner
-does not bootstrap), ``truncated`` a truncation (discount 1: a time limit, the learner bootstraps).
-The first ``reset`` passes the seed; later resets continue the environment's own random stream, so
-a sequence of trials is one seeded stream of starts, as in dm-control.
+``terminated`` becomes a termination (discount 0), ``truncated`` a truncation (discount 1, the
+learner bootstraps); the first ``reset`` passes the seed and later ones continue the environment's
+stream.
 """
 
 from __future__ import annotations

@@ -1,19 +1,9 @@
 """The learner's state x from an environment's observations: entries, (cos, sin) folding, inference.
 
-An environment nobody here wrote gives observations as a dict of arrays (dm_env) or a Box or Dict
-space (Gymnasium). The learners need a flat x with a nominal box and its periodic dimensions, which
-:class:`rmac_mj.tasks.common.LearnerStateSpec` describes; its ``keys`` are *entries*, expressions over
-the raw observation (a Box observation is called ``observation``):
-
-* ``KEY``: the whole entry ``KEY``, flattened (one dimension of x per element);
-* ``KEY[i]``: element i of ``KEY``, one dimension;
-* ``atan2(KEY[j], KEY[i])``: the angle whose sine is ``KEY[j]`` and cosine ``KEY[i]``, one periodic
-  dimension in [-pi, pi).
-
-:func:`infer_learner_state` reads what the specs say (finite bounds) and what the environment shows
-(pairs of elements of one key with sin^2 + cos^2 = 1 on every probed observation, folded into one
-angle), fills in what the user declared, and refuses in one line whatever is still missing or
-ambiguous.
+An entry is ``KEY`` (flattened), ``KEY[i]`` or ``atan2(KEY[j], KEY[i])`` (one periodic dimension in
+[-pi, pi)); :func:`infer_learner_state` reads the specs' bounds, folds (cos, sin) pairs, fills in
+what the user declared (:class:`rmac_mj.tasks.common.LearnerStateSpec`) and refuses what is still
+missing.
 """
 
 from __future__ import annotations
@@ -37,8 +27,7 @@ UNBOUNDED = 1e30
 UNIT_TOLERANCE = 1e-5
 #: A dimension whose spec gives no bounds and that nobody declared gets the range random actions
 #: reach, widened about its centre by this fraction of its half-width on each side: a learned policy
-#: goes faster than random actions (dm-control cartpole: random actions reach 7-10 rad/s of the
-#: pole, a swing-up 15-20).
+#: goes faster than random actions (docs/design-notes.md).
 MEASURED_MARGIN = 0.5
 
 _ELEMENT = re.compile(r"^(?P<key>[^\[\]()]+)\[(?P<index>\d+)\]$")

@@ -1,14 +1,9 @@
 """Where an environment comes from (its SPEC) and how the learners see it (:class:`EnvSpec`).
 
-A SPEC names an environment nobody here wrote:
-
-* ``dm_control:DOMAIN/TASK``: a task of dm-control's suite, ``dm_control.suite.load(DOMAIN, TASK)``;
-* ``gymnasium:ID``: ``gymnasium.make(ID)``, any registered id with a bounded Box action space;
-* ``package.module:factory`` (importable) or ``path/to/file.py:factory``: a function of the user's
-  that returns a ``dm_env.Environment`` or a ``gymnasium.Env``; it is given the ``kwargs``, and the
-  experiment's seed as ``seed=`` when it takes a parameter of that name.
-
-The suite's own tasks stay ``rmac_mj.tasks.load(domain, task)`` (``--domain/--task``).
+A SPEC is ``dm_control:DOMAIN/TASK``, ``gymnasium:ID`` (a bounded Box action space), or
+``package.module:factory`` / ``path/to/file.py:factory`` (returns a ``dm_env.Environment`` or a
+``gymnasium.Env``; given ``kwargs``, and ``seed=`` when it takes one). The suite's own tasks stay
+``rmac_mj.tasks.load(domain, task)``.
 """
 
 from __future__ import annotations
@@ -115,7 +110,7 @@ class EnvSpec:
     """An outside environment and how the learners see it.
 
     Attributes:
-      env: the SPEC (see the module docstring).
+      env: the SPEC (``dm_control:DOMAIN/TASK``, ``gymnasium:ID`` or ``module:factory``).
       kwargs: keyword arguments of the environment: dm-control's ``task_kwargs`` (e.g.
         ``time_limit``; not ``random``, the seed), ``gymnasium.make``'s (e.g. ``g``,
         ``max_episode_steps``), or the factory's.

@@ -1,0 +1,1 @@
+"""Evaluation: learning-curve metrics, statistics across experiments, the report people read."""

@@ -1,14 +1,9 @@
 """Learning-curve metrics: the one place where results are turned into numbers.
 
-``reproduce`` (``summary.json`` and its table), ``sweep`` (``sweep.csv``, its table and figures),
-``compare`` and the study scripts all read their numbers from here, so that "final return" or "the first
-5 minutes" mean one thing everywhere. Curves are ndarrays of shape (experiments, trials) of sums of
-rewards per trial; times are simulated, from the task's trial length (``trial_seconds``).
-
-Estimates across experiments: the mean with a Student-t 95% interval (:func:`confidence_interval`) and
-Welch's t-test between learners (:func:`compare_final_returns`). Other aggregates (robust ones such as
-the interquartile mean, bootstrap intervals) belong here too, beside them, so that every command gets
-them at once.
+``reproduce``, ``sweep``, ``compare`` and the scripts read their numbers here. Curves are ndarrays
+of shape (experiments, trials) of sums of rewards per trial; times are simulated
+(``trial_seconds``). Across experiments: the mean with a Student-t 95% interval
+(:func:`confidence_interval`) and Welch's t-test between learners (:func:`compare_final_returns`).
 """
 
 from __future__ import annotations
@@ -26,7 +21,7 @@ EARLY_MINUTES = 10.0
 #: A shorter early window, for the studies of how fast learning starts (sweeps report it).
 FIRST_MINUTES = 5.0
 #: Fractions of the near-optimal return the mean greedy curve is timed to (``summarise``:
-#: ``greedy_trial_within_20pct`` and ``_10pct``; issue 23: -898 and -823 on the swing-up).
+#: ``greedy_trial_within_20pct`` and ``_10pct``).
 GREEDY_WITHIN = (0.2, 0.1)
 #: Significance level of the end-of-run comparison of learners (two-sided).
 SIGNIFICANCE_LEVEL = 0.05

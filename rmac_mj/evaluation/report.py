@@ -1,6 +1,6 @@
 """What people read at the end of a run: the summary table, the tests between learners, the notes.
 
-The numbers come from :mod:`rmac_mj.evaluation.metrics` (through ``summary.json``); this module only
+The numbers come from :mod:`rmac_mj.evaluation.metrics` (through ``summary.json``); this module
 words them, the same way for ``reproduce``, ``compare`` and ``sweep``.
 """
 

@@ -1,20 +1,9 @@
-"""Evaluation the field trusts: interquartile means, stratified-bootstrap intervals, probability of
-improvement and performance profiles (Agarwal et al., "Deep Reinforcement Learning at the Edge of the
-Statistical Precipice", NeurIPS 2021).
+"""Interquartile means, stratified-bootstrap intervals, improvement probability, profiles.
 
-Scores are one number per learning experiment (e.g. each experiment's final return), higher is
-better. Over several tasks they are a sequence of arrays, one per task: the *strata*. Every interval
-is a percentile bootstrap that resamples experiments within their task (the stratified bootstrap),
-with ``scipy.stats.bootstrap`` (independent resampling of each sample is its ``paired=False``), a
-fixed seed and :data:`N_RESAMPLES` resamples, so a summary is reproducible to the bit. Scores of
-different tasks are pooled as they are: normalise them first (e.g. by a task's near-optimal return)
-when their scales differ.
-
-Why percentile intervals: they are the paper's and its library's (rliable) default, so numbers here
-compare with published ones; BCa's jackknife acceleration is erratic for a trimmed mean of ten
-experiments with ties. Why scipy rather than rliable: rliable's repository was archived in October
-2025, and every estimate here is a few lines over ``scipy.stats.trim_mean`` and
-``scipy.stats.bootstrap``, which are maintained and already a dependency.
+After Agarwal et al., NeurIPS 2021. Scores are one number per experiment (higher is better), one
+array per task (the strata); every interval is a percentile bootstrap within tasks
+(``scipy.stats.bootstrap``, a fixed seed, :data:`N_RESAMPLES`), reproducible to the bit. Normalise
+scores of different scales first.
 """
 
 from __future__ import annotations
@@ -82,7 +71,14 @@ def _bootstrap(
     strata: tuple[np.ndarray, ...], statistic, confidence: float, n_resamples: int, seed: int
 ):
     """The stratified percentile bootstrap interval of ``statistic(*strata, axis)``; NaNs when a
-    stratum has fewer than two experiments (nothing to resample)."""
+    stratum has fewer than two experiments (nothing to resample).
+
+    Percentile intervals are the paper's and its library's (rliable) default, so numbers here
+    compare with published ones; BCa's jackknife acceleration is erratic for a trimmed mean of ten
+    experiments with ties. scipy rather than rliable: rliable's repository was archived in October
+    2025, and every estimate here is a few lines over ``scipy.stats.trim_mean`` and
+    ``scipy.stats.bootstrap``.
+    """
     if min(len(s) for s in strata) < 2:
         return None
     from scipy import stats

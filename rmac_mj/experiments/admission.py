@@ -1,14 +1,9 @@
 """What is checked and prepared before a run's first experiment: nothing runs that cannot finish.
 
-- :func:`resolve_agents`: every learner is built once on the task's spaces, in the driver, so that a
-  bad hyperparameter (input weights of the wrong length) is refused in one line before anything
-  runs, and the resolved configs (None: the task's) are recorded in ``config.json``.
-- :func:`check_memory`: each learner's memory, estimated from its config before anything is
-  allocated, must fit the machine's memory with as many experiments at once as there are workers.
-- :func:`warm_up`: the compiled kernels are compiled (or loaded from numba's cache) in the driver
-  before the workers start, which then load them in about a second.
-
-Each task is asked once per purpose (:class:`TaskFacts` caches what is asked of each distinct task).
+:func:`resolve_agents` builds every learner once on the task's spaces (a bad hyperparameter is
+refused in one line; resolved configs go to ``config.json``), :func:`check_memory` checks the
+learners' memory estimates against the machine's, :func:`warm_up` compiles the kernels in the driver
+before the workers start; :class:`TaskFacts` asks each task once per purpose.
 """
 
 from __future__ import annotations
@@ -164,7 +159,7 @@ def warm_up(protocol: Protocol) -> None:
     learning and one greedy trial of a throw-away agent of each learner, in this process.
 
     Run before the worker processes start, so that they load the compiled kernels from the cache
-    instead of each compiling them at once (tens of seconds the first time, about a second after).
+    instead of each compiling them at once.
     """
     env = protocol.make_environment(task_seed=0)
     for algorithm in protocol.algorithms:

@@ -1,12 +1,9 @@
-"""An unfinished experiment, saved between two trials so that a resumed run continues it.
+"""An unfinished experiment, saved between trials so that a resumed run continues it.
 
-A checkpoint holds everything that decides what experiment i does next: the agent's state dict
-(its random generator included), the random state of its environment's task (dm-control's
-``task.random``, Gymnasium's ``np_random``), the curve so far (returns, environment steps, greedy
-trials) and the time spent. Loaded into a freshly built experiment, it continues bit for bit as the
-uninterrupted experiment would have. Its file, ``OUT/checkpoints/<algorithm>/exp_<iii>.npz``
-(:meth:`~rmac_mj.results.store.ResultStore.checkpoint_path`), is written atomically and removed
-once the experiment's curve is saved.
+A checkpoint holds the agent's state dict (its generator included), the environment task's random
+state, the curve so far and the time spent; ``OUT/checkpoints/<algorithm>/exp_<iii>.npz``
+(:meth:`~rmac_mj.results.store.ResultStore.checkpoint_path`), written atomically and removed once
+the experiment's curve is saved.
 """
 
 from __future__ import annotations

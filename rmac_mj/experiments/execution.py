@@ -1,10 +1,9 @@
 """Where experiments run: in this process, in local worker processes, or on a Dask cluster.
 
-Every back end takes an iterable of work items and a function ``run(item)`` and yields the results in
-the order they finish. Items are drawn from the iterable only as workers become free (a few ahead of
-them), so a plan of any size costs memory and time in proportion to what is running, not to what is
-planned, and the caller learns when each item starts (its ``on_start``). The same seeds give the same
-results on every back end: an experiment's randomness comes from its own seed sequence.
+Every back end takes an iterable of work items and ``run(item)`` and yields results as they finish,
+drawing items only as workers become free (memory in proportion to what runs, not to what is
+planned); an experiment's randomness is its own seed sequence, so every back end gives the same
+results.
 """
 
 from __future__ import annotations

@@ -1,11 +1,9 @@
 """The public panel: six tasks nobody tuned for, each learner at equal interaction, against goals.
 
-Each :class:`PanelTask` is one ``reproduce`` protocol (its budget in trials of a known number of
-environment steps, its greedy evaluations, what a spec cannot say: an action cost, a time step) and
-a goal read from its greedy curve. :func:`run_panel` runs every task's protocol for the chosen
-learners through one worker pool into ``OUT/<task>/``, ordinary result directories that
-``reproduce --resume``, ``compare`` and the scripts read; :func:`panel_rows` scores them (the
-interquartile mean with its stratified-bootstrap interval, :mod:`rmac_mj.evaluation.statistics`).
+Each :class:`PanelTask` is one ``reproduce`` protocol and a goal read from its greedy curve;
+:func:`run_panel` runs them through one worker pool into ``OUT/<task>/`` (ordinary result
+directories), :func:`panel_rows` scores them (the interquartile mean with its stratified-bootstrap
+interval, :mod:`rmac_mj.evaluation.statistics`).
 """
 
 from __future__ import annotations
@@ -23,7 +21,7 @@ from rmac_mj.experiments import runner
 from rmac_mj.experiments.protocol import Protocol
 from rmac_mj.results.store import ResultStore
 
-#: Experiments per learner and task (the issue's "at least 5").
+#: Experiments per learner and task (at least 5, so that the summaries show intervals).
 EXPERIMENTS = 5
 
 
@@ -68,8 +66,9 @@ class PanelTask:
 
 _CARTPOLE = {"learner_state": {"action_cost": [0.0]}, "action_repeat": 5}
 
-#: The panel, with the issue's budgets and goals. Trials end at the task's time limit (none of these
-#: terminates but MountainCar, at its flag), so a budget in trials is one in environment steps.
+#: The panel, with its budgets and goals (docs/panel.md). Trials end at the task's time limit (none
+#: of these terminates but MountainCar, at its flag), so a budget in trials is one in environment
+#: steps.
 TASKS: tuple[PanelTask, ...] = (
     PanelTask(
         "dc_pendulum",

@@ -1,34 +1,8 @@
-"""Prior knowledge (section 7): recorded transitions, their file format, and recording them.
+"""Prior knowledge (section 7): recorded transitions, their ``.npz`` format, recording.
 
-The paper's conclusion says RMAC's memories may start from measurements instead of empty: process
-samples, closed-loop behaviour for the reference model, value estimates for the critic. A
-:class:`Demonstration` is such a recording, and ``Agent.seed_from`` (``rmac_mj.agents``) puts it
-into a learner::
-
-    from rmac_mj import tasks
-    from rmac_mj.experiments import prior_transitions as prior
-    controller = tasks.knowledge(domain, task).demonstrator("demo").controller(env)  # x -> u
-    demo = prior.record(env, controller, trials=5, seed=0, action_noise=0.5)
-    prior.save_demonstration("demo.npz", demo)            # or a user's own logs in the same format
-    agent.seed_from(**prior.load_demonstration("demo.npz").arrays())
-
-File format (``.npz``, read with ``numpy.load(allow_pickle=False)``; exactly these five keys):
-
-=============== ================ ==============================================================
-key             shape, dtype     meaning
-=============== ================ ==============================================================
-``states``      (T, n) float     x_t, the learner's state before transition t
-``actions``     (T, m) float     u_t, the action applied (after saturation) during transition t
-``rewards``     (T,) float       r_{t+1}, the reward of transition t
-``next_states`` (T, n) float     x_{t+1}, the state after transition t
-``trial``       (T,) integer     which recorded trial transition t belongs to, non-decreasing
-=============== ================ ==============================================================
-
-The state is what the agents see (the task's ``learner_state``, ``episode.state_of``: for the
-DC-motor pendulum x = [phi, phi_dot] in rad and rad/s, phi = 0 upright; angles may be unwrapped), the
-action is in the task's units (V). Within a trial the transitions are consecutive in time, so
-``next_states[t] == states[t + 1]`` there; the learners use each transition on its own (only the
-returns-to-go run along a trial), so logs with gaps between trials are fine.
+``record(env, controller, trials, seed)`` records a demonstrator, ``save_demonstration`` and
+``load_demonstration`` write and read the file, and ``Agent.seed_from(**demo.arrays())`` puts it
+into a learner (the paper's conclusion: memories may start from measurements instead of empty).
 """
 
 from __future__ import annotations
@@ -54,7 +28,24 @@ FIELDS = ("states", "actions", "rewards", "next_states", "trial")
 
 @dataclasses.dataclass(frozen=True)
 class Demonstration:
-    """Recorded transitions (see the module docstring for the meaning of each field).
+    """Recorded transitions; the ``.npz`` file (``numpy.load(allow_pickle=False)``) holds exactly
+    these keys:
+
+    =============== ================ ==============================================================
+    key             shape, dtype     meaning
+    =============== ================ ==============================================================
+    ``states``      (T, n) float     x_t, the learner's state before transition t
+    ``actions``     (T, m) float     u_t, the action applied (after saturation) during transition t
+    ``rewards``     (T,) float       r_{t+1}, the reward of transition t
+    ``next_states`` (T, n) float     x_{t+1}, the state after transition t
+    ``trial``       (T,) integer     which recorded trial transition t belongs to, non-decreasing
+    =============== ================ ==============================================================
+
+    The state is what the agents see (the task's ``learner_state``: for the DC-motor pendulum x =
+    [phi, phi_dot] in rad and rad/s, phi = 0 upright; angles may be unwrapped), the action is in the
+    task's units (V). Within a trial ``next_states[t] == states[t + 1]``; the learners use each
+    transition on its own (only the returns-to-go run along a trial), so gaps between trials are
+    fine.
 
     Attributes:
       states: ndarray of shape (T, n).

@@ -1,7 +1,7 @@
-"""The progress display of a run (or of a sweep's runs): trials done, rate, time left, recent returns.
+"""The progress display of a run or a sweep: trials done, rate, time left, recent returns.
 
 Workers stream every trial to their experiment's live log (``ResultStore.progress_path``);
-:class:`TrialFeed` follows those logs for the experiments in flight and feeds :class:`Progress`.
+:class:`TrialFeed` follows those logs and feeds :class:`Progress`.
 """
 
 from __future__ import annotations

@@ -1,25 +1,9 @@
-"""What is run: the protocol of the paper's comparison (section 6), and one learning experiment of it.
+"""What is run: the paper's protocol (section 6, :class:`Protocol`) and one experiment of it.
 
-A *learning experiment* is one agent learning for ``trials`` consecutive trials of a task (the paper's:
-3 s swing-ups of the DC-motor pendulum from [pi, 0]; any registered ``domain``/``task`` runs the same
-way); the protocol repeats it ``experiments`` times per algorithm with independent seeds.
-
-Seeding: experiment i of every algorithm draws its agent's stream from
-``SeedSequence(seed, spawn_key=(i,))``, which equals ``SeedSequence(seed).spawn(n)[i]``, and its task's
-seed from that sequence's child ``(i, 0)``. The results therefore do not depend on the number of
-workers, on the order of completion, or on resuming.
-
-Prior knowledge (``Protocol.prior``): each experiment's fresh agent is seeded before its first trial,
-either from ``prior_trials`` trials of a named demonstrator of the task recorded for that experiment
-from the sequence ``(i, 1)`` (the same demonstration for every learner of experiment i), or from one
-recorded file (``experiments.prior``) that the driver reads and checks once.
-
-:func:`build_experiment` assembles experiment i (environment, agent, prior knowledge) and
-:func:`run_experiment` runs it; a script that replays or extends an experiment builds it the same way.
-
-The module runs past 400 lines because :class:`Protocol` declares every field once, with its
-constraint, its documentation and its check against the task, and the experiment is built here
-from the same fields.
+Experiment i draws its agent's stream from ``SeedSequence(seed, spawn_key=(i,))`` (=
+``SeedSequence(seed).spawn(n)[i]``), its task's seed from child ``(i, 0)`` and its demonstration
+from ``(i, 1)``, so results do not depend on workers, completion order or resuming.
+:func:`build_experiment` assembles experiment i, :func:`run_experiment` runs it.
 """
 
 from __future__ import annotations

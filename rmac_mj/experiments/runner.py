@@ -1,11 +1,9 @@
 """The driver: run protocols into result directories, experiments in parallel, then summarise.
 
-Experiments are independent, so they run in worker processes or on a Dask cluster
-(:mod:`rmac_mj.experiments.execution`); each returns its results and the driver saves them as they
-arrive (:class:`~rmac_mj.results.store.ResultStore`), so an interrupted run loses only the
-experiments in flight and ``resume`` finishes the rest with identical results. Several runs (a sweep)
-share one pool. Once a run's last experiment is saved it is summarised: ``returns.csv``, Fig. 2 and
-``summary.json`` (:mod:`rmac_mj.evaluation.metrics`).
+Experiments run in worker processes or on a Dask cluster (:mod:`rmac_mj.experiments.execution`); the
+driver saves each as it arrives (:class:`~rmac_mj.results.store.ResultStore`), so an interrupted run
+loses only the experiments in flight and ``resume`` finishes the rest with identical results; a
+finished run is summarised (``returns.csv``, Fig. 2, ``summary.json``).
 """
 
 from __future__ import annotations

@@ -1,0 +1,1 @@
+"""Figures drawn from saved results and snapshots (the paper's Figs. 2-4, performance profiles)."""

@@ -1,8 +1,7 @@
-"""Figures of results: learning curves (the paper's Fig. 2) and performance profiles.
+"""Figures of results from ``summary.json``: learning curves (Fig. 2), performance profiles.
 
-Figures are drawn from saved results (``summary.json``), never by retraining.
-Nothing here knows a particular task: the trial length comes from the summary, learner names from the
-agents. The policy and critic maps (Figs. 3, 4) are in :mod:`rmac_mj.figures.policy_plots`.
+Never by retraining; nothing here knows a particular task (the trial length comes from the summary,
+learner names from the agents). Figs. 3 and 4 are :mod:`rmac_mj.figures.policy_plots`.
 """
 
 from __future__ import annotations

@@ -1,0 +1,1 @@
+"""The result directory: its layout and store, integrity checks, snapshots, atomic files."""

@@ -1,10 +1,9 @@
 """Whether a result directory can be trusted: its lock, and the checks of what it holds.
 
-:class:`~rmac_mj.results.store.ResultStore` uses these: a run holds an exclusive lock on its
-directory for as long as it writes there (:class:`DirectoryLock`: ``flock`` on ``OUT/.lock``, released
-by the system when the process ends, however it ends), and a resumed run trusts a saved experiment only
-when its files are whole and are what the directory's config says they are (:func:`curve_problem`,
-:func:`snapshot_problem`); the others are run again.
+A run holds an exclusive ``flock`` on ``OUT/.lock`` while it writes (:class:`DirectoryLock`,
+released by the system however the process ends); a resumed run trusts a saved experiment only when
+its files are whole and match the directory's config (:func:`curve_problem`,
+:func:`snapshot_problem`).
 """
 
 from __future__ import annotations

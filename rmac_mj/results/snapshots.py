@@ -1,9 +1,9 @@
 """Agent snapshots: one ``.npz`` file, readable with ``numpy.load(path, allow_pickle=False)``.
 
-A snapshot holds the agent's learned state (``Agent.state_dict``, one array per key, prefixed
-``agent/``) and a JSON document ``meta`` (a 0-d unicode array) with the algorithm, its hyperparameters,
-the task it learned on and where in the experiment it was taken. No pickle: opening a snapshot someone
-sent you cannot run code. :func:`snapshot_environment` is the environment a snapshot's agent acts in.
+The agent's learned state (``Agent.state_dict``, keys prefixed ``agent/``) and a JSON ``meta`` (a
+0-d unicode array: algorithm, hyperparameters, task, where in the experiment); no pickle, so opening
+a snapshot cannot run code. :func:`snapshot_environment` is the environment a snapshot's agent acts
+in.
 """
 
 from __future__ import annotations

@@ -1,19 +1,9 @@
-"""The result directory of a run: its layout, and every read and write of it.
+"""The result directory of a run (:class:`ResultStore`): its layout, and every read and write of it.
 
-    OUT/config.json                              what was run (protocol, code version, provenance)
-    OUT/curves/<algorithm>/exp_<iii>.npz         an experiment's results; its presence marks it done
-    OUT/snapshots/<algorithm>/exp_<iii>/trial_<tttt>.npz   the agent after that trial
-    OUT/progress/<algorithm>/exp_<iii>.csv       the live trial log of a running experiment
-    OUT/checkpoints/<algorithm>/exp_<iii>.npz    an unfinished experiment, to continue from
-    OUT/returns.csv, summary.json, fig2_learning_curves.{png,pdf}, wall_times.json
-    OUT/performance_profiles.{png,pdf}
-
-:class:`ResultStore` owns this layout: the runner, the sweep, rendering, ``compare`` and the scripts
-read and write through it, never by building paths themselves. Files are written atomically
-(:mod:`rmac_mj.results.files`), an experiment's snapshots before its curve, so a killed run leaves
-only whole files and an experiment counts as done only once everything it wrote is in place. A run
-holds the directory's lock while it writes (``OUT/.lock``), and a resumed run checks every saved
-experiment against the config before trusting it (:mod:`rmac_mj.results.integrity`).
+The runner, the sweep, rendering, ``compare`` and the scripts go through it, never building paths
+themselves. Files are written atomically (:mod:`rmac_mj.results.files`), an experiment's snapshots
+before its curve, so a killed run leaves only whole files; the lock and the resume checks are
+:mod:`rmac_mj.results.integrity`.
 """
 
 from __future__ import annotations
@@ -146,7 +136,20 @@ def _experiment_name(index: int) -> str:
 
 
 class ResultStore:
-    """One result directory (see the module docstring); ``root`` need not exist yet."""
+    """One result directory; ``root`` need not exist yet. Its layout::
+
+        OUT/config.json                              what was run (protocol, code, provenance)
+        OUT/curves/<algorithm>/exp_<iii>.npz         an experiment's results; marks it done
+        OUT/snapshots/<algorithm>/exp_<iii>/trial_<tttt>.npz   the agent after that trial
+        OUT/progress/<algorithm>/exp_<iii>.csv       the live trial log of a running experiment
+        OUT/checkpoints/<algorithm>/exp_<iii>.npz    an unfinished experiment, to continue from
+        OUT/returns.csv, summary.json, fig2_learning_curves.{png,pdf}, wall_times.json
+        OUT/performance_profiles.{png,pdf}
+
+    An experiment counts as done only once everything it wrote is in place; a run holds
+    ``OUT/.lock`` while it writes, and a resumed run checks every saved experiment against the
+    config.
+    """
 
     def __init__(self, root: str | os.PathLike):
         self.root = pathlib.Path(root)

@@ -1,10 +1,8 @@
-"""The exploration floor: the near-optimal policy's return per trial while it explores as a learner does.
+"""The exploration floor: the near-optimal policy's return while it explores as learners do.
 
-During learning every ``period``-th step gets N(0, sigma^2) noise added to the action (section 6.1:
-sigma = 1 V every third step). Even the near-optimal policy (the dynamic programme's greedy policy,
-:mod:`rmac_mj.solvers.dynamic_programming`) loses reward under that noise, so an exploring learning curve is
-judged against this floor, a greedy trial against the near-optimal return. Cached like the optimum,
-keyed by the DP's key and the schedule.
+Under section 6.1's noise (sigma = 1 V every third step) even the dynamic programme's greedy policy
+loses reward, so an exploring learning curve is judged against this floor, a greedy trial against
+the near-optimal return. Cached like the optimum, keyed by the DP's key and the schedule.
 """
 
 from __future__ import annotations

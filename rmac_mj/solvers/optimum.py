@@ -1,20 +1,9 @@
-"""The near-optimal return per trial of a task: the line the learners are measured against.
+"""The near-optimal return per trial of a task: the line the learners are judged against.
 
-A task declares how its reference is computed (``rmac_mj.tasks.knowledge(domain, task).optimum``, a
-``tasks.common.Reference``: a solver's name and the settings the task needs); this module holds the
-solvers by name, computes a reference once and caches it:
-
-- ``"dynamic programming"``: a grid DP of a one-joint task (:mod:`rmac_mj.solvers.dynamic_programming`), which
-  also gives the *exploration floor*, the near-optimal policy's return while exploring as a learner does;
-- ``"trajectory optimisation"``: iLQR from several starts (:mod:`rmac_mj.solvers.trajopt`), for any
-  deterministic task of the suite.
-
-Both read the whole problem (model, horizon, reward, start) from the task's environment
-(:mod:`rmac_mj.solvers.problem`). A run's optimum is the task's with its default task_kwargs: a changed reward or start is another problem,
-and an environment from outside the suite declares none.
-
-    from rmac_mj.solvers.optimum import optimum_return
-    optimum_return(domain, task)    # solves once, then reads the cache
+A task declares its solver (``rmac_mj.tasks.knowledge(domain, task).optimum``); this module holds
+the solvers by name (``"dynamic programming"``: :mod:`rmac_mj.solvers.dynamic_programming`,
+``"trajectory optimisation"``: :mod:`rmac_mj.solvers.trajopt`), computes a task's return once with
+its default task_kwargs and caches it: ``optimum_return(domain, task)``.
 """
 
 from __future__ import annotations

@@ -1,9 +1,8 @@
-"""What every near-optimal solver shares: the trial read from the environment, the cache's keys and
-directory, and progress lines.
+"""What every near-optimal solver shares: the trial from the environment, cache keys and dir.
 
 A solver's problem is the task's own trial (model, horizon, reward, start: :class:`TrialProblem`),
-named for the caches by :func:`problem_identity` and hashed by :func:`problem_digest`; a result is
-cached under :func:`cache_key` (the problem, the solver's settings, the solver's version).
+named by :func:`problem_identity` and hashed by :func:`problem_digest`; a result is cached under
+:func:`cache_key` (problem, solver settings, solver version).
 """
 
 from __future__ import annotations

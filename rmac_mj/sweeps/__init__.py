@@ -1,0 +1,1 @@
+"""Sweeps: TOML sweep files, their grid of ``reproduce`` runs, and their figures."""

@@ -1,12 +1,9 @@
-"""Sweeps: every configuration of a sweep file (:mod:`rmac_mj.sweeps.sweep_file`) run as a
-``reproduce`` result directory, all through one worker pool or Dask cluster.
+"""Sweeps: each configuration of a sweep file run as a ``reproduce`` directory, in one pool.
 
-Configuration ``name`` is run into ``OUT/<name>/``; ``OUT/sweep.json`` is the index (file,
-configurations, directories). Every configuration uses the same seeds, so configurations differ only
-by their settings (common random numbers: differences between them are paired). ``OUT/sweep.csv`` has
-one row per configuration and learner (:data:`COLUMNS`, every number from the configuration's
-``summary.json``, see :mod:`rmac_mj.evaluation.metrics`) and ``OUT/sweep_<metric>.png`` plots each
-metric against each swept parameter (:func:`rmac_mj.sweeps.figure.plot_sweep`).
+Configuration ``name`` runs into ``OUT/<name>/`` with the same seeds as the others (common random
+numbers: differences are paired); ``OUT/sweep.json`` is the index, ``OUT/sweep.csv`` one row per
+configuration and learner (:data:`COLUMNS`, from each ``summary.json``), ``OUT/sweep_<metric>.png``
+the figures (:func:`rmac_mj.sweeps.figure.plot_sweep`).
 """
 
 from __future__ import annotations

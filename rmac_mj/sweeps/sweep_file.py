@@ -1,31 +1,9 @@
 """Sweep and ``reproduce --config`` files: TOML read and validated before anything runs.
 
-A sweep file is TOML with three tables::
-
-    [protocol]                  # any Protocol option, plus fixed hyperparameters "ALGO.FIELD"
-    algorithms = ["rmac"]
-    experiments = 10
-    evaluate_every = 10
-    [grid]                      # every combination of these values
-    "rmac.alpha_r" = [0.005, 0.01, 0.02]
-    "rmac.critic_weights" = [[1, 0.1], [1, 0.3]]
-    [[variant]]                 # optional: named sets of overrides, crossed with the grid
-    name = "oldest"
-    "rmac.critic_replacement" = "oldest"
-
-The [protocol] options are the fields of :class:`~rmac_mj.experiments.protocol.Protocol` (but
-``agent_configs``, which the hyperparameter keys make up). Hyperparameter keys are ``ALGO.FIELD`` with
-nested fields allowed (``rmac.exploration.sigma``); they name fields of the learner's config dataclass
-(:func:`rmac_mj.agents.config_class`). The whole file is validated before anything runs: an unknown
-section or key, a value of the wrong type, an unknown algorithm or hyperparameter, or a value the
-config rejects raises :class:`SweepFileError` (a :class:`~rmac_mj.errors.UserInputError`, one line
-naming the key).
-
-Each configuration (variant x grid point) is a Protocol, named after its swept values
-(``alpha_r=0.01__critic_weights=1,0.1``); a ``--config`` file is the same tables with single values.
-
-Most of the module is the checker (:class:`_Checker`), whose every message names the file and the
-key; it and the file's reading are one concern, which is why the module runs past 400 lines.
+Tables ``[protocol]`` (:class:`~rmac_mj.experiments.protocol.Protocol` options and fixed
+``ALGO.FIELD`` hyperparameters), ``[grid]`` (every combination) and ``[[variant]]`` (named overrides
+crossed with the grid; the format is in :func:`load_sweep`). Any bad section, key or value raises
+:class:`SweepFileError`, one line naming the file and the key.
 """
 
 from __future__ import annotations
@@ -151,6 +129,21 @@ def read_toml(path: str | pathlib.Path) -> dict[str, Any]:
 
 def load_sweep(path: str | pathlib.Path, announce: Callable[[str], None] | None = None) -> Sweep:
     """Read and validate a sweep file; raise :class:`SweepFileError` naming the first bad key.
+
+    A sweep file::
+
+        [protocol]                  # any Protocol option, plus fixed hyperparameters "ALGO.FIELD"
+        algorithms = ["rmac"] experiments = 10 evaluate_every = 10
+        [grid]                      # every combination of these values
+        "rmac.alpha_r" = [0.005, 0.01, 0.02] "rmac.critic_weights" = [[1, 0.1], [1, 0.3]]
+        [[variant]]                 # optional: named sets of overrides, crossed with the grid
+        name = "oldest" "rmac.critic_replacement" = "oldest"
+
+    Hyperparameter keys name fields of the learner's config dataclass, nested fields allowed
+    (``rmac.exploration.sigma``); ``agent_configs`` is made up from them. Each configuration
+    (variant x grid point) is a Protocol named after its swept values
+    (``alpha_r=0.01__critic_weights=1,0.1``); a ``--config`` file is the same tables with single
+    values.
 
     ``announce`` hears the sweep's size (configurations, experiments) as soon as it is known, before
     every configuration is built and checked (seconds for a large grid)."""

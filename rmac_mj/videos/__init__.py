@@ -1,0 +1,1 @@
+"""Videos: off-screen rendered episodes, encoding, and videos of a result directory."""

@@ -1,16 +1,10 @@
 """Off-screen rendered episodes: frames of greedy episodes with an overlay, pictures of models.
 
-The renderer is ``mujoco.Renderer`` on the back end chosen by ``rmac_mj._gl`` (EGL, then OSMesa, on a
-machine without a display); it is closed after every episode so nothing is left to tear down at exit. Any task of the suite
-renders: the overlay reads the state and action labels from the task's ``learner_state``.
-
-    from rmac_mj import tasks
-    from rmac_mj.videos import render, encode as video
-    episode = render.render_episode(tasks.load(domain, task), agent, frames_per_step=3)
-    video.write_video(episode.frames, "episode.mp4", fps=episode.fps)
-
-Composing clips and writing files is :mod:`rmac_mj.videos.encode`'s; videos of a result
-directory's snapshots are :mod:`rmac_mj.videos.result_videos`'.
+``mujoco.Renderer`` on the back end ``rmac_mj._gl`` chose, closed after every episode; the overlay
+reads state and action labels from the task's ``learner_state``, so any task of the suite renders:
+``render_episode(tasks.load(domain, task), agent, frames_per_step=3).frames`` (T, H, W, 3) uint8.
+Encoding is :mod:`rmac_mj.videos.encode`'s, a result directory's videos
+:mod:`rmac_mj.videos.result_videos`'.
 """
 
 from __future__ import annotations
