@@ -1,9 +1,8 @@
 """MuJoCo's OpenGL back end, chosen before ``mujoco`` is first imported.
 
-:func:`select_gl_backend` picks EGL, else OSMesa, on a machine without a display (a ``MUJOCO_GL``
-set by the user is kept); :func:`require_gl_backend` raises :class:`GLBackendError` naming the
-system packages to install; :func:`open_renderer` opens every renderer of the package through that
-check.
+:func:`select_gl_backend` picks EGL, else OSMesa, without a display (a user's ``MUJOCO_GL`` is
+kept); :func:`require_gl_backend` names the packages to install; :func:`open_renderer` opens every
+renderer through that check.
 """
 
 from __future__ import annotations

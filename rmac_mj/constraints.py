@@ -2,9 +2,7 @@
 
 A config declares ``{parameter: [constraint, ...]}`` (:class:`Interval`, :class:`Options`,
 :class:`Boolean`, :class:`TupleOf`, :class:`InstanceOf`; ``None`` allows None); :func:`check`
-validates all its values in one place with one kind of message, and the sweep checker reads the same
-tables (:func:`lookup`, :func:`unmet`). Rules tying several values stay in ``__post_init__`` and
-raise through :func:`invalid`.
+applies it with one kind of message, the sweep checker reads it (:func:`lookup`, :func:`unmet`).
 """
 
 from __future__ import annotations

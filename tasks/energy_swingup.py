@@ -1,9 +1,8 @@
 """The DC-motor pendulum's demonstrator: energy-pumping swing-up, LQR balancer.
 
-Astrom and Furuta's swing-up (Automatica 36, 2000), tuned on the model rather than on the learners'
-reward (its mass, centre of mass and inertia; the discrete LQR about upright). It pumps at full
-voltage instead of planning the swing, so it is deliberately not optimal; ``dc_pendulum`` declares
-two ('demo' and a poorer 'poor-demo'), recorded by ``rmac-mj reproduce --prior NAME``.
+Astrom and Furuta's swing-up (Automatica 36, 2000), tuned on the model (its inertia; the discrete
+LQR about upright), deliberately not optimal; ``dc_pendulum`` declares two as demonstrators ('demo',
+'poor-demo') for ``rmac-mj reproduce --prior NAME``.
 """
 
 from __future__ import annotations

@@ -1,9 +1,8 @@
 """The task suite as Gymnasium environments, registered when ``rmac_mj.tasks`` is imported.
 
-``gymnasium.make("rmac_mj/DCPendulum-Swingup-v0", render_mode="rgb_array")``: every task gets the id
-``rmac_mj/<Domain>-<Task>-v0`` (:func:`env_id`) and is the dm-control task itself, stepped
-unchanged; the observation is the learner state with each periodic dimension as (cos, sin), the
-action the task's box in float32, and a trial ends in a truncation.
+``gymnasium.make("rmac_mj/DCPendulum-Swingup-v0")``: each task is ``rmac_mj/<Domain>-<Task>-v0``
+(:func:`env_id`), the dm-control task stepped unchanged behind :class:`SuiteEnv` (observation,
+action, seeding and trial end are listed there).
 """
 
 from __future__ import annotations

@@ -1,9 +1,8 @@
 """Compiled RMAC step, the ``backend='numba'`` twin of :mod:`rmac_mj.agents.rmac` (Algorithm 2).
 
-:func:`step` is lines 8-29 on an :class:`RMACState` (fields listed there): act (lines 10-12), then
-:func:`learn` the transition (lines 13-28: line 14 insert in M^P, line 16 :func:`best_reachable`,
-lines 17-20 :func:`update_reference`, lines 22-28 ``critic.td_update``); a simulated transition
-skips line 14. ``tests/agents/test_rmac.py`` checks both back ends step by step.
+:func:`step` is lines 8-29 on an :class:`RMACState`: act (10-12), then :func:`learn` (13-28: insert
+in M^P, :func:`best_reachable`, :func:`update_reference`, ``critic.td_update``);
+``tests/agents/test_rmac.py`` checks both back ends agree.
 """
 
 from __future__ import annotations

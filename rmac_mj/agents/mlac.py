@@ -1,9 +1,8 @@
 """Model Learning Actor-Critic (MLAC; Grondman et al., IEEE SMC-B 42(3), 2012) and its config.
 
-Three LLR memories (section 4 of the RMAC paper): the actor M^A [x | u], the critic M^C [x | V]
-(RMAC's, Algorithm 2 lines 22-28) and the process model M^P [x, u | x']; the actor moves along the
-model's gradient of the one-step return (the steps are in :class:`MLAC`), every open choice is a
-field of :class:`MLACConfig` (docs/mlac.md).
+Memories (RMAC paper, section 4): actor M^A [x | u], critic M^C [x | V] (Algorithm 2 lines 22-28),
+process M^P [x, u | x']; the actor follows the model's gradient of the one-step return (steps:
+:class:`MLAC`; choices: :class:`MLACConfig`).
 """
 
 from __future__ import annotations

@@ -1,9 +1,8 @@
 """Planning (Dyna) and experience replay for every learner: rehearsal after each real trial.
 
-:class:`Planning` runs simulated rollouts in a learned :class:`TransitionModel`, :class:`Replay`
-replays stored real trials; both drive the learner's own algorithm through the
-:class:`RehearsedLearner` interface (:class:`Rehearsal`). With ``steps = 0`` for both nothing here
-runs and the learner is bit for bit the one without it.
+:class:`Planning` runs rollouts in a learned :class:`TransitionModel`, :class:`Replay` replays
+stored real trials, both through the learner's own updates (:class:`Rehearsal`); with ``steps = 0``
+nothing here runs, bit for bit.
 """
 
 from __future__ import annotations

@@ -1,9 +1,8 @@
 """Reference Model Actor-Critic (RMAC): section 5 and Algorithm 2 of Grondman et al.
 
-No explicit actor: three LLR memories (section 4), the process model M^P [x, u | x'], the reference
-model M^R [x | x_hat] and the critic M^C [x | V]; u_k = f^-1(x_k, R(x_k)) (+ exploration). The numpy
-path here follows Algorithm 2 line by line; ``backend='numba'`` runs the same steps in
-:mod:`rmac_mj.agents._rmac_kernels`; the open choices are fields of :class:`RMACConfig`.
+Three LLR memories (section 4): M^P [x, u | x'], M^R [x | x_hat], M^C [x | V]; u_k = f^-1(x_k,
+R(x_k)) + exploration. The numpy path follows Algorithm 2 line by line, ``backend='numba'`` runs
+:mod:`rmac_mj.agents._rmac_kernels`.
 """
 
 from __future__ import annotations

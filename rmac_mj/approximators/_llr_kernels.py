@@ -1,10 +1,8 @@
 """Numba kernels of LLR on one memory: the fast path of :class:`~.llr.LLRMemory`.
 
-Each follows the numpy reference (``llr_numpy``) step by step, so both back ends give the same
-neighbours and, up to rounding, the same local models (``tests/approximators/test_llr.py``). A
-memory is an :class:`LLRState` (fields listed there); :func:`nearest` keeps neighbour lists across
-insertions, :func:`query` is the one-shot search and fit. Search: ``_llr_search``; fit:
-``_llr_fit``.
+Each follows the numpy reference (``llr_numpy``) step by step: the same neighbours and, up to
+rounding, the same local models. A memory is an :class:`LLRState` (fields listed there);
+:func:`nearest` keeps neighbour lists across insertions, :func:`query` keeps nothing.
 """
 
 from __future__ import annotations

@@ -1,9 +1,8 @@
 """Numba kernels of LLR's geometry: periodic wrapping, weighted distances, the K nearest.
 
-The fast path of ``search_numpy`` (:mod:`rmac_mj.approximators.llr_numpy`), step by step: same
-distance, same tie-breaking by index. Inputs are stored by dimension (``Xt``, (n, N)); the selection
-bounds the K-th distance first (from seeds, or from the minima of interleaved lanes) and skips every
-block of 16 distances above it.
+The fast path of ``search_numpy`` (:mod:`rmac_mj.approximators.llr_numpy`), step by step. Inputs are
+stored by dimension (``Xt``, (n, N)); the K-th distance is bounded first and every block of 16
+distances above it skipped.
 """
 
 from __future__ import annotations

@@ -1,9 +1,8 @@
 """Local Linear Regression (section 4): :class:`LLRMemory` and its compiled interface.
 
-A memory holds at most N samples [x | y]; a query x_q fits the affine model y = beta [x; 1] to its K
-nearest samples K(x_q) and predicts y_q = beta [x_q; 1]. The choices the paper leaves open are
-:class:`LLRMemory` parameters; compiled learners use ``LLRMemory.kernel_state`` (an ``LLRState``)
-with the ``llr_*`` functions below, each taking the state first.
+A query x_q fits y = beta [x; 1] to its K nearest samples K(x_q) and predicts beta [x_q; 1]; the
+choices the paper leaves open are :class:`LLRMemory` parameters. Compiled learners use
+``LLRMemory.kernel_state`` with the ``llr_*`` functions.
 """
 
 from __future__ import annotations

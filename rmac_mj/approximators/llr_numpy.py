@@ -1,9 +1,8 @@
 """Local Linear Regression in plain numpy: the readable reference that the compiled kernels follow.
 
-:func:`search_numpy` orders samples by the weighted distance (ties by index, a stable sort);
-:func:`fit_numpy` is the affine least-squares model of the neighbours in the weighted, query-centred
-input space; :func:`distance_numpy` and :func:`misfit_numpy` are the redundancy measures
-(``LLRMemory``'s docstring has their equations).
+:func:`search_numpy` orders samples by weighted distance (ties by index), :func:`fit_numpy` fits the
+neighbours' affine model in the weighted, query-centred space; :func:`distance_numpy` and
+:func:`misfit_numpy` are the redundancy measures.
 """
 
 from __future__ import annotations

@@ -1,9 +1,8 @@
 """Tile coding (Sutton and Barto 1998, 8.3.2) and a linear approximator on it (section 6.1).
 
-A tiling (the paper's partition) is a uniform grid of ``tiles[d]`` tiles per state dimension over
-``[low, high]``, shifted per tiling (``TileCodingConfig.offsets``); a state activates one tile per
-tiling, so the features are ``num_tilings`` ones and the value is the sum of the active weights.
-Back ends ``"numpy"`` (reference) and ``"numba"`` compute the same features.
+A tiling (the paper's partition) is a uniform grid of ``tiles[d]`` tiles per dimension, shifted per
+tiling (``TileCodingConfig.offsets``); a state activates one tile per tiling, and the value is the
+sum of the active weights. Back ends numpy and numba.
 """
 
 from __future__ import annotations

@@ -1,10 +1,8 @@
 """Any environment for the learners: dm-control's suite, Gymnasium, or a factory of the user's.
 
-``envs.load("gymnasium:Pendulum-v1", seed=0)`` (or ``"dm_control:cartpole/swingup"``,
-``"my_package.tasks:make_env"``) returns an :class:`Environment` that the trial loop drives like a
-task of the suite. x comes from the specs where they say enough, else from ``learner_state``;
-anything missing or ambiguous is refused in one line. A termination (not a truncation) ends a trial
-with discount 0.
+``envs.load("gymnasium:Pendulum-v1", seed=0)`` (or ``dm_control:DOMAIN/TASK``, ``module:factory``)
+returns an :class:`Environment` the trial loop drives like a suite task; what the specs leave open
+of x comes from ``learner_state``, else is refused in one line.
 """
 
 from __future__ import annotations

@@ -1,9 +1,8 @@
 """What the trial loop drives: any dm_env environment, its observation mapped to the learner's x.
 
-:class:`Environment` wraps a ``dm_env.Environment`` (dm-control's, a user's, or a Gymnasium one) and
-gives :func:`rmac_mj.rollout.run_trial` what a task of the suite does: observation entries
-``learner_state.keys``, the learner state, the trial's length, and ``action_repeat`` (rewards
-summed).
+:class:`Environment` wraps a ``dm_env.Environment`` and gives :func:`rmac_mj.rollout.run_trial` what
+a suite task does: entries ``learner_state.keys``, the learner state, the trial length, and
+``action_repeat`` (rewards summed).
 """
 
 from __future__ import annotations

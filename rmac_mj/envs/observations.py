@@ -1,9 +1,8 @@
 """The learner's state x from an environment's observations: entries, (cos, sin) folding, inference.
 
-An entry is ``KEY`` (flattened), ``KEY[i]`` or ``atan2(KEY[j], KEY[i])`` (one periodic dimension in
-[-pi, pi)); :func:`infer_learner_state` reads the specs' bounds, folds (cos, sin) pairs, fills in
-what the user declared (:class:`rmac_mj.tasks.common.LearnerStateSpec`) and refuses what is still
-missing.
+An entry is ``KEY``, ``KEY[i]`` or ``atan2(KEY[j], KEY[i])`` (one periodic dimension);
+:func:`infer_learner_state` reads the specs' bounds, folds (cos, sin) pairs, fills in what the user
+declared, and refuses what is still missing.
 """
 
 from __future__ import annotations

@@ -1,9 +1,8 @@
 """Where an environment comes from (its SPEC) and how the learners see it (:class:`EnvSpec`).
 
-A SPEC is ``dm_control:DOMAIN/TASK``, ``gymnasium:ID`` (a bounded Box action space), or
-``package.module:factory`` / ``path/to/file.py:factory`` (returns a ``dm_env.Environment`` or a
-``gymnasium.Env``; given ``kwargs``, and ``seed=`` when it takes one). The suite's own tasks stay
-``rmac_mj.tasks.load(domain, task)``.
+A SPEC is ``dm_control:DOMAIN/TASK``, ``gymnasium:ID`` (a bounded Box action space) or
+``package.module:factory`` / ``path/file.py:factory`` (returns a dm_env or Gymnasium environment;
+given ``kwargs``, and ``seed=`` when it takes one).
 """
 
 from __future__ import annotations

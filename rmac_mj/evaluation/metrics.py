@@ -1,9 +1,8 @@
 """Learning-curve metrics: the one place where results are turned into numbers.
 
-``reproduce``, ``sweep``, ``compare`` and the scripts read their numbers here. Curves are ndarrays
-of shape (experiments, trials) of sums of rewards per trial; times are simulated
-(``trial_seconds``). Across experiments: the mean with a Student-t 95% interval
-(:func:`confidence_interval`) and Welch's t-test between learners (:func:`compare_final_returns`).
+``reproduce``, ``sweep``, ``compare`` and the scripts read their numbers here. Curves: ndarrays
+(experiments, trials) of sums of rewards per trial, times simulated; the mean with a Student-t 95%
+interval and Welch's t-test.
 """
 
 from __future__ import annotations

@@ -1,9 +1,8 @@
 """Interquartile means, stratified-bootstrap intervals, improvement probability, profiles.
 
-After Agarwal et al., NeurIPS 2021. Scores are one number per experiment (higher is better), one
-array per task (the strata); every interval is a percentile bootstrap within tasks
-(``scipy.stats.bootstrap``, a fixed seed, :data:`N_RESAMPLES`), reproducible to the bit. Normalise
-scores of different scales first.
+After Agarwal et al., NeurIPS 2021. Scores: one number per experiment (higher is better), one array
+per task; every interval is a percentile bootstrap within tasks (``scipy.stats.bootstrap``, fixed
+seed), reproducible to the bit.
 """
 
 from __future__ import annotations

@@ -1,9 +1,8 @@
 """What is checked and prepared before a run's first experiment: nothing runs that cannot finish.
 
-:func:`resolve_agents` builds every learner once on the task's spaces (a bad hyperparameter is
-refused in one line; resolved configs go to ``config.json``), :func:`check_memory` checks the
-learners' memory estimates against the machine's, :func:`warm_up` compiles the kernels in the driver
-before the workers start; :class:`TaskFacts` asks each task once per purpose.
+:func:`resolve_agents` builds every learner once on the task's spaces (bad hyperparameters refused
+in one line), :func:`check_memory` checks their memory estimates, :func:`warm_up` compiles the
+kernels before the workers start.
 """
 
 from __future__ import annotations

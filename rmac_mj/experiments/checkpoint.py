@@ -1,9 +1,8 @@
 """An unfinished experiment, saved between trials so that a resumed run continues it.
 
-A checkpoint holds the agent's state dict (its generator included), the environment task's random
-state, the curve so far and the time spent; ``OUT/checkpoints/<algorithm>/exp_<iii>.npz``
-(:meth:`~rmac_mj.results.store.ResultStore.checkpoint_path`), written atomically and removed once
-the experiment's curve is saved.
+The agent's state dict (generator included), the task's random state, the curve so far and the time
+spent, in ``OUT/checkpoints/<algorithm>/exp_<iii>.npz``; written atomically, removed once the curve
+is saved.
 """
 
 from __future__ import annotations

@@ -1,9 +1,8 @@
 """Where experiments run: in this process, in local worker processes, or on a Dask cluster.
 
-Every back end takes an iterable of work items and ``run(item)`` and yields results as they finish,
-drawing items only as workers become free (memory in proportion to what runs, not to what is
-planned); an experiment's randomness is its own seed sequence, so every back end gives the same
-results.
+Every back end takes work items and ``run(item)`` and yields results as they finish, drawing items
+only as workers free up; an experiment's randomness is its own seed sequence, so every back end
+gives the same results.
 """
 
 from __future__ import annotations

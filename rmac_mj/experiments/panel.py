@@ -1,9 +1,8 @@
 """The public panel: six tasks nobody tuned for, each learner at equal interaction, against goals.
 
 Each :class:`PanelTask` is one ``reproduce`` protocol and a goal read from its greedy curve;
-:func:`run_panel` runs them through one worker pool into ``OUT/<task>/`` (ordinary result
-directories), :func:`panel_rows` scores them (the interquartile mean with its stratified-bootstrap
-interval, :mod:`rmac_mj.evaluation.statistics`).
+:func:`run_panel` runs them into ``OUT/<task>/`` through one pool, :func:`panel_rows` scores them
+(interquartile means, :mod:`rmac_mj.evaluation.statistics`).
 """
 
 from __future__ import annotations

@@ -1,9 +1,8 @@
 """What is run: the paper's protocol (section 6, :class:`Protocol`) and one experiment of it.
 
-Experiment i draws its agent's stream from ``SeedSequence(seed, spawn_key=(i,))`` (=
-``SeedSequence(seed).spawn(n)[i]``), its task's seed from child ``(i, 0)`` and its demonstration
-from ``(i, 1)``, so results do not depend on workers, completion order or resuming.
-:func:`build_experiment` assembles experiment i, :func:`run_experiment` runs it.
+Experiment i seeds its agent from ``SeedSequence(seed, spawn_key=(i,))``, its task from child ``(i,
+0)``, its demonstration from ``(i, 1)``: results do not depend on workers or resuming.
+:func:`build_experiment` assembles it, :func:`run_experiment` runs it.
 """
 
 from __future__ import annotations

@@ -1,9 +1,8 @@
 """The driver: run protocols into result directories, experiments in parallel, then summarise.
 
-Experiments run in worker processes or on a Dask cluster (:mod:`rmac_mj.experiments.execution`); the
-driver saves each as it arrives (:class:`~rmac_mj.results.store.ResultStore`), so an interrupted run
-loses only the experiments in flight and ``resume`` finishes the rest with identical results; a
-finished run is summarised (``returns.csv``, Fig. 2, ``summary.json``).
+Experiments run in workers or on Dask (:mod:`~rmac_mj.experiments.execution`) and are saved as they
+arrive (:class:`~rmac_mj.results.store.ResultStore`), so ``resume`` finishes an interrupted run with
+identical results; a finished run is summarised.
 """
 
 from __future__ import annotations

@@ -1,9 +1,8 @@
 """Whether a result directory can be trusted: its lock, and the checks of what it holds.
 
-A run holds an exclusive ``flock`` on ``OUT/.lock`` while it writes (:class:`DirectoryLock`,
-released by the system however the process ends); a resumed run trusts a saved experiment only when
-its files are whole and match the directory's config (:func:`curve_problem`,
-:func:`snapshot_problem`).
+A run holds an exclusive ``flock`` on ``OUT/.lock`` while it writes (:class:`DirectoryLock`); a
+resumed run trusts a saved experiment only when its files are whole and match the config
+(:func:`curve_problem`, :func:`snapshot_problem`).
 """
 
 from __future__ import annotations

@@ -1,9 +1,8 @@
 """Agent snapshots: one ``.npz`` file, readable with ``numpy.load(path, allow_pickle=False)``.
 
-The agent's learned state (``Agent.state_dict``, keys prefixed ``agent/``) and a JSON ``meta`` (a
-0-d unicode array: algorithm, hyperparameters, task, where in the experiment); no pickle, so opening
-a snapshot cannot run code. :func:`snapshot_environment` is the environment a snapshot's agent acts
-in.
+The agent's ``state_dict`` (keys prefixed ``agent/``) and a JSON ``meta`` (algorithm,
+hyperparameters, task, trial); no pickle, so opening one cannot run code.
+:func:`snapshot_environment` is the environment its agent acts in.
 """
 
 from __future__ import annotations

@@ -1,9 +1,8 @@
 """The result directory of a run (:class:`ResultStore`): its layout, and every read and write of it.
 
-The runner, the sweep, rendering, ``compare`` and the scripts go through it, never building paths
-themselves. Files are written atomically (:mod:`rmac_mj.results.files`), an experiment's snapshots
-before its curve, so a killed run leaves only whole files; the lock and the resume checks are
-:mod:`rmac_mj.results.integrity`.
+The runner, the sweep, rendering, ``compare`` and the scripts go through it, never building paths.
+Files are written atomically (:mod:`rmac_mj.results.files`), snapshots before the curve, so a killed
+run leaves only whole files.
 """
 
 from __future__ import annotations

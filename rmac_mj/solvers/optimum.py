@@ -1,9 +1,8 @@
 """The near-optimal return per trial of a task: the line the learners are judged against.
 
-A task declares its solver (``rmac_mj.tasks.knowledge(domain, task).optimum``); this module holds
-the solvers by name (``"dynamic programming"``: :mod:`rmac_mj.solvers.dynamic_programming`,
-``"trajectory optimisation"``: :mod:`rmac_mj.solvers.trajopt`), computes a task's return once with
-its default task_kwargs and caches it: ``optimum_return(domain, task)``.
+A task declares its solver (``tasks.knowledge(domain, task).optimum``): ``"dynamic programming"`` or
+``"trajectory optimisation"`` (:mod:`~rmac_mj.solvers.trajopt`); ``optimum_return(domain, task)``
+solves once, then reads the cache.
 """
 
 from __future__ import annotations

@@ -1,9 +1,8 @@
 """Sweeps: each configuration of a sweep file run as a ``reproduce`` directory, in one pool.
 
-Configuration ``name`` runs into ``OUT/<name>/`` with the same seeds as the others (common random
-numbers: differences are paired); ``OUT/sweep.json`` is the index, ``OUT/sweep.csv`` one row per
-configuration and learner (:data:`COLUMNS`, from each ``summary.json``), ``OUT/sweep_<metric>.png``
-the figures (:func:`rmac_mj.sweeps.figure.plot_sweep`).
+Configuration ``name`` runs into ``OUT/<name>/`` with the same seeds as the others (paired
+differences); ``OUT/sweep.json`` is the index, ``OUT/sweep.csv`` one row per configuration and
+learner (:data:`COLUMNS`), ``OUT/sweep_<metric>.png`` the figures.
 """
 
 from __future__ import annotations

@@ -1,9 +1,8 @@
 """Sweep and ``reproduce --config`` files: TOML read and validated before anything runs.
 
-Tables ``[protocol]`` (:class:`~rmac_mj.experiments.protocol.Protocol` options and fixed
-``ALGO.FIELD`` hyperparameters), ``[grid]`` (every combination) and ``[[variant]]`` (named overrides
-crossed with the grid; the format is in :func:`load_sweep`). Any bad section, key or value raises
-:class:`SweepFileError`, one line naming the file and the key.
+Tables ``[protocol]`` (:class:`~rmac_mj.experiments.protocol.Protocol` options, fixed
+``ALGO.FIELD``), ``[grid]`` and ``[[variant]]`` (the format: :func:`load_sweep`); any bad section,
+key or value raises :class:`SweepFileError` naming the file and the key.
 """
 
 from __future__ import annotations

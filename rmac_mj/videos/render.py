@@ -1,10 +1,8 @@
 """Off-screen rendered episodes: frames of greedy episodes with an overlay, pictures of models.
 
 ``mujoco.Renderer`` on the back end ``rmac_mj._gl`` chose, closed after every episode; the overlay
-reads state and action labels from the task's ``learner_state``, so any task of the suite renders:
-``render_episode(tasks.load(domain, task), agent, frames_per_step=3).frames`` (T, H, W, 3) uint8.
-Encoding is :mod:`rmac_mj.videos.encode`'s, a result directory's videos
-:mod:`rmac_mj.videos.result_videos`'.
+reads its labels from the task's ``learner_state``. ``render_episode(env, agent).frames``: (T, H, W,
+3) uint8; encoding is :mod:`rmac_mj.videos.encode`'s.
 """
 
 from __future__ import annotations
