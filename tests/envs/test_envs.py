@@ -621,19 +621,17 @@ def test_cli_optimal_and_bench_on_an_outside_environment(capsys):
     assert all(0 < costs[key] < float("inf") for key in ("physics_step_us", "env_step_us"))
 
 
-def test_the_readmes_worked_example_runs_as_it_stands(tmp_path, monkeypatch, capsys):
+def test_the_guides_worked_example_runs_as_it_stands(tmp_path, monkeypatch, capsys):
     import pathlib
     import re
 
-    readme = (pathlib.Path(__file__).parents[2] / "README.md").read_text()
-    section = readme[readme.index("## Your own task") :]
-    section = section[: section.index("\n## ", 1)]
-    task_file, usage = re.findall(r"```python\n(.*?)```", section, re.S)[:2]
+    page = pathlib.Path(__file__).parents[2] / "docs" / "guide" / "your-own-task.md"
+    task_file, usage = re.findall(r"```python\n(.*?)```", page.read_text(), re.S)[:2]
     assert task_file.startswith("# my_task.py")
     (tmp_path / "my_task.py").write_text(task_file)
     monkeypatch.chdir(tmp_path)
     namespace: dict = {}
-    exec(compile(usage, "README.md", "exec"), namespace)
+    exec(compile(usage, str(page), "exec"), namespace)
     printed = capsys.readouterr().out.splitlines()
     assert printed == ["('atan2(observation[1], observation[0])', 'observation[2]')", "3.0"]
     assert len(namespace["returns"]) == 30 and all(np.isfinite(namespace["returns"]))

@@ -1,6 +1,6 @@
 """Planning and replay against their cost (issue 23, item 4; docs/planning.md).
 
-Usage: python docs/studies/planning_summary.py DIR ... [--experiments N] [--plot FILE.png]
+Usage: python scripts/studies/planning_summary.py DIR ... [--experiments N] [--plot FILE.png]
     [--curves FILE.png]
 
 Each DIR is an `rmac-mj sweep --out` directory (docs/studies/planning.toml, planning-to-100.toml,

@@ -1,8 +1,8 @@
 """Why RMAC with planning learns the arm fast and then falls apart: per real trial, the model's
 errors, what the memories hold and how far the critic drifts from the returns it predicts.
 
-    python docs/studies/arm_planning_diagnosis.py --experiments 5 --trials 60 --out arm-diag.npz
-    python docs/studies/arm_planning_diagnosis.py ... --set planning.start=trajectory \
+    python scripts/studies/arm_planning_diagnosis.py --experiments 5 --trials 60 --out arm-diag.npz
+    python scripts/studies/arm_planning_diagnosis.py ... --set planning.start=trajectory \
         --set planning.horizon=10
 
 RMAC with the settings of ``arm-fastest.toml`` (gamma 0.98, alpha_r 0.05, planning 30 steps) and

@@ -1,6 +1,6 @@
 """Summarise the exploration-schedule study (docs/studies/exploration-schedule.md) from its sweep.
 
-Usage: python docs/studies/exploration_schedule_summary.py OUT [--plot FILE.png]
+Usage: python scripts/studies/exploration_schedule_summary.py OUT [--plot FILE.png]
 OUT is the `rmac-mj sweep docs/studies/exploration-schedule.toml --out OUT` directory. Prints the
 results table (from OUT/sweep.csv) and the paired differences of every configuration from the
 paper's (experiment i against experiment i: the same seeds), with two-sided t-tests.

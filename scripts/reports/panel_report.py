@@ -1,6 +1,6 @@
 """The tables and the figure of docs/panel.md, from the panel's result directories.
 
-    python docs/panel_report.py PANEL [SAC] [--out docs]
+    python scripts/reports/panel_report.py PANEL [SAC] [--out docs]
 
 PANEL is a ``rmac-mj panel --out PANEL`` directory (one ``reproduce`` directory per task); SAC,
 optionally, a directory of the same tasks' SAC runs made apart (``SAC/<task>/``). A directory may be
@@ -26,6 +26,9 @@ from rmac_mj.agents import display_name  # noqa: E402
 from rmac_mj.evaluation import statistics  # noqa: E402
 from rmac_mj.experiments import panel  # noqa: E402
 from rmac_mj.results.store import ResultStore  # noqa: E402
+
+#: Where the figures go by default: the repository's docs/, wherever the script is run from.
+DOCS = pathlib.Path(__file__).resolve().parents[2] / "docs"
 
 
 def _directories(task: panel.PanelTask, roots: list[pathlib.Path]) -> list[pathlib.Path]:
@@ -71,7 +74,7 @@ def figure(roots: list[pathlib.Path], path: pathlib.Path) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("roots", nargs="+", type=pathlib.Path)
-    parser.add_argument("--out", type=pathlib.Path, default=pathlib.Path("docs"))
+    parser.add_argument("--out", type=pathlib.Path, default=DOCS)
     args = parser.parse_args()
     for task in panel.TASKS:
         rows = panel.panel_rows(task, _directories(task, args.roots))

@@ -1,6 +1,6 @@
 """Summarise the memory-management study (docs/studies/memory-management.md) from sweep results.
 
-Usage: python docs/studies/memory_management_summary.py SWEEP_DIR [MEMORY_SIZE_DIR]
+Usage: python scripts/studies/memory_management_summary.py SWEEP_DIR [MEMORY_SIZE_DIR]
 
 SWEEP_DIR is the `rmac-mj sweep docs/studies/memory-management.toml --out` directory. Prints one
 markdown row per configuration (numbers from SWEEP_DIR/sweep.csv) with the paired difference from

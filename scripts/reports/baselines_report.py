@@ -1,6 +1,6 @@
 """The numbers and figures of docs/baselines.md, from the result directories of its runs.
 
-    python docs/baselines_report.py RUNS [--out docs]
+    python scripts/reports/baselines_report.py RUNS [--out docs]
 
 RUNS holds, per task (``pendulum``, ``arm``), the ``rmac-mj reproduce`` directories ``paper`` (RMAC,
 S-AC, MLAC), ``ppo`` and ``offpolicy`` (SAC, TD3) and the learning-rate check
@@ -26,6 +26,8 @@ from rmac_mj.evaluation import metrics, statistics
 from rmac_mj.figures import plots
 from rmac_mj.results.store import Curves, ResultStore
 
+#: Where the figures go by default: the repository's docs/, wherever the script is run from.
+DOCS = pathlib.Path(__file__).resolve().parents[2] / "docs"
 TASKS = ("pendulum", "arm")
 #: Run directory -> its learners.
 RUNS = {"paper": ("rmac", "s-ac", "mlac"), "ppo": ("sb3-ppo",), "offpolicy": ("sb3-sac", "sb3-td3")}
@@ -235,7 +237,7 @@ def rates(root: pathlib.Path, task: Task) -> list[str]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("runs", type=pathlib.Path)
-    parser.add_argument("--out", type=pathlib.Path, default=pathlib.Path("docs"))
+    parser.add_argument("--out", type=pathlib.Path, default=DOCS)
     args = parser.parse_args()
     loaded = {key: Task(args.runs / key) for key in TASKS}
     loaded = {key: task for key, task in loaded.items() if task.curves and task.facts}

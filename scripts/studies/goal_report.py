@@ -1,6 +1,6 @@
 """Judge result directories against the goal of issue 14 (docs/studies/rmac-best.md).
 
-Usage: python docs/studies/goal_report.py DIR[:LEARNER[:LABEL]] ... [--paired] [--plot FILE.png]
+Usage: python scripts/studies/goal_report.py DIR[:LEARNER[:LABEL]] ... [--paired] [--plot FILE.png]
 
 Each DIR is an `rmac-mj reproduce --out` directory run with `--evaluate-every`; LEARNER picks one of
 its learners (default: every learner in it). Prints one markdown row per (directory, learner) with

@@ -1,6 +1,6 @@
 """Summarise the reachable-set study (docs/studies/reachable-set.md) from its result directories.
 
-Usage: python docs/studies/reachable_set_summary.py ROOT [RULE ...] [--plot FILE.png]
+Usage: python scripts/studies/reachable_set_summary.py ROOT [RULE ...] [--plot FILE.png]
 ROOT/RULE is the `rmac-mj reproduce --out` directory of one rule (any name: a directory).
 Prints one markdown row per rule and Welch's t-test of every pair of rules' final returns.
 """

@@ -1,6 +1,6 @@
 """Draw docs/external_benchmarks.png from two `rmac-mj reproduce --env` result directories.
 
-    python docs/external_benchmarks_figure.py --pendulum DIR [DIR ...] --cartpole DIR [DIR ...]
+    python scripts/reports/external_benchmarks_figure.py --pendulum DIR [DIR ...] --cartpole DIR [DIR ...]
 
 Greedy return (mean and 95% interval over experiments) against environment steps, with the published
 deep-RL levels of docs/external-benchmarks.md as horizontal lines (their sources are cited there).
@@ -23,6 +23,8 @@ from rmac_mj.agents import display_name  # noqa: E402
 from rmac_mj.evaluation.metrics import confidence_interval  # noqa: E402
 from rmac_mj.rollout import steps_per_trial  # noqa: E402
 
+#: Where the figures go by default: the repository's docs/, wherever the script is run from.
+DOCS = pathlib.Path(__file__).resolve().parents[2] / "docs"
 #: Published deep-RL levels (docs/external-benchmarks.md cites them): a label and the returns drawn.
 PUBLISHED = {
     "pendulum": ("SAC -157, TD3 -152 after 20k steps (rl-baselines3-zoo)", (-157.0, -152.0)),
@@ -94,9 +96,7 @@ def main() -> None:
         required=True,
         help="result directories of cartpole/swingup runs",
     )
-    parser.add_argument(
-        "--out", type=pathlib.Path, default=pathlib.Path("docs/external_benchmarks.png")
-    )
+    parser.add_argument("--out", type=pathlib.Path, default=DOCS / "external_benchmarks.png")
     args = parser.parse_args()
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
     panel(axes[0], args.pendulum, PUBLISHED["pendulum"])

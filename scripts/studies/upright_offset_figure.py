@@ -1,6 +1,6 @@
 """The figure of docs/studies/upright-offset.md.
 
-Usage: python docs/studies/upright_offset_figure.py PAPER_CSV REPEAT_TARGET_CSV REPEAT_RATE_CSV
+Usage: python scripts/studies/upright_offset_figure.py PAPER_CSV REPEAT_TARGET_CSV REPEAT_RATE_CSV
            SNAPSHOT OUT.png
 
 PAPER_CSV: ``scripts/upright_offset.py RESULT --csv`` of a run with all three learners; the REPEAT
@@ -15,7 +15,7 @@ import sys
 
 import numpy as np
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "scripts"))
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
 import upright_offset as uo  # noqa: E402
 
 from rmac_mj import rollout as episode

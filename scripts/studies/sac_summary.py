@@ -1,6 +1,6 @@
 """Summarise the S-AC study (docs/studies/sac.md) from sweep results.
 
-Usage: python docs/studies/sac_summary.py SWEEP_DIR BASELINE_DIR [--sort KEY] [--plot FILE.png]
+Usage: python scripts/studies/sac_summary.py SWEEP_DIR BASELINE_DIR [--sort KEY] [--plot FILE.png]
 
 SWEEP_DIR is an `rmac-mj sweep --out` directory of S-AC configurations (docs/studies/sac.toml or
 sac-tiles.toml); BASELINE_DIR is the paper's configuration run on the same seeds (a configuration

@@ -1,6 +1,6 @@
 """The process model's uncertainty as RMAC's where='uncertain' rule sees it (docs/studies/exploration-schedule.md).
 
-Usage: python docs/studies/exploration_uncertainty.py [THRESHOLD] [--experiments N] [--trials T]
+Usage: python scripts/studies/exploration_uncertainty.py [THRESHOLD] [--experiments N] [--trials T]
 
 Runs experiments 0..N-1 of the sweep's protocol (seed 0, the same task and agent seeds as
 `rmac-mj sweep`) with Exploration(where='uncertain', uncertainty_threshold=THRESHOLD), records
