@@ -15,18 +15,16 @@ Where the paper is silent, the choice is a constructor parameter (defaults in br
   unwrapped around the nearest one's before fitting, so predictions of periodic outputs may leave the
   nominal range by up to half a period; callers wrap what they compare.
 * ``conditioning`` ['svd'] and ``rcond`` [0.01]: the K neighbours along a past trajectory lie almost on
-  a line, and the plain least-squares fit then extrapolates wildly (a trial here drove the critic's
-  values positive). The fit is made in the weighted, query-centred input space and singular values
+  a line, and the plain least-squares fit then extrapolates wildly. The fit is made in the weighted, query-centred input space and singular values
   below ``rcond`` times the largest are dropped ('svd', a truncated SVD); 'ridge' adds ``ridge`` to the
   slopes' diagonal instead (as TU Delft's GRL does); 'none' is the plain pseudo-inverse.
 * ``clip`` [False]: clip each prediction to the range of its neighbours' outputs (GRL does this).
 * ``replacement`` ['nearest']: when the memory is full, a new sample replaces either the stored sample
   most redundant with it, its nearest neighbour ('nearest'), the oldest sample ('oldest'), or the
   sample with the highest redundancy score ('redundancy', below). The paper leaves memory management
-  open (section 7); replacing the oldest made RMAC's critic forget all but the last ~20 trials and
-  degrade late, replacing the nearest did not.
+  open (section 7).
 * ``redundancy`` ['distance'] and ``redundancy_smoothing`` [0.1]: the score of
-  ``replacement='redundancy'``, the scheme issue 14 describes of the authors' code (a redundancy score
+  ``replacement='redundancy'``, the scheme of the authors' code (a redundancy score
   per sample, smoothed over the insertions near it; the squared model misfit for the process memory,
   the distance for the others). Its equations and our choices in it are in
   :mod:`rmac_mj.approximators.llr_numpy`.
@@ -34,10 +32,8 @@ Where the paper is silent, the choice is a constructor parameter (defaults in br
 
 Two back ends give the same results: ``backend='numba'`` (compiled kernels in ``_llr_kernels``,
 ``_llr_search`` and ``_llr_fit``) and ``backend='numpy'`` (the readable reference:
-:mod:`~rmac_mj.approximators.llr_numpy` and this class's numpy paths). Compiled brute force finds
-the 20 nearest of 2000 samples in about 3 us and needs nothing rebuilt when samples change; scipy's
-cKDTree took 32 us per query and 720 us per rebuild here (measured; a memory changes every control
-step).
+:mod:`~rmac_mj.approximators.llr_numpy` and this class's numpy paths). The search is compiled brute
+force, which needs nothing rebuilt when samples change (a memory changes every control step).
 
 Compiled interface. A learner whose own step is compiled with numba (RMAC) works on a memory through
 ``LLRMemory.kernel_state``, an :class:`LLRState` (a numba structref naming the memory's arrays and
@@ -53,10 +49,9 @@ settings), and the compiled functions exported here, each taking the state first
 
 ``LLR_STATE_TYPE`` is the numba type of the state, for a learner's own structref fields.
 
-This module is the one class a learner uses, with its constraints and its compiled interface; it
-runs past 400 lines because ``LLRMemory`` keeps every operation's checked boundary, its numpy
-reference and its dispatch to the kernels side by side, so that the two back ends can be read
-against each other.
+This module is the one class a learner uses, with its constraints and its compiled interface:
+``LLRMemory`` keeps every operation's checked boundary, its numpy reference and its dispatch to the
+kernels side by side.
 """
 
 from __future__ import annotations
