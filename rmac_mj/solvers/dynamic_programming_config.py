@@ -10,7 +10,8 @@ import numpy as np
 
 @dataclasses.dataclass(frozen=True)
 class OptimalConfig:
-    """How finely the problem is solved (the problem itself comes from the environment: :class:`Problem`).
+    """How finely the problem is solved (the problem itself comes from the environment:
+    :class:`~rmac_mj.solvers.dynamic_programming_grid.Problem`).
 
     A task's reference declares the settings it needs (``Reference.settings``); the defaults are the
     DC-motor pendulum's converged grid (docs/optimal.md).

@@ -78,7 +78,7 @@ class Problem(TrialProblem):
         return np.asarray(self.env.task.reward_of(self.state_of(z), np.asarray(u)[..., None]))
 
     def identity(self) -> dict[str, Any]:
-        """What :func:`cache_key` hashes besides the grid: the problem as numbers."""
+        """What :func:`~rmac_mj.solvers.dynamic_programming.cache_key` hashes besides the grid: the problem as numbers."""
         return {
             "horizon": self.horizon,
             "control_timestep": self.control_timestep,
