@@ -243,7 +243,7 @@ class OracleInverse:
     the dc_pendulum only: it reads the MuJoCo model)."""
 
     def __init__(self, agent, env, n_actions: int = 601):
-        from rmac_mj.solvers import dynamic_programming as optimal
+        from rmac_mj.solvers.dynamic_programming_grid import simulate_transitions
 
         self.agent = agent
         self.model = env.physics.model.ptr
@@ -251,7 +251,7 @@ class OracleInverse:
         self.candidates = np.linspace(
             agent.action_space.low[0], agent.action_space.high[0], n_actions
         )
-        self.simulate = optimal.simulate_transitions
+        self.simulate = simulate_transitions
 
     def begin_greedy_trial(self) -> None:
         pass

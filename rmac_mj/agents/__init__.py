@@ -28,9 +28,9 @@ _REGISTRY = {
     # The learner to pick for a new task: S-AC with planning, in the task's units (recommended.py).
     "recommended": ("rmac_mj.agents.recommended", "Recommended", "RecommendedConfig"),
     # Deep-RL baselines (Stable-Baselines3; the [baselines] extra), rmac_mj/agents/sb3.py (their configs: sb3_config.py).
-    "sb3-sac": ("rmac_mj.agents.sb3", "SB3SAC", "SB3SACConfig"),
-    "sb3-td3": ("rmac_mj.agents.sb3", "SB3TD3", "SB3TD3Config"),
-    "sb3-ppo": ("rmac_mj.agents.sb3", "SB3PPO", "SB3PPOConfig"),
+    "sb3-sac": ("rmac_mj.agents.sb3_off_policy", "SB3SAC", "SB3SACConfig"),
+    "sb3-td3": ("rmac_mj.agents.sb3_off_policy", "SB3TD3", "SB3TD3Config"),
+    "sb3-ppo": ("rmac_mj.agents.sb3_ppo", "SB3PPO", "SB3PPOConfig"),
 }
 
 #: The algorithm keys, as used on the command line and in results.

@@ -66,7 +66,7 @@ class OffPolicyConfig:
       train_freq: update after every ``train_freq`` control steps (counted over trials).
       gradient_steps: gradient steps per update; -1: as many as ``train_freq``.
       net_arch: hidden units per layer, the same for the actor and each critic.
-      torch_threads: torch's intra-op threads (see the module docstring).
+      torch_threads: torch's intra-op threads (see :mod:`rmac_mj.agents.sb3`).
     """
 
     learning_rate: float = 3e-4
@@ -163,7 +163,7 @@ class SB3PPOConfig:
       target_kl: stop an update early above this KL divergence; None: never.
       log_std_init: initial log standard deviation of the Gaussian policy.
       net_arch: hidden units per layer, the same for the policy and the value network (tanh).
-      torch_threads: torch's intra-op threads (see the module docstring).
+      torch_threads: torch's intra-op threads (see :mod:`rmac_mj.agents.sb3`).
     """
 
     learning_rate: float = 3e-4

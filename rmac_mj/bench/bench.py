@@ -1,389 +1,68 @@
 """``rmac-mj bench``: where the microseconds of a control step go, as ratios to the raw physics.
 
-The unit is the *raw control step*: one control step of the task as its ``mujoco.mj_step`` calls
-from a Python loop (the paper's pendulum: 3 calls of 10 ms per 0.03 s step), the least any
-implementation of the task must spend. Every figure is measured on one task (``--domain/--task``,
-default the paper's swing-up), or on an outside environment (``--env``, ``rmac_mj.envs``), whose unit
-is its MuJoCo physics' steps where it has one (dm-control's) and else its own ``step`` (Gymnasium's):
-what using the learners on it costs beyond the environment itself. Everything else is reported in
-microseconds and as a multiple of it, measured in one process, as the median over repeats of the
-mean time per call in a batch, after a warm-up (numba compilation included in the warm-up).
-
-In-process figures are CPU time of the measuring thread (``time.thread_time_ns``): on an idle core
-that is the wall time, and on a shared, loaded machine it leaves out the time other processes hold
-the core, which wall-clock timings there mostly measure. The raw step, ``env.step`` and the glue are
-also measured interleaved, batch by batch, so that cache and frequency effects reach all of them
-alike. The real run is timed both ways: wall clock, and the CPU time of its processes. Targets are
-ratios within one run (issue 12), never absolute times:
+Every figure is measured on one task (``--domain/--task``, default the paper's swing-up), or on an
+outside environment (``--env``, ``rmac_mj.envs``): what using the learners on it costs beyond the
+environment itself (:mod:`rmac_mj.bench.measurements`; the planning and replay figures are
+:mod:`rmac_mj.bench.planning`'s). This module assembles the report (the keys of ``--json``);
+:mod:`rmac_mj.bench.tables` writes it for people against the targets, ratios within one run:
 
     env.step           <= 1.5 x raw    RMAC learner step  <= 2 x raw    S-AC learner step <= 1 x raw
     LLR query + insert <= 0.7 x raw    a real run of both learners (``run_protocol`` on 2 workers)
     <= 3.5 x the raw physics time of its steps;  full protocol (40 + 40 x 600 trials) <= 10 min wall
-
-The per-step overhead outside physics and learner is measured in two parts: ``env.step`` minus the
-raw step (dm-control's ``Environment`` and the task), and the glue (``run_trial`` with an agent that
-returns a constant action through the agents' checked boundary, minus the same episodes driven by
-``env.step`` alone).
-
-The module runs past 400 lines because it is one benchmark read top to bottom: the raw step, the
-per-step costs, the learners' steps, a real run, and the report of the same figures as a table
-and as Markdown (the planning and replay figures are :mod:`bench_planning`'s).
 """
 
 from __future__ import annotations
 
-import math
 import os
 import platform
-import tempfile
-import time
-from collections.abc import Callable
 from typing import Any
 
 import mujoco
-import numpy as np
 
-from rmac_mj import tasks
-from rmac_mj.agents import PolicyAgent, make_agent
-from rmac_mj.approximators.llr import LLRMemory
 from rmac_mj.bench import planning as bench_planning
-from rmac_mj.rollout import (
-    action_space_of,
-    learner_state_of,
-    n_sub_steps,
-    run_trial,
-    state_of,
-    state_space_of,
-    steps_per_trial,
+from rmac_mj.bench.measurements import (
+    check_task,
+    env_step_us,
+    experiment_s,
+    learner_step_us,
+    llr_query_insert_us,
+    measured_environment,
+    measured_protocol,
+    physics_step_us,
+    real_run,
+    step_costs,
 )
+from rmac_mj.bench.tables import (
+    PAPER_EXPERIMENTS,
+    PAPER_TRIALS,
+    PROTOCOL_TARGET_MIN,
+    ROWS,
+    RUN_TARGET,
+    TARGETS,
+    format_markdown,
+    format_table,
+)
+from rmac_mj.rollout import n_sub_steps, state_space_of, steps_per_trial
 
-#: The suite's default task, which the benchmark measures unless told otherwise.
-_DOMAIN, _TASK = tasks.DEFAULT_TASK
-#: Targets as multiples of the raw control step (issue 12).
-TARGETS = {"env_step_us": 1.5, "sac_step_us": 1.0, "rmac_step_us": 2.0, "llr_query_insert_us": 0.7}
-#: Target of a real run's wall time, as a multiple of the raw physics time of its steps per worker.
-RUN_TARGET = 3.5
-#: Target of the full protocol's projected wall time (minutes).
-PROTOCOL_TARGET_MIN = 10.0
-PAPER_EXPERIMENTS, PAPER_TRIALS = 40, 600
-
-#: The clock of every in-process figure: this thread's CPU time (see the module docstring).
-_clock_ns = time.thread_time_ns
-
-
-def _median_us(call: Callable[[int], None], calls: int, repeats: int) -> float:
-    """Median over ``repeats`` of the mean microseconds per call of ``call(i)``, i in range(calls)."""
-    call(0)  # warm-up
-    samples = []
-    for _ in range(repeats):
-        start = _clock_ns()
-        for i in range(calls):
-            call(i)
-        samples.append((_clock_ns() - start) / calls / 1e3)
-    return float(np.median(samples))
-
-
-def check_task(**where: Any) -> None:
-    """ValueError naming the choices unless ``where`` is a task of the suite (``domain``/``task``)
-    or an outside environment whose learner state is known (``env``, see :func:`_where`)."""
-    _load(**where)
-
-
-def _where(
-    domain: str = _DOMAIN,
-    task: str = _TASK,
-    env: str | None = None,
-    learner_state: dict | None = None,
-    action_repeat: int = 1,
-):
-    """What is measured, as a Protocol (the one place environments are built): a task of the suite
-    (``domain``/``task``) or an outside environment (``env``, a SPEC, with its ``learner_state``
-    declaration and ``action_repeat``, see ``rmac_mj.envs``)."""
-    from rmac_mj.experiments.protocol import Protocol
-
-    if env is not None:  # (domain/task other than the default are refused beside it)
-        return Protocol(
-            env=env,
-            learner_state=learner_state,
-            action_repeat=action_repeat,
-            domain=domain,
-            task=task,
-        )
-    return Protocol(domain=domain, task=task)
-
-
-def _load(**where):
-    return _where(**where).make_environment(0)
-
-
-def _raw_step(env, rng: np.random.Generator, calls: int) -> tuple[Callable[[], float], str]:
-    """A batch of the environment's own steps, timed (us per step), and what it is called.
-
-    For a MuJoCo physics (the suite, dm-control): ``n_sub_steps`` x ``mj_step`` from a Python loop.
-    For an outside environment without one (Gymnasium's): its own ``step``, under everything this
-    package adds (the dm_env adapter, the learner's x)."""
-    controls = _random_actions(env, calls, rng)
-    physics = getattr(env, "physics", None)
-    if physics is not None:
-        model, data = physics.model.ptr, physics.data.ptr
-        n_sub = n_sub_steps(env)
-
-        def raw_batch() -> float:
-            start = _clock_ns()
-            for i in range(calls):
-                data.ctrl[:] = controls[i]
-                for _ in range(n_sub):
-                    mujoco.mj_step(model, data)
-            return (_clock_ns() - start) / calls / 1e3
-
-        return raw_batch, f"raw MuJoCo control step ({n_sub} x mj_step)"
-    own = env.base.env  # a Gymnasium environment (rmac_mj.envs.GymnasiumEnvironment.env)
-    space = own.action_space
-    actions = controls.astype(space.dtype).reshape((calls,) + space.shape)
-
-    def own_batch() -> float:
-        elapsed = 0
-        own.reset(seed=0)
-        for i in range(calls):
-            start = _clock_ns()
-            _, _, terminated, truncated, _ = own.step(actions[i])
-            elapsed += _clock_ns() - start
-            if terminated or truncated:
-                own.reset()
-        return elapsed / calls / 1e3
-
-    return own_batch, "the environment's own step (Gymnasium)"
-
-
-def _random_actions(env, count: int, rng: np.random.Generator) -> np.ndarray:
-    """``count`` actions drawn uniformly from the action bounds; shape (count, m)."""
-    space = action_space_of(env)
-    return rng.uniform(space.low, space.high, (count, space.dim))
-
-
-def step_costs(calls: int, repeats: int, **where: Any) -> dict[str, Any]:
-    """The raw control step, ``env.step`` and the glue per step (us), measured interleaved.
-
-    Each repeat times, one after the other: ``calls`` raw control steps (``n_sub_steps`` x
-    ``mj_step`` with a random action); about ``calls`` ``env.step`` calls with random actions
-    (resets excluded); and
-    the same number of episodes once through ``run_trial`` with a constant-action agent and once
-    through ``env.reset`` and ``env.step`` alone. Returns medians over the repeats:
-    ``physics_step_us``, ``env_step_us`` and ``glue_step_us`` (the median of the per-repeat
-    difference between the two episode loops, per step), and ``raw_step`` (what the raw step is,
-    see :func:`_raw_step`). ``where``: see :func:`_where`.
-    """
-    physics_env = _load(**where)
-    physics_env.reset()
-    rng = np.random.default_rng(0)
-    raw_batch, raw_label = _raw_step(physics_env, rng, calls)
-
-    env = _load(**where)
-    per_trial = steps_per_trial(env)
-    episodes = max(1, round(calls / per_trial))
-    actions = _random_actions(env, per_trial, rng)
-
-    def env_batch() -> float:
-        elapsed = 0
-        for _ in range(episodes):
-            env.reset()
-            start = _clock_ns()
-            for k in range(per_trial):
-                env.step(actions[k])
-            elapsed += _clock_ns() - start
-        return elapsed / (episodes * per_trial) / 1e3
-
-    constant = np.full(action_space_of(env).dim, 0.5)
-    # What run_trial costs around a learner: an agent that learns nothing and always applies the same
-    # action, every call still going through the agents' checked boundary.
-    agent = PolicyAgent(state_space_of(env), action_space_of(env), lambda x: constant)
-
-    def trial_batch() -> float:
-        start = _clock_ns()
-        for _ in range(episodes):
-            run_trial(env, agent, learn=True)
-        return (_clock_ns() - start) / (episodes * per_trial) / 1e3
-
-    def episode_batch() -> float:
-        start = _clock_ns()
-        for _ in range(episodes):
-            timestep = env.reset()
-            while not timestep.last():
-                timestep = env.step(constant)
-        return (_clock_ns() - start) / (episodes * per_trial) / 1e3
-
-    for batch in (raw_batch, env_batch, trial_batch, episode_batch):  # warm-up
-        batch()
-    raw, env_step, glue = [], [], []
-    for _ in range(repeats):
-        raw.append(raw_batch())
-        env_step.append(env_batch())
-        glue.append(trial_batch() - episode_batch())
-    return {
-        "physics_step_us": float(np.median(raw)),
-        "env_step_us": float(np.median(env_step)),
-        "glue_step_us": float(np.median(glue)),
-        "raw_step": raw_label,
-    }
-
-
-def physics_step_us(calls: int, repeats: int, **where: Any) -> float:
-    """The raw control step of the task alone (see :func:`step_costs`)."""
-    return step_costs(calls, repeats, **where)["physics_step_us"]
-
-
-def env_step_us(calls: int, repeats: int, **where: Any) -> float:
-    """``env.step`` of the task alone (see :func:`step_costs`)."""
-    return step_costs(calls, repeats, **where)["env_step_us"]
-
-
-def llr_query_insert_us(calls: int, repeats: int, **where: Any) -> float:
-    """A query and an insertion on a full critic-like memory (N = 2000, K = 20) over the task's state:
-    its dimensions, weights and periods, filled uniformly over its box."""
-    space = state_space_of(_load(**where))
-    memory = LLRMemory(
-        input_dim=space.dim,
-        output_dim=1,
-        capacity=2000,
-        n_neighbours=20,
-        input_weights=space.input_weights,
-        input_period=space.period,
-    )
-    rng = np.random.default_rng(0)
-    fill = rng.uniform(space.low, space.high, (2000, space.dim))
-    for x in fill:
-        memory.insert(x, [-float(x @ x)])
-    queries = rng.uniform(space.low, space.high, (calls, space.dim))
-
-    def query_insert(i):
-        prediction, _, _ = memory.query(queries[i])
-        memory.insert(queries[i], prediction)
-
-    return _median_us(query_insert, calls, repeats)
-
-
-def learner_step_us(
-    algorithm: str, repeats: int, warmup_trials: int | None = None, **where: Any
-) -> float:
-    """One learner step (act + update) with full memories, the environment excluded.
-
-    The agent first learns for ``warmup_trials`` trials (default: 2500 steps' worth, so that RMAC's
-    2000-sample memories are full; 25 trials of the pendulum); then the states and rewards of one more
-    trial are replayed through ``agent.step``.
-    """
-    env = _load(**where)
-    if warmup_trials is None:
-        warmup_trials = math.ceil(2500 / steps_per_trial(env))
-    agent = _timing_agent(algorithm, env, seed=0)
-    for _ in range(warmup_trials):
-        run_trial(env, agent, learn=True)
-    learner_state = learner_state_of(env)
-    transitions = []
-    timestep = env.reset()
-    u = agent.start(state_of(timestep.observation, learner_state))
-    while not timestep.last():
-        timestep = env.step(u)
-        x = state_of(timestep.observation, learner_state)
-        transitions.append((float(timestep.reward), x))
-        u = agent.step(*transitions[-1])
-    samples = []
-    for _ in range(repeats):
-        agent.start(transitions[0][1])
-        start = _clock_ns()
-        for reward, x in transitions:
-            agent.step(reward, x)
-        samples.append((_clock_ns() - start) / len(transitions) / 1e3)
-    return float(np.median(samples))
-
-
-def _timing_agent(algorithm: str, env, seed: int):
-    """``algorithm`` with its defaults on ``env``; where the environment does not declare the
-    reward's action cost (an outside one) and the learner needs it (MLAC), with 0, which costs the
-    same time."""
-    space = action_space_of(env)
-    config = {"action_cost": 0.0} if (space.cost is None and algorithm == "mlac") else None
-    return make_agent(algorithm, state_space_of(env), space, config=config, seed=seed)
-
-
-def experiment_s(algorithm: str, trials: int, **where: Any) -> float:
-    """Seconds of one learning experiment of ``trials`` trials (environment included), in CPU time
-    of this thread (its wall time on an idle core)."""
-    env = _load(**where)
-    agent = _timing_agent(algorithm, env, seed=0)
-    run_trial(env, agent, learn=True)  # compile outside the timing
-    agent = _timing_agent(algorithm, env, seed=1)
-    start = _clock_ns()
-    for _ in range(trials):
-        run_trial(env, agent, learn=True)
-    return (_clock_ns() - start) / 1e9
-
-
-def _process_cpu_s() -> float | None:
-    """CPU seconds (user + system) of this process and of its finished, waited-for children."""
-    try:
-        import resource
-    except ImportError:  # not on Unix: only wall time is reported
-        return None
-    return sum(
-        u.ru_utime + u.ru_stime
-        for u in (
-            resource.getrusage(resource.RUSAGE_SELF),
-            resource.getrusage(resource.RUSAGE_CHILDREN),
-        )
-    )
-
-
-def real_run(
-    experiments: int, trials: int, jobs: int, physics_step_us: float, **where: Any
-) -> dict[str, Any]:
-    """Run ``run_protocol`` (both learners, ``experiments`` x ``trials`` each, on ``jobs`` worker
-    processes, into a temporary directory, no figures) and time it end to end.
-
-    Returns the steps it ran and the raw physics time of those steps per worker
-    (``steps x physics_step_us / workers``), with, as multiples of it:
-      - ``wall_s``: the measured wall time of ``run_protocol``, worker start-up and writing included;
-      - ``cpu_s``: the CPU time of the driver and the workers, divided by the workers: the wall time
-        the run takes on idle cores (None where ``resource`` is missing);
-      - ``in_experiments_s``: the time the workers spent inside experiments (per worker), so that
-        ``wall_s - in_experiments_s`` is what starting workers, importing and writing cost.
-    """
-    import dataclasses
-
-    from rmac_mj.experiments.runner import run_protocol
-
-    protocol = dataclasses.replace(_where(**where), experiments=experiments, trials=trials)
-    steps = (
-        experiments
-        * len(protocol.algorithms)
-        * trials
-        * steps_per_trial(protocol.make_environment(0))
-    )
-    workers = min(jobs, experiments * len(protocol.algorithms))
-    with tempfile.TemporaryDirectory(prefix="rmac-mj-bench-") as out:
-        cpu_before = _process_cpu_s()
-        start = time.perf_counter()
-        summary = run_protocol(protocol, out, jobs=jobs, progress=False, figures=False)
-        wall = time.perf_counter() - start
-        cpu_after = _process_cpu_s()
-    cpu = None if cpu_before is None else (cpu_after - cpu_before) / workers
-    in_experiments = (
-        sum(summary[name]["experiment_wall_s_mean"] * experiments for name in protocol.algorithms)
-        / workers
-    )
-    physics = steps * physics_step_us * 1e-6 / workers
-    return {
-        "experiments_per_learner": experiments,
-        "trials": trials,
-        "workers": workers,
-        "steps": steps,
-        "physics_s": physics,
-        "wall_s": wall,
-        "x_physics": wall / physics,
-        "cpu_s": cpu,
-        "cpu_x_physics": None if cpu is None else cpu / physics,
-        "in_experiments_s": in_experiments,
-        "in_experiments_x_physics": in_experiments / physics,
-    }
+__all__ = [
+    "PAPER_EXPERIMENTS",
+    "PAPER_TRIALS",
+    "PROTOCOL_TARGET_MIN",
+    "ROWS",
+    "RUN_TARGET",
+    "TARGETS",
+    "check_task",
+    "env_step_us",
+    "experiment_s",
+    "format_markdown",
+    "format_table",
+    "learner_step_us",
+    "llr_query_insert_us",
+    "physics_step_us",
+    "real_run",
+    "run",
+    "step_costs",
+]
 
 
 def _cpu_name() -> str:
@@ -397,34 +76,20 @@ def _cpu_name() -> str:
     return platform.processor() or platform.machine()
 
 
-#: The per-step figures of the report, in table order, with their labels ({n_sub}: physics steps per
-#: control step of the measured task).
-ROWS = (
-    ("physics_step_us", "{raw_step}"),
-    ("env_step_us", "{env_step}"),
-    ("env_overhead_us", "  of which outside the physics"),
-    ("glue_step_us", "glue per step (run_trial, agent boundary)"),
-    ("outside_physics_learner_us", "overhead outside physics and learner"),
-    ("llr_query_insert_us", "LLR query + insert (N=2000, K=20)"),
-    ("sac_step_us", "S-AC learner step (act + update)"),
-    ("rmac_step_us", "RMAC learner step (act + update)"),
-    ("mlac_step_us", "MLAC learner step (act + update)"),
-)
-
-
 def run(
     quick: bool = False, algorithms: tuple[str, ...] = ("s-ac", "rmac"), jobs: int = 2, **where: Any
 ) -> dict[str, Any]:
     """Measure everything on a task of the suite or an outside environment (``where``: ``domain``
-    and ``task``, or ``env`` with its ``learner_state`` and ``action_repeat``, see :func:`_where`);
-    return the report (the keys of ``--json``)."""
+    and ``task``, or ``env`` with its ``learner_state`` and ``action_repeat``, see
+    :func:`~rmac_mj.bench.measurements.measured_protocol`); return the report (the keys of
+    ``--json``)."""
     calls, repeats = (200, 5) if quick else (1000, 9)
     trials = 30 if quick else PAPER_TRIALS
     on = dict(where)
-    env = _load(**where)
+    env = measured_environment(**where)
     report: dict[str, Any] = {
         **on,
-        "environment": _where(**where).environment_name,
+        "environment": measured_protocol(**where).environment_name,
         "control_timestep_s": env.control_timestep(),
         "n_sub_steps": n_sub_steps(env) if hasattr(env, "physics") else None,
         "state_dim": state_space_of(env).dim,
@@ -463,137 +128,3 @@ def run(
         "mujoco": mujoco.__version__,
     }
     return report
-
-
-def _verdict(ratio: float, target: float | None) -> str:
-    if target is None:
-        return ""
-    return f"<= {target:g} " + ("met" if ratio <= target else "MISSED")
-
-
-def format_table(report: dict[str, Any]) -> str:
-    """The report as a table: microseconds, multiples of the raw control step and of env.step."""
-    physics, env = report["physics_step_us"], report["env_step_us"]
-    lines = [
-        _task_line(report),
-        f"{'what':<44} {'us':>8} {'x raw step':>10} {'x env.step':>10}  target (x raw)",
-        "-" * 90,
-    ]
-    for key, label in ROWS:
-        value = report[key]
-        label = label.format(raw_step=_raw_label(report), env_step=_env_step_label(report))
-        lines.append(
-            f"{label:<44} {value:>8.1f} {value / physics:>10.2f} {value / env:>10.2f}  "
-            f"{_verdict(value / physics, TARGETS.get(key))}"
-        )
-    lines.append("")
-    measured = report.get("experiment_trials_measured", PAPER_TRIALS)
-    per_trial = report["steps_per_trial"]
-    for name, seconds in report["experiment_s"].items():
-        note = "" if measured == PAPER_TRIALS else f", projected from {measured} trials"
-        per_step = seconds / (PAPER_TRIALS * per_trial) * 1e6
-        lines.append(
-            f"one experiment of {PAPER_TRIALS} trials, {name:<5} {seconds:>6.1f} s: "
-            f"{per_step:.0f} us per step = {per_step / physics:.1f} x raw{note}"
-        )
-    run = report["run"]
-    lines.append(
-        f"real run, measured: run_protocol, {run['experiments_per_learner']} experiment(s) "
-        f"x {run['trials']} trials per learner on {run['workers']} workers, "
-        f"{run['steps']} steps ({run['physics_s']:.2f} s of raw physics per worker):"
-    )
-    lines.append(
-        f"  wall {run['wall_s']:.1f} s = {run['x_physics']:.1f} x the raw physics (target for "
-        f"a whole run: <= {RUN_TARGET:g}; a short run pays more of the start-up below)"
-    )
-    if run["cpu_s"] is not None:
-        lines.append(
-            f"  CPU  {run['cpu_s']:.1f} s per worker = {run['cpu_x_physics']:.1f} x "
-            "(the wall time on idle cores)"
-        )
-    lines.append(
-        f"  inside experiments {run['in_experiments_s']:.1f} s per worker (wall) = "
-        f"{run['in_experiments_x_physics']:.1f} x; the rest of the wall time is starting "
-        "workers (imports, numba cache) and writing results"
-    )
-    projected = report["protocol_projected_min"]
-    verdict = "met" if projected <= PROTOCOL_TARGET_MIN else "MISSED"
-    lines.append(
-        f"full protocol (40 + 40 experiments) on {report['machine']['cores']} cores: "
-        f"{projected:.1f} min projected (target <= {PROTOCOL_TARGET_MIN:g}: {verdict})"
-    )
-    if "rehearsal" in report:
-        lines.extend(bench_planning.format_lines(report["rehearsal"], physics))
-    lines.append(
-        f"machine: {report['machine']['cpu']}, {report['machine']['cores']} cores, "
-        f"Python {report['machine']['python']}, MuJoCo {report['machine']['mujoco']}"
-    )
-    return "\n".join(lines)
-
-
-def _raw_label(report: dict[str, Any]) -> str:
-    """What the unit of a report is (reports written before it was recorded: MuJoCo's steps)."""
-    return report.get(
-        "raw_step", f"raw MuJoCo control step ({report.get('n_sub_steps', '?')} x mj_step)"
-    )
-
-
-def _env_step_label(report: dict[str, Any]) -> str:
-    if report.get("env") is not None:
-        return "env.step (the environment + rmac_mj.envs)"
-    return "env.step (dm-control Environment + task)"
-
-
-def _task_line(report: dict[str, Any]) -> str:
-    name = (
-        report.get("environment") or f"{report.get('domain', _DOMAIN)}/{report.get('task', _TASK)}"
-    )
-    substeps = (
-        f" = {report['n_sub_steps']} physics steps" if report.get("n_sub_steps") is not None else ""
-    )
-    return (
-        f"{name}: control step {report.get('control_timestep_s', float('nan')):g} s{substeps}, "
-        f"state n={report.get('state_dim', '?')}"
-    )
-
-
-def format_markdown(report: dict[str, Any]) -> str:
-    """The per-step figures and the real run as a Markdown table (the README's speed table)."""
-    physics = report["physics_step_us"]
-    machine = report["machine"]
-    lines = [
-        f"`rmac-mj bench` on {machine['cpu']} ({machine['cores']} cores), Python "
-        f"{machine['python']}, MuJoCo {machine['mujoco']}; {_task_line(report)}:",
-        "",
-        "| what | us | x raw control step | target |",
-        "|---|---|---|---|",
-    ]
-    for key, label in ROWS:
-        value = report[key]
-        label = label.format(raw_step=_raw_label(report), env_step=_env_step_label(report))
-        lines.append(
-            f"| {label.strip()} | {value:.1f} | {value / physics:.2f} | "
-            f"{_verdict(value / physics, TARGETS.get(key))} |"
-        )
-    per_trial = report["steps_per_trial"]
-    for name, seconds in report["experiment_s"].items():
-        per_step = seconds / (PAPER_TRIALS * per_trial) * 1e6
-        lines.append(
-            f"| one {PAPER_TRIALS}-trial experiment, {name}, per step | {per_step:.0f} | "
-            f"{per_step / physics:.1f} | |"
-        )
-    run = report["run"]
-    cpu = "" if run["cpu_s"] is None else f"; CPU per worker {run['cpu_x_physics']:.1f} x"
-    lines.append(
-        f"| real run: {run['experiments_per_learner']} + {run['experiments_per_learner']} "
-        f"experiments x {run['trials']} trials on {run['workers']} workers | "
-        f"{run['wall_s']:.1f} s wall | {run['x_physics']:.1f}{cpu} | "
-        f"whole run: <= {RUN_TARGET:g} |"
-    )
-    lines.append(
-        f"| full protocol, projected | {report['protocol_projected_min']:.1f} min | | "
-        f"<= {PROTOCOL_TARGET_MIN:g} min |"
-    )
-    if "rehearsal" in report:
-        lines.extend(bench_planning.format_markdown(report["rehearsal"], physics))
-    return "\n".join(lines)

@@ -6,44 +6,31 @@ value V_0(x_0) of the finite-horizon Bellman recursion
 
     V_H(x) = 0,    V_t(x) = max_u [ rho(x, u) + V_{t+1}(f(x, u)) ],   t = H-1, ..., 0,
 
-with rho the task's own reward (``task.reward_of``) and f one control step of the task's *own* MuJoCo
-model. Everything about the problem is read from the environment (:class:`Problem`): the horizon, the
-control step, the action range, the start state, the reward and the state map ``physics.state_of``;
-nothing of a task is repeated here. What this solver needs of a task: one joint (x = [angle, speed],
-the angle periodic over the learner state's box), one actuator, a deterministic start. A task declares
-it as its reference (``tasks.common.Reference("dynamic programming", {grid settings})``).
+with rho the task's own reward (``task.reward_of``) and f one control step of the task's own MuJoCo
+model, both read from the environment (:class:`~rmac_mj.solvers.dynamic_programming_grid.Problem`).
+What it needs of a task: one joint (x = [angle, speed], the angle periodic over the learner state's
+box), one actuator, a deterministic start; a task declares it as its optimum
+(``tasks.common.Reference("dynamic programming", {grid settings})``).
 
-It is solved on a grid (periodic in the angle, a box in the speed) with a finite action set that
-contains the extremes of the action range, and V_{t+1} is read between grid nodes by bilinear
-interpolation. Why this choice:
+It is solved on a grid with a finite action set that contains the extremes of the action range
+(:mod:`rmac_mj.solvers.dynamic_programming_grid`); the transitions f(x_i, u_a) of every node and
+action are simulated once (the dynamics do not depend on time), so each of the H backups is one sparse
+mat-vec and a max. Finite horizon and undiscounted, it is exactly the learners' metric, and it steps
+with the true control period, so the only errors are the state interpolation and the finite action
+set, which the convergence check (a coarser grid) measures.
 
-- *Finite horizon, undiscounted*: it is exactly the learners' metric, not a discounted surrogate; a
-  stationary policy of a discounted problem would answer a different question.
-- *Transition table once*: the dynamics do not depend on time, so f(x_i, u_a) is simulated once for every
-  grid node and action (batched with ``mujoco.rollout``) and stored as a sparse interpolation matrix;
-  each of the H backups is then one sparse mat-vec and a max.
-- *Bilinear interpolation* is an averager (non-negative weights summing to one), so the approximate
-  Bellman operator stays monotone and the recursion cannot blow up (Gordon 1995; Munos & Moore 2002).
-- *No time discretisation error*: the DP steps with the true control period, so the only errors are the
-  state interpolation and the finite action set, which the convergence check measures.
-
-The same greedy policy run with the learners' exploration noise gives the *exploration floor*
-(:mod:`rmac_mj.solvers.exploration_floor`).
-
-The DP value is an approximation; the number to report is the return of its greedy policy simulated on the
-MuJoCo model from x_0 (one-step look-ahead on V_{t+1} from the exact, off-grid state). Being the return of
-an actual admissible policy on the actual model, it is a lower bound on the true optimum; the DP value
-next to it is its check. Results are cached as JSON keyed by the problem (the compiled model, the task's
-source and settings), the grid and the solver version, so ``rmac-mj optimal`` and Fig. 2 reuse them.
+The number to report is the return of the DP's greedy policy simulated on the MuJoCo model from x_0
+(one-step look-ahead on V_{t+1} from the exact, off-grid state): the return of an admissible policy on
+the actual model, hence a lower bound on the true optimum; the DP value next to it is its check. The
+same greedy policy run with the learners' exploration noise gives the exploration floor
+(:mod:`rmac_mj.solvers.exploration_floor`). Results are cached as JSON keyed by the problem, the grid
+and ``SOLVER_VERSION`` (:func:`rmac_mj.solvers.problem.cache_key`).
 
     from rmac_mj.solvers import dynamic_programming as optimal
     from rmac_mj.solvers.problem import problem_identity
     env = protocol.make_environment()
     result = optimal.optimal_return(env, problem_identity(protocol.domain, protocol.task))
     print(result.simulated_return, result.dp_value)
-
-The module is one algorithm read top to bottom (config, problem, result, grid, backups, greedy rollout,
-cache), which is why it runs past 400 lines; its one separable use, the exploration floor, is its own.
 """
 
 from __future__ import annotations
@@ -56,153 +43,44 @@ from typing import Any
 
 import mujoco
 import numpy as np
-import scipy.sparse
 from dm_control.rl import control
-from mujoco import rollout
 
 from rmac_mj.results.files import cached_json
-from rmac_mj.rollout import learner_state_of, steps_per_trial
-from rmac_mj.solvers.problem import Ticker, TrialProblem, cache_directory, versions
+from rmac_mj.solvers.dynamic_programming_config import OptimalConfig
+from rmac_mj.solvers.dynamic_programming_grid import (
+    Problem,
+    action_set,
+    interpolate_value,
+    interpolation_matrix,
+    simulate_transitions,
+    state_grid,
+)
+from rmac_mj.solvers.problem import Ticker, cache_directory, versions
 from rmac_mj.solvers.problem import cache_key as problem_cache_key
 
-#: Bumped whenever a change to this module changes the numbers it computes: old cache entries are ignored.
+__all__ = [
+    "SOLVER_VERSION",
+    "OptimalConfig",
+    "OptimalResult",
+    "Problem",
+    "SolveSummary",
+    "action_set",
+    "cache_key",
+    "greedy_rollout",
+    "interpolate_value",
+    "interpolation_matrix",
+    "optimal_return",
+    "simulate_transitions",
+    "solve",
+    "solve_values",
+    "solved_values",
+    "state_grid",
+]
+
+#: Bumped whenever a change to the solver (this module, ``dynamic_programming_grid``) changes the
+#: numbers it computes: old cache entries are ignored.
 #: 2: the problem is read from the environment (the task's own reward_of instead of a copy of it).
 SOLVER_VERSION = 2
-
-
-@dataclasses.dataclass(frozen=True)
-class OptimalConfig:
-    """How finely the problem is solved (the problem itself comes from the environment: :class:`Problem`).
-
-    A task's reference declares the settings it needs (``Reference.settings``); the defaults are the
-    DC-motor pendulum's converged grid (docs/optimal.md).
-    """
-
-    n_phi: int = 361
-    """Grid nodes in the angle over one period (periodic; spacing period / n_phi)."""
-    n_phi_dot: int = 241
-    """Grid nodes in the speed over [-max_phi_dot, max_phi_dot], ends included."""
-    max_phi_dot: float = 20.0
-    """Half-width of the speed grid (rad/s). Next states beyond it are clipped to its edge; the solver
-    raises if the greedy trajectory comes within 10% of the edge."""
-    n_actions: int = 25
-    """Actions evenly spaced over the action range, extremes included."""
-    lookahead_actions: int = 121
-    """Actions (same range) the greedy policy chooses from when simulated: its one-step look-ahead is
-    cheap, so it may search finer than the DP's backups."""
-    check_convergence: bool = True
-    """Also solve on a grid of half the resolution in each state dimension and with half as many action
-    intervals, and report how much the answers move."""
-    n_threads: int = 0
-    """Threads for the batched transition simulation; 0 means ``os.cpu_count()``. Does not change results."""
-
-    def __post_init__(self) -> None:
-        for name in ("n_phi", "n_phi_dot", "n_actions", "lookahead_actions"):
-            value = getattr(self, name)
-            if not isinstance(value, (int, np.integer)) or isinstance(value, bool):
-                raise TypeError(f"OptimalConfig.{name} must be an int, got {value!r}")
-        if self.n_phi < 4:
-            raise ValueError(f"OptimalConfig.n_phi must be >= 4, got {self.n_phi}")
-        if self.n_phi_dot < 3:
-            raise ValueError(f"OptimalConfig.n_phi_dot must be >= 3, got {self.n_phi_dot}")
-        if self.n_actions < 2:
-            raise ValueError(
-                f"OptimalConfig.n_actions must be >= 2 (the two extremes), got {self.n_actions}"
-            )
-        if self.lookahead_actions < 2:
-            raise ValueError(
-                f"OptimalConfig.lookahead_actions must be >= 2, got {self.lookahead_actions}"
-            )
-        if not (
-            np.isscalar(self.max_phi_dot) and np.isfinite(self.max_phi_dot) and self.max_phi_dot > 0
-        ):
-            raise ValueError(
-                f"OptimalConfig.max_phi_dot must be a positive finite number, "
-                f"got {self.max_phi_dot!r}"
-            )
-        if not isinstance(self.n_threads, (int, np.integer)) or self.n_threads < 0:
-            raise ValueError(f"OptimalConfig.n_threads must be an int >= 0, got {self.n_threads!r}")
-        object.__setattr__(self, "max_phi_dot", float(self.max_phi_dot))
-
-    def coarser(self) -> OptimalConfig:
-        """The convergence check's problem: about half the nodes per state dimension, half the action
-        intervals of the DP and of the look-ahead (the extremes and every other action stay in each
-        set), no further check."""
-        return dataclasses.replace(
-            self,
-            n_phi=max(4, self.n_phi // 2),
-            n_phi_dot=max(3, (self.n_phi_dot + 1) // 2),
-            n_actions=max(2, (self.n_actions + 1) // 2),
-            lookahead_actions=max(2, (self.lookahead_actions + 1) // 2),
-            check_convergence=False,
-        )
-
-
-class Problem(TrialProblem):
-    """The trial of a one-joint task as the DP sees it, read from its environment.
-
-    Attributes:
-      model: the task's compiled MuJoCo model (one joint, one actuator, no activation state).
-      n_substeps: physics steps per control step; horizon: control steps per trial.
-      low, high: the action range (the action spec's bounds).
-      start: the full physics state at the start of a trial (``mj_getState``, FULLPHYSICS).
-      angle_low, period: the angle's grid range [angle_low, angle_low + period) (the learner state's box).
-      describe: a few words on the problem, for people.
-    """
-
-    owner = "optimal"
-
-    def __init__(self, env: control.Environment):
-        super().__init__(env)
-        model, physics = self.model, env.physics
-        if model.nq != 1 or model.nv != 1 or model.na != 0 or model.nu != 1:
-            raise ValueError(
-                f"optimal: the DP needs a one-joint model with one actuator and no "
-                f"activation state (x = [angle, speed]), got nq={model.nq}, nv={model.nv}, "
-                f"na={model.na}, nu={model.nu}"
-            )
-        learner_state = learner_state_of(env)
-        if tuple(learner_state.periodic) != (True, False):
-            raise ValueError(
-                f"optimal: the DP needs x = [angle (periodic), speed], got periodic "
-                f"{learner_state.periodic}"
-            )
-        self.angle_low = float(learner_state.low[0])
-        self.period = float(learner_state.high[0]) - self.angle_low
-        spec = env.action_spec()
-        self.low, self.high = float(np.min(spec.minimum)), float(np.max(spec.maximum))
-        self.horizon = steps_per_trial(env)
-        env.reset()
-        self.start = self._full_state(physics.data.ptr)
-        self._check_deterministic_start(self.start)
-        self.describe = (
-            f"horizon {self.horizon} of {self.control_timestep:g} s, actions in "
-            f"[{self.low:g}, {self.high:g}]"
-        )
-
-    @property
-    def start_z(self) -> np.ndarray:
-        """z_0 = [qpos, qvel] at the start; shape (2,)."""
-        return self.start[1:3].copy()
-
-    def state_of(self, z: np.ndarray) -> np.ndarray:
-        """The task's x (angle wrapped) of physics states z = [qpos, qvel], shape (..., 2)."""
-        return np.asarray(self.env.physics.state_of(z[..., :1], z[..., 1:]), dtype=float)
-
-    def reward(self, z: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """rho(x(z), u), the task's own reward, for states z (..., 2) and actions u (...,)."""
-        return np.asarray(self.env.task.reward_of(self.state_of(z), np.asarray(u)[..., None]))
-
-    def identity(self) -> dict[str, Any]:
-        """What :func:`cache_key` hashes besides the grid: the problem as numbers."""
-        return {
-            "horizon": self.horizon,
-            "control_timestep": self.control_timestep,
-            "n_substeps": self.n_substeps,
-            "action_range": [self.low, self.high],
-            "start": self.start.tolist(),
-            "angle_range": [self.angle_low, self.period],
-        }
 
 
 @dataclasses.dataclass(frozen=True)
@@ -317,99 +195,6 @@ class OptimalResult:
 
 
 # --------------------------------------------------------------------------------------------------
-# The grid, actions, transitions
-
-
-def action_set(problem: Problem, n_actions: int) -> np.ndarray:
-    """ndarray of shape (n_actions,): actions evenly spaced over the problem's action range."""
-    return np.linspace(problem.low, problem.high, n_actions)
-
-
-def state_grid(config: OptimalConfig, problem: Problem) -> tuple[np.ndarray, np.ndarray]:
-    """The grid axes: angles of shape (n_phi,) over one period from ``problem.angle_low``, speeds of
-    shape (n_phi_dot,)."""
-    phi = problem.angle_low + problem.period * np.arange(config.n_phi) / config.n_phi
-    phi_dot = np.linspace(-config.max_phi_dot, config.max_phi_dot, config.n_phi_dot)
-    return phi, phi_dot
-
-
-def simulate_transitions(
-    model: mujoco.MjModel,
-    phi: np.ndarray,
-    phi_dot: np.ndarray,
-    u: np.ndarray,
-    n_substeps: int,
-    n_threads: int = 1,
-    chunk: int = 1 << 17,
-    progress: Callable[[str], None] | None = None,
-) -> np.ndarray:
-    """One control step of a one-joint MuJoCo model from many states, batched with ``mujoco.rollout``.
-
-    Args:
-      phi, phi_dot, u: ndarrays of shape (n,): start qpos, qvel and the action held.
-      n_substeps: physics steps per control step.
-    Returns:
-      ndarray of shape (n, 2): [qpos, qvel] after the step (the angle *not* wrapped).
-    """
-    n = phi.shape[0]
-    datas = [mujoco.MjData(model) for _ in range(max(1, n_threads))]
-    size = mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_FULLPHYSICS)
-    if size != 3:  # [time, qpos, qvel]: one joint, no activation state
-        raise ValueError(f"optimal: a one-joint model has a physics state of 3 numbers, got {size}")
-    out = np.empty((n, 2))
-    for start in range(0, n, chunk):
-        stop = min(n, start + chunk)
-        state0 = np.zeros((stop - start, size))
-        state0[:, 1] = phi[start:stop]
-        state0[:, 2] = phi_dot[start:stop]
-        control = u[start:stop].reshape(-1, 1, 1)
-        states, _ = rollout.rollout(
-            model, datas if len(datas) > 1 else datas[0], state0, control, nstep=n_substeps
-        )
-        out[start:stop] = states[:, -1, 1:3]
-        if progress is not None:
-            progress(f"simulated {stop:,} of {n:,} transitions")
-    return out
-
-
-def interpolation_matrix(
-    config: OptimalConfig, problem: Problem, next_states: np.ndarray
-) -> scipy.sparse.csr_matrix:
-    """Bilinear interpolation on the grid as a sparse matrix.
-
-    Args:
-      next_states: ndarray of shape (m, 2), [angle, speed] (angle any real; speed clipped to the grid).
-    Returns:
-      csr_matrix of shape (m, n_phi * n_phi_dot) with 4 non-negative weights summing to 1 per row, so that
-      ``W @ V.ravel()`` interpolates a grid function V of shape (n_phi, n_phi_dot) at ``next_states``.
-    """
-    n_phi, n_dot = config.n_phi, config.n_phi_dot
-    d_phi = problem.period / n_phi
-    d_dot = 2.0 * config.max_phi_dot / (n_dot - 1)
-    s = (next_states[:, 0] - problem.angle_low) / d_phi
-    i0 = np.floor(s)
-    a = s - i0  # weight of the upper angle node, in [0, 1)
-    i0 = i0.astype(np.int64) % n_phi
-    i1 = (i0 + 1) % n_phi  # periodic in the angle
-    w = (
-        np.clip(next_states[:, 1], -config.max_phi_dot, config.max_phi_dot) + config.max_phi_dot
-    ) / d_dot
-    j0 = np.clip(np.floor(w).astype(np.int64), 0, n_dot - 2)
-    b = np.clip(w - j0, 0.0, 1.0)  # weight of the upper speed node
-    m = next_states.shape[0]
-    # 32-bit indices where they fit: the default table has 2.2 M rows, and this halves its index memory.
-    index = np.int32 if max(4 * m, n_phi * n_dot) < np.iinfo(np.int32).max else np.int64
-    cols = np.stack(
-        [i0 * n_dot + j0, i0 * n_dot + j0 + 1, i1 * n_dot + j0, i1 * n_dot + j0 + 1], axis=1
-    ).astype(index)
-    vals = np.stack([(1 - a) * (1 - b), (1 - a) * b, a * (1 - b), a * b], axis=1)
-    return scipy.sparse.csr_matrix(
-        (vals.ravel(), cols.ravel(), np.arange(0, 4 * m + 1, 4, dtype=index)),
-        shape=(m, n_phi * n_dot),
-    )
-
-
-# --------------------------------------------------------------------------------------------------
 # The solver
 
 
@@ -446,17 +231,6 @@ def solve_values(
         values[t] = v
         ticker(f"backup {problem.horizon - t}/{problem.horizon}")
     return values.reshape(problem.horizon + 1, config.n_phi, config.n_phi_dot)
-
-
-def interpolate_value(
-    config: OptimalConfig, problem: Problem, value: np.ndarray, states: np.ndarray
-) -> np.ndarray:
-    """Bilinear interpolation of one grid function ``value`` (n_phi, n_phi_dot) at ``states`` (m, 2);
-    shape (m,)."""
-    return (
-        interpolation_matrix(config, problem, np.asarray(states, dtype=float).reshape(-1, 2))
-        @ value.astype(float).ravel()
-    )
 
 
 def greedy_rollout(

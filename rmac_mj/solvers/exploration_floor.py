@@ -21,6 +21,13 @@ from dm_control.rl import control
 from rmac_mj.evaluation.metrics import confidence_interval
 from rmac_mj.results.files import cached_json
 from rmac_mj.solvers import dynamic_programming as optimal
+from rmac_mj.solvers.dynamic_programming_config import OptimalConfig
+from rmac_mj.solvers.dynamic_programming_grid import (
+    Problem,
+    action_set,
+    interpolate_value,
+    simulate_transitions,
+)
 from rmac_mj.solvers.problem import Ticker, cache_directory
 
 
@@ -39,7 +46,7 @@ class ExplorationFloor:
       returns: ndarray of shape (rollouts,): each noisy trial's return.
       sigma, period, phase: the exploration schedule (V, steps, step).
       rollouts, seed: how many noisy trials, and the seed of their noise.
-      config: the ``optimal.OptimalConfig`` of the DP whose greedy policy explores.
+      config: the ``OptimalConfig`` of the DP whose greedy policy explores.
       runtime_s, from_cache: as in :class:`OptimalResult`.
     """
 
@@ -52,7 +59,7 @@ class ExplorationFloor:
     phase: int
     rollouts: int
     seed: int
-    config: optimal.OptimalConfig
+    config: OptimalConfig
     runtime_s: float
     from_cache: bool = False
 
@@ -86,7 +93,7 @@ class ExplorationFloor:
 
     @classmethod
     def from_json_dict(cls, d: dict[str, Any], from_cache: bool = True) -> ExplorationFloor:
-        config = optimal.OptimalConfig(**d["config"])
+        config = OptimalConfig(**d["config"])
         return cls(
             mean=float(d["mean"]),
             std=float(d["std"]),
@@ -111,8 +118,8 @@ def _ordinal(n: int) -> str:
 
 
 def noisy_rollouts(
-    config: optimal.OptimalConfig,
-    problem: optimal.Problem,
+    config: OptimalConfig,
+    problem: Problem,
     values: np.ndarray,
     sigma: float,
     period: int,
@@ -132,7 +139,7 @@ def noisy_rollouts(
     Returns:
       ndarray of shape (rollouts,): the sum of the H rewards of each trial.
     """
-    actions = optimal.action_set(problem, config.lookahead_actions)
+    actions = action_set(problem, config.lookahead_actions)
     threads = config.n_threads or os.cpu_count() or 1
     start = problem.start_z
     phi = np.full(rollouts, start[0])
@@ -142,7 +149,7 @@ def noisy_rollouts(
     ticker = Ticker(announce)
     for k in range(problem.horizon):
         ticker(f"noisy trials, step {k}/{problem.horizon}")
-        candidates = optimal.simulate_transitions(
+        candidates = simulate_transitions(
             problem.model,
             np.repeat(phi, n_act),
             np.repeat(phi_dot, n_act),
@@ -153,14 +160,12 @@ def noisy_rollouts(
         z = np.stack([phi, phi_dot], axis=-1)
         scores = problem.reward(
             np.broadcast_to(z[:, None, :], (rollouts, n_act, 2)), actions[None, :]
-        ) + optimal.interpolate_value(config, problem, values[k + 1], candidates).reshape(
-            rollouts, n_act
-        )
+        ) + interpolate_value(config, problem, values[k + 1], candidates).reshape(rollouts, n_act)
         u = actions[np.argmax(scores, axis=1)]  # ties: the lowest action, as greedy_rollout
         if sigma > 0 and k % period == phase:
             u = np.clip(u + rng.normal(0.0, sigma, size=rollouts), problem.low, problem.high)
         total += problem.reward(z, u)
-        next_states = optimal.simulate_transitions(
+        next_states = simulate_transitions(
             problem.model, phi, phi_dot, u, problem.n_substeps, threads
         )
         phi, phi_dot = next_states[:, 0], next_states[:, 1]
@@ -175,7 +180,7 @@ def exploration_floor(
     phase: int = 0,
     rollouts: int = 100,
     seed: int = 0,
-    config: optimal.OptimalConfig = optimal.OptimalConfig(),
+    config: OptimalConfig = OptimalConfig(),
     cache_dir: str | os.PathLike | None = None,
     refresh: bool = False,
     announce: Callable[[str], None] | None = None,
@@ -193,7 +198,7 @@ def exploration_floor(
       rollouts: noisy trials to average, >= 2.
       seed: seed of the noise.
     """
-    if not isinstance(config, optimal.OptimalConfig):
+    if not isinstance(config, OptimalConfig):
         raise TypeError(
             f"exploration_floor: config must be an OptimalConfig, got {type(config).__name__}"
         )

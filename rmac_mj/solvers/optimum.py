@@ -15,7 +15,9 @@ from typing import Protocol as Interface
 from rmac_mj import tasks
 from rmac_mj.solvers import dynamic_programming, trajopt
 from rmac_mj.solvers import exploration_floor as floors
+from rmac_mj.solvers.dynamic_programming_config import OptimalConfig
 from rmac_mj.solvers.problem import Announce, problem_identity
+from rmac_mj.solvers.trajopt_config import TrajoptConfig
 
 
 class Optimum(Interface):
@@ -32,7 +34,7 @@ def _dynamic_programming(env, identity, settings, cache_dir, refresh, announce) 
     return dynamic_programming.optimal_return(
         env,
         identity,
-        dynamic_programming.OptimalConfig(**settings),
+        OptimalConfig(**settings),
         cache_dir=cache_dir,
         refresh=refresh,
         announce=announce,
@@ -43,7 +45,7 @@ def _trajectory_optimisation(env, identity, settings, cache_dir, refresh, announ
     return trajopt.cached_optimise(
         env,
         identity,
-        trajopt.TrajoptConfig(**settings),
+        TrajoptConfig(**settings),
         cache_dir=cache_dir,
         refresh=refresh,
         announce=announce,
@@ -138,7 +140,7 @@ def exploration_floor(
         sigma,
         period,
         phase,
-        config=dynamic_programming.OptimalConfig(**declared.settings),
+        config=OptimalConfig(**declared.settings),
         cache_dir=cache_dir,
         refresh=refresh,
         announce=announce,

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from learners import quick_config
 
-from rmac_mj.agents import agent_class, config_class, make_agent, sb3, sb3_config
+from rmac_mj.agents import agent_class, config_class, make_agent, sb3, sb3_base, sb3_config
 
 ENV_ID = "rmac_mj/DCPendulum-Swingup-v0"
 
@@ -145,7 +145,7 @@ def test_network_input_is_the_gymnasium_observation():
 
 
 def test_without_the_extra_the_learners_name_it(monkeypatch):  # runs without the extra too
-    monkeypatch.setattr(sb3, "available", lambda: False)
+    monkeypatch.setattr(sb3_base, "available", lambda: False)
     with pytest.raises(ImportError, match=r"\[baselines\]"):
         make_agent("sb3-sac", *_pendulum_spaces(), seed=0)
     assert config_class("sb3-sac")().learning_rate == 3e-4  # the configs need no torch
@@ -188,3 +188,11 @@ def test_reproduce_runs_a_baseline_and_resumes_it_alike(tmp_path):
     agent, _ = load_snapshot(store.snapshot_path("sb3-sac", 0, 2))
     env = build_experiment(protocol, "sb3-sac", 0).env
     assert run_trial(env, agent, learn=False) == expected.greedy_returns[0, -1]
+
+
+def test_the_old_module_path_keeps_its_learners():  # runs without the extra too
+    from rmac_mj.agents import sb3_off_policy, sb3_ppo
+
+    assert (sb3.SB3SAC, sb3.SB3TD3) == (sb3_off_policy.SB3SAC, sb3_off_policy.SB3TD3)
+    assert sb3.SB3PPO is sb3_ppo.SB3PPO and sb3.SB3Agent is sb3_base.SB3Agent
+    assert agent_class("sb3-sac") is sb3.SB3SAC

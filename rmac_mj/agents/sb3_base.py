@@ -1,0 +1,251 @@
+"""The driver the Stable-Baselines3 baselines share (:mod:`rmac_mj.agents.sb3`): an SB3 model behind
+the online interface, its own random streams swapped in around every call into SB3, and its state as
+flat arrays (torch modules, optimisers)."""
+
+from __future__ import annotations
+
+import contextlib
+import math
+from typing import Any
+
+import numpy as np
+
+from rmac_mj.agents.base import Agent
+from rmac_mj.agents.sb3_config import INSTALL_HINT, available
+from rmac_mj.agents.spaces import ActionSpace, StateSpace
+
+
+def network_input(x: np.ndarray, periodic: np.ndarray) -> np.ndarray:
+    """The networks' view of a state ``x`` (shape (n,)): each periodic entry as (cos, sin), the others
+    as they are, in order; float32 of shape (n + number of periodic entries,)."""
+    parts = []
+    for value, wraps in zip(x.tolist(), periodic.tolist()):
+        parts.extend((math.cos(value), math.sin(value)) if wraps else (value,))
+    return np.array(parts, dtype=np.float32)
+
+
+def _arrays_of_module(prefix: str, module) -> dict[str, np.ndarray]:
+    return {
+        f"{prefix}{name}": tensor.detach().cpu().numpy().copy()
+        for name, tensor in module.state_dict().items()
+    }
+
+
+def _load_module(prefix: str, module, state: dict[str, np.ndarray]) -> None:
+    import torch
+
+    module.load_state_dict(
+        {name: torch.from_numpy(np.array(state[prefix + name])) for name in module.state_dict()}
+    )
+
+
+def arrays_of_optimizer(prefix: str, optimizer) -> dict[str, np.ndarray]:
+    """Adam's moments and step count per parameter, as ``<prefix><index>.<name>``."""
+    return {
+        f"{prefix}{index}.{name}": value.detach().cpu().numpy().copy()
+        for index, slots in optimizer.state_dict()["state"].items()
+        for name, value in slots.items()
+    }
+
+
+def load_optimizer(prefix: str, optimizer, state: dict[str, np.ndarray]) -> None:
+    import torch
+
+    slots: dict[int, dict[str, Any]] = {}
+    for key, value in state.items():
+        if key.startswith(prefix):
+            index, name = key[len(prefix) :].split(".", 1)
+            slots.setdefault(int(index), {})[name] = torch.from_numpy(np.array(value))
+    document = optimizer.state_dict()
+    document["state"] = slots
+    optimizer.load_state_dict(document)
+
+
+def _spaces_only(observation_dim: int, action_space: ActionSpace):
+    """What SB3 is given for an environment: a Gymnasium environment with the learner's spaces that
+    cannot be stepped. The runner, not SB3, steps the task."""
+    import gymnasium
+
+    class SpacesOnly(gymnasium.Env):
+        def __init__(self) -> None:
+            self.observation_space = gymnasium.spaces.Box(
+                -np.inf, np.inf, (observation_dim,), np.float32
+            )
+            self.action_space = gymnasium.spaces.Box(
+                action_space.low.astype(np.float32),
+                action_space.high.astype(np.float32),
+                dtype=np.float32,
+            )
+
+        def reset(self, *, seed=None, options=None):
+            raise RuntimeError("an rmac-mj learner is stepped by the runner, not by SB3")
+
+        def step(self, action):
+            raise RuntimeError("an rmac-mj learner is stepped by the runner, not by SB3")
+
+    return SpacesOnly()
+
+
+class SB3Agent(Agent):
+    """An SB3 algorithm behind the online interface (see :mod:`rmac_mj.agents.sb3`); subclasses
+    say which.
+
+    Learned state besides SB3's model: ``timesteps_`` (control steps learned from, SB3's
+    ``num_timesteps``).
+    """
+
+    #: The stable_baselines3 class name, e.g. ``"SAC"``.
+    sb3_class = ""
+
+    def __init__(
+        self,
+        state_space: StateSpace,
+        action_space: ActionSpace,
+        config: Any = None,
+        seed: int | np.random.Generator | None = None,
+    ) -> None:
+        config = self.config_class() if config is None else config
+        super().__init__(state_space, action_space, config, seed)
+        if not available():
+            raise ImportError(f"{self.name}: {INSTALL_HINT}")
+        import stable_baselines3
+        import torch
+        from stable_baselines3.common.logger import Logger
+
+        torch.set_num_threads(config.torch_threads)
+        self._torch = torch
+        self._periodic = state_space.periodic.copy()
+        observation_dim = state_space.dim + int(self._periodic.sum())
+        #: The seed SB3 is built with (drawn from ``rng``): SB3's ``learn()`` with this seed is what
+        #: this learner reproduces.
+        self.sb3_seed_ = int(self.rng.integers(2**31 - 1))
+        outer = self._global_random_states()
+        try:
+            self.model = getattr(stable_baselines3, self.sb3_class)(
+                "MlpPolicy",
+                _spaces_only(observation_dim, action_space),
+                seed=self.sb3_seed_,
+                device="cpu",
+                **self._sb3_kwargs(),
+            )
+            self._random_states = self._global_random_states()
+        finally:
+            self._set_global_random_states(outer)
+        self.model.set_logger(Logger(folder=None, output_formats=[]))  # record, never write
+
+    def _sb3_kwargs(self) -> dict[str, Any]:
+        """The SB3 constructor's arguments from the config."""
+        raise NotImplementedError
+
+    # -- randomness: the learner's own streams, swapped in around every call into SB3 -------------------
+    def _global_random_states(self) -> tuple[Any, Any]:
+        return self._torch.get_rng_state(), np.random.get_state()
+
+    def _set_global_random_states(self, states: tuple[Any, Any]) -> None:
+        self._torch.set_rng_state(states[0])
+        np.random.set_state(states[1])
+
+    @contextlib.contextmanager
+    def _own_randomness(self):
+        outer = self._global_random_states()
+        self._set_global_random_states(self._random_states)
+        try:
+            yield
+        finally:
+            self._random_states = self._global_random_states()
+            self._set_global_random_states(outer)
+
+    def _observation(self, x: np.ndarray) -> np.ndarray:
+        """x as SB3's one-environment observation batch, shape (1, d)."""
+        return network_input(x, self._periodic)[None, :]
+
+    # -- one control step: act, then record its transition (and update when SB3's loop would) -------
+    def _act(self) -> np.ndarray:
+        """The action in the observation SB3 holds as its last (``_last_obs``)."""
+        raise NotImplementedError
+
+    def _record(self, reward: float, x: np.ndarray, last: bool, terminal: bool = False) -> None:
+        """Store the step's transition to x (``last``: the trial ends, a time-out unless
+        ``terminal``: x is a terminal state, not bootstrapped) and learn."""
+        raise NotImplementedError
+
+    def _start(self, x0: np.ndarray) -> np.ndarray:
+        self.model._last_obs = self._observation(x0)
+        self.model.policy.set_training_mode(False)
+        return self._act()
+
+    def _step(self, reward: float, x: np.ndarray) -> np.ndarray:
+        self._record(reward, x, last=False)
+        return self._act()
+
+    def _stop(self, reward: float, x: np.ndarray, terminal: bool) -> None:
+        self._record(reward, x, last=True, terminal=terminal)
+
+    @property
+    def timesteps_(self) -> int:
+        return int(self.model.num_timesteps)
+
+    def _greedy_action(self, x: np.ndarray) -> np.ndarray:
+        action, _ = self.model.predict(self._observation(x), deterministic=True)
+        return action[0].astype(float)
+
+    # -- state: SB3's model as flat numeric arrays --------------------------------------------------------
+    def _state(self) -> dict[str, np.ndarray]:
+        torch_state, (_, keys, position, has_gauss, gauss) = self._random_states
+        state = _arrays_of_module("policy.", self.model.policy)
+        state.update(
+            {
+                "torch_rng": torch_state.numpy().copy(),
+                "numpy_rng_keys": np.asarray(keys, dtype=np.uint32).copy(),
+                "numpy_rng_position": np.array([position, has_gauss], dtype=np.int64),
+                "numpy_rng_gauss": np.array(gauss, dtype=np.float64),
+                "timesteps": np.array(self.model.num_timesteps, dtype=np.int64),
+                "updates": np.array(self.model._n_updates, dtype=np.int64),
+            }
+        )
+        if self._in_trial:
+            state["last_observation"] = np.array(self.model._last_obs)
+        return state
+
+    def _may_lack(self, key: str) -> bool:
+        """Entries SB3 holds only at some moments: in a trial, with a pending action, after an
+        optimizer's first update."""
+        return (
+            super()._may_lack(key)
+            or "optimizer." in key
+            or key
+            in (
+                "last_observation",
+                "buffer_action",
+                "pending_action",
+                "pending_value",
+                "pending_log_prob",
+            )
+        )
+
+    def _shape_varies(self, key: str) -> bool:
+        return key.startswith(("replay.", "rollout."))  # buffers that fill
+
+    def _load_state(self, state: dict[str, np.ndarray]) -> None:
+        _load_module("policy.", self.model.policy, state)
+        position, has_gauss = (int(v) for v in state["numpy_rng_position"])
+        self._random_states = (
+            self._torch.from_numpy(np.array(state["torch_rng"], dtype=np.uint8)),
+            (
+                "MT19937",
+                np.array(state["numpy_rng_keys"], dtype=np.uint32),
+                position,
+                has_gauss,
+                float(state["numpy_rng_gauss"]),
+            ),
+        )
+        self.model.num_timesteps = int(state["timesteps"])
+        self.model._n_updates = int(state["updates"])
+        if "last_observation" in state:
+            self.model._last_obs = np.array(state["last_observation"], dtype=np.float32)
+
+
+def network_bytes(inputs: int, net_arch: tuple[int, ...], outputs: int) -> int:
+    """float32 parameters of a fully connected network (weights and biases)."""
+    sizes = [inputs, *net_arch, outputs]
+    return 4 * sum((a + 1) * b for a, b in zip(sizes[:-1], sizes[1:]))
