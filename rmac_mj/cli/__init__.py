@@ -130,6 +130,16 @@ def report(error: Exception, args: argparse.Namespace) -> int:
     if kind == "input":
         _say_error(f"error: {error}")
         return EXIT_BAD_INPUT
+    if kind == "misplaced":
+        # os.replace(temporary, target) names the target second
+        path = error.filename2 if getattr(error, "filename2", None) else error.filename
+        _say_error(
+            f"error: {path} is a "
+            f"{'directory' if isinstance(error, IsADirectoryError) else 'file'} where a "
+            f"{'file' if isinstance(error, IsADirectoryError) else 'directory'} is expected; "
+            "what was saved is whole: move it away, or choose another path"
+        )
+        return EXIT_BAD_INPUT
     if kind == "storage":
         # The machine's storage, not a bug: what was saved is whole (every file is written
         # atomically), and --resume finishes the run once there is room.
@@ -158,13 +168,16 @@ def report(error: Exception, args: argparse.Namespace) -> int:
 
 
 def _kind(error: Exception) -> str:
-    """'input', 'environment', 'storage', 'memory' or 'bug'."""
+    """'input', 'misplaced' (a directory where a file belongs, or the reverse), 'environment',
+    'storage', 'memory' or 'bug'."""
     from rmac_mj._gl import GLBackendError
 
     if isinstance(error, UserInputError | GLBackendError):  # no off-screen GL: names the packages
         return "input"
     if isinstance(error, EnvironmentFailure):
         return "environment"
+    if isinstance(error, IsADirectoryError | NotADirectoryError) and error.filename:
+        return "misplaced"  # the package makes no such thing: a user put it there
     if isinstance(error, OSError) and error.errno in _STORAGE_ERRORS:
         return "storage"
     if isinstance(error, MemoryError):
