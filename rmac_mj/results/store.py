@@ -554,6 +554,7 @@ _SUMMARY_ROW_KEYS = {
     "experiments": "an integer",
     "final_return_mean": "a number",
     "final_return_ci95": "a list",
+    "minutes_to_90pct": "a number",
     "final_return_per_experiment": "a list",
     "mean_return_per_trial": "a list",
     "ci95_low_per_trial": "a list",
