@@ -14,8 +14,10 @@ import dm_env
 import numpy as np
 from dm_env import specs
 
+from rmac_mj.agents.spaces import STATE_LIMIT_WIDTHS, StateSpace
+from rmac_mj.envs.failures import checked_reward, outside, read_observation
 from rmac_mj.envs.observations import ObservationLayout, ObservationMap
-from rmac_mj.errors import UserInputError
+from rmac_mj.errors import EnvironmentFailure, UserInputError
 from rmac_mj.tasks.common import LearnerStateSpec
 
 
@@ -74,6 +76,10 @@ class Environment(dm_env.Environment):
             maximum=np.broadcast_to(action.maximum, action.shape).reshape(m).astype(float),
         )
         self._base_shape = action.shape
+        self._raw_size = sum(layout.sizes.values())
+        # What a learner accepts (finite, within its limit around the box): refused here, in the
+        # environment's name, before a learner sees it.
+        self._accepted = StateSpace(learner_state.low, learner_state.high, learner_state.periodic)
         self.base_timestep = float(base_timestep)
         self.steps_per_trial = int(steps_per_trial)
         self.action_repeat = int(action_repeat)
@@ -84,8 +90,9 @@ class Environment(dm_env.Environment):
     # ------------------------------------------------------------------------------ dm_env interface
     def reset(self) -> dm_env.TimeStep:
         self._step = 0
-        timestep = self.base.reset()
-        return timestep._replace(observation=self.map.entries(timestep.observation))
+        with outside(self.name, "reset"):
+            timestep = self.base.reset()
+        return timestep._replace(observation=self._entries(timestep.observation, "reset"))
 
     def step(self, action: Any) -> dm_env.TimeStep:
         """Apply ``action`` for ``action_repeat`` base steps; the reward is their sum, the discount
@@ -93,17 +100,36 @@ class Environment(dm_env.Environment):
         action = np.asarray(action, dtype=float).reshape(self._base_shape)
         reward, discount = 0.0, 1.0
         for _ in range(self.action_repeat):
-            timestep = self.base.step(action)
+            with outside(self.name, "step"):
+                timestep = self.base.step(action)
+                last = timestep.last()
+                discount *= 1.0 if timestep.discount is None else float(timestep.discount)
             self.base_steps += 1
-            reward += float(timestep.reward)
-            discount *= 1.0 if timestep.discount is None else float(timestep.discount)
-            if timestep.last():
+            reward += checked_reward(self.name, "step", timestep.reward)
+            if last:
                 break
         self._step += 1
-        observation = self.map.entries(timestep.observation)
+        observation = self._entries(timestep.observation, "step")
         if timestep.last() or self._step >= self.steps_per_trial:
             return dm_env.TimeStep(dm_env.StepType.LAST, reward, discount, observation)
         return dm_env.TimeStep(dm_env.StepType.MID, reward, discount, observation)
+
+    def _entries(self, observation: Any, phase: str) -> dict[str, np.ndarray]:
+        """The learner's entries of the raw ``observation`` that ``phase`` gave;
+        :class:`EnvironmentFailure` when it is not numbers of its spec's size, or not a state a
+        learner accepts (non-finite, or beyond :data:`STATE_LIMIT_WIDTHS` box widths)."""
+        flat = read_observation(self.name, phase, self.map.flat, observation, self._raw_size)
+        x = self.map.state_of_flat(flat)
+        values = x.tolist()
+        if not self._accepted.accepts(values):
+            low, high = self._accepted.limit
+            i = int(np.argmax((x < low) | (x > high)))
+            raise EnvironmentFailure(
+                f"env {self.name!r}: its {phase} gave x[{i}] = {values[i]:g}, beyond what a "
+                f"learner accepts, [{low[i]:g}, {high[i]:g}] ({STATE_LIMIT_WIDTHS:g} widths of "
+                f"the state box around it)"
+            )
+        return self.map.split(x)
 
     def observation_spec(self) -> dict[str, specs.Array]:
         sizes = [e.size for e in self.map.entries_]

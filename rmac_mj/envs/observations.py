@@ -198,14 +198,20 @@ class ObservationMap:
         return np.concatenate([observation[k] for k in self._keys], axis=None, dtype=float)
 
     def __call__(self, observation: Any) -> np.ndarray:
-        flat = self.flat(observation)
+        return self.state_of_flat(self.flat(observation))
+
+    def state_of_flat(self, flat: np.ndarray) -> np.ndarray:
+        """x (shape (n,)) from a raw observation flattened by :meth:`flat`."""
         x = flat[self._plain]
         if self._angle_at.size:
             x[self._angle_at] = np.arctan2(flat[self._sin], flat[self._cos])
         return x
 
     def entries(self, observation: Any) -> dict[str, np.ndarray]:
-        x = self(observation)
+        return self.split(self(observation))
+
+    def split(self, x: np.ndarray) -> dict[str, np.ndarray]:
+        """x (shape (n,)) as its entries, name -> array."""
         return {name: x[s] for name, s in zip(self.names, self._slices)}
 
     def periodic(self) -> tuple[bool, ...]:

@@ -23,6 +23,7 @@ import dm_env
 import numpy as np
 
 from rmac_mj.envs.environment import Environment, trial_steps
+from rmac_mj.envs.failures import outside, read_observation
 from rmac_mj.envs.from_gymnasium import GymnasiumEnvironment
 from rmac_mj.envs.observations import (
     ObservationLayout,
@@ -31,6 +32,7 @@ from rmac_mj.envs.observations import (
     infer_learner_state,
     layout_of_dm_env,
 )
+from rmac_mj.errors import UserInputError
 from rmac_mj.tasks.common import LearnerStateSpec
 
 #: The SPEC prefixes that name a library rather than a module of the user's.
@@ -85,16 +87,22 @@ def load_factory(target: str) -> Callable[..., Any]:
             loader_spec = importlib.util.spec_from_file_location(name, path)
             module = importlib.util.module_from_spec(loader_spec)
             sys.modules[name] = module
-            loader_spec.loader.exec_module(module)
+            try:
+                with outside(target, f"module {path.name}"):
+                    loader_spec.loader.exec_module(module)
+            except BaseException:
+                del sys.modules[name]  # half run: import it afresh next time
+                raise
     else:
-        try:
-            module = importlib.import_module(module_name)
-        except ImportError as error:
-            raise ValueError(
-                f"env {target!r}: cannot import {module_name!r} ({error}); a module "
-                f"must be installed or on PYTHONPATH, or give path/to/file.py:"
-                f"{attribute}"
-            ) from None
+        with outside(target, f"module {module_name}"):
+            try:
+                module = importlib.import_module(module_name)
+            except ImportError as error:
+                raise UserInputError(
+                    f"env {target!r}: cannot import {module_name!r} ({error}); a module "
+                    f"must be installed or on PYTHONPATH, or give path/to/file.py:"
+                    f"{attribute}"
+                ) from None
     try:
         factory = functools.reduce(getattr, attribute.split("."), module)
     except AttributeError:
@@ -189,7 +197,8 @@ class EnvSpec:
                     f"{'its tasks' if domain in suite.TASKS_BY_DOMAIN else 'domains'}: "
                     f"{known}"
                 )
-            return suite.load(domain, task, task_kwargs=dict(kwargs, random=seed))
+            with outside(self.env, "suite.load"):
+                return suite.load(domain, task, task_kwargs=dict(kwargs, random=seed))
         if source == "gymnasium":
             try:
                 import gymnasium
@@ -199,10 +208,11 @@ class EnvSpec:
                 ) from None
             if render:
                 kwargs["render_mode"] = "rgb_array"
-            try:
-                env = gymnasium.make(target, **kwargs)
-            except gymnasium.error.Error as error:
-                raise ValueError(f"env {self.env!r}: {error}") from None
+            with outside(self.env, "gymnasium.make"):
+                try:
+                    env = gymnasium.make(target, **kwargs)
+                except gymnasium.error.Error as error:  # an unknown id, a bad argument
+                    raise UserInputError(f"env {self.env!r}: {error}") from None
             return GymnasiumEnvironment(env, seed=seed, name=self.env)
         factory = load_factory(target)
         parameters = inspect.signature(factory).parameters
@@ -210,7 +220,8 @@ class EnvSpec:
             kwargs["seed"] = seed
         if render and "render_mode" in parameters:
             kwargs["render_mode"] = "rgb_array"
-        made = factory(**kwargs)
+        with outside(self.env, "factory"):
+            made = factory(**kwargs)
         if isinstance(made, dm_env.Environment):
             return made
         if _is_gymnasium_env(made):
@@ -262,7 +273,11 @@ class EnvSpec:
                 return dataclasses.replace(spec, learner_state=own)
         layout = _layout(base)
         needs_probe = not (declared and "keys" in declared)
-        samples = _probe(base, layout) if needs_probe else np.zeros((0, sum(layout.sizes.values())))
+        samples = (
+            _probe(base, layout, self.env)
+            if needs_probe
+            else np.zeros((0, sum(layout.sizes.values())))
+        )
         action = base.action_spec()
         measured: dict[str, list[float]] = {}
         learner_state = infer_learner_state(
@@ -353,9 +368,9 @@ def _truncation_steps(base: dm_env.Environment, spec: EnvSpec) -> int | None:
     high = np.broadcast_to(action.maximum, action.shape).astype(float)
     lengths = set()
     for _ in range(2):
-        base.reset()
+        _probe_call(spec.env, "reset", base.reset)
         for steps in range(1, MAX_PROBE_STEPS + 1):  # noqa: B007 (read after the loop)
-            timestep = base.step(rng.uniform(low, high))
+            timestep = _probe_call(spec.env, "step", base.step, rng.uniform(low, high))
             if timestep.last():
                 break
         if not timestep.last() or timestep.discount == 0.0:
@@ -374,8 +389,8 @@ def _random_states(base: dm_env.Environment, mapping: ObservationMap, spec: EnvS
     high = np.broadcast_to(action.maximum, action.shape).astype(float)
     states, taken = [], 0
     while taken < BOX_PROBE_STEPS:
-        timestep, steps = base.reset(), 0
-        states.append(mapping(timestep.observation))
+        timestep, steps = _probe_call(spec.env, "reset", base.reset), 0
+        states.append(_probe_read(spec.env, "reset", mapping, timestep, mapping.dim))
         while (
             not timestep.last()
             and taken < BOX_PROBE_STEPS
@@ -383,30 +398,46 @@ def _random_states(base: dm_env.Environment, mapping: ObservationMap, spec: EnvS
         ):
             u = rng.uniform(low, high)
             for _ in range(spec.action_repeat):
-                timestep = base.step(u)
+                timestep = _probe_call(spec.env, "step", base.step, u)
                 taken += 1
                 if timestep.last():
                     break
             steps += 1
-            states.append(mapping(timestep.observation))
+            states.append(_probe_read(spec.env, "step", mapping, timestep, mapping.dim))
     base.close()
     return np.asarray(states)
 
 
-def _probe(base: dm_env.Environment, layout: ObservationLayout) -> np.ndarray:
+def _probe(base: dm_env.Environment, layout: ObservationLayout, env: str) -> np.ndarray:
     """Raw observations (flattened, shape (T, size)) of a few episodes of uniform random actions."""
     rng = np.random.default_rng(PROBE_SEED)
     spec = base.action_spec()
     low = np.broadcast_to(spec.minimum, spec.shape).astype(float)
     high = np.broadcast_to(spec.maximum, spec.shape).astype(float)
     flatten = ObservationMap([], layout).flat
+    size = sum(layout.sizes.values())
     samples = []
     for _ in range(PROBE_EPISODES):
-        timestep = base.reset()
-        samples.append(flatten(timestep.observation))
+        timestep = _probe_call(env, "reset", base.reset)
+        samples.append(_probe_read(env, "reset", flatten, timestep, size))
         for _ in range(PROBE_STEPS):
-            timestep = base.step(rng.uniform(low, high))
-            samples.append(flatten(timestep.observation))
+            timestep = _probe_call(env, "step", base.step, rng.uniform(low, high))
+            samples.append(_probe_read(env, "step", flatten, timestep, size))
             if timestep.last():
                 break
     return np.asarray(samples)
+
+
+def _probe_call(env: str, phase: str, call: Callable[..., Any], *args: Any) -> Any:
+    """``call(*args)``, the environment's ``reset`` or ``step`` while it is probed before a run."""
+    with outside(env, f"{phase} (probed with random actions before the run)"):
+        return call(*args)
+
+
+def _probe_read(
+    env: str, phase: str, read: Callable[[Any], np.ndarray], timestep: dm_env.TimeStep, size: int
+) -> np.ndarray:
+    """``read`` of the observation ``phase`` gave while probing, ``size`` finite numbers
+    (:func:`~rmac_mj.envs.failures.read_observation`)."""
+    where = f"{phase} (probed with random actions before the run)"
+    return read_observation(env, where, read, timestep.observation, size)

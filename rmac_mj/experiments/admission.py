@@ -18,7 +18,7 @@ from typing import Any
 from rmac_mj import agents
 from rmac_mj.agents import make_agent
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
-from rmac_mj.errors import UserInputError
+from rmac_mj.errors import UserInputError, environment_failure_at
 from rmac_mj.experiments import prior_transitions as prior_data
 from rmac_mj.experiments.protocol import Protocol
 from rmac_mj.rollout import (
@@ -169,8 +169,9 @@ def warm_up(protocol: Protocol) -> None:
             config=protocol.agent_configs.get(algorithm),
             seed=0,
         )
-        run_trial(env, agent, learn=True)
-        run_trial(env, agent, learn=False)
+        with environment_failure_at(f"a first trial of {algorithm} before the experiments"):
+            run_trial(env, agent, learn=True)
+            run_trial(env, agent, learn=False)
 
 
 #: Seconds between two lines of the warm-up's progress while numba compiles.

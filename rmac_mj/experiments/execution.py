@@ -136,6 +136,10 @@ def connect_dask(address: str, timeout: float | None = None):
     logging.getLogger("distributed.client").setLevel(logging.CRITICAL)
     try:
         return Client(address, timeout=DASK_CONNECT_SECONDS if timeout is None else timeout)
+    except ValueError as error:  # an unknown scheme ("foo://host:8786"), a malformed address
+        raise BackendError(
+            f"--scheduler {address!r} is not a scheduler address ({error}; e.g. tcp://host:8786)"
+        ) from None
     except (OSError, TimeoutError) as error:
         raise BackendError(
             f"cannot reach the Dask scheduler at {address} ({error}); is "

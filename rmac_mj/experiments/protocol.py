@@ -32,6 +32,7 @@ from rmac_mj.agents import (
     make_agent,
     unknown_algorithm,
 )
+from rmac_mj.errors import environment_failure_at
 from rmac_mj.experiments import checkpoint as checkpoints
 from rmac_mj.experiments import prior_transitions as prior_data
 from rmac_mj.results import files
@@ -494,7 +495,9 @@ def run_experiment(
     ``on_trial(algorithm, index, trial, return)`` is called after every learning trial.
     """
     protocol = spec.protocol
-    experiment = build_experiment(protocol, spec.algorithm, spec.index, spec.demonstration)
+    name = f"{spec.algorithm} experiment {spec.index}"
+    with environment_failure_at(f"{name}, building it"):
+        experiment = build_experiment(protocol, spec.algorithm, spec.index, spec.demonstration)
     env, agent = experiment.env, experiment.agent
     meta = {**protocol.environment_description(), "experiment": spec.index, "seed": protocol.seed}
     evaluate = evaluation(protocol, spec.index)
@@ -531,13 +534,15 @@ def run_experiment(
             )
         while trial < protocol.trials and (protocol.steps is None or taken < protocol.steps):
             trial += 1
-            value, steps = run_counted_trial(env, agent, learn=True)
+            with environment_failure_at(f"{name}, trial {trial}"):
+                value, steps = run_counted_trial(env, agent, learn=True)
             taken += steps
             returns.append(value)
             env_steps.append(taken)
             greedy = None
             if protocol.evaluate_every and trial % protocol.evaluate_every == 0:
-                greedy = evaluate(env, agent)
+                with environment_failure_at(f"{name}, greedy evaluation after trial {trial}"):
+                    greedy = evaluate(env, agent)
                 greedy_trials.append(trial)
                 greedy_returns.append(greedy)
             last = trial == protocol.trials or (

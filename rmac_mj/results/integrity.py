@@ -56,7 +56,13 @@ class DirectoryLock:
             return
         self.path.parent.mkdir(parents=True, exist_ok=True)
         while True:
-            handle = open(self.path, "a+", encoding="utf-8")
+            try:
+                handle = open(self.path, "a+", encoding="utf-8")
+            except (IsADirectoryError, PermissionError) as error:
+                raise UserInputError(
+                    f"{self.path} cannot be the directory's lock ({error.strerror}); remove it or "
+                    "choose another --out"
+                ) from None
             try:
                 fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except OSError:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import os
 import pathlib
+import zipfile
 from typing import Any
 
 import numpy as np
@@ -79,6 +80,21 @@ def load_snapshot(path: str | os.PathLike) -> tuple[Agent, dict[str, Any]]:
     path = pathlib.Path(path)
     if not path.is_file():
         raise MissingInputError(f"no snapshot at {path}")
+    try:
+        return _read_snapshot(path)
+    except UserInputError:
+        raise
+    except (ValueError, TypeError, KeyError, AttributeError, OSError, EOFError) as error:
+        # zipfile.BadZipFile is an Exception only: a file that is not a zip at all
+        raise UserInputError(
+            f"{path} is not a readable rmac-mj snapshot ({type(error).__name__}: {error})"
+        ) from error
+    except zipfile.BadZipFile as error:
+        raise UserInputError(f"{path} is not an rmac-mj snapshot (not a zip: {error})") from error
+
+
+def _read_snapshot(path: pathlib.Path) -> tuple[Agent, dict[str, Any]]:
+    """:func:`load_snapshot` of an existing file, its errors unrefined."""
     with np.load(path, allow_pickle=False) as data:
         if "meta" not in data.files:
             raise UserInputError(f"{path} is not an rmac-mj snapshot (no 'meta' entry)")

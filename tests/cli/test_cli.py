@@ -129,16 +129,23 @@ def test_unknown_hyperparameter_is_one_line(tmp_path):
     assert result.returncode == 2 and "StandardACConfig has no parameter 'bogus'" in result.stderr
 
 
-def test_a_bug_keeps_its_traceback(tmp_path, monkeypatch):
-    """Only bad user input is shortened to one line; a ValueError from inside the code is a bug."""
+def test_a_bug_keeps_its_traceback(tmp_path, monkeypatch, capsys):
+    """Only bad user input is a plain one line; a ValueError from inside the code is a bug: its line
+    says so and where its traceback went, the log holds it, and --debug prints it."""
     from rmac_mj.experiments import runner
 
     def broken(*args, **kwargs):
         raise ValueError("deep inside a learner")
 
     monkeypatch.setattr(runner, "run_protocol", broken)
-    with pytest.raises(ValueError, match="deep inside a learner"):  # not caught, not shortened
-        main(["reproduce", "--out", str(tmp_path / "x"), "--no-progress"])
+    monkeypatch.setenv("RMAC_MJ_CACHE_DIR", str(tmp_path / "cache"))
+    assert main(["reproduce", "--out", str(tmp_path / "x"), "--no-progress"]) == 1
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert "a bug of rmac-mj: ValueError: deep inside a learner" in line
+    log = line.rpartition("traceback in ")[2].partition(";")[0]
+    assert 'raise ValueError("deep inside a learner")' in open(log).read()
+    assert main(["--debug", "reproduce", "--out", str(tmp_path / "y"), "--no-progress"]) == 1
+    assert "Traceback (most recent call last)" in capsys.readouterr().err
 
 
 def test_bad_hyperparameter_value_is_one_line(tmp_path):
