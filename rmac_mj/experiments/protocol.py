@@ -150,8 +150,8 @@ class Protocol:
                 constraints.InstanceOf(str), what="a list of one or more algorithm names"
             )
         ],
-        "experiments": [constraints.Interval(numbers.Integral, 1, None)],
-        "trials": [constraints.Interval(numbers.Integral, 1, None)],
+        "experiments": [constraints.EXPERIMENTS.constraint()],
+        "trials": [constraints.TRIALS.constraint()],
         "steps": [constraints.Interval(numbers.Integral, 1, None), None],
         "seed": [constraints.Interval(numbers.Integral, 0, None)],
         "evaluate_every": [constraints.Interval(numbers.Integral, 0, None)],
@@ -161,9 +161,9 @@ class Protocol:
         ],
         "agent_configs": [constraints.InstanceOf(dict)],
         "prior": [constraints.InstanceOf(str), None],
-        "prior_trials": [constraints.Interval(numbers.Integral, 1, None)],
+        "prior_trials": [constraints.PRIOR_TRIALS.constraint()],
         "prior_parts": [constraints.TupleOf(constraints.Options(*PRIOR_PARTS)), _EMPTY],
-        "evaluate_starts": [constraints.Interval(numbers.Integral, 0, None)],
+        "evaluate_starts": [constraints.EVALUATE_STARTS.constraint()],
         "env": [constraints.InstanceOf(str), None],
         "learner_state": [constraints.InstanceOf(dict), None],
         "action_repeat": [constraints.Interval(numbers.Integral, 1, None)],

@@ -179,8 +179,14 @@ def load_sweep(path: str | pathlib.Path, announce: Callable[[str], None] | None 
             raise check.error(where, "is also set in [protocol]; set it in one place")
         grid[key] = values
     variants = check.variants(document, algorithms, fixed, grid)
+    count = max(1, len(variants)) * math.prod(len(values) for values in grid.values())
+    if count > constraints.SWEEP_CONFIGURATIONS.value:  # counted, never enumerated, before refusing
+        raise check.error(
+            "[grid]",
+            constraints.SWEEP_CONFIGURATIONS.refusal("the number of configurations", count)
+            + f" ({' x '.join(str(n) for n in _factors(variants, grid))}): sweep fewer values",
+        )
     if announce is not None:
-        count = max(1, len(variants)) * math.prod(len(values) for values in grid.values())
         per = options.get("experiments", Protocol().experiments) * len(algorithms)
         announce(
             f"{path}: {count} configuration{'s' * (count != 1)} x {per} experiments = "
@@ -196,6 +202,11 @@ def load_sweep(path: str | pathlib.Path, announce: Callable[[str], None] | None 
         variants=variants,
         configurations=configurations,
     )
+
+
+def _factors(variants: tuple, grid: dict) -> list[int]:
+    """The sizes whose product is a sweep's number of configurations: variants, then each grid key's."""
+    return ([len(variants)] if variants else []) + [len(values) for values in grid.values()]
 
 
 def load_configuration(path: str | pathlib.Path) -> SingleConfiguration:
@@ -295,8 +306,10 @@ class _Checker:
     """Validation of one file; every message starts with the file's path and names the key."""
 
     def __init__(self, path: pathlib.Path):
+        from rmac_mj.experiments import admission
+
         self.path = path
-        self._spaces: dict[str, tuple] = {}
+        self._facts = admission.TaskFacts()  # each distinct task's spaces, asked once
 
     def error(self, where: str, message: str) -> SweepFileError:
         return SweepFileError(f"{self.path}: {where}: {message}")
@@ -396,17 +409,15 @@ class _Checker:
 
     def agents(self, protocol: Protocol, where: str) -> None:
         """Build each learner of ``protocol`` on its task: catches what only the task's spaces
-        reveal (e.g. input weights of the wrong length) before anything runs."""
+        reveal (e.g. input weights of the wrong length) before anything runs; a learner whose
+        estimated memory cannot fit the machine is refused before it is built."""
         from rmac_mj.agents import make_agent
-        from rmac_mj.rollout import action_space_of, state_space_of
+        from rmac_mj.experiments import admission
 
-        key = json.dumps([protocol.environment_description(), protocol.task_kwargs], sort_keys=True)
-        if key not in self._spaces:
-            env = protocol.make_environment(task_seed=0)
-            self._spaces[key] = (state_space_of(env), action_space_of(env))
-        state_space, action_space = self._spaces[key]
+        state_space, action_space = self._facts.of(protocol)
         for algorithm in protocol.algorithms:
             try:
+                admission.check_memory([protocol], 1, self._facts, algorithms=[algorithm])
                 make_agent(
                     algorithm,
                     state_space,
