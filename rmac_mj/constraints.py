@@ -447,6 +447,10 @@ TRIALS = Limit(1_000_000, "every trial is kept, a row of the curve in memory and
 EVALUATE_STARTS = Limit(1_000, "every evaluation runs this many greedy trials", low=0)
 #: Demonstrator trials recorded per experiment (``prior_trials``).
 PRIOR_TRIALS = Limit(10_000, "each experiment records and keeps them before its first trial")
+#: Environment steps per learner step of an outside environment (``action_repeat``).
+ACTION_REPEAT = Limit(1_000, "every learner step holds its action for this many environment steps")
+#: Learner steps after which an outside environment's trial is truncated (``trial_steps``).
+TRIAL_STEPS = Limit(10_000_000, "a trial of an environment without a time limit runs this long")
 #: Rehearsed transitions (planning's simulated, replay's stored) per real transition, after each trial.
 REHEARSAL_STEPS = Limit(10_000, "each real trial is followed by this many times its transitions")
 #: Configurations of one sweep file (the variants times the grid's points).

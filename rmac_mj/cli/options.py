@@ -188,7 +188,7 @@ def _add_outside_options(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--action-repeat",
-        type=_positive_int,
+        type=_size(constraints.ACTION_REPEAT),
         default=1,
         metavar="N",
         help="with --env: environment steps per learner step, the action held",
@@ -326,7 +326,7 @@ def build_parser(reproduce_defaults: Mapping[str, Any] | None = None) -> argpars
     _add_outside_options(reproduce)
     reproduce.add_argument(
         "--trial-steps",
-        type=_positive_int,
+        type=_size(constraints.TRIAL_STEPS),
         default=None,
         metavar="N",
         help="with --env: learner steps after which a trial is truncated "

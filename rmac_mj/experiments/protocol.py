@@ -166,8 +166,8 @@ class Protocol:
         "evaluate_starts": [constraints.EVALUATE_STARTS.constraint()],
         "env": [constraints.InstanceOf(str), None],
         "learner_state": [constraints.InstanceOf(dict), None],
-        "action_repeat": [constraints.Interval(numbers.Integral, 1, None)],
-        "trial_steps": [constraints.Interval(numbers.Integral, 1, None), None],
+        "action_repeat": [constraints.ACTION_REPEAT.constraint()],
+        "trial_steps": [constraints.TRIAL_STEPS.constraint(), None],
         "control_timestep": [constraints.Interval(numbers.Real, 0, None, closed="neither"), None],
     }
     #: The fields that describe an outside environment (``env``); they mean nothing without it.

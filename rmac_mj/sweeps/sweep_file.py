@@ -209,15 +209,20 @@ def _factors(variants: tuple, grid: dict) -> list[int]:
     return ([len(variants)] if variants else []) + [len(values) for values in grid.values()]
 
 
-def load_configuration(path: str | pathlib.Path) -> SingleConfiguration:
+def load_configuration(
+    path: str | pathlib.Path, completion: dict[str, Any] | None = None
+) -> SingleConfiguration:
     """Read a ``reproduce --config`` file: the sweep tables with single values.
 
     A [grid] entry gives one value (a one-element list is taken as that value); a list of several
-    values, or more than one [[variant]], is refused: that is a sweep.
+    values, or more than one [[variant]], is refused: that is a sweep. ``completion``: Protocol
+    options given beside the file (the command line's ``--env``), with which the file is checked
+    (a file of ``trial_steps`` for the environment the command line names); the options returned
+    are the file's own.
     """
     path = pathlib.Path(path)
     document = read_toml(path)
-    check = _Checker(path)
+    check = _Checker(path, completion)
     options, fixed = check.protocol(document)
     algorithms = options.get("algorithms", Protocol().algorithms)
     overrides = dict(fixed)
@@ -305,10 +310,12 @@ def _toml(value: Any) -> str:
 class _Checker:
     """Validation of one file; every message starts with the file's path and names the key."""
 
-    def __init__(self, path: pathlib.Path):
+    def __init__(self, path: pathlib.Path, completion: dict[str, Any] | None = None):
         from rmac_mj.experiments import admission
 
         self.path = path
+        #: Protocol options given beside the file (a command line's --env) that complete it.
+        self.completion = dict(completion or {})
         self._facts = admission.TaskFacts()  # each distinct task's spaces, asked once
 
     def error(self, where: str, message: str) -> SweepFileError:
@@ -384,9 +391,11 @@ class _Checker:
         return tuple(value) if isinstance(value, list) else value
 
     def protocol_object(self, options: dict, agent_configs: dict, where: str) -> Protocol:
-        """Build the Protocol; a value its validation rejects is reported against ``where``."""
+        """Build the Protocol (with the options that complete the file); a value its validation
+        rejects is reported against ``where``."""
         from rmac_mj import tasks
 
+        options = {**options, **self.completion}
         domain = options.get("domain", Protocol().domain)
         task = options.get("task", Protocol().task)
         # An outside environment (env) is checked by Protocol, with no domain/task beside it.
