@@ -112,12 +112,16 @@ def resolve_agents(protocol: Protocol, spaces: TaskFacts) -> dict[str, dict[str,
 
 def memory_estimate(protocol: Protocol, algorithm: str, spaces: TaskFacts) -> int:
     """Bytes one experiment of ``algorithm`` needs, estimated from its config before anything is
-    allocated (``rmac_mj.agents.memory_estimate``: the learner class's own estimate)."""
-    return int(
-        agents.memory_estimate(
+    allocated (``rmac_mj.agents.memory_estimate``: the learner class's own estimate); a config
+    its task's units make invalid (neighbours beyond the capacity the task sets) is refused as a
+    :class:`UserInputError` naming the learner, as :func:`resolve_agents` refuses it."""
+    try:
+        estimate = agents.memory_estimate(
             algorithm, *spaces.of(protocol), config=protocol.agent_configs.get(algorithm)
         )
-    )
+    except (ValueError, TypeError) as error:
+        raise UserInputError(f"{algorithm} on {protocol.environment_name}: {error}") from None
+    return int(estimate)
 
 
 def machine_memory() -> int | None:
