@@ -14,6 +14,8 @@ import os
 import sys
 from collections.abc import MutableMapping
 
+from rmac_mj.errors import UserInputError
+
 #: Off-screen back ends in order of preference: (MUJOCO_GL value, library stem, sonames to try).
 OFFSCREEN_BACKENDS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
     ("egl", "EGL", ("libEGL.so.1", "libEGL.so")),
@@ -201,7 +203,7 @@ def _check_size(model, width: int, height: int) -> None:
             or isinstance(value, bool)
             or not 0 < value <= limit
         ):
-            raise ValueError(
+            raise UserInputError(
                 f"{name} must be an integer in [1, {limit}] (the model's <global "
                 f"{attribute}>), got {value!r}"
             )

@@ -3,6 +3,8 @@
 A config declares ``{parameter: [constraint, ...]}`` (:class:`Interval`, :class:`Options`,
 :class:`Boolean`, :class:`TupleOf`, :class:`InstanceOf`; ``None`` allows None); :func:`check`
 applies it with one kind of message, the sweep checker reads it (:func:`lookup`, :func:`unmet`).
+A bound may be another field (:class:`Field`) or a :class:`Limit`: a size that scales a loop or an
+allocation, capped once at the end of this module with the reason every refusal says.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ __all__ = [
     "InstanceOf",
     "Interval",
     "InvalidParameterError",
+    "Limit",
     "Options",
     "TupleOf",
     "WEIGHTS",
@@ -43,6 +46,26 @@ class Field:
     """A bound taken from another parameter of the same configuration, e.g. ``Field("capacity")``."""
 
     name: str
+
+
+@dataclasses.dataclass(frozen=True)
+class Limit:
+    """An upper bound on a size that scales a loop or an allocation (experiments, trials, a grid's
+    points), with why it is there; an :class:`Interval` bound, its reason said in every refusal."""
+
+    value: int
+    reason: str
+    #: The smallest size that makes sense (for :meth:`constraint`).
+    low: int = 1
+
+    def constraint(self) -> Interval:
+        """The integers in [low, value], as a constraint (its message says the reason)."""
+        return Interval(numbers.Integral, self.low, self)
+
+    def refusal(self, name: str, value: Any) -> str:
+        """The one message of a size beyond the limit: ``{name} must be at most {limit}
+        ({reason}), got {value!r}``."""
+        return f"{name} must be at most {self.value} ({self.reason}), got {value!r}"
 
 
 class Constraint:
@@ -99,6 +122,8 @@ class Interval(Constraint):
     @staticmethod
     def _bound(bound: Any, context: Mapping[str, Any] | None) -> Any:
         """A Field's value from ``context`` (None when unknown or not a number: then no bound)."""
+        if isinstance(bound, Limit):
+            return bound.value
         if not isinstance(bound, Field):
             return bound
         value = (context or {}).get(bound.name)
@@ -122,6 +147,8 @@ class Interval(Constraint):
         noun = "an integer" if self.kind is numbers.Integral else "a number"
 
         def show(bound: Any) -> str:
+            if isinstance(bound, Limit):
+                return str(bound.value)
             if isinstance(bound, Field):
                 value = (context or {}).get(bound.name)
                 return f"{bound.name}={value!r}" if value is not None else bound.name
@@ -130,7 +157,8 @@ class Interval(Constraint):
         if self.low is not None and self.high is not None:
             left = "[" if self.closed in ("both", "left") else "("
             right = "]" if self.closed in ("both", "right") else ")"
-            return f"{noun} in {left}{show(self.low)}, {show(self.high)}{right}"
+            why = f" ({self.high.reason})" if isinstance(self.high, Limit) else ""
+            return f"{noun} in {left}{show(self.low)}, {show(self.high)}{right}{why}"
         if self.kind is numbers.Real:
             noun = "a finite number"
         if self.low is not None:
@@ -384,3 +412,35 @@ def nested_class(constraints: Sequence[Any]) -> type | None:
         if isinstance(constraint, InstanceOf) and hasattr(constraint.cls, "parameter_constraints"):
             return constraint.cls
     return None
+
+
+# ----------------------------------------------------------------------------------------------------
+# Sizes that scale a loop or an allocation: each is capped here, once, with its reason, far above any
+# run this package's studies make and below what would hang or exhaust a machine. Memories,
+# tilings and networks are not capped by a number: their estimated bytes are checked against the
+# machine's memory before anything is allocated (``rmac_mj.experiments.admission``).
+
+#: Learning experiments per learner (a Protocol's ``experiments``; the paper runs 40).
+EXPERIMENTS = Limit(10_000, "each is a process's task, a curve file and a seed stream")
+#: Learning trials per experiment (the paper runs 600).
+TRIALS = Limit(1_000_000, "every trial is kept, a row of the curve in memory and on disk")
+#: Greedy trials from distinct starts per evaluation (``evaluate_starts``).
+EVALUATE_STARTS = Limit(1_000, "every evaluation runs this many greedy trials", low=0)
+#: Demonstrator trials recorded per experiment (``prior_trials``).
+PRIOR_TRIALS = Limit(10_000, "each experiment records and keeps them before its first trial")
+#: Environment steps per learner step of an outside environment (``action_repeat``).
+ACTION_REPEAT = Limit(1_000, "every learner step holds its action for this many environment steps")
+#: Learner steps after which an outside environment's trial is truncated (``trial_steps``).
+TRIAL_STEPS = Limit(10_000_000, "a trial of an environment without a time limit runs this long")
+#: Rehearsed transitions (planning's simulated, replay's stored) per real transition, after each trial.
+REHEARSAL_STEPS = Limit(10_000, "each real trial is followed by this many times its transitions")
+#: Configurations of one sweep file (the variants times the grid's points).
+SWEEP_CONFIGURATIONS = Limit(
+    10_000, "each is built and checked before anything runs, then given a directory of its own"
+)
+#: Numbers in one observation of an outside environment, checked before it is probed.
+OBSERVATION_SIZE = Limit(100_000, "the learners' memories and tilings scale with the state's size")
+#: Bytes of one rendered episode's frames (width x height x 3 per frame, ``render``).
+VIDEO_BYTES = Limit(4 * 10**9, "every frame is kept in memory until the video is written")
+#: Grid points along each axis of a policy or critic map (``policy --resolution``).
+MAP_RESOLUTION = Limit(2_000, "a map evaluates the learner at resolution**2 states", low=2)

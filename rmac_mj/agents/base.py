@@ -106,7 +106,8 @@ class Agent(abc.ABC):
             config = config_from_dict(cls.config_class, config)
         config = with_task_units(config, state_space, action_space)
         arrays, state = cls._memory_parts(config, state_space, action_space)
-        return int(arrays + 2 * state)
+        model_arrays, model_state = Rehearsal.memory_parts(config, state_space, action_space)
+        return int(arrays + model_arrays + 2 * (state + model_state))
 
     @classmethod
     def _memory_parts(

@@ -16,7 +16,15 @@ from numba import njit
 
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
 from rmac_mj.approximators.llr import LLRMemory, llr_query, wrap, wrap_scalar
-from rmac_mj.constraints import Boolean, InstanceOf, Interval, Options, check_config, invalid
+from rmac_mj.constraints import (
+    REHEARSAL_STEPS,
+    Boolean,
+    InstanceOf,
+    Interval,
+    Options,
+    check_config,
+    invalid,
+)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -55,7 +63,7 @@ class Planning:
     outputs, so that a local fit never extrapolates a reward no real transition earned."""
 
     parameter_constraints: ClassVar[dict[str, list]] = {
-        "steps": [Interval(Integral, 0, None)],
+        "steps": [Interval(Integral, 0, REHEARSAL_STEPS)],
         "horizon": [Interval(Integral, 0, None)],
         "start": [Options("start", "trajectory", "memory")],
         "reward": [Options("learned", "task")],
@@ -106,7 +114,7 @@ class Replay:
     """Real transitions kept for replay (whole trials; the oldest trials are dropped first)."""
 
     parameter_constraints: ClassVar[dict[str, list]] = {
-        "steps": [Interval(Integral, 0, None)],
+        "steps": [Interval(Integral, 0, REHEARSAL_STEPS)],
         "order": [Options("backward", "forward")],
         "capacity": [Interval(Integral, 1, None)],
     }
@@ -324,6 +332,24 @@ class Rehearsal:
         # Stored trials for replay: (states (K+1, n), actions (K, m), rewards (K,)).
         self.trials_: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
         self._low, self._high = action_space.low, action_space.high
+
+    @staticmethod
+    def memory_parts(
+        config: Any, state_space: StateSpace, action_space: ActionSpace
+    ) -> tuple[int, int]:
+        """(bytes of the arrays, bytes of one state dict) of the planning model a learner's config
+        (its task units resolved) asks for, computed without building it; (0, 0) without planning.
+        Replay's stored trials grow with the run and are not counted."""
+        planning = getattr(config, "planning", None) or Planning()
+        if not planning.steps:
+            return 0, 0
+        n, m = state_space.dim, action_space.dim
+        outputs = n if planning.reward == "task" else n + 1
+        capacity, neighbours = planning.model_capacity, planning.model_neighbours
+        return (
+            LLRMemory.memory_estimate(n + m, outputs, capacity, neighbours),
+            LLRMemory.state_estimate(n + m, outputs, capacity),
+        )
 
     @staticmethod
     def of(config: Any, state_space: StateSpace, action_space: ActionSpace) -> Rehearsal | None:

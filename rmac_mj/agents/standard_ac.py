@@ -19,7 +19,12 @@ from rmac_mj.agents.exploration import Exploration
 from rmac_mj.agents.planning import REHEARSAL, Planning, Replay
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
 from rmac_mj.agents.task_knowledge import reward_rate
-from rmac_mj.approximators.tile_coding import Backend, TileCoder, TileCodingConfig
+from rmac_mj.approximators.tile_coding import (
+    Backend,
+    TileCoder,
+    TileCodingConfig,
+    feature_count,
+)
 from rmac_mj.constraints import (
     BACKEND,
     TD_LAMBDA,
@@ -302,17 +307,12 @@ class StandardActorCritic(Agent):
     def _memory_parts(
         cls, config: StandardACConfig, state_space: StateSpace, action_space: ActionSpace
     ) -> tuple[int, int]:
-        """theta, vartheta (one weight per tile, times m), the traces and their index (see
-        :meth:`Agent.memory_estimate`)."""
-        coder = TileCoder(
-            state_space.low,
-            state_space.high,
-            state_space.periodic,
-            config.tile_coding,
-            config.backend,
-        )  # small: the layout, no weights
-        features = coder.num_features * (3 + action_space.dim)
-        return 8 * features, 8 * features
+        """theta, vartheta (one weight per tile, times m), the traces and their index, and the
+        tilings' offsets (see :meth:`Agent.memory_estimate`), counted without building the coder."""
+        features = feature_count(state_space.periodic, config.tile_coding)
+        offsets = 8 * config.tile_coding.num_tilings * (state_space.dim + 2)
+        per_feature = 8 * (3 + action_space.dim)
+        return per_feature * features + offsets, per_feature * features
 
     def _set_rate_a(self) -> None:
         alpha_a = self.config.alpha_a

@@ -8,6 +8,7 @@ sum of the active weights. Back ends numpy and numba.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Sequence
 from numbers import Integral
 from typing import ClassVar, Literal
@@ -54,6 +55,21 @@ class TileCodingConfig:
                 f"TileCodingConfig.tiles has {tiles.shape[0]} entries but the state has {dim} dimensions"
             )
         return tiles
+
+
+def feature_count(periodic: Sequence[bool], config: TileCodingConfig) -> int:
+    """Tiles of all tilings (a linear approximator's weights) on a state whose dimensions are
+    ``periodic`` as given: ``num_tilings`` times the product of each dimension's tiles (one more
+    where bounded), computed exactly without building the coder (nothing is allocated)."""
+    dim = len(periodic)
+    tiles = [config.tiles] * dim if np.isscalar(config.tiles) else list(config.tiles)
+    if len(tiles) != dim:
+        raise ValueError(
+            f"TileCodingConfig.tiles has {len(tiles)} entries but the state has {dim} dimensions"
+        )
+    return int(config.num_tilings) * math.prod(
+        int(t) + (0 if wraps else 1) for t, wraps in zip(tiles, periodic)
+    )
 
 
 def tiling_offsets(num_tilings: int, dim: int, kind: str = "uniform") -> np.ndarray:

@@ -8,7 +8,7 @@ import pathlib
 from collections.abc import Mapping
 from typing import Any
 
-from rmac_mj import __version__
+from rmac_mj import __version__, constraints
 from rmac_mj.cli.common import PROG
 from rmac_mj.experiments import panel as panel_tasks
 
@@ -75,6 +75,24 @@ def _int_at_least(minimum: int, expected: str):
 
 
 _positive_int = _int_at_least(1, "a positive integer")
+
+
+def _size(limit: constraints.Limit):
+    """An argparse type: an integer within ``limit`` (a :class:`rmac_mj.constraints.Limit`), its
+    reason said when refused."""
+    allowed = [limit.constraint()]
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = text
+        problem = constraints.unmet(value, allowed)
+        if problem is not None:
+            raise argparse.ArgumentTypeError(f"expected {problem}, got {text!r}")
+        return value
+
+    return parse
 
 
 def _positive_seconds(text: str) -> float:
@@ -170,7 +188,7 @@ def _add_outside_options(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--action-repeat",
-        type=_positive_int,
+        type=_size(constraints.ACTION_REPEAT),
         default=1,
         metavar="N",
         help="with --env: environment steps per learner step, the action held",
@@ -205,14 +223,14 @@ def build_parser(reproduce_defaults: Mapping[str, Any] | None = None) -> argpars
     _add_task_options(reproduce, True, "default: the paper's swing-up")
     reproduce.add_argument(
         "--experiments",
-        type=_positive_int,
+        type=_size(constraints.EXPERIMENTS),
         default=40,
         metavar="N",
         help="learning experiments per learner (default: 40, the paper's)",
     )
     reproduce.add_argument(
         "--trials",
-        type=_positive_int,
+        type=_size(constraints.TRIALS),
         default=600,
         metavar="N",
         help="consecutive trials per experiment (default: 600, the "
@@ -294,7 +312,7 @@ def build_parser(reproduce_defaults: Mapping[str, Any] | None = None) -> argpars
     )
     reproduce.add_argument(
         "--prior-trials",
-        type=_positive_int,
+        type=_size(constraints.PRIOR_TRIALS),
         default=None,
         help="demonstrator trials recorded per experiment (default 5)",
     )
@@ -308,7 +326,7 @@ def build_parser(reproduce_defaults: Mapping[str, Any] | None = None) -> argpars
     _add_outside_options(reproduce)
     reproduce.add_argument(
         "--trial-steps",
-        type=_positive_int,
+        type=_size(constraints.TRIAL_STEPS),
         default=None,
         metavar="N",
         help="with --env: learner steps after which a trial is truncated "
@@ -324,7 +342,7 @@ def build_parser(reproduce_defaults: Mapping[str, Any] | None = None) -> argpars
     )
     reproduce.add_argument(
         "--evaluate-starts",
-        type=_non_negative_int,
+        type=_size(constraints.EVALUATE_STARTS),
         default=0,
         metavar="N",
         help="an evaluation is the mean of greedy trials from N starts drawn "
@@ -408,7 +426,7 @@ def build_parser(reproduce_defaults: Mapping[str, Any] | None = None) -> argpars
     )
     panel.add_argument(
         "--experiments",
-        type=_positive_int,
+        type=_size(constraints.EXPERIMENTS),
         default=5,
         metavar="N",
         help="learning experiments per learner and task",
@@ -431,7 +449,7 @@ def build_parser(reproduce_defaults: Mapping[str, Any] | None = None) -> argpars
     panel.add_argument("--resume", action="store_true", help="finish an interrupted panel in --out")
     panel.add_argument(
         "--trials",
-        type=_positive_int,
+        type=_size(constraints.TRIALS),
         default=None,
         metavar="N",
         help="every task only N trials, evaluated after each (a smoke test, not the panel)",
@@ -519,7 +537,7 @@ def build_parser(reproduce_defaults: Mapping[str, Any] | None = None) -> argpars
     )
     policy.add_argument(
         "--resolution",
-        type=_positive_int,
+        type=_size(constraints.MAP_RESOLUTION),
         default=101,
         metavar="N",
         help="grid points along each axis (default 101)",

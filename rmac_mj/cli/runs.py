@@ -68,7 +68,9 @@ def settings_from_files(argv: Sequence[str] | None, args: argparse.Namespace) ->
             # a run started with --no-optimal is finished without the reference too
             without_references = config.get("references") is False
     if args.config is not None:
-        config = sweep_file.load_configuration(args.config)
+        # the command line's environment completes the file (its trial_steps, learner_state...)
+        completion = {"env": args.env} if args.env is not None else None
+        config = sweep_file.load_configuration(args.config, completion)
         layers.append((config.options, config.agent_configs))
     if not layers:
         return args

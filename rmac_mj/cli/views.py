@@ -41,6 +41,20 @@ def _settings_line(summary: dict) -> str:
     return text + ("; --set " + " ".join(overrides) if overrides else "; default hyperparameters")
 
 
+def _say_missing_learners(path, summary: dict) -> None:
+    """Say, one line per learner, which learners the run lists but its summary holds no results
+    for (they are left out of the figures and tables); refuse a summary that holds none."""
+    protocol = summary.get("protocol")
+    listed = protocol.get("algorithms") if isinstance(protocol, dict) else None
+    if not isinstance(listed, list):
+        return
+    missing = [a for a in listed if a not in summary]
+    if missing and len(missing) == len(listed):
+        raise UsageError(f"{path} holds the results of none of its learners ({', '.join(listed)})")
+    for algorithm in missing:
+        say(f"{path} has no results for {algorithm}, which its run lists: shown without it")
+
+
 def compare(args) -> int:
     from rmac_mj.agents import ALGORITHMS
     from rmac_mj.evaluation import report
@@ -59,6 +73,7 @@ def compare(args) -> int:
         summaries[label] = store.read_summary()
         if "trial_seconds" not in summaries[label]:
             raise UsageError(f"{store.summary_path} has no trial_seconds (the task's trial length)")
+        _say_missing_learners(store.summary_path, summaries[label])
     out = args.out if args.out is not None else directories[0] / "compare"
     optimal = next(
         (s["optimal_return"] for s in summaries.values() if s.get("optimal_return")), None

@@ -22,6 +22,7 @@ from typing import Any
 import dm_env
 import numpy as np
 
+from rmac_mj.constraints import OBSERVATION_SIZE
 from rmac_mj.envs.environment import Environment, trial_steps
 from rmac_mj.envs.failures import outside, read_observation
 from rmac_mj.envs.from_gymnasium import GymnasiumEnvironment
@@ -273,11 +274,13 @@ class EnvSpec:
                 return dataclasses.replace(spec, learner_state=own)
         layout = _layout(base)
         needs_probe = not (declared and "keys" in declared)
-        samples = (
-            _probe(base, layout, self.env)
-            if needs_probe
-            else np.zeros((0, sum(layout.sizes.values())))
-        )
+        size = sum(layout.sizes.values())
+        if needs_probe and size > OBSERVATION_SIZE.value:  # the probe keeps hundreds of them
+            raise ValueError(
+                OBSERVATION_SIZE.refusal(f"env {self.env!r}: the observation's size", size)
+                + "; declare learner_state.keys to learn on some of its entries"
+            )
+        samples = _probe(base, layout, self.env) if needs_probe else np.zeros((0, size))
         action = base.action_spec()
         measured: dict[str, list[float]] = {}
         learner_state = infer_learner_state(

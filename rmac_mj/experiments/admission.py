@@ -106,38 +106,58 @@ def resolve_agents(protocol: Protocol, spaces: TaskFacts) -> dict[str, dict[str,
 
 def memory_estimate(protocol: Protocol, algorithm: str, spaces: TaskFacts) -> int:
     """Bytes one experiment of ``algorithm`` needs, estimated from its config before anything is
-    allocated (``rmac_mj.agents.memory_estimate``: the learner class's own estimate)."""
-    return int(
-        agents.memory_estimate(
+    allocated (``rmac_mj.agents.memory_estimate``: the learner class's own estimate); a config
+    its task's units make invalid (neighbours beyond the capacity the task sets) is refused as a
+    :class:`UserInputError` naming the learner, as :func:`resolve_agents` refuses it."""
+    try:
+        estimate = agents.memory_estimate(
             algorithm, *spaces.of(protocol), config=protocol.agent_configs.get(algorithm)
         )
-    )
+    except (ValueError, TypeError) as error:
+        raise UserInputError(f"{algorithm} on {protocol.environment_name}: {error}") from None
+    return int(estimate)
 
 
 def machine_memory() -> int | None:
-    """The machine's physical memory in bytes (None where the system does not say)."""
+    """The memory a run may use, in bytes: the machine's physical memory, or this process's
+    address-space limit (``ulimit -v``) where that is lower; None where the system says neither."""
     try:
-        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+        physical = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     except (ValueError, OSError, AttributeError):
-        return None
+        physical = None
+    try:
+        import resource
+
+        limit = resource.getrlimit(resource.RLIMIT_AS)[0]
+        if limit == resource.RLIM_INFINITY or limit <= 0:
+            limit = None
+    except (ImportError, OSError, ValueError, AttributeError):  # no such limit on this system
+        limit = None
+    if limit is None or physical is None:
+        return physical if limit is None else limit
+    return min(physical, limit)
 
 
 def _gb(size: float) -> str:
-    return f"{size / 1e9:.1f} GB"
+    return f"{size / 1e9:.1f} GB" if size < 1e18 else f"{size / 1e9:.1e} GB"
 
 
 def check_memory(
-    protocols: Iterable[Protocol], workers: int, spaces: TaskFacts, available: int | None = None
+    protocols: Iterable[Protocol],
+    workers: int,
+    spaces: TaskFacts,
+    available: int | None = None,
+    algorithms: Iterable[str] | None = None,
 ) -> None:
     """Refuse, in one line, learners that cannot fit: ``workers`` experiments of the largest at once
     (plus this driver's one of it, for the warm-up) must fit the machine's memory (``available``,
-    default :func:`machine_memory`)."""
+    default :func:`machine_memory`). ``algorithms``: only these of each protocol's learners."""
     available = machine_memory() if available is None else available
     if available is None:
         return
     largest, name = 0, None
     for protocol in protocols:
-        for algorithm in protocol.algorithms:
+        for algorithm in protocol.algorithms if algorithms is None else algorithms:
             size = memory_estimate(protocol, algorithm, spaces)
             if size > largest:
                 largest, name = size, (algorithm, protocol)

@@ -134,8 +134,8 @@ class Protocol:
                 constraints.InstanceOf(str), what="a list of one or more algorithm names"
             )
         ],
-        "experiments": [constraints.Interval(numbers.Integral, 1, None)],
-        "trials": [constraints.Interval(numbers.Integral, 1, None)],
+        "experiments": [constraints.EXPERIMENTS.constraint()],
+        "trials": [constraints.TRIALS.constraint()],
         "steps": [constraints.Interval(numbers.Integral, 1, None), None],
         "seed": [constraints.Interval(numbers.Integral, 0, None)],
         "evaluate_every": [constraints.Interval(numbers.Integral, 0, None)],
@@ -145,13 +145,13 @@ class Protocol:
         ],
         "agent_configs": [constraints.InstanceOf(dict)],
         "prior": [constraints.InstanceOf(str), None],
-        "prior_trials": [constraints.Interval(numbers.Integral, 1, None)],
+        "prior_trials": [constraints.PRIOR_TRIALS.constraint()],
         "prior_parts": [constraints.TupleOf(constraints.Options(*PRIOR_PARTS)), _EMPTY],
-        "evaluate_starts": [constraints.Interval(numbers.Integral, 0, None)],
+        "evaluate_starts": [constraints.EVALUATE_STARTS.constraint()],
         "env": [constraints.InstanceOf(str), None],
         "learner_state": [constraints.InstanceOf(dict), None],
-        "action_repeat": [constraints.Interval(numbers.Integral, 1, None)],
-        "trial_steps": [constraints.Interval(numbers.Integral, 1, None), None],
+        "action_repeat": [constraints.ACTION_REPEAT.constraint()],
+        "trial_steps": [constraints.TRIAL_STEPS.constraint(), None],
         "control_timestep": [constraints.Interval(numbers.Real, 0, None, closed="neither"), None],
     }
     #: The fields that describe an outside environment (``env``); they mean nothing without it.

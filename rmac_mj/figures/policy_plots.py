@@ -17,6 +17,7 @@ matplotlib.use("Agg")  # files only; no display needed
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from rmac_mj import constraints  # noqa: E402
 from rmac_mj.agents import display_name  # noqa: E402
 from rmac_mj.figures.plots import save_figure  # noqa: E402
 
@@ -132,6 +133,11 @@ def policies_figure(
     envs: Sequence[Any] | None = None,
 ):
     """The figure of :func:`plot_policies` (see it), not yet saved."""
+    constraints.check(
+        "policies_figure",
+        {"resolution": [constraints.MAP_RESOLUTION.constraint()]},
+        {"resolution": resolution},
+    )
     n = len(learner_state.low)
     i, j = _check_dims(dims, n)
     low, high = np.array(learner_state.low), np.array(learner_state.high)

@@ -171,8 +171,14 @@ def load_sweep(path: str | pathlib.Path, announce: Callable[[str], None] | None 
             raise check.error(where, "is also set in [protocol]; set it in one place")
         grid[key] = values
     variants = check.variants(document, algorithms, fixed, grid)
+    count = max(1, len(variants)) * math.prod(len(values) for values in grid.values())
+    if count > constraints.SWEEP_CONFIGURATIONS.value:  # counted, never enumerated, before refusing
+        raise check.error(
+            "[grid]",
+            constraints.SWEEP_CONFIGURATIONS.refusal("the number of configurations", count)
+            + f" ({' x '.join(str(n) for n in _factors(variants, grid))}): sweep fewer values",
+        )
     if announce is not None:
-        count = max(1, len(variants)) * math.prod(len(values) for values in grid.values())
         per = options.get("experiments", Protocol().experiments) * len(algorithms)
         announce(
             f"{path}: {count} configuration{'s' * (count != 1)} x {per} experiments = "
@@ -190,15 +196,25 @@ def load_sweep(path: str | pathlib.Path, announce: Callable[[str], None] | None 
     )
 
 
-def load_configuration(path: str | pathlib.Path) -> SingleConfiguration:
+def _factors(variants: tuple, grid: dict) -> list[int]:
+    """The sizes whose product is a sweep's number of configurations: variants, then each grid key's."""
+    return ([len(variants)] if variants else []) + [len(values) for values in grid.values()]
+
+
+def load_configuration(
+    path: str | pathlib.Path, completion: dict[str, Any] | None = None
+) -> SingleConfiguration:
     """Read a ``reproduce --config`` file: the sweep tables with single values.
 
     A [grid] entry gives one value (a one-element list is taken as that value); a list of several
-    values, or more than one [[variant]], is refused: that is a sweep.
+    values, or more than one [[variant]], is refused: that is a sweep. ``completion``: Protocol
+    options given beside the file (the command line's ``--env``), with which the file is checked
+    (a file of ``trial_steps`` for the environment the command line names); the options returned
+    are the file's own.
     """
     path = pathlib.Path(path)
     document = read_toml(path)
-    check = _Checker(path)
+    check = _Checker(path, completion)
     options, fixed = check.protocol(document)
     algorithms = options.get("algorithms", Protocol().algorithms)
     overrides = dict(fixed)
@@ -286,9 +302,13 @@ def _toml(value: Any) -> str:
 class _Checker:
     """Validation of one file; every message starts with the file's path and names the key."""
 
-    def __init__(self, path: pathlib.Path):
+    def __init__(self, path: pathlib.Path, completion: dict[str, Any] | None = None):
+        from rmac_mj.experiments import admission
+
         self.path = path
-        self._spaces: dict[str, tuple] = {}
+        #: Protocol options given beside the file (a command line's --env) that complete it.
+        self.completion = dict(completion or {})
+        self._facts = admission.TaskFacts()  # each distinct task's spaces, asked once
 
     def error(self, where: str, message: str) -> SweepFileError:
         return SweepFileError(f"{self.path}: {where}: {message}")
@@ -363,9 +383,11 @@ class _Checker:
         return tuple(value) if isinstance(value, list) else value
 
     def protocol_object(self, options: dict, agent_configs: dict, where: str) -> Protocol:
-        """Build the Protocol; a value its validation rejects is reported against ``where``."""
+        """Build the Protocol (with the options that complete the file); a value its validation
+        rejects is reported against ``where``."""
         from rmac_mj import tasks
 
+        options = {**options, **self.completion}
         domain = options.get("domain", Protocol().domain)
         task = options.get("task", Protocol().task)
         # An outside environment (env) is checked by Protocol, with no domain/task beside it.
@@ -388,17 +410,15 @@ class _Checker:
 
     def agents(self, protocol: Protocol, where: str) -> None:
         """Build each learner of ``protocol`` on its task: catches what only the task's spaces
-        reveal (e.g. input weights of the wrong length) before anything runs."""
+        reveal (e.g. input weights of the wrong length) before anything runs; a learner whose
+        estimated memory cannot fit the machine is refused before it is built."""
         from rmac_mj.agents import make_agent
-        from rmac_mj.rollout import action_space_of, state_space_of
+        from rmac_mj.experiments import admission
 
-        key = json.dumps([protocol.environment_description(), protocol.task_kwargs], sort_keys=True)
-        if key not in self._spaces:
-            env = protocol.make_environment(task_seed=0)
-            self._spaces[key] = (state_space_of(env), action_space_of(env))
-        state_space, action_space = self._spaces[key]
+        state_space, action_space = self._facts.of(protocol)
         for algorithm in protocol.algorithms:
             try:
+                admission.check_memory([protocol], 1, self._facts, algorithms=[algorithm])
                 make_agent(
                     algorithm,
                     state_space,

@@ -21,7 +21,9 @@ from PIL import Image
 
 from rmac_mj._gl import open_renderer
 from rmac_mj.agents import Agent
-from rmac_mj.rollout import learner_state_of, n_sub_steps, state_of
+from rmac_mj.constraints import VIDEO_BYTES
+from rmac_mj.errors import UserInputError
+from rmac_mj.rollout import learner_state_of, n_sub_steps, state_of, steps_per_trial
 from rmac_mj.videos import encode as video
 
 if TYPE_CHECKING:  # mujoco is imported after the GL back end is chosen (rmac_mj._gl)
@@ -104,7 +106,7 @@ def render_episode(
     physics = getattr(env, "physics", None)
     if physics is None:
         if frames_per_step != 1:
-            raise ValueError(
+            raise UserInputError(
                 f"frames_per_step must be 1 for an environment that draws its own "
                 f"frames, got {frames_per_step!r}"
             )
@@ -117,7 +119,7 @@ def render_episode(
         or frames_per_step < 1
         or n_sub % frames_per_step
     ):
-        raise ValueError(
+        raise UserInputError(
             f"frames_per_step must be a positive divisor of the {n_sub} physics substeps "
             f"per control step, got {frames_per_step!r}"
         )
@@ -131,7 +133,8 @@ def render_episode(
     substeps_per_frame = n_sub // frames_per_step
     frames, times, states, actions, returns = [], [], [], [], []
     total = 0.0
-    with open_renderer(physics.model.ptr, width, height) as renderer:
+    with open_renderer(physics.model.ptr, width, height) as renderer:  # checks the frame size
+        _check_frames(1 + steps_per_trial(env) * frames_per_step, width, height)
         camera = _camera(physics.model.ptr, camera)
 
         def record(source, x: np.ndarray, u: np.ndarray) -> None:
@@ -177,6 +180,17 @@ def render_episode(
     if overlay:
         episode = dataclasses.replace(episode, frames=draw_overlay(episode, label=label))
     return episode
+
+
+def _check_frames(count: int, width: int, height: int) -> None:
+    """Refuse an episode whose ``count`` frames of ``width`` x ``height`` cannot be kept in memory,
+    before the first is drawn."""
+    size = count * int(width) * int(height) * 3
+    if size > VIDEO_BYTES.value:
+        raise UserInputError(
+            VIDEO_BYTES.refusal(f"the frames ({count} of {width}x{height} pixels) in bytes", size)
+            + ": render fewer frames per step or smaller ones"
+        )
 
 
 def _render_own_frames(env, act: Policy, overlay: bool, label: str | None) -> RenderedEpisode:

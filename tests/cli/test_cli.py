@@ -44,8 +44,8 @@ def rmac_mj(*args, cwd=None) -> Result:
 @pytest.mark.parametrize(
     "args, message",
     [
-        (["reproduce", "--experiments", "-2"], "positive integer"),
-        (["reproduce", "--trials", "zero"], "positive integer"),
+        (["reproduce", "--experiments", "-2"], "expected an integer in [1, 10000]"),
+        (["reproduce", "--trials", "zero"], "expected an integer in [1, 1000000]"),
         (["reproduce", "--algorithms", "rmac,dqn", "--out", "{tmp}/x"], "unknown algorithm 'dqn'"),
         (["reproduce", "--out", "{tmp}/file/sub"], "cannot write"),
         (["policy", "{tmp}/missing.npz"], "no snapshot"),

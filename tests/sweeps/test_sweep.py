@@ -121,7 +121,10 @@ name = "oldest"
             '[grid]\n"rmac.critic_capacity" = [2000.5]\n',
             '"rmac.critic_capacity" value 2000.5: expected an integer >= 1',
         ),
-        ('[protocol]\nexperiments = "ten"\n', "[protocol] experiments: expected an integer >= 1"),
+        (
+            '[protocol]\nexperiments = "ten"\n',
+            "[protocol] experiments: expected an integer in [1, 10000]",
+        ),
         ('[grid]\n"rmac.alpha_r" = 0.01\n', '"rmac.alpha_r": expected a list of values to sweep'),
         (
             '[grid]\n"rmac.critic_weights" = [1, 0.1]\n',
