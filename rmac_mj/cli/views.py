@@ -43,14 +43,13 @@ def _settings_line(summary: dict) -> str:
 
 def _say_missing_learners(path, summary: dict) -> None:
     """Say, one line per learner, which learners the run lists but its summary holds no results
-    for (they are left out of the figures and tables); refuse a summary that holds none."""
+    for (they are left out of the figures and tables). A summary that holds none is refused when it
+    is read (:class:`~rmac_mj.results.store.ResultStore`)."""
     protocol = summary.get("protocol")
     listed = protocol.get("algorithms") if isinstance(protocol, dict) else None
     if not isinstance(listed, list):
         return
     missing = [a for a in listed if a not in summary]
-    if missing and len(missing) == len(listed):
-        raise UsageError(f"{path} holds the results of none of its learners ({', '.join(listed)})")
     for algorithm in missing:
         say(f"{path} has no results for {algorithm}, which its run lists: shown without it")
 

@@ -577,6 +577,10 @@ def _summary_problem(summary: Any) -> str | None:
         return f"a {type(summary).__name__}, not a run's summary (a JSON object)"
     rows = [name for name in summary if name in ALGORITHMS]
     if not rows:
+        protocol = summary.get("protocol")
+        listed = protocol.get("algorithms") if isinstance(protocol, dict) else None
+        if isinstance(listed, list) and listed:
+            return f"it holds the results of none of its learners ({', '.join(map(str, listed))})"
         return "it holds no learner's row"
     for name in rows:
         row = summary[name]
