@@ -509,11 +509,30 @@ class Agent(abc.ABC):
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
         """Restore what :meth:`state_dict` returned; the agent then acts exactly as the original.
 
-        One checked restore for every learner, made before anything changes: the keys (none
-        missing, none foreign: a state dict of another learner is called one), each array's shape
-        and dtype against this learner's own state dict, every float finite, then the learner's
-        own rules (``_check_state``: counts and indices in range). ValueError names what is wrong.
+        Checked first (:meth:`check_state_dict`), so a refused state changes nothing.
         """
+        arrays = self.check_state_dict(state)
+        self._load_state(
+            {
+                k: v
+                for k, v in arrays.items()
+                if k not in ("rng", "in_trial", "trials") and not k.startswith("rehearsal.")
+            }
+        )
+        if self._rehearsal is not None:
+            self._rehearsal.load_state_dict(arrays, "rehearsal.")
+        set_generator_state(self.rng, arrays["rng"])
+        self._in_trial = bool(arrays["in_trial"])
+        if "trials" in arrays:
+            self.trials_ = int(arrays["trials"])
+
+    def check_state_dict(self, state: Mapping[str, Any]) -> dict[str, np.ndarray]:
+        """The state dict as arrays if this learner can restore it, else ValueError (TypeError for
+        no mapping) naming what is wrong; nothing changes. The one check of every learner, also
+        of every file a resumed run keeps: the keys (none missing, none foreign: a state dict of
+        another learner is called one), each array's dtype and shape against this learner's own
+        state dict, every float finite, then the learner's own rules (``_check_state``: counts
+        and indices in range)."""
         if not isinstance(state, Mapping):
             raise TypeError(
                 f"{self.name}: a state dict must be a mapping of names to arrays, got "
@@ -543,19 +562,7 @@ class Agent(abc.ABC):
                 f"{self.name}: state 'trials' must be >= 0, got {int(arrays['trials'])}"
             )
         self._check_state(arrays)
-        self._load_state(
-            {
-                k: v
-                for k, v in arrays.items()
-                if k not in ("rng", "in_trial", "trials") and not k.startswith("rehearsal.")
-            }
-        )
-        if self._rehearsal is not None:
-            self._rehearsal.load_state_dict(arrays, "rehearsal.")
-        set_generator_state(self.rng, arrays["rng"])
-        self._in_trial = bool(arrays["in_trial"])
-        if "trials" in arrays:
-            self.trials_ = int(arrays["trials"])
+        return arrays
 
     def _checked_entry(self, key: str, value: Any, own: np.ndarray | None) -> np.ndarray:
         """One entry of a state dict to restore, checked against the learner's own (``own``; None
