@@ -13,7 +13,7 @@ import numpy as np
 from numba import njit, types
 from numba.experimental import structref
 
-from rmac_mj.agents.critic import CRITIC_STATE_TYPE, td_update, value_fit
+from rmac_mj.agents.critic import CRITIC_STATE_TYPE, td_overflows, td_update, value_fit
 from rmac_mj.agents.rmac_config import REACHABLE_RULES
 from rmac_mj.approximators.llr import (
     LLR_STATE_TYPE,
@@ -255,13 +255,16 @@ def _best_scored(s, u_model, model):
     x_r = np.empty(n)
     x_next = np.empty(n)
     best_score = -np.inf
-    best = 0
+    best = -1
     for c in range(cands.shape[0]):
         score = _reachable_score(s, cands[c], u_model, model, x_next)
         if score > best_score:
             best_score = score
             best = c
             x_r[:] = x_next
+    if best < 0:  # no score above -inf (the critic's values overflow): the first candidate
+        best = 0
+        _reachable_score(s, cands[0], u_model, model, x_r)
     if s.rule == _RULE_EXACT and s.refine_steps > 0:
         low, high = s.low[0], s.high[0]
         h = (high - low) / (cands.shape[0] - 1)
@@ -378,20 +381,22 @@ def learn(s, x, u, reward, x_next, v, model_learns, terminal):
     returns V(x') (line 22, before the critic's update). ``model_learns``: line 14 inserts the
     transition in M^P (a real one); False for a simulated transition, which the process model
     predicted and must not learn from. ``terminal``: x' is a terminal state, whose value is 0 in the
-    TD error (no bootstrap). Returns NaN, with M^R and M^C unchanged, when the target x_r
-    or the TD error is not finite (the arithmetic overflowed)."""
+    TD error (no bootstrap). Returns NaN, with nothing changed, when the critic's update would
+    overflow (``td_overflows``): checked before any memory changes."""
     P = s.process
     z = _joined(x, u)
     zq = _canonical(z, P.in_period)
+    # Line 22 first: V(x') and its local model do not depend on M^P, so a TD error that overflows
+    # is refused before any memory changes.
+    value = value_fit(s.critic, x_next)  # line 22: V(x') and its local model
+    v_next = value.prediction[0]
+    if td_overflows(s.critic, v, reward, 0.0 if terminal else v_next):
+        return np.nan  # refused, nothing changed (the caller says so)
     if model_learns:  # line 14: insert [x, u | x'] in M^P
         near, nk = llr_nearest(P, zq)
         llr_insert_among(P, z, x_next, near, nk)
     model = llr_local_fit(P, zq)  # the local process model at (x, u)
-    value = value_fit(s.critic, x_next)  # line 22: V(x') and its local model
-    v_next = value.prediction[0]
-    x_r = best_reachable(s, x, u, x_next, model, value)  # line 16
-    if not (np.all(np.isfinite(x_r)) and np.isfinite(reward + s.critic.gamma * v_next - v)):
-        return np.nan  # overflow: refused before M^R and M^C change (the caller says so)
+    x_r = best_reachable(s, x, u, x_next, model, value)  # line 16: finite (see _best_scored)
     update_reference(s, x, x_r)  # lines 17-20
     td_update(s.critic, x, v, reward, 0.0 if terminal else v_next)  # lines 23-28
     return v_next

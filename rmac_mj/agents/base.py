@@ -22,6 +22,11 @@ from rmac_mj.agents.spaces import STATE_LIMIT_WIDTHS, ActionSpace, StateSpace
 from rmac_mj.agents.task_knowledge import with_task_units
 
 
+class RefusedTransition(ValueError):
+    """A transition (or a trial's start) whose learning would overflow the learner's arithmetic:
+    refused before anything changed (``Agent._overflow``)."""
+
+
 class Agent(abc.ABC):
     """Interface of an online learner, following the paper's online protocol::
 
@@ -167,12 +172,13 @@ class Agent(abc.ABC):
             raise ValueError(f"{self.name}: {name} must be finite, got {u!r}")
         return v
 
-    def _overflow(self, what: Any) -> ValueError:
+    def _overflow(self, what: Any) -> RefusedTransition:
         """The error of a transition whose learning overflows (``what``: the quantity, or the
-        reward): refused before anything non-finite is stored."""
+        reward). A learner raises it before it changes its own arrays (check, then change); the
+        boundary puts back the random generator and the trial counter (:meth:`_refusable`)."""
         if not isinstance(what, str):
             what = f"the transition with reward {what!r}"
-        return ValueError(
+        return RefusedTransition(
             f"{self.name}: {what} overflows the learner's arithmetic (not finite); "
             f"refused, nothing non-finite was stored"
         )
@@ -183,9 +189,33 @@ class Agent(abc.ABC):
                 f"{self.name}: {method}() called outside a trial; call start(x0) first"
             )
 
+    def _refusable(self, change: Any, *args: Any) -> Any:
+        """``change(*args)``, and if the learner refuses it (:class:`RefusedTransition`) the random
+        generator and the trial counter as they were: the learner refuses before it changes its own
+        arrays, so a refused call leaves ``state_dict()`` exactly as it was."""
+        rng_state, trials = self.rng.bit_generator.state, self.trials_
+        try:
+            return change(*args)
+        except RefusedTransition:
+            self.rng.bit_generator.state, self.trials_ = rng_state, trials
+            raise
+
+    def _all_or_nothing(self, change: Any, *args: Any) -> Any:
+        """``change(*args)`` for a call that runs many updates (a stored trial, planning and replay
+        after a trial): if the learner refuses one, the whole state as it was before the call."""
+        before = self.state_dict()
+        try:
+            return change(*args)
+        except RefusedTransition:
+            self.load_state_dict(before)
+            raise
+
     def start(self, x0: Any) -> np.ndarray:
         """Begin a trial in state ``x0`` (shape (n,)); reset traces; return u_0 (shape (m,))."""
         x0 = self._checked_state(x0, "x0")
+        return self._refusable(self._begin_trial, x0)
+
+    def _begin_trial(self, x0: np.ndarray) -> np.ndarray:
         self.trials_ += 1
         u = self._start(x0)
         self._in_trial = True
@@ -196,11 +226,10 @@ class Agent(abc.ABC):
     def step(self, reward: Any, x: Any) -> np.ndarray:
         """Observe r_k and x_k, learn from the transition, return u_k (shape (m,))."""
         self._check_in_trial("step")
-        if self._rehearsal is None:
-            return self._step(self._checked_reward(reward), self._checked_state(x))
         reward, x = self._checked_reward(reward), self._checked_state(x)
-        u = self._step(reward, x)
-        self._rehearsal.record(reward, x, u)
+        u = self._refusable(self._step, reward, x)
+        if self._rehearsal is not None:
+            self._rehearsal.record(reward, x, u)
         return u
 
     def stop(self, reward: Any, x: Any, terminal: bool = False) -> None:
@@ -210,14 +239,21 @@ class Agent(abc.ABC):
         ``terminal``: x_k is a terminal state (the environment ended the trial: a dm_env discount of
         0, Gymnasium's ``terminated``), whose value is 0, so the last TD error is r_k - V(x_{k-1})
         with no bootstrap. False (the default): the trial ends on a time limit or a truncation and
-        the last TD error bootstraps from V(x_k) like every other."""
+        the last TD error bootstraps from V(x_k) like every other. A refused update (in the last
+        transition, or in planning or replay) leaves the agent as before the call, in its trial."""
         self._check_in_trial("stop")
         reward, x = self._checked_reward(reward), self._checked_state(x)
-        self._stop(reward, x, bool(terminal))
+        if self._rehearsal is None:
+            self._refusable(self._stop, reward, x, bool(terminal))
+            self._in_trial = False
+        else:
+            self._all_or_nothing(self._end_rehearsed_trial, reward, x, bool(terminal))
+
+    def _end_rehearsed_trial(self, reward: float, x: np.ndarray, terminal: bool) -> None:
+        self._stop(reward, x, terminal)
         self._in_trial = False
-        if self._rehearsal is not None:
-            self._rehearsal.record(reward, x, None)
-            self._rehearsal.after_trial(self)
+        self._rehearsal.record(reward, x, None)
+        self._rehearsal.after_trial(self)
 
     def learn_from(self, states: Any, actions: Any, rewards: Any) -> None:
         """Learn from a recorded trial as if this learner had run it with the recorded actions.
@@ -256,7 +292,7 @@ class Agent(abc.ABC):
                 f"{self.name}: learn_from() actions must lie inside the action bounds "
                 f"[{self.action_space.low}, {self.action_space.high}]"
             )
-        self._learn_trial(states, actions, rewards)
+        self._all_or_nothing(self._learn_trial, states, actions, rewards)
 
     def _learn_trial(self, states: np.ndarray, actions: np.ndarray, rewards: np.ndarray) -> None:
         """The learner's updates along a recorded trial, with its applied actions (see learn_from)."""
@@ -347,7 +383,7 @@ class Agent(abc.ABC):
         x, x_next = self._checked_state(x), self._checked_state(x_next, "x_next")
         u, reward = self._checked_action(u), self._checked_reward(reward)
         v = self._value(x) if v is None else self._checked_reward(v, "v")
-        return float(self._learn_transition(x, u, reward, x_next, v, bool(model)))
+        return float(self._refusable(self._learn_transition, x, u, reward, x_next, v, bool(model)))
 
     def _learn_transition(
         self, x: np.ndarray, u: np.ndarray, reward: float, x_next: np.ndarray, v: float, model: bool
@@ -469,11 +505,30 @@ class Agent(abc.ABC):
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
         """Restore what :meth:`state_dict` returned; the agent then acts exactly as the original.
 
-        One checked restore for every learner, made before anything changes: the keys (none
-        missing, none foreign: a state dict of another learner is called one), each array's shape
-        and dtype against this learner's own state dict, every float finite, then the learner's
-        own rules (``_check_state``: counts and indices in range). ValueError names what is wrong.
+        Checked first (:meth:`check_state_dict`), so a refused state changes nothing.
         """
+        arrays = self.check_state_dict(state)
+        self._load_state(
+            {
+                k: v
+                for k, v in arrays.items()
+                if k not in ("rng", "in_trial", "trials") and not k.startswith("rehearsal.")
+            }
+        )
+        if self._rehearsal is not None:
+            self._rehearsal.load_state_dict(arrays, "rehearsal.")
+        set_generator_state(self.rng, arrays["rng"])
+        self._in_trial = bool(arrays["in_trial"])
+        if "trials" in arrays:
+            self.trials_ = int(arrays["trials"])
+
+    def check_state_dict(self, state: Mapping[str, Any]) -> dict[str, np.ndarray]:
+        """The state dict as arrays if this learner can restore it, else ValueError (TypeError for
+        no mapping) naming what is wrong; nothing changes. The one check of every learner, also
+        of every file a resumed run keeps: the keys (none missing, none foreign: a state dict of
+        another learner is called one), each array's dtype and shape against this learner's own
+        state dict, every float finite, then the learner's own rules (``_check_state``: counts
+        and indices in range)."""
         if not isinstance(state, Mapping):
             raise TypeError(
                 f"{self.name}: a state dict must be a mapping of names to arrays, got "
@@ -503,35 +558,37 @@ class Agent(abc.ABC):
                 f"{self.name}: state 'trials' must be >= 0, got {int(arrays['trials'])}"
             )
         self._check_state(arrays)
-        self._load_state(
-            {
-                k: v
-                for k, v in arrays.items()
-                if k not in ("rng", "in_trial", "trials") and not k.startswith("rehearsal.")
-            }
-        )
-        if self._rehearsal is not None:
-            self._rehearsal.load_state_dict(arrays, "rehearsal.")
-        set_generator_state(self.rng, arrays["rng"])
-        self._in_trial = bool(arrays["in_trial"])
-        if "trials" in arrays:
-            self.trials_ = int(arrays["trials"])
+        return arrays
 
     def _checked_entry(self, key: str, value: Any, own: np.ndarray | None) -> np.ndarray:
         """One entry of a state dict to restore, checked against the learner's own (``own``; None
-        for an entry the learner holds only at some moments: its dtype and values are checked)."""
+        for an entry the learner holds only at some moments: its dtype and values are checked).
+
+        The dtype must be the learner's own (a float32 critic would not act as the original), the
+        shape too (for an entry whose length varies, the dimensions after the first), every
+        float finite. The one check of every learner: ValueError naming the key, what it got and
+        what was expected."""
         array = np.asarray(value)
-        kinds = {"f": "f", "i": "iu", "u": "iu", "b": "b"}
-        expected = kinds.get(own.dtype.kind, own.dtype.kind) if own is not None else "fiub"
-        if array.dtype.kind not in expected or (key == "rng" and array.dtype != np.uint64):
-            want = own.dtype if own is not None else "numbers"
+        if own is None:
+            if array.dtype.kind not in "fiub":
+                raise ValueError(
+                    f"{self.name}: state {key!r} must hold numbers, got dtype {array.dtype}"
+                )
+        elif array.dtype != own.dtype:
             raise ValueError(
-                f"{self.name}: state {key!r} must hold {want}, got dtype {array.dtype}"
+                f"{self.name}: state {key!r} must hold {own.dtype}, got dtype {array.dtype}"
             )
-        if own is not None and array.shape != own.shape and not self._shape_varies(key):
-            raise ValueError(
-                f"{self.name}: state {key!r} must have shape {own.shape}, got {array.shape}"
-            )
+        if own is not None:
+            varies = self._shape_varies(key)
+            if (
+                (array.ndim != own.ndim or array.shape[1:] != own.shape[1:])
+                if varies
+                else (array.shape != own.shape)
+            ):
+                expected = ("K",) + own.shape[1:] if varies else own.shape
+                raise ValueError(
+                    f"{self.name}: state {key!r} must have shape {expected}, got {array.shape}"
+                )
         if array.dtype.kind == "f" and not np.all(np.isfinite(array)):
             raise ValueError(
                 f"{self.name}: state {key!r} must be finite; "

@@ -86,6 +86,28 @@ def value_fit(critic, x):
 
 
 @njit(cache=True)
+def td_bound(critic, v, reward, v_next):
+    """A bound on every value after :func:`td_update` (inf: the update would overflow): |V_i| and
+    |v| plus |alpha_c delta|, the traces being at most 1. Known before anything changes, so that
+    a learner refuses an overflowing update with nothing changed."""
+    delta = reward + critic.gamma * v_next - v
+    if not np.isfinite(delta):
+        return np.inf
+    Y = critic.memory.Y
+    largest = abs(v)
+    for i in range(llr_size(critic.memory)):
+        largest = max(largest, abs(Y[i, 0]))
+    bound = largest + abs(critic.alpha * delta)
+    return bound if np.isfinite(bound) else np.inf
+
+
+@njit(cache=True)
+def td_overflows(critic, v, reward, v_next):
+    """Whether the update of :func:`td_update` would overflow (:func:`td_bound`)."""
+    return not np.isfinite(td_bound(critic, v, reward, v_next))
+
+
+@njit(cache=True)
 def td_update(critic, x, v, reward, v_next):
     """Lines 23-27 for the transition from a canonical x with V(x) = ``v`` to x' with V(x') =
     ``v_next``: insert [x | v], then the TD(lambda) step on every sample. Returns delta; a delta
@@ -193,11 +215,33 @@ class LLRCritic:
         """Lines 22-27 for the transition from the canonical x, with V(x) = ``v``, to the canonical
         x_next with reward ``reward``; returns V(x_next), computed before the update (line 22), and
         delta (not finite: the update was refused, nothing stored)."""
-        if self.kernel_state is not None:
-            v_next = float(value_fit(self.kernel_state, x_next).prediction[0])
-        else:
-            v_next = self.value(x_next)  # line 22
+        v_next = self.next_value(x_next)  # line 22
         return v_next, self.td_update(x, v, reward, v_next)
+
+    def next_value(self, x_next: np.ndarray) -> float:
+        """V(x') of line 22 for the canonical x_next, as :meth:`update` computes it (compiled: K(x')
+        is kept for the update at x' one step later)."""
+        if self.kernel_state is not None:
+            return float(value_fit(self.kernel_state, x_next).prediction[0])
+        return self.value(x_next)
+
+    def overflows(self, v: float, reward: float, v_next: float) -> bool:
+        """Whether :meth:`td_update` with these values would overflow (see :func:`td_bound`); a
+        learner asks before it changes anything."""
+        return not math.isfinite(self.update_bound(v, reward, v_next))
+
+    def update_bound(self, v: float, reward: float, v_next: float) -> float:
+        """A bound on every value after :meth:`td_update` with these values, inf when it would
+        overflow (:func:`td_bound`)."""
+        if self.kernel_state is not None:
+            return float(td_bound(self.kernel_state, v, reward, v_next))
+        delta = reward + self.gamma * v_next - v
+        if not math.isfinite(delta):
+            return math.inf
+        values = self.memory.Y_[: self.memory.n_samples_, 0]
+        largest = max(abs(v), float(np.abs(values).max())) if len(values) else abs(v)
+        bound = largest + abs(self._alpha * delta)
+        return bound if math.isfinite(bound) else math.inf
 
     def td_update(self, x: np.ndarray, v: float, reward: float, v_next: float) -> float:
         """Lines 23-27 (see :func:`td_update`); returns delta. A delta that is not finite (the

@@ -13,7 +13,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from rmac_mj.agents.base import Agent
+from rmac_mj.agents.base import Agent, RefusedTransition
 from rmac_mj.agents.critic import LLRCritic, _check_traces
 from rmac_mj.agents.exploration import Exploration, model_uncertainty
 from rmac_mj.agents.planning import REHEARSAL, Planning, Replay
@@ -165,6 +165,12 @@ class MLACConfig:
 
     def __post_init__(self) -> None:
         check_config(self)
+
+
+#: Values (of the critic, after an update) beyond which the actor's gradient may overflow: a
+#: transition that reaches them is learned so that a refused actor step changes nothing. Below,
+#: the critic's slopes times the process model's stay far inside the float range.
+RISKY_VALUE = 1e100
 
 
 class MLAC(Agent):
@@ -397,10 +403,10 @@ class MLAC(Agent):
         """Learn from (x_{k-1}, u_{k-1}, r_k, x_k) (steps 1-3), then act in x_k (step 4; a given u_k
         when replaying)."""
         x = self.state_space.canonical(x)
-        self._k += 1
         self._v_prev = self._learn(
             self._x_prev, self._u_prev, reward, x, self._v_prev, self._learns_model, self._pi_prev
         )
+        self._k += 1
         u = self._act(x, u)
         self._x_prev, self._u_prev = x, u
         return u.copy()
@@ -439,18 +445,40 @@ class MLAC(Agent):
     ) -> float:
         """Steps 1-3 of :class:`MLAC` for canonical states; returns V(x') (0 for a
         ``terminal`` x', whose value the TD error then does not bootstrap from)."""
+        v_next = 0.0 if terminal else self.critic.next_value(x_next)
+        bound = self.critic.update_bound(v, reward, v_next)
+        if not np.isfinite(bound):  # refused before anything changes
+            raise self._overflow(f"the TD error with reward {reward!r}")
+        # The actor's step is known only once the process model and the critic have learned. Its
+        # gradient can overflow only with values near the largest float (the process model's
+        # samples are states within the learner's limits): then steps 1 and 2 are kept aside, and
+        # put back if the step is refused.
+        before = self._learned_models() if bound > RISKY_VALUE else None
         if model:  # 1. The process model learns the transition.
             self.process.insert(np.concatenate([x, u]), x_next)
         # 2. TD(lambda) on the critic's samples (RMAC paper, Algorithm 2 lines 22-28).
-        if terminal:
-            v_next, delta = 0.0, self.critic.td_update(x, v, reward, 0.0)
-        else:
-            v_next, delta = self.critic.update(x, v, reward, x_next)
-        if not np.isfinite(delta):
-            raise self._overflow(f"the TD error with reward {reward!r}")
+        self.critic.td_update(x, v, reward, v_next)
         # 3. The actor moves along the model-based gradient of the return.
-        self._improve_actor(x, u, policy)
+        try:
+            self._improve_actor(x, u, policy)
+        except RefusedTransition:
+            if before is None:  # a gradient that overflowed below RISKY_VALUE: nothing to put back
+                raise
+            self._restore_models(before)
+            raise
         return v_next
+
+    def _learned_models(self) -> dict[str, np.ndarray]:
+        """What steps 1 and 2 change (the process model, the critic and its traces), to put back."""
+        state = self.process.state_dict("process.")
+        state.update(self.critic.memory.state_dict("critic."))
+        state["traces"] = self.critic.traces.copy()
+        return state
+
+    def _restore_models(self, state: dict[str, np.ndarray]) -> None:
+        self.process.load_state_dict(state, "process.")
+        self.critic.memory.load_state_dict(state, "critic.")
+        self.critic.traces[:] = state["traces"]
 
     def _greedy_action(self, x: np.ndarray) -> np.ndarray:
         """pi(x), saturated; no exploration, no learning, nothing carried between calls."""

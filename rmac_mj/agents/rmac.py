@@ -12,7 +12,7 @@ import itertools
 import numpy as np
 
 from rmac_mj.agents import _rmac_kernels
-from rmac_mj.agents.base import Agent
+from rmac_mj.agents.base import Agent, RefusedTransition
 from rmac_mj.agents.critic import LLRCritic, _check_traces
 from rmac_mj.agents.exploration import model_uncertainty
 from rmac_mj.agents.rmac_config import REACHABLE_RULES, RMACConfig
@@ -335,8 +335,16 @@ class RMAC(Agent):
 
     def _step(self, reward: float, x: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
         """Lines 8-29 for one control step: act with the current models, then learn. A given u_k
-        (replay) is taken as the action: lines 13-28 only."""
+        (replay) is taken as the action: lines 13-28 only. A refused transition leaves the step
+        count as it was (the memories and x_prev, u_prev, v_prev are left by ``_learn``)."""
         self._k += 1
+        try:
+            return self._control_step(reward, x, u)
+        except RefusedTransition:
+            self._k -= 1
+            raise
+
+    def _control_step(self, reward: float, x: np.ndarray, u: np.ndarray | None) -> np.ndarray:
         self._sync_rates()
         if u is None and self._kernel_state is not None:
             du = self._noise(x, self._u_prev)  # line 8
@@ -404,13 +412,17 @@ class RMAC(Agent):
         """Lines 13-28 (reference implementation) for canonical states; returns V(x') (line 22).
         ``terminal``: x' is terminal, its value 0 in the TD error (no bootstrap)."""
         cfg, n = self.config, self.n
+        # Line 22 first: V(x') and its local model do not depend on M^P, and a TD error that
+        # overflows is refused before any memory changes.
+        v_next, beta_c, _ = self.critic.memory.query(x_next)
+        v_next = float(v_next[0])
+        if self.critic.overflows(v, reward, 0.0 if terminal else v_next):
+            raise self._overflow(reward)
         if model:  # line 14: insert [x, u | x'] in M^P
             self.process.insert(np.concatenate([x, u]), x_next)
         # Line 16: the best reachable state. X_R = beta^P U_R, linearised at (x, u).
         pred, beta, _ = self.process.query(np.concatenate([x, u]))
         beta_u = beta[:, n : n + self.m]
-        v_next, beta_c, _ = self.critic.memory.query(x_next)  # line 22: V(x') and its local model
-        v_next = float(v_next[0])
         if cfg.reachable_rule == "vertices":
             reachable = pred + (self.vertices - u) @ beta_u.T  # (2^m, n)
             # The critic's local linear model, V(y) = V(x_c) + beta^C_x wrap(y - x_c).
@@ -422,8 +434,7 @@ class RMAC(Agent):
             x_r = self.state_space.canonical(reachable[int(np.argmax(values))])
         else:  # the other rules: r + gamma V(x') with the full critic (RMACConfig.reachable_rule)
             x_r = self._best_scored(pred, beta_u, u)
-        if not (np.all(np.isfinite(x_r)) and np.isfinite(reward + cfg.gamma * v_next - v)):
-            raise self._overflow(reward)  # before M^R and M^C change
+        # x_r is a state the process model predicts from its finite samples: finite.
         # Lines 17-20: insert [x | x_r] in M^R and move K(x) towards x_r.
         near = self.reference.neighbours(x)
         inserted = x_r
@@ -457,6 +468,9 @@ class RMAC(Agent):
             score, x_next = self._reachable_score(u, pred, beta_u, u_model)
             if score > best_score:
                 best_score, x_r, u_best = score, x_next, u
+        if x_r is None:  # no score above -inf (the critic's values overflow): the first candidate
+            u_best = self.candidates[0]
+            x_r = self._reachable_score(u_best, pred, beta_u, u_model)[1]
         if self._refine_steps:
             low, high = float(self.action_space.low[0]), float(self.action_space.high[0])
             h = (high - low) / (self.config.reachable_grid - 1)

@@ -169,6 +169,15 @@ def _learn_numba(
     delta = reward + gamma * v_next - v_prev
     if not np.isfinite(delta):
         return delta, n_traces  # overflow: refused, nothing changed (the caller says so)
+    # Line 12 moves each weight with a trace (at most 1) by at most |a_critic delta|: refused
+    # before anything changes when that could pass the largest float.
+    largest = 0.0
+    for i in range(n_traces):
+        largest = max(largest, abs(critic[trace_idx[i]]))
+    for t in prev_tiles:
+        largest = max(largest, abs(critic[t]))
+    if not np.isfinite(largest + abs(a_critic * delta)):
+        return np.inf, n_traces
     # Line 11: decay the live traces, drop the ones below the cutoff, replace those of x_{k-1}.
     live = 0
     for i in range(n_traces):
@@ -299,6 +308,9 @@ class StandardActorCritic(Agent):
         self._n_traces = 0
         self._prev_tiles = np.zeros(T, dtype=np.int64)
         self._tiles = np.zeros(T, dtype=np.int64)
+        #: Where a step's tiles are found before the step is learned (committed when it is not
+        #: refused); not part of the state.
+        self._next_tiles = np.zeros(T, dtype=np.int64)
         self._prev_du = np.zeros(m)
         self._k = 0  # control step within the trial
         self.last_delta_ = 0.0
@@ -315,10 +327,14 @@ class StandardActorCritic(Agent):
         return per_feature * features + offsets, per_feature * features
 
     def _set_rate_a(self) -> None:
+        self.rate_a = self._rate_a(self.reward_scale_)
+
+    def _rate_a(self, reward_scale: float | None) -> float:
+        """The step per active weight of the actor with the reward's running scale ``reward_scale``."""
         alpha_a = self.config.alpha_a
         if alpha_a is None:
-            alpha_a = reward_rate(type(self.config).task_units["alpha_a"][1], self.reward_scale_)
-        self.rate_a = alpha_a / self._split_a if self._split_a != 1 else alpha_a
+            alpha_a = reward_rate(type(self.config).task_units["alpha_a"][1], reward_scale)
+        return alpha_a / self._split_a if self._split_a != 1 else alpha_a
 
     def _set_rehearsing(self, rehearsing: bool) -> None:
         """While rehearsing (planning, replay), the reward's running scale stays as it is."""
@@ -336,13 +352,13 @@ class StandardActorCritic(Agent):
         return u
 
     def _step(self, reward: float, x: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
-        """Lines 6-14 for r_k and x_k; returns u_k of shape (m,) (the given u_k, when replaying)."""
-        self._k += 1
-        self._tiles_of(x, self._tiles)
-        u, du = self._act(
-            self._tiles, self._k, u
-        )  # line 8 uses vartheta_{k-1}: act before learning
-        self._learn(reward, self.config.gamma)
+        """Lines 6-14 for r_k and x_k; returns u_k of shape (m,) (the given u_k, when replaying).
+        A refused transition changes nothing: the tiles and the step count are committed after."""
+        k, tiles = self._k + 1, self._next_tiles
+        self._tiles_of(x, tiles)
+        u, du = self._act(tiles, k, u)  # line 8 uses vartheta_{k-1}: act before learning
+        self._learn(reward, self.config.gamma, tiles)
+        self._k, self._next_tiles, self._tiles = k, self._tiles, tiles
         self._prev_tiles, self._tiles = self._tiles, self._prev_tiles
         self._prev_du = du
         return u
@@ -350,8 +366,10 @@ class StandardActorCritic(Agent):
     def _stop(self, reward: float, x: np.ndarray, terminal: bool) -> None:
         """Learn from the trial's last transition: bootstrapping from V(x_K), or, when x_K is
         terminal, from its value 0 (the discount of that one update is 0)."""
-        self._tiles_of(x, self._tiles)
-        self._learn(reward, 0.0 if terminal else self.config.gamma)
+        tiles = self._next_tiles
+        self._tiles_of(x, tiles)
+        self._learn(reward, 0.0 if terminal else self.config.gamma, tiles)
+        self._next_tiles, self._tiles = self._tiles, tiles
 
     def _greedy_action(self, x: np.ndarray) -> np.ndarray:
         """pi(x) saturated to the action bounds, shape (m,); no exploration, no learning."""
@@ -443,17 +461,15 @@ class StandardActorCritic(Agent):
         u = np.clip(pi + noise, self._a_low, self._a_high)
         return u, u - pi
 
-    def _learn(self, reward: float, gamma: float) -> None:
-        """Lines 10-13 for the transition x_{k-1} -> x_k (tiles in _prev_tiles and _tiles), with
-        the discount ``gamma`` of V(x_k) in the TD error (0 for a terminal x_k)."""
+    def _learn(self, reward: float, gamma: float, tiles: np.ndarray) -> None:
+        """Lines 10-13 for the transition x_{k-1} -> x_k (tiles in _prev_tiles and ``tiles``), with
+        the discount ``gamma`` of V(x_k) in the TD error (0 for a terminal x_k). A transition
+        whose update would overflow is refused before anything changes."""
         c = self.config
-        if (
-            self.reward_scale_ is not None
-            and self._learns_scale
-            and abs(reward) > self.reward_scale_
-        ):
-            self.reward_scale_ = abs(reward)
-            self._set_rate_a()
+        scale, rate_a = self.reward_scale_, self.rate_a
+        if scale is not None and self._learns_scale and abs(reward) > scale:
+            scale = abs(reward)
+            rate_a = self._rate_a(scale)
         if c.backend == "numba":
             delta, n_traces = _learn_numba(
                 self.critic_,
@@ -462,13 +478,13 @@ class StandardActorCritic(Agent):
                 self._trace_idx,
                 self._n_traces,
                 self._prev_tiles,
-                self._tiles,
+                tiles,
                 reward,
                 gamma,
                 self._decay,
                 c.trace_cutoff,
                 self.rate_c,
-                self.rate_a,
+                rate_a,
                 self._prev_du,
                 self._a_low,
                 self._a_high,
@@ -477,27 +493,34 @@ class StandardActorCritic(Agent):
                 raise self._overflow(f"the TD error with reward {reward!r}")
             self.last_delta_, self._n_traces = delta, n_traces
         else:
-            self._learn_numpy(reward, gamma)
+            self._learn_numpy(reward, gamma, tiles, rate_a)
+        if scale != self.reward_scale_:
+            self.reward_scale_, self.rate_a = scale, rate_a
 
-    def _learn_numpy(self, reward: float, gamma: float) -> None:
-        """Reference implementation of lines 10-13 (dense traces, same cutoff)."""
-        c, prev, tiles = self.config, self._prev_tiles, self._tiles
+    def _learn_numpy(self, reward: float, gamma: float, tiles: np.ndarray, rate_a: float) -> None:
+        """Reference implementation of lines 10-13 (dense traces, same cutoff): the new traces and
+        critic are computed aside and kept only when finite."""
+        c, prev = self.config, self._prev_tiles
         # Line 10 (eq. 2).
         delta = reward + gamma * self.critic_[tiles].sum() - self.critic_[prev].sum()
         if not np.isfinite(delta):
             raise self._overflow(f"the TD error with reward {reward!r}")
         # Line 11: replacing traces; the trace of x_{k-1}, whose value is being corrected, is set.
-        self._traces *= self._decay
-        self._traces[self._traces < c.trace_cutoff] = 0.0
-        self._traces[prev] = 1.0
+        traces = self._traces * self._decay
+        traces[traces < c.trace_cutoff] = 0.0
+        traces[prev] = 1.0
+        # Line 12 (eq. 3 with traces): dV/dtheta(x) is the indicator of x's tiles.
+        critic = self.critic_ + (self.rate_c * delta) * traces
+        if not np.all(np.isfinite(critic)):
+            raise self._overflow(f"the TD error with reward {reward!r}")
+        self._traces[:] = traces
         self._n_traces = int(np.count_nonzero(self._traces))
         self._trace_idx[: self._n_traces] = np.flatnonzero(self._traces)
-        # Line 12 (eq. 3 with traces): dV/dtheta(x) is the indicator of x's tiles.
-        self.critic_ += (self.rate_c * delta) * self._traces
+        self.critic_[:] = critic
         # Line 13 (eq. 4): dpi/dvartheta(x_{k-1}) is the indicator of x_{k-1}'s tiles.
         T = prev.shape[0]
         raw = self.actor_[prev].sum(axis=0)
-        step = self.rate_a * delta * self._prev_du
+        step = rate_a * delta * self._prev_du
         new = raw + T * step
         lo, hi = np.minimum(self._a_low, raw), np.maximum(self._a_high, raw)
         clipped = (new > hi) | (new < lo)

@@ -401,10 +401,7 @@ class LLRMemory:
                     continue
                 raise ValueError(f"LLRMemory: the state dict lacks {key!r}")
             value = np.asarray(state[key])
-            if (
-                value.dtype.kind not in ("iu" if arr.dtype.kind in "iu" else "f")
-                or value.shape != arr.shape
-            ):
+            if value.dtype != arr.dtype or value.shape != arr.shape:
                 raise ValueError(
                     f"LLRMemory: state {key!r} must be {arr.dtype} of shape "
                     f"{arr.shape}, got {value.dtype} of shape {value.shape}"

@@ -147,6 +147,47 @@ def read(path: pathlib.Path, digest: str) -> dict[str, Any] | None:
         }
     except (KeyError, ValueError, TypeError):
         return None
-    if not checkpoint["returns"] or len(checkpoint["env_steps"]) != len(checkpoint["returns"]):
+    if not _whole(checkpoint):
         return None
     return checkpoint
+
+
+#: The random state of an environment, as :func:`environment_state` writes it: key -> (dtype,
+#: shape), one of the two kinds.
+_ENVIRONMENT_STATES = (
+    {
+        "mt19937_keys": (np.uint32, (624,)),
+        "mt19937_position": (np.int64, (2,)),
+        "mt19937_gauss": (np.float64, ()),
+    },
+    {"pcg64": (np.uint64, (6,))},
+)
+
+
+def _whole(checkpoint: dict[str, Any]) -> bool:
+    """Whether a read checkpoint holds what :func:`write` wrote: a curve of finite returns with
+    increasing step counts, greedy trials among them, and an environment state of one of the
+    two kinds (the agent's state is checked by the learner that loads it)."""
+    returns, steps = checkpoint["returns"], checkpoint["env_steps"]
+    greedy, greedy_returns = checkpoint["greedy_trials"], checkpoint["greedy_returns"]
+    environment = checkpoint["environment"]
+    return (
+        bool(returns)
+        and len(steps) == len(returns)
+        and all(np.isfinite(returns))
+        and steps[0] >= 1
+        and all(a <= b for a, b in zip(steps, steps[1:]))
+        and len(greedy_returns) == len(greedy)
+        and all(np.isfinite(greedy_returns))
+        and all(1 <= t <= len(returns) for t in greedy)
+        and any(
+            environment.keys() == kind.keys()
+            and all(
+                environment[key].dtype == dtype and environment[key].shape == shape
+                for key, (dtype, shape) in kind.items()
+            )
+            for kind in _ENVIRONMENT_STATES
+        )
+        and np.isfinite(checkpoint["wall_time_s"])
+        and np.isfinite(checkpoint["cpu_time_s"])
+    )

@@ -35,8 +35,8 @@ from rmac_mj.agents import (
 from rmac_mj.errors import environment_failure_at
 from rmac_mj.experiments import checkpoint as checkpoints
 from rmac_mj.experiments import prior_transitions as prior_data
-from rmac_mj.results import files
-from rmac_mj.results.snapshots import snapshot_arrays
+from rmac_mj.results import files, integrity
+from rmac_mj.results.snapshots import snapshot_arrays, snapshot_state_problem
 from rmac_mj.results.store import ExperimentResult, ResultStore, TrialLog
 from rmac_mj.rollout import action_space_of, run_counted_trial, run_trial, state_space_of
 
@@ -447,6 +447,24 @@ def build_experiment(
     )
 
 
+def fresh_learners(protocol: Protocol) -> dict[str, Agent]:
+    """A learner of each of the protocol's algorithms as its experiments begin (their config, on
+    the protocol's environment; one environment built for all): what the files a run keeps are
+    checked against (``Agent.check_state_dict``)."""
+    env = protocol.make_environment(experiment_seeds(protocol.seed, 0)[1])
+    state_space, action_space = state_space_of(env), action_space_of(env)
+    return {
+        algorithm: make_agent(
+            algorithm,
+            state_space,
+            action_space,
+            config=protocol.agent_configs.get(algorithm),
+            seed=0,
+        )
+        for algorithm in protocol.algorithms
+    }
+
+
 def evaluation(protocol: Protocol, index: int) -> Callable[[control.Environment, Agent], float]:
     """How experiment ``index`` evaluates its agent (``Protocol.evaluate_starts``): a function
     ``(env, agent) -> greedy return``."""
@@ -485,6 +503,37 @@ class ExperimentSpec:
     checkpoint_seconds: float = checkpoints.CHECKPOINT_SECONDS
 
 
+def _kept_checkpoint(
+    store: ResultStore,
+    spec: ExperimentSpec,
+    digest: str,
+    agent: Agent,
+    snapshot_trials: set[int],
+) -> dict[str, Any] | None:
+    """The experiment's checkpoint (:func:`checkpoints.read`) with ``snapshots``, the snapshots of
+    the trials it has done as written, when all of them are what the run would have written: the
+    learner state of the checkpoint and of every snapshot one ``agent`` (the experiment's fresh
+    learner) can restore, every snapshot whole. Else None: the experiment starts from its first
+    trial, as without a checkpoint, and gives the same result."""
+    saved = checkpoints.read(store.checkpoint_path(spec.algorithm, spec.index), digest)
+    if saved is None:
+        return None
+    try:
+        agent.check_state_dict(saved["agent"])
+    except (TypeError, ValueError):
+        return None
+    saved["snapshots"] = {}
+    for trial in sorted(t for t in snapshot_trials if t <= len(saved["returns"])):
+        path = store.snapshot_path(spec.algorithm, spec.index, trial)
+        if integrity.snapshot_problem(path, spec.algorithm, trial) is not None:
+            return None
+        arrays = store.read_snapshot_arrays(spec.algorithm, spec.index, trial)
+        if snapshot_state_problem(arrays, agent) is not None:
+            return None
+        saved["snapshots"][trial] = arrays
+    return saved
+
+
 def run_experiment(
     spec: ExperimentSpec, on_trial: Callable[[str, int, int, float], None] | None = None
 ) -> ExperimentResult:
@@ -509,9 +558,7 @@ def run_experiment(
     digest = checkpoints.protocol_digest(protocol.as_dict())
     earlier_wall = earlier_cpu = 0.0
     saved = (
-        checkpoints.read(store.checkpoint_path(spec.algorithm, spec.index), digest)
-        if store is not None
-        else None
+        _kept_checkpoint(store, spec, digest, agent, snapshot_trials) if store is not None else None
     )
     if saved is not None:  # continue where the checkpoint left off, exactly
         agent.load_state_dict(saved["agent"])
@@ -519,8 +566,7 @@ def run_experiment(
         returns, env_steps = saved["returns"], saved["env_steps"]
         greedy_trials, greedy_returns = saved["greedy_trials"], saved["greedy_returns"]
         earlier_wall, earlier_cpu = saved["wall_time_s"], saved["cpu_time_s"]
-        for trial in sorted(t for t in snapshot_trials if t <= len(returns)):
-            snapshots[trial] = store.read_snapshot_arrays(spec.algorithm, spec.index, trial)
+        snapshots = saved["snapshots"]
     start, cpu_start = time.perf_counter(), time.process_time()
     last_checkpoint = start
     taken, trial = (env_steps[-1] if env_steps else 0), len(returns)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import datetime
+import functools
 import itertools
 import json
 import multiprocessing
@@ -25,8 +26,14 @@ from rmac_mj.evaluation import metrics
 from rmac_mj.experiments import admission, execution
 from rmac_mj.experiments import prior_transitions as prior_data
 from rmac_mj.experiments.progress import Progress, TrialFeed
-from rmac_mj.experiments.protocol import ExperimentSpec, Protocol, run_experiment
+from rmac_mj.experiments.protocol import (
+    ExperimentSpec,
+    Protocol,
+    fresh_learners,
+    run_experiment,
+)
 from rmac_mj.results import files
+from rmac_mj.results.snapshots import snapshot_state_problem
 from rmac_mj.results.store import ExperimentResult, ResultStore
 from rmac_mj.solvers import optimum
 
@@ -198,11 +205,19 @@ class _Run:
         self.store.lock().acquire()
         self.store.begin(self.document, self.resume)
         protocol = self.protocol
+        learners = None  # built once, when a saved experiment is to be checked
         for algorithm in protocol.algorithms:
             for index in sorted(
                 i for i in self.store.finished(algorithm) if i < protocol.experiments
             ):
-                problem = self.store.experiment_problem(protocol, algorithm, index)
+                if learners is None:
+                    learners = fresh_learners(protocol)
+                problem = self.store.experiment_problem(
+                    protocol,
+                    algorithm,
+                    index,
+                    functools.partial(snapshot_state_problem, learner=learners[algorithm]),
+                )
                 if problem is None:
                     self.finished[algorithm].add(index)
                     continue

@@ -117,6 +117,18 @@ def _read_snapshot(path: pathlib.Path) -> tuple[Agent, dict[str, Any]]:
     return agent, meta
 
 
+def snapshot_state_problem(arrays: dict[str, np.ndarray], learner: Agent) -> str | None:
+    """None when the learned state in a snapshot's ``arrays`` (as :func:`snapshot_arrays` wrote
+    them) is one ``learner`` (a learner built as the run builds it) can restore: its keys, dtypes
+    and shapes as the learner's ``check_state_dict`` checks them; else what is wrong."""
+    state = {key[len(_PREFIX) :]: value for key, value in arrays.items() if key.startswith(_PREFIX)}
+    try:
+        learner.check_state_dict(state)
+    except (TypeError, ValueError) as error:
+        return f"its learned state is not what the run's {learner.name} holds ({error})"
+    return None
+
+
 def snapshot_environment(
     agent: Agent,
     meta: dict,

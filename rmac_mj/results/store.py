@@ -12,7 +12,7 @@ import json
 import os
 import pathlib
 import re
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import numpy as np
@@ -385,10 +385,17 @@ class ResultStore:
             same = False
         return same and self._complete(stored)
 
-    def experiment_problem(self, protocol, algorithm: str, index: int) -> str | None:
+    def experiment_problem(
+        self,
+        protocol,
+        algorithm: str,
+        index: int,
+        snapshot_check: Callable[[dict[str, np.ndarray]], str | None] | None = None,
+    ) -> str | None:
         """None when experiment ``index`` of ``algorithm`` is saved whole and as ``protocol`` says
-        (its curve: the trials and greedy trials; every snapshot the protocol lists); else what is
-        wrong, naming the file."""
+        (its curve: the trials and greedy trials; every snapshot the protocol lists, and passes
+        ``snapshot_check`` on its arrays: the run's learner can restore it); else what is wrong,
+        naming the file."""
         every = protocol.evaluate_every
         greedy = [t for t in range(every, protocol.trials + 1, every)] if every else []
         path = self.curve_path(algorithm, index)
@@ -402,6 +409,8 @@ class ResultStore:
         for trial in snapshot_trials:
             path = self.snapshot_path(algorithm, index, trial)
             problem = integrity.snapshot_problem(path, algorithm, trial)
+            if problem is None and snapshot_check is not None:
+                problem = snapshot_check(self.read_snapshot_arrays(algorithm, index, trial))
             if problem is not None:
                 return f"{path.relative_to(self.root)}: {problem}"
         return None

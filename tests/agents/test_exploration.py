@@ -206,6 +206,10 @@ class _CountingGenerator:
         self.draws += 1
         return self.rng.normal(*args, **kwargs)
 
+    @property
+    def bit_generator(self):  # what a learner saves to put back after a refused step
+        return self.rng.bit_generator
+
 
 # -- the trial counter ----------------------------------------------------------------------------
 
