@@ -8,7 +8,8 @@ from collections.abc import Sequence
 from typing import Any
 
 from rmac_mj.cli.common import STARTED, Interrupted, UsageError, say, user_input, writable_dir
-from rmac_mj.cli.options import PROTOCOL_OPTIONS, build_parser
+from rmac_mj.cli.options import build_parser
+from rmac_mj.cli.run_options import PROTOCOL_OPTIONS
 from rmac_mj.errors import UserInputError
 
 
