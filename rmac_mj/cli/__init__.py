@@ -1,8 +1,10 @@
 """The ``rmac-mj`` command: reproduce, sweep, panel, compare, policy, optimal, render, bench.
 
 ``rmac-mj`` alone prints the commands, ``rmac-mj COMMAND --help`` their options and defaults; the
-options are declared in :mod:`rmac_mj.cli.options`, the commands that run experiments in
-:mod:`rmac_mj.cli.runs`, those that look at results in :mod:`rmac_mj.cli.views`.
+parser is :mod:`rmac_mj.cli.options` (the options in :mod:`rmac_mj.cli.run_options` and
+:mod:`rmac_mj.cli.view_options`, their building blocks in :mod:`rmac_mj.cli.arguments`), the
+commands that run experiments in :mod:`rmac_mj.cli.runs`, those that look at results in
+:mod:`rmac_mj.cli.views`.
 
 Every command ends through :func:`main`, which holds the one rule for what goes wrong (the exit
 statuses are :mod:`rmac_mj.errors`'): a bad input (an option, a configuration, a result file, a

@@ -8,13 +8,14 @@ from collections.abc import Sequence
 from typing import Any
 
 from rmac_mj.cli.common import STARTED, Interrupted, UsageError, say, user_input, writable_dir
-from rmac_mj.cli.options import PROTOCOL_OPTIONS, build_parser
+from rmac_mj.cli.options import build_parser
+from rmac_mj.cli.run_options import PROTOCOL_OPTIONS
 from rmac_mj.errors import UserInputError
 
 
 def parse_overrides(assignments: Sequence[str]) -> dict[str, dict]:
     """``["rmac.exploration.sigma=0.5", ...]`` -> ``{"rmac": {"exploration": {"sigma": 0.5}}}``."""
-    from rmac_mj.sweeps.sweep_file import nest
+    from rmac_mj.sweeps.dotted_keys import nest
 
     flat: dict[str, Any] = {}
     for assignment in assignments:
@@ -56,7 +57,7 @@ def settings_from_files(argv: Sequence[str] | None, args: argparse.Namespace) ->
     ``args.config_agent_configs`` (``--set`` applies on top). A resumed run started with
     ``--no-optimal`` is finished without the reference too."""
     from rmac_mj.results.store import ResultStore
-    from rmac_mj.sweeps import sweep_file
+    from rmac_mj.sweeps import dotted_keys, sweep_file
 
     layers: list[tuple[dict[str, Any], dict[str, dict]]] = []
     without_references = False
@@ -85,7 +86,7 @@ def settings_from_files(argv: Sequence[str] | None, args: argparse.Namespace) ->
                 defaults[key] = ",".join(value) if key in ("algorithms", "prior_parts") else value
             else:
                 extra[key] = value
-        agent_configs = sweep_file.merge(agent_configs, configs)
+        agent_configs = dotted_keys.merge(agent_configs, configs)
     if defaults.get("prior") is None or str(defaults["prior"]).endswith(".npz"):
         defaults.pop("prior_trials", None)  # a demonstrator's only
     if not defaults.get("prior_parts"):
@@ -101,7 +102,7 @@ def reproduce(args) -> int:
     from rmac_mj.experiments import execution, runner
     from rmac_mj.experiments.protocol import Protocol
     from rmac_mj.results.store import ResultStore
-    from rmac_mj.sweeps import sweep_file
+    from rmac_mj.sweeps import dotted_keys
 
     if args.prior is None and (args.prior_trials is not None or args.prior_parts is not None):
         raise UsageError("--prior-trials and --prior-parts need --prior")
@@ -119,7 +120,7 @@ def reproduce(args) -> int:
             if not prior["prior_parts"]:
                 raise UsageError("--prior-parts must name at least one part")
     overrides = parse_overrides(args.set)
-    agent_configs = sweep_file.merge(getattr(args, "config_agent_configs", {}), overrides)
+    agent_configs = dotted_keys.merge(getattr(args, "config_agent_configs", {}), overrides)
     with user_input():
         protocol = Protocol(
             domain=args.domain,

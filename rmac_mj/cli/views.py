@@ -28,7 +28,7 @@ def shortest_distinct_suffixes(paths: Sequence[pathlib.Path]) -> list[str]:
 def _settings_line(summary: dict) -> str:
     """How a run was made: its size, seed and --set overrides."""
     protocol = summary.get("protocol", {})
-    from rmac_mj.sweeps.sweep_file import flatten
+    from rmac_mj.sweeps.dotted_keys import flatten
 
     overrides = [
         f"{key}={json.dumps(value)}"

@@ -11,7 +11,8 @@ from collections.abc import Mapping
 from typing import Any
 
 from rmac_mj.envs.environment import Environment
-from rmac_mj.envs.observations import ObservationMap, infer_learner_state
+from rmac_mj.envs.observation_map import ObservationMap
+from rmac_mj.envs.observations import infer_learner_state
 from rmac_mj.envs.spec import EnvSpec, parse
 from rmac_mj.tasks.common import LearnerStateSpec
 

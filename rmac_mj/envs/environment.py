@@ -16,7 +16,7 @@ from dm_env import specs
 
 from rmac_mj.agents.spaces import STATE_LIMIT_WIDTHS, StateSpace
 from rmac_mj.envs.failures import checked_reward, outside, read_observation
-from rmac_mj.envs.observations import ObservationLayout, ObservationMap
+from rmac_mj.envs.observation_map import ObservationLayout, ObservationMap
 from rmac_mj.errors import EnvironmentFailure, UserInputError
 from rmac_mj.tasks.common import LearnerStateSpec
 
@@ -27,7 +27,7 @@ class Environment(dm_env.Environment):
     Args:
       base: the environment, a ``dm_env.Environment``.
       learner_state: what x is (its ``keys`` are entries over ``layout``, see
-        :mod:`rmac_mj.envs.observations`).
+        :mod:`rmac_mj.envs.observation_map`).
       layout: the base's raw observation layout.
       base_timestep: seconds per step of ``base``.
       steps_per_trial: steps (of this environment, i.e. after the action repeat) after which a
@@ -38,7 +38,7 @@ class Environment(dm_env.Environment):
     Attributes:
       learner_state, steps_per_trial, action_repeat, name: as given.
       base: the wrapped environment.
-      map: the :class:`~rmac_mj.envs.observations.ObservationMap` from raw observations to x.
+      map: the :class:`~rmac_mj.envs.observation_map.ObservationMap` from raw observations to x.
       base_steps: base steps taken since it was made (an episode ended by the base mid-repeat
         counts the steps it really took): the interaction a budget in environment steps counts.
     """

@@ -13,7 +13,7 @@ import dm_env
 import numpy as np
 from dm_env import specs
 
-from rmac_mj.envs.observations import OBSERVATION, layout_of_gymnasium
+from rmac_mj.envs.observation_map import OBSERVATION, layout_of_gymnasium
 
 
 class GymnasiumEnvironment(dm_env.Environment):
@@ -24,7 +24,7 @@ class GymnasiumEnvironment(dm_env.Environment):
 
     Attributes:
       env: the Gymnasium environment (with its wrappers, e.g. ``TimeLimit``).
-      layout: the observation's entries and bounds (:class:`~rmac_mj.envs.observations.ObservationLayout`).
+      layout: the observation's entries and bounds (:class:`~rmac_mj.envs.observation_map.ObservationLayout`).
     """
 
     def __init__(self, env: Any, seed: int | None = None, name: str = "gymnasium") -> None:

@@ -26,13 +26,8 @@ from rmac_mj.constraints import OBSERVATION_SIZE
 from rmac_mj.envs.environment import Environment, trial_steps
 from rmac_mj.envs.failures import outside, read_observation
 from rmac_mj.envs.from_gymnasium import GymnasiumEnvironment
-from rmac_mj.envs.observations import (
-    ObservationLayout,
-    ObservationMap,
-    check_declaration,
-    infer_learner_state,
-    layout_of_dm_env,
-)
+from rmac_mj.envs.observation_map import ObservationLayout, ObservationMap, layout_of_dm_env
+from rmac_mj.envs.observations import check_declaration, infer_learner_state
 from rmac_mj.errors import UserInputError
 from rmac_mj.tasks.common import LearnerStateSpec
 

@@ -19,7 +19,8 @@ gymnasium = pytest.importorskip(
 from rmac_mj import envs
 from rmac_mj.agents import make_agent
 from rmac_mj.agents.standard_ac import StandardACConfig
-from rmac_mj.envs.observations import ObservationMap, inferred_entries, layout_of_dm_env
+from rmac_mj.envs.observation_map import ObservationMap, layout_of_dm_env
+from rmac_mj.envs.observations import inferred_entries
 from rmac_mj.rollout import (
     action_space_of,
     run_trial,
@@ -325,7 +326,8 @@ def test_measured_box_widens_the_visited_range_about_its_centre():
 def test_without_a_measurement_an_unbounded_dimension_is_refused_naming_it():
     from dm_env import specs
 
-    from rmac_mj.envs.observations import infer_learner_state, layout_of_dm_env
+    from rmac_mj.envs.observation_map import layout_of_dm_env
+    from rmac_mj.envs.observations import infer_learner_state
 
     layout = layout_of_dm_env({"velocity": specs.Array((1,), float, "velocity")})
     with pytest.raises(
