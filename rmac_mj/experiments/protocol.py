@@ -36,8 +36,10 @@ from rmac_mj.errors import environment_failure_at
 from rmac_mj.experiments import checkpoint as checkpoints
 from rmac_mj.experiments import prior_transitions as prior_data
 from rmac_mj.results import files, integrity
+from rmac_mj.results.records import ExperimentResult
 from rmac_mj.results.snapshots import snapshot_arrays, snapshot_state_problem
-from rmac_mj.results.store import ExperimentResult, ResultStore, TrialLog
+from rmac_mj.results.store import ResultStore
+from rmac_mj.results.trial_log import TrialLog
 from rmac_mj.rollout import action_space_of, run_counted_trial, run_trial, state_space_of
 
 

@@ -33,8 +33,9 @@ from rmac_mj.experiments.protocol import (
     run_experiment,
 )
 from rmac_mj.results import files
+from rmac_mj.results.records import ExperimentResult
 from rmac_mj.results.snapshots import snapshot_state_problem
-from rmac_mj.results.store import ExperimentResult, ResultStore
+from rmac_mj.results.store import ResultStore
 from rmac_mj.solvers import optimum
 
 
