@@ -22,7 +22,7 @@ def added_experiments(stored: Any, protocol: Any) -> int | None:
     """How many experiments ``protocol`` adds to the ``stored`` protocol (both as data) when it
     differs from it in nothing else (negative: it has fewer); None when anything else differs or a
     count is missing. Experiment i's seeds do not depend on the count
-    (:func:`~rmac_mj.experiments.protocol.experiment_seeds`), so a run of N experiments grown to M
+    (:func:`~rmac_mj.experiments.experiment.experiment_seeds`), so a run of N experiments grown to M
     holds exactly what a fresh run of M would. The runner's and the sweep's resume both ask it."""
     if not all(
         isinstance(p, dict) and isinstance(p.get("experiments"), int) for p in (stored, protocol)

@@ -13,8 +13,9 @@ import pytest
 
 from rmac_mj.experiments import progress as progress_module
 from rmac_mj.experiments import runner
+from rmac_mj.experiments.experiment_loop import ExperimentSpec, run_experiment
 from rmac_mj.experiments.progress import Progress, TrialFeed
-from rmac_mj.experiments.protocol import ExperimentSpec, Protocol, run_experiment
+from rmac_mj.experiments.protocol import Protocol
 from rmac_mj.results.run_identity import ResumeRefused
 from rmac_mj.results.snapshots import load_snapshot
 from rmac_mj.results.store import ResultStore
