@@ -4,7 +4,7 @@
 
 Learning curves come from the runs' files. Whether a trial swings up is not in them (they hold sums of
 rewards), so the first ``--replay`` trials of every experiment are replayed: the runner is
-deterministic, so rebuilding each experiment with ``protocol.build_experiment`` (as the runner does)
+deterministic, so rebuilding each experiment with ``experiment.build_experiment`` (as the runner does)
 reproduces its trials, and every replayed return is checked against the stored one to 1e-9.
 """
 
@@ -24,7 +24,8 @@ from rmac_mj.evaluation.metrics import (
     final_returns,
     stuck_threshold,
 )
-from rmac_mj.experiments.protocol import Protocol, build_experiment, demonstration_for
+from rmac_mj.experiments.experiment import build_experiment, demonstration_for
+from rmac_mj.experiments.protocol import Protocol
 from rmac_mj.results.store import ResultStore
 from rmac_mj.rollout import run_trial
 

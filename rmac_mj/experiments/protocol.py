@@ -1,8 +1,7 @@
-"""What is run: the paper's protocol (section 6, :class:`Protocol`) and one experiment of it.
+"""What is run: the paper's protocol (section 6, :class:`Protocol`), its checks and its environment.
 
-Experiment i seeds its agent from ``SeedSequence(seed, spawn_key=(i,))``, its task from child ``(i,
-0)``, its demonstration from ``(i, 1)``: results do not depend on workers or resuming.
-:func:`build_experiment` assembles it, :func:`run_experiment` runs it.
+An experiment of it is assembled by :mod:`~rmac_mj.experiments.experiment` and run by
+:mod:`~rmac_mj.experiments.experiment_loop`.
 """
 
 from __future__ import annotations
@@ -12,33 +11,20 @@ import functools
 import json
 import numbers
 import pathlib
-import time
-from collections.abc import Callable
 from typing import Any, ClassVar
 
-import numpy as np
 from dm_control.rl import control
 
 from rmac_mj import constraints, envs, tasks
 from rmac_mj.agents import (
     ALGORITHMS,
     PRIOR_PARTS,
-    ActionSpace,
-    Agent,
-    StateSpace,
     agent_class,
     config_class,
     config_from_dict,
-    make_agent,
     unknown_algorithm,
 )
-from rmac_mj.errors import environment_failure_at
-from rmac_mj.experiments import checkpoint as checkpoints
-from rmac_mj.experiments import prior_transitions as prior_data
-from rmac_mj.results import files, integrity
-from rmac_mj.results.snapshots import snapshot_arrays, snapshot_state_problem
-from rmac_mj.results.store import ExperimentResult, ResultStore, TrialLog
-from rmac_mj.rollout import action_space_of, run_counted_trial, run_trial, state_space_of
+from rmac_mj.results import files
 
 
 class _Empty(constraints.Constraint):
@@ -364,278 +350,32 @@ def _resolved(spec: envs.EnvSpec) -> envs.EnvSpec:
     return _resolved_from(json.dumps(spec.as_dict(), sort_keys=True))
 
 
-def experiment_seeds(seed: int, index: int) -> tuple[np.random.SeedSequence, int]:
-    """The agent's seed sequence and the task's integer seed of experiment ``index``."""
-    agent_seq = np.random.SeedSequence(seed, spawn_key=(index,))
-    task_seed = int(np.random.SeedSequence(seed, spawn_key=(index, 0)).generate_state(1)[0])
-    return agent_seq, task_seed
-
-
-def demonstration_for(protocol: Protocol, index: int) -> prior_data.Demonstration:
-    """``prior_trials`` trials of demonstrator ``protocol.prior`` for experiment ``index``, recorded
-    deterministically from the sequence ``(index, 1)``: its child 0 seeds the recording's task, the
-    sequence itself the demonstrator's action noise."""
-    demonstrator = protocol.knowledge.demonstrator(protocol.prior, protocol.environment_name)
-    sequence = np.random.SeedSequence(protocol.seed, spawn_key=(index, 1))
-    task_seed = int(
-        np.random.SeedSequence(protocol.seed, spawn_key=(index, 1, 0)).generate_state(1)[0]
-    )
-    env = protocol.make_environment(task_seed)
-    return prior_data.record(
-        env,
-        demonstrator.controller(env),
-        protocol.prior_trials,
-        seed=np.random.default_rng(sequence),
-        action_noise=demonstrator.action_noise,
-    )
-
-
-@dataclasses.dataclass
-class Experiment:
-    """Experiment ``index`` of ``algorithm``, assembled and ready for its first trial.
-
-    Attributes:
-      env: its environment, the task's random state seeded with ``task_seed``.
-      agent: the fresh agent, its generator from the experiment's seed sequence, already seeded with
-        the prior knowledge of ``demonstration`` (if any).
-      state_space, action_space: the task's, as the agent sees them.
-      demonstration: the prior knowledge seeded, or None.
-    """
-
-    algorithm: str
-    index: int
-    env: control.Environment
-    agent: Agent
-    state_space: StateSpace
-    action_space: ActionSpace
-    task_seed: int
-    demonstration: prior_data.Demonstration | None
-
-
-def build_experiment(
-    protocol: Protocol,
-    algorithm: str,
-    index: int,
-    demonstration: prior_data.Demonstration | None = None,
-) -> Experiment:
-    """Assemble experiment ``index`` of ``algorithm`` exactly as the runner does: its environment and
-    fresh agent from the experiment's seeds, then the prior knowledge (``demonstration`` when the
-    protocol's prior is a file the caller read; else recorded here from the protocol's demonstrator)."""
-    agent_seq, task_seed = experiment_seeds(protocol.seed, index)
-    env = protocol.make_environment(task_seed)
-    state_space, action_space = state_space_of(env), action_space_of(env)
-    agent = make_agent(
-        algorithm,
-        state_space,
-        action_space,
-        config=protocol.agent_configs.get(algorithm),
-        seed=np.random.default_rng(agent_seq),
-    )
-    if protocol.prior is not None:
-        if demonstration is None:
-            demonstration = demonstration_for(protocol, index)
-        agent.seed_from(**demonstration.arrays(), parts=protocol.prior_parts or None)
-    return Experiment(
-        algorithm=algorithm,
-        index=index,
-        env=env,
-        agent=agent,
-        state_space=state_space,
-        action_space=action_space,
-        task_seed=task_seed,
-        demonstration=demonstration if protocol.prior is not None else None,
-    )
-
-
-def fresh_learners(protocol: Protocol) -> dict[str, Agent]:
-    """A learner of each of the protocol's algorithms as its experiments begin (their config, on
-    the protocol's environment; one environment built for all): what the files a run keeps are
-    checked against (``Agent.check_state_dict``)."""
-    env = protocol.make_environment(experiment_seeds(protocol.seed, 0)[1])
-    state_space, action_space = state_space_of(env), action_space_of(env)
-    return {
-        algorithm: make_agent(
-            algorithm,
-            state_space,
-            action_space,
-            config=protocol.agent_configs.get(algorithm),
-            seed=0,
-        )
-        for algorithm in protocol.algorithms
-    }
-
-
-def evaluation(protocol: Protocol, index: int) -> Callable[[control.Environment, Agent], float]:
-    """How experiment ``index`` evaluates its agent (``Protocol.evaluate_starts``): a function
-    ``(env, agent) -> greedy return``."""
-    if protocol.evaluate_starts == 0:
-        return lambda env, agent: run_trial(env, agent, learn=False)
-    seed = int(np.random.SeedSequence(protocol.seed, spawn_key=(index, 2)).generate_state(1)[0])
-
-    def evaluate(env: control.Environment, agent: Agent) -> float:
-        starts = protocol.make_environment(seed)  # the same starts at every evaluation
-        return float(
-            np.mean(
-                [run_trial(starts, agent, learn=False) for _ in range(protocol.evaluate_starts)]
-            )
-        )
-
-    return evaluate
-
-
-@dataclasses.dataclass(frozen=True)
-class ExperimentSpec:
-    """One learning experiment to run: ``algorithm`` number ``index`` of ``protocol``.
-
-    ``stream_to``: the result directory whose live trial log (``ResultStore.progress_path``) receives
-    every trial as it ends, and which keeps the experiment's checkpoint (``ResultStore.
-    checkpoint_path``; :mod:`~rmac_mj.experiments.checkpoint`) every ``checkpoint_seconds`` of wall
-    time, from which the experiment continues when run again; None streams and keeps nothing.
-    ``demonstration``: the recorded prior knowledge when ``protocol.prior`` is a file (read once by
-    the driver).
-    """
-
-    protocol: Protocol
-    algorithm: str
-    index: int
-    stream_to: str | None = None
-    demonstration: prior_data.Demonstration | None = None
-    checkpoint_seconds: float = checkpoints.CHECKPOINT_SECONDS
-
-
-def _kept_checkpoint(
-    store: ResultStore,
-    spec: ExperimentSpec,
-    digest: str,
-    agent: Agent,
-    snapshot_trials: set[int],
-) -> dict[str, Any] | None:
-    """The experiment's checkpoint (:func:`checkpoints.read`) with ``snapshots``, the snapshots of
-    the trials it has done as written, when all of them are what the run would have written: the
-    learner state of the checkpoint and of every snapshot one ``agent`` (the experiment's fresh
-    learner) can restore, every snapshot whole. Else None: the experiment starts from its first
-    trial, as without a checkpoint, and gives the same result."""
-    saved = checkpoints.read(store.checkpoint_path(spec.algorithm, spec.index), digest)
-    if saved is None:
-        return None
-    try:
-        agent.check_state_dict(saved["agent"])
-    except (TypeError, ValueError):
-        return None
-    saved["snapshots"] = {}
-    for trial in sorted(t for t in snapshot_trials if t <= len(saved["returns"])):
-        path = store.snapshot_path(spec.algorithm, spec.index, trial)
-        if integrity.snapshot_problem(path, spec.algorithm, trial) is not None:
-            return None
-        arrays = store.read_snapshot_arrays(spec.algorithm, spec.index, trial)
-        if snapshot_state_problem(arrays, agent) is not None:
-            return None
-        saved["snapshots"][trial] = arrays
-    return saved
-
-
-def run_experiment(
-    spec: ExperimentSpec, on_trial: Callable[[str, int, int, float], None] | None = None
-) -> ExperimentResult:
-    """Run one learning experiment; return its curve, greedy evaluations and snapshots.
-
-    Nothing is written but the live trial log in ``spec.stream_to`` (if any), so it runs unchanged in
-    a local worker process or on a remote Dask worker, and the caller decides where the results go.
-    ``on_trial(algorithm, index, trial, return)`` is called after every learning trial.
-    """
-    protocol = spec.protocol
-    name = f"{spec.algorithm} experiment {spec.index}"
-    with environment_failure_at(f"{name}, building it"):
-        experiment = build_experiment(protocol, spec.algorithm, spec.index, spec.demonstration)
-    env, agent = experiment.env, experiment.agent
-    meta = {**protocol.environment_description(), "experiment": spec.index, "seed": protocol.seed}
-    evaluate = evaluation(protocol, spec.index)
-    returns, env_steps = [], []
-    greedy_trials, greedy_returns, snapshots = [], [], {}
-    snapshot_trials = set(protocol.snapshot_trials) | {protocol.trials}
-    store = ResultStore(spec.stream_to) if spec.stream_to is not None else None
-    log_path = store.progress_path(spec.algorithm, spec.index) if store is not None else None
-    digest = checkpoints.protocol_digest(protocol.as_dict())
-    earlier_wall = earlier_cpu = 0.0
-    saved = (
-        _kept_checkpoint(store, spec, digest, agent, snapshot_trials) if store is not None else None
-    )
-    if saved is not None:  # continue where the checkpoint left off, exactly
-        agent.load_state_dict(saved["agent"])
-        checkpoints.restore_environment(env, saved["environment"])
-        returns, env_steps = saved["returns"], saved["env_steps"]
-        greedy_trials, greedy_returns = saved["greedy_trials"], saved["greedy_returns"]
-        earlier_wall, earlier_cpu = saved["wall_time_s"], saved["cpu_time_s"]
-        snapshots = saved["snapshots"]
-    start, cpu_start = time.perf_counter(), time.process_time()
-    last_checkpoint = start
-    taken, trial = (env_steps[-1] if env_steps else 0), len(returns)
-    with TrialLog(log_path) as log:
-        for done, value in enumerate(returns, start=1):  # a continued experiment's earlier trials
-            log.write(
-                done,
-                value,
-                greedy_returns[greedy_trials.index(done)] if done in greedy_trials else None,
-                env_steps[done - 1],
-            )
-        while trial < protocol.trials and (protocol.steps is None or taken < protocol.steps):
-            trial += 1
-            with environment_failure_at(f"{name}, trial {trial}"):
-                value, steps = run_counted_trial(env, agent, learn=True)
-            taken += steps
-            returns.append(value)
-            env_steps.append(taken)
-            greedy = None
-            if protocol.evaluate_every and trial % protocol.evaluate_every == 0:
-                with environment_failure_at(f"{name}, greedy evaluation after trial {trial}"):
-                    greedy = evaluate(env, agent)
-                greedy_trials.append(trial)
-                greedy_returns.append(greedy)
-            last = trial == protocol.trials or (
-                protocol.steps is not None and taken >= protocol.steps
-            )
-            if trial in snapshot_trials or last:
-                snapshots[trial] = snapshot_arrays(
-                    agent, experiment.state_space, experiment.action_space, trial=trial, **meta
-                )
-            log.write(trial, value, greedy, taken)
-            now = time.perf_counter()
-            if store is not None and not last and now - last_checkpoint >= spec.checkpoint_seconds:
-                environment = checkpoints.environment_state(env)
-                if environment is not None:
-                    for (
-                        done,
-                        arrays,
-                    ) in snapshots.items():  # written once; the curve's save rewrites
-                        store.write_snapshot_arrays(spec.algorithm, spec.index, done, arrays)
-                    checkpoints.write(
-                        store.checkpoint_path(spec.algorithm, spec.index),
-                        digest=digest,
-                        agent=agent,
-                        environment=environment,
-                        returns=returns,
-                        env_steps=env_steps,
-                        greedy_trials=greedy_trials,
-                        greedy_returns=greedy_returns,
-                        wall_time_s=earlier_wall + now - start,
-                        cpu_time_s=earlier_cpu + time.process_time() - cpu_start,
-                    )
-                last_checkpoint = time.perf_counter()
-            if on_trial is not None:
-                on_trial(spec.algorithm, spec.index, trial, float(value))
-    demonstration = experiment.demonstration
-    return ExperimentResult(
-        algorithm=spec.algorithm,
-        index=spec.index,
-        returns=np.asarray(returns, dtype=float),
-        env_steps=np.asarray(env_steps, dtype=np.int64),
-        greedy_trials=np.asarray(greedy_trials, dtype=int),
-        greedy_returns=np.asarray(greedy_returns, dtype=float),
-        snapshots=snapshots,
-        wall_time_s=earlier_wall + time.perf_counter() - start,
-        cpu_time_s=earlier_cpu + time.process_time() - cpu_start,
-        task_seed=experiment.task_seed,
-        demonstration_returns=(
-            demonstration.trial_returns() if demonstration is not None else np.zeros(0)
+#: Names that lived here, and the module that holds them now.
+_MOVED = {
+    **dict.fromkeys(
+        (
+            "experiment_seeds",
+            "demonstration_for",
+            "Experiment",
+            "build_experiment",
+            "fresh_learners",
+            "evaluation",
         ),
-    )
+        "rmac_mj.experiments.experiment",
+    ),
+    **dict.fromkeys(("ExperimentSpec", "run_experiment"), "rmac_mj.experiments.experiment_loop"),
+}
+
+
+class MovedName(ImportError):
+    """A name asked of this module that has moved: the message names its new module (not imported
+    here, which would make the modules import each other). An ImportError, so that ``from ... import``
+    shows the message."""
+
+
+def __getattr__(name: str) -> Any:
+    if name in _MOVED:
+        raise MovedName(
+            f"{name} has moved from {__name__} to {_MOVED[name]}: from {_MOVED[name]} import {name}"
+        )
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -25,16 +25,14 @@ import numpy as np
 from rmac_mj.evaluation import metrics
 from rmac_mj.experiments import admission, execution
 from rmac_mj.experiments import prior_transitions as prior_data
+from rmac_mj.experiments.experiment import fresh_learners
+from rmac_mj.experiments.experiment_loop import ExperimentSpec, run_experiment
 from rmac_mj.experiments.progress import Progress, TrialFeed
-from rmac_mj.experiments.protocol import (
-    ExperimentSpec,
-    Protocol,
-    fresh_learners,
-    run_experiment,
-)
+from rmac_mj.experiments.protocol import Protocol
 from rmac_mj.results import files
+from rmac_mj.results.records import ExperimentResult
 from rmac_mj.results.snapshots import snapshot_state_problem
-from rmac_mj.results.store import ExperimentResult, ResultStore
+from rmac_mj.results.store import ResultStore
 from rmac_mj.solvers import optimum
 
 

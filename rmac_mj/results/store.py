@@ -2,13 +2,13 @@
 
 The runner, the sweep, rendering, ``compare`` and the scripts go through it, never building paths.
 Files are written atomically (:mod:`rmac_mj.results.files`), snapshots before the curve, so a killed
-run leaves only whole files.
+run leaves only whole files. The records it saves and loads are in :mod:`~rmac_mj.results.records`,
+its JSON documents are read by :mod:`~rmac_mj.results.documents`, and whether it holds the run asked
+for is decided by :mod:`~rmac_mj.results.run_identity`.
 """
 
 from __future__ import annotations
 
-import dataclasses
-import json
 import os
 import pathlib
 import re
@@ -17,117 +17,25 @@ from typing import Any
 
 import numpy as np
 
-from rmac_mj.errors import MissingInputError, UserInputError
-from rmac_mj.results import files, integrity
+from rmac_mj.errors import MissingInputError
+from rmac_mj.results import documents, files, integrity, run_identity
+from rmac_mj.results.records import Curves, ExperimentResult
+from rmac_mj.results.run_identity import DamagedDirectory, ResumeRefused, added_experiments
+from rmac_mj.results.trial_log import TrialLog
+
+#: Re-exported: their old home, which callers may import them from.
+__all__ = [
+    "Curves",
+    "DamagedDirectory",
+    "ExperimentResult",
+    "ResultStore",
+    "ResumeRefused",
+    "TrialLog",
+    "added_experiments",
+]
 
 _EXPERIMENT_FILE = re.compile(r"exp_(\d{3,})\.npz")
 _TRIAL_FILE = re.compile(r"trial_(\d+)\.npz")
-
-
-class ResumeRefused(UserInputError):
-    """The result directory holds a different run; its results must not be mixed with this one's."""
-
-
-class DamagedDirectory(ResumeRefused):
-    """The result directory's config cannot be read: what run it holds cannot be told."""
-
-
-@dataclasses.dataclass(frozen=True)
-class ExperimentResult:
-    """What one learning experiment produced (before it is saved).
-
-    Attributes:
-      algorithm, index: which experiment.
-      returns: ndarray of shape (trials,): the sum of rewards of every learning trial.
-      env_steps: int ndarray of shape (trials,): the environment steps taken by the end of every
-        learning trial, counted from the experiment's start (greedy trials not counted).
-      greedy_trials: ndarray of shape (evaluations,): after which learning trials a greedy trial ran.
-      greedy_returns: ndarray of shape (evaluations,): their returns.
-      snapshots: trial -> the snapshot arrays of the agent after it (``snapshots.snapshot_arrays``).
-      wall_time_s: the experiment's wall time (s).
-      cpu_time_s: the CPU time of the process that ran it, over the experiment (s): its cost on a
-        loaded machine, where the wall time is not.
-      task_seed: the seed of its task's random state.
-      demonstration_returns: ndarray of shape (prior trials,): the returns of the demonstration it
-        was seeded with (empty without one).
-    """
-
-    algorithm: str
-    index: int
-    returns: np.ndarray
-    greedy_trials: np.ndarray
-    greedy_returns: np.ndarray
-    snapshots: dict[int, dict[str, np.ndarray]]
-    wall_time_s: float
-    cpu_time_s: float
-    task_seed: int
-    demonstration_returns: np.ndarray
-    env_steps: np.ndarray | None = None
-
-
-@dataclasses.dataclass(frozen=True)
-class Curves:
-    """One learner's curves over the experiments of a run.
-
-    Attributes:
-      returns: ndarray of shape (experiments, trials): sum of rewards per learning trial; NaN after
-        the last trial of an experiment that ran fewer (a budget in environment steps).
-      env_steps: ndarray of shape (experiments, trials): environment steps taken by the end of each
-        trial (float; NaN where ``returns`` is, and for curves written before they were recorded).
-      greedy_returns: ndarray of shape (experiments, evaluations): greedy trials' returns.
-      greedy_trials: ndarray of shape (evaluations,): after which learning trials they ran.
-      wall_times: ndarray of shape (experiments,): each experiment's wall time (s).
-      cpu_times: ndarray of shape (experiments,): each experiment's CPU time (s); NaN for results
-        written before it was recorded.
-      demonstration_returns: ndarray of shape (experiments, prior trials): the demonstrations the
-        experiments were seeded with (zero columns without prior knowledge).
-    """
-
-    returns: np.ndarray
-    greedy_returns: np.ndarray
-    greedy_trials: np.ndarray
-    wall_times: np.ndarray
-    cpu_times: np.ndarray
-    demonstration_returns: np.ndarray
-    env_steps: np.ndarray | None = None
-
-    @property
-    def trials_run(self) -> np.ndarray:
-        """int ndarray of shape (experiments,): the learning trials each experiment ran."""
-        return np.sum(np.isfinite(self.returns), axis=1).astype(int)
-
-
-class TrialLog:
-    """The live log of one experiment: a CSV (``trial,return,greedy_return,env_steps``; the last: the
-    environment steps taken so far) flushed after every trial,
-    so ``tail -f`` or pandas can follow a run. Not atomic and rewritten when a resumed run repeats the
-    experiment: it is a view of a run in progress, not a result."""
-
-    HEADER = "trial,return,greedy_return,env_steps\n"
-
-    def __init__(self, path: pathlib.Path | None):
-        self.path, self.handle = path, None
-
-    def __enter__(self) -> TrialLog:
-        if self.path is not None:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-            self.handle = open(self.path, "w", encoding="utf-8")
-            self.handle.write(self.HEADER)
-            self.handle.flush()
-        return self
-
-    def write(
-        self, trial: int, value: float, greedy: float | None, env_steps: int | None = None
-    ) -> None:
-        if self.handle is not None:
-            text = "" if greedy is None else repr(float(greedy))
-            steps = "" if env_steps is None else str(int(env_steps))
-            self.handle.write(f"{trial},{float(value)!r},{text},{steps}\n")
-            self.handle.flush()
-
-    def __exit__(self, *exc) -> None:
-        if self.handle is not None:
-            self.handle.close()
 
 
 def _experiment_name(index: int) -> str:
@@ -229,34 +137,7 @@ class ResultStore:
     def read_config(self) -> dict[str, Any] | None:
         """The directory's ``config.json``, or None when there is none; :class:`DamagedDirectory`
         when it cannot be read as a run's config (a JSON object with a ``protocol`` object)."""
-        try:
-            text = self.config_path.read_text()
-        except FileNotFoundError:
-            return None
-        except (OSError, UnicodeDecodeError) as error:
-            raise DamagedDirectory(f"{self.config_path} cannot be read ({error})") from None
-        try:
-            document = json.loads(text)
-        except ValueError as error:
-            raise DamagedDirectory(
-                f"{self.config_path} is damaged (not JSON: {error}); the directory's "
-                "run cannot be told, so nothing in it is trusted: choose another "
-                "--out"
-            ) from None
-        if not isinstance(document, dict) or not isinstance(document.get("protocol"), dict):
-            raise DamagedDirectory(
-                f"{self.config_path} is damaged (not a run's config: no protocol "
-                "object); choose another --out"
-            )
-        for key, kind in _CONFIG_KINDS.items():
-            owner, _, name = key.rpartition(".")
-            value = (document.get(owner) if owner else document).get(name)
-            if value is not None and not isinstance(value, kind):
-                raise DamagedDirectory(
-                    f"{self.config_path} is damaged ({key} is {value!r}, not a "
-                    f"{kind.__name__}); choose another --out"
-                )
-        return document
+        return documents.read_config(self.config_path)
 
     def read_protocol(self) -> dict[str, Any] | None:
         """The protocol (``Protocol.as_dict``) of the run in this directory, or None when there is none."""
@@ -294,7 +175,7 @@ class ResultStore:
             self.write_config({**document, "provenance": files.provenance()})
             return
         stored = existing.get("protocol", {})
-        differences = _differences(stored, document["protocol"])
+        differences = run_identity.differences(stored, document["protocol"])
         if existing.get("prior_sha256") != document.get("prior_sha256"):
             differences.append("the prior knowledge file's contents (sha256)")
         more = added_experiments(stored, document["protocol"]) or 0
@@ -509,104 +390,15 @@ class ResultStore:
 
     def read_summary(self) -> dict[str, Any]:
         """The run's ``summary.json``; MissingInputError when the run has none (not finished)."""
-        if not self.summary_path.is_file():
-            raise MissingInputError(
-                f"{self.root} has no summary.json (not a finished `reproduce` run)"
-            )
-        try:
-            summary = json.loads(self.summary_path.read_text())
-        except (OSError, ValueError) as error:  # UnicodeDecodeError is a ValueError
-            raise UserInputError(f"{self.summary_path}: not a JSON document ({error})") from None
-        problem = _summary_problem(summary)
-        if problem is not None:
-            raise UserInputError(f"{self.summary_path} is damaged: {problem}")
-        return summary
+        return documents.read_summary(self.summary_path)
 
     def read_wall_times(self) -> list[dict[str, Any]]:
         """The parts recorded in ``wall_times.json`` (empty when there is none);
         :class:`UserInputError` naming the file when it is there but damaged."""
-        try:
-            text = self.wall_times_path.read_text()
-        except FileNotFoundError:
-            return []
-        except (OSError, ValueError) as error:
-            raise UserInputError(f"{self.wall_times_path} cannot be read ({error})") from None
-        try:
-            parts = json.loads(text)["parts"]
-            if not isinstance(parts, list) or not all(
-                isinstance(part, dict)
-                and all(_is_number(part.get(key)) for key in ("wall_s", "experiments"))
-                for part in parts
-            ):
-                raise TypeError("parts must be a list of {started, wall_s, experiments}")
-        except (ValueError, KeyError, TypeError) as error:
-            raise UserInputError(
-                f"{self.wall_times_path} is damaged ({type(error).__name__}: {error}); remove it "
-                "to resume without the earlier parts' wall times"
-            ) from None
-        return [dict(part) for part in parts]
+        return documents.read_wall_times(self.wall_times_path)
 
     def write_wall_times(self, parts: list[dict[str, Any]]) -> None:
         files.write_json(self.wall_times_path, {"parts": parts})
-
-
-#: The containers a config's readers iterate (the values in them are compared with the run's own).
-_CONFIG_KINDS = {
-    "agents": dict,
-    "protocol.algorithms": list,
-    "protocol.prior_parts": list,
-    "protocol.snapshot_trials": list,
-    "protocol.agent_configs": dict,
-    "protocol.task_kwargs": dict,
-}
-
-#: What the readers of a summary (``compare``, the report, the figures) take from each learner's row.
-_SUMMARY_ROW_KEYS = {
-    "experiments": "an integer",
-    "final_return_mean": "a number",
-    "final_return_ci95": "a list",
-    "minutes_to_90pct": "a number",
-    "final_return_per_experiment": "a list",
-    "mean_return_per_trial": "a list",
-    "ci95_low_per_trial": "a list",
-    "ci95_high_per_trial": "a list",
-}
-
-
-def _is_number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
-def _summary_problem(summary: Any) -> str | None:
-    """What makes ``summary`` not a run's summary (one phrase), or None: a JSON object whose
-    learners' rows hold :data:`_SUMMARY_ROW_KEYS` of their kinds."""
-    from rmac_mj.agents import ALGORITHMS
-
-    if not isinstance(summary, dict):
-        return f"a {type(summary).__name__}, not a run's summary (a JSON object)"
-    rows = [name for name in summary if name in ALGORITHMS]
-    if not rows:
-        protocol = summary.get("protocol")
-        listed = protocol.get("algorithms") if isinstance(protocol, dict) else None
-        if isinstance(listed, list) and listed:
-            return f"it holds the results of none of its learners ({', '.join(map(str, listed))})"
-        return "it holds no learner's row"
-    for name in rows:
-        row = summary[name]
-        if not isinstance(row, dict):
-            return f"{name!r} is a {type(row).__name__}, not a learner's row (an object)"
-        for key, kind in _SUMMARY_ROW_KEYS.items():
-            value = row.get(key)
-            if key not in row:
-                return f"{name!r} lacks {key!r}"
-            good = {
-                "an integer": isinstance(value, int) and not isinstance(value, bool),
-                "a number": value is None or _is_number(value),
-                "a list": isinstance(value, list),
-            }[kind]
-            if not good:
-                return f"{name}.{key} must be {kind}, got {value!r}"
-    return None
 
 
 def _padded(rows: list[np.ndarray]) -> np.ndarray:
@@ -620,30 +412,3 @@ def _padded(rows: list[np.ndarray]) -> np.ndarray:
     for i, row in enumerate(rows):
         padded[i, : len(row)] = row
     return padded
-
-
-def added_experiments(stored: Any, protocol: Any) -> int | None:
-    """How many experiments ``protocol`` adds to the ``stored`` protocol (both as data) when it
-    differs from it in nothing else (negative: it has fewer); None when anything else differs or a
-    count is missing. Experiment i's seeds do not depend on the count
-    (:func:`~rmac_mj.experiments.protocol.experiment_seeds`), so a run of N experiments grown to M
-    holds exactly what a fresh run of M would. The runner's and the sweep's resume both ask it."""
-    if not all(
-        isinstance(p, dict) and isinstance(p.get("experiments"), int) for p in (stored, protocol)
-    ):
-        return None
-    if _differences({**stored, "experiments": 0}, {**protocol, "experiments": 0}):
-        return None
-    return protocol["experiments"] - stored["experiments"]
-
-
-def _differences(old: Any, new: Any, path: str = "") -> list[str]:
-    """``"field: A in the directory, B now"`` for every setting that differs (nested fields dotted)."""
-    if isinstance(old, dict) and isinstance(new, dict):
-        found = []
-        for key in [*old, *(k for k in new if k not in old)]:
-            found += _differences(old.get(key), new.get(key), f"{path}{key}.")
-        return found
-    if old == new:
-        return []
-    return [f"{path.rstrip('.')}: {json.dumps(old)} in the directory, {json.dumps(new)} now"]

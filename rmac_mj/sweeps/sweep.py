@@ -16,7 +16,8 @@ from typing import Any
 from rmac_mj.evaluation import metrics, report
 from rmac_mj.experiments import runner
 from rmac_mj.results import files
-from rmac_mj.results.store import ResultStore, ResumeRefused, added_experiments
+from rmac_mj.results.run_identity import ResumeRefused, added_experiments
+from rmac_mj.results.store import ResultStore
 from rmac_mj.sweeps.sweep_file import Sweep
 
 #: sweep.csv's columns after the configuration, the swept parameters and the learner.
@@ -98,7 +99,7 @@ def _write_index(out: pathlib.Path, sweep: Sweep, document: dict[str, Any]) -> N
 
 def _added_experiments(stored: dict[str, Any], document: dict[str, Any]) -> int | None:
     """The experiments per configuration the sweep ``document`` adds to the ``stored`` index when it
-    differs in nothing else (:func:`~rmac_mj.results.store.added_experiments`)."""
+    differs in nothing else (:func:`~rmac_mj.results.run_identity.added_experiments`)."""
     before, now = stored.get("sweep"), document["sweep"]
     if not isinstance(before, dict):
         return None

@@ -24,7 +24,8 @@ import numpy as np
 from rmac_mj.agents import config_class, display_name
 from rmac_mj.evaluation import metrics, statistics
 from rmac_mj.figures import plots
-from rmac_mj.results.store import Curves, ResultStore
+from rmac_mj.results.records import Curves
+from rmac_mj.results.store import ResultStore
 
 #: Where the figures go by default: the repository's docs/, wherever the script is run from.
 DOCS = pathlib.Path(__file__).resolve().parents[2] / "docs"

@@ -19,7 +19,7 @@ from rmac_mj import tasks
 from rmac_mj.agents import Exploration, model_uncertainty
 from rmac_mj.agents import rmac as rmac_module
 from rmac_mj.agents.rmac import RMAC, RMACConfig
-from rmac_mj.experiments.protocol import experiment_seeds
+from rmac_mj.experiments.experiment import experiment_seeds
 from rmac_mj.rollout import action_space_of, run_trial, state_space_of
 
 RANGES = ((0, 10), (10, 50), (50, 200), (200, 600))

@@ -168,7 +168,8 @@ def test_reproduce_runs_a_baseline_and_resumes_it_alike(tmp_path):
     an uninterrupted one (serial equals parallel: tests/experiments/test_runner.py), and the last snapshot
     rebuilds the learner."""
     from rmac_mj.experiments import runner
-    from rmac_mj.experiments.protocol import Protocol, build_experiment
+    from rmac_mj.experiments.experiment import build_experiment
+    from rmac_mj.experiments.protocol import Protocol
     from rmac_mj.results.snapshots import load_snapshot
     from rmac_mj.results.store import ResultStore
     from rmac_mj.rollout import run_trial

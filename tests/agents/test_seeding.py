@@ -11,8 +11,9 @@ from rmac_mj.agents.rmac import RMACConfig
 from rmac_mj.errors import MissingInputError, UserInputError
 from rmac_mj.experiments import prior_transitions as prior
 from rmac_mj.experiments import runner
-from rmac_mj.experiments.protocol import Protocol, demonstration_for, experiment_seeds
-from rmac_mj.results.store import ResumeRefused
+from rmac_mj.experiments.experiment import demonstration_for, experiment_seeds
+from rmac_mj.experiments.protocol import Protocol
+from rmac_mj.results.run_identity import ResumeRefused
 from rmac_mj.rollout import action_space_of, run_trial, state_space_of
 from rmac_mj.tasks.energy_swingup import lqr_gains
 

@@ -476,7 +476,7 @@ def test_a_protocol_runs_an_outside_environment_and_its_snapshot_acts_in_it(tmp_
 
 
 def test_an_evaluation_is_the_mean_over_the_same_seeded_starts():
-    from rmac_mj.experiments.protocol import build_experiment, evaluation
+    from rmac_mj.experiments.experiment import build_experiment, evaluation
 
     protocol = tiny_protocol(
         env="gymnasium:Pendulum-v1", task_kwargs={"max_episode_steps": 10}, evaluate_starts=4

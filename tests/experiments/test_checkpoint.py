@@ -10,7 +10,8 @@ import pytest
 
 from rmac_mj.experiments import checkpoint as checkpoints
 from rmac_mj.experiments import runner
-from rmac_mj.experiments.protocol import ExperimentSpec, Protocol, run_experiment
+from rmac_mj.experiments.experiment_loop import ExperimentSpec, run_experiment
+from rmac_mj.experiments.protocol import Protocol
 from rmac_mj.results.store import ResultStore
 
 SLIDER = f"{pathlib.Path(__file__).parents[1] / 'envs' / 'test_envs.py'}:make_slider"

@@ -13,10 +13,12 @@ import pytest
 
 from rmac_mj.experiments import progress as progress_module
 from rmac_mj.experiments import runner
+from rmac_mj.experiments.experiment_loop import ExperimentSpec, run_experiment
 from rmac_mj.experiments.progress import Progress, TrialFeed
-from rmac_mj.experiments.protocol import ExperimentSpec, Protocol, run_experiment
+from rmac_mj.experiments.protocol import Protocol
+from rmac_mj.results.run_identity import ResumeRefused
 from rmac_mj.results.snapshots import load_snapshot
-from rmac_mj.results.store import ResultStore, ResumeRefused
+from rmac_mj.results.store import ResultStore
 from rmac_mj.rollout import run_trial
 
 TINY = dict(algorithms=("s-ac",), experiments=2, trials=4, snapshot_trials=(1, 2), evaluate_every=2)

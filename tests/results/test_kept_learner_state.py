@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from rmac_mj.experiments import runner
-from rmac_mj.experiments.protocol import ExperimentSpec, Protocol, run_experiment
+from rmac_mj.experiments.experiment_loop import ExperimentSpec, run_experiment
+from rmac_mj.experiments.protocol import Protocol
 from rmac_mj.results.store import ResultStore
 
 SNAPSHOT = "snapshots/s-ac/exp_001/trial_0002.npz"

@@ -19,7 +19,8 @@ import pytest
 
 from rmac_mj.cli import main
 from rmac_mj.experiments import admission, runner
-from rmac_mj.experiments.protocol import Protocol, experiment_seeds
+from rmac_mj.experiments.experiment import experiment_seeds
+from rmac_mj.experiments.protocol import Protocol
 from rmac_mj.results import files
 from rmac_mj.results.store import ResultStore
 

@@ -1,0 +1,143 @@
+"""A run's JSON documents read back (``config.json``, ``summary.json``, ``wall_times.json``): each
+reader returns the document or raises :class:`~rmac_mj.errors.UserInputError` naming the file and
+what is damaged in it, so no reader downstream meets a malformed one."""
+
+from __future__ import annotations
+
+import json
+import pathlib
+from typing import Any
+
+from rmac_mj.errors import MissingInputError, UserInputError
+from rmac_mj.results.run_identity import DamagedDirectory
+
+#: The containers a config's readers iterate (the values in them are compared with the run's own).
+_CONFIG_KINDS = {
+    "agents": dict,
+    "protocol.algorithms": list,
+    "protocol.prior_parts": list,
+    "protocol.snapshot_trials": list,
+    "protocol.agent_configs": dict,
+    "protocol.task_kwargs": dict,
+}
+
+#: What the readers of a summary (``compare``, the report, the figures) take from each learner's row.
+_SUMMARY_ROW_KEYS = {
+    "experiments": "an integer",
+    "final_return_mean": "a number",
+    "final_return_ci95": "a list",
+    "minutes_to_90pct": "a number",
+    "final_return_per_experiment": "a list",
+    "mean_return_per_trial": "a list",
+    "ci95_low_per_trial": "a list",
+    "ci95_high_per_trial": "a list",
+}
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def summary_problem(summary: Any) -> str | None:
+    """What makes ``summary`` not a run's summary (one phrase), or None: a JSON object whose
+    learners' rows hold :data:`_SUMMARY_ROW_KEYS` of their kinds."""
+    from rmac_mj.agents import ALGORITHMS
+
+    if not isinstance(summary, dict):
+        return f"a {type(summary).__name__}, not a run's summary (a JSON object)"
+    rows = [name for name in summary if name in ALGORITHMS]
+    if not rows:
+        protocol = summary.get("protocol")
+        listed = protocol.get("algorithms") if isinstance(protocol, dict) else None
+        if isinstance(listed, list) and listed:
+            return f"it holds the results of none of its learners ({', '.join(map(str, listed))})"
+        return "it holds no learner's row"
+    for name in rows:
+        row = summary[name]
+        if not isinstance(row, dict):
+            return f"{name!r} is a {type(row).__name__}, not a learner's row (an object)"
+        for key, kind in _SUMMARY_ROW_KEYS.items():
+            value = row.get(key)
+            if key not in row:
+                return f"{name!r} lacks {key!r}"
+            good = {
+                "an integer": isinstance(value, int) and not isinstance(value, bool),
+                "a number": value is None or _is_number(value),
+                "a list": isinstance(value, list),
+            }[kind]
+            if not good:
+                return f"{name}.{key} must be {kind}, got {value!r}"
+    return None
+
+
+def read_config(path: pathlib.Path) -> dict[str, Any] | None:
+    """The directory's ``config.json``, or None when there is none; :class:`DamagedDirectory`
+    when it cannot be read as a run's config (a JSON object with a ``protocol`` object)."""
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        return None
+    except (OSError, UnicodeDecodeError) as error:
+        raise DamagedDirectory(f"{path} cannot be read ({error})") from None
+    try:
+        document = json.loads(text)
+    except ValueError as error:
+        raise DamagedDirectory(
+            f"{path} is damaged (not JSON: {error}); the directory's "
+            "run cannot be told, so nothing in it is trusted: choose another "
+            "--out"
+        ) from None
+    if not isinstance(document, dict) or not isinstance(document.get("protocol"), dict):
+        raise DamagedDirectory(
+            f"{path} is damaged (not a run's config: no protocol object); choose another --out"
+        )
+    for key, kind in _CONFIG_KINDS.items():
+        owner, _, name = key.rpartition(".")
+        value = (document.get(owner) if owner else document).get(name)
+        if value is not None and not isinstance(value, kind):
+            raise DamagedDirectory(
+                f"{path} is damaged ({key} is {value!r}, not a "
+                f"{kind.__name__}); choose another --out"
+            )
+    return document
+
+
+def read_summary(path: pathlib.Path) -> dict[str, Any]:
+    """The run's ``summary.json``; MissingInputError when the run has none (not finished)."""
+    if not path.is_file():
+        raise MissingInputError(
+            f"{path.parent} has no summary.json (not a finished `reproduce` run)"
+        )
+    try:
+        summary = json.loads(path.read_text())
+    except (OSError, ValueError) as error:  # UnicodeDecodeError is a ValueError
+        raise UserInputError(f"{path}: not a JSON document ({error})") from None
+    problem = summary_problem(summary)
+    if problem is not None:
+        raise UserInputError(f"{path} is damaged: {problem}")
+    return summary
+
+
+def read_wall_times(path: pathlib.Path) -> list[dict[str, Any]]:
+    """The parts recorded in ``wall_times.json`` (empty when there is none);
+    :class:`UserInputError` naming the file when it is there but damaged."""
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        return []
+    except (OSError, ValueError) as error:
+        raise UserInputError(f"{path} cannot be read ({error})") from None
+    try:
+        parts = json.loads(text)["parts"]
+        if not isinstance(parts, list) or not all(
+            isinstance(part, dict)
+            and all(_is_number(part.get(key)) for key in ("wall_s", "experiments"))
+            for part in parts
+        ):
+            raise TypeError("parts must be a list of {started, wall_s, experiments}")
+    except (ValueError, KeyError, TypeError) as error:
+        raise UserInputError(
+            f"{path} is damaged ({type(error).__name__}: {error}); remove it "
+            "to resume without the earlier parts' wall times"
+        ) from None
+    return [dict(part) for part in parts]
