@@ -3,31 +3,30 @@
 A learner sees a flat state x (:class:`~rmac_mj.agents.spaces.StateSpace`) and a bounded action u
 (:class:`~rmac_mj.agents.spaces.ActionSpace`), follows ``start``/``step``/``stop`` (the protocol is
 in :class:`Agent`), and exchanges its learned state as a flat dict of numpy arrays (``state_dict``).
+The checks of its public methods are :mod:`~rmac_mj.agents.boundary`'s, the exchange of its state
+:mod:`~rmac_mj.agents.state_exchange`'s.
 """
 
 from __future__ import annotations
 
 import abc
 import dataclasses
-import math
-from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
+from rmac_mj.agents.boundary import AgentBoundary, RefusedTransition
 from rmac_mj.agents.planning import Rehearsal
-from rmac_mj.agents.random_state import generator_state_array, set_generator_state
 from rmac_mj.agents.seeding import check_transitions
-from rmac_mj.agents.spaces import STATE_LIMIT_WIDTHS, ActionSpace, StateSpace
+from rmac_mj.agents.spaces import ActionSpace, StateSpace
+from rmac_mj.agents.state_exchange import StateExchange
 from rmac_mj.agents.task_knowledge import with_task_units
 
-
-class RefusedTransition(ValueError):
-    """A transition (or a trial's start) whose learning would overflow the learner's arithmetic:
-    refused before anything changed (``Agent._overflow``)."""
+#: Re-exported: their old home, which callers may import them from.
+__all__ = ["ActionSpace", "Agent", "RefusedTransition", "StateSpace"]
 
 
-class Agent(abc.ABC):
+class Agent(AgentBoundary, StateExchange, abc.ABC):
     """Interface of an online learner, following the paper's online protocol::
 
         u = agent.start(x0)            # lines 1-5: a new trial begins in x0, returns u_0
@@ -120,95 +119,6 @@ class Agent(abc.ABC):
     ) -> tuple[int, int]:
         """(bytes of the learner's arrays, bytes of one state dict) for :meth:`memory_estimate`."""
         raise NotImplementedError(f"{cls.name} gives no memory estimate")
-
-    # -- the boundary -------------------------------------------------------------------------------
-    def _checked_state(self, x: Any, name: str = "x") -> np.ndarray:
-        """x as a new float64 vector of shape (n,); ValueError naming ``name`` if not finite or wrong."""
-        v = np.array(x, dtype=float)
-        if v.shape != (self._state_dim,):
-            if v.size != self._state_dim:
-                raise ValueError(
-                    f"{self.name}: {name} must have shape ({self._state_dim},), got "
-                    f"shape {np.shape(x)}"
-                )
-            v = v.reshape(self._state_dim)
-        # Called once per control step on a few numbers: Python over a list is several times
-        # cheaper than numpy on a short vector. A NaN fails every comparison, so this one check
-        # refuses non-finite states too.
-        values = v.tolist()
-        if not self.state_space.accepts(values):
-            if not all(map(math.isfinite, values)):
-                raise ValueError(f"{self.name}: {name} must be finite, got {x!r}")
-            low, high = self.state_space.limit
-            i = int(np.argmax((v < low) | (v > high)))
-            raise ValueError(
-                f"{self.name}: {name}[{i}] = {values[i]:g} is beyond what a learner accepts, "
-                f"[{low[i]:g}, {high[i]:g}] ({STATE_LIMIT_WIDTHS:g} widths of the state box around "
-                f"it); a state that far out overflows the learner's arithmetic"
-            )
-        return v
-
-    def _checked_reward(self, reward: Any, name: str = "reward") -> float:
-        """A finite number as a float; ValueError naming ``name`` otherwise."""
-        try:
-            r = float(reward)
-        except (TypeError, ValueError):
-            raise ValueError(
-                f"{self.name}: {name} must be a finite number, got {reward!r}"
-            ) from None
-        if not math.isfinite(r):
-            raise ValueError(f"{self.name}: {name} must be finite, got {reward!r}")
-        return r
-
-    def _checked_action(self, u: Any, name: str = "u") -> np.ndarray:
-        """u as a new float64 vector of shape (m,); ValueError naming ``name`` if not finite or wrong."""
-        v = np.array(u, dtype=float).reshape(-1)
-        if v.shape != (self.action_space.dim,):
-            raise ValueError(
-                f"{self.name}: {name} must have shape ({self.action_space.dim},), got "
-                f"shape {np.shape(u)}"
-            )
-        if not np.all(np.isfinite(v)):
-            raise ValueError(f"{self.name}: {name} must be finite, got {u!r}")
-        return v
-
-    def _overflow(self, what: Any) -> RefusedTransition:
-        """The error of a transition whose learning overflows (``what``: the quantity, or the
-        reward). A learner raises it before it changes its own arrays (check, then change); the
-        boundary puts back the random generator and the trial counter (:meth:`_refusable`)."""
-        if not isinstance(what, str):
-            what = f"the transition with reward {what!r}"
-        return RefusedTransition(
-            f"{self.name}: {what} overflows the learner's arithmetic (not finite); "
-            f"refused, nothing non-finite was stored"
-        )
-
-    def _check_in_trial(self, method: str) -> None:
-        if not self._in_trial:
-            raise RuntimeError(
-                f"{self.name}: {method}() called outside a trial; call start(x0) first"
-            )
-
-    def _refusable(self, change: Any, *args: Any) -> Any:
-        """``change(*args)``, and if the learner refuses it (:class:`RefusedTransition`) the random
-        generator and the trial counter as they were: the learner refuses before it changes its own
-        arrays, so a refused call leaves ``state_dict()`` exactly as it was."""
-        rng_state, trials = self.rng.bit_generator.state, self.trials_
-        try:
-            return change(*args)
-        except RefusedTransition:
-            self.rng.bit_generator.state, self.trials_ = rng_state, trials
-            raise
-
-    def _all_or_nothing(self, change: Any, *args: Any) -> Any:
-        """``change(*args)`` for a call that runs many updates (a stored trial, planning and replay
-        after a trial): if the learner refuses one, the whole state as it was before the call."""
-        before = self.state_dict()
-        try:
-            return change(*args)
-        except RefusedTransition:
-            self.load_state_dict(before)
-            raise
 
     def start(self, x0: Any) -> np.ndarray:
         """Begin a trial in state ``x0`` (shape (n,)); reset traces; return u_0 (shape (m,))."""
@@ -484,139 +394,6 @@ class Agent(abc.ABC):
     def _load_state(self, state: dict[str, np.ndarray]) -> None:
         """Restore what :meth:`_state` returned."""
 
-    # -- state ----------------------------------------------------------------------------------------
-    def state_dict(self) -> dict[str, np.ndarray]:
-        """Everything that decides what the agent does next, as a flat dict of numeric numpy arrays:
-        the learner's state, its random generator (``rng``), whether a trial runs (``in_trial``) and
-        how many learning trials have begun (``trials``; a decaying exploration depends on it)."""
-        state = self._state()
-        for key in ("rng", "in_trial", "trials"):
-            if key in state:
-                raise KeyError(
-                    f"{type(self).__name__}._state() must not use the reserved key {key!r}"
-                )
-        if self._rehearsal is not None:
-            state.update(self._rehearsal.state_dict("rehearsal."))
-        state["rng"] = generator_state_array(self.rng)
-        state["in_trial"] = np.array(self._in_trial)
-        state["trials"] = np.array(self.trials_, dtype=np.int64)
-        return state
-
-    def load_state_dict(self, state: Mapping[str, Any]) -> None:
-        """Restore what :meth:`state_dict` returned; the agent then acts exactly as the original.
-
-        Checked first (:meth:`check_state_dict`), so a refused state changes nothing.
-        """
-        arrays = self.check_state_dict(state)
-        self._load_state(
-            {
-                k: v
-                for k, v in arrays.items()
-                if k not in ("rng", "in_trial", "trials") and not k.startswith("rehearsal.")
-            }
-        )
-        if self._rehearsal is not None:
-            self._rehearsal.load_state_dict(arrays, "rehearsal.")
-        set_generator_state(self.rng, arrays["rng"])
-        self._in_trial = bool(arrays["in_trial"])
-        if "trials" in arrays:
-            self.trials_ = int(arrays["trials"])
-
-    def check_state_dict(self, state: Mapping[str, Any]) -> dict[str, np.ndarray]:
-        """The state dict as arrays if this learner can restore it, else ValueError (TypeError for
-        no mapping) naming what is wrong; nothing changes. The one check of every learner, also
-        of every file a resumed run keeps: the keys (none missing, none foreign: a state dict of
-        another learner is called one), each array's dtype and shape against this learner's own
-        state dict, every float finite, then the learner's own rules (``_check_state``: counts
-        and indices in range)."""
-        if not isinstance(state, Mapping):
-            raise TypeError(
-                f"{self.name}: a state dict must be a mapping of names to arrays, got "
-                f"{type(state).__name__}"
-            )
-        own = self.state_dict()
-        missing = sorted(k for k in own if k not in state and not self._may_lack(k))
-        foreign = sorted(k for k in state if k not in own and not self._may_lack(k))
-        if missing or foreign:
-            parts = [f"lacks {_listed(missing)}"] * bool(missing) + [
-                f"has {_listed(foreign)}, which {self.name} does not"
-            ] * bool(foreign)
-            hint = " (a state dict of another learner?)" if missing and foreign else ""
-            raise ValueError(f"{self.name}: the state dict {' and '.join(parts)}{hint}")
-        arrays = {
-            key: self._checked_entry(key, value, own.get(key)) for key, value in state.items()
-        }
-        # Snapshots written before the trial counter existed lack ``trials``; they load unless the
-        # agent's exploration decays, which would then start again from the first trial's noise.
-        if "trials" not in arrays and self._uses_trial_counter:
-            raise ValueError(
-                f"{self.name}: the state dict lacks 'trials', which a decaying "
-                f"exploration or learning rate needs"
-            )
-        if "trials" in arrays and int(arrays["trials"]) < 0:
-            raise ValueError(
-                f"{self.name}: state 'trials' must be >= 0, got {int(arrays['trials'])}"
-            )
-        self._check_state(arrays)
-        return arrays
-
-    def _checked_entry(self, key: str, value: Any, own: np.ndarray | None) -> np.ndarray:
-        """One entry of a state dict to restore, checked against the learner's own (``own``; None
-        for an entry the learner holds only at some moments: its dtype and values are checked).
-
-        The dtype must be the learner's own (a float32 critic would not act as the original), the
-        shape too (for an entry whose length varies, the dimensions after the first), every
-        float finite. The one check of every learner: ValueError naming the key, what it got and
-        what was expected."""
-        array = np.asarray(value)
-        if own is None:
-            if array.dtype.kind not in "fiub":
-                raise ValueError(
-                    f"{self.name}: state {key!r} must hold numbers, got dtype {array.dtype}"
-                )
-        elif array.dtype != own.dtype:
-            raise ValueError(
-                f"{self.name}: state {key!r} must hold {own.dtype}, got dtype {array.dtype}"
-            )
-        if own is not None:
-            varies = self._shape_varies(key)
-            if (
-                (array.ndim != own.ndim or array.shape[1:] != own.shape[1:])
-                if varies
-                else (array.shape != own.shape)
-            ):
-                expected = ("K",) + own.shape[1:] if varies else own.shape
-                raise ValueError(
-                    f"{self.name}: state {key!r} must have shape {expected}, got {array.shape}"
-                )
-        if array.dtype.kind == "f" and not np.all(np.isfinite(array)):
-            raise ValueError(
-                f"{self.name}: state {key!r} must be finite; "
-                f"{int(np.size(array) - np.count_nonzero(np.isfinite(array)))} of "
-                f"{np.size(array)} entries are not"
-            )
-        return array
-
-    def _may_lack(self, key: str) -> bool:
-        """Whether a state dict may lack ``key`` (or hold it though this agent does not now): an
-        entry written only by some versions or at some moments."""
-        return key == "trials"
-
-    def _shape_varies(self, key: str) -> bool:
-        """Whether the shape of state entry ``key`` depends on the moment (e.g. a filling buffer,
-        planning's or replay's stored transitions)."""
-        return key.startswith("rehearsal.")
-
-    def _check_state(self, state: dict[str, np.ndarray]) -> None:  # noqa: B027 (an optional hook)
-        """The learner's own rules on a state dict to restore (counts and indices in range), checked
-        before anything changes; ValueError naming the entry."""
-
     def config_dict(self) -> dict[str, Any]:
         """The hyperparameters as JSON-ready data (a dataclass's fields)."""
         return dataclasses.asdict(self.config)  # type: ignore[attr-defined]
-
-
-def _listed(keys: list[str], most: int = 4) -> str:
-    """A few keys for a message: 'a', 'b' (+3 more)."""
-    shown = ", ".join(repr(k) for k in keys[:most])
-    return shown + (f" (+{len(keys) - most} more)" if len(keys) > most else "")

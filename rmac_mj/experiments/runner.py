@@ -2,20 +2,18 @@
 
 Experiments run in workers or on Dask (:mod:`~rmac_mj.experiments.execution`) and are saved as they
 arrive (:class:`~rmac_mj.results.store.ResultStore`), so ``resume`` finishes an interrupted run with
-identical results; a finished run is summarised.
+identical results; a finished run is summarised against its near-optimal return
+(:mod:`~rmac_mj.experiments.near_optimal_service`).
 """
 
 from __future__ import annotations
 
 import contextlib
 import dataclasses
-import datetime
 import functools
 import itertools
 import json
-import multiprocessing
 import os
-import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any
@@ -27,39 +25,14 @@ from rmac_mj.experiments import admission, execution
 from rmac_mj.experiments import prior_transitions as prior_data
 from rmac_mj.experiments.experiment import fresh_learners
 from rmac_mj.experiments.experiment_loop import ExperimentSpec, run_experiment
+from rmac_mj.experiments.near_optimal_service import NearOptimal, NearOptimalService, near_optimal
 from rmac_mj.experiments.progress import Progress, TrialFeed
 from rmac_mj.experiments.protocol import Protocol
+from rmac_mj.experiments.wall_clock import WallClock
 from rmac_mj.results import files
 from rmac_mj.results.records import ExperimentResult
 from rmac_mj.results.snapshots import snapshot_state_problem
 from rmac_mj.results.store import ResultStore
-from rmac_mj.solvers import optimum
-
-
-class WallClock:
-    """The wall time of this part of a run, counted from ``started`` (the process's start: compilation,
-    the near-optimal return and the figures included), kept in ``wall_times.json`` beside the earlier
-    parts, so that a resumed run reports the total over all of them. It is written after every saved
-    experiment; a killed part loses only the time since its last one."""
-
-    def __init__(self, store: ResultStore, started: float, resume: bool):
-        self.store = store
-        self.started = started
-        self.earlier: list[dict[str, Any]] = store.read_wall_times() if resume else []
-        self.part = {
-            "started": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-            "wall_s": 0.0,
-            "experiments": 0,
-        }
-
-    def record(self, experiments: int = 0) -> None:
-        self.part["wall_s"] = time.perf_counter() - self.started
-        self.part["experiments"] += experiments
-        self.store.write_wall_times([*self.earlier, self.part])
-
-    @property
-    def parts(self) -> list[float]:
-        return [float(part.get("wall_s", 0.0)) for part in [*self.earlier, self.part]]
 
 
 def finished_experiments(out: str | os.PathLike, protocol: Protocol) -> int:
@@ -81,95 +54,6 @@ def run_tagged(
         on_trial((tag, algorithm, index), trial, value)
 
     return tag, run_experiment(spec, report if on_trial is not None else None)
-
-
-NearOptimal = tuple[float | None, dict[str, float | None]]
-
-#: In the process that computes the near-optimal returns: where its messages go (to the driver).
-_messages: Any = None
-
-
-def _start_near_optimal(driver: int, messages) -> None:
-    global _messages
-    execution.start_worker(driver)
-    _messages = messages
-
-
-def _announce(message: str) -> None:
-    _messages.put(message)
-
-
-def near_optimal(protocol: Protocol, announce: Callable[[str], None] | None = None) -> NearOptimal:
-    """The near-optimal return of the protocol's task and each learner's exploration floor (None
-    where there is none): what its summary and Fig. 2 are measured against."""
-    return (
-        optimum.run_optimum(protocol, announce),
-        {a: optimum.run_exploration_floor(protocol, a, announce) for a in protocol.algorithms},
-    )
-
-
-class NearOptimalService:
-    """:func:`near_optimal` of several runs, computed beside their experiments.
-
-    With ``background``, one process of its own computes them, in the runs' order, from the start:
-    while the driver compiles the kernels and while the workers run the first experiments, not after
-    the last one (a sweep's floors of one dynamic programme reuse its values in that process). Its
-    messages reach ``log`` through the driver. Without, each is computed when asked for, here.
-    """
-
-    def __init__(
-        self,
-        protocols: list[Protocol | None],
-        log: Callable[[str], None] | None,
-        background: bool,
-        compute: Callable[..., NearOptimal] = near_optimal,
-    ):
-        self.protocols, self.log, self.compute = protocols, log, compute
-        self.pending: dict[int, Any] = {}
-        self.pool = self.relay = None
-        if not background or not any(p is not None for p in protocols):
-            return
-        context = multiprocessing.get_context("spawn")
-        self.messages = context.Queue()
-        self.pool = context.Pool(
-            1, initializer=_start_near_optimal, initargs=(os.getpid(), self.messages)
-        )
-        for k, protocol in enumerate(protocols):
-            if protocol is not None:
-                self.pending[k] = self.pool.apply_async(compute, (protocol, _announce))
-        self.pool.close()
-        self.relay = threading.Thread(
-            target=self._relay, name="rmac-mj near-optimal messages", daemon=True
-        )
-        self.relay.start()
-
-    def _relay(self) -> None:
-        while True:
-            message = self.messages.get()
-            if message is None:
-                return
-            if self.log is not None:
-                self.log(message)
-
-    def result(self, k: int) -> NearOptimal | None:
-        """Run ``k``'s near-optimal return and floors (waiting for them), or None if it asked none."""
-        protocol = self.protocols[k]
-        if protocol is None:
-            return None
-        if k in self.pending:
-            return self.pending[k].get()
-        return self.compute(protocol, self.log)
-
-    def close(self) -> None:
-        """Let the process end; one still computing is stopped at once (what it has not finished
-        is computed again next time)."""
-        if self.pool is not None:
-            if not all(result.ready() for result in self.pending.values()):
-                self.pool.terminate()
-            self.pool.join()
-            self.messages.put(None)
-            self.relay.join(timeout=5)
-            self.pool = None
 
 
 class _Run:

@@ -11,8 +11,8 @@ import time
 import numpy as np
 import pytest
 
+from rmac_mj.experiments import near_optimal_service, runner
 from rmac_mj.experiments import progress as progress_module
-from rmac_mj.experiments import runner
 from rmac_mj.experiments.experiment_loop import ExperimentSpec, run_experiment
 from rmac_mj.experiments.progress import Progress, TrialFeed
 from rmac_mj.experiments.protocol import Protocol
@@ -455,7 +455,7 @@ def _fake_near_optimal(protocol, announce):
 
 def test_the_near_optimal_returns_are_computed_in_a_process_of_their_own():
     messages = []
-    service = runner.NearOptimalService(
+    service = near_optimal_service.NearOptimalService(
         [Protocol(**TINY), None], messages.append, background=True, compute=_fake_near_optimal
     )
     try:
