@@ -8,6 +8,13 @@ QUICK = {
     "sb3-sac": {"net_arch": [16, 16], "batch_size": 16, "learning_starts": 20, "train_freq": 20},
     "sb3-td3": {"net_arch": [16, 16], "batch_size": 16, "learning_starts": 20, "train_freq": 20},
     "sb3-ppo": {"net_arch": [16, 16], "n_steps": 64, "batch_size": 32, "n_epochs": 1},
+    "sb3-crossq": {
+        "net_arch": [16, 16],
+        "critic_net_arch": [16, 16],
+        "batch_size": 16,
+        "learning_starts": 20,
+        "train_freq": 20,
+    },
 }
 
 

@@ -31,6 +31,7 @@ _REGISTRY = {
     "sb3-sac": ("rmac_mj.agents.sb3_off_policy", "SB3SAC", "SB3SACConfig"),
     "sb3-td3": ("rmac_mj.agents.sb3_off_policy", "SB3TD3", "SB3TD3Config"),
     "sb3-ppo": ("rmac_mj.agents.sb3_ppo", "SB3PPO", "SB3PPOConfig"),
+    "sb3-crossq": ("rmac_mj.agents.sb3_off_policy", "SB3CrossQ", "SB3CrossQConfig"),
 }
 
 #: The algorithm keys, as used on the command line and in results.
@@ -39,7 +40,8 @@ ALGORITHMS = tuple(_REGISTRY)
 #: Names users may type for a learner that has another key ("sac": in RL, Soft Actor-Critic).
 _DID_YOU_MEAN = {
     "sac": "s-ac (the paper's standard actor-critic) or sb3-sac (Soft Actor-Critic)",
-    "sb3": "sb3-sac, sb3-td3 or sb3-ppo",
+    "sb3": "sb3-sac, sb3-td3, sb3-ppo or sb3-crossq",
+    "crossq": "sb3-crossq",
     "standard-ac": "s-ac",
 }
 

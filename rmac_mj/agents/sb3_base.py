@@ -94,8 +94,9 @@ class SB3Agent(Agent):
     ``num_timesteps``).
     """
 
-    #: The stable_baselines3 class name, e.g. ``"SAC"``.
+    #: The SB3 class name, e.g. ``"SAC"``, and the package that holds it.
     sb3_class = ""
+    sb3_package = "stable_baselines3"
 
     def __init__(
         self,
@@ -106,9 +107,10 @@ class SB3Agent(Agent):
     ) -> None:
         config = self.config_class() if config is None else config
         super().__init__(state_space, action_space, config, seed)
-        if not available():
+        if not available(self.sb3_package):
             raise ImportError(f"{self.name}: {INSTALL_HINT}")
-        import stable_baselines3
+        import importlib
+
         import torch
         from stable_baselines3.common.logger import Logger
 
@@ -121,7 +123,7 @@ class SB3Agent(Agent):
         self.sb3_seed_ = int(self.rng.integers(2**31 - 1))
         outer = self._global_random_states()
         try:
-            self.model = getattr(stable_baselines3, self.sb3_class)(
+            self.model = getattr(importlib.import_module(self.sb3_package), self.sb3_class)(
                 "MlpPolicy",
                 _spaces_only(observation_dim, action_space),
                 seed=self.sb3_seed_,

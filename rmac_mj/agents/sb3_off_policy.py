@@ -1,5 +1,5 @@
-"""SB3's off-policy baselines, SAC and TD3, driven one control step at a time in the order of SB3's
-``OffPolicyAlgorithm.learn``."""
+"""SB3's off-policy baselines, SAC, TD3 and sb3-contrib's CrossQ, driven one control step at a time
+in the order of SB3's ``OffPolicyAlgorithm.learn``."""
 
 from __future__ import annotations
 
@@ -9,12 +9,12 @@ import numpy as np
 
 from rmac_mj.agents.random_state import generator_state_array, set_generator_state
 from rmac_mj.agents.sb3_base import SB3Agent, arrays_of_optimizer, load_optimizer, network_bytes
-from rmac_mj.agents.sb3_config import SB3SACConfig, SB3TD3Config
+from rmac_mj.agents.sb3_config import SB3CrossQConfig, SB3SACConfig, SB3TD3Config
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
 
 
 class _OffPolicyAgent(SB3Agent):
-    """SAC and TD3: act, store the transition, and update every ``train_freq`` steps (SB3's
+    """SAC, TD3 and CrossQ: act, store the transition, and update every ``train_freq`` steps (SB3's
     ``OffPolicyAlgorithm.learn``: ``collect_rollouts`` of ``train_freq`` steps, then ``train``)."""
 
     def _sb3_kwargs(self) -> dict[str, Any]:
@@ -24,7 +24,6 @@ class _OffPolicyAgent(SB3Agent):
             buffer_size=c.buffer_size,
             learning_starts=c.learning_starts,
             batch_size=c.batch_size,
-            tau=c.tau,
             gamma=c.gamma,
             train_freq=c.train_freq,
             gradient_steps=c.gradient_steps,
@@ -106,8 +105,9 @@ class _OffPolicyAgent(SB3Agent):
         with a target copy and Adam's two moments, and a full replay buffer of float32 transitions
         (observation, next observation, action, reward, done, timeout)."""
         n, m = state_space.dim, action_space.dim
+        critic = getattr(config, "critic_net_arch", config.net_arch)
         networks = 4 * (
-            network_bytes(n, config.net_arch, 2 * m) + 2 * network_bytes(n + m, config.net_arch, 1)
+            network_bytes(n, config.net_arch, 2 * m) + 2 * network_bytes(n + m, critic, 1)
         )
         buffer = 4 * config.buffer_size * (2 * n + m + 3)
         return networks + buffer, networks + buffer
@@ -167,22 +167,8 @@ class _OffPolicyAgent(SB3Agent):
         )
 
 
-class SB3SAC(_OffPolicyAgent):
-    """Stable-Baselines3's SAC (see :mod:`rmac_mj.agents.sb3`)."""
-
-    name = "sb3-sac"
-    display_name = "SAC (SB3)"
-    config_class = SB3SACConfig
-    sb3_class = "SAC"
-
-    def _sb3_kwargs(self) -> dict[str, Any]:
-        c = self.config
-        return {
-            **super()._sb3_kwargs(),
-            "ent_coef": c.ent_coef,
-            "target_entropy": c.target_entropy,
-            "target_update_interval": c.target_update_interval,
-        }
+class _EntropyRegularised(_OffPolicyAgent):
+    """SAC and CrossQ: a stochastic actor whose entropy coefficient may be learned."""
 
     def _greedy_scaled_action(self, observation):
         return self.model.actor(observation, deterministic=True)
@@ -208,6 +194,51 @@ class SB3SAC(_OffPolicyAgent):
                 )
 
 
+class SB3SAC(_EntropyRegularised):
+    """Stable-Baselines3's SAC (see :mod:`rmac_mj.agents.sb3`)."""
+
+    name = "sb3-sac"
+    display_name = "SAC (SB3)"
+    config_class = SB3SACConfig
+    sb3_class = "SAC"
+
+    def _sb3_kwargs(self) -> dict[str, Any]:
+        c = self.config
+        return {
+            **super()._sb3_kwargs(),
+            "tau": c.tau,
+            "ent_coef": c.ent_coef,
+            "target_entropy": c.target_entropy,
+            "target_update_interval": c.target_update_interval,
+        }
+
+
+class SB3CrossQ(_EntropyRegularised):
+    """sb3-contrib's CrossQ (see :mod:`rmac_mj.agents.sb3` and :class:`SB3CrossQConfig`): SAC's
+    driver; the batch renormalisation statistics are part of the policy's state."""
+
+    name = "sb3-crossq"
+    display_name = "CrossQ (SB3-contrib)"
+    config_class = SB3CrossQConfig
+    sb3_class = "CrossQ"
+    sb3_package = "sb3_contrib"
+
+    def _sb3_kwargs(self) -> dict[str, Any]:
+        c = self.config
+        return {
+            **super()._sb3_kwargs(),
+            "ent_coef": c.ent_coef,
+            "target_entropy": c.target_entropy,
+            "policy_delay": c.policy_delay,
+            "policy_kwargs": {
+                "net_arch": {"pi": list(c.net_arch), "qf": list(c.critic_net_arch)},
+                "batch_norm_momentum": c.batch_norm_momentum,
+                "batch_norm_eps": c.batch_norm_eps,
+                "renorm_warmup_steps": c.renorm_warmup_steps,
+            },
+        }
+
+
 class SB3TD3(_OffPolicyAgent):
     """Stable-Baselines3's TD3 (see :mod:`rmac_mj.agents.sb3`), with Gaussian exploration noise."""
 
@@ -228,6 +259,7 @@ class SB3TD3(_OffPolicyAgent):
         )
         return {
             **super()._sb3_kwargs(),
+            "tau": c.tau,
             "policy_delay": c.policy_delay,
             "target_policy_noise": c.target_policy_noise,
             "target_noise_clip": c.target_noise_clip,

@@ -247,7 +247,7 @@ def add_panel(commands) -> None:
     panel = add_command(
         commands,
         "panel",
-        "the public panel (docs/panel.md): six tasks nobody tuned for, every "
+        "the public panel (docs/panel.md): seven tasks nobody tuned for, every "
         "learner at equal interaction, against fixed goals",
     )
     panel.add_argument(

@@ -27,6 +27,7 @@ _STYLES = {
     "sb3-sac": {"color": "tab:red"},
     "sb3-td3": {"color": "tab:purple"},
     "sb3-ppo": {"color": "tab:brown"},
+    "sb3-crossq": {"color": "tab:pink"},
 }
 _RUN_STYLES = ("-", "--", ":", "-.", (0, (5, 1, 1, 1)), (0, (1, 3)))
 #: The least margin around curves when a summary gives no plot hints (``tasks.common.PlotHints``).

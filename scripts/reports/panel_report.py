@@ -36,7 +36,7 @@ def _directories(task: panel.PanelTask, roots: list[pathlib.Path]) -> list[pathl
 
 
 def figure(roots: list[pathlib.Path], path: pathlib.Path) -> None:
-    fig, axes = plt.subplots(2, 3, figsize=(15, 8.5), constrained_layout=True)
+    fig, axes = plt.subplots(2, 4, figsize=(20, 8.5), constrained_layout=True)
     for ax, task in zip(axes.flat, panel.TASKS):
         for directory in _directories(task, roots):
             store = ResultStore(directory)
@@ -46,7 +46,7 @@ def figure(roots: list[pathlib.Path], path: pathlib.Path) -> None:
                     continue
                 curves = store.load_curves(algorithm, None)
                 at = np.asarray(curves.greedy_trials, dtype=int) - 1
-                counted = panel.env_steps_of(curves, protocol, task)
+                counted = curves.env_steps
                 if counted is None:
                     continue
                 steps = np.mean(counted[:, at], axis=0)
@@ -64,6 +64,8 @@ def figure(roots: list[pathlib.Path], path: pathlib.Path) -> None:
         ax.set_ylabel("greedy return (IQM, 95% CI)")
         ax.grid(alpha=0.3)
         ax.legend(fontsize="x-small", loc="lower right")
+    for ax in axes.flat[len(panel.TASKS) :]:
+        ax.set_visible(False)
     fig.suptitle(
         "The panel: greedy return against interaction (experiments per learner in brackets)"
     )

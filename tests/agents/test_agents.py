@@ -397,6 +397,7 @@ _SIZES = {
     "sb3-sac": ("buffer_size", 10**4, 10**6),
     "sb3-td3": ("buffer_size", 10**4, 10**6),
     "sb3-ppo": ("n_steps", 256, 8192),
+    "sb3-crossq": ("buffer_size", 10**4, 10**6),
 }
 
 

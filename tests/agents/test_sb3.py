@@ -43,6 +43,7 @@ CASES = [
     ("sb3-sac", {"net_arch": (64, 64), "batch_size": 64}, 160),
     ("sb3-td3", {"net_arch": (64, 64), "batch_size": 64}, 160),
     ("sb3-ppo", {"n_steps": 40, "batch_size": 20, "n_epochs": 2}, 200),
+    ("sb3-crossq", {"net_arch": (64, 64), "critic_net_arch": (64, 64), "batch_size": 64}, 160),
 ]
 
 
@@ -52,8 +53,9 @@ CASES = [
 def test_learning_step_by_step_equals_sb3s_own_learn(algorithm, overrides, steps):
     """Same seed, same environment: the learner's parameters equal those of SB3's model.learn() on
     the suite's Gymnasium environment, bit for bit."""
+    import importlib
+
     import gymnasium
-    import stable_baselines3
     import torch
     from stable_baselines3.common.noise import NormalActionNoise
 
@@ -69,14 +71,17 @@ def test_learning_step_by_step_equals_sb3s_own_learn(algorithm, overrides, steps
         seed=np.random.default_rng(7),
     )
     sb3_overrides = dict(overrides)
-    if "net_arch" in sb3_overrides:
+    if "critic_net_arch" in sb3_overrides:  # CrossQ: the actor's and the critics' apart
+        actor, critic = sb3_overrides.pop("net_arch"), sb3_overrides.pop("critic_net_arch")
+        sb3_overrides["policy_kwargs"] = {"net_arch": {"pi": list(actor), "qf": list(critic)}}
+    elif "net_arch" in sb3_overrides:
         sb3_overrides["policy_kwargs"] = {"net_arch": list(sb3_overrides.pop("net_arch"))}
     if algorithm == "sb3-td3":  # SB3's TD3 takes the exploration noise as an object
         sigma = sb3_overrides.pop("action_noise", agent.config.action_noise)
         sb3_overrides["action_noise"] = (
             NormalActionNoise(np.zeros(1), sigma * np.ones(1)) if sigma else None
         )
-    reference = getattr(stable_baselines3, agent.sb3_class)(
+    reference = getattr(importlib.import_module(agent.sb3_package), agent.sb3_class)(
         "MlpPolicy", gymnasium.make(ENV_ID), seed=agent.sb3_seed_, device="cpu", **sb3_overrides
     )
     reference.learn(total_timesteps=steps)
@@ -102,10 +107,12 @@ def _pendulum_spaces():
 @pytest.mark.parametrize("algorithm", sb3_config.BASELINES)
 def test_the_defaults_are_sb3s(algorithm):
     """Every hyperparameter SB3's constructor takes defaults to SB3's value, and the networks to SB3's
-    default architecture; the one exception is TD3's exploration noise (its config says why)."""
-    import stable_baselines3
+    default architecture; the exceptions are TD3's exploration noise and CrossQ's critic width
+    (their configs say why)."""
+    import importlib
 
-    sb3_class = getattr(stable_baselines3, agent_class(algorithm).sb3_class)
+    learner = agent_class(algorithm)
+    sb3_class = getattr(importlib.import_module(learner.sb3_package), learner.sb3_class)
     defaults = {name: p.default for name, p in inspect.signature(sb3_class).parameters.items()}
     config = config_class(algorithm)()
     shared = [f.name for f in dataclasses.fields(config) if f.name in defaults]
@@ -120,9 +127,15 @@ def test_the_defaults_are_sb3s(algorithm):
     if algorithm == "sb3-ppo":
         assert model.policy.net_arch == {"pi": list(config.net_arch), "vf": list(config.net_arch)}
         assert float(model.policy.log_std.detach()[0]) == config.log_std_init
+    elif algorithm == "sb3-crossq":
+        assert model.policy.net_arch == {"pi": list(config.net_arch), "qf": [1024, 1024]}
+        assert config.critic_net_arch == (256, 256)  # narrowed: the config says why
+        for name, value in model.policy.batch_norm_params.items():
+            assert value == getattr(config, name, value), name
     else:
         assert model.actor.net_arch == list(config.net_arch)
-    assert sorted(model.policy.state_dict()) == sorted(agent.model.policy.state_dict())
+    if algorithm != "sb3-crossq":  # CrossQ's layer names are the same; its widths are not
+        assert sorted(model.policy.state_dict()) == sorted(agent.model.policy.state_dict())
 
 
 @pytest.mark.baselines
@@ -145,7 +158,7 @@ def test_network_input_is_the_gymnasium_observation():
 
 
 def test_without_the_extra_the_learners_name_it(monkeypatch):  # runs without the extra too
-    monkeypatch.setattr(sb3_base, "available", lambda: False)
+    monkeypatch.setattr(sb3_base, "available", lambda *package: False)
     with pytest.raises(ImportError, match=r"\[baselines\]"):
         make_agent("sb3-sac", *_pendulum_spaces(), seed=0)
     assert config_class("sb3-sac")().learning_rate == 3e-4  # the configs need no torch
