@@ -2,6 +2,10 @@
 
 from rmac_mj import tasks
 env = tasks.load("dc_pendulum", "swingup", task_kwargs={"random": 0})
+
+:func:`load` builds a task's environment, :func:`knowledge` says what it declares beyond it (its
+near-optimal return, demonstrators, plot hints: :class:`TaskKnowledge`); every task tells the learners
+what their state is through its ``learner_state`` (:class:`LearnerStateSpec`).
 """
 
 from __future__ import annotations
@@ -13,6 +17,14 @@ from typing import Any
 from dm_control.rl import control
 
 from rmac_mj.tasks import common, dc_pendulum, two_link_arm
+from rmac_mj.tasks.common import (
+    NOTHING_KNOWN,
+    Demonstrator,
+    LearnerStateSpec,
+    Optimum,
+    PlotHints,
+    TaskKnowledge,
+)
 
 _DOMAINS = {
     name: module for name, module in [("dc_pendulum", dc_pendulum), ("two_link_arm", two_link_arm)]
@@ -96,3 +108,21 @@ if importlib.util.find_spec("gymnasium") is not None:
     from rmac_mj.tasks import to_gymnasium as gymnasium_env
 
     gymnasium_env.register_suite()
+
+__all__ = [
+    # The suite
+    "ALL_TASKS",
+    "DEFAULT_TASK",
+    "SUITE",
+    "TASKS_BY_DOMAIN",
+    "build_environment",
+    "load",
+    # What a task declares
+    "NOTHING_KNOWN",
+    "Demonstrator",
+    "LearnerStateSpec",
+    "Optimum",
+    "PlotHints",
+    "TaskKnowledge",
+    "knowledge",
+]

@@ -1,8 +1,14 @@
-"""The learners behind one interface: RMAC (Algorithm 2), S-AC (Algorithm 1) and MLAC.
+"""The learners behind one interface: RMAC (Algorithm 2), S-AC (Algorithm 1), MLAC, the learner
+recommended for a new task and the Stable-Baselines3 baselines.
 
-Each learner is a module holding its config dataclass and its :class:`Agent` subclass; the registry
-``_REGISTRY`` (key -> module, agent class, config class) builds them by name, and adding a learner
-is one line there.
+``make_agent(name, state_space, action_space, config, seed)`` builds one by its key (:data:`ALGORITHMS`);
+every learner is an :class:`Agent` (``start``/``step``/``stop``, ``greedy_action``, ``state_dict``) on a
+:class:`StateSpace` and an :class:`ActionSpace`, configured by a frozen dataclass of the paper's values
+(``RMACConfig``, ``StandardACConfig``, ``MLACConfig``, ...), exploring by :class:`Exploration`,
+planning or replaying by :class:`Planning` or :class:`Replay`, seeded from prior knowledge by
+:func:`seed_memory`. Each learner is a module holding its config dataclass and its :class:`Agent`
+subclass; the registry ``_REGISTRY`` (key -> module, agent class, config class) builds them by name,
+and adding a learner is one line there.
 """
 
 from __future__ import annotations
@@ -14,8 +20,9 @@ import numpy as np
 
 from rmac_mj import constraints
 from rmac_mj.agents.base import Agent
+from rmac_mj.agents.boundary import RefusedTransition
 from rmac_mj.agents.exploration import Exploration, model_uncertainty
-from rmac_mj.agents.random_state import generator_state_array, set_generator_state
+from rmac_mj.agents.planning import Planning, Replay
 from rmac_mj.agents.scripted import PolicyAgent
 from rmac_mj.agents.seeding import PRIOR_PARTS, check_transitions, discounted_returns, seed_memory
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
@@ -134,25 +141,70 @@ def make_agent(
     return agent_cls(state_space, action_space, config=config, seed=seed)
 
 
+#: The learners and their configs by class name (``RMAC``, ``RMACConfig``, ``SB3SAC``, ...) -> the module
+#: that holds them. They are read from it on first use (PEP 562 ``__getattr__``), as ``make_agent``
+#: reads the registry: ``import rmac_mj.agents`` stays the interface and imports no learner module,
+#: so a learner's own imports (the baselines' torch and Stable-Baselines3, a learner's compiled
+#: kernels) are paid for by whoever uses that learner.
+_LEARNERS = {
+    class_name: module_name
+    for module_name, agent_name, config_name in _REGISTRY.values()
+    for class_name in (agent_name, config_name)
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LEARNERS:
+        value = getattr(importlib.import_module(_LEARNERS[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LEARNERS))
+
+
 __all__ = [
+    # Building a learner by its key
     "ALGORITHMS",
-    "PRIOR_PARTS",
-    "ActionSpace",
-    "Agent",
-    "Exploration",
-    "PolicyAgent",
-    "StateSpace",
     "agent_class",
-    "check_transitions",
     "config_class",
     "config_from_dict",
-    "discounted_returns",
     "display_name",
-    "generator_state_array",
     "make_agent",
     "memory_estimate",
+    "unknown_algorithm",
+    # The interface every learner shares
+    "ActionSpace",
+    "Agent",
+    "PolicyAgent",
+    "RefusedTransition",
+    "StateSpace",
+    # The learners and their configs (loaded on first use, above)
+    "MLAC",
+    "MLACConfig",
+    "RMAC",
+    "RMACConfig",
+    "Recommended",
+    "RecommendedConfig",
+    "SB3CrossQ",
+    "SB3CrossQConfig",
+    "SB3PPO",
+    "SB3PPOConfig",
+    "SB3SAC",
+    "SB3SACConfig",
+    "SB3TD3",
+    "SB3TD3Config",
+    "StandardACConfig",
+    "StandardActorCritic",
+    # Exploration, planning and replay, prior knowledge
+    "Exploration",
+    "PRIOR_PARTS",
+    "Planning",
+    "Replay",
+    "check_transitions",
+    "discounted_returns",
     "model_uncertainty",
     "seed_memory",
-    "set_generator_state",
-    "unknown_algorithm",
 ]

@@ -1,10 +1,11 @@
 """The ``rmac-mj`` command: reproduce, sweep, panel, compare, policy, optimal, render, bench.
 
-``rmac-mj`` alone prints the commands, ``rmac-mj COMMAND --help`` their options and defaults; the
-parser is :mod:`rmac_mj.cli.options` (the options in :mod:`rmac_mj.cli.run_options` and
-:mod:`rmac_mj.cli.view_options`, their building blocks in :mod:`rmac_mj.cli.arguments`), the
-commands that run experiments in :mod:`rmac_mj.cli.runs`, those that look at results in
-:mod:`rmac_mj.cli.views`.
+``rmac-mj`` alone prints the commands, ``rmac-mj COMMAND --help`` their options and defaults. From
+Python, :func:`main` (``main(["reproduce", "--experiments", "4"])``) runs a command as the console
+script does and returns its exit status; :func:`build_parser` is its parser. The parser's options
+are in :mod:`rmac_mj.cli.run_options` and :mod:`rmac_mj.cli.view_options`, their building blocks in
+:mod:`rmac_mj.cli.arguments`; the commands that run experiments in :mod:`rmac_mj.cli.runs`, those
+that look at results in :mod:`rmac_mj.cli.views`.
 
 Every command ends through :func:`main`, which holds the one rule for what goes wrong (the exit
 statuses are :mod:`rmac_mj.errors`'): a bad input (an option, a configuration, a result file, a
@@ -209,3 +210,6 @@ ERROR_LOG = "error.log"
 
 #: Storage errors reported in one line (disk full, quota exceeded, read-only file system).
 _STORAGE_ERRORS = (errno.ENOSPC, errno.EDQUOT, errno.EROFS)
+
+
+__all__ = ["ERROR_LOG", "build_parser", "main", "report"]

@@ -195,8 +195,8 @@ def optimal(args) -> int:
         )
     with user_input():
         if not optimum.has_optimum(args.domain, args.task):
-            optimum.optimum(args.domain, args.task)  # raises, naming the tasks that have one
-    result = optimum.optimum(args.domain, args.task, refresh=args.refresh, announce=say)
+            optimum.optimum_result(args.domain, args.task)  # raises, naming the tasks that have one
+    result = optimum.optimum_result(args.domain, args.task, refresh=args.refresh, announce=say)
     print(result.describe())
     from rmac_mj import tasks
     from rmac_mj.agents.task_knowledge import with_task_units

@@ -64,7 +64,7 @@ def has_optimum(domain: str, task: str) -> bool:
     return tasks.knowledge(domain, task).optimum is not None
 
 
-def optimum(
+def optimum_result(
     domain: str,
     task: str,
     cache_dir: str | os.PathLike | None = None,
@@ -110,9 +110,9 @@ def optimum_return(
     refresh: bool = False,
     announce: Announce | None = None,
 ) -> float:
-    """The near-optimal return per trial of ``domain``/``task`` (see :func:`optimum`)."""
+    """The near-optimal return per trial of ``domain``/``task`` (see :func:`optimum_result`)."""
     return float(
-        optimum(
+        optimum_result(
             domain, task, cache_dir=cache_dir, refresh=refresh, announce=announce
         ).simulated_return
     )

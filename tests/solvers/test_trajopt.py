@@ -81,7 +81,7 @@ def test_reference_registry_dispatches_and_rejects_unknown_tasks(tmp_path, monke
     assert optimum.has_optimum("two_link_arm", "reach")
     assert not optimum.has_optimum("dc_pendulum", "balance")
     with pytest.raises(ValueError, match="no near-optimal return for dc_pendulum/balance"):
-        optimum.optimum("dc_pendulum", "balance")
+        optimum.optimum_result("dc_pendulum", "balance")
     calls = []
     real = trajopt.cached_optimise
 
