@@ -17,16 +17,15 @@ import numpy as np
 from scipy import stats
 
 from rmac_mj.agents import make_agent
-from rmac_mj.evaluation.metrics import (
+from rmac_mj.evaluation import (
     FIRST_MINUTES,
     confidence_interval,
     early_returns,
     final_returns,
     stuck_threshold,
 )
-from rmac_mj.experiments.experiment import build_experiment, demonstration_for
-from rmac_mj.experiments.protocol import Protocol
-from rmac_mj.results.store import ResultStore
+from rmac_mj.experiments import Protocol, build_experiment, demonstration_for
+from rmac_mj.results import ResultStore
 from rmac_mj.rollout import run_trial
 
 #: A learning trial counts as "worse than the demonstrator" below its mean return minus this.

@@ -35,8 +35,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--figure", type=pathlib.Path, default=FIGURE, help="the PNG to write")
     args = parser.parse_args(argv)
 
-    from rmac_mj.figures import plots
-    from rmac_mj.results.store import ResultStore
+    from rmac_mj.figures import learning_curves_figure, save_figure
+    from rmac_mj.results import ResultStore
 
     store = ResultStore(args.out)
     if not args.draw_only:
@@ -64,8 +64,8 @@ def main(argv: list[str] | None = None) -> int:
         else:
             subprocess.run(command, check=True)
     summary = store.read_summary()
-    paths = plots.save_figure(
-        plots.learning_curves_figure(
+    paths = save_figure(
+        learning_curves_figure(
             {args.out.name: summary},
             optimal_return=summary.get("optimal_return"),
             exploration_floor=summary.get("exploration_floor"),

@@ -57,8 +57,8 @@ from scipy import stats
 from rmac_mj import rollout as episode
 from rmac_mj import tasks
 from rmac_mj.agents import ActionSpace, StateSpace, make_agent
-from rmac_mj.evaluation.metrics import confidence_interval
-from rmac_mj.results.snapshots import load_snapshot
+from rmac_mj.evaluation import confidence_interval
+from rmac_mj.results import load_snapshot
 
 SETTLE_ANGLE = 0.05  # rad, |phi - phi_ss| from the settle step on
 SETTLE_SPEED = 0.5  # rad/s, |phi_dot| from the settle step on

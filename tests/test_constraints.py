@@ -7,14 +7,10 @@ import pathlib
 import pytest
 
 from rmac_mj import constraints
-from rmac_mj.agents import Exploration, config_from_dict
-from rmac_mj.agents.mlac import MLACConfig
-from rmac_mj.agents.rmac import RMACConfig
-from rmac_mj.agents.standard_ac import StandardACConfig
-from rmac_mj.approximators.llr import LLRMemory
-from rmac_mj.approximators.tile_coding import TileCodingConfig
+from rmac_mj.agents import Exploration, MLACConfig, RMACConfig, StandardACConfig, config_from_dict
+from rmac_mj.approximators import LLRMemory, TileCodingConfig
 from rmac_mj.errors import UserInputError
-from rmac_mj.sweeps import sweep_file
+from rmac_mj.sweeps import load_sweep
 
 CONFIGS = (RMACConfig, StandardACConfig, MLACConfig, Exploration, TileCodingConfig)
 LEARNERS = (RMACConfig, StandardACConfig, MLACConfig)
@@ -151,7 +147,7 @@ def test_the_sweep_checker_expects_what_the_config_expects(tmp_path, key, value,
     path = pathlib.Path(tmp_path) / "sweep.toml"
     path.write_text(f'[protocol]\nalgorithms = ["{algorithm}"]\n[grid]\n"{key}" = [{toml}]\n')
     with pytest.raises(UserInputError) as error:
-        sweep_file.load_sweep(path)
+        load_sweep(path)
     expected = constraints.unmet(value, cls.parameter_constraints[field])
     assert expected is not None and f"expected {expected}, got {toml}" in str(error.value)
     assert f"{cls.__name__}.{field} must be {expected}, got {value!r}" == refusal(

@@ -58,7 +58,7 @@ def _quoted_commands(page: pathlib.Path) -> list[str]:
 
 @pytest.mark.parametrize("page", [README, *GUIDE], ids=_relative)
 def test_every_quoted_command_parses(page):
-    from rmac_mj.cli.options import build_parser
+    from rmac_mj.cli import build_parser
 
     commands = _quoted_commands(page)
     for words in commands:

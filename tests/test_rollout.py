@@ -6,7 +6,7 @@ from learners import quick_config
 
 from rmac_mj import tasks
 from rmac_mj.agents import ALGORITHMS, make_agent
-from rmac_mj.figures.policy_plots import policy_actions, policy_slice
+from rmac_mj.figures import policy_actions, policy_slice
 from rmac_mj.rollout import (
     action_space_of,
     run_trial,

@@ -22,10 +22,17 @@ from typing import Any
 import numpy as np
 
 from rmac_mj.agents import config_class, display_name
-from rmac_mj.evaluation import metrics, statistics
-from rmac_mj.figures import plots
-from rmac_mj.results.records import Curves
-from rmac_mj.results.store import ResultStore
+from rmac_mj.evaluation import (
+    Estimate,
+    final_returns,
+    iqm,
+    iqm_interval,
+    probability_of_improvement,
+    summarise,
+    trials_in,
+)
+from rmac_mj.figures import learning_curves_figure, performance_profiles_figure, save_figure
+from rmac_mj.results import Curves, ResultStore
 
 #: Where the figures go by default: the repository's docs/, wherever the script is run from.
 DOCS = pathlib.Path(__file__).resolve().parents[2] / "docs"
@@ -71,12 +78,12 @@ class Task:
         """Each experiment's greedy return after the learning trial that ends at ``minutes``;
         shape (experiments,)."""
         curve = self.curves[learner]
-        column = list(curve.greedy_trials).index(metrics.trials_in(minutes, self.seconds))
+        column = list(curve.greedy_trials).index(trials_in(minutes, self.seconds))
         return curve.greedy_returns[:, column]
 
     def summary(self, learner: str) -> dict[str, Any]:
         curve = self.curves[learner]
-        return metrics.summarise(
+        return summarise(
             curve.returns,
             curve.greedy_returns,
             curve.greedy_trials,
@@ -86,7 +93,7 @@ class Task:
         )
 
 
-def fmt(estimate: statistics.Estimate, digits: int = 0) -> str:
+def fmt(estimate: Estimate, digits: int = 0) -> str:
     return f"{estimate.value:.{digits}f} [{estimate.low:.{digits}f}, {estimate.high:.{digits}f}]"
 
 
@@ -100,13 +107,13 @@ def table(task: Task) -> list[str]:
     for learner in task.learners():
         c, s = task.curves[learner], task.summary(learner)
         n, trials = c.returns.shape
-        greedy10 = statistics.iqm_interval(task.greedy_at(learner))
-        first = statistics.Estimate(s["first_5min_iqm"], *s["first_5min_iqm_ci95"])
-        final = statistics.Estimate(s["final_return_iqm"], *s["final_return_iqm_ci95"])
+        greedy10 = iqm_interval(task.greedy_at(learner))
+        first = Estimate(s["first_5min_iqm"], *s["first_5min_iqm_ci95"])
+        final = Estimate(s["final_return_iqm"], *s["final_return_iqm_ci95"])
         rows.append(
             f"| {display_name(learner)} | {n} ({task.planned[learner]}) | {trials} "
             f"({trials * task.seconds / 60:g}) | {s['minutes_to_90pct']:.1f} | {fmt(first)} | "
-            f"{fmt(final)} | {fmt(greedy10)} | {statistics.iqm(c.greedy_returns[:, -1]):.0f} | "
+            f"{fmt(final)} | {fmt(greedy10)} | {iqm(c.greedy_returns[:, -1]):.0f} | "
             f"{s['stuck_experiments']}/{n} | {s['cpu_s_per_simulated_minute']:.3g} |"
         )
     return rows
@@ -130,13 +137,13 @@ def headline(loaded: dict[str, Task]) -> list[str]:
                     column.append("-")
                 continue
             s, (n, trials) = task.summary(learner), task.curves[learner].returns.shape
-            final = statistics.Estimate(s["final_return_iqm"], *s["final_return_iqm_ci95"])
+            final = Estimate(s["final_return_iqm"], *s["final_return_iqm_ci95"])
             for column, value in zip(
                 cells,
                 (
                     f"{n} x {trials}",
                     fmt(final),
-                    f"{statistics.iqm(task.greedy_at(learner)):.0f}",
+                    f"{iqm(task.greedy_at(learner)):.0f}",
                     f"{s['minutes_to_90pct']:.1f}",
                     f"{s['cpu_s_per_simulated_minute']:.2g}",
                 ),
@@ -158,7 +165,7 @@ def improvement(task: Task, scores: dict[str, np.ndarray]) -> list[str]:
     for a in names:
         cells = []
         for b in names:
-            e = None if a == b else statistics.probability_of_improvement(scores[a], scores[b])
+            e = None if a == b else probability_of_improvement(scores[a], scores[b])
             cells.append("" if e is None else f"{e.value:.2f} [{e.low:.2f}, {e.high:.2f}]")
         rows.append(f"| {display_name(a)} | " + " | ".join(cells) + " |")
     return rows
@@ -178,7 +185,7 @@ def aggregate(loaded: dict[str, Task]) -> list[str]:
             if learner in task.curves and "optimal_return" in task.facts
         ]
         if len(strata) == len(loaded):
-            rows.append(f"| {display_name(learner)} | {fmt(statistics.iqm_interval(strata), 3)} |")
+            rows.append(f"| {display_name(learner)} | {fmt(iqm_interval(strata), 3)} |")
     return rows
 
 
@@ -186,18 +193,18 @@ def figures(key: str, task: Task, out: pathlib.Path) -> None:
     """Fig. 2 of every learner (the package's own figure: mean, t-interval, greedy trials) and the
     performance profiles of the greedy return at 10 simulated minutes."""
     summary = {"trial_seconds": task.seconds, **{n: task.summary(n) for n in task.learners()}}
-    fig = plots.learning_curves_figure(
+    fig = learning_curves_figure(
         {task.name: summary},
         task.facts.get("optimal_return"),
         smooth=SMOOTH,
         exploration_floor=task.facts.get("exploration_floor"),
     )
     fig.suptitle(f"{task.name}: every learner on the simulated-time axis (SAC and TD3: 10 min)")
-    plots.save_figure(fig, out / f"baselines_fig2_{key}", formats=("png",))
+    save_figure(fig, out / f"baselines_fig2_{key}", formats=("png",))
     scores = {("", n): task.greedy_at(n) for n in task.learners()}
-    fig = plots.performance_profiles_figure(scores, "greedy return at 10 simulated minutes")
+    fig = performance_profiles_figure(scores, "greedy return at 10 simulated minutes")
     fig.axes[0].set_title(f"{task.name}: performance profiles, 95% stratified-bootstrap bands")
-    plots.save_figure(fig, out / f"baselines_profiles_{key}", formats=("png",))
+    save_figure(fig, out / f"baselines_profiles_{key}", formats=("png",))
 
 
 def rates(root: pathlib.Path, task: Task) -> list[str]:
@@ -230,7 +237,7 @@ def rates(root: pathlib.Path, task: Task) -> list[str]:
         for rate, returns, greedy in sorted(runs, key=lambda run: run[0]):
             rows.append(
                 f"| {display_name(learner)} | {rate:g} | {len(returns)} x {trials} | "
-                f"{metrics.final_returns(returns).mean():.0f} | {greedy.mean():.0f} |"
+                f"{final_returns(returns).mean():.0f} | {greedy.mean():.0f} |"
             )
     return rows
 
@@ -255,7 +262,7 @@ def main() -> None:
             "\n".join(
                 improvement(
                     task,
-                    {n: metrics.final_returns(task.curves[n].returns) for n in task.learners()},
+                    {n: final_returns(task.curves[n].returns) for n in task.learners()},
                 )
             )
         )

@@ -20,7 +20,7 @@ import numpy as np  # noqa: E402
 
 from rmac_mj import envs  # noqa: E402
 from rmac_mj.agents import display_name  # noqa: E402
-from rmac_mj.evaluation.metrics import confidence_interval  # noqa: E402
+from rmac_mj.evaluation import confidence_interval  # noqa: E402
 from rmac_mj.rollout import steps_per_trial  # noqa: E402
 
 #: Where the figures go by default: the repository's docs/, wherever the script is run from.

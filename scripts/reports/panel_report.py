@@ -23,9 +23,9 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from rmac_mj.agents import display_name  # noqa: E402
-from rmac_mj.evaluation import statistics  # noqa: E402
+from rmac_mj.evaluation import iqm_interval  # noqa: E402
 from rmac_mj.experiments import panel  # noqa: E402
-from rmac_mj.results.store import ResultStore  # noqa: E402
+from rmac_mj.results import ResultStore  # noqa: E402
 
 #: Where the figures go by default: the repository's docs/, wherever the script is run from.
 DOCS = pathlib.Path(__file__).resolve().parents[2] / "docs"
@@ -51,7 +51,7 @@ def figure(roots: list[pathlib.Path], path: pathlib.Path) -> None:
                     continue
                 steps = np.mean(counted[:, at], axis=0)
                 greedy = curves.greedy_returns
-                value = [statistics.iqm_interval(greedy[:, k]) for k in range(greedy.shape[1])]
+                value = [iqm_interval(greedy[:, k]) for k in range(greedy.shape[1])]
                 iqm = np.array([v.value for v in value])
                 low, high = np.array([v.low for v in value]), np.array([v.high for v in value])
                 (line,) = ax.plot(

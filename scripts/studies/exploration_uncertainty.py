@@ -16,10 +16,8 @@ import argparse
 import numpy as np
 
 from rmac_mj import tasks
-from rmac_mj.agents import Exploration, model_uncertainty
-from rmac_mj.agents import rmac as rmac_module
-from rmac_mj.agents.rmac import RMAC, RMACConfig
-from rmac_mj.experiments.experiment import experiment_seeds
+from rmac_mj.agents import RMAC, Exploration, RMACConfig
+from rmac_mj.experiments import experiment_seeds
 from rmac_mj.rollout import action_space_of, run_trial, state_space_of
 
 RANGES = ((0, 10), (10, 50), (50, 200), (200, 600))
@@ -36,7 +34,7 @@ def run(index: int, threshold: float, trials: int) -> np.ndarray:
         seen.append((agent.trial, value, abs(float(query[0]))))
         return value
 
-    rmac_module.model_uncertainty = recording
+    model_uncertainty = recording
     agent_seq, task_seed = experiment_seeds(0, index)
     env = tasks.load("dc_pendulum", "swingup", task_kwargs={"random": task_seed})
     agent = RMAC(

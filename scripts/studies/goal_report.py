@@ -22,14 +22,14 @@ import sys
 import numpy as np
 from scipy import stats
 
-from rmac_mj.evaluation.metrics import (
+from rmac_mj.evaluation import (
     FIRST_MINUTES,
     confidence_interval,
     early_returns,
     final_returns,
     minutes_to_within,
 )
-from rmac_mj.results.store import ResultStore
+from rmac_mj.results import ResultStore
 
 GOAL = {"greedy": -775.0, "exploring": -905.0, "first_5min": -1800.0, "minutes_to_90pct": 5.0}
 STUCK_BELOW = -1500.0

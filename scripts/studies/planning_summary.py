@@ -26,15 +26,15 @@ import sys
 import numpy as np
 
 from rmac_mj.agents import display_name
-from rmac_mj.evaluation.metrics import (
+from rmac_mj.evaluation import (
     GREEDY_WITHIN,
     confidence_interval,
     first_reaching,
     stuck_threshold,
     within_optimal,
 )
-from rmac_mj.results.store import ResultStore
-from rmac_mj.sweeps import dotted_keys
+from rmac_mj.results import ResultStore
+from rmac_mj.sweeps import flatten
 
 #: Trials after which the greedy return is tabulated (issue 23: one simulated minute, five).
 AT_TRIALS = (20, 100)
@@ -62,7 +62,7 @@ def setting(overrides: dict) -> tuple[str, int, str]:
     """(kind, steps, label) of a learner's config overrides: kind 'planning', 'replay' or ''."""
     kind = next((k for k in ("planning", "replay") if overrides.get(k, {}).get("steps")), "")
     steps = overrides[kind]["steps"] if kind else 0
-    rest = {k: v for k, v in dotted_keys.flatten(overrides).items() if k != f"{kind}.steps"}
+    rest = {k: v for k, v in flatten(overrides).items() if k != f"{kind}.steps"}
     label = " ".join([f"{kind} {steps}"] if kind else []) or "none"
     if rest:
         label += ", " + ", ".join(f"{k} {v}" for k, v in rest.items())

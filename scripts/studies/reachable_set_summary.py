@@ -9,14 +9,14 @@ import pathlib
 
 import numpy as np
 
-from rmac_mj.evaluation.metrics import (
+from rmac_mj.evaluation import (
     compare_final_returns,
     confidence_interval,
+    describe_test,
     final_returns,
     minutes_to_within,
 )
-from rmac_mj.evaluation.report import describe_test
-from rmac_mj.results.store import ResultStore
+from rmac_mj.results import ResultStore
 
 TRIAL_SECONDS, STUCK_BELOW = 3.0, -1496.0
 

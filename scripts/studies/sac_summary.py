@@ -22,7 +22,7 @@ import sys
 import goal_report
 import numpy as np
 
-from rmac_mj.evaluation.metrics import confidence_interval
+from rmac_mj.evaluation import confidence_interval
 
 
 def metrics(directory: pathlib.Path) -> dict:

@@ -7,11 +7,19 @@ import numpy as np
 import plain_pendulum
 import pytest
 
-from rmac_mj.agents import ActionSpace, Exploration, StateSpace, model_uncertainty
-from rmac_mj.agents.mlac import MLAC, MLACConfig
-from rmac_mj.agents.rmac import RMAC, RMACConfig
-from rmac_mj.agents.standard_ac import StandardACConfig, StandardActorCritic
-from rmac_mj.approximators.llr import LLRMemory
+from rmac_mj.agents import (
+    MLAC,
+    RMAC,
+    ActionSpace,
+    Exploration,
+    MLACConfig,
+    RMACConfig,
+    StandardACConfig,
+    StandardActorCritic,
+    StateSpace,
+    model_uncertainty,
+)
+from rmac_mj.approximators import LLRMemory
 
 PENDULUM = StateSpace(
     low=[-np.pi, -8 * np.pi],

@@ -3,8 +3,7 @@
 import numpy as np
 import pytest
 
-from rmac_mj.agents import ActionSpace, Exploration, StateSpace
-from rmac_mj.agents.mlac import MLAC, MLACConfig
+from rmac_mj.agents import MLAC, ActionSpace, Exploration, MLACConfig, StateSpace
 
 BACKENDS = ("numba", "numpy")
 NO_EXPLORATION = Exploration(sigma=0.0)

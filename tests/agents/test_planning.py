@@ -7,9 +7,7 @@ import numpy as np
 import plain_pendulum
 import pytest
 
-from rmac_mj.agents import make_agent
-from rmac_mj.agents.base import ActionSpace, StateSpace
-from rmac_mj.agents.planning import Planning, Replay
+from rmac_mj.agents import ActionSpace, Planning, Replay, StateSpace, make_agent
 from rmac_mj.agents.task_knowledge import PAPER_REWARD_SCALE
 from rmac_mj.constraints import InvalidParameterError
 

@@ -11,8 +11,15 @@ import numpy as np
 import pytest
 from learners import quick_config
 
-from rmac_mj.agents import ALGORITHMS, ActionSpace, Exploration, StateSpace, make_agent
-from rmac_mj.agents.planning import Planning, Replay
+from rmac_mj.agents import (
+    ALGORITHMS,
+    ActionSpace,
+    Exploration,
+    Planning,
+    Replay,
+    StateSpace,
+    make_agent,
+)
 
 STATES = StateSpace(low=[-np.pi, -25.0], high=[np.pi, 25.0], periodic=[True, False])
 ACTIONS = ActionSpace(low=[-3.0], high=[3.0], cost=[1.0])

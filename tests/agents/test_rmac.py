@@ -6,8 +6,8 @@ import numpy as np
 import plain_pendulum
 import pytest
 
-from rmac_mj.agents import ActionSpace, Exploration, StateSpace
-from rmac_mj.agents.rmac import EXACT_TOLERANCE, RMAC, RMACConfig
+from rmac_mj.agents import RMAC, ActionSpace, Exploration, RMACConfig, StateSpace
+from rmac_mj.agents.rmac import EXACT_TOLERANCE  # the tolerance of its inverse model, internal
 
 BACKENDS = ("numba", "numpy")
 NO_EXPLORATION = Exploration(sigma=0.0)

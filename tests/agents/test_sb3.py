@@ -180,22 +180,19 @@ def test_reproduce_runs_a_baseline_and_resumes_it_alike(tmp_path):
     """A tiny rmac-mj reproduce of sb3-sac: an interrupted run finished with resume has the curves of
     an uninterrupted one (serial equals parallel: tests/experiments/test_runner.py), and the last snapshot
     rebuilds the learner."""
-    from rmac_mj.experiments import runner
-    from rmac_mj.experiments.experiment import build_experiment
-    from rmac_mj.experiments.protocol import Protocol
-    from rmac_mj.results.snapshots import load_snapshot
-    from rmac_mj.results.store import ResultStore
+    from rmac_mj.experiments import Protocol, build_experiment, run_protocol
+    from rmac_mj.results import ResultStore, load_snapshot
     from rmac_mj.rollout import run_trial
 
     protocol, store = Protocol(**TINY), ResultStore(tmp_path)
-    summary = runner.run_protocol(protocol, tmp_path, jobs=1, progress=False, figures=False)
+    summary = run_protocol(protocol, tmp_path, jobs=1, progress=False, figures=False)
     assert len(summary["sb3-sac"]["final_return_per_experiment"]) == 2
     expected = store.load_curves("sb3-sac", 2)
     assert not np.array_equal(expected.returns[0], expected.returns[1])  # independent experiments
     assert np.all(expected.cpu_times > 0)
     store.curve_path("sb3-sac", 1).unlink()  # as if killed before the last experiment
     np.random.seed(123)  # whatever the process's global generators hold: the learner has its own
-    runner.run_protocol(protocol, tmp_path, jobs=1, resume=True, progress=False, figures=False)
+    run_protocol(protocol, tmp_path, jobs=1, resume=True, progress=False, figures=False)
     resumed = store.load_curves("sb3-sac", 2)
     np.testing.assert_array_equal(resumed.returns, expected.returns)
     np.testing.assert_array_equal(resumed.greedy_returns, expected.greedy_returns)
@@ -205,8 +202,8 @@ def test_reproduce_runs_a_baseline_and_resumes_it_alike(tmp_path):
 
 
 def test_the_old_module_path_keeps_its_learners():  # runs without the extra too
-    from rmac_mj.agents import sb3_off_policy, sb3_ppo
+    from rmac_mj.agents import SB3PPO, SB3SAC, SB3TD3
 
-    assert (sb3.SB3SAC, sb3.SB3TD3) == (sb3_off_policy.SB3SAC, sb3_off_policy.SB3TD3)
-    assert sb3.SB3PPO is sb3_ppo.SB3PPO and sb3.SB3Agent is sb3_base.SB3Agent
+    assert (sb3.SB3SAC, sb3.SB3TD3) == (SB3SAC, SB3TD3)
+    assert sb3.SB3PPO is SB3PPO and sb3.SB3Agent is sb3_base.SB3Agent
     assert agent_class("sb3-sac") is sb3.SB3SAC

@@ -3,10 +3,15 @@
 import numpy as np
 import pytest
 
-from rmac_mj.agents import ActionSpace, Exploration, StateSpace
-from rmac_mj.agents.standard_ac import StandardACConfig, StandardActorCritic
+from rmac_mj.agents import (
+    ActionSpace,
+    Exploration,
+    StandardACConfig,
+    StandardActorCritic,
+    StateSpace,
+)
 from rmac_mj.agents.task_knowledge import PAPER_REWARD_SCALE
-from rmac_mj.approximators.tile_coding import TileCodingConfig
+from rmac_mj.approximators import TileCodingConfig
 
 #: The pendulum's box; its reward scale, as dc_pendulum declares it, keeps alpha_a at the paper's.
 PENDULUM = StateSpace(

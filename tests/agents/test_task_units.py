@@ -159,7 +159,8 @@ def test_the_recommended_learner_on_the_pendulum():
 
 @pytest.mark.parametrize("interpolate", [False, True])
 def test_an_interpolating_model_never_predicts_a_reward_beyond_the_real_ones(interpolate):
-    from rmac_mj.agents.planning import Planning, TransitionModel
+    from rmac_mj.agents import Planning
+    from rmac_mj.agents.planning import TransitionModel  # the model itself, not on the face
 
     state, action = _spaces(n=1, m=1)
     model = TransitionModel(

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from rmac_mj.approximators.llr import LLRMemory
+from rmac_mj.approximators import LLRMemory
 
 BACKENDS = ("numba", "numpy")
 TWO_PI = 2 * np.pi

@@ -16,11 +16,9 @@ import zipfile
 import numpy as np
 import pytest
 
-from rmac_mj.cli import main
-from rmac_mj.cli.options import build_parser
+from rmac_mj.cli import build_parser, main
 from rmac_mj.errors import EXIT_BAD_INPUT, EXIT_ENVIRONMENT
-from rmac_mj.experiments import runner
-from rmac_mj.experiments.protocol import Protocol
+from rmac_mj.experiments import Protocol, run_protocol
 
 TINY = dict(algorithms=("s-ac",), experiments=2, trials=3, snapshot_trials=(1,))
 RESUME = ["reproduce", "--algorithms", "s-ac", "--experiments", "2", "--trials", "3"]
@@ -91,7 +89,7 @@ def factories(tmp_path, monkeypatch):
 def finished(tmp_path_factory) -> pathlib.Path:
     """One finished tiny run, copied by the tests that damage it."""
     out = tmp_path_factory.mktemp("finished") / "run"
-    runner.run_protocol(Protocol(**TINY), out, jobs=1, progress=False, figures=False)
+    run_protocol(Protocol(**TINY), out, jobs=1, progress=False, figures=False)
     return out
 
 
@@ -295,7 +293,7 @@ def test_every_command_refuses_bad_inputs_in_one_line(finished, tmp_path, factor
 
 def test_a_scheduler_address_of_an_unknown_scheme_is_one_line():
     pytest.importorskip("distributed", reason="needs the [distributed] extra")
-    from rmac_mj.experiments.execution import BackendError, connect_dask
+    from rmac_mj.experiments import BackendError, connect_dask
 
     with pytest.raises(BackendError, match="is not a scheduler address"):
         connect_dask("foo://localhost:1", timeout=1)

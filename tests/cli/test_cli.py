@@ -188,7 +188,7 @@ def test_no_arguments_prints_the_usage_and_the_commands():
 def test_every_option_has_help_and_the_help_shows_defaults():
     import argparse
 
-    from rmac_mj.cli.options import build_parser
+    from rmac_mj.cli import build_parser
 
     parser = build_parser()
     subparsers = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
@@ -223,7 +223,7 @@ def _fake_run(directory, seed, agent_configs=None):
 
     import numpy as np
 
-    from rmac_mj.evaluation import metrics
+    from rmac_mj.evaluation import summarise
 
     rng = np.random.default_rng(seed)
     directory.mkdir(parents=True)
@@ -236,7 +236,7 @@ def _fake_run(directory, seed, agent_configs=None):
             "seed": seed,
             "agent_configs": agent_configs or {},
         },
-        "rmac": metrics.summarise(-1000 + rng.normal(0, 50, (3, 60)), trial_seconds=3.0),
+        "rmac": summarise(-1000 + rng.normal(0, 50, (3, 60)), trial_seconds=3.0),
     }
     (directory / "summary.json").write_text(json.dumps(summary))
 

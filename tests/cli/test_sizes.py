@@ -14,8 +14,7 @@ import pytest
 from test_cli import _fake_run, rmac_mj
 
 from rmac_mj import constraints
-from rmac_mj.cli import runs
-from rmac_mj.cli.options import build_parser
+from rmac_mj.cli import build_parser, runs
 from rmac_mj.errors import UserInputError
 
 #: The longest a refusal before anything runs may take (well under a second unloaded).
@@ -156,7 +155,7 @@ def test_the_command_lines_env_completes_a_config_file(tmp_path):
 def test_render_refuses_a_frame_size_in_one_line(tmp_path, option, named):
     from rmac_mj import tasks
     from rmac_mj.agents import make_agent
-    from rmac_mj.results.snapshots import save_snapshot
+    from rmac_mj.results import save_snapshot
     from rmac_mj.rollout import action_space_of, state_space_of
 
     env = tasks.load("dc_pendulum", "swingup")

@@ -17,9 +17,11 @@ gymnasium = pytest.importorskip(
 )
 
 from rmac_mj import envs
-from rmac_mj.agents import make_agent
-from rmac_mj.agents.standard_ac import StandardACConfig
-from rmac_mj.envs.observation_map import ObservationMap, layout_of_dm_env
+from rmac_mj.agents import StandardACConfig, make_agent
+from rmac_mj.envs import ObservationMap
+
+# The inference's own steps, tested one by one.
+from rmac_mj.envs.observation_map import layout_of_dm_env
 from rmac_mj.envs.observations import inferred_entries
 from rmac_mj.rollout import (
     action_space_of,
@@ -326,8 +328,8 @@ def test_measured_box_widens_the_visited_range_about_its_centre():
 def test_without_a_measurement_an_unbounded_dimension_is_refused_naming_it():
     from dm_env import specs
 
+    from rmac_mj.envs import infer_learner_state
     from rmac_mj.envs.observation_map import layout_of_dm_env
-    from rmac_mj.envs.observations import infer_learner_state
 
     layout = layout_of_dm_env({"velocity": specs.Array((1,), float, "velocity")})
     with pytest.raises(
@@ -367,7 +369,7 @@ def test_termination_and_truncation_reach_the_trial_loop():
 
 
 def test_run_trial_tells_the_learner_a_termination_from_a_time_limit(monkeypatch):
-    from rmac_mj.agents.base import Agent
+    from rmac_mj.agents import Agent
 
     told, stop = [], Agent.stop
     monkeypatch.setattr(
@@ -435,7 +437,7 @@ def test_action_repeat_sums_the_rewards():
 
 
 def tiny_protocol(**fields):
-    from rmac_mj.experiments.protocol import Protocol
+    from rmac_mj.experiments import Protocol
 
     return Protocol(
         **{
@@ -451,8 +453,8 @@ def tiny_protocol(**fields):
 
 
 def test_a_protocol_runs_an_outside_environment_and_its_snapshot_acts_in_it(tmp_path):
-    from rmac_mj.experiments import runner
-    from rmac_mj.results.snapshots import load_snapshot, snapshot_environment
+    from rmac_mj.experiments import run_protocol
+    from rmac_mj.results import load_snapshot, snapshot_environment
 
     protocol = tiny_protocol(
         env="gymnasium:Pendulum-v1",
@@ -462,7 +464,7 @@ def test_a_protocol_runs_an_outside_environment_and_its_snapshot_acts_in_it(tmp_
     )
     assert (protocol.domain, protocol.task) == (None, None)
     assert protocol.environment_name == "gymnasium:Pendulum-v1"
-    summary = runner.run_protocol(protocol, tmp_path, jobs=1, progress=False, figures=False)
+    summary = run_protocol(protocol, tmp_path, jobs=1, progress=False, figures=False)
     assert summary["trial_seconds"] == pytest.approx(0.5)
     assert list(summary["learner_state"]["keys"]) == [
         "atan2(observation[1], observation[0])",
@@ -476,7 +478,10 @@ def test_a_protocol_runs_an_outside_environment_and_its_snapshot_acts_in_it(tmp_
 
 
 def test_an_evaluation_is_the_mean_over_the_same_seeded_starts():
-    from rmac_mj.experiments.experiment import build_experiment, evaluation
+    from rmac_mj.experiments import build_experiment
+    from rmac_mj.experiments.experiment import (
+        evaluation,  # the greedy trials' environment, internal
+    )
 
     protocol = tiny_protocol(
         env="gymnasium:Pendulum-v1", task_kwargs={"max_episode_steps": 10}, evaluate_starts=4
@@ -500,7 +505,7 @@ def test_env_fields_need_env_and_exclude_a_suite_task():
 
 
 def test_a_sweep_file_takes_env_and_a_learner_state_table(tmp_path):
-    from rmac_mj.sweeps.sweep_file import load_sweep
+    from rmac_mj.sweeps import load_sweep
 
     path = tmp_path / "cartpole.toml"
     path.write_text(
@@ -583,7 +588,7 @@ def test_cli_config_reproduce_policy_resume_on_a_users_factory(tmp_path, capsys)
 
 
 def test_render_a_dm_control_environment_between_its_control_steps():
-    from rmac_mj.videos.render import render_episode
+    from rmac_mj.videos import render_episode
 
     env = envs.load(
         "dm_control:cartpole/swingup",
@@ -613,12 +618,12 @@ def test_render_a_dm_control_environment_between_its_control_steps():
 
 
 def test_cli_optimal_and_bench_on_an_outside_environment(capsys):
-    from rmac_mj.bench import bench
+    from rmac_mj.bench import step_costs
     from rmac_mj.cli import main
 
     assert main(["optimal", "--env", "gymnasium:Pendulum-v1"]) == 2
     assert "no near-optimal return for gymnasium:Pendulum-v1" in capsys.readouterr().err
-    costs = bench.step_costs(20, 1, env="gymnasium:Pendulum-v1")
+    costs = step_costs(20, 1, env="gymnasium:Pendulum-v1")
     assert costs["raw_step"] == "the environment's own step (Gymnasium)"
     assert all(0 < costs[key] < float("inf") for key in ("physics_step_us", "env_step_us"))
 

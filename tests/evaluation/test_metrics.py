@@ -5,13 +5,23 @@ import json
 import numpy as np
 import pytest
 
-from rmac_mj.evaluation import metrics, report
-from rmac_mj.results import files
+from rmac_mj.evaluation import (
+    compare_final_returns,
+    confidence_interval,
+    first_reaching,
+    minutes_to_within,
+    report,
+    stuck_threshold,
+    summarise,
+    trials_in,
+    within_optimal,
+)
+from rmac_mj.results import write_atomic, write_json, write_npz
 
 
 def test_confidence_interval_by_hand():
     samples = np.array([[1.0, 10.0], [2.0, 10.0], [3.0, 10.0], [6.0, 10.0]])
-    mean, low, high = metrics.confidence_interval(samples)
+    mean, low, high = confidence_interval(samples)
     # column 0: mean 3, sample std sqrt(14/3), t(0.975, 3) = 3.182446305284263
     half = 3.182446305284263 * np.sqrt(14 / 3) / 2
     np.testing.assert_allclose(mean, [3.0, 10.0])
@@ -20,7 +30,7 @@ def test_confidence_interval_by_hand():
 
 
 def test_confidence_interval_of_one_sample_is_undefined():
-    mean, low, high = metrics.confidence_interval(np.array([[4.0, 5.0]]))
+    mean, low, high = confidence_interval(np.array([[4.0, 5.0]]))
     np.testing.assert_array_equal(mean, [4.0, 5.0])
     assert np.all(np.isnan(low)) and np.all(np.isnan(high))
 
@@ -28,11 +38,11 @@ def test_confidence_interval_of_one_sample_is_undefined():
 def test_minutes_to_within_ten_percent_of_final_level():
     curve = np.concatenate([np.full(20, -3000.0), np.full(10, -1150.0), np.full(70, -1000.0)])
     # final level -1000; -1150 is 15% away, so the first trial within 10% is trial 31 (1.55 min)
-    assert metrics.minutes_to_within(curve, trial_seconds=3.0) == pytest.approx(31 * 3 / 60)
+    assert minutes_to_within(curve, trial_seconds=3.0) == pytest.approx(31 * 3 / 60)
     # The trial length is the task's: trials of 0.2 s put trial 31 at 6.2 s.
-    assert metrics.minutes_to_within(curve, trial_seconds=0.2) == pytest.approx(31 * 0.2 / 60)
+    assert minutes_to_within(curve, trial_seconds=0.2) == pytest.approx(31 * 0.2 / 60)
     with pytest.raises(ValueError, match="trial_seconds"):
-        metrics.minutes_to_within(curve, trial_seconds=0.0)
+        minutes_to_within(curve, trial_seconds=0.0)
 
 
 def test_summary_keys_shapes_and_stuck_count():
@@ -40,9 +50,7 @@ def test_summary_keys_shapes_and_stuck_count():
     returns = np.vstack([np.linspace(-3000, -1000, 300), np.linspace(-3000, -1800, 300)])
     returns = returns + rng.normal(0, 1, returns.shape)
     greedy = np.array([[-2000.0, -900.0], [-2500.0, -1700.0]])
-    summary = metrics.summarise(
-        returns, greedy, [100, 200], optimal_return=-800.0, trial_seconds=3.0
-    )
+    summary = summarise(returns, greedy, [100, 200], optimal_return=-800.0, trial_seconds=3.0)
     assert summary["experiments"] == 2 and summary["trials"] == 300
     for key in ("mean_return_per_trial", "ci95_low_per_trial", "ci95_high_per_trial"):
         assert len(summary[key]) == 300
@@ -58,21 +66,21 @@ def test_summary_keys_shapes_and_stuck_count():
 
 def test_greedy_trial_within_reaches_the_levels_of_issue_23():
     # -748 is the swing-up's near-optimal return: within 20% is -897.6, within 10% -822.8
-    assert metrics.within_optimal(-748.0, 0.2) == pytest.approx(-897.6)
-    assert metrics.within_optimal(-748.0, 0.1) == pytest.approx(-822.8)
+    assert within_optimal(-748.0, 0.2) == pytest.approx(-897.6)
+    assert within_optimal(-748.0, 0.1) == pytest.approx(-822.8)
     greedy = np.array([[-1000.0, -870.0, -850.0, -700.0], [-900.0, -860.0, -800.0, -940.0]])
     trials = [2, 4, 6, 8]
     # mean greedy -950, -865, -825, -820: -897.6 first at trial 4, -822.8 first at trial 8 (the
     # single experiment above -822.8 at trial 6 does not count: the mean does)
-    assert metrics.first_reaching(greedy.mean(axis=0), trials, -897.6) == 4
-    assert metrics.first_reaching(greedy.mean(axis=0), trials, -822.8) == 8
-    assert metrics.first_reaching(greedy.mean(axis=0), trials, -825.0) == 6  # at the level counts
-    assert metrics.first_reaching(greedy.mean(axis=0), trials, -800.0) is None
-    summary = metrics.summarise(
+    assert first_reaching(greedy.mean(axis=0), trials, -897.6) == 4
+    assert first_reaching(greedy.mean(axis=0), trials, -822.8) == 8
+    assert first_reaching(greedy.mean(axis=0), trials, -825.0) == 6  # at the level counts
+    assert first_reaching(greedy.mean(axis=0), trials, -800.0) is None
+    summary = summarise(
         np.full((2, 8), -1000.0), greedy, trials, optimal_return=-748.0, trial_seconds=3.0
     )
     assert summary["greedy_trial_within_20pct"] == 4 and summary["greedy_trial_within_10pct"] == 8
-    assert "greedy_trial_within_10pct" not in metrics.summarise(
+    assert "greedy_trial_within_10pct" not in summarise(
         np.full((2, 8), -1000.0), greedy, trials, trial_seconds=3.0
     )
 
@@ -80,27 +88,27 @@ def test_greedy_trial_within_reaches_the_levels_of_issue_23():
 def test_first_minutes_and_stuck_follow_the_task_and_the_reference():
     returns = np.tile(np.arange(1.0, 401.0), (2, 1)) * -1.0
     # 6 s trials: the first 10 minutes are 100 trials; 0.05 s x 60 = 3 s trials: 200.
-    six = metrics.summarise(returns, trial_seconds=6.0)
+    six = summarise(returns, trial_seconds=6.0)
     assert six["first_10min_trials"] == 100
     assert six["mean_return_first_10min"] == pytest.approx(-50.5)
-    assert metrics.trials_in(10, 0.05 * 60) == 200 and metrics.trials_in(10, 0.03 * 100) == 200
+    assert trials_in(10, 0.05 * 60) == 200 and trials_in(10, 0.03 * 100) == 200
     assert six["minutes_to_90pct"] == pytest.approx(
-        metrics.minutes_to_within(returns[0], window=50, trial_seconds=6.0)
+        minutes_to_within(returns[0], window=50, trial_seconds=6.0)
     )
     assert six["stuck_below"] is None and six["stuck_experiments"] is None  # no reference
-    assert metrics.stuck_threshold(-748.0) == -1496.0 and metrics.stuck_threshold(10.0) == 0.0
+    assert stuck_threshold(-748.0) == -1496.0 and stuck_threshold(10.0) == 0.0
 
 
 def test_write_atomic_leaves_nothing_behind_on_failure(tmp_path):
     target = tmp_path / "file.json"
-    files.write_json(target, {"a": 1})
+    write_json(target, {"a": 1})
 
     def fail(handle):
         handle.write(b"half")
         raise RuntimeError("killed")
 
     with pytest.raises(RuntimeError):
-        files.write_atomic(target, fail)
+        write_atomic(target, fail)
     assert json.loads(target.read_text()) == {"a": 1}
     assert [p.name for p in tmp_path.iterdir()] == ["file.json"]
 
@@ -113,8 +121,8 @@ def test_result_files_honour_the_umask(tmp_path):
     old = os.umask(0o022)
     try:
         paths = [
-            files.write_json(tmp_path / "a.json", {"x": 1}),
-            files.write_npz(tmp_path / "b.npz", x=np.zeros(2)),
+            write_json(tmp_path / "a.json", {"x": 1}),
+            write_npz(tmp_path / "b.npz", x=np.zeros(2)),
         ]
     finally:
         os.umask(old)
@@ -123,7 +131,7 @@ def test_result_files_honour_the_umask(tmp_path):
         assert mode == 0o644, oct(mode)  # group- and other-readable, like open(path, "w")
     old = os.umask(0o077)
     try:
-        private = files.write_json(tmp_path / "c.json", {"x": 1})
+        private = write_json(tmp_path / "c.json", {"x": 1})
     finally:
         os.umask(old)
     assert stat.S_IMODE(private.stat().st_mode) == 0o600
@@ -144,18 +152,18 @@ def test_final_returns_are_compared_with_welchs_t_test():
         -950 + rng.normal(0, 10, 8),
         -990 + rng.normal(0, 60, 12),
     )  # unequal spreads and sizes
-    (test,) = metrics.compare_final_returns({"rmac": rmac, "s-ac": sac})
+    (test,) = compare_final_returns({"rmac": rmac, "s-ac": sac})
     assert test["p_value"] == pytest.approx(_welch_p_by_hand(rmac, sac), rel=1e-9)
     assert test["p_value"] < 0.05 and test["better"] == "rmac"
     assert "rmac better than s-ac" in report.describe_test(test)
-    close = metrics.compare_final_returns(
+    close = compare_final_returns(
         {"rmac": [-943.0, -990.0, -1010.0, -960.0], "s-ac": [-950.0, -930.0, -1000.0, -940.0]}
     )[0]
     assert close["p_value"] > 0.05 and close["better"] is None
     assert "not significant (p = " in report.describe_test(close)
-    single = metrics.compare_final_returns({"rmac": [-900.0], "s-ac": [-950.0, -940.0]})[0]
+    single = compare_final_returns({"rmac": [-900.0], "s-ac": [-950.0, -940.0]})[0]
     assert single["p_value"] is None and "no test possible" in report.describe_test(single)
-    assert metrics.compare_final_returns({"rmac": rmac}) == []
+    assert compare_final_returns({"rmac": rmac}) == []
 
 
 def test_summary_table_states_significance_and_warns_of_few_experiments():
@@ -165,8 +173,8 @@ def test_summary_table_states_significance_and_warns_of_few_experiments():
 
     def summary(n):
         return {
-            "rmac": metrics.summarise(-950 + rng.normal(0, 30, (n, 60)), trial_seconds=3.0),
-            "s-ac": metrics.summarise(-990 + rng.normal(0, 30, (n, 60)), trial_seconds=3.0),
+            "rmac": summarise(-950 + rng.normal(0, 30, (n, 60)), trial_seconds=3.0),
+            "s-ac": summarise(-990 + rng.normal(0, 30, (n, 60)), trial_seconds=3.0),
         }
 
     small, large = summary_table(summary(4)), summary_table(summary(5))

@@ -11,13 +11,18 @@ import pytest
 
 from rmac_mj import tasks
 from rmac_mj.agents import make_agent
-from rmac_mj.bench import bench
-from rmac_mj.evaluation import report
-from rmac_mj.experiments import runner
-from rmac_mj.experiments.protocol import Protocol
-from rmac_mj.figures import policy_plots
-from rmac_mj.results.snapshots import load_snapshot
-from rmac_mj.results.store import ResultStore
+from rmac_mj.bench import (
+    env_step_us,
+    format_table,
+    learner_step_us,
+    llr_query_insert_us,
+    physics_step_us,
+    step_costs,
+)
+from rmac_mj.evaluation import summary_table
+from rmac_mj.experiments import Protocol, run_protocol
+from rmac_mj.figures import policy_slice
+from rmac_mj.results import ResultStore, load_snapshot
 from rmac_mj.rollout import (
     action_space_of,
     n_sub_steps,
@@ -27,7 +32,8 @@ from rmac_mj.rollout import (
     steps_per_trial,
     trial_seconds,
 )
-from rmac_mj.videos import render
+from rmac_mj.videos import draw_overlay, render_episode
+from rmac_mj.videos.render import short_label  # the overlay's own label parsing
 
 TINY = dict(
     domain="toy",
@@ -80,7 +86,7 @@ def test_runner_summary_and_figure_use_the_tasks_trial_length(toy, tmp_path, mon
 
     monkeypatch.setattr(optimum, "run_optimum", lambda protocol, log=None: -1.0)
     protocol = Protocol(**TINY)
-    summary = runner.run_protocol(protocol, tmp_path, jobs=1, progress=False, references=True)
+    summary = run_protocol(protocol, tmp_path, jobs=1, progress=False, references=True)
     on_disk = json.loads((tmp_path / "summary.json").read_text())
     assert on_disk["trial_seconds"] == pytest.approx(0.2)
     for algorithm in ("rmac", "s-ac"):
@@ -93,7 +99,7 @@ def test_runner_summary_and_figure_use_the_tasks_trial_length(toy, tmp_path, mon
         assert row["stuck_below"] == -2.0 and row["stuck_experiments"] == 2  # the toy costs more
         assert len(row["greedy_return_per_eval"]) == 3
     assert (tmp_path / "fig2_learning_curves.png").is_file()
-    assert "one trial = 0.2 s" in report.summary_table(summary)
+    assert "one trial = 0.2 s" in summary_table(summary)
     agent, meta = load_snapshot(ResultStore(tmp_path).snapshot_path("rmac", 1, 3))
     assert (meta["domain"], meta["task"]) == ("toy", "settle") and agent.vertices.shape == (4, 2)
     env = protocol.make_environment()
@@ -113,7 +119,7 @@ def test_the_runner_asks_the_task_for_what_it_declares(toy, tmp_path):
         prior="demo",
         prior_trials=2,
     )
-    summary = runner.run_protocol(
+    summary = run_protocol(
         protocol, tmp_path, jobs=1, progress=False, figures=False, references=True
     )
     assert summary["plot_hints"] == {"return_margin": 0.5}
@@ -156,7 +162,7 @@ def test_policy_maps_slice_through_the_anchor_over_the_tasks_box(toy):
     learner_state = env.task.learner_state
     anchor = np.array([0.5, 0.25, 1.5, -0.5])
     agent = Recorder((1, 3))
-    xs, ys, actions, values = policy_plots.policy_slice(
+    xs, ys, actions, values = policy_slice(
         agent, learner_state.low, learner_state.high, anchor, dims=(1, 3), resolution=(5, 4)
     )
     np.testing.assert_allclose(xs, np.linspace(-1, 1, 5))
@@ -167,25 +173,23 @@ def test_policy_maps_slice_through_the_anchor_over_the_tasks_box(toy):
     np.testing.assert_allclose(actions[..., 0], np.tile(xs, (4, 1)))  # x axis: dims[0]
     np.testing.assert_allclose(actions[..., 1], np.tile(ys[:, None], (1, 5)))
     with pytest.raises(ValueError, match="dims"):
-        policy_plots.policy_slice(agent, learner_state.low, learner_state.high, anchor, dims=(2, 2))
+        policy_slice(agent, learner_state.low, learner_state.high, anchor, dims=(2, 2))
 
 
 def test_episode_render_records_the_tasks_state_and_action(toy):
     env = tasks.load("toy", "settle", task_kwargs={"start_noise": 0.0})  # every episode alike
     policy = lambda x: np.array([5.0, -0.5])  # noqa: E731 - the torque saturates at 1 N m
-    coarse = render.render_episode(env, policy=policy, width=64, height=48, overlay=False)
-    fine = render.render_episode(
-        env, policy=policy, width=64, height=48, frames_per_step=2, overlay=False
-    )
+    coarse = render_episode(env, policy=policy, width=64, height=48, overlay=False)
+    fine = render_episode(env, policy=policy, width=64, height=48, frames_per_step=2, overlay=False)
     assert coarse.states.shape == (11, 4) and coarse.actions.shape == (11, 2)
     np.testing.assert_array_equal(coarse.actions[1:], np.tile([1.0, -0.5], (10, 1)))
     assert fine.states.shape == (21, 4) and fine.fps == pytest.approx(100.0)
     np.testing.assert_array_equal(fine.states[::2], coarse.states)
     assert coarse.state_labels == env.task.learner_state.labels
     assert coarse.total_return == pytest.approx(run_trial(env, _PolicyAgent(policy), learn=False))
-    text = render.draw_overlay(coarse)
+    text = draw_overlay(coarse)
     assert np.any(text != coarse.frames)
-    assert render.short_label("cart speed v [m/s]") == ("v", "m/s")
+    assert short_label("cart speed v [m/s]") == ("v", "m/s")
 
 
 class _PolicyAgent:
@@ -202,14 +206,14 @@ class _PolicyAgent:
 def test_bench_measures_the_tasks_own_control_step(toy):
     on = {"domain": "toy", "task": "settle"}
     for value in (
-        bench.physics_step_us(20, 1, **on),
-        bench.env_step_us(20, 1, **on),
-        bench.llr_query_insert_us(20, 1, **on),
-        bench.learner_step_us("rmac", 1, warmup_trials=2, **on),
-        bench.learner_step_us("s-ac", 1, warmup_trials=2, **on),
+        physics_step_us(20, 1, **on),
+        env_step_us(20, 1, **on),
+        llr_query_insert_us(20, 1, **on),
+        learner_step_us("rmac", 1, warmup_trials=2, **on),
+        learner_step_us("s-ac", 1, warmup_trials=2, **on),
     ):
         assert np.isfinite(value) and value > 0
-    costs = bench.step_costs(20, 1, **on)
+    costs = step_costs(20, 1, **on)
     assert costs["physics_step_us"] > 0 and costs["env_step_us"] > 0
     report = {
         **costs,
@@ -240,7 +244,7 @@ def test_bench_measures_the_tasks_own_control_step(toy):
         "n_sub_steps": 2,
         "state_dim": 4,
     }
-    table = bench.format_table(report)
+    table = format_table(report)
     assert (
         "(2 x mj_step)" in table and "toy/settle: control step 0.02 s" in table and "n=4" in table
     )

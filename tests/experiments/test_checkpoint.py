@@ -8,11 +8,9 @@ import pathlib
 import numpy as np
 import pytest
 
+from rmac_mj.experiments import ExperimentSpec, Protocol, run_experiment, runner
 from rmac_mj.experiments import checkpoint as checkpoints
-from rmac_mj.experiments import runner
-from rmac_mj.experiments.experiment_loop import ExperimentSpec, run_experiment
-from rmac_mj.experiments.protocol import Protocol
-from rmac_mj.results.store import ResultStore
+from rmac_mj.results import ResultStore
 
 SLIDER = f"{pathlib.Path(__file__).parents[1] / 'envs' / 'test_envs.py'}:make_slider"
 
@@ -183,7 +181,7 @@ def test_a_directory_written_before_env_steps_were_counted_still_resumes_and_sum
 
 
 def test_fig2_reads_against_environment_steps_and_refuses_a_summary_without_them(tmp_path):
-    from rmac_mj.figures import plots
+    from rmac_mj.figures import learning_curves_figure
 
     protocol = Protocol(
         env=SLIDER,
@@ -197,7 +195,7 @@ def test_fig2_reads_against_environment_steps_and_refuses_a_summary_without_them
         snapshot_trials=(),
     )
     summary = runner.run_protocol(protocol, tmp_path, jobs=1, progress=False, figures=False)
-    figure = plots.learning_curves_figure({"run": summary}, x_axis="env_steps")
+    figure = learning_curves_figure({"run": summary}, x_axis="env_steps")
     line = figure.axes[0].get_lines()[0]
     np.testing.assert_array_equal(line.get_xdata(), summary["s-ac"]["env_steps_per_trial"])
     assert figure.axes[0].get_xlabel() == "environment steps"
@@ -210,5 +208,5 @@ def test_fig2_reads_against_environment_steps_and_refuses_a_summary_without_them
         },
     }
     with pytest.raises(ValueError, match="holds no environment steps"):
-        plots.learning_curves_figure({"run": older}, x_axis="env_steps")
-    plots.learning_curves_figure({"run": older})  # against minutes, as before
+        learning_curves_figure({"run": older}, x_axis="env_steps")
+    learning_curves_figure({"run": older})  # against minutes, as before

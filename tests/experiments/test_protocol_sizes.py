@@ -9,9 +9,8 @@ import sys
 import pytest
 
 from rmac_mj import constraints
-from rmac_mj.agents.planning import Planning, Replay
-from rmac_mj.experiments import admission
-from rmac_mj.experiments.protocol import Protocol
+from rmac_mj.agents import Planning, Replay
+from rmac_mj.experiments import Protocol, TaskFacts, check_memory
 
 
 @pytest.mark.parametrize(
@@ -69,9 +68,9 @@ def test_the_memory_check_counts_the_planning_model():
         without = memory_estimate(algorithm, S, U)
         planning = {"planning": {"steps": 30, "model_capacity": 10**8}}
         assert memory_estimate(algorithm, S, U, planning) > without + 10**8 * 8 * 7
-    facts = admission.TaskFacts()
+    facts = TaskFacts()
     protocol = Protocol(
         algorithms=("s-ac",), agent_configs={"s-ac": {"planning": planning["planning"]}}
     )
     with pytest.raises(ValueError, match="needs about"):
-        admission.check_memory([protocol], 1, facts, available=4 * 2**30)
+        check_memory([protocol], 1, facts, available=4 * 2**30)

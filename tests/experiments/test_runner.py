@@ -11,14 +11,17 @@ import time
 import numpy as np
 import pytest
 
-from rmac_mj.experiments import near_optimal_service, runner
+from rmac_mj.experiments import (
+    ExperimentSpec,
+    NearOptimalService,
+    Progress,
+    Protocol,
+    TrialFeed,
+    run_experiment,
+    run_protocol,
+)
 from rmac_mj.experiments import progress as progress_module
-from rmac_mj.experiments.experiment_loop import ExperimentSpec, run_experiment
-from rmac_mj.experiments.progress import Progress, TrialFeed
-from rmac_mj.experiments.protocol import Protocol
-from rmac_mj.results.run_identity import ResumeRefused
-from rmac_mj.results.snapshots import load_snapshot
-from rmac_mj.results.store import ResultStore
+from rmac_mj.results import ResultStore, ResumeRefused, load_snapshot
 from rmac_mj.rollout import run_trial
 
 TINY = dict(algorithms=("s-ac",), experiments=2, trials=4, snapshot_trials=(1, 2), evaluate_every=2)
@@ -39,7 +42,7 @@ def test_tiny_protocol_end_to_end(tmp_path, monkeypatch):
         optimum, "run_exploration_floor", lambda protocol, algorithm, log=None: -950.0
     )
     protocol = Protocol(**TINY)
-    summary = runner.run_protocol(protocol, tmp_path, jobs=1, progress=False, references=True)
+    summary = run_protocol(protocol, tmp_path, jobs=1, progress=False, references=True)
     for name in (
         "config.json",
         "summary.json",
@@ -93,8 +96,8 @@ def test_serial_and_parallel_runs_are_identical(tmp_path):
     protocol = Protocol(
         **{**TINY, "algorithms": algorithms}, agent_configs={"sb3-sac": quick_config("sb3-sac")}
     )
-    runner.run_protocol(protocol, tmp_path / "serial", jobs=1, progress=False, figures=False)
-    runner.run_protocol(protocol, tmp_path / "parallel", jobs=2, progress=False, figures=False)
+    run_protocol(protocol, tmp_path / "serial", jobs=1, progress=False, figures=False)
+    run_protocol(protocol, tmp_path / "parallel", jobs=2, progress=False, figures=False)
     serial, parallel = (
         returns_of(tmp_path / "serial", protocol),
         returns_of(tmp_path / "parallel", protocol),
@@ -107,15 +110,15 @@ def test_serial_and_parallel_runs_are_identical(tmp_path):
 
 
 def test_resume_with_a_changed_config_is_refused(tmp_path):
-    runner.run_protocol(Protocol(**TINY), tmp_path, jobs=1, progress=False, figures=False)
+    run_protocol(Protocol(**TINY), tmp_path, jobs=1, progress=False, figures=False)
     with pytest.raises(ResumeRefused, match="already holds this run, finished"):
-        runner.run_protocol(Protocol(**TINY), tmp_path, jobs=1, progress=False)
+        run_protocol(Protocol(**TINY), tmp_path, jobs=1, progress=False)
     ResultStore(tmp_path).curve_path("s-ac", 1).unlink()
     with pytest.raises(ResumeRefused, match="already holds this run, unfinished; pass --resume"):
-        runner.run_protocol(Protocol(**TINY), tmp_path, jobs=1, progress=False)
+        run_protocol(Protocol(**TINY), tmp_path, jobs=1, progress=False)
     changed = Protocol(**{**TINY, "trials": 5})
     with pytest.raises(ResumeRefused, match="different config") as refusal:
-        runner.run_protocol(changed, tmp_path, jobs=1, resume=True, progress=False)
+        run_protocol(changed, tmp_path, jobs=1, resume=True, progress=False)
     assert "trials: 4 in the directory, 5 now" in str(refusal.value)  # names what differs
     assert "snapshot_trials: [1, 2, 4] in the directory, [1, 2, 5] now" in str(refusal.value)
 
@@ -123,25 +126,25 @@ def test_resume_with_a_changed_config_is_refused(tmp_path):
 def test_a_resume_adds_experiments_and_never_drops_any(tmp_path):
     grown, fresh = tmp_path / "grown", tmp_path / "fresh"
     small, large = Protocol(**TINY), Protocol(**{**TINY, "experiments": 3})
-    runner.run_protocol(small, grown, jobs=1, progress=False, figures=False)
+    run_protocol(small, grown, jobs=1, progress=False, figures=False)
     first = ResultStore(grown).curve_path("s-ac", 0).stat().st_mtime_ns
     with pytest.raises(ResumeRefused, match="already holds another run"):  # growing needs --resume
-        runner.run_protocol(large, grown, jobs=1, progress=False, figures=False)
-    summary = runner.run_protocol(large, grown, jobs=1, resume=True, progress=False, figures=False)
+        run_protocol(large, grown, jobs=1, progress=False, figures=False)
+    summary = run_protocol(large, grown, jobs=1, resume=True, progress=False, figures=False)
     assert ResultStore(grown).curve_path("s-ac", 0).stat().st_mtime_ns == first  # kept, not re-run
     config = json.loads((grown / "config.json").read_text())
     assert config["protocol"]["experiments"] == 3 and config["experiments_grown_from"] == [2]
-    whole = runner.run_protocol(large, fresh, jobs=1, progress=False, figures=False)
+    whole = run_protocol(large, fresh, jobs=1, progress=False, figures=False)
     np.testing.assert_array_equal(
         returns_of(grown, large)["s-ac"], returns_of(fresh, large)["s-ac"]
     )
     assert summary["s-ac"]["final_return_mean"] == whole["s-ac"]["final_return_mean"]
     with pytest.raises(ResumeRefused, match="never drops any"):
-        runner.run_protocol(small, grown, jobs=1, resume=True, progress=False)
+        run_protocol(small, grown, jobs=1, resume=True, progress=False)
     with pytest.raises(
         ResumeRefused, match="trials: 4 in the directory, 5 now"
     ):  # and nothing else
-        runner.run_protocol(
+        run_protocol(
             Protocol(**{**TINY, "experiments": 4, "trials": 5}),
             grown,
             jobs=1,
@@ -247,11 +250,11 @@ def test_protocol_validation_names_the_parameter():
 def test_dask_scheduler_path_matches_local_run(tmp_path):
     distributed = pytest.importorskip("distributed")
     protocol = Protocol(**TINY)
-    runner.run_protocol(protocol, tmp_path / "local", jobs=1, progress=False, figures=False)
+    run_protocol(protocol, tmp_path / "local", jobs=1, progress=False, figures=False)
     with distributed.LocalCluster(
         n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
     ) as cluster:
-        runner.run_protocol(
+        run_protocol(
             protocol,
             tmp_path / "dask",
             scheduler=cluster.scheduler_address,
@@ -324,7 +327,7 @@ def test_every_result_file_is_readable_by_others(tmp_path):
     )
     old = os.umask(0o022)
     try:
-        runner.run_protocol(protocol, tmp_path, jobs=1, progress=False)
+        run_protocol(protocol, tmp_path, jobs=1, progress=False)
     finally:
         os.umask(old)
     files = [p for p in tmp_path.rglob("*") if p.is_file()]
@@ -455,7 +458,7 @@ def _fake_near_optimal(protocol, announce):
 
 def test_the_near_optimal_returns_are_computed_in_a_process_of_their_own():
     messages = []
-    service = near_optimal_service.NearOptimalService(
+    service = NearOptimalService(
         [Protocol(**TINY), None], messages.append, background=True, compute=_fake_near_optimal
     )
     try:
@@ -490,12 +493,10 @@ def test_compiling_says_what_and_how_long_while_it_lasts(monkeypatch):
 
 def test_a_resumed_run_reports_the_wall_time_of_all_its_parts(tmp_path):
     protocol = Protocol(**TINY)
-    first = runner.run_protocol(protocol, tmp_path, jobs=1, progress=False, figures=False)
+    first = run_protocol(protocol, tmp_path, jobs=1, progress=False, figures=False)
     assert first["wall_time_parts_s"] == [first["wall_time_s"]] and first["wall_time_s"] > 0
     ResultStore(tmp_path).curve_path("s-ac", 1).unlink()  # as if killed before the last experiment
-    resumed = runner.run_protocol(
-        protocol, tmp_path, jobs=1, resume=True, progress=False, figures=False
-    )
+    resumed = run_protocol(protocol, tmp_path, jobs=1, resume=True, progress=False, figures=False)
     parts = resumed["wall_time_parts_s"]
     assert len(parts) == 2 and parts[0] == pytest.approx(first["wall_time_s"], abs=0.5)
     assert resumed["wall_time_s"] == pytest.approx(sum(parts))

@@ -5,8 +5,8 @@ scales with the greedy trajectory."""
 import numpy as np
 import pytest
 
-from rmac_mj.evaluation import metrics, report
-from rmac_mj.figures import plots, policy_plots
+from rmac_mj.evaluation import summarise, summary_table
+from rmac_mj.figures import greedy_trajectory, plots, policies_figure
 
 
 def old_summary(trial_seconds: float, trials: int = 4) -> dict:
@@ -67,7 +67,7 @@ def test_one_summary_names_its_trial_length_and_an_old_one_still_tabulates(drawn
     assert drawn[0].axes[0].get_xlabel() == "time [min] (simulated; one trial = 0.2 s)"
     greedy = [line for line in drawn[0].axes[0].get_lines() if "greedy" in line.get_label()]
     np.testing.assert_allclose(greedy[0].get_xdata(), np.array([2, 4]) * 0.2 / 60)
-    assert "one trial = 0.2 s" in report.summary_table(summary)
+    assert "one trial = 0.2 s" in summary_table(summary)
 
 
 def test_a_summary_without_trial_length_is_refused_by_name(drawn):
@@ -87,8 +87,8 @@ def _summary(n_experiments, seed=0, level=-1000.0, **protocol):
     return {
         "trial_seconds": 3.0,
         "protocol": protocol,
-        "rmac": metrics.summarise(curves, trial_seconds=3.0),
-        "s-ac": metrics.summarise(curves - 50.0, trial_seconds=3.0),
+        "rmac": summarise(curves, trial_seconds=3.0),
+        "s-ac": summarise(curves - 50.0, trial_seconds=3.0),
     }
 
 
@@ -204,7 +204,7 @@ def _pendulum():
 
 def test_side_by_side_policies_share_their_colour_scales():
     _, learner_state = _pendulum()
-    fig = policy_plots.policies_figure(
+    fig = policies_figure(
         [(_MapAgent(10.0), {"algorithm": "rmac"}), (_MapAgent(1000.0), {"algorithm": "s-ac"})],
         learner_state,
         anchor=[np.pi, 0.0],
@@ -225,13 +225,13 @@ def test_the_greedy_trajectory_is_drawn_from_the_start_state():
     from scripted import energy_pump_agent  # tests/ is on sys.path
 
     env, learner_state = _pendulum()
-    states, total = policy_plots.greedy_trajectory(env, energy_pump_agent())
+    states, total = greedy_trajectory(env, energy_pump_agent())
     assert states.shape == (11, 2) and total < 0
     np.testing.assert_allclose(states[0], [-np.pi, 0.0])
     agent = _MapAgent(1.0)
     agent.begin_greedy_trial = lambda: None
     agent.greedy_action = lambda x: np.array([3.0])
-    fig = policy_plots.policies_figure(
+    fig = policies_figure(
         [(agent, {"algorithm": "rmac"})],
         learner_state,
         anchor=[np.pi, 0.0],

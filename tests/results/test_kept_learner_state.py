@@ -11,10 +11,8 @@ import shutil
 import numpy as np
 import pytest
 
-from rmac_mj.experiments import runner
-from rmac_mj.experiments.experiment_loop import ExperimentSpec, run_experiment
-from rmac_mj.experiments.protocol import Protocol
-from rmac_mj.results.store import ResultStore
+from rmac_mj.experiments import ExperimentSpec, Protocol, run_experiment, run_protocol
+from rmac_mj.results import ResultStore
 
 SNAPSHOT = "snapshots/s-ac/exp_001/trial_0002.npz"
 TINY = dict(algorithms=("s-ac",), experiments=2, trials=4, snapshot_trials=(1, 2), evaluate_every=2)
@@ -76,7 +74,7 @@ LEARNER_STATE = {
 @pytest.fixture(scope="module")
 def finished(tmp_path_factory) -> pathlib.Path:
     out = tmp_path_factory.mktemp("finished") / "run"
-    runner.run_protocol(Protocol(**TINY), out, jobs=1, progress=False, figures=False)
+    run_protocol(Protocol(**TINY), out, jobs=1, progress=False, figures=False)
     return out
 
 
@@ -89,7 +87,7 @@ def test_a_snapshot_the_learner_would_refuse_is_redone_equal(finished, tmp_path,
     change, named = LEARNER_STATE[damage]
     change(out / SNAPSHOT)
     said = []
-    runner.run_protocol(
+    run_protocol(
         Protocol(**TINY), out, jobs=1, resume=True, progress=False, figures=False, log=said.append
     )
     redone = [line for line in said if "run again" in line]

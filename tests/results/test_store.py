@@ -18,11 +18,8 @@ import numpy as np
 import pytest
 
 from rmac_mj.cli import main
-from rmac_mj.experiments import admission, runner
-from rmac_mj.experiments.experiment import experiment_seeds
-from rmac_mj.experiments.protocol import Protocol
-from rmac_mj.results import files
-from rmac_mj.results.store import ResultStore
+from rmac_mj.experiments import Protocol, admission, experiment_seeds, run_protocol
+from rmac_mj.results import ResultStore, files
 
 TINY = dict(algorithms=("s-ac",), experiments=2, trials=4, snapshot_trials=(1, 2), evaluate_every=2)
 CLI = [
@@ -56,7 +53,7 @@ def arrays_of(out: pathlib.Path) -> dict[str, dict[str, np.ndarray]]:
 def finished(tmp_path_factory) -> pathlib.Path:
     """One finished tiny run, copied by the tests that damage it."""
     out = tmp_path_factory.mktemp("finished") / "run"
-    runner.run_protocol(Protocol(**TINY), out, jobs=1, progress=False, figures=False)
+    run_protocol(Protocol(**TINY), out, jobs=1, progress=False, figures=False)
     return out
 
 
@@ -240,7 +237,7 @@ def test_a_damaged_file_is_found_and_its_experiment_redone_equal(finished, tmp_p
     shutil.copytree(finished, out)
     DAMAGE[damage](out)
     said = []
-    summary = runner.run_protocol(
+    summary = run_protocol(
         Protocol(**TINY), out, jobs=1, resume=True, progress=False, figures=False, log=said.append
     )
     redone = [line for line in said if "run again" in line]  # (a first run also says it compiles)
@@ -267,10 +264,10 @@ def test_a_failure_while_summarising_leaves_no_summary_to_trust(finished, tmp_pa
 
     monkeypatch.setattr(plots, "plot_learning_curves", broken)
     with pytest.raises(RuntimeError, match="the figure failed"):
-        runner.run_protocol(Protocol(**TINY), out, jobs=1, resume=True, progress=False)
+        run_protocol(Protocol(**TINY), out, jobs=1, resume=True, progress=False)
     assert not (out / "summary.json").exists()
     monkeypatch.undo()
-    runner.run_protocol(Protocol(**TINY), out, jobs=1, resume=True, progress=False, figures=False)
+    run_protocol(Protocol(**TINY), out, jobs=1, resume=True, progress=False, figures=False)
     assert (out / "summary.json").exists()
 
 
@@ -334,7 +331,7 @@ def test_a_memory_no_machine_holds_is_refused_from_its_estimate(tmp_path, capsys
 
 def test_the_resolved_hyperparameters_of_every_learner_are_in_the_config(tmp_path):
     protocol = Protocol(algorithms=("rmac",), experiments=1, trials=1)
-    runner.run_protocol(protocol, tmp_path, jobs=1, progress=False, figures=False)
+    run_protocol(protocol, tmp_path, jobs=1, progress=False, figures=False)
     agents = json.loads((tmp_path / "config.json").read_text())["agents"]
     assert agents["rmac"]["critic_weights"] == [1.0, 0.1]  # None in the config: the task's
 

@@ -9,10 +9,8 @@ import numpy as np
 import pytest
 
 from rmac_mj import tasks
+from rmac_mj.solvers import OptimalConfig, exploration_floor, problem_identity
 from rmac_mj.solvers import dynamic_programming as optimal
-from rmac_mj.solvers import exploration_floor
-from rmac_mj.solvers.dynamic_programming_config import OptimalConfig
-from rmac_mj.solvers.problem import problem_identity
 
 # Coarse enough for a unit test; the converged default is about -748 (docs/optimal.md).
 _COARSE = OptimalConfig(
@@ -217,9 +215,9 @@ def test_exploration_floor_is_cached_per_schedule(tmp_path):
 
 
 def test_the_old_module_path_keeps_its_public_names():
-    from rmac_mj.solvers import dynamic_programming_config, dynamic_programming_grid
+    from rmac_mj.solvers import OptimalConfig, dynamic_programming_grid
 
-    assert optimal.OptimalConfig is dynamic_programming_config.OptimalConfig
+    assert optimal.OptimalConfig is OptimalConfig
     for name in (
         "Problem",
         "action_set",

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from rmac_mj import tasks
+from rmac_mj.solvers import OptimalConfig
 from rmac_mj.solvers import dynamic_programming_grid as dp_grid
-from rmac_mj.solvers.dynamic_programming_config import OptimalConfig
 
 
 def problem() -> dp_grid.Problem:

@@ -8,8 +8,14 @@ import numpy as np
 import pytest
 
 from rmac_mj import cli, tasks
-from rmac_mj.solvers import optimum, problem, trajopt
-from rmac_mj.solvers.trajopt_config import TrajoptConfig
+from rmac_mj.solvers import (
+    TrajoptConfig,
+    has_optimum,
+    optimum_result,
+    optimum_return,
+    problem_identity,
+    trajopt,
+)
 
 #: The pendulum's DP reference (docs/optimal.md): the greedy policy's return on the default grid.
 PENDULUM_DP = -748.14
@@ -47,7 +53,7 @@ def test_arm_reference_replayed_in_the_task_gives_the_same_return():
 
 def test_cache_round_trip_and_key(tmp_path):
     env = tasks.load("two_link_arm", "reach")
-    arm = problem.problem_identity("two_link_arm", "reach")
+    arm = problem_identity("two_link_arm", "reach")
     first = trajopt.cached_optimise(env, arm, _TINY, cache_dir=tmp_path)
     assert not first.from_cache and len(list(tmp_path.glob("trajopt-*.json"))) == 1
     second = trajopt.cached_optimise(env, arm, _TINY, cache_dir=tmp_path)
@@ -77,11 +83,11 @@ def test_bad_config_names_the_field(field, value):
 
 
 def test_reference_registry_dispatches_and_rejects_unknown_tasks(tmp_path, monkeypatch):
-    assert optimum.has_optimum("dc_pendulum", "swingup")
-    assert optimum.has_optimum("two_link_arm", "reach")
-    assert not optimum.has_optimum("dc_pendulum", "balance")
+    assert has_optimum("dc_pendulum", "swingup")
+    assert has_optimum("two_link_arm", "reach")
+    assert not has_optimum("dc_pendulum", "balance")
     with pytest.raises(ValueError, match="no near-optimal return for dc_pendulum/balance"):
-        optimum.optimum_result("dc_pendulum", "balance")
+        optimum_result("dc_pendulum", "balance")
     calls = []
     real = trajopt.cached_optimise
 
@@ -90,7 +96,7 @@ def test_reference_registry_dispatches_and_rejects_unknown_tasks(tmp_path, monke
         return real(env, identity, _TINY, cache_dir=tmp_path, refresh=refresh)
 
     monkeypatch.setattr(trajopt, "cached_optimise", tiny)
-    value = optimum.optimum_return("two_link_arm", "reach")
+    value = optimum_return("two_link_arm", "reach")
     assert calls == [("two_link_arm", "reach")] and np.isfinite(value)
 
 
@@ -112,8 +118,8 @@ def test_cli_optimal_takes_domain_and_task(tmp_path, monkeypatch, capsys):
 
 
 def test_the_old_module_path_keeps_its_public_names():
-    from rmac_mj.solvers import ilqr, trajopt_config, trajopt_problem
+    from rmac_mj.solvers import TrajoptConfig, ilqr, trajopt_problem
 
-    assert trajopt.TrajoptConfig is trajopt_config.TrajoptConfig
+    assert trajopt.TrajoptConfig is TrajoptConfig
     assert trajopt.Problem is trajopt_problem.Problem
     assert (trajopt.box_qp, trajopt.ilqr) == (ilqr.box_qp, ilqr.ilqr)

@@ -14,7 +14,7 @@ import pytest
 
 from rmac_mj import cli
 from rmac_mj.errors import UserInputError
-from rmac_mj.sweeps import sweep, sweep_file
+from rmac_mj.sweeps import format_table, load_configuration, load_sweep, run_sweep
 
 TINY = """
 [protocol]
@@ -64,7 +64,7 @@ name = "oldest"
 "rmac.critic_replacement" = "oldest"
 """,
     )
-    plan = sweep_file.load_sweep(path)
+    plan = load_sweep(path)
     assert plan.parameters == [
         "variant",
         "rmac.exploration.sigma",
@@ -154,7 +154,7 @@ name = "oldest"
 )
 def test_a_malformed_file_names_the_key(tmp_path, text, named):
     with pytest.raises(UserInputError) as error:
-        sweep_file.load_sweep(write(tmp_path, text))
+        load_sweep(write(tmp_path, text))
     message = str(error.value)
     assert named in message and message.startswith(str(tmp_path / "sweep.toml"))
     assert "\n" not in message
@@ -167,12 +167,12 @@ STUDIES = sorted((pathlib.Path(__file__).parents[2] / "docs" / "studies").glob("
 def test_every_study_in_docs_loads(path):
     # The studies' files are commands the docs quote: a renamed config field must not leave one
     # that is refused when a reader runs it.
-    assert sweep_file.load_sweep(path).configurations
+    assert load_sweep(path).configurations
 
 
 def test_a_variant_sets_fields_that_depend_on_each_other(tmp_path):
     # Each key is checked with the variant's other values: where='uncertain' needs its threshold.
-    plan = sweep_file.load_sweep(
+    plan = load_sweep(
         write(
             tmp_path,
             """
@@ -205,7 +205,7 @@ def test_a_malformed_file_exits_2_with_one_line_before_running_anything(tmp_path
 
 
 def test_a_config_file_takes_single_values_only(tmp_path):
-    single = sweep_file.load_configuration(
+    single = load_configuration(
         write(
             tmp_path,
             """
@@ -228,11 +228,9 @@ trials = 5
         match=r'"rmac.alpha_r": lists 2 values; --config runs one '
         r"configuration",
     ):
-        sweep_file.load_configuration(write(tmp_path, '[grid]\n"rmac.alpha_r" = [0.01, 0.02]\n'))
+        load_configuration(write(tmp_path, '[grid]\n"rmac.alpha_r" = [0.01, 0.02]\n'))
     with pytest.raises(UserInputError, match="2 variants"):
-        sweep_file.load_configuration(
-            write(tmp_path, '[[variant]]\nname = "a"\n[[variant]]\nname = "b"\n')
-        )
+        load_configuration(write(tmp_path, '[[variant]]\nname = "a"\n[[variant]]\nname = "b"\n'))
 
 
 # ----------------------------------------------------------------------------------------------------
@@ -285,9 +283,7 @@ def test_tiny_sweep_killed_resumed_and_summarised(tmp_path, capsys):
             "NearOptimalService",
             lambda protocols, log, background: service(protocols, log, background=False),
         )
-        rows = sweep.run_sweep(
-            sweep_file.load_sweep(path), whole, jobs=2, progress=False, references=True
-        )
+        rows = run_sweep(load_sweep(path), whole, jobs=2, progress=False, references=True)
     resumed_curves, whole_curves = curves(killed), curves(whole)
     assert sorted(resumed_curves) == sorted(whole_curves) and len(whole_curves) == 2 * 2
     for key in whole_curves:
@@ -322,42 +318,38 @@ def test_tiny_sweep_killed_resumed_and_summarised(tmp_path, capsys):
         assert (whole / f"sweep_{metric}.png").is_file(), metric
     assert not (whole / "sweep_first_5min.png").exists()  # no window in a 9 s run: nothing drawn
     with pytest.raises(UserInputError, match="already holds a sweep"):
-        sweep.run_sweep(sweep_file.load_sweep(path), whole, jobs=1, progress=False)
+        run_sweep(load_sweep(path), whole, jobs=1, progress=False)
     other = write(tmp_path, TINY.replace("0.02]", "0.03]"), "other.toml")
     with pytest.raises(UserInputError, match="a different file"):
-        sweep.run_sweep(sweep_file.load_sweep(other), whole, jobs=1, resume=True, progress=False)
+        run_sweep(load_sweep(other), whole, jobs=1, resume=True, progress=False)
 
 
 def test_a_resumed_sweep_adds_experiments_to_every_configuration(tmp_path):
     out = tmp_path / "out"
-    sweep.run_sweep(
-        sweep_file.load_sweep(write(tmp_path, TINY)), out, jobs=1, progress=False, figures=False
-    )
+    run_sweep(load_sweep(write(tmp_path, TINY)), out, jobs=1, progress=False, figures=False)
     larger = write(tmp_path, TINY.replace("experiments = 2", "experiments = 3"), "larger.toml")
     with pytest.raises(UserInputError, match="already holds a sweep"):
-        sweep.run_sweep(sweep_file.load_sweep(larger), out, jobs=1, progress=False, figures=False)
-    rows = sweep.run_sweep(
-        sweep_file.load_sweep(larger), out, jobs=1, resume=True, progress=False, figures=False
-    )
+        run_sweep(load_sweep(larger), out, jobs=1, progress=False, figures=False)
+    rows = run_sweep(load_sweep(larger), out, jobs=1, resume=True, progress=False, figures=False)
     assert [r["experiments"] for r in rows] == [3, 3] and len(curves(out)) == 2 * 3
     index = json.loads((out / "sweep.json").read_text())
     assert index["sweep"]["protocol"]["experiments"] == 3 and index["experiments_grown_from"] == [2]
     assert (out / "sweep.toml").read_text() == larger.read_text()
     fresh = tmp_path / "fresh"
-    sweep.run_sweep(sweep_file.load_sweep(larger), fresh, jobs=1, progress=False, figures=False)
+    run_sweep(load_sweep(larger), fresh, jobs=1, progress=False, figures=False)
     grown_curves, fresh_curves = curves(out), curves(fresh)
     for key in fresh_curves:
         np.testing.assert_array_equal(grown_curves[key], fresh_curves[key])
     smaller = write(tmp_path, TINY, "smaller.toml")  # a resume never drops experiments
     with pytest.raises(UserInputError, match="a resume may only add experiments"):
-        sweep.run_sweep(sweep_file.load_sweep(smaller), out, jobs=1, resume=True, progress=False)
+        run_sweep(load_sweep(smaller), out, jobs=1, resume=True, progress=False)
     both = write(
         tmp_path,
         TINY.replace("experiments = 2", "experiments = 4").replace("trials = 3", "trials = 4"),
         "both.toml",
     )
     with pytest.raises(UserInputError, match="a different file"):
-        sweep.run_sweep(sweep_file.load_sweep(both), out, jobs=1, resume=True, progress=False)
+        run_sweep(load_sweep(both), out, jobs=1, resume=True, progress=False)
 
 
 def test_a_small_sweep_says_its_final_window_and_that_few_experiments_mean_little(
@@ -367,7 +359,7 @@ def test_a_small_sweep_says_its_final_window_and_that_few_experiments_mean_littl
     intervals of 2 experiments without a word; they carry reproduce's small-n note."""
     from rmac_mj.sweeps import figure as plots
 
-    plan = sweep_file.load_sweep(write(tmp_path, TINY))
+    plan = load_sweep(write(tmp_path, TINY))
 
     def rows(experiments):
         return [
@@ -391,7 +383,7 @@ def test_a_small_sweep_says_its_final_window_and_that_few_experiments_mean_littl
             for c in plan.configurations
         ]
 
-    few, enough = sweep.format_table(plan, rows(2)), sweep.format_table(plan, rows(5))
+    few, enough = format_table(plan, rows(2)), format_table(plan, rows(5))
     assert "final return: mean of the last 3 trials per experiment" in few
     assert "final return: mean of the last 3 trials per experiment" in enough
     assert "note: 2 experiments per learner: too few to rank the learners" in few

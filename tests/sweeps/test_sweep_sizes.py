@@ -11,7 +11,7 @@ import time
 import pytest
 
 from rmac_mj import constraints
-from rmac_mj.sweeps import sweep_file
+from rmac_mj.sweeps import SweepFileError, load_sweep
 
 MEMORIES = ("process", "reference", "critic")
 
@@ -31,8 +31,8 @@ def test_a_grid_of_a_trillion_configurations_is_refused_at_once(tmp_path):
     path.write_text(f'[protocol]\nalgorithms = ["rmac"]\n[grid]\n{grid}\n')
     heard = []
     started = time.perf_counter()
-    with pytest.raises(sweep_file.SweepFileError) as refused:
-        sweep_file.load_sweep(path, announce=heard.append)
+    with pytest.raises(SweepFileError) as refused:
+        load_sweep(path, announce=heard.append)
     assert time.perf_counter() - started < 2.0
     message = str(refused.value)
     assert f"must be at most {constraints.SWEEP_CONFIGURATIONS.value}" in message

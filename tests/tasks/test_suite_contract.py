@@ -17,7 +17,7 @@ from dm_env import test_utils
 
 from rmac_mj import tasks
 from rmac_mj.rollout import state_of, steps_per_trial, trial_seconds
-from rmac_mj.tasks.common import LearnerStateSpec
+from rmac_mj.tasks import LearnerStateSpec
 
 TOY = (toy_domain.DOMAIN, toy_domain.TASK)
 CASES = [*tasks.ALL_TASKS, TOY]

@@ -7,8 +7,8 @@ import pathlib
 import pytest
 
 from rmac_mj import tasks
-from rmac_mj.solvers import optimum
-from rmac_mj.tasks import common
+from rmac_mj.solvers import SOLVERS
+from rmac_mj.tasks import NOTHING_KNOWN, TaskKnowledge
 
 PACKAGE = pathlib.Path(__file__).resolve().parents[2] / "rmac_mj"
 
@@ -50,9 +50,9 @@ def test_nothing_outside_the_tasks_names_a_task_of_the_suite():
 @pytest.mark.parametrize("domain, task", tasks.ALL_TASKS)
 def test_every_task_declares_what_the_experiments_can_use(domain, task):
     knowledge = tasks.knowledge(domain, task)
-    assert isinstance(knowledge, common.TaskKnowledge)
+    assert isinstance(knowledge, TaskKnowledge)
     if knowledge.optimum is not None:
-        assert knowledge.optimum.method in optimum.SOLVERS
+        assert knowledge.optimum.method in SOLVERS
     env = tasks.load(domain, task, task_kwargs={"random": 0})
     for name, demonstrator in knowledge.demonstrators.items():
         controller = demonstrator.controller(env)
@@ -68,6 +68,6 @@ def test_the_default_task_and_a_task_without_knowledge():
     assert tasks.knowledge("dc_pendulum", "balance").optimum is None  # random starts
     with pytest.raises(ValueError, match="unknown task_name"):
         tasks.knowledge("dc_pendulum", "spin")
-    assert common.NOTHING_KNOWN.demonstrators == {} and common.NOTHING_KNOWN.optimum is None
+    assert NOTHING_KNOWN.demonstrators == {} and NOTHING_KNOWN.optimum is None
     with pytest.raises(ValueError, match="no demonstrator 'demo' for x; available: none"):
-        common.NOTHING_KNOWN.demonstrator("demo", "x")
+        NOTHING_KNOWN.demonstrator("demo", "x")

@@ -276,7 +276,7 @@ def test_a_tiny_reproduce_on_the_arm_end_to_end(tmp_path):
     import json
 
     from rmac_mj.cli import main
-    from rmac_mj.results.snapshots import load_snapshot
+    from rmac_mj.results import load_snapshot
 
     out = tmp_path / "arm"
     assert (

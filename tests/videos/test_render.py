@@ -10,7 +10,7 @@ import pytest
 from rmac_mj import _gl, tasks
 from rmac_mj.rollout import run_trial
 from rmac_mj.videos import encode as video
-from rmac_mj.videos import render, result_videos
+from rmac_mj.videos import render_episode, render_state, result_videos
 
 SHORT = {"time_limit": 0.3}  # 10 control steps: enough to see motion, quick to render
 
@@ -26,7 +26,7 @@ def _arm_rows(image: np.ndarray) -> np.ndarray:
 
 def test_frames_have_the_requested_size_and_are_not_blank():
     env = tasks.load("dc_pendulum", "swingup", task_kwargs=SHORT)
-    episode = render.render_episode(env, energy_pump_agent(), width=160, height=120, overlay=False)
+    episode = render_episode(env, energy_pump_agent(), width=160, height=120, overlay=False)
     assert episode.frames.shape == (11, 120, 160, 3) and episode.frames.dtype == np.uint8
     for frame in episode.frames:
         assert frame.std() > 10 and len(np.unique(frame.reshape(-1, 3), axis=0)) > 20
@@ -37,8 +37,8 @@ def test_frames_have_the_requested_size_and_are_not_blank():
 
 def test_arm_pixels_are_above_the_axis_upright_and_below_it_hanging():
     env = tasks.load("dc_pendulum", "swingup")
-    up = render.render_state(env, 0.0, width=160, height=120)
-    down = render.render_state(env, np.pi, width=160, height=120)
+    up = render_state(env, 0.0, width=160, height=120)
+    down = render_state(env, np.pi, width=160, height=120)
     rows_up, rows_down = _arm_rows(up), _arm_rows(down)
     assert len(rows_up) > 30 and len(rows_down) > 30
     assert rows_up.mean() + 10 < rows_down.mean()  # image rows grow downwards
@@ -49,8 +49,8 @@ def test_arm_pixels_are_above_the_axis_upright_and_below_it_hanging():
 def test_substep_frames_follow_the_physics_and_the_episode_is_env_step():
     env = tasks.load("dc_pendulum", "swingup", task_kwargs=SHORT)
     agent = energy_pump_agent()
-    coarse = render.render_episode(env, agent, width=64, height=48, overlay=False)
-    fine = render.render_episode(
+    coarse = render_episode(env, agent, width=64, height=48, overlay=False)
+    fine = render_episode(
         env, policy=agent.greedy_action, width=64, height=48, frames_per_step=3, overlay=False
     )
     assert fine.frames.shape[0] == 31 and fine.fps == pytest.approx(100.0)
@@ -72,8 +72,8 @@ def test_substep_frames_follow_the_physics_and_the_episode_is_env_step():
 
 def test_overlay_and_labels_draw_text():
     env = tasks.load("dc_pendulum", "swingup", task_kwargs={"time_limit": 0.03})
-    plain = render.render_episode(env, energy_pump_agent(), width=160, height=120, overlay=False)
-    text = render.render_episode(env, energy_pump_agent(), width=160, height=120, label="RMAC")
+    plain = render_episode(env, energy_pump_agent(), width=160, height=120, overlay=False)
+    text = render_episode(env, energy_pump_agent(), width=160, height=120, label="RMAC")
     differs = np.any(plain.frames[0] != text.frames[0], axis=-1)
     assert differs[:60, :40].any() and differs[:60, 100:].any()  # label top-left, numbers top-right
     assert not differs[80:].any()  # the rig below is untouched
@@ -83,11 +83,11 @@ def test_invalid_arguments_are_rejected_with_their_names():
     env = tasks.load("dc_pendulum", "swingup", task_kwargs=SHORT)
     agent = energy_pump_agent()
     with pytest.raises(ValueError, match="frames_per_step"):
-        render.render_episode(env, agent, frames_per_step=2)
+        render_episode(env, agent, frames_per_step=2)
     with pytest.raises(ValueError, match="width"):
-        render.render_episode(env, agent, width=1000)
+        render_episode(env, agent, width=1000)
     with pytest.raises(ValueError, match="exactly one of agent"):
-        render.render_episode(env, agent, policy=agent.greedy_action)
+        render_episode(env, agent, policy=agent.greedy_action)
 
 
 def _moving_square(frames: int, height: int, width: int) -> np.ndarray:
@@ -197,7 +197,7 @@ def test_missing_backend_gives_one_clear_message(monkeypatch):
     # The renderers check before touching OpenGL (here MUJOCO_GL=egl, but libEGL "cannot load").
     env = tasks.load("dc_pendulum", "swingup", task_kwargs=SHORT)
     with pytest.raises(_gl.GLBackendError, match="libosmesa6"):
-        render.render_episode(env, energy_pump_agent())
+        render_episode(env, energy_pump_agent())
 
 
 @pytest.mark.parametrize("frames_per_step", [1, 3])
@@ -207,7 +207,7 @@ def test_a_3_s_episode_plays_3_s_as_a_gif(tmp_path, frames_per_step):
     from PIL import Image
 
     env = tasks.load("dc_pendulum", "swingup")  # the paper's 3 s trial
-    episode = render.render_episode(
+    episode = render_episode(
         env,
         energy_pump_agent(),
         width=32,
@@ -236,7 +236,7 @@ def test_the_camera_frames_the_pendulum():
     """Upright and hanging, the pendulum spans most of the frame's height, centred on the axis."""
     env = tasks.load("dc_pendulum", "swingup")
     rows = np.concatenate(
-        [_arm_rows(render.render_state(env, phi, width=160, height=120)) for phi in (0.0, np.pi)]
+        [_arm_rows(render_state(env, phi, width=160, height=120)) for phi in (0.0, np.pi)]
     )
     assert rows.max() - rows.min() > 0.6 * 120
     assert 0.35 * 120 < (rows.max() + rows.min()) / 2 < 0.65 * 120

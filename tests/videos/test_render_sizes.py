@@ -9,7 +9,7 @@ from test_render import energy_pump_agent
 
 from rmac_mj import constraints, tasks
 from rmac_mj.errors import UserInputError
-from rmac_mj.videos import render
+from rmac_mj.videos import render_episode
 
 SHORT = {"time_limit": 0.3}
 
@@ -26,7 +26,7 @@ SHORT = {"time_limit": 0.3}
 def test_a_frame_size_the_model_cannot_draw_is_a_user_error(options, named):
     env = tasks.load("dc_pendulum", "swingup", task_kwargs=SHORT)
     with pytest.raises(UserInputError) as refused:
-        render.render_episode(env, energy_pump_agent(), **options)
+        render_episode(env, energy_pump_agent(), **options)
     assert str(refused.value).startswith(named)
 
 
@@ -35,7 +35,7 @@ def test_an_episode_whose_frames_cannot_be_kept_is_refused_before_the_first():
     env = tasks.load("dc_pendulum", "swingup", task_kwargs={"time_limit": 86400.0})
     started = time.perf_counter()
     with pytest.raises(UserInputError) as refused:
-        render.render_episode(env, energy_pump_agent(), width=640, height=480, frames_per_step=3)
+        render_episode(env, energy_pump_agent(), width=640, height=480, frames_per_step=3)
     assert time.perf_counter() - started < 5.0
     message = str(refused.value)
     assert f"must be at most {constraints.VIDEO_BYTES.value}" in message
