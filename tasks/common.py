@@ -1,5 +1,6 @@
 """What every task of the suite shares: the learner's view of a task, checks, environment assembly, and
-what a task declares beyond its dynamics (its reference, demonstrators, plot hints: :class:`TaskKnowledge`)."""
+what a task declares beyond its dynamics (its near-optimal return, demonstrators, plot hints:
+:class:`TaskKnowledge`)."""
 
 from __future__ import annotations
 
@@ -108,17 +109,13 @@ class LearnerStateSpec:
         if self.reward_scale is not None:
             if not (is_real(self.reward_scale) and self.reward_scale > 0):
                 raise ValueError(
-                    f"LearnerState.reward_scale must be None or a positive finite "
+                    f"LearnerStateSpec.reward_scale must be None or a positive finite "
                     f"number, got {self.reward_scale!r}"
                 )
             object.__setattr__(self, "reward_scale", float(self.reward_scale))
         for name in ("action_cost", "state_cost"):
             if getattr(self, name) is not None:
                 object.__setattr__(self, name, tuple(float(v) for v in getattr(self, name)))
-
-
-#: The older name of :class:`LearnerStateSpec` (it specifies the state; ``state_dict()`` is one).
-LearnerState = LearnerStateSpec
 
 
 def wrap_angle(angle):
@@ -307,10 +304,6 @@ class Optimum:
     settings: Mapping[str, Any] = dataclasses.field(default_factory=dict)
 
 
-#: The older name of :class:`Optimum` ("reference" is the paper's reference model M^R).
-Reference = Optimum
-
-
 @dataclasses.dataclass(frozen=True)
 class PlotHints:
     """How a task's results are drawn well.
@@ -333,8 +326,7 @@ class TaskKnowledge:
 
     Attributes:
       optimum: how its near-optimal return is computed (:class:`Optimum`), or None (with its
-        default settings: the optimum is for the task as declared). ``reference=`` and
-        ``.reference`` are its older name.
+        default settings: the optimum is for the task as declared).
       demonstrators: name -> a scripted :class:`Demonstrator` ('demo' is the one ``--prior demo``
         records).
       plot_hints: see :class:`PlotHints`.
@@ -343,15 +335,6 @@ class TaskKnowledge:
     optimum: Optimum | None = None
     demonstrators: Mapping[str, Demonstrator] = dataclasses.field(default_factory=dict)
     plot_hints: PlotHints = PlotHints()
-    reference: dataclasses.InitVar[Optimum | None] = None
-
-    def __post_init__(self, reference: Optimum | None) -> None:
-        if reference is not None:
-            if self.optimum is not None:
-                raise TypeError(
-                    "TaskKnowledge: give optimum= (reference= is its older name), not both"
-                )
-            object.__setattr__(self, "optimum", reference)
 
     def demonstrator(self, name: str, where: str = "this task") -> Demonstrator:
         """Demonstrator ``name``; ValueError listing the available ones."""
@@ -363,12 +346,6 @@ class TaskKnowledge:
             )
         return self.demonstrators[name]
 
-
-# The older name, read: ``knowledge.reference`` is ``knowledge.optimum``.
-TaskKnowledge.reference = property(
-    lambda self: self.optimum,  # type: ignore[assignment]
-    doc="The older name of ``optimum``.",
-)
 
 #: The knowledge of an environment that declares none.
 NOTHING_KNOWN = TaskKnowledge()

@@ -114,14 +114,11 @@ def swingup(
     start_noise: float = 0.0,
     random=None,
     environment_kwargs: dict[str, Any] | None = None,
-    action_weight: float | None = None,
 ) -> control.Environment:
-    """The paper's task: swing up from [pi, 0] and balance, 100 steps of 0.03 s (``action_weight``:
-    the older name of ``action_weights``)."""
+    """The paper's task: swing up from [pi, 0] and balance, 100 steps of 0.03 s."""
     task = SwingUp(
         state_weights=state_weights,
         action_weights=action_weights,
-        action_weight=action_weight,
         start_state=start_state,
         start_noise=start_noise,
         random=random,
@@ -139,13 +136,11 @@ def balance(
     start_noise: float = BALANCE_START_NOISE,
     random=None,
     environment_kwargs: dict[str, Any] | None = None,
-    action_weight: float | None = None,
 ) -> control.Environment:
     """Balance upright from a small random perturbation of the start angle; same reward."""
     task = SwingUp(
         state_weights=state_weights,
         action_weights=action_weights,
-        action_weight=action_weight,
         start_state=start_state,
         start_noise=start_noise,
         random=random,
@@ -153,11 +148,8 @@ def balance(
     return _make_environment(task, time_limit, control_timestep, environment_kwargs)
 
 
-wrap_angle = common.wrap_angle  # phi (rad, scalar or array) wrapped to [-pi, pi)
-
-
 def wrap_angle_float(phi: float) -> float:
-    """:func:`wrap_angle` of one Python float, in float arithmetic (the same IEEE operations, so the
+    """:func:`~rmac_mj.tasks.common.wrap_angle` of one Python float, in float arithmetic (the same IEEE operations, so the
     same bits as the numpy version: Python's and numpy's ``%`` both take the sign of the divisor)."""
     return (phi + math.pi) % _TWO_PI - math.pi
 
@@ -247,7 +239,9 @@ class Physics(mujoco.Physics):
         Returns:
           ndarray of shape (..., 2).
         """
-        return np.stack([wrap_angle(qpos[..., self._qpos_adr]), qvel[..., self._qvel_adr]], axis=-1)
+        return np.stack(
+            [common.wrap_angle(qpos[..., self._qpos_adr]), qvel[..., self._qvel_adr]], axis=-1
+        )
 
     def set_state_vector(self, phi: float, phi_dot: float) -> None:
         """Put the pendulum at angle ``phi`` (rad) with speed ``phi_dot`` (rad/s), at rest otherwise."""
@@ -284,26 +278,17 @@ class SwingUp(base.Task):
         start_state=SWINGUP_START,
         start_noise: float = 0.0,
         random=None,
-        action_weight: float | None = None,
     ):
         """
         Args:
           state_weights: Q, as its diagonal (2,) or a full symmetric positive semi-definite (2, 2).
           action_weights: P >= 0, the reward's action weighting (one action: a number).
-          action_weight: the older name of ``action_weights``.
           start_state: x_0 = [phi, phi_dot] of every episode (rad, rad/s).
           start_noise: half-width (rad) of a uniform perturbation of the start angle, drawn from the
             task's random state; 0 makes every episode start exactly at ``start_state``.
           random: int seed, ``numpy.random.RandomState`` or None (dm-control's convention).
         """
         q = common.quadratic_weights("state_weights", state_weights, 2)
-        if action_weight is not None:
-            if action_weights is not ACTION_WEIGHT and action_weights != action_weight:
-                raise ValueError(
-                    f"action_weight is the older name of action_weights; give one, got "
-                    f"action_weights={action_weights!r} and action_weight={action_weight!r}"
-                )
-            action_weights = action_weight
         if isinstance(action_weights, (list, tuple, np.ndarray)) and np.size(action_weights) == 1:
             action_weights = np.asarray(action_weights, dtype=float).item()
         if not (common.is_real(action_weights) and action_weights >= 0):
@@ -327,11 +312,6 @@ class SwingUp(base.Task):
     @property
     def action_weights(self) -> float:
         """P, the reward's action weighting."""
-        return self._p
-
-    @property
-    def action_weight(self) -> float:
-        """The older name of ``action_weights``."""
         return self._p
 
     def initialize_episode(self, physics: Physics) -> None:

@@ -57,7 +57,7 @@ NOMINAL_SPEED = 4 * np.pi
 SUITE = containers.TaggedTasks()
 
 #: What each task declares beyond its environment (``rmac_mj.tasks.knowledge``): reach's near-optimal
-#: reference is found by trajectory optimisation (iLQR from several starts, docs/optimal.md: -37.65
+#: return is found by trajectory optimisation (iLQR from several starts, docs/optimal.md: -37.65
 #: per trial); returns near the end are of order -40, so differences of about 1 are worth seeing.
 KNOWLEDGE = {
     "reach": common.TaskKnowledge(

@@ -30,8 +30,8 @@ def test_every_field_has_constraints_and_the_defaults_meet_them(cls):
 
 @pytest.mark.parametrize("cls", LEARNERS)
 def test_a_bool_is_no_learning_rate_in_any_learner(cls):
-    # Was: StandardACConfig(alpha_critic=True) accepted while RMAC and MLAC refused a bool. Every
-    # learner's critic rate is now alpha_c, the paper's name (the actor's alpha_a, RMAC's alpha_r).
+    # Every learner's critic rate is alpha_c, the paper's name (the actor's alpha_a, RMAC's alpha_r),
+    # and a bool is none.
     assert (
         refusal(cls, alpha_c=True) == f"{cls.__name__}.alpha_c must be a number in [0, 1], got True"
     )
@@ -39,7 +39,7 @@ def test_a_bool_is_no_learning_rate_in_any_learner(cls):
 
 @pytest.mark.parametrize("cls", LEARNERS)
 def test_gamma_1_is_refused_by_every_learner(cls):
-    # Was: refused by S-AC, accepted by RMAC and MLAC. The paper: gamma in [0, 1) (eq. 1).
+    # The paper: gamma in [0, 1) (eq. 1).
     assert (
         refusal(cls, gamma=1.0)
         == f"{cls.__name__}.gamma must be a number in [0, 1), or None, got 1.0"
@@ -49,7 +49,6 @@ def test_gamma_1_is_refused_by_every_learner(cls):
 
 @pytest.mark.parametrize("cls", (RMACConfig, MLACConfig))
 def test_a_bool_norm_and_a_string_clip_are_refused_by_rmac_and_mlac_alike(cls):
-    # Was: RMACConfig(norm=True) and RMACConfig(critic_clip="no") accepted, MLAC refused both.
     assert refusal(cls, norm=True) == f"{cls.__name__}.norm must be 1 or 2, got True"
     assert (
         refusal(cls, critic_clip="no")
@@ -59,7 +58,7 @@ def test_a_bool_norm_and_a_string_clip_are_refused_by_rmac_and_mlac_alike(cls):
 
 @pytest.mark.parametrize("cls", (RMACConfig, MLACConfig))
 def test_a_string_action_cost_and_a_missing_rcond_are_named(cls):
-    # Was: a raw numpy TypeError naming nothing.
+    # Named, not a raw numpy TypeError.
     assert (
         refusal(cls, action_cost="1")
         == f"{cls.__name__}.action_cost must be a finite number >= 0 or a list of finite numbers >= 0 "
@@ -69,7 +68,7 @@ def test_a_string_action_cost_and_a_missing_rcond_are_named(cls):
 
 
 def test_integers_are_integers_everywhere():
-    # Was: Exploration(period=3.0) accepted where critic_capacity=2000.0 was refused.
+    # A float is no integer, whichever config holds it.
     assert refusal(Exploration, period=3.0) == "Exploration.period must be an integer >= 1, got 3.0"
     assert (
         refusal(RMACConfig, critic_capacity=2000.0)
@@ -153,12 +152,3 @@ def test_the_sweep_checker_expects_what_the_config_expects(tmp_path, key, value,
     assert f"{cls.__name__}.{field} must be {expected}, got {value!r}" == refusal(
         cls, **{field: value}
     )
-
-
-def test_renamed_parameters_are_read_from_stored_configs_only():
-    # Snapshots written before the learning rates took the paper's names still load; a user
-    # writing an old name is told the new one.
-    assert config_from_dict(StandardACConfig, {"alpha_actor": 0.01}, stored=True).alpha_a == 0.01
-    assert config_from_dict(MLACConfig, {"alpha_critic": 0.2}, stored=True).alpha_c == 0.2
-    with pytest.raises(constraints.InvalidParameterError, match="has no parameter 'alpha_critic'"):
-        config_from_dict(StandardACConfig, {"alpha_critic": 0.2})

@@ -34,7 +34,7 @@ _REGISTRY = {
     "mlac": ("rmac_mj.agents.mlac", "MLAC", "MLACConfig"),
     # The learner to pick for a new task: S-AC with planning, in the task's units (recommended.py).
     "recommended": ("rmac_mj.agents.recommended", "Recommended", "RecommendedConfig"),
-    # Deep-RL baselines (Stable-Baselines3; the [baselines] extra), rmac_mj/agents/sb3.py (their configs: sb3_config.py).
+    # Deep-RL baselines (Stable-Baselines3; the [baselines] extra): sb3_base.py (their configs: sb3_config.py).
     "sb3-sac": ("rmac_mj.agents.sb3_off_policy", "SB3SAC", "SB3SACConfig"),
     "sb3-td3": ("rmac_mj.agents.sb3_off_policy", "SB3TD3", "SB3TD3Config"),
     "sb3-ppo": ("rmac_mj.agents.sb3_ppo", "SB3PPO", "SB3PPOConfig"),
@@ -84,17 +84,12 @@ def agent_class(name: str) -> type:
     return _lookup(name)[0]
 
 
-def config_from_dict(cls: type, values: dict[str, Any], stored: bool = False):
+def config_from_dict(cls: type, values: dict[str, Any]):
     """Rebuild a (possibly nested) frozen config dataclass from ``dataclasses.asdict`` output (or
     any dict of some of its parameters, e.g. a TOML table); the config checks the values against its
     ``parameter_constraints`` (:mod:`rmac_mj.constraints`), and an unknown name is refused with the
-    closest known one. ``stored``: the values come from a file an earlier version wrote (a
-    snapshot), so parameters renamed since (the class's ``former_names``) are read by their new
-    names; what a user writes must use the current names."""
+    closest known one."""
     table = cls.parameter_constraints
-    if stored:
-        former = getattr(cls, "former_names", {})
-        values = {former.get(name, name): value for name, value in values.items()}
     for name in values:
         if name not in table:
             raise constraints.unknown(cls.__name__, name, table)
@@ -102,7 +97,7 @@ def config_from_dict(cls: type, values: dict[str, Any], stored: bool = False):
     for name, value in values.items():
         nested = constraints.nested_class(table[name])
         if nested is not None and isinstance(value, dict):
-            value = config_from_dict(nested, value, stored)
+            value = config_from_dict(nested, value)
         elif isinstance(value, list):
             value = tuple(value)
         kwargs[name] = value

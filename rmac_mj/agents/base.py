@@ -15,15 +15,12 @@ from typing import Any
 
 import numpy as np
 
-from rmac_mj.agents.boundary import AgentBoundary, RefusedTransition
+from rmac_mj.agents.boundary import AgentBoundary
 from rmac_mj.agents.planning import Rehearsal
 from rmac_mj.agents.seeding import check_transitions
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
 from rmac_mj.agents.state_exchange import StateExchange
 from rmac_mj.agents.task_knowledge import with_task_units
-
-#: Re-exported: their old home, which callers may import them from.
-__all__ = ["ActionSpace", "Agent", "RefusedTransition", "StateSpace"]
 
 
 class Agent(AgentBoundary, StateExchange, abc.ABC):

@@ -129,8 +129,6 @@ class MLACConfig:
     backend: str = "numba"
     """Back end of the LLR memories: 'numba' (compiled) or 'numpy' (reference); same results."""
 
-    #: Parameters renamed since earlier versions (read from snapshots those wrote): old -> new.
-    former_names: ClassVar[dict[str, str]] = {"alpha_actor": "alpha_a", "alpha_critic": "alpha_c"}
     #: The fields set from the task when left None: field -> (rule, value at the paper's pendulum)
     #: (``task_knowledge.with_task_units``).
     task_units: ClassVar[dict[str, tuple[str, float]]] = {

@@ -1,6 +1,38 @@
-"""The driver the Stable-Baselines3 baselines share (:mod:`rmac_mj.agents.sb3`): an SB3 model behind
-the online interface, its own random streams swapped in around every call into SB3, and its state as
-flat arrays (torch modules, optimisers)."""
+"""Deep-RL baselines: Stable-Baselines3's SAC, TD3 and PPO behind the project's online interface.
+
+Each learner holds an SB3 model and drives SB3's own policy, buffers and ``train()`` one control step
+at a time, in the order of SB3's ``learn()`` loop, so that ``rmac-mj reproduce`` runs them like the
+paper's learners (seeds, curves, greedy trials, snapshots, resume, ``--jobs``, Dask, ``--set``,
+sweeps, ``render`` and ``policy``). ``tests/agents/test_sb3.py`` checks the claim: for the same seed and
+environment, the parameters after a short run equal those of SB3's own ``model.learn()``.
+
+What the learner sees and does (the same for the three):
+
+* **Network input.** The learner state ``x`` with every periodic dimension as (cos, sin) and the others
+  unscaled, in order: ``[cos phi, sin phi, phi_dot]`` on the pendulum, as Gymnasium's Pendulum-v1;
+  SB3's default, no observation normalisation, is kept. The suite's Gymnasium environments
+  (``rmac_mj.tasks.to_gymnasium``) observe exactly this vector.
+* **Trial end is a truncation.** ``stop(r, x_K)`` stores the last transition as a time-out, as SB3
+  does for a Gymnasium ``truncated`` episode: SAC and TD3 bootstrap from x_K (SB3's
+  ``handle_timeout_termination``), PPO adds gamma V(x_K) to the last reward.
+* **Randomness.** SB3 draws from the process-wide numpy and torch generators (and the action space's
+  own one for SAC's and TD3's first random steps). Each learner seeds them through SB3 from its
+  ``rng`` at construction, keeps their states as its own and swaps them in around every call into
+  SB3, so learners in one process never share a stream and a state dict restores them exactly.
+* **One torch thread** (``torch_threads``): the networks are small, so more threads only contend
+  with the other workers, and a fixed count keeps floating-point reductions, hence results, fixed.
+
+Hyperparameters are SB3's defaults (``SB3SACConfig``, ``SB3TD3Config``, ``SB3PPOConfig``) with one
+exception, TD3's exploration noise (see its config). Learning rates are constant: SB3's schedules
+need the run's total length, which a learner here does not know.
+
+Needs the ``[baselines]`` extra (torch, stable-baselines3, sb3-contrib); the configs
+(:mod:`rmac_mj.agents.sb3_config`) import without it, the learners raise an ImportError naming the
+extra. They share this module's driver (:class:`SB3Agent`: an SB3 model behind the online interface,
+its own random streams swapped in around every call into SB3, its state as flat arrays of torch
+modules and optimisers); SAC, TD3 and sb3-contrib's CrossQ are in
+:mod:`rmac_mj.agents.sb3_off_policy`, PPO in :mod:`rmac_mj.agents.sb3_ppo`.
+"""
 
 from __future__ import annotations
 
@@ -87,7 +119,7 @@ def _spaces_only(observation_dim: int, action_space: ActionSpace):
 
 
 class SB3Agent(Agent):
-    """An SB3 algorithm behind the online interface (see :mod:`rmac_mj.agents.sb3`); subclasses
+    """An SB3 algorithm behind the online interface (see this module's docstring); subclasses
     say which.
 
     Learned state besides SB3's model: ``timesteps_`` (control steps learned from, SB3's

@@ -195,7 +195,7 @@ class _EntropyRegularised(_OffPolicyAgent):
 
 
 class SB3SAC(_EntropyRegularised):
-    """Stable-Baselines3's SAC (see :mod:`rmac_mj.agents.sb3`)."""
+    """Stable-Baselines3's SAC (see :mod:`rmac_mj.agents.sb3_base`)."""
 
     name = "sb3-sac"
     display_name = "SAC (SB3)"
@@ -214,7 +214,7 @@ class SB3SAC(_EntropyRegularised):
 
 
 class SB3CrossQ(_EntropyRegularised):
-    """sb3-contrib's CrossQ (see :mod:`rmac_mj.agents.sb3` and :class:`SB3CrossQConfig`): SAC's
+    """sb3-contrib's CrossQ (see :mod:`rmac_mj.agents.sb3_base` and :class:`SB3CrossQConfig`): SAC's
     driver; the batch renormalisation statistics are part of the policy's state."""
 
     name = "sb3-crossq"
@@ -240,7 +240,7 @@ class SB3CrossQ(_EntropyRegularised):
 
 
 class SB3TD3(_OffPolicyAgent):
-    """Stable-Baselines3's TD3 (see :mod:`rmac_mj.agents.sb3`), with Gaussian exploration noise."""
+    """Stable-Baselines3's TD3 (see :mod:`rmac_mj.agents.sb3_base`), with Gaussian exploration noise."""
 
     name = "sb3-td3"
     display_name = "TD3 (SB3)"

@@ -13,7 +13,7 @@ from rmac_mj.agents.spaces import ActionSpace, StateSpace
 
 
 class SB3PPO(SB3Agent):
-    """Stable-Baselines3's PPO (see :mod:`rmac_mj.agents.sb3`): rollouts of ``n_steps`` control steps
+    """Stable-Baselines3's PPO (see :mod:`rmac_mj.agents.sb3_base`): rollouts of ``n_steps`` control steps
     across trials, each followed by ``n_epochs`` of minibatch updates (SB3's ``OnPolicyAlgorithm.learn``).
     """
 

@@ -84,8 +84,6 @@ class StandardACConfig:
     replay: Replay = Replay()
     backend: Backend = "numba"
 
-    #: Parameters renamed since earlier versions (read from snapshots those wrote): old -> new.
-    former_names: ClassVar[dict[str, str]] = {"alpha_actor": "alpha_a", "alpha_critic": "alpha_c"}
     #: The fields set from the task when left None: field -> (rule, value at the paper's pendulum).
     task_units: ClassVar[dict[str, tuple[str, float]]] = {
         "gamma": ("horizon", 0.97),

@@ -222,10 +222,6 @@ class LLRMemory:
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         self.__dict__.update(state)
-        # (memories pickled before the redundancy scores existed)
-        self.__dict__.setdefault("redundancy", "distance")
-        self.__dict__.setdefault("redundancy_smoothing", 0.1)
-        self.__dict__.setdefault("redundancy_", np.zeros(self.capacity))
         self._state = self._new_kernel_state()
 
     # -- configuration ------------------------------------------------------------------------------

@@ -1,7 +1,7 @@
 """The learner's state x inferred from an environment's observations: the specs' bounds read,
 (cos, sin) pairs folded into angles, what the user declared filled in, what is still missing
 refused (:func:`infer_learner_state`). The entries and their map are
-:mod:`rmac_mj.envs.observation_map`'s, re-exported here."""
+:mod:`rmac_mj.envs.observation_map`'s."""
 
 from __future__ import annotations
 
@@ -15,33 +15,10 @@ import numpy as np
 
 from rmac_mj.envs.observation_map import (
     OBSERVATION,
-    UNBOUNDED,
     ObservationLayout,
     ObservationMap,
-    layout_of_dm_env,
-    layout_of_gymnasium,
-    parse_entry,
 )
 from rmac_mj.tasks.common import LearnerStateSpec
-
-__all__ = [
-    "DECLARABLE",
-    "MEASURED_MARGIN",
-    "OBSERVATION",
-    "UNBOUNDED",
-    "UNIT_TOLERANCE",
-    "ObservationLayout",
-    "ObservationMap",
-    "check_declaration",
-    "default_weights",
-    "infer_learner_state",
-    "inferred_entries",
-    "layout_of_dm_env",
-    "layout_of_gymnasium",
-    "measured_box",
-    "parse_entry",
-    "unit_pairs",
-]
 
 #: |cos^2 + sin^2 - 1| allowed on every probed observation (float32 observations round at 1e-7).
 UNIT_TOLERANCE = 1e-5

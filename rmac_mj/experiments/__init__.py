@@ -5,9 +5,6 @@ learning loop (:func:`build_experiment`, :func:`run_experiment`), prior knowledg
 (:func:`record`, :class:`Demonstration`), the near-optimal return beside a run, and the public panel.
 """
 
-import sys as _sys
-
-from rmac_mj import rollout as _rollout
 from rmac_mj.experiments.admission import TaskFacts, check_memory, resolve_agents
 from rmac_mj.experiments.execution import BackendError, connect_dask
 from rmac_mj.experiments.experiment import (
@@ -29,10 +26,6 @@ from rmac_mj.experiments.prior_transitions import (
 from rmac_mj.experiments.progress import Progress, TrialFeed
 from rmac_mj.experiments.protocol import Protocol
 from rmac_mj.experiments.runner import finished_experiments, run_protocol, run_protocols
-
-# The trial loop's older path: ``rmac_mj.experiments.episode`` is :mod:`rmac_mj.rollout`.
-_sys.modules.setdefault(__name__ + ".episode", _rollout)
-episode = _rollout
 
 __all__ = [
     # What is run, and running it

@@ -348,34 +348,3 @@ def _resolved(spec: envs.EnvSpec) -> envs.EnvSpec:
     """``spec`` with its full learner state, resolved once per process (inference probes an instance
     of the environment); ValueError naming what is missing or ambiguous."""
     return _resolved_from(json.dumps(spec.as_dict(), sort_keys=True))
-
-
-#: Names that lived here, and the module that holds them now.
-_MOVED = {
-    **dict.fromkeys(
-        (
-            "experiment_seeds",
-            "demonstration_for",
-            "Experiment",
-            "build_experiment",
-            "fresh_learners",
-            "evaluation",
-        ),
-        "rmac_mj.experiments.experiment",
-    ),
-    **dict.fromkeys(("ExperimentSpec", "run_experiment"), "rmac_mj.experiments.experiment_loop"),
-}
-
-
-class MovedName(ImportError):
-    """A name asked of this module that has moved: the message names its new module (not imported
-    here, which would make the modules import each other). An ImportError, so that ``from ... import``
-    shows the message."""
-
-
-def __getattr__(name: str) -> Any:
-    if name in _MOVED:
-        raise MovedName(
-            f"{name} has moved from {__name__} to {_MOVED[name]}: from {_MOVED[name]} import {name}"
-        )
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,8 +1,10 @@
 """Agent snapshots: one ``.npz`` file, readable with ``numpy.load(path, allow_pickle=False)``.
 
-The agent's ``state_dict`` (keys prefixed ``agent/``) and a JSON ``meta`` (algorithm,
-hyperparameters, task, trial); no pickle, so opening one cannot run code.
-:func:`snapshot_environment` is the environment its agent acts in.
+The agent's ``state_dict`` (keys prefixed ``agent/``) and a JSON ``meta`` (format, algorithm,
+hyperparameters, task, trial); no pickle, so opening one cannot run code. :func:`load_snapshot`
+gives back the learner, ready to act; :func:`snapshot_environment` is the environment it acts in.
+A snapshot an earlier version wrote is read through :func:`upgrade`, the one place that knows the
+earlier formats.
 """
 
 from __future__ import annotations
@@ -29,6 +31,44 @@ from rmac_mj.results.files import write_npz
 
 _PREFIX = "agent/"
 
+#: The version of the snapshot format written here (``meta["format"]``); a snapshot without one
+#: is format 1.
+FORMAT = 2
+
+#: Format 1's names that have changed since, in a learner's config (by algorithm), in its spaces and
+#: in a suite task's keyword arguments (the pendulum's; no other task took that name): old -> name.
+_FORMAT_1_CONFIG = {
+    "s-ac": {"alpha_actor": "alpha_a", "alpha_critic": "alpha_c"},
+    "mlac": {"alpha_actor": "alpha_a", "alpha_critic": "alpha_c"},
+}
+_FORMAT_1_SPACES = {"weights": "input_weights"}
+_FORMAT_1_TASK_KWARGS = {"action_weight": "action_weights"}
+
+
+def upgrade(meta: dict[str, Any]) -> dict[str, Any]:
+    """A snapshot's meta document in the format written here (:data:`FORMAT`), from any earlier
+    one: format 1 named S-AC's and MLAC's learning rates ``alpha_actor`` and ``alpha_critic``, the
+    spaces' input weightings ``weights`` and the pendulum's reward weighting ``action_weight``.
+    UserInputError for a format newer than this version reads."""
+    version = meta.get("format", 1)
+    if version == FORMAT:
+        return meta
+    if version != 1:
+        raise UserInputError(
+            f"snapshot format {version!r}; this version of rmac-mj reads formats 1 to {FORMAT}"
+        )
+
+    def renamed(values: dict[str, Any], names: dict[str, str]) -> dict[str, Any]:
+        return {names.get(key, key): value for key, value in values.items()}
+
+    upgraded = dict(meta, format=FORMAT)
+    upgraded["config"] = renamed(meta["config"], _FORMAT_1_CONFIG.get(meta["algorithm"], {}))
+    for space in ("state_space", "action_space"):
+        upgraded[space] = renamed(meta[space], _FORMAT_1_SPACES)
+    if "task_kwargs" in meta:
+        upgraded["task_kwargs"] = renamed(meta["task_kwargs"], _FORMAT_1_TASK_KWARGS)
+    return upgraded
+
 
 def snapshot_arrays(
     agent: Agent, state_space: StateSpace, action_space: ActionSpace, **meta: Any
@@ -40,6 +80,7 @@ def snapshot_arrays(
     ``experiment``, ``seed`` and ``trial`` (the number of learning trials done).
     """
     document = {
+        "format": FORMAT,
         "algorithm": agent.name,
         "config": agent.config_dict(),
         "state_space": {
@@ -76,7 +117,14 @@ def save_snapshot(
 
 
 def load_snapshot(path: str | os.PathLike) -> tuple[Agent, dict[str, Any]]:
-    """Rebuild the agent saved at ``path``; return it and the snapshot's meta document."""
+    """Rebuild the agent saved at ``path``; return it and the snapshot's meta document (in the
+    current format, :func:`upgrade`).
+
+    The agent acts in the user's own loop: ``agent.greedy_action(x)`` without exploring or learning
+    (``agent.begin_greedy_trial()`` before each trial), or it learns on (``start``/``step``/
+    ``stop``); ``snapshot_environment(agent, meta)`` is the environment it learned on.
+    UserInputError when the file is not a snapshot, or a damaged one.
+    """
     path = pathlib.Path(path)
     if not path.is_file():
         raise MissingInputError(f"no snapshot at {path}")
@@ -98,20 +146,11 @@ def _read_snapshot(path: pathlib.Path) -> tuple[Agent, dict[str, Any]]:
     with np.load(path, allow_pickle=False) as data:
         if "meta" not in data.files:
             raise UserInputError(f"{path} is not an rmac-mj snapshot (no 'meta' entry)")
-        meta = json.loads(str(data["meta"]))
+        meta = upgrade(json.loads(str(data["meta"])))
         state = {key[len(_PREFIX) :]: data[key] for key in data.files if key.startswith(_PREFIX)}
-    # Snapshots written before the spaces had weights lack them (their configs hold explicit ones);
-    # older ones call them "weights".
-    state_space, action_space = (
-        cls(
-            **{
-                "input_weights" if key == "weights" else key: value
-                for key, value in meta[name].items()
-            }
-        )
-        for cls, name in ((StateSpace, "state_space"), (ActionSpace, "action_space"))
-    )
-    config = config_from_dict(config_class(meta["algorithm"]), meta["config"], stored=True)
+    state_space = StateSpace(**meta["state_space"])
+    action_space = ActionSpace(**meta["action_space"])
+    config = config_from_dict(config_class(meta["algorithm"]), meta["config"])
     agent = make_agent(meta["algorithm"], state_space, action_space, config=config, seed=0)
     agent.load_state_dict(state)
     return agent, meta

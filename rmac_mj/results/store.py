@@ -20,19 +20,7 @@ import numpy as np
 from rmac_mj.errors import MissingInputError
 from rmac_mj.results import documents, files, integrity, run_identity
 from rmac_mj.results.records import Curves, ExperimentResult
-from rmac_mj.results.run_identity import DamagedDirectory, ResumeRefused, added_experiments
-from rmac_mj.results.trial_log import TrialLog
-
-#: Re-exported: their old home, which callers may import them from.
-__all__ = [
-    "Curves",
-    "DamagedDirectory",
-    "ExperimentResult",
-    "ResultStore",
-    "ResumeRefused",
-    "TrialLog",
-    "added_experiments",
-]
+from rmac_mj.results.run_identity import ResumeRefused, added_experiments
 
 _EXPERIMENT_FILE = re.compile(r"exp_(\d{3,})\.npz")
 _TRIAL_FILE = re.compile(r"trial_(\d+)\.npz")
@@ -130,13 +118,14 @@ class ResultStore:
             return {key: data[key] for key in data.files}
 
     def progress_path(self, algorithm: str, index: int) -> pathlib.Path:
-        """The live trial log of an experiment (see :class:`TrialLog`)."""
+        """The live trial log of an experiment (see :class:`~rmac_mj.results.trial_log.TrialLog`)."""
         return self.root / "progress" / algorithm / f"{_experiment_name(index)}.csv"
 
     # -- config --------------------------------------------------------------------------------------
     def read_config(self) -> dict[str, Any] | None:
-        """The directory's ``config.json``, or None when there is none; :class:`DamagedDirectory`
-        when it cannot be read as a run's config (a JSON object with a ``protocol`` object)."""
+        """The directory's ``config.json``, or None when there is none;
+        :class:`~rmac_mj.results.run_identity.DamagedDirectory` when it cannot be read as a run's
+        config (a JSON object with a ``protocol`` object)."""
         return documents.read_config(self.config_path)
 
     def read_protocol(self) -> dict[str, Any] | None:

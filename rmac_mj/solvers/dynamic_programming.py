@@ -10,7 +10,7 @@ with rho the task's own reward (``task.reward_of``) and f one control step of th
 model, both read from the environment (:class:`~rmac_mj.solvers.dynamic_programming_grid.Problem`).
 What it needs of a task: one joint (x = [angle, speed], the angle periodic over the learner state's
 box), one actuator, a deterministic start; a task declares it as its optimum
-(``tasks.common.Reference("dynamic programming", {grid settings})``).
+(``tasks.Optimum("dynamic programming", {grid settings})``).
 
 It is solved on a grid with a finite action set that contains the extremes of the action range
 (:mod:`rmac_mj.solvers.dynamic_programming_grid`); the transitions f(x_i, u_a) of every node and

@@ -13,7 +13,7 @@ class OptimalConfig:
     """How finely the problem is solved (the problem itself comes from the environment:
     :class:`~rmac_mj.solvers.dynamic_programming_grid.Problem`).
 
-    A task's reference declares the settings it needs (``Reference.settings``); the defaults are the
+    A task's optimum declares the settings it needs (``Optimum.settings``); the defaults are the
     DC-motor pendulum's converged grid (docs/optimal.md).
     """
 

@@ -52,7 +52,7 @@ def _trajectory_optimisation(env, identity, settings, cache_dir, refresh, announ
     )
 
 
-#: Solver name (``Reference.method``) -> the function that computes and caches it.
+#: Solver name (``Optimum.method``) -> the function that computes and caches it.
 SOLVERS: dict[str, Callable[..., Optimum]] = {
     "dynamic programming": _dynamic_programming,
     "trajectory optimisation": _trajectory_optimisation,

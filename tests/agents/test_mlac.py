@@ -255,7 +255,7 @@ def test_mlac_on_the_arm_follows_the_arms_reward_which_charges_no_torque():
     assert np.array_equal(agent.action_gradient(x, u), np.zeros(2))
     assert np.isfinite(run_trial(env, agent))
     # On the pendulum the task's P = 1, or what task_kwargs make it.
-    for kwargs, cost in (({}, (1.0,)), ({"action_weight": 0.25}, (0.25,))):
+    for kwargs, cost in (({}, (1.0,)), ({"action_weights": 0.25}, (0.25,))):
         env = tasks.load("dc_pendulum", "swingup", task_kwargs=kwargs)
         agent = MLAC(state_space_of(env), action_space_of(env), seed=0)
         assert agent.config.action_cost == cost

@@ -1,4 +1,4 @@
-"""The deep-RL baselines (rmac_mj.agents.sb3): faithful to SB3's own learn(), and run like every learner."""
+"""The deep-RL baselines (rmac_mj.agents.sb3_base): faithful to SB3's own learn(), and run like every learner."""
 
 import dataclasses
 import inspect
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from learners import quick_config
 
-from rmac_mj.agents import agent_class, config_class, make_agent, sb3, sb3_base, sb3_config
+from rmac_mj.agents import agent_class, config_class, make_agent, sb3_base, sb3_config
 
 ENV_ID = "rmac_mj/DCPendulum-Swingup-v0"
 
@@ -153,7 +153,9 @@ def test_network_input_is_the_gymnasium_observation():
         dm_env.physics and dm_env.task.get_observation(dm_env.physics), dm_env.task.learner_state
     )
     periodic = np.asarray(dm_env.task.learner_state.periodic)
-    np.testing.assert_array_equal(sb3.network_input(x, periodic), observation.astype(np.float32))
+    np.testing.assert_array_equal(
+        sb3_base.network_input(x, periodic), observation.astype(np.float32)
+    )
     assert tasks  # the suite's ids are registered on import
 
 
@@ -199,11 +201,3 @@ def test_reproduce_runs_a_baseline_and_resumes_it_alike(tmp_path):
     agent, _ = load_snapshot(store.snapshot_path("sb3-sac", 0, 2))
     env = build_experiment(protocol, "sb3-sac", 0).env
     assert run_trial(env, agent, learn=False) == expected.greedy_returns[0, -1]
-
-
-def test_the_old_module_path_keeps_its_learners():  # runs without the extra too
-    from rmac_mj.agents import SB3PPO, SB3SAC, SB3TD3
-
-    assert (sb3.SB3SAC, sb3.SB3TD3) == (SB3SAC, SB3TD3)
-    assert sb3.SB3PPO is SB3PPO and sb3.SB3Agent is sb3_base.SB3Agent
-    assert agent_class("sb3-sac") is sb3.SB3SAC

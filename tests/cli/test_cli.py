@@ -395,9 +395,9 @@ def test_running_a_finished_run_again_prints_its_summary(tmp_path, capsys):
 
 def test_policy_maps_keep_the_labels_the_run_declared():
     from rmac_mj.cli.views import _declared_labels
-    from rmac_mj.tasks.common import LearnerState
+    from rmac_mj.tasks import LearnerStateSpec
 
-    inferred = LearnerState(
+    inferred = LearnerStateSpec(
         keys=("atan2(observation[1], observation[0])", "observation[2]"),
         low=(-3.2, -10.0),
         high=(3.2, 10.0),

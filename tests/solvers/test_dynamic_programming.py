@@ -113,7 +113,9 @@ def test_cache_round_trip_refresh_and_key(tmp_path):
     assert optimal.optimal_return(
         env, identity, dataclasses.replace(_TINY, n_threads=1), cache_dir=tmp_path
     ).from_cache
-    other = optimal.optimal_return(*swingup(steps=10, action_weight=2.0), _TINY, cache_dir=tmp_path)
+    other = optimal.optimal_return(
+        *swingup(steps=10, action_weights=2.0), _TINY, cache_dir=tmp_path
+    )
     assert not other.from_cache and len(list(tmp_path.glob("optimal-*.json"))) == 2
     assert other.simulated_return < first.simulated_return  # the task's reward: P = 2 costs more
     env.physics.model.dof_damping[:] *= 1.5  # another model: another key

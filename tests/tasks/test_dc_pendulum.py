@@ -97,7 +97,7 @@ def test_bad_actions_raise_before_stepping(action, match):
         ({"control_timestep": 0.0}, "control_timestep"),
         ({"state_weights": (1.0, -1.0)}, "state_weights"),
         ({"state_weights": (1.0,)}, "state_weights"),
-        ({"action_weight": np.nan}, "action_weight"),
+        ({"action_weights": np.nan}, "action_weights"),
         ({"start_state": (0.0,)}, "start_state"),
         ({"start_noise": -0.1}, "start_noise"),
         ({"bogus": 1}, "bogus"),
@@ -116,7 +116,7 @@ def test_task_kwargs_change_the_task():
             "time_limit": 1.5,
             "control_timestep": 0.05,
             "state_weights": (1, 0),
-            "action_weight": 0.0,
+            "action_weights": 0.0,
             "start_state": (1.0, 0.0),
         },
     )

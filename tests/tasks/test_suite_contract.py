@@ -183,7 +183,7 @@ def test_the_declared_action_cost_is_what_the_reward_charges(domain, task):
     sum_i P_i u_i^2, for the task's defaults and for a changed reward; what learners rely on."""
     for task_kwargs in (
         {},
-        {"action_weight": 0.3} if domain == "dc_pendulum" else {"action_weights": (0.5, 2.0)},
+        {"action_weights": 0.3} if domain == "dc_pendulum" else {"action_weights": (0.5, 2.0)},
     ):
         env = tasks.load(domain, task, task_kwargs=task_kwargs)
         cost = env.task.learner_state.action_cost

@@ -1,0 +1,86 @@
+"""Snapshots: a learner a run saved comes back in one call, and snapshots earlier versions wrote
+still load, through the one upgrader of their format."""
+
+import json
+import pathlib
+
+import numpy as np
+import pytest
+
+from rmac_mj import tasks
+from rmac_mj.agents import make_agent
+from rmac_mj.errors import UserInputError
+from rmac_mj.results import load_snapshot, save_snapshot, snapshot_environment
+from rmac_mj.results.snapshots import FORMAT, upgrade
+from rmac_mj.rollout import action_space_of, run_trial, state_space_of
+
+#: Snapshots of format 1, written by rmac-mj at commit f091e63 (before the learning rates took the
+#: paper's names): ``rmac-mj reproduce --algorithms s-ac,mlac --experiments 1 --trials 1
+#: --no-optimal --set 's-ac.tile_coding={"num_tilings": 2, "tiles": 3}' --set mlac.actor_capacity=20
+#: --set mlac.critic_capacity=20 --set mlac.process_capacity=20 --set mlac.actor_neighbours=3
+#: --set mlac.critic_neighbours=3 --set mlac.process_neighbours=4``, after trial 1.
+FORMAT_1 = pathlib.Path(__file__).resolve().parents[1] / "data" / "snapshot_format_1"
+
+#: What that version's learners answered, loaded from these files: state -> (greedy action, value).
+WRITTEN = {
+    "s-ac": {
+        (np.pi, 0.0): (-0.9459123947521382, -211.33976297324386),
+        (0.5, -2.0): (0.0, 0.0),
+    },
+    "mlac": {
+        (np.pi, 0.0): (2.962977676379427, -540.5557977539037),
+        (0.5, -2.0): (2.9999999999987494, -549.3823282653077),
+        (-1.0, 3.0): (-3.0, -398.2300199306504),
+    },
+}
+
+
+@pytest.mark.parametrize("algorithm", sorted(WRITTEN))
+def test_a_format_1_snapshot_acts_as_the_version_that_wrote_it(algorithm):
+    path = FORMAT_1 / f"{algorithm}.npz"
+    with np.load(path, allow_pickle=False) as data:
+        written = json.loads(str(data["meta"]))
+    assert "format" not in written and {"alpha_actor", "alpha_critic"} <= set(written["config"])
+    agent, meta = load_snapshot(path)
+    assert meta["format"] == FORMAT and meta["trial"] == 1
+    assert (agent.config.alpha_a, agent.config.alpha_c) == (
+        written["config"]["alpha_actor"],
+        written["config"]["alpha_critic"],
+    )
+    np.testing.assert_array_equal(agent.state_space.input_weights, [1.0, 0.1])
+    for x, (action, value) in WRITTEN[algorithm].items():
+        assert agent.greedy_action(np.array(x))[0] == action
+        assert agent.value(np.array(x)) == value
+    env = snapshot_environment(agent, meta)
+    assert np.isfinite(run_trial(env, agent, learn=False))
+
+
+def test_format_1_task_kwargs_take_todays_names():
+    with np.load(FORMAT_1 / "s-ac.npz", allow_pickle=False) as data:
+        written = json.loads(str(data["meta"]))
+    written["task_kwargs"] = {"action_weight": 0.25}  # the pendulum's reward weighting P, then
+    meta = upgrade(written)
+    assert meta["task_kwargs"] == {"action_weights": 0.25}
+    assert upgrade(meta) == meta  # the current format passes as it is
+    agent = make_agent("s-ac", *_spaces(tasks.load("dc_pendulum", "swingup")), seed=0)
+    assert snapshot_environment(agent, meta).task.action_weights == 0.25
+
+
+def test_a_snapshot_of_a_newer_format_is_refused_naming_it(tmp_path):
+    env = tasks.load("dc_pendulum", "swingup")
+    agent = make_agent("s-ac", *_spaces(env), seed=0)
+    path = save_snapshot(tmp_path / "s.npz", agent, *_spaces(env), domain="dc_pendulum")
+    with np.load(path, allow_pickle=False) as data:
+        arrays = dict(data)
+    meta = json.loads(str(arrays["meta"]))
+    assert meta["format"] == FORMAT
+    arrays["meta"] = np.array(json.dumps(dict(meta, format=FORMAT + 1)))
+    np.savez(tmp_path / "newer.npz", **arrays)
+    with pytest.raises(
+        UserInputError, match=f"snapshot format {FORMAT + 1}; .* formats 1 to {FORMAT}"
+    ):
+        load_snapshot(tmp_path / "newer.npz")
+
+
+def _spaces(env):
+    return state_space_of(env), action_space_of(env)
