@@ -99,3 +99,29 @@ def test_the_readmes_learner_snippet_runs():
     assert len(returns) == 600 and np.all(np.isfinite(returns))
     # 30 simulated minutes of RMAC learn the swing-up: far above the hanging start.
     assert np.mean(returns[-50:]) > np.mean(returns[:10]) + 1000
+
+
+def test_the_guides_saved_learner_acts_in_a_plain_loop(tmp_path):
+    """The learners guide's snippet on a snapshot saved here: the learner it loads acts greedily
+    in a plain loop exactly as the learner that was saved."""
+    from rmac_mj import tasks
+    from rmac_mj.agents import make_agent
+    from rmac_mj.results import save_snapshot
+    from rmac_mj.rollout import action_space_of, run_trial, state_space_of
+
+    env = tasks.load("dc_pendulum", "swingup")
+    spaces = state_space_of(env), action_space_of(env)
+    agent = make_agent("rmac", *spaces, seed=0)
+    for _ in range(3):
+        run_trial(env, agent)
+    path = save_snapshot(
+        tmp_path / "trial_0003.npz", agent, *spaces, domain="dc_pendulum", task="swingup", trial=3
+    )
+    (snippet,) = [
+        b for b in _python_blocks(ROOT / "docs/guide/learners.md") if "load_snapshot" in b
+    ]
+    quoted = re.search(r'load_snapshot\("([^"]+)"\)', snippet).group(1)
+    namespace: dict = {}
+    exec(compile(snippet.replace(quoted, str(path)), "learners.md", "exec"), namespace)
+    assert namespace["meta"]["trial"] == 3
+    assert namespace["total"] == run_trial(tasks.load("dc_pendulum", "swingup"), agent, learn=False)
