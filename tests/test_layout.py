@@ -99,3 +99,14 @@ def test_the_learners_face_imports_no_learner():
         [sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=120
     )
     assert done.stdout.splitlines() == ["[]", "rmac_mj.agents.rmac SB3SACConfig"]
+
+
+def test_the_code_guide_names_what_every_package_offers():
+    guide = (ROOT / "docs" / "guide" / "code.md").read_text()
+    unnamed = [
+        f"{name}.{entry}"
+        for name in PACKAGES
+        for entry in importlib.import_module(name).__all__
+        if f"`{entry}`" not in guide
+    ]
+    assert not unnamed, unnamed
