@@ -202,7 +202,7 @@ def _bad_snapshots(finished, tmp_path) -> dict[str, tuple[pathlib.Path, str]]:
 
     save("meta_not_json", "JSONDecodeError", meta="{{{")
     save("no_algorithm", "unknown algorithm None", meta=json.dumps({**meta, "algorithm": None}))
-    save("space_wrong_kind", "AttributeError", meta=json.dumps({**meta, "state_space": 5}))
+    save("space_wrong_kind", "must be a mapping", meta=json.dumps({**meta, "state_space": 5}))
     garbage = tmp_path / "garbage.npz"
     garbage.write_bytes(b"\x00\x01 not a file of arrays")
     found["garbage"] = (garbage, "not a readable rmac-mj snapshot")
