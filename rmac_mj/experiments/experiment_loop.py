@@ -79,13 +79,14 @@ def _kept_checkpoint(
 
 
 def run_experiment(
-    spec: ExperimentSpec, on_trial: Callable[[str, int, int, float], None] | None = None
+    spec: ExperimentSpec, on_trial: Callable[[str, int, int, float, int], None] | None = None
 ) -> ExperimentResult:
     """Run one learning experiment; return its curve, greedy evaluations and snapshots.
 
     Nothing is written but the live trial log in ``spec.stream_to`` (if any), so it runs unchanged in
     a local worker process or on a remote Dask worker, and the caller decides where the results go.
-    ``on_trial(algorithm, index, trial, return)`` is called after every learning trial.
+    ``on_trial(algorithm, index, trial, return, env_steps)`` is called after every learning trial,
+    ``env_steps`` the environment steps the experiment has taken so far.
     """
     protocol = spec.protocol
     name = f"{spec.algorithm} experiment {spec.index}"
@@ -166,7 +167,7 @@ def run_experiment(
                     )
                 last_checkpoint = time.perf_counter()
             if on_trial is not None:
-                on_trial(spec.algorithm, spec.index, trial, float(value))
+                on_trial(spec.algorithm, spec.index, trial, float(value), int(taken))
     demonstration = experiment.demonstration
     return ExperimentResult(
         algorithm=spec.algorithm,

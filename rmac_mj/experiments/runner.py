@@ -47,11 +47,11 @@ def run_tagged(
     item: tuple[Any, ExperimentSpec], on_trial: Callable[..., None] | None = None
 ) -> tuple[Any, ExperimentResult]:
     """``(tag, run_experiment(spec))`` for ``item = (tag, spec)``: lets one pool serve several runs.
-    ``on_trial`` is called as ``on_trial((tag, algorithm, index), trial, return)``."""
+    ``on_trial`` is called as ``on_trial((tag, algorithm, index), trial, return, env_steps)``."""
     tag, spec = item
 
-    def report(algorithm: str, index: int, trial: int, value: float) -> None:
-        on_trial((tag, algorithm, index), trial, value)
+    def report(algorithm: str, index: int, trial: int, value: float, env_steps: int) -> None:
+        on_trial((tag, algorithm, index), trial, value, env_steps)
 
     return tag, run_experiment(spec, report if on_trial is not None else None)
 

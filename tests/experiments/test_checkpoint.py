@@ -20,7 +20,7 @@ class Stop(Exception):
 
 
 def stopping_after(trial: int):
-    def on_trial(algorithm, index, done, value):
+    def on_trial(algorithm, index, done, value, env_steps):
         if done == trial:
             raise Stop
 

@@ -375,7 +375,7 @@ def test_trials_are_streamed_to_disk_as_they_happen(tmp_path):
     log = ResultStore(tmp_path).progress_path("s-ac", 0)
     seen = []
 
-    def on_trial(algorithm, index, trial, value):  # the log already holds this trial
+    def on_trial(algorithm, index, trial, value, env_steps):  # the log holds this trial
         seen.append(log.read_text().splitlines()[-1].split(",")[0])
 
     streamed = run_experiment(
@@ -404,15 +404,13 @@ def test_the_driver_reads_only_complete_lines_of_the_live_logs(tmp_path):
     log.parent.mkdir(parents=True)
     log.write_text("trial,return,greedy_return\n1,-4000.5,\n2,-39")  # trial 2 half written
     feed.poll()
-    assert display.trials_done == {"all": 1, "s-ac": 1} and list(display.recent["s-ac"]) == [
-        -4000.5
-    ]
+    assert display.progressed == {"all": 1, "s-ac": 1} and list(display.recent["s-ac"]) == [-4000.5]
     with open(log, "a") as handle:
         handle.write("00.25,-3800.0\n")
     feed.poll()
-    assert display.trials_done["s-ac"] == 2 and list(display.recent["s-ac"]) == [-4000.5, -3900.25]
+    assert display.progressed["s-ac"] == 2 and list(display.recent["s-ac"]) == [-4000.5, -3900.25]
     display.experiment((0, "s-ac", 1))  # the rest of the experiment, once it is saved
-    assert display.trials_done["s-ac"] == 4 and display.done["s-ac"] == 1
+    assert display.progressed["s-ac"] == 4 and display.done["s-ac"] == 1
 
 
 def test_progress_bars_show_the_mean_of_the_last_trials():
@@ -508,13 +506,13 @@ def test_one_progress_display_counts_the_learners_trials_over_several_runs(tmp_p
     first = Protocol(**TINY)
     second = Protocol(**{**TINY, "experiments": 3, "trials": 5})
     display = Progress([first, second], [{}, {"s-ac": 1}], enabled=False)  # one already finished
-    assert display.total_trials == {"all": 2 * 4 + 3 * 5, "s-ac": 23}
-    assert display.trials_done["s-ac"] == 5 and display.done == {"all": 1, "s-ac": 1}
+    assert display.total == {"all": 2 * 4 + 3 * 5, "s-ac": 23}
+    assert display.progressed["s-ac"] == 5 and display.done == {"all": 1, "s-ac": 1}
     display.trial((1, "s-ac", 0), 2, -100.0)
     display.experiment((1, "s-ac", 0), returns=np.arange(5.0))  # 3 more trials of that run's 5
     assert list(display.recent["s-ac"]) == [-100.0, 2.0, 3.0, 4.0]
     display.experiment((1, "s-ac", 1))
-    assert display.trials_done["s-ac"] == 15 and display.runs_done == 1
+    assert display.progressed["s-ac"] == 15 and display.runs_done == 1
     display.experiment((0, "s-ac", 0))
     display.experiment((0, "s-ac", 1))
-    assert display.trials_done == {"all": 23, "s-ac": 23} and display.runs_done == 2
+    assert display.progressed == {"all": 23, "s-ac": 23} and display.runs_done == 2

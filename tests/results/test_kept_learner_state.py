@@ -114,7 +114,7 @@ def _stopped(tmp_path, trial=3):
     protocol = Protocol(algorithms=("s-ac",), experiments=1, trials=6, snapshot_trials=(2, 5))
     spec = ExperimentSpec(protocol, "s-ac", 0, stream_to=str(tmp_path), checkpoint_seconds=0.0)
 
-    def on_trial(algorithm, index, done, value):
+    def on_trial(algorithm, index, done, value, env_steps):
         if done == trial:
             raise Stop
 
