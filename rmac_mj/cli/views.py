@@ -26,18 +26,27 @@ def shortest_distinct_suffixes(paths: Sequence[pathlib.Path]) -> list[str]:
 
 
 def _settings_line(summary: dict) -> str:
-    """How a run was made: its size, seed and --set overrides."""
-    protocol = summary.get("protocol", {})
+    """How a run was made: its size in the units it was budgeted in (a budget of environment
+    steps with the trials and steps each learner ran), seed and --set overrides."""
+    from rmac_mj.agents import ALGORITHMS
+    from rmac_mj.evaluation import report
     from rmac_mj.sweeps.dotted_keys import flatten
 
+    protocol = summary.get("protocol", {})
     overrides = [
         f"{key}={json.dumps(value)}"
         for key, value in flatten(protocol.get("agent_configs") or {}).items()
     ]
-    text = (
-        f"{protocol.get('experiments', '?')} experiments of {protocol.get('trials', '?')} trials, "
-        f"seed {protocol.get('seed', '?')}"
-    )
+    experiments = protocol.get("experiments", "?")
+    if protocol.get("steps") is not None:
+        learners = [a for a in ALGORITHMS if a in summary]
+        size = (
+            f"{experiments} experiments of {protocol['steps']} env steps (at most "
+            f"{protocol.get('trials', '?')} trials; ran: {report.what_ran(summary, learners)})"
+        )
+    else:
+        size = f"{experiments} experiments of {protocol.get('trials', '?')} trials"
+    text = f"{size}, seed {protocol.get('seed', '?')}"
     return text + ("; --set " + " ".join(overrides) if overrides else "; default hyperparameters")
 
 

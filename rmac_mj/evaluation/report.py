@@ -89,13 +89,103 @@ def few_experiments_note(experiments: int) -> str:
     )
 
 
+def _span(values: Iterable[int]) -> str:
+    """``"25"``, or ``"24 to 26"`` when the values differ."""
+    values = sorted(set(values))
+    return str(values[0]) if len(values) == 1 else f"{values[0]} to {values[-1]}"
+
+
+def _trials_ran(row: dict[str, Any]) -> list[int]:
+    """The trials each experiment of a learner ran (``trials`` for all, in a summary without
+    ``trials_per_experiment``)."""
+    return row.get("trials_per_experiment") or [row["trials"]] * row["experiments"]
+
+
+def what_ran(summary: dict[str, Any], algorithms: Iterable[str]) -> str:
+    """The trials and environment steps each learner's experiments ran: ``"s-ac 25 trials, 20040
+    steps; sb3-sac 24 to 26 trials, 20010 to 20070 steps"`` (steps where the curves recorded them)."""
+    ran = []
+    for algorithm in algorithms:
+        row = summary[algorithm]
+        text = f"{algorithm} {_span(_trials_ran(row))} trials"
+        if row.get("env_steps_per_experiment"):
+            text += f", {_span(row['env_steps_per_experiment'])} steps"
+        ran.append(text)
+    return "; ".join(ran)
+
+
+def budget_line(summary: dict[str, Any], algorithms: Iterable[str]) -> str | None:
+    """What each experiment ran, for a run budgeted in environment steps: ``"each experiment:
+    20000 env steps asked (at most 600 trials); ran: s-ac 25 trials, 20040 steps"``; None for a
+    run budgeted in trials (each ran them all)."""
+    protocol = summary.get("protocol") or {}
+    if protocol.get("steps") is None:
+        return None
+    return (
+        f"each experiment: {protocol['steps']} env steps asked (at most "
+        f"{protocol.get('trials', '?')} trials); ran: {what_ran(summary, algorithms)}"
+    )
+
+
+def window_lines(summary: dict[str, Any], algorithms: Iterable[str]) -> list[str]:
+    """What the final and greedy columns average over: the final window in trials (stated for a
+    run shorter than :data:`~rmac_mj.evaluation.metrics.FINAL_WINDOW`, and when the experiments
+    ran different numbers of trials) and the trial of the last greedy evaluation."""
+    algorithms = list(algorithms)
+    lines = []
+    windows = {summary[a].get("final_window", metrics.FINAL_WINDOW) for a in algorithms}
+    ran = [n for a in algorithms for n in _trials_ran(summary[a])]
+    if windows:
+        window = _span(windows)
+        text = f"final return: each experiment's mean over its last {window} trials"
+        if min(ran) <= max(windows):
+            text += (
+                f", all it ran (the window is {metrics.FINAL_WINDOW} trials; this run is shorter)"
+                if max(ran) <= max(windows)
+                else f" (the experiments ran {_span(ran)} trials)"
+            )
+        elif len(set(ran)) > 1:
+            text += f" (the experiments ran {_span(ran)} trials)"
+        lines.append(text + "; then the mean over the experiments, and their IQM")
+    evaluated = [a for a in algorithms if summary[a].get("greedy_eval_trials")]
+    if evaluated:
+        last = {summary[a]["greedy_eval_trials"][-1] for a in evaluated}
+        uniform = all(len(set(_trials_ran(summary[a]))) == 1 for a in evaluated)
+        after = f"trial {_span(last)}" if uniform else "each experiment's last evaluated trial"
+        lines.append(
+            f"greedy at end: the greedy evaluation (no exploration, no learning) after {after}; "
+            "the mean over the experiments"
+        )
+    return lines
+
+
+def timing_line(summary: dict[str, Any], algorithms: Iterable[str], shorter: bool) -> str:
+    """What the time columns average over, and the level below which an experiment is stuck;
+    ``shorter``: the first 10 minutes are n/a for a run shorter than them."""
+    parts = [
+        "min to 90%: simulated minutes until the mean curve is within 10% of its final level",
+        f"first 10 min: n/a, the run is shorter than {metrics.EARLY_MINUTES:g} simulated minutes"
+        if shorter
+        else f"first 10 min: the mean return of the trials within the first "
+        f"{metrics.EARLY_MINUTES:g} simulated minutes",
+    ]
+    below = [summary[a]["stuck_below"] for a in algorithms if summary[a].get("stuck_below")]
+    if below:
+        parts.append(f"stuck: experiments whose final return is below {below[0]:.0f}")
+    return "; ".join(parts)
+
+
 def summary_table(summary: dict[str, Any], algorithms: Iterable[str] | None = None) -> str:
-    """The end-of-run table: one row per learner, then whether their final returns differ
+    """The end-of-run table: one row per learner (with the greedy return at the last evaluation
+    when the run evaluated), what its columns average over, then whether the final returns differ
     significantly, and a warning when too few experiments make the intervals meaningless."""
     algorithms = [a for a in (algorithms or ALGORITHMS) if a in summary]
+    greedy = any(summary[a].get("greedy_eval_trials") for a in algorithms)
     header = (
         f"{'learner':>8} {'experiments':>11} {'final return':>13} {'95% CI':>19} "
-        f"{'IQM [95% CI]':>25} {'min to 90%':>10} {'first 10 min':>12} {'stuck':>5}"
+        f"{'IQM [95% CI]':>25} "
+        + (f"{'greedy at end [95% CI]':>25} " if greedy else "")
+        + f"{'min to 90%':>10} {'first 10 min':>12} {'stuck':>5}"
     )
     lines = [header, "-" * len(header)]
     shorter = False
@@ -109,6 +199,17 @@ def summary_table(summary: dict[str, Any], algorithms: Iterable[str] | None = No
         iqm = _estimate(
             row.get("final_return_iqm"), None if few else row.get("final_return_iqm_ci95")
         )
+        at_end = ""
+        if greedy:
+            at_end = (
+                _estimate(
+                    row.get("greedy_return_last_mean"),
+                    None if few else row.get("greedy_return_last_ci95"),
+                )
+                if row.get("greedy_eval_trials")
+                else "n/a"
+            )
+            at_end = f"{at_end:>25} "
         early = row.get("mean_return_first_10min")
         if (
             early is not None
@@ -120,9 +221,14 @@ def summary_table(summary: dict[str, Any], algorithms: Iterable[str] | None = No
         shorter = shorter or early is None
         lines.append(
             f"{algorithm:>8} {row['experiments']:>11d} {row['final_return_mean']:>13.1f} "
-            f"{ci:>19} {iqm:>25} {row['minutes_to_90pct']:>10.1f} "
+            f"{ci:>19} {iqm:>25} {at_end}{row['minutes_to_90pct']:>10.1f} "
             f"{'n/a' if early is None else f'{early:.1f}':>12} {stuck:>5}"
         )
+    budget = budget_line(summary, algorithms)
+    if budget is not None:
+        lines.append(budget)
+    lines.extend(window_lines(summary, algorithms))
+    lines.append(timing_line(summary, algorithms, shorter))
     if summary.get("optimal_return") is not None:
         lines.append(f"near-optimal return: {summary['optimal_return']:.1f}")
     if summary.get("trial_seconds") is not None:
@@ -155,11 +261,6 @@ def summary_table(summary: dict[str, Any], algorithms: Iterable[str] | None = No
         for pair, estimate in improvement.items()
         if all(name in algorithms for name in pair.split(" > "))
     )
-    if shorter:
-        lines.append(
-            f"first 10 min: n/a, the run is shorter than {metrics.EARLY_MINUTES:g} simulated "
-            "minutes"
-        )
     fewest = min((summary[a]["experiments"] for a in algorithms), default=None)
     if fewest is not None and fewest < metrics.FEW_EXPERIMENTS:
         lines.append(few_experiments_note(fewest))
