@@ -32,10 +32,12 @@ def add_compare(commands) -> None:
     )
     compare.add_argument(
         "--out",
-        type=pathlib.Path,
         default=None,
-        help="figure path without suffix (.png and .pdf are written; "
-        "default: FIRST_DIR/compare, beside the first run's own figures)",
+        metavar="PATH",
+        help="where the two figures go: a folder (existing, or ending in /) gets compare.png "
+        "and compare_profiles.png; a path ending in .png or .pdf, or without suffix, names "
+        "the learning curves, the performance profiles beside them as NAME_profiles (each "
+        "as .png and .pdf; default: FIRST_DIR/compare, beside the first run's own figures)",
     )
     compare.add_argument(
         "--smooth",

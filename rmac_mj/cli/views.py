@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import json
+import os
 import pathlib
 from collections.abc import Sequence
 
@@ -63,6 +64,33 @@ def _say_missing_learners(path, summary: dict) -> None:
         say(f"{path} has no results for {algorithm}, which its run lists: shown without it")
 
 
+#: The figure formats ``compare`` writes; ``--out`` may end in one of them.
+FIGURE_SUFFIXES = (".png", ".pdf")
+
+
+def compare_figure_stems(out: str | None, first: pathlib.Path) -> tuple[pathlib.Path, pathlib.Path]:
+    """The paths, without suffix, of compare's two figures: the learning curves and the
+    performance profiles (``STEM`` and ``STEM_profiles``, each as .png and .pdf).
+
+    ``out`` (``--out``): None, ``compare`` in ``first``, the first directory given; a folder (one
+    that exists, or a path ending in ``/``), ``compare`` in it; a path ending in .png or .pdf, that
+    path's stem; any other path, taken as the stem. UsageError for another suffix, which would be
+    replaced."""
+    if out is None:
+        folder, stem = first, "compare"
+    elif out.endswith(("/", os.sep)) or pathlib.Path(out).is_dir():
+        folder, stem = pathlib.Path(out), "compare"
+    else:
+        path = pathlib.Path(out)
+        if path.suffix and path.suffix.lower() not in FIGURE_SUFFIXES:
+            raise UsageError(
+                f"--out {out}: compare writes .png and .pdf figures; give a folder, a path "
+                f"without suffix, or one ending in {' or '.join(FIGURE_SUFFIXES)}"
+            )
+        folder, stem = path.parent, path.stem
+    return folder / stem, folder / f"{stem}_profiles"
+
+
 def compare(args) -> int:
     from rmac_mj.agents import ALGORITHMS
     from rmac_mj.evaluation import report
@@ -75,6 +103,7 @@ def compare(args) -> int:
             say(f"{directory} is given twice; it is shown once")
             continue
         directories.append(directory)
+    out, profiles_out = compare_figure_stems(args.out, directories[0])
     summaries = {}
     for directory, label in zip(directories, shortest_distinct_suffixes(directories)):
         store = ResultStore(directory)
@@ -82,7 +111,6 @@ def compare(args) -> int:
         if "trial_seconds" not in summaries[label]:
             raise UsageError(f"{store.summary_path} has no trial_seconds (the task's trial length)")
         _say_missing_learners(store.summary_path, summaries[label])
-    out = args.out if args.out is not None else directories[0] / "compare"
     optimal = next(
         (s["optimal_return"] for s in summaries.values() if s.get("optimal_return")), None
     )
@@ -111,7 +139,7 @@ def compare(args) -> int:
             for a in ALGORITHMS
             if a in s and "final_return_per_experiment" in s[a]
         },
-        out.with_name(out.name + "_profiles"),
+        profiles_out,
     )
     print("figures:", ", ".join(map(str, paths)))
     return 0
