@@ -8,6 +8,7 @@ given ``kwargs``, and ``seed=`` when it takes one).
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import functools
 import importlib
 import importlib.util
@@ -71,12 +72,17 @@ def parse(spec: str) -> tuple[str, str]:
 
 
 def load_factory(target: str) -> Callable[..., Any]:
-    """The function a ``module:function`` or ``file.py:function`` SPEC names."""
+    """The function a ``module:function`` or ``file.py:function`` SPEC names.
+
+    A file's folder goes first on ``sys.path`` (if it is not there), as ``python file.py`` puts it:
+    the file imports the modules beside it, in this process and in every worker that loads it."""
     module_name, _, attribute = target.rpartition(":")
     if module_name.endswith(".py"):
         path = pathlib.Path(module_name).expanduser().resolve()
         if not path.is_file():
             raise ValueError(f"env {target!r}: no file {str(path)!r}")
+        if str(path.parent) not in sys.path:
+            sys.path.insert(0, str(path.parent))
         name = f"rmac_mj_user_{path.stem}_{zlib.crc32(str(path).encode()):08x}"
         module = sys.modules.get(name)
         if module is None:
@@ -102,10 +108,25 @@ def load_factory(target: str) -> Callable[..., Any]:
     try:
         factory = functools.reduce(getattr, attribute.split("."), module)
     except AttributeError:
-        raise ValueError(f"env {target!r}: {module_name!r} has no {attribute!r}") from None
+        raise ValueError(
+            f"env {target!r}: {module_name!r} has no {attribute!r}{_did_you_mean(module, attribute)}"
+        ) from None
     if not callable(factory):
         raise ValueError(f"env {target!r}: {attribute!r} is not callable")
     return factory
+
+
+def _did_you_mean(module: Any, attribute: str) -> str:
+    """``" (did you mean 'make'?)"``: the callable of ``module`` (or of the object the dotted
+    ``attribute`` reaches before the missing name) closest to the missing name, or nothing."""
+    *owners, missing = attribute.split(".")
+    try:
+        owner = functools.reduce(getattr, owners, module)
+    except AttributeError:
+        return ""
+    names = [n for n in dir(owner) if not n.startswith("_") and callable(getattr(owner, n, None))]
+    close = difflib.get_close_matches(missing, names, n=1)
+    return f" (did you mean {'.'.join([*owners, close[0]])!r}?)" if close else ""
 
 
 @dataclasses.dataclass(frozen=True)

@@ -208,6 +208,38 @@ def test_factory_from_a_module_returning_gymnasium(tmp_path, monkeypatch):
     tiny_run(env)
 
 
+def test_a_task_files_folder_is_importable_and_a_wrong_factory_name_gets_the_closest(
+    tmp_path, monkeypatch
+):
+    """A task file imports the module beside it, as ``python file.py`` would, wherever the run
+    starts (here and in a fresh process, as a worker is)."""
+    import subprocess
+    import sys
+
+    monkeypatch.setattr(sys, "path", list(sys.path))  # the loader puts the folder first
+    folder = tmp_path / "my folder"
+    folder.mkdir()
+    (folder / "h39_dot_model.py").write_text(_DRAWN)
+    (folder / "dot_task.py").write_text(
+        "import gymnasium\n"
+        "from h39_dot_model import Dot\n\n\n"
+        "def make():\n"
+        "    return gymnasium.wrappers.TimeLimit(Dot(), max_episode_steps=5)\n"
+    )
+    spec = f"{folder / 'dot_task.py'}:make"
+    env = envs.load(spec, seed=0)
+    assert steps_per_trial(env) == 5 and sys.path[0] == str(folder)
+    code = f"from rmac_mj import envs; print(envs.load({spec!r}, seed=0).trial_seconds)"
+    out = subprocess.run(
+        [sys.executable, "-c", code], cwd="/", capture_output=True, text=True, check=True
+    )
+    assert out.stdout.strip() == "0.5"
+    with pytest.raises(ValueError, match=r"has no 'mak' \(did you mean 'make'\?\)"):
+        envs.load(f"{folder / 'dot_task.py'}:mak")
+    with pytest.raises(ValueError, match=r"has no 'zzz'$"):  # nothing close: nothing guessed
+        envs.load(f"{folder / 'dot_task.py'}:zzz")
+
+
 def make_suite_pendulum(seed=None):
     """A factory returning a dm-control task that declares its own learner_state."""
     from rmac_mj import tasks
