@@ -203,14 +203,44 @@ def add_reproduce(commands, defaults: Mapping[str, Any] | None = None) -> None:
         reproduce.set_defaults(**defaults)
 
 
+#: The Protocol fields that size a run, which ``sweep`` takes over its file's [protocol] table.
+SWEEP_SIZE_OPTIONS = ("experiments", "trials", "steps")
+
+
 def add_sweep(commands) -> None:
     """``sweep``: every configuration of a sweep file."""
-    sweep = commands.add_parser("sweep", help="run every configuration of a sweep file")
+    sweep = add_command(
+        commands,
+        "sweep",
+        "run every configuration of a sweep file, each into a result directory of its own, and "
+        "tabulate them (docs/guide/sweeps.md)",
+    )
     sweep.add_argument(
         "file",
         type=pathlib.Path,
         metavar="SWEEP.toml",
         help="[protocol], [grid] and [[variant]] tables (docs/studies/README.md)",
+    )
+    sweep.add_argument(
+        "--experiments",
+        type=size_within(constraints.EXPERIMENTS),
+        default=None,
+        metavar="N",
+        help="learning experiments per learner and configuration, over the file's",
+    )
+    sweep.add_argument(
+        "--trials",
+        type=size_within(constraints.TRIALS),
+        default=None,
+        metavar="N",
+        help="trials per experiment (with steps: at most this many), over the file's",
+    )
+    sweep.add_argument(
+        "--steps",
+        type=positive_int,
+        default=None,
+        metavar="N",
+        help="a budget of environment steps per experiment, over the file's",
     )
     sweep.add_argument(
         "--out",

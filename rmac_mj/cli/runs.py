@@ -9,7 +9,7 @@ from typing import Any
 
 from rmac_mj.cli.common import STARTED, Interrupted, UsageError, say, user_input, writable_dir
 from rmac_mj.cli.options import build_parser
-from rmac_mj.cli.run_options import PROTOCOL_OPTIONS
+from rmac_mj.cli.run_options import PROTOCOL_OPTIONS, SWEEP_SIZE_OPTIONS
 from rmac_mj.errors import UserInputError
 
 
@@ -220,7 +220,10 @@ def sweep(args) -> int:
     if args.jobs is not None and args.scheduler:
         raise UsageError("--jobs and --scheduler exclude each other")
     # the whole file is validated before anything runs; its size is said first
-    plan = sweep_file.load_sweep(args.file, announce=say)
+    sizes = {
+        key: getattr(args, key) for key in SWEEP_SIZE_OPTIONS if getattr(args, key) is not None
+    }
+    plan = sweep_file.load_sweep(args.file, announce=say, sizes=sizes)
     out = writable_dir(args.out)
     say(f"running into {out}/")
     try:
@@ -236,7 +239,8 @@ def sweep(args) -> int:
             started=STARTED,
         )
     except KeyboardInterrupt:
-        again = f"rmac-mj sweep {args.file} --resume --out {out}"
+        given = "".join(f" --{key} {value}" for key, value in sizes.items())
+        again = f"rmac-mj sweep {args.file}{given} --resume --out {out}"
         raise Interrupted(
             f"finished experiments are saved in {out}; finish the sweep with: {again}"
             f"{' --no-optimal' if args.no_optimal else ''}"

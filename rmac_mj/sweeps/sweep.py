@@ -78,8 +78,9 @@ def _prepare(out: pathlib.Path, sweep: Sweep, resume: bool) -> None:
             return
         if not (_added_experiments(stored, document) or 0) > 0:
             raise SweepResumeRefused(
-                f"{out} holds a sweep of a different file; refusing to mix "
-                "results (use another --out; a resume may only add experiments)"
+                f"{out} holds a sweep of a different file or size (--experiments, --trials, "
+                "--steps); refusing to mix results (use another --out; a resume may only add "
+                "experiments)"
             )
         # the file adds experiments and changes nothing else: each configuration's run grows too
         before = stored["sweep"]["protocol"]["experiments"]
@@ -91,8 +92,13 @@ def _prepare(out: pathlib.Path, sweep: Sweep, resume: bool) -> None:
 
 
 def _write_index(out: pathlib.Path, sweep: Sweep, document: dict[str, Any]) -> None:
-    """``out/sweep.json`` (``document`` and the file's path) and ``out/sweep.toml``, the file's copy."""
-    files.write_json(out / "sweep.json", {**document, "source": str(sweep.path)})
+    """``out/sweep.json`` (``document``, the file's path and the sizes the command line gave over
+    the file's) and ``out/sweep.toml``, the file's copy."""
+    document = {**document, "source": str(sweep.path)}
+    document.pop("command_line_sizes", None)  # a grown sweep's earlier start: this one's say
+    if sweep.sizes:
+        document["command_line_sizes"] = dict(sweep.sizes)
+    files.write_json(out / "sweep.json", document)
     text = sweep.path.read_bytes()
     files.write_atomic(out / "sweep.toml", lambda handle: handle.write(text))
 
@@ -221,33 +227,72 @@ def write_csv(path: pathlib.Path, sweep: Sweep, rows: list[dict]) -> pathlib.Pat
     )
 
 
+def _interval(low: float | None, high: float | None, experiments: int) -> str | None:
+    """``"[low, high]"``, or None where there is none or it is withheld (too few experiments; a
+    sweep written before intervals were withheld holds them)."""
+    if low is None or high is None or metrics.withheld(experiments) is not None:
+        return None
+    return f"[{low:.0f}, {high:.0f}]"
+
+
 def format_table(sweep: Sweep, rows: list[dict]) -> str:
-    """The end-of-sweep table for the terminal: one line per configuration and learner."""
+    """The end-of-sweep table for the terminal: one line per configuration and learner; a column
+    claims a 95% interval only where some row has one, and the greedy return at the last
+    evaluation is shown when the sweep evaluated."""
     width = max([len(r["configuration"]) for r in rows] + [13])
+    finals = [
+        _interval(r["final_return_ci95_low"], r["final_return_ci95_high"], r["experiments"])
+        for r in rows
+    ]
+    greedies = [
+        _interval(
+            r.get("greedy_return_ci95_low"), r.get("greedy_return_ci95_high"), r["experiments"]
+        )
+        for r in rows
+    ]
+    evaluated = any(r.get("greedy_return_mean") is not None for r in rows)
+    final_title = "final return [95% CI]" if any(finals) else "final return"
+    greedy_title = "greedy at end [95% CI]" if any(greedies) else "greedy at end"
     header = (
-        f"{'configuration':<{width}} {'learner':>7} {'final return [95% CI]':>24} "
-        f"{'greedy':>7} {'min to 90%':>10} {'first 5 min':>11} {'stuck':>5}"
+        f"{'configuration':<{width}} {'learner':>7} {final_title:>24} "
+        + (f"{greedy_title:>24} " if evaluated else "")
+        + f"{'min to 90%':>10} {'first 5 min':>11} {'stuck':>5}"
     )
     lines = [header, "-" * len(header)]
-    for row in rows:
-        low, high = row["final_return_ci95_low"], row["final_return_ci95_high"]
-        ci = f" [{low:.0f}, {high:.0f}]" if low is not None else ""
-        greedy = row.get("greedy_return_mean")
+    for row, final_ci, greedy_ci in zip(rows, finals, greedies):
+        # n/a where the header claims an interval this row has not
+        final = f"{row['final_return_mean']:.1f}" + (f" {final_ci or 'n/a'}" if any(finals) else "")
+        greedy = ""
+        if evaluated:
+            mean = row.get("greedy_return_mean")
+            greedy = "n/a" if mean is None else f"{mean:.1f}"
+            if any(greedies) and mean is not None:
+                greedy += f" {greedy_ci or 'n/a'}"
+            greedy = f"{greedy:>24} "
         first = row["mean_return_first_5min"]  # None for a run shorter than the window
         stuck = row["stuck_experiments"]  # None without a reference return to judge "stuck" by
         lines.append(
-            f"{row['configuration']:<{width}} {row['algorithm']:>7} "
-            f"{row['final_return_mean']:>9.1f}{ci:>15} "
-            f"{'' if greedy is None else f'{greedy:.1f}':>7} "
+            f"{row['configuration']:<{width}} {row['algorithm']:>7} {final:>24} {greedy}"
             f"{row['minutes_to_90pct']:>10.1f} {'n/a' if first is None else f'{first:.1f}':>11} "
             f"{'' if stuck is None else stuck:>5}"
         )
     windows = sorted({row["final_window"] for row in rows})
-    lines.append(
-        f"final return: mean of the last {', '.join(map(str, windows))} trials per experiment; "
-        f"first 5 min: of the trials within the first {metrics.FIRST_MINUTES:g} simulated "
-        "minutes"
+    short = (
+        f" (the window is {metrics.FINAL_WINDOW} trials; these runs are shorter)"
+        if max(windows) < metrics.FINAL_WINDOW
+        else ""
     )
+    lines.append(
+        f"final return: mean of the last {', '.join(map(str, windows))} trials per experiment"
+        f"{short}; first 5 min: of the trials within the first {metrics.FIRST_MINUTES:g} "
+        "simulated minutes"
+    )
+    if evaluated:
+        trials = sorted({row["greedy_trial"] for row in rows if row.get("greedy_trial")})
+        lines.append(
+            f"greedy at end: the greedy evaluation after trial {', '.join(map(str, trials))}, the "
+            "mean over the experiments"
+        )
     fewest = min(row["experiments"] for row in rows)
     if fewest < metrics.FEW_EXPERIMENTS:
         lines.append(report.few_experiments_note(fewest))

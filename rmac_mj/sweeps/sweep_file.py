@@ -89,6 +89,8 @@ class Sweep:
       variants: ``(name, {"ALGO.FIELD": value})`` per [[variant]], in the file's order.
       configurations: every variant crossed with every grid point (variant-major, then the grid in
         ``itertools.product`` order of its keys).
+      sizes: the [protocol] sizes the command line gave over the file's (``experiments``,
+        ``trials``, ``steps``); already in ``options``.
     """
 
     path: pathlib.Path
@@ -97,6 +99,7 @@ class Sweep:
     grid: dict[str, list]
     variants: tuple[tuple[str, dict[str, Any]], ...]
     configurations: tuple[Configuration, ...]
+    sizes: dict[str, int] = dataclasses.field(default_factory=dict)
 
     @property
     def parameters(self) -> list[str]:
@@ -143,7 +146,11 @@ def read_toml(path: str | pathlib.Path) -> dict[str, Any]:
         raise SweepFileError(f"{path}: not valid TOML: not UTF-8 text") from None
 
 
-def load_sweep(path: str | pathlib.Path, announce: Callable[[str], None] | None = None) -> Sweep:
+def load_sweep(
+    path: str | pathlib.Path,
+    announce: Callable[[str], None] | None = None,
+    sizes: dict[str, int] | None = None,
+) -> Sweep:
     """Read and validate a sweep file; raise :class:`SweepFileError` naming the first bad key.
 
     A sweep file::
@@ -162,11 +169,14 @@ def load_sweep(path: str | pathlib.Path, announce: Callable[[str], None] | None 
     values.
 
     ``announce`` hears the sweep's size (configurations, experiments) as soon as it is known, before
-    every configuration is built and checked (seconds for a large grid)."""
+    every configuration is built and checked (seconds for a large grid). ``sizes``: some of
+    ``experiments``, ``trials`` and ``steps`` that replace the file's (the command line's)."""
     path = pathlib.Path(path)
     document = read_toml(path)
-    check = SweepFileChecker(path)
+    check = SweepFileChecker(path, sizes)
     options, fixed = check.protocol(document)
+    sizes = dict(sizes or {})
+    options = {**options, **sizes}
     algorithms = options.get("algorithms", Protocol().algorithms)
     grid = {}
     for key, values in flatten(check.table(document, "grid")).items():
@@ -197,10 +207,17 @@ def load_sweep(path: str | pathlib.Path, announce: Callable[[str], None] | None 
         )
     if announce is not None:
         per = options.get("experiments", Protocol().experiments) * len(algorithms)
+        trials = options.get("trials", Protocol().trials)
+        size = (
+            f"{trials} trials"
+            if options.get("steps") is None
+            else f"{options['steps']} env steps (at most {trials} trials)"
+        )
+        given = "".join(f" --{key} {value}" for key, value in sizes.items())
         announce(
-            f"{path}: {count} configuration{'s' * (count != 1)} x {per} experiments = "
-            f"{count * per} experiments of {options.get('trials', Protocol().trials)} trials; "
-            "checking every configuration"
+            f"{path}{given and f' with{given}'}: {count} configuration{'s' * (count != 1)} x "
+            f"{per} experiments = {count * per} experiments of {size}; checking every "
+            "configuration"
         )
     configurations = _configurations(check, options, fixed, grid, variants)
     return Sweep(
@@ -210,6 +227,7 @@ def load_sweep(path: str | pathlib.Path, announce: Callable[[str], None] | None 
         grid=grid,
         variants=variants,
         configurations=configurations,
+        sizes=sizes,
     )
 
 

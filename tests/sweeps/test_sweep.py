@@ -516,3 +516,31 @@ seed = 7
     )
     assert cli.main(["reproduce", "--config", str(grid), "--out", str(tmp_path / "x")]) == 2
     assert "lists 2 values; --config runs one configuration" in capsys.readouterr().err
+
+
+def test_a_sweep_takes_its_size_from_the_command_line_over_the_files(tmp_path, capsys):
+    """Issue 39: ``sweep --experiments 1 --trials 2`` runs a study's file at a smaller size (no
+    copy to edit); the table claims no interval it does not print, and a resume at another size is
+    refused."""
+    path = write(tmp_path, TINY.replace("evaluate_every = 3", "evaluate_every = 2"))
+    out = tmp_path / "out"
+    args = ["sweep", str(path), "--experiments", "1", "--trials", "2", "--no-optimal"]
+    assert cli.main([*args, "--no-progress", "--out", str(out)]) == 0
+    captured = capsys.readouterr()
+    assert "with --experiments 1 --trials 2: 2 configurations x 1 experiments" in captured.err
+    assert {name: len(r) for name, r in curves(out).items()} == {
+        "alpha_a=0.005/curves/s-ac/exp_000.npz": 2,
+        "alpha_a=0.02/curves/s-ac/exp_000.npz": 2,
+    }
+    index = json.loads((out / "sweep.json").read_text())
+    assert index["command_line_sizes"] == {"experiments": 1, "trials": 2}
+    header = next(line for line in captured.out.splitlines() if line.startswith("configuration"))
+    assert "final return " in header and "95% CI" not in header  # 1 experiment: no interval
+    assert "greedy at end" in header
+    assert "greedy at end: the greedy evaluation after trial 2" in captured.out
+    # the same folder at the file's own size is another sweep
+    assert cli.main(["sweep", str(path), "--no-progress", "--resume", "--out", str(out)]) == 2
+    assert "different file or size" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        cli.main(["sweep", "--help"])
+    assert "run every configuration of a sweep file" in capsys.readouterr().out
