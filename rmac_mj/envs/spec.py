@@ -284,10 +284,11 @@ class EnvSpec:
         declared = self.learner_state
         if isinstance(declared, LearnerStateSpec):
             return spec
-        if declared is None:
-            own = getattr(getattr(base, "task", None), "learner_state", None)
-            if isinstance(own, LearnerStateSpec):
-                return dataclasses.replace(spec, learner_state=own)
+        own = _own_learner_state(base)
+        if declared is None and isinstance(own, LearnerStateSpec):
+            return dataclasses.replace(spec, learner_state=own)
+        if isinstance(own, Mapping):  # the environment's own fields, the user's over them
+            declared = _declared_over(check_declaration(own), check_declaration(declared))
         layout = _layout(base)
         needs_probe = not (declared and "keys" in declared)
         size = sum(layout.sizes.values())
@@ -350,6 +351,32 @@ class EnvSpec:
                 f"its kwargs)"
             )
         return float(dt), limit if limit is not None else self.trial_steps * self.action_repeat
+
+
+def _own_learner_state(base: dm_env.Environment) -> LearnerStateSpec | Mapping[str, Any] | None:
+    """What the environment declares of x itself: the ``learner_state`` of a dm-control task
+    (``base.task``), of a Gymnasium environment (its ``unwrapped`` one) or of the environment a
+    factory returned: a LearnerStateSpec, or a mapping of some of its fields and ``bounds`` (a
+    ``[learner_state]`` table); None when it declares nothing."""
+    holders = (
+        [base.env.unwrapped]
+        if isinstance(base, GymnasiumEnvironment)
+        else [getattr(base, "task", None), base]
+    )
+    for holder in holders:
+        own = getattr(holder, "learner_state", None)
+        if isinstance(own, (LearnerStateSpec, Mapping)):
+            return own
+    return None
+
+
+def _declared_over(own: dict[str, Any], declared: dict[str, Any]) -> dict[str, Any]:
+    """The environment's ``own`` declaration with the user's ``declared`` fields over it, field by
+    field (``bounds`` dimension by dimension)."""
+    merged = {**own, **declared}
+    if "bounds" in own and "bounds" in declared:
+        merged["bounds"] = {**own["bounds"], **declared["bounds"]}
+    return merged
 
 
 def _is_gymnasium_env(obj: Any) -> bool:
