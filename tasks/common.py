@@ -72,10 +72,10 @@ class LearnerStateSpec:
                 f"{len(self.action_labels)}"
             )
         low, high = np.asarray(self.low, dtype=float), np.asarray(self.high, dtype=float)
-        if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high)) and np.all(low < high)):
+        problem = box_problem(low, high, self.labels)
+        if problem is not None:
             raise ValueError(
-                f"LearnerStateSpec.low and high must be finite with low < high, "
-                f"got {self.low!r} and {self.high!r}"
+                f"LearnerStateSpec.low and high must be finite with low < high: {problem}"
             )
         if self.action_cost is not None and len(self.action_cost) != len(self.action_labels):
             raise ValueError(
@@ -116,6 +116,20 @@ class LearnerStateSpec:
         for name in ("action_cost", "state_cost"):
             if getattr(self, name) is not None:
                 object.__setattr__(self, name, tuple(float(v) for v in getattr(self, name)))
+
+
+def box_problem(low, high, labels=None) -> str | None:
+    """Why ``low`` and ``high`` (shape (n,)) are no box: the first dimension that is not finite
+    with low < high, by its label when ``labels`` has one per dimension, with plain numbers
+    (``"dimension 0, position [m]: low 3, high -3"``); None when they are a box."""
+    low = np.asarray(low, dtype=float).reshape(-1)
+    high = np.asarray(high, dtype=float).reshape(-1)
+    bad = ~(np.isfinite(low) & np.isfinite(high) & (low < high))
+    if not bad.any():
+        return None
+    i = int(np.argmax(bad))
+    named = f", {labels[i]}" if labels is not None and len(labels) == low.size else ""
+    return f"dimension {i}{named}: low {low[i]:g}, high {high[i]:g}"
 
 
 def wrap_angle(angle):

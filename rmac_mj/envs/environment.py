@@ -124,8 +124,10 @@ class Environment(dm_env.Environment):
         if not self._accepted.accepts(values):
             low, high = self._accepted.limit
             i = int(np.argmax((x < low) | (x > high)))
+            label = self.learner_state.labels[i]
+            named = f"x[{i}]" if label == f"x[{i}]" else f"x[{i}] ({label})"
             raise EnvironmentFailure(
-                f"env {self.name!r}: its {phase} gave x[{i}] = {values[i]:g}, beyond what a "
+                f"env {self.name!r}: its {phase} gave {named} = {values[i]:g}, beyond what a "
                 f"learner accepts, [{low[i]:g}, {high[i]:g}] ({STATE_LIMIT_WIDTHS:g} widths of "
                 f"the state box around it)"
             )

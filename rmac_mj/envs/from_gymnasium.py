@@ -14,6 +14,7 @@ import numpy as np
 from dm_env import specs
 
 from rmac_mj.envs.observation_map import OBSERVATION, layout_of_gymnasium
+from rmac_mj.tasks.common import box_problem
 
 
 class GymnasiumEnvironment(dm_env.Environment):
@@ -37,10 +38,10 @@ class GymnasiumEnvironment(dm_env.Environment):
                 f"need a bounded Box"
             )
         low, high = np.asarray(space.low, dtype=float), np.asarray(space.high, dtype=float)
-        if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high)) and np.all(low < high)):
+        problem = box_problem(low, high, [f"u[{i}]" for i in range(low.size)])
+        if problem is not None:
             raise ValueError(
-                f"{name}: the action space must be bounded (finite low < high), got "
-                f"low={space.low}, high={space.high}"
+                f"{name}: the action space must be bounded (finite low < high): {problem}"
             )
         self.env = env
         self.layout = layout_of_gymnasium(env.observation_space)

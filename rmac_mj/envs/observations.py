@@ -221,9 +221,11 @@ def infer_learner_state(
         missing = []
     if missing:
         example = ", ".join(f'"{name}" = [LOW, HIGH]' for name in missing)
+        as_json = ", ".join(f'"{name}": [LOW, HIGH]' for name in missing)
         raise ValueError(
             f"{owner}: no finite bounds for {', '.join(missing)} (the observation spec "
-            f"gives none); declare them: learner_state.bounds = {{{example}}}"
+            f"gives none); declare them: learner_state.bounds = {{{example}}} in a --config "
+            f"file, or --learner-state '{{\"bounds\": {{{as_json}}}}}'"
         )
     action_low = np.asarray(action_low, dtype=float).reshape(-1)
     action_high = np.asarray(action_high, dtype=float).reshape(-1)

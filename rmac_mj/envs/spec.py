@@ -340,15 +340,16 @@ class EnvSpec:
             dt = own() if callable(own) else None
         if dt is None or not dt > 0:
             raise ValueError(
-                f"env {self.env!r} does not say its time step (no dt); set "
-                f"control_timestep (seconds per environment step)"
+                f"env {self.env!r} does not say its time step (no dt); give "
+                f"--control-timestep S, the seconds per environment step (control_timestep "
+                f"in a --config file's [protocol] or to envs.load)"
             )
         limit = _step_limit(base)
         if limit is None and self.trial_steps is None:
             raise ValueError(
                 f"env {self.env!r} has no time limit and does not truncate its "
-                f"episodes; set trial_steps (or, for Gymnasium, max_episode_steps in "
-                f"its kwargs)"
+                f"episodes; give --trial-steps N (trial_steps in a --config file's "
+                f"[protocol] or to envs.load; for Gymnasium, max_episode_steps in its kwargs)"
             )
         return float(dt), limit if limit is not None else self.trial_steps * self.action_repeat
 

@@ -173,8 +173,10 @@ class Protocol:
 
     def _check_suite_task(self) -> None:
         given = [name for name in self.ENV_FIELDS if getattr(self, name) != _FIELD_DEFAULTS[name]]
-        if given:
-            raise ValueError(f"{', '.join(given)} describe an outside environment: give env too")
+        if given:  # named as in a [protocol] table and as the command line's option
+            named = ", ".join(f"{name} (--{name.replace('_', '-')})" for name in given)
+            verb = "describes" if len(given) == 1 else "describe"
+            raise ValueError(f"{named} {verb} an outside environment: give env (--env) too")
         if self.domain not in tasks.TASKS_BY_DOMAIN:
             raise ValueError(
                 f"unknown domain {self.domain!r}; available: "

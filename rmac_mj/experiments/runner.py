@@ -236,7 +236,7 @@ def run_protocols(
                     f"{protocol.environment_name}: no bounds in the specs for "
                     f"{', '.join(measured)}; measured from random actions ("
                     + ", ".join(f"{k} [{lo:.3g}, {hi:.3g}]" for k, (lo, hi) in measured.items())
-                    + "; declare learner_state.bounds to choose them)"
+                    + "; choose them with --learner-state or a [learner_state] table)"
                 )
         state.append(_Run(protocol, out, document, demonstration, resume))
     client = execution.connect_dask(scheduler) if scheduler else None

@@ -136,7 +136,9 @@ def test_the_command_lines_env_completes_a_config_file(tmp_path):
     env = "dm_control:pendulum/swingup"
     args = _settings(["reproduce", "--config", str(config), "--env", env])
     assert args.env == env and args.trial_steps == 50
-    with pytest.raises(UserInputError, match="trial_steps describe an outside environment"):
+    with pytest.raises(
+        UserInputError, match=r"trial_steps \(--trial-steps\) describes an outside environment"
+    ):
         _settings(["reproduce", "--config", str(config)])  # no environment anywhere
     # the file names the environment and the command line sets its trial length: accepted
     config.write_text(f'[protocol]\nalgorithms = ["s-ac"]\nenv = "{env}"\ntrial_steps = 50\n')

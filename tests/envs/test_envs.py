@@ -240,6 +240,62 @@ def test_a_task_files_folder_is_importable_and_a_wrong_factory_name_gets_the_clo
         envs.load(f"{folder / 'dot_task.py'}:zzz")
 
 
+_LABELLED = """
+import gymnasium
+import numpy as np
+
+
+class Labelled(gymnasium.Env):
+    learner_state = {"labels": ["position [m]", "velocity [m/s]"], "action_labels": ["force [N]"]}
+
+    def __init__(self, action_high=1.0):
+        self.observation_space = gymnasium.spaces.Box(
+            np.array([-3.0, -5.0], dtype=np.float32), np.array([3.0, 5.0], dtype=np.float32)
+        )
+        self.action_space = gymnasium.spaces.Box(-1.0, np.float32(action_high), (1,))
+        self.dt = 0.05
+
+    def reset(self, *, seed=None, options=None):
+        super().reset(seed=seed)
+        return np.zeros(2, dtype=np.float32), {}
+
+    def step(self, action):
+        return np.zeros(2, dtype=np.float32), 0.0, False, False, {}
+
+
+def make(**kwargs):
+    return gymnasium.wrappers.TimeLimit(Labelled(**kwargs), max_episode_steps=5)
+"""
+
+
+def test_an_environment_labels_its_dimensions_and_messages_name_them(tmp_path):
+    """Issue 39: an environment's own ``learner_state`` (a dict of the declarable fields) labels
+    the policy figure's axes, a user's declaration goes over it field by field; a bad box is named
+    by its dimension and label with plain numbers."""
+    from rmac_mj.tasks import LearnerStateSpec
+
+    (tmp_path / "labelled.py").write_text(_LABELLED)
+    spec = f"{tmp_path / 'labelled.py'}:make"
+    env = envs.load(spec, seed=0)
+    assert env.learner_state.labels == ("position [m]", "velocity [m/s]")
+    assert env.learner_state.action_labels == ("force [N]",)
+    mine = envs.load(spec, seed=0, learner_state={"bounds": {"observation[0]": [-2, 2]}})
+    assert mine.learner_state.labels == ("position [m]", "velocity [m/s]")
+    assert (mine.learner_state.low[0], mine.learner_state.high[0]) == (-2.0, 2.0)
+    with pytest.raises(
+        ValueError, match=r"must be bounded.*: dimension 0, u\[0\]: low -1, high -1$"
+    ):
+        envs.load(spec, {"action_high": -1.0})
+    with pytest.raises(ValueError) as refused:
+        LearnerStateSpec(
+            keys=("p", "v"), low=(np.float64(3.0), -1.0), high=(np.float64(-3.0), 1.0),
+            periodic=(False, False), labels=("position [m]", "velocity [m/s]"),
+            input_weights=(1.0, 1.0), action_input_weights=(1.0,), action_labels=("u",),
+        )  # fmt: skip
+    assert str(refused.value).endswith("dimension 0, position [m]: low 3, high -3")
+    assert "np.float64" not in str(refused.value)
+
+
 def make_suite_pendulum(seed=None):
     """A factory returning a dm-control task that declares its own learner_state."""
     from rmac_mj import tasks
@@ -299,7 +355,11 @@ def test_an_ambiguous_observation_is_refused_naming_the_key():
 @pytest.mark.parametrize(
     "spec, kwargs, message",
     [
-        (f"{HERE}:make_slider", {}, r"does not say its time step.*control_timestep"),
+        (
+            f"{HERE}:make_slider",
+            {},
+            r"does not say its time step \(no dt\); give --control-timestep S.*\(control_timestep",
+        ),
         ("gymnasium:CartPole-v1", {}, r"action space is Discrete"),
         ("gymnasium:NoSuchEnv-v0", {}, r"gymnasium:NoSuchEnv-v0"),
         ("dm_control:cartpole/swingupp", {}, r"its tasks: .*cartpole/swingup"),
@@ -374,7 +434,8 @@ def test_without_a_measurement_an_unbounded_dimension_is_refused_naming_it():
 
 def test_slider_needs_a_time_limit():
     with pytest.raises(
-        ValueError, match=r"has no time limit and does not truncate its episodes; set trial_steps"
+        ValueError,
+        match=r"has no time limit and does not truncate its episodes; give --trial-steps N \(trial_steps",
     ):
         envs.load(f"{HERE}:make_slider", control_timestep=0.1)
 
@@ -529,7 +590,8 @@ def test_an_evaluation_is_the_mean_over_the_same_seeded_starts():
 
 def test_env_fields_need_env_and_exclude_a_suite_task():
     with pytest.raises(
-        ValueError, match="action_repeat, trial_steps describe an outside environment"
+        ValueError,
+        match=r"action_repeat \(--action-repeat\), trial_steps \(--trial-steps\) describe an outside",
     ):
         tiny_protocol(action_repeat=2, trial_steps=5)
     with pytest.raises(ValueError, match="name two environments"):
