@@ -181,10 +181,16 @@ def summary_table(summary: dict[str, Any], algorithms: Iterable[str] | None = No
     significantly, and a warning when too few experiments make the intervals meaningless."""
     algorithms = [a for a in (algorithms or ALGORITHMS) if a in summary]
     greedy = any(summary[a].get("greedy_eval_trials") for a in algorithms)
+    # a column claims an interval only where some row shows one (too few experiments: none)
+    ci = (
+        " [95% CI]"
+        if any(metrics.withheld(summary[a]["experiments"]) is None for a in algorithms)
+        else ""
+    )
     header = (
         f"{'learner':>8} {'experiments':>11} {'final return':>13} {'95% CI':>19} "
-        f"{'IQM [95% CI]':>25} "
-        + (f"{'greedy at end [95% CI]':>25} " if greedy else "")
+        f"{'IQM' + ci:>25} "
+        + (f"{'greedy at end' + ci:>25} " if greedy else "")
         + f"{'min to 90%':>10} {'first 10 min':>12} {'stuck':>5}"
     )
     lines = [header, "-" * len(header)]

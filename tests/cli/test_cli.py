@@ -424,3 +424,77 @@ def test_policy_maps_keep_the_labels_the_run_declared():
     other = {"environment": {"learner_state": {"keys": ["observation[0]"], "labels": ["x"]}}}
     assert _declared_labels(inferred, other) == inferred  # another state: nothing borrowed
     assert _declared_labels(inferred, {"domain": "dc_pendulum"}) == inferred
+
+
+def test_a_run_budgeted_in_steps_reads_in_steps_and_compare_writes_two_figures(tmp_path):
+    """Issue 39: with --steps the progress counts the steps taken of the steps asked (not the
+    --trials cap), the table carries the greedy return at the last evaluation and says what its
+    columns average over, compare's header says the trials and steps that ran, and compare --out
+    x.png writes the curves and the profiles to two names."""
+    out = tmp_path / "run"
+    result = rmac_mj(
+        "reproduce", "--algorithms", "s-ac", "--experiments", "2", "--steps", "600",
+        "--trials", "600", "--evaluate-every", "2", "--jobs", "1", "--out", str(out),
+        "--no-optimal",
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    progress = [line for line in result.stderr.splitlines() if line.startswith("[")]
+    assert progress and all("/1200 env steps" in line for line in progress), progress
+    assert "1200/1200 env steps, 12 trials (2/2 experiments)" in progress[-1]
+    assert "trials/s" not in result.stderr and "/1200 trials" not in result.stderr
+    header = result.stdout.splitlines()[0]
+    assert "greedy at end" in header and "95% CI]" not in header  # 2 experiments: no interval
+    for said in (
+        "each experiment: 600 env steps asked (at most 600 trials); ran: s-ac 6 trials, 600 steps",
+        "final return: each experiment's mean over its last 6 trials, all it ran (the window is "
+        "50 trials; this run is shorter)",
+        "greedy at end: the greedy evaluation (no exploration, no learning) after trial 6",
+    ):
+        assert said in result.stdout
+    summary = json.loads((out / "summary.json").read_text())
+    greedy = f"{summary['s-ac']['greedy_return_last_mean']:.0f}"
+    assert f" {greedy} " in result.stdout.splitlines()[2]  # the column's figure, from the summary
+
+    figures = tmp_path / "figures"
+    result = rmac_mj("compare", str(out), "--out", str(figures / "pend-compare.png"))
+    assert result.returncode == 0, result.stderr
+    assert "2 experiments of 600 env steps (at most 600 trials; ran: s-ac 6 trials, 600 " in (
+        result.stdout
+    )
+    assert sorted(p.name for p in figures.iterdir()) == [
+        "pend-compare.pdf",
+        "pend-compare.png",
+        "pend-compare_profiles.pdf",
+        "pend-compare_profiles.png",
+    ]
+    assert rmac_mj("compare", str(out), "--out", f"{tmp_path / 'folder'}/").returncode == 0
+    assert sorted(p.name for p in (tmp_path / "folder").iterdir()) == [
+        "compare.pdf",
+        "compare.png",
+        "compare_profiles.pdf",
+        "compare_profiles.png",
+    ]
+    refused = rmac_mj("compare", str(out), "--out", str(tmp_path / "x.svg"))
+    assert refused.returncode == 2 and "ending in .png or .pdf" in refused.stderr
+
+
+def test_the_table_carries_the_greedy_return_with_its_interval_at_five_experiments():
+    import numpy as np
+
+    from rmac_mj.evaluation import summarise, summary_table
+
+    rng = np.random.default_rng(0)
+    returns = -1000 + rng.normal(0, 50, (5, 60))
+    greedy = -400 + rng.normal(0, 20, (5, 3))
+    row = summarise(returns, greedy, greedy_trials=(20, 40, 60), trial_seconds=3.0)
+    table = summary_table({"trial_seconds": 3.0, "s-ac": row}).splitlines()
+    assert "greedy at end [95% CI]" in table[0] and "IQM [95% CI]" in table[0]
+    low, high = row["greedy_return_last_ci95"]
+    assert f"{row['greedy_return_last_mean']:.0f} [{low:.0f}, {high:.0f}]" in table[2]
+    assert "final return: each experiment's mean over its last 50 trials; then" in table[3]
+    assert (
+        "greedy at end: the greedy evaluation (no exploration, no learning) after trial 60"
+        in (table[4])
+    )
+    without = summary_table({"trial_seconds": 3.0, "s-ac": summarise(returns, trial_seconds=3.0)})
+    assert "greedy" not in without  # a run that did not evaluate has no such column
