@@ -138,6 +138,11 @@ def _as_directory(path):
     path.mkdir()
 
 
+def _as_device(path):
+    path.unlink()
+    path.symlink_to("/dev/zero")
+
+
 @pytest.mark.parametrize(
     "name, damage, message",
     [
@@ -145,6 +150,8 @@ def _as_directory(path):
         ("wall_times.json", _write('{"parts": [{"wall_s": "x"}]}'), "wall_times.json is damaged"),
         ("wall_times.json", _as_directory, "wall_times.json cannot be read"),
         ("config.json", None, "config.json is damaged (protocol.algorithms is 5, not a list)"),
+        ("config.json", _as_device, "is a device, pipe or socket, not a regular file"),
+        ("config.json", _write("[" * 100_000), "config.json is damaged (not JSON: nested too deep"),
         ("curves/s-ac/exp_000.npz", _as_directory, "exp_000.npz is a directory where a file is"),
         (".lock", lambda path: path.mkdir(), ".lock cannot be the directory's lock"),
         ("summary.json", _as_directory, "summary.json is a directory where a file is expected"),
