@@ -24,6 +24,7 @@ from rmac_mj.agents import (
     config_from_dict,
     unknown_algorithm,
 )
+from rmac_mj.errors import MissingExtra
 from rmac_mj.results import files
 
 
@@ -153,6 +154,9 @@ class Protocol:
             for name in self.algorithms:
                 if name not in ALGORITHMS:
                     raise unknown_algorithm(name)
+                missing = agent_class(name).missing_requirement()
+                if missing is not None:  # refused before anything runs, naming the extra
+                    raise MissingExtra(missing)
         constraints.check_config(self)
         if len(set(self.algorithms)) != len(self.algorithms):
             raise ValueError(f"algorithms must not repeat, got {self.algorithms}")
