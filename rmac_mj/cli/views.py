@@ -54,6 +54,45 @@ def _say_missing_learners(path, summary: dict) -> None:
         say(f"{path} has no results for {algorithm}, which its run lists: shown without it")
 
 
+def _task_of(summary: dict) -> str | None:
+    """The task a run's summary is of, as people read it: its environment, the task's arguments
+    and the trial's length (``dc_pendulum/swingup, 3 s trials``); None for a summary too old to
+    say."""
+    protocol = summary.get("protocol")
+    if not isinstance(protocol, dict) or not ("env" in protocol or "domain" in protocol):
+        return None
+    name = protocol.get("env") or f"{protocol.get('domain')}/{protocol.get('task')}"
+    arguments = protocol.get("task_kwargs") or {}
+    seconds = summary.get("trial_seconds")
+    return (
+        name
+        + (f" {json.dumps(arguments, sort_keys=True)}" if arguments else "")
+        + (f", {seconds:g} s trials" if isinstance(seconds, (int, float)) else "")
+    )
+
+
+def _one_task(summaries: dict[str, dict]) -> None:
+    """Refuse, naming each run's task, runs of different tasks: their returns do not compare."""
+    tasks = {label: _task_of(summary) for label, summary in summaries.items()}
+    if len({task for task in tasks.values() if task is not None}) > 1:
+        shown = "; ".join(f"{label}: {task}" for label, task in tasks.items() if task is not None)
+        raise UsageError(
+            f"the runs are of different tasks ({shown}): their returns do not compare; "
+            "compare runs of one task"
+        )
+
+
+def compare_output_stem(out: pathlib.Path | None, first: pathlib.Path) -> pathlib.Path:
+    """Where compare's figures go, without suffix: ``compare`` in the first run's directory by
+    default; an existing folder given as --out is a folder (``OUT/compare``, never ``OUT.png``
+    beside it); any other path is the figure's."""
+    if out is None:
+        return first / "compare"
+    if out.is_dir():
+        return out / "compare"
+    return out
+
+
 def compare(args) -> int:
     from rmac_mj.agents import ALGORITHMS
     from rmac_mj.evaluation import report
@@ -73,7 +112,8 @@ def compare(args) -> int:
         if "trial_seconds" not in summaries[label]:
             raise UsageError(f"{store.summary_path} has no trial_seconds (the task's trial length)")
         _say_missing_learners(store.summary_path, summaries[label])
-    out = args.out if args.out is not None else directories[0] / "compare"
+    _one_task(summaries)
+    out = compare_output_stem(args.out, directories[0])
     optimal = next(
         (s["optimal_return"] for s in summaries.values() if s.get("optimal_return")), None
     )

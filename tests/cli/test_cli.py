@@ -218,7 +218,7 @@ def test_set_without_algorithms_runs_only_the_learners_it_names(capsys):
     assert algorithms_to_run(argparse.Namespace(algorithms=None), {}) == ("rmac", "s-ac")
 
 
-def _fake_run(directory, seed, agent_configs=None):
+def _fake_run(directory, seed, agent_configs=None, task=None, trial_seconds=3.0):
     import json
 
     import numpy as np
@@ -228,13 +228,14 @@ def _fake_run(directory, seed, agent_configs=None):
     rng = np.random.default_rng(seed)
     directory.mkdir(parents=True)
     summary = {
-        "trial_seconds": 3.0,
+        "trial_seconds": trial_seconds,
         "optimal_return": None,
         "protocol": {
             "experiments": 3,
             "trials": 60,
             "seed": seed,
             "agent_configs": agent_configs or {},
+            **(task or {}),
         },
         "rmac": summarise(-1000 + rng.normal(0, 50, (3, 60)), trial_seconds=3.0),
     }
@@ -265,6 +266,39 @@ def test_compare_draws_next_to_the_first_run_by_default(tmp_path):
     ]  # nothing in the working directory
     for name in ("compare.png", "compare.pdf", "compare_profiles.png", "compare_profiles.pdf"):
         assert (tmp_path / "a" / "run" / name).is_file(), name
+
+
+PENDULUM = {"domain": "dc_pendulum", "task": "swingup", "env": None, "task_kwargs": {}}
+
+
+@pytest.mark.parametrize(
+    "other, trial_seconds, shown",
+    [
+        ({"domain": None, "task": None, "env": "wheel.py:make"}, 1.0, "b: wheel.py:make, 1 s"),
+        ({**PENDULUM, "task_kwargs": {"time_limit": 6.0}}, 6.0, 'swingup {"time_limit": 6.0}'),
+        ({**PENDULUM, "task": "balance"}, 3.0, "b: dc_pendulum/balance, 3 s trials"),
+    ],
+)
+@pytest.mark.parametrize("x_axis", ["minutes", "env-steps"])
+def test_compare_refuses_runs_of_different_tasks(tmp_path, other, trial_seconds, shown, x_axis):
+    _fake_run(tmp_path / "a", 0, task=PENDULUM)
+    _fake_run(tmp_path / "b", 1, task=other, trial_seconds=trial_seconds)
+    result = rmac_mj("compare", "a", "b", "--x-axis", x_axis, "--out", "cmp", cwd=tmp_path)
+    assert result.returncode == 2, result
+    assert "the runs are of different tasks (a: dc_pendulum/swingup, 3 s trials; " in result.stderr
+    assert shown in result.stderr and len(result.stderr.strip().splitlines()) == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a", "b"]  # nothing drawn
+
+
+def test_compare_into_an_existing_folder_writes_inside_it(tmp_path):
+    _fake_run(tmp_path / "a", 0, task=PENDULUM)
+    _fake_run(tmp_path / "b", 1, task=PENDULUM)
+    (tmp_path / "figures").mkdir()
+    result = rmac_mj("compare", "a", "b", "--out", "figures", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a", "b", "figures"]  # no figures.png
+    for name in ("compare.png", "compare.pdf", "compare_profiles.png", "compare_profiles.pdf"):
+        assert (tmp_path / "figures" / name).is_file(), name
 
 
 def test_shortest_distinct_suffixes():
