@@ -68,16 +68,16 @@ def size_within(limit: constraints.Limit):
     return parse
 
 
-def positive_seconds(text: str) -> float:
-    """An argparse type: a positive, finite number of seconds."""
+def control_seconds(text: str) -> float:
+    """An argparse type: a finite number of seconds, at least
+    :data:`~rmac_mj.constraints.MIN_CONTROL_TIMESTEP` (a control step)."""
+    expected = f"a number of seconds >= {constraints.MIN_CONTROL_TIMESTEP:g}"
     try:
         value = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"expected a positive number of seconds, got {text!r}"
-        ) from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}")
+        raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}") from None
+    if not (math.isfinite(value) and value >= constraints.MIN_CONTROL_TIMESTEP):
+        raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}")
     return value
 
 

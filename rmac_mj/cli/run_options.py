@@ -11,9 +11,9 @@ from rmac_mj.cli.arguments import (
     add_command,
     add_outside_options,
     add_task_options,
+    control_seconds,
     non_negative_int,
     positive_int,
-    positive_seconds,
     size_within,
 )
 from rmac_mj.experiments import panel as panel_tasks
@@ -165,7 +165,7 @@ def add_reproduce(commands, defaults: Mapping[str, Any] | None = None) -> None:
     )
     reproduce.add_argument(
         "--control-timestep",
-        type=positive_seconds,
+        type=control_seconds,
         default=None,
         metavar="S",
         help="with --env: seconds per environment step, for an environment that "

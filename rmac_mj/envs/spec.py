@@ -14,6 +14,7 @@ import importlib.util
 import inspect
 import math
 import pathlib
+import secrets
 import sys
 import zlib
 from collections.abc import Callable, Mapping
@@ -22,7 +23,7 @@ from typing import Any
 import dm_env
 import numpy as np
 
-from rmac_mj.constraints import OBSERVATION_SIZE
+from rmac_mj.constraints import MIN_CONTROL_TIMESTEP, OBSERVATION_SIZE, TRIAL_STEPS
 from rmac_mj.envs.environment import Environment, trial_steps
 from rmac_mj.envs.failures import outside, read_observation
 from rmac_mj.envs.from_gymnasium import GymnasiumEnvironment
@@ -162,10 +163,11 @@ class EnvSpec:
             isinstance(dt, (int, float))
             and not isinstance(dt, bool)
             and math.isfinite(dt)
-            and dt > 0
+            and dt >= MIN_CONTROL_TIMESTEP
         ):
             raise ValueError(
-                f"EnvSpec.control_timestep must be a positive number of seconds, got {dt!r}"
+                f"EnvSpec.control_timestep must be a number of seconds >= "
+                f"{MIN_CONTROL_TIMESTEP:g}, got {dt!r}"
             )
 
     @property
@@ -212,8 +214,10 @@ class EnvSpec:
             return GymnasiumEnvironment(env, seed=seed, name=self.env)
         factory = load_factory(target)
         parameters = inspect.signature(factory).parameters
-        if seed is not None and "seed" in parameters:
-            kwargs["seed"] = seed
+        if "seed" in parameters and (
+            seed is not None or parameters["seed"].default is inspect.Parameter.empty
+        ):  # a factory that requires its seed gets fresh entropy where no seed is given
+            kwargs["seed"] = seed if seed is not None else secrets.randbits(31)
         if render and "render_mode" in parameters:
             kwargs["render_mode"] = "rgb_array"
         with outside(self.env, "factory"):
@@ -321,12 +325,23 @@ class EnvSpec:
                 f"env {self.env!r} does not say its time step (no dt); set "
                 f"control_timestep (seconds per environment step)"
             )
+        if not dt >= MIN_CONTROL_TIMESTEP:
+            raise ValueError(
+                f"env {self.env!r} says its time step is {dt:g} s, less than "
+                f"{MIN_CONTROL_TIMESTEP:g} s; set control_timestep (seconds per environment step)"
+            )
         limit = _step_limit(base)
         if limit is None and self.trial_steps is None:
             raise ValueError(
                 f"env {self.env!r} has no time limit and does not truncate its "
                 f"episodes; set trial_steps (or, for Gymnasium, max_episode_steps in "
                 f"its kwargs)"
+            )
+        steps = None if limit is None else trial_steps(limit, self.action_repeat)
+        if self.trial_steps is None and steps > TRIAL_STEPS.value:
+            raise ValueError(
+                TRIAL_STEPS.refusal(f"env {self.env!r}: its time limit in learner steps", steps)
+                + "; set trial_steps (a shorter trial)"
             )
         return float(dt), limit if limit is not None else self.trial_steps * self.action_repeat
 

@@ -7,6 +7,7 @@ kernels before the workers start.
 
 from __future__ import annotations
 
+import decimal
 import hashlib
 import json
 import os
@@ -138,8 +139,12 @@ def machine_memory() -> int | None:
     return min(physical, limit)
 
 
-def _gb(size: float) -> str:
-    return f"{size / 1e9:.1f} GB" if size < 1e18 else f"{size / 1e9:.1e} GB"
+def _gb(size: int) -> str:
+    """``size`` bytes in GB, for messages: "2.5 GB", "3.2e+12 GB", and beyond a float's range
+    (a tiling of a 1000-dimensional state) "1.0e+400 GB" from the integer's own digits."""
+    if size < 1e18:
+        return f"{size / 1e9:.1f} GB"
+    return f"{decimal.Decimal(int(size)) / 10**9:.1e} GB"
 
 
 def check_memory(

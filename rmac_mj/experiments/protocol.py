@@ -139,7 +139,10 @@ class Protocol:
         "learner_state": [constraints.InstanceOf(dict), None],
         "action_repeat": [constraints.ACTION_REPEAT.constraint()],
         "trial_steps": [constraints.TRIAL_STEPS.constraint(), None],
-        "control_timestep": [constraints.Interval(numbers.Real, 0, None, closed="neither"), None],
+        "control_timestep": [
+            constraints.Interval(numbers.Real, constraints.MIN_CONTROL_TIMESTEP, None),
+            None,
+        ],
     }
     #: The fields that describe an outside environment (``env``); they mean nothing without it.
     ENV_FIELDS: ClassVar[tuple[str, ...]] = (

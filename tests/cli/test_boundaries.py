@@ -58,6 +58,22 @@ FACTORIES = textwrap.dedent(
         return Plain(seed)
     def exits():
         sys.exit(0)
+
+    class Rewarding(Plain):
+        reward = 0.0
+        def step(self, action):
+            return super().step(action)._replace(reward=self.reward)
+    def huge_reward():
+        env = Rewarding(0); env.reward = 1e308; return env
+    def string_reward():
+        env = Rewarding(0); env.reward = "1.0"; return env
+    class Wide(Plain):
+        def observation_spec(self):
+            return {"x": specs.BoundedArray((1000,), float, -np.ones(1000), np.ones(1000))}
+        def reset(self):
+            return super().reset()._replace(observation={"x": np.zeros(1000)})
+    def wide():
+        return Wide(0)
     '''
 )
 
@@ -115,6 +131,37 @@ def test_a_failure_mid_run_names_experiment_and_trial_and_keeps_the_traceback(fa
     assert "; s-ac experiment 0, trial 4" in lines[0]
     assert lines[0].endswith(f"(traceback in {out / 'error.log'})")
     assert 'raise RuntimeError("the robot lost power")' in (out / "error.log").read_text()
+
+
+@pytest.mark.parametrize(
+    "factory, options, code, message",
+    [
+        ("huge_reward", [], EXIT_ENVIRONMENT, "its rewards are beyond what a learner can take"),
+        ("string_reward", [], EXIT_ENVIRONMENT, "gave the reward '1.0', not a number (a str)"),
+        (
+            "fails_later",
+            ["--control-timestep", "1e-300"],
+            EXIT_BAD_INPUT,
+            "argument --control-timestep: expected a number of seconds >= 1e-06, got '1e-300'",
+        ),
+        (
+            "wide",
+            ["--learner-state", '{"keys": ["x"]}'],
+            EXIT_BAD_INPUT,
+            "e+897 GB per experiment",  # a tiling of 1000 dimensions, beyond a float's range
+        ),
+    ],
+)
+def test_an_environments_absurd_numbers_are_named_with_the_culprits_exit_status(
+    factories, tmp_path, factory, options, code, message
+):
+    status, lines = run(
+        "reproduce", "--env", f"{factories}:{factory}", *options, "--algorithms", "s-ac",
+        "--experiments", "1", "--trials", "2", "--jobs", "1", "--no-optimal", "--no-progress",
+        "--out", tmp_path / "out",
+    )  # fmt: skip
+    assert status == code and len(lines) == 1, lines
+    assert message in lines[0] and "internal error" not in lines[0]
 
 
 def test_a_factory_that_exits_is_a_failure_not_a_success(factories, tmp_path):
