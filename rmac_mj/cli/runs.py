@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import pathlib
 from collections.abc import Sequence
 from typing import Any
 
@@ -49,6 +50,16 @@ def algorithms_to_run(args, overrides: dict[str, dict]) -> tuple[str, ...]:
     return Protocol().algorithms  # the paper's comparison: RMAC and S-AC
 
 
+def nothing_to_resume(out: pathlib.Path, marker: str, command: str) -> UsageError:
+    """The refusal of ``--resume`` where ``out`` holds no run (no ``marker`` file, written as a run
+    starts): a mistyped --out must not start a fresh run of hours."""
+    why = "it does not exist" if not out.exists() else f"it has no {marker}"
+    return UsageError(
+        f"--resume: {out} holds nothing to resume ({why}); start it with `{command}` without "
+        "--resume, or give the --out of the run to finish"
+    )
+
+
 def settings_from_files(argv: Sequence[str] | None, args: argparse.Namespace) -> argparse.Namespace:
     """``reproduce``'s arguments with the protocol of the directory being resumed and of the
     ``--config`` file as defaults: what the command line gives explicitly overrides them (and a
@@ -63,11 +74,12 @@ def settings_from_files(argv: Sequence[str] | None, args: argparse.Namespace) ->
     without_references = False
     if args.resume:
         config = ResultStore(args.out).read_config()
-        if config is not None:
-            stored = config["protocol"]
-            layers.append((stored, stored.get("agent_configs", {})))
-            # a run started with --no-optimal is finished without the reference too
-            without_references = config.get("references") is False
+        if config is None:
+            raise nothing_to_resume(args.out, "config.json", "rmac-mj reproduce")
+        stored = config["protocol"]
+        layers.append((stored, stored.get("agent_configs", {})))
+        # a run started with --no-optimal is finished without the reference too
+        without_references = config.get("references") is False
     if args.config is not None:
         # the command line's environment completes the file (its trial_steps, learner_state...)
         completion = {"env": args.env} if args.env is not None else None
@@ -197,6 +209,8 @@ def reproduce(args) -> int:
             raise Interrupted(
                 f"no experiment had finished; kept to continue from: {', '.join(held)}; {again}"
             ) from None
+        if ResultStore(out).read_config() is None:  # nothing begun: nothing to resume
+            raise Interrupted("no experiment had started, nothing is saved") from None
         raise Interrupted(f"no experiment had finished, nothing is saved; {again}") from None
     print(report.summary_table(summary, protocol.algorithms))
     parts = summary["wall_time_parts_s"]
@@ -219,6 +233,8 @@ def sweep(args) -> int:
 
     if args.jobs is not None and args.scheduler:
         raise UsageError("--jobs and --scheduler exclude each other")
+    if args.resume and not (args.out / "sweep.json").is_file():
+        raise nothing_to_resume(args.out, "sweep.json", f"rmac-mj sweep {args.file}")
     # the whole file is validated before anything runs; its size is said first
     plan = sweep_file.load_sweep(args.file, announce=say)
     out = writable_dir(args.out)
@@ -258,6 +274,8 @@ def panel(args) -> int:
         chosen = panels.tasks_named(names)
         for task in chosen:  # every protocol is checked before anything runs
             task.make_protocol(algorithms, args.experiments, args.seed, args.trials)
+    if args.resume and not any((args.out / task.name / "config.json").is_file() for task in chosen):
+        raise nothing_to_resume(args.out, "task's run (<task>/config.json)", "rmac-mj panel")
     out = writable_dir(args.out)
     try:
         panels.run_panel(
