@@ -23,6 +23,7 @@ from typing import Any
 import dm_env
 import numpy as np
 
+from rmac_mj import _heartbeat as heartbeat
 from rmac_mj.constraints import MIN_CONTROL_TIMESTEP, OBSERVATION_SIZE, TRIAL_STEPS
 from rmac_mj.envs.environment import Environment, trial_steps
 from rmac_mj.envs.failures import outside, read_observation
@@ -235,7 +236,8 @@ class EnvSpec:
         """The environment the learners run on, seeded with ``seed`` (an int, or None for fresh
         entropy): x as :meth:`resolve` says, trials as long as its time limit or ``trial_steps``.
         ``render``: able to draw its frames (:meth:`Environment.render_frame`)."""
-        base = self.build_base(seed, render)
+        with heartbeat.working(f"env {self.env!r}: building it"):
+            base = self.build_base(seed, render)
         spec = self
         if not isinstance(self.learner_state, LearnerStateSpec) or (
             self.trial_steps is None and _step_limit(base) is None
@@ -258,6 +260,10 @@ class EnvSpec:
         instance of the environment of its own for (cos, sin) pairs when ``keys`` are not given) and,
         for an environment without a time limit that truncates its episodes itself, ``trial_steps``
         measured. Raises ValueError, in one line, on whatever is missing or ambiguous."""
+        with heartbeat.working(f"env {self.env!r}: probing it before the run"):
+            return self._resolve()
+
+    def _resolve(self) -> EnvSpec:
         base = self.build_base(PROBE_SEED)
         spec = self
         if self.trial_steps is None and _step_limit(base) is None:
@@ -380,15 +386,18 @@ def _truncation_steps(base: dm_env.Environment, spec: EnvSpec) -> int | None:
     low = np.broadcast_to(action.minimum, action.shape).astype(float)
     high = np.broadcast_to(action.maximum, action.shape).astype(float)
     lengths = set()
-    for _ in range(2):
-        _probe_call(spec.env, "reset", base.reset)
-        for steps in range(1, MAX_PROBE_STEPS + 1):  # noqa: B007 (read after the loop)
-            timestep = _probe_call(spec.env, "step", base.step, rng.uniform(low, high))
-            if timestep.last():
-                break
-        if not timestep.last() or timestep.discount == 0.0:
-            return None
-        lengths.add(steps)
+    what = f"env {spec.env!r}: 2 episodes of random actions, to find where it ends them"
+    with heartbeat.working(what, unit="steps") as work:
+        for _ in range(2):
+            _probe_call(spec.env, "reset", base.reset)
+            for steps in range(1, MAX_PROBE_STEPS + 1):  # noqa: B007 (read after the loop)
+                timestep = _probe_call(spec.env, "step", base.step, rng.uniform(low, high))
+                work.done += 1
+                if timestep.last():
+                    break
+            if not timestep.last() or timestep.discount == 0.0:
+                return None
+            lengths.add(steps)
     return trial_steps(lengths.pop(), spec.action_repeat) if len(lengths) == 1 else None
 
 
@@ -401,22 +410,25 @@ def _random_states(base: dm_env.Environment, mapping: ObservationMap, spec: EnvS
     low = np.broadcast_to(action.minimum, action.shape).astype(float)
     high = np.broadcast_to(action.maximum, action.shape).astype(float)
     states, taken = [], 0
-    while taken < BOX_PROBE_STEPS:
-        timestep, steps = _probe_call(spec.env, "reset", base.reset), 0
-        states.append(_probe_read(spec.env, "reset", mapping, timestep, mapping.dim))
-        while (
-            not timestep.last()
-            and taken < BOX_PROBE_STEPS
-            and (spec.trial_steps is None or steps < spec.trial_steps)
-        ):
-            u = rng.uniform(low, high)
-            for _ in range(spec.action_repeat):
-                timestep = _probe_call(spec.env, "step", base.step, u)
-                taken += 1
-                if timestep.last():
-                    break
-            steps += 1
-            states.append(_probe_read(spec.env, "step", mapping, timestep, mapping.dim))
+    what = f"env {spec.env!r}: measuring the state's box from random actions"
+    with heartbeat.working(what, BOX_PROBE_STEPS, "steps") as work:
+        while taken < BOX_PROBE_STEPS:
+            timestep, steps = _probe_call(spec.env, "reset", base.reset), 0
+            states.append(_probe_read(spec.env, "reset", mapping, timestep, mapping.dim))
+            while (
+                not timestep.last()
+                and taken < BOX_PROBE_STEPS
+                and (spec.trial_steps is None or steps < spec.trial_steps)
+            ):
+                u = rng.uniform(low, high)
+                for _ in range(spec.action_repeat):
+                    timestep = _probe_call(spec.env, "step", base.step, u)
+                    taken += 1
+                    if timestep.last():
+                        break
+                steps += 1
+                work.done = taken
+                states.append(_probe_read(spec.env, "step", mapping, timestep, mapping.dim))
     base.close()
     return np.asarray(states)
 
@@ -430,14 +442,17 @@ def _probe(base: dm_env.Environment, layout: ObservationLayout, env: str) -> np.
     flatten = ObservationMap([], layout).flat
     size = sum(layout.sizes.values())
     samples = []
-    for _ in range(PROBE_EPISODES):
-        timestep = _probe_call(env, "reset", base.reset)
-        samples.append(_probe_read(env, "reset", flatten, timestep, size))
-        for _ in range(PROBE_STEPS):
-            timestep = _probe_call(env, "step", base.step, rng.uniform(low, high))
-            samples.append(_probe_read(env, "step", flatten, timestep, size))
-            if timestep.last():
-                break
+    what = f"env {env!r}: {PROBE_EPISODES} episodes of random actions, to infer the learner's state"
+    with heartbeat.working(what, PROBE_EPISODES * (PROBE_STEPS + 1), "observations") as work:
+        for _ in range(PROBE_EPISODES):
+            timestep = _probe_call(env, "reset", base.reset)
+            samples.append(_probe_read(env, "reset", flatten, timestep, size))
+            for _ in range(PROBE_STEPS):
+                timestep = _probe_call(env, "step", base.step, rng.uniform(low, high))
+                samples.append(_probe_read(env, "step", flatten, timestep, size))
+                work.done = len(samples)
+                if timestep.last():
+                    break
     return np.asarray(samples)
 
 

@@ -16,6 +16,7 @@ import time
 from collections.abc import Callable, Iterable
 from typing import Any
 
+from rmac_mj import _heartbeat as heartbeat
 from rmac_mj import agents
 from rmac_mj.agents import make_agent
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
@@ -194,7 +195,11 @@ def warm_up(protocol: Protocol) -> None:
             config=protocol.agent_configs.get(algorithm),
             seed=0,
         )
-        with environment_failure_at(f"a first trial of {algorithm} before the experiments"):
+        where = f"a first trial of {algorithm} before the experiments"
+        with (
+            environment_failure_at(where),
+            heartbeat.working(f"{protocol.environment_name}: {where}"),
+        ):
             run_trial(env, agent, learn=True)
             run_trial(env, agent, learn=False)
 
