@@ -168,6 +168,17 @@ def add_outside_options(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def add_trust_env(parser: argparse.ArgumentParser, what: str) -> None:
+    """--trust-env: run the outside environment ``what`` names (code of the user's) unnamed."""
+    parser.add_argument(
+        "--trust-env",
+        action="store_true",
+        help=f"run the environment {what} names where it is code of yours (a module or "
+        "file) without naming it again with --env; a file is data otherwise, and opening it "
+        "runs nothing it names (docs/guide/result-directory.md)",
+    )
+
+
 def add_command(commands, name: str, help: str) -> argparse.ArgumentParser:
     """A command of ``commands`` (the subparsers of the top parser), its ``help`` also its
     description; each ``add_COMMAND(commands)`` of the option modules declares one this way."""

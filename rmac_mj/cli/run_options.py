@@ -11,6 +11,7 @@ from rmac_mj.cli.arguments import (
     add_command,
     add_outside_options,
     add_task_options,
+    add_trust_env,
     control_seconds,
     non_negative_int,
     positive_int,
@@ -155,6 +156,7 @@ def add_reproduce(commands, defaults: Mapping[str, Any] | None = None) -> None:
         "actor (default: all a learner takes)",
     )
     add_outside_options(reproduce)
+    add_trust_env(reproduce, "the directory being resumed (--resume)")
     reproduce.add_argument(
         "--trial-steps",
         type=size_within(constraints.TRIAL_STEPS),

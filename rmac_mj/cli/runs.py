@@ -60,6 +60,42 @@ def nothing_to_resume(out: pathlib.Path, marker: str, command: str) -> UsageErro
     )
 
 
+def resumed_environment(
+    out: pathlib.Path, config: dict[str, Any], named: str | None, trust: bool
+) -> None:
+    """Refuse, before anything of it is imported, a resume of the run in ``out`` (its ``config``)
+    on another environment than the run's: ``named`` (the command line's --env or its --config
+    file's) must be the run's, which is code of the user's (a module or file) is run only when
+    named or ``trust``ed, and it must come from where it came from (a file's digest, a package's
+    version: ``environment_origin``)."""
+    from rmac_mj.envs import spec as env_spec
+
+    env = config["protocol"].get("env")
+    if env is None:
+        return  # the suite's: the package's own code, of the version config.json checks
+    with user_input(f"{out}/config.json: "):
+        code_of_yours = env_spec.user_code(env)
+    if named is not None:
+        with user_input("--env: "):
+            given = env_spec.canonical(named)
+        if given != env:
+            raise UsageError(
+                f"the run in {out} ran on env {env!r}, not {given!r}: a run is one environment "
+                f"(give --env {env}, or another --out)"
+            )
+    elif code_of_yours and not trust:
+        raise UsageError(
+            f"the run in {out} ran on env {env!r}, code of yours: a resume runs it only when "
+            f"you name it. Add --env {env} (or --trust-env)"
+        )
+    problem = env_spec.origin_problem(config.get("environment_origin"), env_spec.origin(env))
+    if problem is not None:
+        raise UsageError(
+            f"the run in {out} ran on env {env!r} as it was then, not as it is now ({problem}): "
+            "a run is one environment; put it back, or start another run with another --out"
+        )
+
+
 def settings_from_files(argv: Sequence[str] | None, args: argparse.Namespace) -> argparse.Namespace:
     """``reproduce``'s arguments with the protocol of the directory being resumed and of the
     ``--config`` file as defaults: what the command line gives explicitly overrides them (and a
@@ -72,19 +108,28 @@ def settings_from_files(argv: Sequence[str] | None, args: argparse.Namespace) ->
 
     layers: list[tuple[dict[str, Any], dict[str, dict]]] = []
     without_references = False
+    if args.trust_env and not args.resume:
+        raise UsageError(
+            "--trust-env applies to --resume: the environment the directory's run names"
+        )
+    resumed = None
     if args.resume:
-        config = ResultStore(args.out).read_config()
-        if config is None:
+        resumed = ResultStore(args.out).read_config()
+        if resumed is None:
             raise nothing_to_resume(args.out, "config.json", "rmac-mj reproduce")
-        stored = config["protocol"]
+        stored = resumed["protocol"]
         layers.append((stored, stored.get("agent_configs", {})))
         # a run started with --no-optimal is finished without the reference too
-        without_references = config.get("references") is False
+        without_references = resumed.get("references") is False
+    named = args.env
     if args.config is not None:
         # the command line's environment completes the file (its trial_steps, learner_state...)
         completion = {"env": args.env} if args.env is not None else None
         config = sweep_file.load_configuration(args.config, completion)
         layers.append((config.options, config.agent_configs))
+        named = named or config.options.get("env")
+    if resumed is not None:  # before anything the directory names is built
+        resumed_environment(args.out, resumed, named, args.trust_env)
     if not layers:
         return args
     defaults: dict[str, Any] = {}

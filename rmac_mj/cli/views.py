@@ -176,7 +176,17 @@ def policy(args) -> int:
         with user_input(f"{path}: "):
             agent, meta = load_snapshot(path)
         snapshots.append((agent, meta))
-        envs.append(snapshot_environment(agent, meta, args.domain, args.task, args.env))
+        envs.append(
+            snapshot_environment(
+                agent,
+                meta,
+                args.domain,
+                args.task,
+                args.env,
+                trust_env=args.trust_env,
+                log=say,
+            )
+        )
     learner_state = _declared_labels(learner_state_of(envs[0]), snapshots[0][1])
     for path, env in zip(args.snapshots[1:], envs[1:]):
         if learner_state_of(env) != learner_state:
@@ -270,13 +280,16 @@ def render(args) -> int:
         "height": args.height,
         "overlay": not args.no_overlay,
         "frames_per_step": args.frames_per_step,
+        "env": args.env,
+        "trust_env": args.trust_env,
+        "log": say,
     }
     if args.snapshot is not None:
         path = result_videos.render_snapshot(
-            args.snapshot, args.out, domain=args.domain, task=args.task, env=args.env, **options
+            args.snapshot, args.out, domain=args.domain, task=args.task, **options
         )
-    elif args.domain is not None or args.task is not None or args.env is not None:
-        raise UsageError("--domain/--task and --env apply to a single SNAPSHOT only")
+    elif args.domain is not None or args.task is not None:
+        raise UsageError("--domain/--task apply to a single SNAPSHOT only")
     elif args.progression is not None:
         path = result_videos.render_progression(
             args.progression, args.out, experiment=args.experiment, **options

@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import hashlib
 import importlib
+import importlib.metadata
 import importlib.util
 import inspect
 import math
@@ -70,6 +72,92 @@ def parse(spec: str) -> tuple[str, str]:
             f"env {spec!r}: a factory must read package.module:function or path/to/file.py:function"
         )
     return "factory", spec
+
+
+def user_code(spec: str) -> bool:
+    """Whether the SPEC names code of the user's, a module or a file (``module:factory``,
+    ``path/file.py:factory``, a Gymnasium id its module qualifies, ``gymnasium:module:Id``), rather
+    than an environment of a registry (dm-control's suite, Gymnasium's): code that opening a
+    snapshot or a result directory must not run unless the user names it again."""
+    source, target = parse(spec)
+    return source == "factory" or (source == "gymnasium" and ":" in target)
+
+
+def canonical(spec: str) -> str:
+    """The SPEC with a file's path made absolute and its links resolved
+    (``envs.py:make`` -> ``/home/me/run/envs.py:make``): the same file from any working directory."""
+    source, _ = parse(spec)
+    module, _, function = spec.rpartition(":")
+    if source != "factory" or not module.endswith(".py"):
+        return spec
+    return f"{pathlib.Path(module).expanduser().resolve()}:{function}"
+
+
+def origin(spec: str) -> dict[str, Any]:
+    """Where the environment of the SPEC comes from, exactly, as JSON data: a file's resolved path
+    and the SHA-256 of its bytes (read, not run); a module's file and digest (found by importing
+    its parent packages, not itself); a registry's package and version, e.g.
+    ``{"package": "gymnasium", "version": "1.4.0"}``. Only the file that holds the factory is
+    digested, not the modules it imports."""
+    source, target = parse(spec)
+    if source in SOURCES:
+        found: dict[str, Any] = {"package": source, "version": _version(source)}
+        if source == "gymnasium" and ":" in target:
+            found.update(_module_origin(target.partition(":")[0]))
+        return found
+    module, _, _ = spec.rpartition(":")
+    if module.endswith(".py"):
+        path = pathlib.Path(module).expanduser().resolve()
+        return {"file": str(path), "sha256": _digest(path)}
+    return _module_origin(module)
+
+
+def describe_origin(found: Any) -> str:
+    """An :func:`origin` as people read it: ``file /x/envs.py (sha256 1a2b3c4d5e6f...)``."""
+    if not isinstance(found, dict):
+        return repr(found)
+    if "package" in found and "file" not in found:
+        return f"{found['package']} {found.get('version')}"
+    digest = found.get("sha256")
+    held = f"sha256 {digest[:12]}..." if digest else "no such file"
+    if "module" in found:
+        return f"module {found['module']} ({found.get('file') or 'no file'}, {held})"
+    return f"file {found.get('file')} ({held})"
+
+
+def origin_problem(recorded: Any, now: dict[str, Any]) -> str | None:
+    """None when the environment comes from where it was ``recorded`` to (:func:`origin`), else
+    both, as people read them: ``file /x/envs.py (sha256 1a2b...) then, ... (sha256 9f8e...) now``."""
+    if recorded is None or recorded == now:
+        return None
+    return f"{describe_origin(recorded)} then, {describe_origin(now)} now"
+
+
+def _module_origin(name: str) -> dict[str, Any]:
+    try:
+        found = importlib.util.find_spec(name)
+    except (ImportError, ValueError):
+        found = None
+    path = found.origin if found is not None and found.has_location else None
+    if path is None:
+        return {"module": name, "file": None, "sha256": None}
+    path = pathlib.Path(path).resolve()
+    return {"module": name, "file": str(path), "sha256": _digest(path)}
+
+
+def _digest(path: pathlib.Path) -> str | None:
+    """The SHA-256 of the file's bytes, None when there is no such file."""
+    try:
+        return hashlib.sha256(path.read_bytes()).hexdigest()
+    except OSError:
+        return None
+
+
+def _version(package: str) -> str | None:
+    try:
+        return importlib.metadata.version(package)
+    except importlib.metadata.PackageNotFoundError:
+        return None
 
 
 def load_factory(target: str) -> Callable[..., Any]:
@@ -141,7 +229,7 @@ class EnvSpec:
     measured_bounds: Mapping[str, Any] | None = None
 
     def __post_init__(self) -> None:
-        parse(self.env)
+        object.__setattr__(self, "env", canonical(self.env))  # parses it too
         if not isinstance(self.kwargs, Mapping):
             raise ValueError(f"EnvSpec.kwargs must be a mapping, got {self.kwargs!r}")
         object.__setattr__(self, "kwargs", dict(self.kwargs))
