@@ -115,9 +115,10 @@ def json_object(text: str) -> dict:
 
     try:
         value = json.loads(text)
-    except json.JSONDecodeError as error:
+    except (json.JSONDecodeError, RecursionError) as error:
+        shown = text if len(text) <= 80 else text[:77] + "..."
         raise argparse.ArgumentTypeError(
-            f"expected a JSON object, got {text!r} ({error})"
+            f"expected a JSON object, got {shown!r} ({error or 'nested too deeply'})"
         ) from None
     if not isinstance(value, dict):
         raise argparse.ArgumentTypeError(f"expected a JSON object {{...}}, got {text!r}")

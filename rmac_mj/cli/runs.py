@@ -28,6 +28,8 @@ def parse_overrides(assignments: Sequence[str]) -> dict[str, dict]:
             flat[".".join(path)] = json.loads(text)
         except json.JSONDecodeError:
             flat[".".join(path)] = text  # a bare word, e.g. rate_split=actor
+        except RecursionError:
+            raise UsageError(f"--set {key.strip()}: its value is nested too deeply") from None
     return nest(flat)
 
 

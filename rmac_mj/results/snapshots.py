@@ -134,7 +134,15 @@ def load_snapshot(path: str | os.PathLike) -> tuple[Agent, dict[str, Any]]:
         return _read_snapshot(path)
     except UserInputError:
         raise
-    except (ValueError, TypeError, KeyError, AttributeError, OSError, EOFError) as error:
+    except (
+        ValueError,
+        TypeError,
+        KeyError,
+        AttributeError,
+        OSError,
+        EOFError,
+        RecursionError,  # a meta document nested too deeply
+    ) as error:
         # zipfile.BadZipFile is an Exception only: a file that is not a zip at all
         raise UserInputError(
             f"{path} is not a readable rmac-mj snapshot ({type(error).__name__}: {error})"

@@ -255,6 +255,7 @@ def _bad_snapshots(finished, tmp_path) -> dict[str, tuple[pathlib.Path, str]]:
         found[name] = (path, message)
 
     save("meta_not_json", "JSONDecodeError", meta="{{{")
+    save("meta_nested", "RecursionError", meta="[" * 100_000 + "]" * 100_000)
     save("no_algorithm", "unknown algorithm None", meta=json.dumps({**meta, "algorithm": None}))
     save("space_wrong_kind", "must be a mapping", meta=json.dumps({**meta, "state_space": 5}))
     garbage = tmp_path / "garbage.npz"
@@ -343,6 +344,19 @@ def test_every_command_refuses_bad_inputs_in_one_line(finished, tmp_path, factor
                 assert "Traceback" not in lines[0]
     finally:
         os.chdir(here)
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--learner-state", "[" * 60_000 + "]" * 60_000], "argument --learner-state: expected"),
+        (["--set", "s-ac.gamma=" + "[" * 60_000 + "]" * 60_000], "its value is nested too deep"),
+    ],
+)
+def test_a_deeply_nested_json_option_is_one_line(tmp_path, args, message):
+    code, lines = run("reproduce", *args, "--out", tmp_path / "out")
+    assert code == EXIT_BAD_INPUT and len(lines) == 1 and message in lines[0], lines
+    assert len(lines[0]) < 500
 
 
 def test_a_scheduler_address_of_an_unknown_scheme_is_one_line():

@@ -138,3 +138,14 @@ def test_the_measure_tells_keys_from_strings_and_comments(tmp_path):
     shape = bounded_toml.measure(text)
     assert (shape.nesting, shape.nesting_line) == (4, 9)
     assert (shape.key_length, shape.key_length_line) == (len('"e.f".g . h'), 9)
+
+
+def test_a_sweep_index_that_is_a_device_is_a_damaged_sweep(tmp_path, capsys):
+    path = tmp_path / "one.toml"
+    path.write_text('[protocol]\nalgorithms = ["s-ac"]\nexperiments = 1\ntrials = 1\n')
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "sweep.json").symlink_to("/dev/zero")
+    code, lines = _run(capsys, "sweep", path, "--resume", "--no-optimal", "--out", out)
+    assert code == EXIT_BAD_INPUT and len(lines) == 1, lines
+    assert "sweep.json" in lines[0]  # never read: no sweep to resume
