@@ -66,10 +66,10 @@ def resumed_environment(
     out: pathlib.Path, config: dict[str, Any], named: str | None, trust: bool
 ) -> None:
     """Refuse, before anything of it is imported, a resume of the run in ``out`` (its ``config``)
-    on another environment than the run's: ``named`` (the command line's --env or its --config
-    file's) must be the run's, which is code of the user's (a module or file) is run only when
-    named or ``trust``ed, and it must come from where it came from (a file's digest, a package's
-    version: ``environment_origin``)."""
+    on another environment than the run's. ``named`` (the command line's --env or its --config
+    file's) must be the run's environment; one that is code of the user's (a module or file) runs
+    only when named or ``trust``ed; and it must come from where it came from (a file's digest, a
+    package's version: ``environment_origin``)."""
     from rmac_mj.envs import spec as env_spec
 
     env = config["protocol"].get("env")

@@ -269,5 +269,6 @@ def _check_origin(meta: dict, name: str, named: bool, log: Callable[[str], None]
         )
     if log is not None:
         log(
-            f"env {name!r} has changed since the snapshot learned on it ({problem}); drawn as it is now, as --env asks"
+            f"env {name!r} has changed since the snapshot learned on it ({problem}); drawn as "
+            "it is now, as --env asks"
         )
