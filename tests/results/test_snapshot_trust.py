@@ -21,8 +21,8 @@ import pytest
 from rmac_mj.agents import ActionSpace, StateSpace, make_agent
 from rmac_mj.cli import main
 from rmac_mj.errors import EXIT_BAD_INPUT, UserInputError
-from rmac_mj.experiments.protocol import Protocol
-from rmac_mj.results.snapshots import load_snapshot, save_snapshot, snapshot_environment
+from rmac_mj.experiments import Protocol
+from rmac_mj.results import load_snapshot, save_snapshot, snapshot_environment
 
 FAST = ["--algorithms", "s-ac", "--trials", "2", "--jobs", "1", "--no-optimal", "--no-progress"]
 
