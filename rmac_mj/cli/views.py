@@ -82,17 +82,6 @@ def _one_task(summaries: dict[str, dict]) -> None:
         )
 
 
-def compare_output_stem(out: pathlib.Path | None, first: pathlib.Path) -> pathlib.Path:
-    """Where compare's figures go, without suffix: ``compare`` in the first run's directory by
-    default; an existing folder given as --out is a folder (``OUT/compare``, never ``OUT.png``
-    beside it); any other path is the figure's."""
-    if out is None:
-        return first / "compare"
-    if out.is_dir():
-        return out / "compare"
-    return out
-
-
 def compare(args) -> int:
     from rmac_mj.agents import ALGORITHMS
     from rmac_mj.evaluation import report
@@ -113,7 +102,9 @@ def compare(args) -> int:
             raise UsageError(f"{store.summary_path} has no trial_seconds (the task's trial length)")
         _say_missing_learners(store.summary_path, summaries[label])
     _one_task(summaries)
-    out = compare_output_stem(args.out, directories[0])
+    out = args.out if args.out is not None else directories[0] / "compare"
+    if args.out is not None and args.out.is_dir():  # a folder: in it, never OUT.png beside it
+        out = args.out / "compare"
     optimal = next(
         (s["optimal_return"] for s in summaries.values() if s.get("optimal_return")), None
     )
