@@ -18,6 +18,7 @@ INTERVAL = 10.0
 
 _listener: Callable[[str], None] | None = None
 _works: list[Work] = []  # what runs now, outermost first: the innermost is said
+_other_voices: list[Callable[[], bool]] = []  # while one of them speaks, nothing is said here
 _guard = threading.Lock()
 
 
@@ -52,6 +53,19 @@ def listening(say: Callable[[str], None]) -> Iterator[None]:
 
 
 @contextlib.contextmanager
+def quiet_while(speaking: Callable[[], bool]) -> Iterator[None]:
+    """In the body, nothing is said while ``speaking()`` holds: another voice tells of the same
+    wait (the compile's own progress, while numba compiles in a learner's first trial)."""
+    with _guard:
+        _other_voices.append(speaking)
+    try:
+        yield
+    finally:
+        with _guard:
+            _other_voices.remove(speaking)
+
+
+@contextlib.contextmanager
 def working(what: str, total: int | None = None, unit: str = "") -> Iterator[Work]:
     """The body is long work ``what`` (e.g. ``"env 'x.py:make': probing it with random actions"``):
     while it runs, the listener hears its line every :data:`INTERVAL` seconds (of the innermost
@@ -72,7 +86,8 @@ def working(what: str, total: int | None = None, unit: str = "") -> Iterator[Wor
             while not done.wait(INTERVAL):
                 with _guard:
                     innermost = _works[-1] if _works else None
-                if innermost is not None:
+                    hushed = any(speaking() for speaking in _other_voices)
+                if innermost is not None and not hushed:
                     say(innermost.line())
 
         ticker = threading.Thread(target=tick, name="rmac-mj heartbeat", daemon=True)

@@ -85,3 +85,15 @@ def test_probing_a_slow_environment_says_so_before_the_run(quick, tmp_path, caps
     said = [line for line in lines[:-1] if "s so far" in line]
     assert said and all(line.startswith(f"rmac-mj: env '{path}:make': ") for line in said), lines
     assert any("random actions" in line for line in said), said
+
+
+def test_another_voice_telling_of_the_same_wait_hushes_it(quick):
+    heard, compiling = [], threading.Event()
+    with heartbeat.listening(heard.append), heartbeat.quiet_while(compiling.is_set):
+        with heartbeat.working("first trial"):
+            compiling.set()  # the compile says how long it takes: once is enough
+            time.sleep(6 * INTERVAL)
+            assert heard == []
+            compiling.clear()
+            time.sleep(4 * INTERVAL)
+    assert heard and all(line.startswith("first trial: ") for line in heard), heard

@@ -256,7 +256,8 @@ def warm_up_announced(
     if log is not None:
         ticker.start()
     try:
-        with _cache.on_first_compile(first_compile):
+        # while numba compiles, its progress above is the one voice of the first trials
+        with _cache.on_first_compile(first_compile), heartbeat.quiet_while(compiling.is_set):
             for protocol in chosen:
                 warm_up(protocol)
     finally:
