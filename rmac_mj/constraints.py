@@ -444,3 +444,16 @@ OBSERVATION_SIZE = Limit(100_000, "the learners' memories and tilings scale with
 VIDEO_BYTES = Limit(4 * 10**9, "every frame is kept in memory until the video is written")
 #: Grid points along each axis of a policy or critic map (``policy --resolution``).
 MAP_RESOLUTION = Limit(2_000, "a map evaluates the learner at resolution**2 states", low=2)
+#: The shortest control step in seconds (``control_timestep``, or an environment's own): the
+#: learners carry their per-step factors from the paper's 0.03 s step (gamma ** (dt / 0.03)), and
+#: much shorter steps make them 1, a discount no learner converges with.
+MIN_CONTROL_TIMESTEP = 1e-6
+#: Bytes of a sweep or ``--config`` file (the study files are a few kilobytes).
+CONFIG_FILE_BYTES = Limit(1_000_000, "the file is read whole and checked before anything runs")
+#: Arrays and inline tables nested in one another in a sweep or ``--config`` file.
+CONFIG_NESTING = Limit(32, "the parser descends into each level")
+#: Characters of one key of a sweep or ``--config`` file, a dotted key whole
+#: (``rmac.exploration.sigma`` has 22).
+CONFIG_KEY_LENGTH = Limit(200, "the parser makes a table of each part, and messages name the key")
+#: Bytes of one of a result directory's JSON documents (config.json, summary.json, wall_times.json).
+RESULT_DOCUMENT_BYTES = Limit(10**9, "the document is read whole into memory")

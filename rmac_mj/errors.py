@@ -25,6 +25,12 @@ class MissingInputError(UserInputError, FileNotFoundError):
     """A file or result the user pointed to does not exist (still a ``FileNotFoundError``)."""
 
 
+class MissingExtra(UserInputError, ImportError):
+    """What the user asked for needs an optional extra that is not installed (a learner of the
+    ``[baselines]`` extra): the message names the extra and how to install it. Still an
+    ``ImportError`` to code that catches one."""
+
+
 class EnvironmentFailure(RuntimeError):
     """An outside environment failed (raised, exited, or gave a non-finite or absurd observation or
     reward); the message holds its own message and where it came from (the SPEC, the phase, the

@@ -14,6 +14,8 @@ import numpy as np
 from dm_control.rl import control
 
 from rmac_mj.agents import ActionSpace, Agent, StateSpace
+from rmac_mj.agents.boundary import RefusedTransition
+from rmac_mj.errors import EnvironmentFailure
 from rmac_mj.tasks.common import LearnerStateSpec
 
 
@@ -126,6 +128,11 @@ def run_trial(
     return run_counted_trial(env, agent, learn, on_step)[0]
 
 
+def _name(env: control.Environment) -> str:
+    """The environment as messages name it: an outside one's SPEC, a suite task's class."""
+    return getattr(env, "name", None) or type(getattr(env, "task", env)).__name__
+
+
 def env_steps_taken(env: control.Environment) -> int | None:
     """Base environment steps ``env`` has taken so far, where it counts them (an outside environment
     adapted by :mod:`rmac_mj.envs`, whose action repeat makes them differ from control steps); None
@@ -141,7 +148,23 @@ def run_counted_trial(
     on_step: Callable[[control.Environment, np.ndarray, float], None] | None = None,
 ) -> tuple[float, int]:
     """:func:`run_trial`, also returning the environment steps the episode took (control steps
-    times the action repeat, less where the environment ended it mid-repeat)."""
+    times the action repeat, less where the environment ended it mid-repeat). A learner's refusal
+    of a transition whose learning overflows its arithmetic (the environment's reward of 1e308) is
+    the environment's failure."""
+    try:
+        return _counted_trial(env, agent, learn, on_step)
+    except RefusedTransition as refused:
+        raise EnvironmentFailure(
+            f"env {_name(env)!r}: its rewards are beyond what a learner can take: {refused}"
+        ) from refused
+
+
+def _counted_trial(
+    env: control.Environment,
+    agent: Agent,
+    learn: bool,
+    on_step: Callable[[control.Environment, np.ndarray, float], None] | None,
+) -> tuple[float, int]:
     keys = learner_state_of(env).keys
     before = env_steps_taken(env)
     timestep = env.reset()
@@ -159,6 +182,11 @@ def run_counted_trial(
             on_step(env, u, reward)
         x = state_of(timestep.observation, keys)
         if timestep.last():
+            if not math.isfinite(total):  # finite rewards whose sum is not: the environment's
+                raise EnvironmentFailure(
+                    f"env {_name(env)!r}: its rewards over a trial of {steps} steps sum to "
+                    f"{total} (the last {reward!r}): no return can be recorded"
+                )
             if learn:  # a termination (discount 0) is a terminal state; a time limit is not
                 agent.stop(reward, x, terminal=timestep.discount == 0.0)
             after = env_steps_taken(env)

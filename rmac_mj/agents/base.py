@@ -90,6 +90,12 @@ class Agent(AgentBoundary, StateExchange, abc.ABC):
         self._rehearsal = Rehearsal.of(config, state_space, action_space)
 
     @classmethod
+    def missing_requirement(cls) -> str | None:
+        """What this learner needs that is not installed (an optional extra), as the message to
+        show; None when it can be built."""
+        return None
+
+    @classmethod
     def memory_estimate(
         cls, config: Any, state_space: StateSpace, action_space: ActionSpace
     ) -> int:

@@ -45,6 +45,7 @@ import numpy as np
 from rmac_mj.agents.base import Agent
 from rmac_mj.agents.sb3_config import INSTALL_HINT, available
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
+from rmac_mj.errors import MissingExtra
 
 
 def network_input(x: np.ndarray, periodic: np.ndarray) -> np.ndarray:
@@ -130,6 +131,11 @@ class SB3Agent(Agent):
     sb3_class = ""
     sb3_package = "stable_baselines3"
 
+    @classmethod
+    def missing_requirement(cls) -> str | None:
+        """The ``[baselines]`` extra, when torch, gymnasium or the SB3 package is not installed."""
+        return None if available(cls.sb3_package) else f"{cls.name}: {INSTALL_HINT}"
+
     def __init__(
         self,
         state_space: StateSpace,
@@ -139,8 +145,9 @@ class SB3Agent(Agent):
     ) -> None:
         config = self.config_class() if config is None else config
         super().__init__(state_space, action_space, config, seed)
-        if not available(self.sb3_package):
-            raise ImportError(f"{self.name}: {INSTALL_HINT}")
+        problem = self.missing_requirement()
+        if problem is not None:
+            raise MissingExtra(problem)
         import importlib
 
         import torch

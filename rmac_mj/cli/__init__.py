@@ -31,6 +31,7 @@ import time
 import traceback
 from collections.abc import Sequence
 
+from rmac_mj import _heartbeat as heartbeat
 from rmac_mj.cli import runs, views
 from rmac_mj.cli.common import PROG, say  # first: its import time is the start of the wall time
 from rmac_mj.cli.options import build_parser
@@ -93,8 +94,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     signal.signal(signal.SIGTERM, _interrupt)  # a polite kill cleans up like Ctrl-C
     try:
         if args.command == "reproduce":
-            args = runs.settings_from_files(argv, args)
-        with _announcing_compilation(args.command):
+            with heartbeat.listening(say):  # a --config file's environment is probed
+                args = runs.settings_from_files(argv, args)
+        with _announcing_compilation(args.command), heartbeat.listening(say):
             status = _COMMANDS[args.command](args)
         if status == 0 and (log := _run_log(args)) is not None:
             log.unlink(missing_ok=True)  # an earlier failure's, now that the run has finished

@@ -68,16 +68,16 @@ def size_within(limit: constraints.Limit):
     return parse
 
 
-def positive_seconds(text: str) -> float:
-    """An argparse type: a positive, finite number of seconds."""
+def control_seconds(text: str) -> float:
+    """An argparse type: a finite number of seconds, at least
+    :data:`~rmac_mj.constraints.MIN_CONTROL_TIMESTEP` (a control step)."""
+    expected = f"a number of seconds >= {constraints.MIN_CONTROL_TIMESTEP:g}"
     try:
         value = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"expected a positive number of seconds, got {text!r}"
-        ) from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}")
+        raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}") from None
+    if not (math.isfinite(value) and value >= constraints.MIN_CONTROL_TIMESTEP):
+        raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}")
     return value
 
 
@@ -115,9 +115,10 @@ def json_object(text: str) -> dict:
 
     try:
         value = json.loads(text)
-    except json.JSONDecodeError as error:
+    except (json.JSONDecodeError, RecursionError) as error:
+        shown = text if len(text) <= 80 else text[:77] + "..."
         raise argparse.ArgumentTypeError(
-            f"expected a JSON object, got {text!r} ({error})"
+            f"expected a JSON object, got {shown!r} ({error or 'nested too deeply'})"
         ) from None
     if not isinstance(value, dict):
         raise argparse.ArgumentTypeError(f"expected a JSON object {{...}}, got {text!r}")
@@ -165,6 +166,17 @@ def add_outside_options(parser: argparse.ArgumentParser) -> None:
         default=1,
         metavar="N",
         help="with --env: environment steps per learner step, the action held",
+    )
+
+
+def add_trust_env(parser: argparse.ArgumentParser, what: str) -> None:
+    """--trust-env: run the outside environment ``what`` names (code of the user's) unnamed."""
+    parser.add_argument(
+        "--trust-env",
+        action="store_true",
+        help=f"run the environment {what} names where it is code of yours (a module or "
+        "file) without naming it again with --env; a file is data otherwise, and opening it "
+        "runs nothing it names (docs/guide/result-directory.md)",
     )
 
 

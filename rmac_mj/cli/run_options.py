@@ -11,9 +11,10 @@ from rmac_mj.cli.arguments import (
     add_command,
     add_outside_options,
     add_task_options,
+    add_trust_env,
+    control_seconds,
     non_negative_int,
     positive_int,
-    positive_seconds,
     size_within,
 )
 from rmac_mj.experiments import panel as panel_tasks
@@ -155,6 +156,7 @@ def add_reproduce(commands, defaults: Mapping[str, Any] | None = None) -> None:
         "actor (default: all a learner takes)",
     )
     add_outside_options(reproduce)
+    add_trust_env(reproduce, "the directory being resumed (--resume)")
     reproduce.add_argument(
         "--trial-steps",
         type=size_within(constraints.TRIAL_STEPS),
@@ -165,7 +167,7 @@ def add_reproduce(commands, defaults: Mapping[str, Any] | None = None) -> None:
     )
     reproduce.add_argument(
         "--control-timestep",
-        type=positive_seconds,
+        type=control_seconds,
         default=None,
         metavar="S",
         help="with --env: seconds per environment step, for an environment that "

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import pathlib
 from collections.abc import Sequence
 from typing import Any
 
@@ -27,6 +28,8 @@ def parse_overrides(assignments: Sequence[str]) -> dict[str, dict]:
             flat[".".join(path)] = json.loads(text)
         except json.JSONDecodeError:
             flat[".".join(path)] = text  # a bare word, e.g. rate_split=actor
+        except RecursionError:
+            raise UsageError(f"--set {key.strip()}: its value is nested too deeply") from None
     return nest(flat)
 
 
@@ -49,6 +52,52 @@ def algorithms_to_run(args, overrides: dict[str, dict]) -> tuple[str, ...]:
     return Protocol().algorithms  # the paper's comparison: RMAC and S-AC
 
 
+def nothing_to_resume(out: pathlib.Path, marker: str, command: str) -> UsageError:
+    """The refusal of ``--resume`` where ``out`` holds no run (no ``marker`` file, written as a run
+    starts): a mistyped --out must not start a fresh run of hours."""
+    why = "it does not exist" if not out.exists() else f"it has no {marker}"
+    return UsageError(
+        f"--resume: {out} holds nothing to resume ({why}); start it with `{command}` without "
+        "--resume, or give the --out of the run to finish"
+    )
+
+
+def resumed_environment(
+    out: pathlib.Path, config: dict[str, Any], named: str | None, trust: bool
+) -> None:
+    """Refuse, before anything of it is imported, a resume of the run in ``out`` (its ``config``)
+    on another environment than the run's. ``named`` (the command line's --env or its --config
+    file's) must be the run's environment; one that is code of the user's (a module or file) runs
+    only when named or ``trust``ed; and it must come from where it came from (a file's digest, a
+    package's version: ``environment_origin``)."""
+    from rmac_mj.envs import spec as env_spec
+
+    env = config["protocol"].get("env")
+    if env is None:
+        return  # the suite's: the package's own code, of the version config.json checks
+    with user_input(f"{out}/config.json: "):
+        code_of_yours = env_spec.user_code(env)
+    if named is not None:
+        with user_input("--env: "):
+            given = env_spec.canonical(named)
+        if given != env:
+            raise UsageError(
+                f"the run in {out} ran on env {env!r}, not {given!r}: a run is one environment "
+                f"(give --env {env}, or another --out)"
+            )
+    elif code_of_yours and not trust:
+        raise UsageError(
+            f"the run in {out} ran on env {env!r}, code of yours: a resume runs it only when "
+            f"you name it. Add --env {env} (or --trust-env)"
+        )
+    problem = env_spec.origin_problem(config.get("environment_origin"), env_spec.origin(env))
+    if problem is not None:
+        raise UsageError(
+            f"the run in {out} ran on env {env!r} as it was then, not as it is now ({problem}): "
+            "a run is one environment; put it back, or start another run with another --out"
+        )
+
+
 def settings_from_files(argv: Sequence[str] | None, args: argparse.Namespace) -> argparse.Namespace:
     """``reproduce``'s arguments with the protocol of the directory being resumed and of the
     ``--config`` file as defaults: what the command line gives explicitly overrides them (and a
@@ -61,18 +110,28 @@ def settings_from_files(argv: Sequence[str] | None, args: argparse.Namespace) ->
 
     layers: list[tuple[dict[str, Any], dict[str, dict]]] = []
     without_references = False
+    if args.trust_env and not args.resume:
+        raise UsageError(
+            "--trust-env applies to --resume: the environment the directory's run names"
+        )
+    resumed = None
     if args.resume:
-        config = ResultStore(args.out).read_config()
-        if config is not None:
-            stored = config["protocol"]
-            layers.append((stored, stored.get("agent_configs", {})))
-            # a run started with --no-optimal is finished without the reference too
-            without_references = config.get("references") is False
+        resumed = ResultStore(args.out).read_config()
+        if resumed is None:
+            raise nothing_to_resume(args.out, "config.json", "rmac-mj reproduce")
+        stored = resumed["protocol"]
+        layers.append((stored, stored.get("agent_configs", {})))
+        # a run started with --no-optimal is finished without the reference too
+        without_references = resumed.get("references") is False
+    named = args.env
     if args.config is not None:
         # the command line's environment completes the file (its trial_steps, learner_state...)
         completion = {"env": args.env} if args.env is not None else None
         config = sweep_file.load_configuration(args.config, completion)
         layers.append((config.options, config.agent_configs))
+        named = named or config.options.get("env")
+    if resumed is not None:  # before anything the directory names is built
+        resumed_environment(args.out, resumed, named, args.trust_env)
     if not layers:
         return args
     defaults: dict[str, Any] = {}
@@ -197,6 +256,8 @@ def reproduce(args) -> int:
             raise Interrupted(
                 f"no experiment had finished; kept to continue from: {', '.join(held)}; {again}"
             ) from None
+        if ResultStore(out).read_config() is None:  # nothing begun: nothing to resume
+            raise Interrupted("no experiment had started, nothing is saved") from None
         raise Interrupted(f"no experiment had finished, nothing is saved; {again}") from None
     print(report.summary_table(summary, protocol.algorithms))
     parts = summary["wall_time_parts_s"]
@@ -219,6 +280,8 @@ def sweep(args) -> int:
 
     if args.jobs is not None and args.scheduler:
         raise UsageError("--jobs and --scheduler exclude each other")
+    if args.resume and not (args.out / "sweep.json").is_file():
+        raise nothing_to_resume(args.out, "sweep.json", f"rmac-mj sweep {args.file}")
     # the whole file is validated before anything runs; its size is said first
     sizes = {
         key: getattr(args, key) for key in SWEEP_SIZE_OPTIONS if getattr(args, key) is not None
@@ -262,6 +325,8 @@ def panel(args) -> int:
         chosen = panels.tasks_named(names)
         for task in chosen:  # every protocol is checked before anything runs
             task.make_protocol(algorithms, args.experiments, args.seed, args.trials)
+    if args.resume and not any((args.out / task.name / "config.json").is_file() for task in chosen):
+        raise nothing_to_resume(args.out, "task's run (<task>/config.json)", "rmac-mj panel")
     out = writable_dir(args.out)
     try:
         panels.run_panel(

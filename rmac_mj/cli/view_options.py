@@ -10,6 +10,7 @@ from rmac_mj.cli.arguments import (
     add_command,
     add_outside_options,
     add_task_options,
+    add_trust_env,
     floats,
     non_negative_int,
     positive_int,
@@ -118,6 +119,7 @@ def add_policy(commands) -> None:
         help="do not draw the greedy trial from the start state over the maps",
     )
     add_task_options(policy, False, "default: the snapshot's own")
+    add_trust_env(policy, "each snapshot")
 
 
 def add_optimal(commands) -> None:
@@ -176,6 +178,7 @@ def add_render(commands) -> None:
         "number, e.g. 1 or 3 for the pendulum's 3)",
     )
     add_task_options(render, False, "default: the one each snapshot learned on")
+    add_trust_env(render, "each snapshot")
 
 
 def add_bench(commands) -> None:

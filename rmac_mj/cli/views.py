@@ -91,6 +91,34 @@ def compare_figure_stems(out: str | None, first: pathlib.Path) -> tuple[pathlib.
     return folder / stem, folder / f"{stem}_profiles"
 
 
+def _task_of(summary: dict) -> str | None:
+    """The task a run's summary is of, as people read it: its environment, the task's arguments
+    and the trial's length (``dc_pendulum/swingup, 3 s trials``); None for a summary too old to
+    say."""
+    protocol = summary.get("protocol")
+    if not isinstance(protocol, dict) or not ("env" in protocol or "domain" in protocol):
+        return None
+    name = protocol.get("env") or f"{protocol.get('domain')}/{protocol.get('task')}"
+    arguments = protocol.get("task_kwargs") or {}
+    seconds = summary.get("trial_seconds")
+    return (
+        name
+        + (f" {json.dumps(arguments, sort_keys=True)}" if arguments else "")
+        + (f", {seconds:g} s trials" if isinstance(seconds, (int, float)) else "")
+    )
+
+
+def _one_task(summaries: dict[str, dict]) -> None:
+    """Refuse, naming each run's task, runs of different tasks: their returns do not compare."""
+    tasks = {label: _task_of(summary) for label, summary in summaries.items()}
+    if len({task for task in tasks.values() if task is not None}) > 1:
+        shown = "; ".join(f"{label}: {task}" for label, task in tasks.items() if task is not None)
+        raise UsageError(
+            f"the runs are of different tasks ({shown}): their returns do not compare; "
+            "compare runs of one task"
+        )
+
+
 def compare(args) -> int:
     from rmac_mj.agents import ALGORITHMS
     from rmac_mj.evaluation import report
@@ -111,6 +139,7 @@ def compare(args) -> int:
         if "trial_seconds" not in summaries[label]:
             raise UsageError(f"{store.summary_path} has no trial_seconds (the task's trial length)")
         _say_missing_learners(store.summary_path, summaries[label])
+    _one_task(summaries)
     optimal = next(
         (s["optimal_return"] for s in summaries.values() if s.get("optimal_return")), None
     )
@@ -173,7 +202,17 @@ def policy(args) -> int:
         with user_input(f"{path}: "):
             agent, meta = load_snapshot(path)
         snapshots.append((agent, meta))
-        envs.append(snapshot_environment(agent, meta, args.domain, args.task, args.env))
+        envs.append(
+            snapshot_environment(
+                agent,
+                meta,
+                args.domain,
+                args.task,
+                args.env,
+                trust_env=args.trust_env,
+                log=say,
+            )
+        )
     learner_state = _declared_labels(learner_state_of(envs[0]), snapshots[0][1])
     for path, env in zip(args.snapshots[1:], envs[1:]):
         if learner_state_of(env) != learner_state:
@@ -267,13 +306,16 @@ def render(args) -> int:
         "height": args.height,
         "overlay": not args.no_overlay,
         "frames_per_step": args.frames_per_step,
+        "env": args.env,
+        "trust_env": args.trust_env,
+        "log": say,
     }
     if args.snapshot is not None:
         path = result_videos.render_snapshot(
-            args.snapshot, args.out, domain=args.domain, task=args.task, env=args.env, **options
+            args.snapshot, args.out, domain=args.domain, task=args.task, **options
         )
-    elif args.domain is not None or args.task is not None or args.env is not None:
-        raise UsageError("--domain/--task and --env apply to a single SNAPSHOT only")
+    elif args.domain is not None or args.task is not None:
+        raise UsageError("--domain/--task apply to a single SNAPSHOT only")
     elif args.progression is not None:
         path = result_videos.render_progression(
             args.progression, args.out, experiment=args.experiment, **options

@@ -108,6 +108,11 @@ class Environment(dm_env.Environment):
             reward += checked_reward(self.name, "step", timestep.reward)
             if last:
                 break
+        if not math.isfinite(reward):  # each finite, their sum not (1e308 and 1e308)
+            raise EnvironmentFailure(
+                f"env {self.name!r}: its rewards over an action repeat of {self.action_repeat} "
+                f"sum to {reward}, each {timestep.reward!r} or so: no learner can take them"
+            )
         self._step += 1
         observation = self._entries(timestep.observation, "step")
         if timestep.last() or self._step >= self.steps_per_trial:

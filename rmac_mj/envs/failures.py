@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import numbers
 import os
 import traceback
 from collections.abc import Callable, Iterator
@@ -82,13 +83,20 @@ def read_observation(
 
 
 def checked_reward(env: str, phase: str, reward: Any) -> float:
-    """``reward`` as a finite float; :class:`EnvironmentFailure` naming it otherwise."""
-    try:
-        value = float(reward)
-    except (TypeError, ValueError):
+    """``reward`` as a finite float; :class:`EnvironmentFailure` naming it otherwise. A reward is a
+    real number (a Python or numpy scalar, or a numeric array of one element): a string such as
+    ``"1.0"`` is refused, not converted."""
+    numeric = isinstance(reward, numbers.Real) or (
+        isinstance(reward, np.ndarray) and reward.size == 1 and reward.dtype.kind in "biuf"
+    )
+    if not numeric:
+        shown = repr(reward)
+        shown = shown if len(shown) <= 80 else shown[:77] + "..."
         raise EnvironmentFailure(
-            f"env {env!r}: its {phase} gave the reward {reward!r}, not a number"
-        ) from None
+            f"env {env!r}: its {phase} gave the reward {shown}, not a number (a "
+            f"{type(reward).__name__})"
+        )
+    value = float(reward if not isinstance(reward, np.ndarray) else reward.reshape(()))
     if not math.isfinite(value):
         raise EnvironmentFailure(f"env {env!r}: its {phase} gave a non-finite reward, {reward!r}")
     return value

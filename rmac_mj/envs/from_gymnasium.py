@@ -13,6 +13,7 @@ import dm_env
 import numpy as np
 from dm_env import specs
 
+from rmac_mj.envs.failures import checked_reward
 from rmac_mj.envs.observation_map import OBSERVATION, layout_of_gymnasium
 from rmac_mj.tasks.common import box_problem
 
@@ -44,6 +45,7 @@ class GymnasiumEnvironment(dm_env.Environment):
                 f"{name}: the action space must be bounded (finite low < high): {problem}"
             )
         self.env = env
+        self.name = name
         self.layout = layout_of_gymnasium(env.observation_space)
         self._dict_observation = isinstance(env.observation_space, spaces.Dict)
         self._shape, self._dtype = space.shape, space.dtype
@@ -65,7 +67,8 @@ class GymnasiumEnvironment(dm_env.Environment):
             return self.reset()
         action = np.asarray(action, dtype=self._dtype).reshape(self._shape)
         observation, reward, terminated, truncated, _ = self.env.step(action)
-        observation, reward = self._observation(observation), float(reward)
+        observation = self._observation(observation)
+        reward = checked_reward(self.name, "step", reward)
         if terminated:
             self._reset_next_step = True
             return dm_env.termination(reward, observation)
@@ -93,10 +96,23 @@ class GymnasiumEnvironment(dm_env.Environment):
         return float(dt) if dt is not None else None
 
     def step_limit(self) -> int | None:
-        """Steps per episode from the time limit (``spec.max_episode_steps``), None without one."""
+        """Steps per episode from the time limit: the shortest of the ``TimeLimit`` wrappers around
+        the environment (a factory's own ``TimeLimit(env, 20)`` too, which the spec of an
+        environment made without ``gymnasium.make`` does not hold) and ``spec.max_episode_steps``;
+        None without one."""
+        from gymnasium import Wrapper
+        from gymnasium.wrappers import TimeLimit
+
+        limits = []
         spec = getattr(self.env, "spec", None)
-        steps = getattr(spec, "max_episode_steps", None)
-        return int(steps) if steps is not None else None
+        if getattr(spec, "max_episode_steps", None) is not None:
+            limits.append(int(spec.max_episode_steps))
+        wrapped = self.env
+        while isinstance(wrapped, Wrapper):
+            if isinstance(wrapped, TimeLimit):  # its limit, private there, as the wrapper reads it
+                limits.append(int(wrapped._max_episode_steps))
+            wrapped = wrapped.env
+        return min(limits) if limits else None
 
     def _observation(self, observation: Any) -> dict[str, np.ndarray]:
         if self._dict_observation:

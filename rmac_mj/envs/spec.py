@@ -10,11 +10,14 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import functools
+import hashlib
 import importlib
+import importlib.metadata
 import importlib.util
 import inspect
 import math
 import pathlib
+import secrets
 import sys
 import zlib
 from collections.abc import Callable, Mapping
@@ -23,7 +26,8 @@ from typing import Any
 import dm_env
 import numpy as np
 
-from rmac_mj.constraints import OBSERVATION_SIZE
+from rmac_mj import _heartbeat as heartbeat
+from rmac_mj.constraints import MIN_CONTROL_TIMESTEP, OBSERVATION_SIZE, TRIAL_STEPS
 from rmac_mj.envs.environment import Environment, trial_steps
 from rmac_mj.envs.failures import outside, read_observation
 from rmac_mj.envs.from_gymnasium import GymnasiumEnvironment
@@ -69,6 +73,92 @@ def parse(spec: str) -> tuple[str, str]:
             f"env {spec!r}: a factory must read package.module:function or path/to/file.py:function"
         )
     return "factory", spec
+
+
+def user_code(spec: str) -> bool:
+    """Whether the SPEC names code of the user's, a module or a file (``module:factory``,
+    ``path/file.py:factory``, a Gymnasium id its module qualifies, ``gymnasium:module:Id``), rather
+    than an environment of a registry (dm-control's suite, Gymnasium's): code that opening a
+    snapshot or a result directory must not run unless the user names it again."""
+    source, target = parse(spec)
+    return source == "factory" or (source == "gymnasium" and ":" in target)
+
+
+def canonical(spec: str) -> str:
+    """The SPEC with a file's path made absolute and its links resolved
+    (``envs.py:make`` -> ``/home/me/run/envs.py:make``): the same file from any working directory."""
+    source, _ = parse(spec)
+    module, _, function = spec.rpartition(":")
+    if source != "factory" or not module.endswith(".py"):
+        return spec
+    return f"{pathlib.Path(module).expanduser().resolve()}:{function}"
+
+
+def origin(spec: str) -> dict[str, Any]:
+    """Where the environment of the SPEC comes from, exactly, as JSON data: a file's resolved path
+    and the SHA-256 of its bytes (read, not run); a module's file and digest (found by importing
+    its parent packages, not itself); a registry's package and version, e.g.
+    ``{"package": "gymnasium", "version": "1.4.0"}``. Only the file that holds the factory is
+    digested, not the modules it imports."""
+    source, target = parse(spec)
+    if source in SOURCES:
+        found: dict[str, Any] = {"package": source, "version": _version(source)}
+        if source == "gymnasium" and ":" in target:
+            found.update(_module_origin(target.partition(":")[0]))
+        return found
+    module, _, _ = spec.rpartition(":")
+    if module.endswith(".py"):
+        path = pathlib.Path(module).expanduser().resolve()
+        return {"file": str(path), "sha256": _digest(path)}
+    return _module_origin(module)
+
+
+def describe_origin(found: Any) -> str:
+    """An :func:`origin` as people read it: ``file /x/envs.py (sha256 1a2b3c4d5e6f...)``."""
+    if not isinstance(found, dict):
+        return repr(found)
+    if "package" in found and "file" not in found:
+        return f"{found['package']} {found.get('version')}"
+    digest = found.get("sha256")
+    held = f"sha256 {digest[:12]}..." if digest else "no such file"
+    if "module" in found:
+        return f"module {found['module']} ({found.get('file') or 'no file'}, {held})"
+    return f"file {found.get('file')} ({held})"
+
+
+def origin_problem(recorded: Any, now: dict[str, Any]) -> str | None:
+    """None when the environment comes from where it was ``recorded`` to (:func:`origin`), else
+    both, as people read them: ``file /x/envs.py (sha256 1a2b...) then, ... (sha256 9f8e...) now``."""
+    if recorded is None or recorded == now:
+        return None
+    return f"{describe_origin(recorded)} then, {describe_origin(now)} now"
+
+
+def _module_origin(name: str) -> dict[str, Any]:
+    try:
+        found = importlib.util.find_spec(name)
+    except (ImportError, ValueError):
+        found = None
+    path = found.origin if found is not None and found.has_location else None
+    if path is None:
+        return {"module": name, "file": None, "sha256": None}
+    path = pathlib.Path(path).resolve()
+    return {"module": name, "file": str(path), "sha256": _digest(path)}
+
+
+def _digest(path: pathlib.Path) -> str | None:
+    """The SHA-256 of the file's bytes, None when there is no such file."""
+    try:
+        return hashlib.sha256(path.read_bytes()).hexdigest()
+    except OSError:
+        return None
+
+
+def _version(package: str) -> str | None:
+    try:
+        return importlib.metadata.version(package)
+    except importlib.metadata.PackageNotFoundError:
+        return None
 
 
 def load_factory(target: str) -> Callable[..., Any]:
@@ -160,7 +250,7 @@ class EnvSpec:
     measured_bounds: Mapping[str, Any] | None = None
 
     def __post_init__(self) -> None:
-        parse(self.env)
+        object.__setattr__(self, "env", canonical(self.env))  # parses it too
         if not isinstance(self.kwargs, Mapping):
             raise ValueError(f"EnvSpec.kwargs must be a mapping, got {self.kwargs!r}")
         object.__setattr__(self, "kwargs", dict(self.kwargs))
@@ -183,10 +273,11 @@ class EnvSpec:
             isinstance(dt, (int, float))
             and not isinstance(dt, bool)
             and math.isfinite(dt)
-            and dt > 0
+            and dt >= MIN_CONTROL_TIMESTEP
         ):
             raise ValueError(
-                f"EnvSpec.control_timestep must be a positive number of seconds, got {dt!r}"
+                f"EnvSpec.control_timestep must be a number of seconds >= "
+                f"{MIN_CONTROL_TIMESTEP:g}, got {dt!r}"
             )
 
     @property
@@ -233,8 +324,10 @@ class EnvSpec:
             return GymnasiumEnvironment(env, seed=seed, name=self.env)
         factory = load_factory(target)
         parameters = inspect.signature(factory).parameters
-        if seed is not None and "seed" in parameters:
-            kwargs["seed"] = seed
+        if "seed" in parameters and (
+            seed is not None or parameters["seed"].default is inspect.Parameter.empty
+        ):  # a factory that requires its seed gets fresh entropy where no seed is given
+            kwargs["seed"] = seed if seed is not None else secrets.randbits(31)
         if render and "render_mode" in parameters:
             kwargs["render_mode"] = "rgb_array"
         with outside(self.env, "factory"):
@@ -252,7 +345,8 @@ class EnvSpec:
         """The environment the learners run on, seeded with ``seed`` (an int, or None for fresh
         entropy): x as :meth:`resolve` says, trials as long as its time limit or ``trial_steps``.
         ``render``: able to draw its frames (:meth:`Environment.render_frame`)."""
-        base = self.build_base(seed, render)
+        with heartbeat.working(f"env {self.env!r}: building it"):
+            base = self.build_base(seed, render)
         spec = self
         if not isinstance(self.learner_state, LearnerStateSpec) or (
             self.trial_steps is None and _step_limit(base) is None
@@ -275,6 +369,10 @@ class EnvSpec:
         instance of the environment of its own for (cos, sin) pairs when ``keys`` are not given) and,
         for an environment without a time limit that truncates its episodes itself, ``trial_steps``
         measured. Raises ValueError, in one line, on whatever is missing or ambiguous."""
+        with heartbeat.working(f"env {self.env!r}: probing it before the run"):
+            return self._resolve()
+
+    def _resolve(self) -> EnvSpec:
         base = self.build_base(PROBE_SEED)
         spec = self
         if self.trial_steps is None and _step_limit(base) is None:
@@ -344,12 +442,23 @@ class EnvSpec:
                 f"--control-timestep S, the seconds per environment step (control_timestep "
                 f"in a --config file's [protocol] or to envs.load)"
             )
+        if not dt >= MIN_CONTROL_TIMESTEP:
+            raise ValueError(
+                f"env {self.env!r} says its time step is {dt:g} s, less than "
+                f"{MIN_CONTROL_TIMESTEP:g} s; set control_timestep (seconds per environment step)"
+            )
         limit = _step_limit(base)
         if limit is None and self.trial_steps is None:
             raise ValueError(
                 f"env {self.env!r} has no time limit and does not truncate its "
                 f"episodes; give --trial-steps N (trial_steps in a --config file's "
                 f"[protocol] or to envs.load; for Gymnasium, max_episode_steps in its kwargs)"
+            )
+        steps = None if limit is None else trial_steps(limit, self.action_repeat)
+        if self.trial_steps is None and steps > TRIAL_STEPS.value:
+            raise ValueError(
+                TRIAL_STEPS.refusal(f"env {self.env!r}: its time limit in learner steps", steps)
+                + "; set trial_steps (a shorter trial)"
             )
         return float(dt), limit if limit is not None else self.trial_steps * self.action_repeat
 
@@ -414,15 +523,18 @@ def _truncation_steps(base: dm_env.Environment, spec: EnvSpec) -> int | None:
     low = np.broadcast_to(action.minimum, action.shape).astype(float)
     high = np.broadcast_to(action.maximum, action.shape).astype(float)
     lengths = set()
-    for _ in range(2):
-        _probe_call(spec.env, "reset", base.reset)
-        for steps in range(1, MAX_PROBE_STEPS + 1):  # noqa: B007 (read after the loop)
-            timestep = _probe_call(spec.env, "step", base.step, rng.uniform(low, high))
-            if timestep.last():
-                break
-        if not timestep.last() or timestep.discount == 0.0:
-            return None
-        lengths.add(steps)
+    what = f"env {spec.env!r}: 2 episodes of random actions, to find where it ends them"
+    with heartbeat.working(what, unit="steps") as work:
+        for _ in range(2):
+            _probe_call(spec.env, "reset", base.reset)
+            for steps in range(1, MAX_PROBE_STEPS + 1):  # noqa: B007 (read after the loop)
+                timestep = _probe_call(spec.env, "step", base.step, rng.uniform(low, high))
+                work.done += 1
+                if timestep.last():
+                    break
+            if not timestep.last() or timestep.discount == 0.0:
+                return None
+            lengths.add(steps)
     return trial_steps(lengths.pop(), spec.action_repeat) if len(lengths) == 1 else None
 
 
@@ -435,22 +547,25 @@ def _random_states(base: dm_env.Environment, mapping: ObservationMap, spec: EnvS
     low = np.broadcast_to(action.minimum, action.shape).astype(float)
     high = np.broadcast_to(action.maximum, action.shape).astype(float)
     states, taken = [], 0
-    while taken < BOX_PROBE_STEPS:
-        timestep, steps = _probe_call(spec.env, "reset", base.reset), 0
-        states.append(_probe_read(spec.env, "reset", mapping, timestep, mapping.dim))
-        while (
-            not timestep.last()
-            and taken < BOX_PROBE_STEPS
-            and (spec.trial_steps is None or steps < spec.trial_steps)
-        ):
-            u = rng.uniform(low, high)
-            for _ in range(spec.action_repeat):
-                timestep = _probe_call(spec.env, "step", base.step, u)
-                taken += 1
-                if timestep.last():
-                    break
-            steps += 1
-            states.append(_probe_read(spec.env, "step", mapping, timestep, mapping.dim))
+    what = f"env {spec.env!r}: measuring the state's box from random actions"
+    with heartbeat.working(what, BOX_PROBE_STEPS, "steps") as work:
+        while taken < BOX_PROBE_STEPS:
+            timestep, steps = _probe_call(spec.env, "reset", base.reset), 0
+            states.append(_probe_read(spec.env, "reset", mapping, timestep, mapping.dim))
+            while (
+                not timestep.last()
+                and taken < BOX_PROBE_STEPS
+                and (spec.trial_steps is None or steps < spec.trial_steps)
+            ):
+                u = rng.uniform(low, high)
+                for _ in range(spec.action_repeat):
+                    timestep = _probe_call(spec.env, "step", base.step, u)
+                    taken += 1
+                    if timestep.last():
+                        break
+                steps += 1
+                work.done = taken
+                states.append(_probe_read(spec.env, "step", mapping, timestep, mapping.dim))
     base.close()
     return np.asarray(states)
 
@@ -464,14 +579,17 @@ def _probe(base: dm_env.Environment, layout: ObservationLayout, env: str) -> np.
     flatten = ObservationMap([], layout).flat
     size = sum(layout.sizes.values())
     samples = []
-    for _ in range(PROBE_EPISODES):
-        timestep = _probe_call(env, "reset", base.reset)
-        samples.append(_probe_read(env, "reset", flatten, timestep, size))
-        for _ in range(PROBE_STEPS):
-            timestep = _probe_call(env, "step", base.step, rng.uniform(low, high))
-            samples.append(_probe_read(env, "step", flatten, timestep, size))
-            if timestep.last():
-                break
+    what = f"env {env!r}: {PROBE_EPISODES} episodes of random actions, to infer the learner's state"
+    with heartbeat.working(what, PROBE_EPISODES * (PROBE_STEPS + 1), "observations") as work:
+        for _ in range(PROBE_EPISODES):
+            timestep = _probe_call(env, "reset", base.reset)
+            samples.append(_probe_read(env, "reset", flatten, timestep, size))
+            for _ in range(PROBE_STEPS):
+                timestep = _probe_call(env, "step", base.step, rng.uniform(low, high))
+                samples.append(_probe_read(env, "step", flatten, timestep, size))
+                work.done = len(samples)
+                if timestep.last():
+                    break
     return np.asarray(samples)
 
 

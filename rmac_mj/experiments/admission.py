@@ -7,6 +7,7 @@ kernels before the workers start.
 
 from __future__ import annotations
 
+import decimal
 import hashlib
 import json
 import os
@@ -15,6 +16,7 @@ import time
 from collections.abc import Callable, Iterable
 from typing import Any
 
+from rmac_mj import _heartbeat as heartbeat
 from rmac_mj import agents
 from rmac_mj.agents import make_agent
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
@@ -138,8 +140,12 @@ def machine_memory() -> int | None:
     return min(physical, limit)
 
 
-def _gb(size: float) -> str:
-    return f"{size / 1e9:.1f} GB" if size < 1e18 else f"{size / 1e9:.1e} GB"
+def _gb(size: int) -> str:
+    """``size`` bytes in GB, for messages: "2.5 GB", "3.2e+12 GB", and beyond a float's range
+    (a tiling of a 1000-dimensional state) "1.0e+400 GB" from the integer's own digits."""
+    if size < 1e18:
+        return f"{size / 1e9:.1f} GB"
+    return f"{decimal.Decimal(int(size)) / 10**9:.1e} GB"
 
 
 def check_memory(
@@ -189,7 +195,11 @@ def warm_up(protocol: Protocol) -> None:
             config=protocol.agent_configs.get(algorithm),
             seed=0,
         )
-        with environment_failure_at(f"a first trial of {algorithm} before the experiments"):
+        where = f"a first trial of {algorithm} before the experiments"
+        with (
+            environment_failure_at(where),
+            heartbeat.working(f"{protocol.environment_name}: {where}"),
+        ):
             run_trial(env, agent, learn=True)
             run_trial(env, agent, learn=False)
 
@@ -246,7 +256,8 @@ def warm_up_announced(
     if log is not None:
         ticker.start()
     try:
-        with _cache.on_first_compile(first_compile):
+        # while numba compiles, its progress above is the one voice of the first trials
+        with _cache.on_first_compile(first_compile), heartbeat.quiet_while(compiling.is_set):
             for protocol in chosen:
                 warm_up(protocol)
     finally:

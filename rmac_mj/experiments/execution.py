@@ -15,6 +15,8 @@ import multiprocessing
 import os
 import queue
 import signal
+import socket
+import struct
 import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
@@ -30,6 +32,8 @@ _AHEAD = 1
 WATCHDOG_SECONDS = 0.5
 #: Seconds to wait for a Dask scheduler to answer.
 DASK_CONNECT_SECONDS = 10.0
+#: The largest greeting a Dask scheduler sends (its handshake: versions and settings, under 1 kB).
+_GREETING_BYTES = 2**20
 
 
 class BackendError(UserInputError):
@@ -131,11 +135,13 @@ def connect_dask(address: str, timeout: float | None = None):
         raise BackendError(
             f"--scheduler {address!r} is not a scheduler address (expected e.g. tcp://host:8786)"
         ) from None
+    timeout = DASK_CONNECT_SECONDS if timeout is None else timeout
+    _greeted(address, timeout)
     # A lost scheduler is reported once, in one line (dask_outcomes), not by the client's own
     # tracebacks of its reconnection attempts.
     logging.getLogger("distributed.client").setLevel(logging.CRITICAL)
     try:
-        return Client(address, timeout=DASK_CONNECT_SECONDS if timeout is None else timeout)
+        return Client(address, timeout=timeout)
     except ValueError as error:  # an unknown scheme ("foo://host:8786"), a malformed address
         raise BackendError(
             f"--scheduler {address!r} is not a scheduler address ({error}; e.g. tcp://host:8786)"
@@ -145,6 +151,50 @@ def connect_dask(address: str, timeout: float | None = None):
             f"cannot reach the Dask scheduler at {address} ({error}); is "
             "`dask scheduler` running there?"
         ) from None
+
+
+def _greeted(address: str, timeout: float) -> None:
+    """Check that the peer at a ``tcp://`` ``address`` greets as a Dask scheduler does, before the
+    client, which waits for a silent peer as long as it keeps the connection open and takes a
+    garbage peer's first bytes as the size of a frame to allocate. A scheduler writes its handshake
+    as soon as it accepts a connection: distributed's TCP frames, a byte count (a native uint64)
+    first. :class:`BackendError` naming the address when nothing answers within ``timeout``
+    seconds, or the first bytes are no such count."""
+    from distributed.comm import parse_address, parse_host_port
+
+    scheme, location = parse_address(address)
+    if scheme != "tcp":  # tls greets only after its own handshake; others are not sockets
+        return
+    host, port = parse_host_port(location)
+    header = b""
+    try:
+        with socket.create_connection((host, port), timeout=timeout) as connection:
+            deadline = time.monotonic() + timeout
+            while len(header) < 8:
+                connection.settimeout(max(deadline - time.monotonic(), 1e-3))
+                chunk = connection.recv(8 - len(header))
+                if not chunk:
+                    raise BackendError(
+                        f"the peer at {address} closed the connection without a word: not a "
+                        "Dask scheduler"
+                    )
+                header += chunk
+    except TimeoutError:  # socket.timeout
+        raise BackendError(
+            f"the peer at {address} said nothing within {timeout:g} s (a Dask scheduler greets "
+            "at once): is `dask scheduler` running there, or another server?"
+        ) from None
+    except OSError as error:
+        raise BackendError(
+            f"cannot reach the Dask scheduler at {address} ({error.strerror or error}); is "
+            "`dask scheduler` running there?"
+        ) from None
+    (size,) = struct.unpack("Q", header)
+    if not 0 < size <= _GREETING_BYTES:
+        raise BackendError(
+            f"the peer at {address} answered, but not as a Dask scheduler (its first frame "
+            f"would hold {size} bytes)"
+        )
 
 
 def dask_outcomes(

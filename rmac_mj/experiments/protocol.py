@@ -24,6 +24,8 @@ from rmac_mj.agents import (
     config_from_dict,
     unknown_algorithm,
 )
+from rmac_mj.envs import spec as env_spec
+from rmac_mj.errors import MissingExtra, UserInputError
 from rmac_mj.results import files
 
 
@@ -138,7 +140,10 @@ class Protocol:
         "learner_state": [constraints.InstanceOf(dict), None],
         "action_repeat": [constraints.ACTION_REPEAT.constraint()],
         "trial_steps": [constraints.TRIAL_STEPS.constraint(), None],
-        "control_timestep": [constraints.Interval(numbers.Real, 0, None, closed="neither"), None],
+        "control_timestep": [
+            constraints.Interval(numbers.Real, constraints.MIN_CONTROL_TIMESTEP, None),
+            None,
+        ],
     }
     #: The fields that describe an outside environment (``env``); they mean nothing without it.
     ENV_FIELDS: ClassVar[tuple[str, ...]] = (
@@ -153,6 +158,9 @@ class Protocol:
             for name in self.algorithms:
                 if name not in ALGORITHMS:
                     raise unknown_algorithm(name)
+                missing = agent_class(name).missing_requirement()
+                if missing is not None:  # refused before anything runs, naming the extra
+                    raise MissingExtra(missing)
         constraints.check_config(self)
         if len(set(self.algorithms)) != len(self.algorithms):
             raise ValueError(f"algorithms must not repeat, got {self.algorithms}")
@@ -200,6 +208,10 @@ class Protocol:
             )
         object.__setattr__(self, "domain", None)
         object.__setattr__(self, "task", None)
+        # Where the environment comes from, exactly: a file's path resolved and its bytes digested
+        # before they run, so that every experiment, a resume and a snapshot's reader use that.
+        object.__setattr__(self, "env", env_spec.canonical(self.env))
+        object.__setattr__(self, "_origin", env_spec.origin(self.env))
         _resolved(self.environment_spec)
 
     def _check_prior(self) -> None:
@@ -260,6 +272,13 @@ class Protocol:
         )
 
     @property
+    def environment_origin(self) -> dict[str, Any] | None:
+        """Where the outside environment came from when the protocol was made
+        (``rmac_mj.envs.spec.origin``: a file's path and SHA-256, a registry's package and version);
+        None for the suite's tasks, whose code is the package's."""
+        return getattr(self, "_origin", None)
+
+    @property
     def measured_bounds(self) -> dict[str, list[float]] | None:
         """The dimensions of x whose box the outside environment's specs do not give and nobody
         declared, as measured from random-action rollouts (``rmac_mj.envs.EnvSpec.resolve``): name
@@ -273,13 +292,25 @@ class Protocol:
         """What a snapshot records to rebuild the environment: the suite's ``domain``, ``task`` and
         ``task_kwargs``, or an outside environment's resolved spec under ``environment``."""
         if self.env is not None:
-            return {"environment": _resolved(self.environment_spec).as_dict()}
+            return {
+                "environment": _resolved(self.environment_spec).as_dict(),
+                "environment_origin": self.environment_origin,
+            }
         return {"domain": self.domain, "task": self.task, "task_kwargs": self.task_kwargs}
 
     def make_environment(self, task_seed: int | None = None) -> control.Environment:
         """The protocol's environment, its task's random state seeded with ``task_seed`` (None:
         unseeded). Every environment of a run is built here."""
         if self.env is not None:
+            if env_spec.user_code(self.env):  # a run is one environment, in every worker
+                problem = env_spec.origin_problem(
+                    self.environment_origin, env_spec.origin(self.env)
+                )
+                if problem is not None:
+                    raise UserInputError(
+                        f"env {self.env!r} changed during the run ({problem}): a run is one "
+                        "environment; put it back and --resume, or start another run"
+                    )
             return _resolved(self.environment_spec).make(task_seed)
         kwargs = dict(self.task_kwargs)
         if task_seed is not None:

@@ -226,6 +226,8 @@ def run_protocols(
         }  # a resume computes them only if the run did
         if prior_sha256 is not None:
             document["prior_sha256"] = prior_sha256
+        if protocol.environment_origin is not None:  # a resume must run on the same environment
+            document["environment_origin"] = protocol.environment_origin
         measured = protocol.measured_bounds
         if (
             measured

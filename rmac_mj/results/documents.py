@@ -8,7 +8,9 @@ import json
 import pathlib
 from typing import Any
 
+from rmac_mj.constraints import RESULT_DOCUMENT_BYTES
 from rmac_mj.errors import MissingInputError, UserInputError
+from rmac_mj.results.files import read_bounded
 from rmac_mj.results.run_identity import DamagedDirectory
 
 #: The containers a config's readers iterate (the values in them are compared with the run's own).
@@ -32,6 +34,23 @@ _SUMMARY_ROW_KEYS = {
     "ci95_low_per_trial": "a list",
     "ci95_high_per_trial": "a list",
 }
+
+
+def _read_text(path: pathlib.Path) -> str:
+    """The text of the document at ``path``: a regular file of at most
+    :data:`~rmac_mj.constraints.RESULT_DOCUMENT_BYTES` (a result directory copied from elsewhere
+    may hold anything under a document's name); FileNotFoundError when there is none."""
+    if not path.exists() and not path.is_symlink():
+        raise FileNotFoundError(path)
+    return read_bounded(path, RESULT_DOCUMENT_BYTES, f"a run's {path.name}").decode()
+
+
+def _parse(text: str) -> Any:
+    """JSON ``text`` parsed; ValueError for what is not JSON, nested too deeply included."""
+    try:
+        return json.loads(text)
+    except RecursionError:
+        raise ValueError("nested too deeply to be a run's document") from None
 
 
 def _is_number(value: Any) -> bool:
@@ -74,13 +93,13 @@ def read_config(path: pathlib.Path) -> dict[str, Any] | None:
     """The directory's ``config.json``, or None when there is none; :class:`DamagedDirectory`
     when it cannot be read as a run's config (a JSON object with a ``protocol`` object)."""
     try:
-        text = path.read_text()
+        text = _read_text(path)
     except FileNotFoundError:
         return None
-    except (OSError, UnicodeDecodeError) as error:
+    except (OSError, UnicodeDecodeError, UserInputError) as error:
         raise DamagedDirectory(f"{path} cannot be read ({error})") from None
     try:
-        document = json.loads(text)
+        document = _parse(text)
     except ValueError as error:
         raise DamagedDirectory(
             f"{path} is damaged (not JSON: {error}); the directory's "
@@ -109,7 +128,9 @@ def read_summary(path: pathlib.Path) -> dict[str, Any]:
             f"{path.parent} has no summary.json (not a finished `reproduce` run)"
         )
     try:
-        summary = json.loads(path.read_text())
+        summary = _parse(_read_text(path))
+    except UserInputError:
+        raise
     except (OSError, ValueError) as error:  # UnicodeDecodeError is a ValueError
         raise UserInputError(f"{path}: not a JSON document ({error})") from None
     problem = summary_problem(summary)
@@ -122,13 +143,13 @@ def read_wall_times(path: pathlib.Path) -> list[dict[str, Any]]:
     """The parts recorded in ``wall_times.json`` (empty when there is none);
     :class:`UserInputError` naming the file when it is there but damaged."""
     try:
-        text = path.read_text()
+        text = _read_text(path)
     except FileNotFoundError:
         return []
-    except (OSError, ValueError) as error:
+    except (OSError, ValueError) as error:  # a UserInputError of read_bounded too
         raise UserInputError(f"{path} cannot be read ({error})") from None
     try:
-        parts = json.loads(text)["parts"]
+        parts = _parse(text)["parts"]
         if not isinstance(parts, list) or not all(
             isinstance(part, dict)
             and all(_is_number(part.get(key)) for key in ("wall_s", "experiments"))

@@ -16,12 +16,45 @@ import math
 import os
 import pathlib
 import platform
+import stat
 import subprocess
 import tempfile
 from collections.abc import Iterable, Sequence
 from typing import Any
 
 import numpy as np
+
+from rmac_mj.constraints import Limit
+from rmac_mj.errors import MissingInputError, UserInputError
+
+
+def read_bounded(path: str | os.PathLike, limit: Limit, what: str) -> bytes:
+    """The bytes of the regular file at ``path``, refused before they are read when it is anything
+    else (a device such as /dev/zero, a pipe, a directory) or larger than ``limit`` bytes (a
+    :class:`~rmac_mj.constraints.Limit`). ``what`` names the file in the refusals, e.g. "a sweep
+    file". Raises MissingInputError when there is none, UserInputError naming it otherwise."""
+    path = pathlib.Path(path)
+    try:
+        # O_NONBLOCK: opening a pipe must not wait for a writer; a regular file ignores it.
+        descriptor = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    except FileNotFoundError:
+        raise MissingInputError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise UserInputError(f"{path}: is a directory, not {what}") from None
+    except OSError as error:
+        raise UserInputError(f"{path} cannot be read ({error.strerror or error})") from None
+    with os.fdopen(descriptor, "rb") as handle:
+        mode = os.fstat(descriptor).st_mode
+        if not stat.S_ISREG(mode):
+            kind = "a directory" if stat.S_ISDIR(mode) else "a device, pipe or socket"
+            raise UserInputError(f"{path}: is {kind}, not a regular file; {what} must be one")
+        size = os.fstat(descriptor).st_size
+        data = handle.read(limit.value + 1) if size <= limit.value else b""
+        if size > limit.value or len(data) > limit.value:  # also one that grew while it was read
+            raise UserInputError(
+                f"{path}: " + limit.refusal(f"the size in bytes of {what}", max(size, len(data)))
+            )
+    return data
 
 
 def write_atomic(path: str | os.PathLike, write) -> pathlib.Path:

@@ -120,7 +120,7 @@ def _describe(holder: str) -> str:
     try:
         info = json.loads(holder)
         return f"pid {info['pid']} on {info['host']} since {info['since']}: {info['command']}"
-    except (ValueError, KeyError, TypeError):
+    except (ValueError, KeyError, TypeError, RecursionError):
         return "a process that did not say who it is"
 
 
@@ -220,7 +220,7 @@ def snapshot_problem(path: pathlib.Path, algorithm: str, trial: int) -> str | No
         return "no meta document"
     try:
         meta: Any = json.loads(str(arrays["meta"]))
-    except ValueError:
+    except (ValueError, RecursionError):  # nested too deeply is no meta document either
         return "its meta document is not JSON"
     if not isinstance(meta, dict) or (meta.get("algorithm"), meta.get("trial")) != (
         algorithm,

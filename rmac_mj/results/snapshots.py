@@ -1,10 +1,11 @@
 """Agent snapshots: one ``.npz`` file, readable with ``numpy.load(path, allow_pickle=False)``.
 
 The agent's ``state_dict`` (keys prefixed ``agent/``) and a JSON ``meta`` (format, algorithm,
-hyperparameters, task, trial); no pickle, so opening one cannot run code. :func:`load_snapshot`
-gives back the learner, ready to act; :func:`snapshot_environment` is the environment it acts in.
-A snapshot an earlier version wrote is read through :func:`upgrade`, the one place that knows the
-earlier formats.
+hyperparameters, task, trial); no pickle, and nothing it names is imported or called when it is
+opened. :func:`load_snapshot` gives back the learner, ready to act; :func:`snapshot_environment` is
+the environment it acts in: an outside environment that is code of the user's runs only when the
+user names it. A snapshot an earlier version wrote is read through :func:`upgrade`, the one place
+that knows the earlier formats.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import json
 import os
 import pathlib
 import zipfile
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -132,7 +134,15 @@ def load_snapshot(path: str | os.PathLike) -> tuple[Agent, dict[str, Any]]:
         return _read_snapshot(path)
     except UserInputError:
         raise
-    except (ValueError, TypeError, KeyError, AttributeError, OSError, EOFError) as error:
+    except (
+        ValueError,
+        TypeError,
+        KeyError,
+        AttributeError,
+        OSError,
+        EOFError,
+        RecursionError,  # a meta document nested too deeply
+    ) as error:
         # zipfile.BadZipFile is an Exception only: a file that is not a zip at all
         raise UserInputError(
             f"{path} is not a readable rmac-mj snapshot ({type(error).__name__}: {error})"
@@ -175,13 +185,23 @@ def snapshot_environment(
     task: str | None = None,
     env: str | None = None,
     render: bool = False,
+    trust_env: bool = False,
+    log: Callable[[str], None] | None = None,
 ) -> control.Environment:
     """The environment a snapshot's agent acts in: the one it learned on (its domain, task and
     task_kwargs, or the outside environment its meta records under ``environment``), or
     ``domain``/``task`` of the suite with their defaults, or the outside environment ``env`` (a
-    SPEC, its learner state inferred); UserInputError if its state or action dimensions differ from
-    the agent's. ``render``: an outside environment made to draw its frames."""
+    SPEC: the one it learned on, named again, or another, its learner state inferred);
+    UserInputError if its state or action dimensions differ from the agent's. ``render``: an
+    outside environment made to draw its frames.
+
+    A snapshot is data: the suite's tasks and dm-control's and Gymnasium's registries are built from
+    it, but an outside environment that is code of the user's (a module or file) runs only when
+    ``env`` names it again or with ``trust_env``; and only from where it came from when it learned
+    (``environment_origin``: a file's digest, a registry's version), else refused naming both.
+    ``log`` hears why an environment named by ``env`` is not the one it learned on."""
     from rmac_mj import envs, tasks
+    from rmac_mj.envs import spec as env_spec
     from rmac_mj.rollout import action_space_of, state_space_of
 
     learned_on = envs.EnvSpec(**meta["environment"]) if "environment" in meta else None
@@ -190,13 +210,24 @@ def snapshot_environment(
         raise UserInputError(
             "give an outside environment (env) or a suite task (domain/task), not both"
         )
+    named = env is not None and learned_on is not None and env_spec.canonical(env) == name
     if (learned_on is not None and domain is None and task is None) or env is not None:
-        spec = learned_on if env is None else envs.EnvSpec(env)
+        if learned_on is not None and env is None and env_spec.user_code(name) and not trust_env:
+            raise UserInputError(
+                f"the snapshot learned on env {name!r}, code of yours: opening a snapshot runs "
+                f"none of it. To run it, name it: --env {name} (or --trust-env; env=, "
+                "trust_env=True in Python)"
+            )
+        if learned_on is not None and (env is None or named):
+            _check_origin(meta, name, named, log)
+        spec = learned_on if env is None or named else envs.EnvSpec(env)
+        if env is not None and not named and log is not None and learned_on is not None:
+            log(f"the snapshot learned on {name}; drawn on {spec.env}, as --env asks")
         try:
             made = spec.make(render=render)
         except ValueError as error:
             raise UserInputError(f"cannot build {spec.env}: {error}") from None
-        own, where = env is None, spec.env
+        own, where = env is None or named, spec.env
     else:
         domain = domain or meta.get("domain")
         task = task or (meta.get("task") if domain == meta.get("domain") else None)
@@ -220,3 +251,24 @@ def snapshot_environment(
             f"{agent.action_space.dim}"
         )
     return made
+
+
+def _check_origin(meta: dict, name: str, named: bool, log: Callable[[str], None] | None) -> None:
+    """The environment ``name`` a snapshot learned on, where it comes from now against its record
+    (``environment_origin``): refused naming both when it changed, unless the user named it again
+    (``named``: then ``log`` hears it, and it is drawn as it is now)."""
+    from rmac_mj.envs import spec as env_spec
+
+    problem = env_spec.origin_problem(meta.get("environment_origin"), env_spec.origin(name))
+    if problem is None:
+        return
+    if not named:
+        raise UserInputError(
+            f"env {name!r} is not what the snapshot learned on ({problem}): a snapshot acts "
+            f"where it learned. To draw it on the environment as it is now, name it: --env {name}"
+        )
+    if log is not None:
+        log(
+            f"env {name!r} has changed since the snapshot learned on it ({problem}); drawn as "
+            "it is now, as --env asks"
+        )

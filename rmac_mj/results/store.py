@@ -9,6 +9,7 @@ for is decided by :mod:`~rmac_mj.results.run_identity`.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import pathlib
 import re
@@ -17,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from rmac_mj.envs.spec import origin_problem
 from rmac_mj.errors import MissingInputError
 from rmac_mj.results import documents, files, integrity, run_identity
 from rmac_mj.results.records import Curves, ExperimentResult
@@ -146,8 +148,9 @@ class ResultStore:
 
     def begin(self, document: dict[str, Any], resume: bool) -> None:
         """Start a run described by ``document`` (``protocol``, ``code`` and optionally
-        ``prior_sha256`` and ``agents``) here, writing ``config.json``; or, with ``resume``, check that
-        the directory holds this very run (same protocol, prior file and code version) and clear what
+        ``prior_sha256``, ``environment_origin`` and ``agents``) here, writing ``config.json``; or,
+        with ``resume``, check that the directory holds this very run (same protocol, prior file,
+        environment (its file's digest, its package's version) and code version) and clear what
         a killed run left half written. A resume may add experiments and nothing else (config.json then
         records the count it grew from in ``experiments_grown_from``). Raises :class:`ResumeRefused`
         naming the settings that differ, and refuses a directory holding results that no config
@@ -167,6 +170,11 @@ class ResultStore:
         differences = run_identity.differences(stored, document["protocol"])
         if existing.get("prior_sha256") != document.get("prior_sha256"):
             differences.append("the prior knowledge file's contents (sha256)")
+        changed = origin_problem(
+            existing.get("environment_origin"), document.get("environment_origin")
+        )
+        if changed is not None:  # a run is one environment: its file, or its package's version
+            differences.append(f"the environment: {changed}")
         more = added_experiments(stored, document["protocol"]) or 0
         if resume and more > 0 and len(differences) == 1:  # only the count grows: same seeds, more
             differences = []
@@ -249,10 +257,18 @@ class ResultStore:
         stored = self.read_protocol()
         if stored is None:
             return False
-        try:  # a directory written before a field existed holds it at its default
-            same = type(protocol).from_dict(stored).as_dict() == protocol.as_dict()
-        except (TypeError, ValueError):
-            same = False
+        # Compared as data: making a Protocol of the stored one would build (and run) the
+        # environment it names. A directory written before a field existed holds it at its default.
+        now = protocol.as_dict()
+        defaults = files.as_jsonable(
+            {
+                field.name: field.default
+                if field.default is not dataclasses.MISSING
+                else field.default_factory()
+                for field in dataclasses.fields(protocol)
+            }
+        )
+        same = set(stored) <= set(now) and {k: stored.get(k, defaults[k]) for k in now} == now
         return same and self._complete(stored)
 
     def experiment_problem(

@@ -13,6 +13,7 @@ import pathlib
 from collections.abc import Callable
 from typing import Any
 
+from rmac_mj import constraints
 from rmac_mj.evaluation import metrics, report
 from rmac_mj.experiments import runner
 from rmac_mj.results import files
@@ -63,8 +64,10 @@ def _prepare(out: pathlib.Path, sweep: Sweep, resume: bool) -> None:
                 f"{out} already holds a sweep; pass --resume to finish it, or choose another --out"
             )
         try:
-            existing = json.loads(index.read_text())
-        except (OSError, ValueError) as error:  # unreadable, not UTF-8, not JSON
+            existing = json.loads(
+                files.read_bounded(index, constraints.RESULT_DOCUMENT_BYTES, "a sweep's index")
+            )
+        except (OSError, ValueError, RecursionError) as error:  # unreadable, not UTF-8, not JSON
             raise SweepResumeRefused(
                 f"{index} is damaged ({error}); which sweep {out} holds cannot "
                 "be told: choose another --out"

@@ -13,19 +13,13 @@ import itertools
 import json
 import math
 import pathlib
-import sys
 from collections.abc import Callable
 from typing import Any
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - Python 3.10
-    import tomli as tomllib
-
 from rmac_mj import constraints
-from rmac_mj.errors import MissingInputError
 from rmac_mj.experiments.protocol import Protocol
 from rmac_mj.results import files
+from rmac_mj.sweeps import bounded_toml
 from rmac_mj.sweeps.configuration_names import (
     configuration_name,
     is_number,
@@ -131,19 +125,16 @@ class SingleConfiguration:
 
 
 def read_toml(path: str | pathlib.Path) -> dict[str, Any]:
-    """The TOML document at ``path``; a missing or malformed file is a :class:`UserInputError`."""
-    path = pathlib.Path(path)
-    try:
-        with open(path, "rb") as handle:
-            return tomllib.load(handle)
-    except FileNotFoundError:
-        raise MissingInputError(f"{path}: no such file") from None
-    except IsADirectoryError:
-        raise SweepFileError(f"{path}: is a directory, not a TOML file") from None
-    except tomllib.TOMLDecodeError as error:
-        raise SweepFileError(f"{path}: not valid TOML: {error}") from None
-    except UnicodeDecodeError:
-        raise SweepFileError(f"{path}: not valid TOML: not UTF-8 text") from None
+    """The TOML document at ``path``, read within the declared limits
+    (:func:`~rmac_mj.sweeps.bounded_toml.read_toml`); a missing, oversized, too deeply nested,
+    malformed or empty file is a :class:`UserInputError` naming it."""
+    document = bounded_toml.read_toml(path, SweepFileError)
+    if not document:
+        raise SweepFileError(
+            f"{path}: holds nothing; a sweep or --config file sets [protocol] options, a [grid] "
+            "or [[variant]] tables (docs/guide/sweeps.md)"
+        )
+    return document
 
 
 def load_sweep(

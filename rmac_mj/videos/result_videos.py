@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import os
 import pathlib
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 from rmac_mj.agents import display_name
 from rmac_mj.errors import MissingInputError, UserInputError
@@ -30,16 +30,22 @@ def render_snapshot_episode(
     domain: str | None = None,
     task: str | None = None,
     env: str | None = None,
+    trust_env: bool = False,
+    log: Callable[[str], None] | None = None,
 ) -> RenderedEpisode:
     """Render the greedy episode of the agent saved at ``snapshot_path``.
 
     The episode runs on the task the agent learned on, or on ``domain``/``task`` when given (with
     their default task_kwargs), or on the outside environment ``env`` (a SPEC); the learner's state
-    and action must have the same dimensions there.
+    and action must have the same dimensions there. An outside environment of the user's code that
+    the snapshot names runs only when ``env`` names it again or with ``trust_env``
+    (:func:`~rmac_mj.results.snapshots.snapshot_environment`; ``log`` hears its notes).
     ``label`` defaults to e.g. "RMAC, trial 600" from the snapshot's meta data.
     """
     agent, meta = load_snapshot(snapshot_path)
-    env = snapshot_environment(agent, meta, domain, task, env, render=True)
+    env = snapshot_environment(
+        agent, meta, domain, task, env, render=True, trust_env=trust_env, log=log
+    )
     if label is None:
         label = display_name(meta["algorithm"])
         if meta.get("trial") is not None:
@@ -69,6 +75,8 @@ def render_snapshot(
     domain: str | None = None,
     task: str | None = None,
     env: str | None = None,
+    trust_env: bool = False,
+    log: Callable[[str], None] | None = None,
 ) -> pathlib.Path:
     """Render a snapshot's greedy episode to ``out_path`` (.mp4 or .gif) at real-time speed (on
     ``domain``/``task`` or ``env`` when given, see :func:`render_snapshot_episode`)."""
@@ -83,6 +91,8 @@ def render_snapshot(
         domain=domain,
         task=task,
         env=env,
+        trust_env=trust_env,
+        log=log,
     )
     return video.write_video(
         episode.frames, out_path, episode.fps, scale=scale, frame_step=frame_step
@@ -113,6 +123,9 @@ def render_progression(
     overlay: bool = True,
     scale: float = 1.0,
     frame_step: int = 1,
+    env: str | None = None,
+    trust_env: bool = False,
+    log: Callable[[str], None] | None = None,
 ) -> pathlib.Path:
     """One experiment's greedy episode after several trials, labelled, to ``out_path``.
 
@@ -121,6 +134,7 @@ def render_progression(
       trials: which snapshots (trial numbers); None takes all of them (1, 10, 50, 200 and the last,
         with the runner's defaults).
       layout: "sequence" (one after another, each last frame held 0.5 s) or "side_by_side".
+      env, trust_env, log: the environment, as for :func:`render_snapshot_episode`.
     """
     video.check_video_path(out_path)
     if layout not in ("sequence", "side_by_side"):
@@ -152,6 +166,9 @@ def render_progression(
             frames_per_step=frames_per_step,
             overlay=overlay,
             label=f"{display_name(algorithm)}, trial {t}",
+            env=env,
+            trust_env=trust_env,
+            log=log,
         )
         for t in chosen
     ]
@@ -177,8 +194,12 @@ def render_comparison(
     overlay: bool = True,
     scale: float = 1.0,
     frame_step: int = 1,
+    env: str | None = None,
+    trust_env: bool = False,
+    log: Callable[[str], None] | None = None,
 ) -> pathlib.Path:
-    """``algorithms`` side by side after the same ``trial`` (None: the last both have), to ``out_path``."""
+    """``algorithms`` side by side after the same ``trial`` (None: the last both have), to
+    ``out_path``; ``env``, ``trust_env``, ``log``: as for :func:`render_snapshot_episode`."""
     video.check_video_path(out_path)
     store = ResultStore(result_dir)
     available = {a: store.snapshot_trials(a, experiment) for a in algorithms}
@@ -195,7 +216,14 @@ def render_comparison(
         _pick_trials(trials, [trial], f"{result_dir} ({algorithm}, experiment {experiment})")
     episodes = [
         render_snapshot_episode(
-            available[a][trial], width, height, frames_per_step=frames_per_step, overlay=overlay
+            available[a][trial],
+            width,
+            height,
+            frames_per_step=frames_per_step,
+            overlay=overlay,
+            env=env,
+            trust_env=trust_env,
+            log=log,
         )
         for a in algorithms
     ]

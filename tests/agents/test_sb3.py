@@ -166,6 +166,28 @@ def test_without_the_extra_the_learners_name_it(monkeypatch):  # runs without th
     assert config_class("sb3-sac")().learning_rate == 3e-4  # the configs need no torch
 
 
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["panel", "--algorithms", "sb3-sac", "--trials", "1"],
+        ["panel", "--resume"],  # its default learners hold sb3-sac
+        ["reproduce", "--algorithms", "s-ac,sb3-ppo", "--trials", "1"],
+    ],
+)
+def test_without_the_extra_a_run_of_a_baseline_is_refused_naming_it(
+    tmp_path, monkeypatch, capsys, args
+):  # runs without the extra too
+    from rmac_mj.cli import main
+    from rmac_mj.errors import EXIT_BAD_INPUT
+
+    monkeypatch.setattr(sb3_base, "available", lambda *package: False)
+    code = main([*args, "--out", str(tmp_path / "out")])
+    lines = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+    assert code == EXIT_BAD_INPUT and len(lines) == 1, lines
+    assert "need the [baselines] extra" in lines[0] and "internal error" not in lines[0]
+    assert not (tmp_path / "out").exists()
+
+
 TINY = dict(
     algorithms=("sb3-sac",),
     experiments=2,

@@ -58,6 +58,22 @@ FACTORIES = textwrap.dedent(
         return Plain(seed)
     def exits():
         sys.exit(0)
+
+    class Rewarding(Plain):
+        reward = 0.0
+        def step(self, action):
+            return super().step(action)._replace(reward=self.reward)
+    def huge_reward():
+        env = Rewarding(0); env.reward = 1e308; return env
+    def string_reward():
+        env = Rewarding(0); env.reward = "1.0"; return env
+    class Wide(Plain):
+        def observation_spec(self):
+            return {"x": specs.BoundedArray((1000,), float, -np.ones(1000), np.ones(1000))}
+        def reset(self):
+            return super().reset()._replace(observation={"x": np.zeros(1000)})
+    def wide():
+        return Wide(0)
     '''
 )
 
@@ -117,6 +133,37 @@ def test_a_failure_mid_run_names_experiment_and_trial_and_keeps_the_traceback(fa
     assert 'raise RuntimeError("the robot lost power")' in (out / "error.log").read_text()
 
 
+@pytest.mark.parametrize(
+    "factory, options, code, message",
+    [
+        ("huge_reward", [], EXIT_ENVIRONMENT, "its rewards are beyond what a learner can take"),
+        ("string_reward", [], EXIT_ENVIRONMENT, "gave the reward '1.0', not a number (a str)"),
+        (
+            "fails_later",
+            ["--control-timestep", "1e-300"],
+            EXIT_BAD_INPUT,
+            "argument --control-timestep: expected a number of seconds >= 1e-06, got '1e-300'",
+        ),
+        (
+            "wide",
+            ["--learner-state", '{"keys": ["x"]}'],
+            EXIT_BAD_INPUT,
+            "e+897 GB per experiment",  # a tiling of 1000 dimensions, beyond a float's range
+        ),
+    ],
+)
+def test_an_environments_absurd_numbers_are_named_with_the_culprits_exit_status(
+    factories, tmp_path, factory, options, code, message
+):
+    status, lines = run(
+        "reproduce", "--env", f"{factories}:{factory}", *options, "--algorithms", "s-ac",
+        "--experiments", "1", "--trials", "2", "--jobs", "1", "--no-optimal", "--no-progress",
+        "--out", tmp_path / "out",
+    )  # fmt: skip
+    assert status == code and len(lines) == 1, lines
+    assert message in lines[0] and "internal error" not in lines[0]
+
+
 def test_a_factory_that_exits_is_a_failure_not_a_success(factories, tmp_path):
     code, lines = run("reproduce", "--env", f"{factories}:exits", "--out", tmp_path / "out")
     assert code == EXIT_ENVIRONMENT and len(lines) == 1
@@ -138,6 +185,11 @@ def _as_directory(path):
     path.mkdir()
 
 
+def _as_device(path):
+    path.unlink()
+    path.symlink_to("/dev/zero")
+
+
 @pytest.mark.parametrize(
     "name, damage, message",
     [
@@ -145,6 +197,8 @@ def _as_directory(path):
         ("wall_times.json", _write('{"parts": [{"wall_s": "x"}]}'), "wall_times.json is damaged"),
         ("wall_times.json", _as_directory, "wall_times.json cannot be read"),
         ("config.json", None, "config.json is damaged (protocol.algorithms is 5, not a list)"),
+        ("config.json", _as_device, "is a device, pipe or socket, not a regular file"),
+        ("config.json", _write("[" * 100_000), "config.json is damaged (not JSON: nested too deep"),
         ("curves/s-ac/exp_000.npz", _as_directory, "exp_000.npz is a directory where a file is"),
         (".lock", lambda path: path.mkdir(), ".lock cannot be the directory's lock"),
         ("summary.json", _as_directory, "summary.json is a directory where a file is expected"),
@@ -201,6 +255,7 @@ def _bad_snapshots(finished, tmp_path) -> dict[str, tuple[pathlib.Path, str]]:
         found[name] = (path, message)
 
     save("meta_not_json", "JSONDecodeError", meta="{{{")
+    save("meta_nested", "RecursionError", meta="[" * 100_000 + "]" * 100_000)
     save("no_algorithm", "unknown algorithm None", meta=json.dumps({**meta, "algorithm": None}))
     save("space_wrong_kind", "must be a mapping", meta=json.dumps({**meta, "state_space": 5}))
     garbage = tmp_path / "garbage.npz"
@@ -289,6 +344,19 @@ def test_every_command_refuses_bad_inputs_in_one_line(finished, tmp_path, factor
                 assert "Traceback" not in lines[0]
     finally:
         os.chdir(here)
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--learner-state", "[" * 60_000 + "]" * 60_000], "argument --learner-state: expected"),
+        (["--set", "s-ac.gamma=" + "[" * 60_000 + "]" * 60_000], "its value is nested too deep"),
+    ],
+)
+def test_a_deeply_nested_json_option_is_one_line(tmp_path, args, message):
+    code, lines = run("reproduce", *args, "--out", tmp_path / "out")
+    assert code == EXIT_BAD_INPUT and len(lines) == 1 and message in lines[0], lines
+    assert len(lines[0]) < 500
 
 
 def test_a_scheduler_address_of_an_unknown_scheme_is_one_line():

@@ -9,6 +9,7 @@ import dataclasses
 import io
 import json
 import os
+import pathlib
 import subprocess
 import sys
 
@@ -218,7 +219,7 @@ def test_set_without_algorithms_runs_only_the_learners_it_names(capsys):
     assert algorithms_to_run(argparse.Namespace(algorithms=None), {}) == ("rmac", "s-ac")
 
 
-def _fake_run(directory, seed, agent_configs=None):
+def _fake_run(directory, seed, agent_configs=None, task=None, trial_seconds=3.0):
     import json
 
     import numpy as np
@@ -228,13 +229,14 @@ def _fake_run(directory, seed, agent_configs=None):
     rng = np.random.default_rng(seed)
     directory.mkdir(parents=True)
     summary = {
-        "trial_seconds": 3.0,
+        "trial_seconds": trial_seconds,
         "optimal_return": None,
         "protocol": {
             "experiments": 3,
             "trials": 60,
             "seed": seed,
             "agent_configs": agent_configs or {},
+            **(task or {}),
         },
         "rmac": summarise(-1000 + rng.normal(0, 50, (3, 60)), trial_seconds=3.0),
     }
@@ -267,6 +269,39 @@ def test_compare_draws_next_to_the_first_run_by_default(tmp_path):
         assert (tmp_path / "a" / "run" / name).is_file(), name
 
 
+PENDULUM = {"domain": "dc_pendulum", "task": "swingup", "env": None, "task_kwargs": {}}
+
+
+@pytest.mark.parametrize(
+    "other, trial_seconds, shown",
+    [
+        ({"domain": None, "task": None, "env": "wheel.py:make"}, 1.0, "b: wheel.py:make, 1 s"),
+        ({**PENDULUM, "task_kwargs": {"time_limit": 6.0}}, 6.0, 'swingup {"time_limit": 6.0}'),
+        ({**PENDULUM, "task": "balance"}, 3.0, "b: dc_pendulum/balance, 3 s trials"),
+    ],
+)
+@pytest.mark.parametrize("x_axis", ["minutes", "env-steps"])
+def test_compare_refuses_runs_of_different_tasks(tmp_path, other, trial_seconds, shown, x_axis):
+    _fake_run(tmp_path / "a", 0, task=PENDULUM)
+    _fake_run(tmp_path / "b", 1, task=other, trial_seconds=trial_seconds)
+    result = rmac_mj("compare", "a", "b", "--x-axis", x_axis, "--out", "cmp", cwd=tmp_path)
+    assert result.returncode == 2, result
+    assert "the runs are of different tasks (a: dc_pendulum/swingup, 3 s trials; " in result.stderr
+    assert shown in result.stderr and len(result.stderr.strip().splitlines()) == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a", "b"]  # nothing drawn
+
+
+def test_compare_into_an_existing_folder_writes_inside_it(tmp_path):
+    _fake_run(tmp_path / "a", 0, task=PENDULUM)
+    _fake_run(tmp_path / "b", 1, task=PENDULUM)
+    (tmp_path / "figures").mkdir()
+    result = rmac_mj("compare", "a", "b", "--out", "figures", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a", "b", "figures"]  # no figures.png
+    for name in ("compare.png", "compare.pdf", "compare_profiles.png", "compare_profiles.pdf"):
+        assert (tmp_path / "figures" / name).is_file(), name
+
+
 def test_shortest_distinct_suffixes():
     import pathlib
 
@@ -286,6 +321,28 @@ def test_shortest_distinct_suffixes():
     ]
 
 
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["reproduce", "--algorithms", "s-ac", "--experiments", "1", "--trials", "1"],
+        ["sweep", "docs/studies/exploration.toml"],
+        ["panel", "--algorithms", "s-ac", "--trials", "1"],
+    ],
+)
+@pytest.mark.parametrize("exists", [False, True])
+def test_a_resume_of_nothing_says_so(tmp_path, command, exists):
+    out = tmp_path / "typo"
+    if exists:
+        out.mkdir()
+    here = pathlib.Path(__file__).parents[2]
+    result = rmac_mj(*command, "--no-progress", "--resume", "--out", str(out), cwd=here)
+    assert result.returncode == 2, result
+    assert f"--resume: {out} holds nothing to resume (it " in result.stderr
+    assert ("has no" if exists else "does not exist") in result.stderr
+    assert sorted(tmp_path.iterdir()) == ([out] if exists else [])  # nothing started
+    assert not exists or not any(out.iterdir())
+
+
 def test_an_interrupt_before_any_result_says_nothing_is_saved(tmp_path, monkeypatch):
     from rmac_mj.experiments import runner
 
@@ -296,9 +353,7 @@ def test_an_interrupt_before_any_result_says_nothing_is_saved(tmp_path, monkeypa
     result = rmac_mj("reproduce", "--out", str(tmp_path / "x"), "--no-progress")
     assert result.returncode == 130
     assert "nothing is saved" in result.stderr and "are saved" not in result.stderr
-    assert result.stderr.endswith(
-        f"finish it with: rmac-mj reproduce --resume --out {tmp_path / 'x'}\n"
-    )
+    assert "--resume" not in result.stderr  # nothing begun: there is nothing to resume
 
 
 def test_a_resume_takes_its_settings_from_the_directory(tmp_path, capsys):

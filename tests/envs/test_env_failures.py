@@ -10,7 +10,10 @@ import numpy as np
 import pytest
 
 from rmac_mj import envs
+from rmac_mj.agents import PolicyAgent
+from rmac_mj.envs.failures import checked_reward
 from rmac_mj.errors import EnvironmentFailure, UserInputError
+from rmac_mj.rollout import action_space_of, run_trial, state_space_of
 
 FACTORIES = textwrap.dedent(
     """
@@ -72,6 +75,48 @@ FACTORIES = textwrap.dedent(
             def observation(self):
                 return {"x": np.zeros(5 if self.t > 1 else 2)}
         return Wrong()
+    def huge_reward():
+        return reward(1e308)
+    def string_reward():
+        return reward("1.0")
+    def keyword_seed(*, seed, **kw):
+        env = Base()
+        env.seed = seed
+        return env
+    def tiny_step():
+        class Tiny(Base):
+            def control_timestep(self):
+                return 1e-300
+        return Tiny()
+    def wide():
+        class Wide(Base):
+            def observation_spec(self):
+                return {"x": specs.BoundedArray((1000,), float, -np.ones(1000), np.ones(1000))}
+            def observation(self):
+                return {"x": np.zeros(1000)}
+        return Wide()
+    def time_limited(limit):
+        import gymnasium
+        from gymnasium import spaces
+        from gymnasium.wrappers import TimeLimit
+
+        class OneStep(gymnasium.Env):  # made without gymnasium.make: no spec
+            observation_space = spaces.Box(-1.0, 1.0, (2,))
+            action_space = spaces.Box(-1.0, 1.0, (1,))
+            dt = 0.05
+            def reset(self, seed=None, options=None):
+                super().reset(seed=seed)
+                return np.zeros(2, dtype=np.float32), {}
+            def step(self, action):
+                return np.zeros(2, dtype=np.float32), 1.0, True, False, {}
+        return TimeLimit(OneStep(), limit)
+    def gymnasium_reward(value):
+        from gymnasium.wrappers import TimeLimit
+
+        class Rewarding(type(time_limited(1).unwrapped)):
+            def step(self, action):
+                return np.zeros(2, dtype=np.float32), value, False, False, {}
+        return TimeLimit(Rewarding(), 10)
     """
 )
 
@@ -105,6 +150,9 @@ DECLARED = dict(learner_state={"keys": ["x"]}, trial_steps=10)
         ("late", {"value": 1e30}, r"its step gave x\[0\] = 1e\+30, beyond what a learner accepts"),
         ("reward", {"value": float("nan")}, "its step gave a non-finite reward, nan"),
         ("reward", {"value": None}, "its step gave the reward None, not a number"),
+        ("reward", {"value": "1.0"}, r"its step gave the reward '1.0', not a number \(a str\)"),
+        ("reward", {"value": [1.0]}, r"gave the reward \[1.0\], not a number \(a list\)"),
+        ("huge_reward", {}, "its rewards over a trial of 10 steps sum to inf"),
         ("dict_observation", {}, "its reset gave an observation that is not numbers"),
         (
             "wrong_size",
@@ -116,8 +164,62 @@ DECLARED = dict(learner_state={"keys": ["x"]}, trial_steps=10)
 def test_a_failing_environment_is_one_failure_naming_it(factories, factory, kwargs, message):
     spec = f"{factories}:{factory}"
     with pytest.raises(EnvironmentFailure, match=message) as failure:
-        _steps(envs.load(spec, kwargs, **DECLARED))
+        env = envs.load(spec, kwargs, **DECLARED)
+        still = PolicyAgent(state_space_of(env), action_space_of(env), lambda x: np.zeros(1))
+        run_trial(env, still)  # a trial's return too
     assert f"env '{spec}'" in str(failure.value) and "\n" not in str(failure.value)
+
+
+def test_rewards_summed_over_an_action_repeat_stay_finite(factories):
+    env = envs.load(f"{factories}:huge_reward", **{**DECLARED, "action_repeat": 2})
+    with pytest.raises(EnvironmentFailure, match="over an action repeat of 2 sum to inf"):
+        _steps(env, 1)
+
+
+@pytest.mark.parametrize(
+    "value, message",
+    [("1.0", r"gave the reward '1.0', not a number \(a str\)"), (float("inf"), "non-finite")],
+)
+def test_a_gymnasium_reward_is_checked_before_it_is_converted(factories, value, message):
+    pytest.importorskip("gymnasium")
+    with pytest.raises(EnvironmentFailure, match=message):  # by the probes, before a run
+        envs.load(f"{factories}:gymnasium_reward", {"value": value}, trial_steps=10)
+
+
+def test_a_reward_of_numpy_numbers_is_taken():
+    for reward in (np.float32(0.5), np.int64(2), np.array(0.25), np.array([1.5]), True):
+        assert checked_reward("e", "step", reward) == float(np.asarray(reward).reshape(()))
+
+
+def test_a_factory_that_requires_its_seed_gets_one(factories):
+    spec = f"{factories}:keyword_seed"
+    assert envs.load(spec, **DECLARED).base.seed is not None  # unseeded: fresh entropy
+    assert envs.load(spec, seed=7, **DECLARED).base.seed == 7
+    inferred = envs.load(spec, trial_steps=10).base  # the probes build it too
+    assert inferred.seed is not None
+
+
+@pytest.mark.parametrize("limit, steps", [(20, 20), (7, 7)])
+def test_a_time_limit_wrapped_by_a_factory_is_its_time_limit(factories, limit, steps):
+    pytest.importorskip("gymnasium")
+    env = envs.load(f"{factories}:time_limited", {"limit": limit})
+    assert env.steps_per_trial == steps
+
+
+def test_a_time_limit_beyond_the_longest_trial_asks_for_trial_steps(factories):
+    pytest.importorskip("gymnasium")
+    with pytest.raises(ValueError, match=r"its time limit in learner steps must be at most"):
+        envs.load(f"{factories}:time_limited", {"limit": 10**9})
+    env = envs.load(f"{factories}:time_limited", {"limit": 10**9}, trial_steps=50)
+    assert env.steps_per_trial == 50
+
+
+def test_a_control_step_too_short_is_named(factories):
+    with pytest.raises(ValueError, match="says its time step is 1e-300 s, less than 1e-06 s"):
+        envs.load(f"{factories}:tiny_step", **DECLARED)
+    with pytest.raises(ValueError, match=r"control_timestep must be a number of seconds >= 1e-06"):
+        envs.load(f"{factories}:tiny_step", control_timestep=1e-300, **DECLARED)
+    assert envs.load(f"{factories}:tiny_step", control_timestep=0.01, **DECLARED)
 
 
 @pytest.mark.parametrize(

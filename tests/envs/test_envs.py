@@ -674,10 +674,14 @@ def test_cli_config_reproduce_policy_resume_on_a_users_factory(tmp_path, capsys)
     )
     assert "one trial = 0.6 s of simulated time" in capsys.readouterr().out
     snapshot = out / "snapshots" / "s-ac" / "exp_000" / "trial_0002.npz"
-    assert main(["policy", str(snapshot), "--out", str(tmp_path / "map")]) == 0
+    # The factory is code of the user's: a snapshot runs it when it is named again (or trusted).
+    assert main(["policy", str(snapshot), "--out", str(tmp_path / "map")]) == 2
+    assert "code of yours" in capsys.readouterr().err
+    named = ["--env", f"{HERE}:make_slider"]
+    assert main(["policy", str(snapshot), *named, "--out", str(tmp_path / "map")]) == 0
     assert (tmp_path / "map.png").is_file()
     # A resume takes the outside environment's settings from the directory's config.json.
-    assert main(["reproduce", "--resume", "--out", str(out), "--no-progress"]) == 0
+    assert main(["reproduce", "--resume", "--out", str(out), "--no-progress", "--trust-env"]) == 0
     assert "one trial = 0.6 s of simulated time" in capsys.readouterr().out
 
 
