@@ -19,8 +19,7 @@ from typing import Any
 import numpy as np
 
 from rmac_mj import constraints
-from rmac_mj.agents.base import Agent
-from rmac_mj.agents.boundary import RefusedTransition
+from rmac_mj.agents.base import Agent, RefusedTransition
 from rmac_mj.agents.exploration import Exploration, model_uncertainty
 from rmac_mj.agents.planning import Planning, Replay
 from rmac_mj.agents.scripted import PolicyAgent

@@ -13,8 +13,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from rmac_mj.agents.base import Agent
-from rmac_mj.agents.boundary import RefusedTransition
+from rmac_mj.agents.base import Agent, RefusedTransition
 from rmac_mj.agents.critic import LLRCritic, _check_traces
 from rmac_mj.agents.exploration import Exploration, model_uncertainty
 from rmac_mj.agents.planning import REHEARSAL, Planning, Replay

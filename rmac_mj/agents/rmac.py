@@ -12,8 +12,7 @@ import itertools
 import numpy as np
 
 from rmac_mj.agents import _rmac_kernels
-from rmac_mj.agents.base import Agent
-from rmac_mj.agents.boundary import RefusedTransition
+from rmac_mj.agents.base import Agent, RefusedTransition
 from rmac_mj.agents.critic import LLRCritic, _check_traces
 from rmac_mj.agents.exploration import model_uncertainty
 from rmac_mj.agents.rmac_config import REACHABLE_RULES, RMACConfig

@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from rmac_mj.agents.random_state import generator_state_array, set_generator_state
+from rmac_mj.agents.base import generator_state_array, set_generator_state
 from rmac_mj.agents.sb3_base import SB3Agent, arrays_of_optimizer, load_optimizer, network_bytes
 from rmac_mj.agents.sb3_config import SB3CrossQConfig, SB3SACConfig, SB3TD3Config
 from rmac_mj.agents.spaces import ActionSpace, StateSpace

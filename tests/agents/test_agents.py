@@ -14,6 +14,7 @@ from rmac_mj.agents import (
     ActionSpace,
     Exploration,
     StateSpace,
+    base,
     config_class,
     make_agent,
 )
@@ -64,6 +65,28 @@ def test_spaces_and_exploration_reject_bad_values():
     explore = Exploration(sigma=1.0)
     draws = [explore.sample(k, 1, rng)[0] for k in range(9)]
     assert [d != 0 for d in draws] == [True, False, False] * 3  # every third step, from step 0
+
+
+def test_the_boundary_checks_are_functions_of_a_value_its_space_and_its_name():
+    x = base.check_state([0.5, 2], STATES, "x0", "rmac")
+    assert x.dtype == float and x.tolist() == [0.5, 2.0]
+    assert base.check_state([[0.5], [2.0]], STATES).shape == (2,)  # any (2,)-sized input
+    with pytest.raises(ValueError, match=r"^rmac: x0 must be finite"):
+        base.check_state([np.nan, 0.0], STATES, "x0", "rmac")
+    with pytest.raises(ValueError, match=r"x_next must have shape \(2,\)"):
+        base.check_state([0.0, 0.0, 0.0], STATES, "x_next")
+    with pytest.raises(ValueError, match=r"x\[1\] = 1e\+09 is beyond what a learner accepts"):
+        base.check_state([0.0, 1e9], STATES)
+    assert base.check_action(2.5, ACTIONS).tolist() == [2.5]  # inside or outside the bounds
+    with pytest.raises(ValueError, match=r"u must have shape \(1,\)"):
+        base.check_action([1.0, 2.0], ACTIONS)
+    with pytest.raises(ValueError, match="u must be finite"):
+        base.check_action([np.inf], ACTIONS)
+    assert base.check_reward(np.float32(-1.5)) == -1.5
+    with pytest.raises(ValueError, match="v must be a finite number"):
+        base.check_reward("a", "v")
+    with pytest.raises(ValueError, match="reward must be finite"):
+        base.check_reward(np.nan)
 
 
 # -- the shared boundary and a whole state, for every registered learner ---------------------------
