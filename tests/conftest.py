@@ -36,11 +36,9 @@ def pytest_collection_modifyitems(config, items):
     [baselines] extra, those marked ``gymnasium`` without the [gymnasium] extra."""
     import importlib.util
 
-    from rmac_mj.agents import sb3_config
+    from rmac_mj.agents import sb3
 
-    skip_baselines = (
-        None if sb3_config.available() else pytest.mark.skip(reason=sb3_config.INSTALL_HINT)
-    )
+    skip_baselines = None if sb3.available() else pytest.mark.skip(reason=sb3.INSTALL_HINT)
     skip_gymnasium = (
         None
         if importlib.util.find_spec("gymnasium") is not None
@@ -57,7 +55,7 @@ def pytest_collection_modifyitems(config, items):
         if item.get_closest_marker("baselines") or (
             callspec is not None
             and any(
-                isinstance(value, str) and value in sb3_config.BASELINES
+                isinstance(value, str) and value in sb3.BASELINES
                 for value in callspec.params.values()
             )
         ):

@@ -33,11 +33,11 @@ _REGISTRY = {
     "mlac": ("rmac_mj.agents.mlac", "MLAC", "MLACConfig"),
     # The learner to pick for a new task: S-AC with planning, in the task's units (recommended.py).
     "recommended": ("rmac_mj.agents.recommended", "Recommended", "RecommendedConfig"),
-    # Deep-RL baselines (Stable-Baselines3; the [baselines] extra): sb3_base.py (their configs: sb3_config.py).
-    "sb3-sac": ("rmac_mj.agents.sb3_off_policy", "SB3SAC", "SB3SACConfig"),
-    "sb3-td3": ("rmac_mj.agents.sb3_off_policy", "SB3TD3", "SB3TD3Config"),
-    "sb3-ppo": ("rmac_mj.agents.sb3_ppo", "SB3PPO", "SB3PPOConfig"),
-    "sb3-crossq": ("rmac_mj.agents.sb3_off_policy", "SB3CrossQ", "SB3CrossQConfig"),
+    # Deep-RL baselines (Stable-Baselines3; the [baselines] extra): the room rmac_mj.agents.sb3.
+    "sb3-sac": ("rmac_mj.agents.sb3.off_policy", "SB3SAC", "SB3SACConfig"),
+    "sb3-td3": ("rmac_mj.agents.sb3.off_policy", "SB3TD3", "SB3TD3Config"),
+    "sb3-ppo": ("rmac_mj.agents.sb3.ppo", "SB3PPO", "SB3PPOConfig"),
+    "sb3-crossq": ("rmac_mj.agents.sb3.off_policy", "SB3CrossQ", "SB3CrossQConfig"),
 }
 
 #: The algorithm keys, as used on the command line and in results.

@@ -89,10 +89,10 @@ def test_tiny_protocol_end_to_end(tmp_path, monkeypatch):
 def test_serial_and_parallel_runs_are_identical(tmp_path):
     from learners import quick_config
 
-    from rmac_mj.agents import sb3_config
+    from rmac_mj.agents import sb3
 
     # a deep-RL baseline too, when installed: its torch and numpy streams are the learner's own
-    algorithms = ("s-ac", "sb3-sac") if sb3_config.available() else ("s-ac",)
+    algorithms = ("s-ac", "sb3-sac") if sb3.available() else ("s-ac",)
     protocol = Protocol(
         **{**TINY, "algorithms": algorithms}, agent_configs={"sb3-sac": quick_config("sb3-sac")}
     )
