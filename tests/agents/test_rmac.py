@@ -7,7 +7,7 @@ import plain_pendulum
 import pytest
 
 from rmac_mj.agents import RMAC, ActionSpace, Exploration, RMACConfig, StateSpace
-from rmac_mj.agents.rmac import EXACT_TOLERANCE  # the tolerance of its inverse model, internal
+from rmac_mj.agents.rmac_variants import EXACT_TOLERANCE  # internal: the golden section
 
 BACKENDS = ("numba", "numpy")
 NO_EXPLORATION = Exploration(sigma=0.0)
