@@ -30,10 +30,13 @@ def toy(monkeypatch):
     return toy_domain
 
 
+@pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
     """Tests that need an optional extra are skipped, naming it, when it is not installed: those
     marked ``baselines`` or run for a deep-RL baseline (a parameter naming one) without the
-    [baselines] extra, those marked ``gymnasium`` without the [gymnasium] extra."""
+    [baselines] extra, those marked ``gymnasium`` without the [gymnasium] extra. A test run for a
+    deep-RL baseline is ``slow`` (torch and SB3 load and train in it): marked before ``-m``
+    selects."""
     import importlib.util
 
     from rmac_mj.agents import sb3
@@ -49,8 +52,6 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         if skip_gymnasium is not None and item.get_closest_marker("gymnasium"):
             item.add_marker(skip_gymnasium)
-        if skip_baselines is None:
-            continue
         callspec = getattr(item, "callspec", None)
         if item.get_closest_marker("baselines") or (
             callspec is not None
@@ -59,7 +60,9 @@ def pytest_collection_modifyitems(config, items):
                 for value in callspec.params.values()
             )
         ):
-            item.add_marker(skip_baselines)
+            item.add_marker(pytest.mark.slow)
+            if skip_baselines is not None:
+                item.add_marker(skip_baselines)
 
 
 def pytest_configure(config):

@@ -87,6 +87,7 @@ def test_every_package_says_what_it_offers(name):
     assert not modules & set(offered), sorted(modules & set(offered))
 
 
+@pytest.mark.slow
 def test_the_learners_face_imports_no_learner():
     # The learners are read from their modules on first use: importing the face compiles nothing
     # and imports neither torch nor Stable-Baselines3, whatever a learner's module imports.

@@ -25,6 +25,7 @@ STATES = StateSpace(low=[-np.pi, -25.0], high=[np.pi, 25.0], periodic=[True, Fal
 ACTIONS = ActionSpace(low=[-3.0], high=[3.0], cost=[1.0])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("algorithm", ALGORITHMS)
 def test_constructor_checks_its_arguments_by_name(algorithm):
     agent_cls = type(make_agent(algorithm, STATES, ACTIONS, seed=0))
@@ -145,6 +146,7 @@ def _state(timestep):
     return np.r_[timestep.observation["angle"], timestep.observation["velocity"]]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("algorithm", ALGORITHMS)
 def test_a_copy_restored_mid_trial_continues_exactly_like_the_original(algorithm):
     """state_dict holds everything that decides what the agent does next: memories, weights, traces,
@@ -387,6 +389,7 @@ def test_memory_estimate_is_what_the_learner_allocates(algorithm):
     assert 0 < small < estimate
 
 
+@pytest.mark.slow
 def test_memory_estimate_needs_no_memory_for_what_cannot_fit(tmp_path):
     """Issue 20: critic_capacity=1e9 grew to 21 GB before the OOM killer stopped it. The estimate
     says so from the config, under an address-space limit of 2 GB, while building the learner

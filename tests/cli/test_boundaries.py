@@ -274,6 +274,7 @@ def _bad_inputs(finished, tmp_path, factories) -> dict[str, list[list]]:
     }
 
 
+@pytest.mark.slow
 def test_every_command_refuses_bad_inputs_in_one_line(finished, tmp_path, factories):
     commands = build_parser()._subparsers._group_actions[0].choices
     bad = _bad_inputs(finished, tmp_path, factories)
@@ -291,6 +292,7 @@ def test_every_command_refuses_bad_inputs_in_one_line(finished, tmp_path, factor
         os.chdir(here)
 
 
+@pytest.mark.slow
 def test_a_scheduler_address_of_an_unknown_scheme_is_one_line():
     pytest.importorskip("distributed", reason="needs the [distributed] extra")
     from rmac_mj.experiments import BackendError, connect_dask

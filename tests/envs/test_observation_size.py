@@ -6,6 +6,8 @@ import subprocess
 import sys
 import textwrap
 
+import pytest
+
 from rmac_mj import constraints
 
 WIDE = '''
@@ -37,6 +39,7 @@ def make_wide():
 '''
 
 
+@pytest.mark.slow
 def test_a_two_million_number_observation_is_refused_before_it_is_probed(tmp_path):
     factory = tmp_path / "wide.py"
     factory.write_text(WIDE)
