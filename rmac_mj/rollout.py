@@ -14,7 +14,7 @@ import numpy as np
 from dm_control.rl import control
 
 from rmac_mj.agents import ActionSpace, Agent, StateSpace
-from rmac_mj.agents.boundary import RefusedTransition
+from rmac_mj.agents.base import RefusedTransition
 from rmac_mj.errors import EnvironmentFailure
 from rmac_mj.tasks.common import LearnerStateSpec
 

@@ -30,17 +30,18 @@ def toy(monkeypatch):
     return toy_domain
 
 
+@pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
     """Tests that need an optional extra are skipped, naming it, when it is not installed: those
     marked ``baselines`` or run for a deep-RL baseline (a parameter naming one) without the
-    [baselines] extra, those marked ``gymnasium`` without the [gymnasium] extra."""
+    [baselines] extra, those marked ``gymnasium`` without the [gymnasium] extra. A test run for a
+    deep-RL baseline is ``slow`` (torch and SB3 load and train in it): marked before ``-m``
+    selects."""
     import importlib.util
 
-    from rmac_mj.agents import sb3_config
+    from rmac_mj.agents import sb3
 
-    skip_baselines = (
-        None if sb3_config.available() else pytest.mark.skip(reason=sb3_config.INSTALL_HINT)
-    )
+    skip_baselines = None if sb3.available() else pytest.mark.skip(reason=sb3.INSTALL_HINT)
     skip_gymnasium = (
         None
         if importlib.util.find_spec("gymnasium") is not None
@@ -51,17 +52,17 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         if skip_gymnasium is not None and item.get_closest_marker("gymnasium"):
             item.add_marker(skip_gymnasium)
-        if skip_baselines is None:
-            continue
         callspec = getattr(item, "callspec", None)
         if item.get_closest_marker("baselines") or (
             callspec is not None
             and any(
-                isinstance(value, str) and value in sb3_config.BASELINES
+                isinstance(value, str) and value in sb3.BASELINES
                 for value in callspec.params.values()
             )
         ):
-            item.add_marker(skip_baselines)
+            item.add_marker(pytest.mark.slow)
+            if skip_baselines is not None:
+                item.add_marker(skip_baselines)
 
 
 def pytest_configure(config):

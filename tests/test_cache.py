@@ -7,6 +7,7 @@ import subprocess
 import sys
 
 import numba
+import pytest
 
 from rmac_mj import _cache
 
@@ -23,6 +24,7 @@ print(json.dumps(_cache.kernel_stats()))
 """
 
 
+@pytest.mark.slow
 def test_a_second_process_loads_the_kernels_instead_of_compiling_them(tmp_path):
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba")}  # a cold cache of our own
 

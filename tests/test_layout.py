@@ -45,8 +45,11 @@ def test_tasks_and_models_import_nothing_above_them(folder):
 
 #: Every package, with the public face its ``__init__`` declares in ``__all__``.
 PACKAGES = sorted(
-    f"rmac_mj.{path.parent.name}"
-    for path in [*(ROOT / "rmac_mj").glob("*/__init__.py"), ROOT / "tasks" / "__init__.py"]
+    [
+        ".".join(("rmac_mj", *path.parent.relative_to(ROOT / "rmac_mj").parts))
+        for path in (ROOT / "rmac_mj").glob("*/**/__init__.py")
+    ]
+    + ["rmac_mj.tasks"]
 )
 
 
@@ -54,6 +57,7 @@ def test_every_package_is_one():
     # A new room is a package with a face: this list grows with it.
     assert PACKAGES == [
         "rmac_mj.agents",
+        "rmac_mj.agents.sb3",
         "rmac_mj.approximators",
         "rmac_mj.bench",
         "rmac_mj.cli",
@@ -83,6 +87,7 @@ def test_every_package_says_what_it_offers(name):
     assert not modules & set(offered), sorted(modules & set(offered))
 
 
+@pytest.mark.slow
 def test_the_learners_face_imports_no_learner():
     # The learners are read from their modules on first use: importing the face compiles nothing
     # and imports neither torch nor Stable-Baselines3, whatever a learner's module imports.

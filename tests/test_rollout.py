@@ -32,6 +32,7 @@ def learned(request):
     return env, agent
 
 
+@pytest.mark.slow
 def test_greedy_trials_are_repeatable_and_learn_nothing(learned):
     env, agent = learned
     before = {k: v.copy() for k, v in agent.state_dict().items()}
@@ -44,6 +45,7 @@ def test_greedy_trials_are_repeatable_and_learn_nothing(learned):
         np.testing.assert_array_equal(value, after[key], err_msg=key)
 
 
+@pytest.mark.slow
 def test_policy_map_does_not_depend_on_scan_order(learned):
     _, agent = learned
     xs, ys, actions, values = policy_slice(

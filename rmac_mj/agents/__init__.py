@@ -19,8 +19,7 @@ from typing import Any
 import numpy as np
 
 from rmac_mj import constraints
-from rmac_mj.agents.base import Agent
-from rmac_mj.agents.boundary import RefusedTransition
+from rmac_mj.agents.base import Agent, RefusedTransition
 from rmac_mj.agents.exploration import Exploration, model_uncertainty
 from rmac_mj.agents.planning import Planning, Replay
 from rmac_mj.agents.scripted import PolicyAgent
@@ -34,11 +33,11 @@ _REGISTRY = {
     "mlac": ("rmac_mj.agents.mlac", "MLAC", "MLACConfig"),
     # The learner to pick for a new task: S-AC with planning, in the task's units (recommended.py).
     "recommended": ("rmac_mj.agents.recommended", "Recommended", "RecommendedConfig"),
-    # Deep-RL baselines (Stable-Baselines3; the [baselines] extra): sb3_base.py (their configs: sb3_config.py).
-    "sb3-sac": ("rmac_mj.agents.sb3_off_policy", "SB3SAC", "SB3SACConfig"),
-    "sb3-td3": ("rmac_mj.agents.sb3_off_policy", "SB3TD3", "SB3TD3Config"),
-    "sb3-ppo": ("rmac_mj.agents.sb3_ppo", "SB3PPO", "SB3PPOConfig"),
-    "sb3-crossq": ("rmac_mj.agents.sb3_off_policy", "SB3CrossQ", "SB3CrossQConfig"),
+    # Deep-RL baselines (Stable-Baselines3; the [baselines] extra): the room rmac_mj.agents.sb3.
+    "sb3-sac": ("rmac_mj.agents.sb3.off_policy", "SB3SAC", "SB3SACConfig"),
+    "sb3-td3": ("rmac_mj.agents.sb3.off_policy", "SB3TD3", "SB3TD3Config"),
+    "sb3-ppo": ("rmac_mj.agents.sb3.ppo", "SB3PPO", "SB3PPOConfig"),
+    "sb3-crossq": ("rmac_mj.agents.sb3.off_policy", "SB3CrossQ", "SB3CrossQConfig"),
 }
 
 #: The algorithm keys, as used on the command line and in results.

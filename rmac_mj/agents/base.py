@@ -1,29 +1,126 @@
-"""The interface every learner shares: :class:`Agent`, one checked boundary (Algorithms 1 and 2).
+"""The contract every learner keeps: :class:`Agent` (Algorithms 1 and 2's online protocol).
 
 A learner sees a flat state x (:class:`~rmac_mj.agents.spaces.StateSpace`) and a bounded action u
-(:class:`~rmac_mj.agents.spaces.ActionSpace`), follows ``start``/``step``/``stop`` (the protocol is
-in :class:`Agent`), and exchanges its learned state as a flat dict of numpy arrays (``state_dict``).
-The checks of its public methods are :mod:`~rmac_mj.agents.boundary`'s, the exchange of its state
-:mod:`~rmac_mj.agents.state_exchange`'s.
+(:class:`~rmac_mj.agents.spaces.ActionSpace`), follows ``start``/``step``/``stop``, and exchanges
+its learned state as a flat dict of numpy arrays (``state_dict``). Its public methods check their
+arguments once (:func:`check_state`, :func:`check_action`, :func:`check_reward`) and undo a call
+the learner refuses (:class:`RefusedTransition`); a subclass implements the protected hooks the
+class docstring lists.
 """
 
 from __future__ import annotations
 
 import abc
 import dataclasses
+import math
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
-from rmac_mj.agents.boundary import AgentBoundary
 from rmac_mj.agents.planning import Rehearsal
 from rmac_mj.agents.seeding import check_transitions
-from rmac_mj.agents.spaces import ActionSpace, StateSpace
-from rmac_mj.agents.state_exchange import StateExchange
+from rmac_mj.agents.spaces import STATE_LIMIT_WIDTHS, ActionSpace, StateSpace
 from rmac_mj.agents.task_knowledge import with_task_units
 
+#: State dict entries :class:`Agent` writes itself; a learner's ``_state`` must not use them.
+_RESERVED = ("rng", "in_trial", "trials")
 
-class Agent(AgentBoundary, StateExchange, abc.ABC):
+
+class RefusedTransition(ValueError):
+    """A transition (or a trial's start) whose learning would overflow the learner's arithmetic:
+    refused before anything changed (``Agent._overflow``)."""
+
+
+# -- the checks at the boundary: a value, its space, its name ----------------------------------------
+def check_state(x: Any, space: StateSpace, name: str = "x", owner: str = "") -> np.ndarray:
+    """x as a new float64 vector of shape (n,) inside ``space.limit``; ValueError naming ``name``
+    (after ``owner``, the learner's name) if it is not finite, of another size or that far out."""
+    n = space.dim
+    v = np.array(x, dtype=float)
+    if v.shape != (n,):
+        if v.size != n:
+            raise ValueError(f"{owner}: {name} must have shape ({n},), got shape {np.shape(x)}")
+        v = v.reshape(n)
+    # Called once per control step on a few numbers: Python over a list is several times
+    # cheaper than numpy on a short vector. A NaN fails every comparison, so this one check
+    # refuses non-finite states too.
+    values = v.tolist()
+    if not space.accepts(values):
+        if not all(map(math.isfinite, values)):
+            raise ValueError(f"{owner}: {name} must be finite, got {x!r}")
+        low, high = space.limit
+        i = int(np.argmax((v < low) | (v > high)))
+        raise ValueError(
+            f"{owner}: {name}[{i}] = {values[i]:g} is beyond what a learner accepts, "
+            f"[{low[i]:g}, {high[i]:g}] ({STATE_LIMIT_WIDTHS:g} widths of the state box around "
+            f"it); a state that far out overflows the learner's arithmetic"
+        )
+    return v
+
+
+def check_action(u: Any, space: ActionSpace, name: str = "u", owner: str = "") -> np.ndarray:
+    """u as a new float64 vector of shape (m,); ValueError naming ``name`` if not finite or wrong."""
+    v = np.array(u, dtype=float).reshape(-1)
+    if v.shape != (space.dim,):
+        raise ValueError(f"{owner}: {name} must have shape ({space.dim},), got shape {np.shape(u)}")
+    if not np.all(np.isfinite(v)):
+        raise ValueError(f"{owner}: {name} must be finite, got {u!r}")
+    return v
+
+
+def check_reward(reward: Any, name: str = "reward", owner: str = "") -> float:
+    """A finite number as a float; ValueError naming ``name`` otherwise (a reward has no space)."""
+    try:
+        r = float(reward)
+    except (TypeError, ValueError):
+        raise ValueError(f"{owner}: {name} must be a finite number, got {reward!r}") from None
+    if not math.isfinite(r):
+        raise ValueError(f"{owner}: {name} must be finite, got {reward!r}")
+    return r
+
+
+# -- a random generator as numbers, so that a state dict needs no pickle -------------------------
+_MASK64 = (1 << 64) - 1
+
+
+def generator_state_array(rng: np.random.Generator) -> np.ndarray:
+    """The state of a PCG64 generator as 6 uint64 words: state (hi, lo), inc (hi, lo), has_uint32,
+    uinteger. Numeric, so snapshots need no pickle and no ``eval``."""
+    st = rng.bit_generator.state
+    if st.get("bit_generator") != "PCG64":
+        raise ValueError(f"only PCG64 generators can be saved, got {st.get('bit_generator')!r}")
+    s, inc = int(st["state"]["state"]), int(st["state"]["inc"])
+    return np.array(
+        [
+            s >> 64,
+            s & _MASK64,
+            inc >> 64,
+            inc & _MASK64,
+            int(st["has_uint32"]),
+            int(st["uinteger"]),
+        ],
+        dtype=np.uint64,
+    )
+
+
+def set_generator_state(rng: np.random.Generator, words: Any) -> None:
+    """Restore a PCG64 generator from :func:`generator_state_array`'s words."""
+    w = np.asarray(words)
+    if w.shape != (6,) or w.dtype != np.uint64:
+        raise ValueError(f"rng state must be 6 uint64 words, got dtype {w.dtype} shape {w.shape}")
+    if rng.bit_generator.state.get("bit_generator") != "PCG64":
+        raise ValueError("only PCG64 generators can be restored")
+    hi_lo = [int(v) for v in w]
+    rng.bit_generator.state = {
+        "bit_generator": "PCG64",
+        "state": {"state": (hi_lo[0] << 64) | hi_lo[1], "inc": (hi_lo[2] << 64) | hi_lo[3]},
+        "has_uint32": hi_lo[4],
+        "uinteger": hi_lo[5],
+    }
+
+
+class Agent(abc.ABC):
     """Interface of an online learner, following the paper's online protocol::
 
         u = agent.start(x0)            # lines 1-5: a new trial begins in x0, returns u_0
@@ -32,18 +129,39 @@ class Agent(AgentBoundary, StateExchange, abc.ABC):
         agent.stop(r_K, x_K)           # the last transition of a trial: learn, no action
                                        # (terminal=True: x_K is terminal, V(x_K) = 0)
 
-    ``greedy_action`` and ``value`` evaluate the current policy and critic without exploring or
-    learning; a greedy trial begins with ``begin_greedy_trial()``.
-    ``state_dict``/``load_state_dict`` exchange the learned state as a flat dict of numpy arrays
-    (``numpy.savez``, read back with ``allow_pickle=False``). ``seed_from`` initialises the memories
-    from recorded transitions (prior knowledge, section 7, :mod:`rmac_mj.agents.seeding`); learners
-    that take none refuse it.
+    Contract. What a runner (or a user's own loop) calls, each checking its arguments once and
+    undoing a call the learner refuses (:class:`RefusedTransition`), so every learner refuses bad
+    input the same way:
 
-    The public methods are the boundary: they check their arguments once (a state of shape (n,) and
-    finite, a finite reward, ``step``/``stop`` only inside a trial) and then call the learner's
-    ``_start``/``_step``/``_stop``/``_greedy_action``/``_value`` with clean data, so every learner refuses
-    bad input the same way. ``state_dict`` holds everything that decides what the agent does next: the
-    learner's own arrays (``_state``), its random generator and whether a trial is running.
+    - ``start``, ``step``, ``stop``: a learning trial (above); planning and replay run after ``stop``.
+    - ``begin_greedy_trial``, ``greedy_action``, ``value``: the current policy and critic, without
+      exploring or learning (a greedy trial begins with ``begin_greedy_trial()``).
+    - ``learn_from``, ``learn``, ``seed_from``: learning from recorded trials, single transitions
+      and prior knowledge (section 7, :mod:`rmac_mj.agents.seeding`; refused by learners whose
+      :attr:`prior_parts` is empty).
+    - ``state_dict``, ``load_state_dict``, ``check_state_dict``: the learned state as a flat dict of
+      numpy arrays (``numpy.savez``, read back with ``allow_pickle=False``): the learner's own
+      arrays, its random generator, whether a trial runs and the trial counter.
+    - ``memory_estimate`` (a classmethod), ``config_dict``, ``trial``, ``rehearsal``.
+
+    What a learner implements, with checked arguments:
+
+    - ``_start(x0, u=None)``, ``_step(reward, x, u=None)``, ``_stop(reward, x, terminal)``: its
+      updates (abstract). ``u`` given: the action applied instead of the one it would choose
+      (``learn_from``, replay); learners that take no applied action keep the two-argument form.
+    - ``_greedy_action(x)``, ``_value(x)``: acting and valuing without learning (abstract).
+    - ``_state()``, ``_load_state(state)``: its own arrays (abstract); ``_check_state``,
+      ``_may_lack``, ``_shape_varies``: rules on a state dict to restore (optional).
+    - ``_memory_parts`` (classmethod): its bytes, for ``memory_estimate``.
+    - ``begin_greedy_trial``: forget what a previous greedy trial carried over (optional).
+    - ``_set_rehearsing(rehearsing)``: the transitions that follow are planned or replayed, not
+      real (optional; a learner with a model of the process keeps it unchanged then).
+    - ``_learn_transition``, ``_seed_from``: single transitions and prior knowledge (optional).
+
+    Planning and replay (:class:`~rmac_mj.agents.planning.Rehearsal`) call the learner's own
+    updates, ``_start``/``_step``/``_stop``, ``_replay_transition`` and ``_learn_trial``, between
+    ``_set_rehearsing(True)`` and ``_set_rehearsing(False)``; a learner's updates raise
+    ``self._overflow(...)`` before changing anything when a transition would overflow.
     """
 
     #: Short name used in results and on the command line, e.g. ``"rmac"``.
@@ -125,7 +243,7 @@ class Agent(AgentBoundary, StateExchange, abc.ABC):
 
     def start(self, x0: Any) -> np.ndarray:
         """Begin a trial in state ``x0`` (shape (n,)); reset traces; return u_0 (shape (m,))."""
-        x0 = self._checked_state(x0, "x0")
+        x0 = check_state(x0, self.state_space, "x0", self.name)
         return self._refusable(self._begin_trial, x0)
 
     def _begin_trial(self, x0: np.ndarray) -> np.ndarray:
@@ -139,7 +257,10 @@ class Agent(AgentBoundary, StateExchange, abc.ABC):
     def step(self, reward: Any, x: Any) -> np.ndarray:
         """Observe r_k and x_k, learn from the transition, return u_k (shape (m,))."""
         self._check_in_trial("step")
-        reward, x = self._checked_reward(reward), self._checked_state(x)
+        reward, x = (
+            check_reward(reward, "reward", self.name),
+            check_state(x, self.state_space, "x", self.name),
+        )
         u = self._refusable(self._step, reward, x)
         if self._rehearsal is not None:
             self._rehearsal.record(reward, x, u)
@@ -155,7 +276,10 @@ class Agent(AgentBoundary, StateExchange, abc.ABC):
         the last TD error bootstraps from V(x_k) like every other. A refused update (in the last
         transition, or in planning or replay) leaves the agent as before the call, in its trial."""
         self._check_in_trial("stop")
-        reward, x = self._checked_reward(reward), self._checked_state(x)
+        reward, x = (
+            check_reward(reward, "reward", self.name),
+            check_state(x, self.state_space, "x", self.name),
+        )
         if self._rehearsal is None:
             self._refusable(self._stop, reward, x, bool(terminal))
             self._in_trial = False
@@ -222,29 +346,7 @@ class Agent(AgentBoundary, StateExchange, abc.ABC):
         self._start(x, u)
         self._stop(reward, x_next, False)
 
-    # -- what planning and replay use (``planning.RehearsedLearner``) ------------------------------
-    def set_rehearsing(self, rehearsing: bool) -> None:
-        """Tell the learner whether the transitions that follow are rehearsed (see
-        ``_set_rehearsing``)."""
-        self._set_rehearsing(bool(rehearsing))
-
-    def rehearse_start(self, x0: np.ndarray) -> np.ndarray:
-        return self._start(x0)
-
-    def rehearse_step(self, reward: float, x: np.ndarray) -> np.ndarray:
-        return self._step(reward, x)
-
-    def rehearse_stop(self, reward: float, x: np.ndarray, terminal: bool) -> None:
-        self._stop(reward, x, terminal)
-
-    def replay_transition(
-        self, x: np.ndarray, u: np.ndarray, reward: float, x_next: np.ndarray
-    ) -> None:
-        self._replay_transition(x, u, reward, x_next)
-
-    def replay_trial(self, states: np.ndarray, actions: np.ndarray, rewards: np.ndarray) -> None:
-        self._learn_trial(states, actions, rewards)
-
+    # -- planning and replay -------------------------------------------------------------------------
     @property
     def rehearsal(self) -> Rehearsal | None:
         """What planning and replay keep (the learned model, the stored trials), or None without."""
@@ -268,11 +370,11 @@ class Agent(AgentBoundary, StateExchange, abc.ABC):
 
     def greedy_action(self, x: Any) -> np.ndarray:
         """The policy's action in ``x`` (shape (m,)) without exploration and without learning."""
-        return self._greedy_action(self._checked_state(x))
+        return self._greedy_action(check_state(x, self.state_space, "x", self.name))
 
     def value(self, x: Any) -> float:
         """The critic's estimate V(x)."""
-        return float(self._value(self._checked_state(x)))
+        return float(self._value(check_state(x, self.state_space, "x", self.name)))
 
     def learn(
         self, x: Any, u: Any, reward: Any, x_next: Any, v: Any = None, model: bool = True
@@ -293,9 +395,15 @@ class Agent(AgentBoundary, StateExchange, abc.ABC):
           NotImplementedError: the learner learns only from its own steps.
           ValueError: naming the argument that is malformed.
         """
-        x, x_next = self._checked_state(x), self._checked_state(x_next, "x_next")
-        u, reward = self._checked_action(u), self._checked_reward(reward)
-        v = self._value(x) if v is None else self._checked_reward(v, "v")
+        x, x_next = (
+            check_state(x, self.state_space, "x", self.name),
+            check_state(x_next, self.state_space, "x_next", self.name),
+        )
+        u, reward = (
+            check_action(u, self.action_space, "u", self.name),
+            check_reward(reward, "reward", self.name),
+        )
+        v = self._value(x) if v is None else check_reward(v, "v", self.name)
         return float(self._refusable(self._learn_transition, x, u, reward, x_next, v, bool(model)))
 
     def _learn_transition(
@@ -368,14 +476,181 @@ class Agent(AgentBoundary, StateExchange, abc.ABC):
         """Put the checked transitions into the ``parts`` they seed (learners with prior_parts)."""
         raise NotImplementedError(f"{self.name} does not take prior knowledge")
 
+    # -- the learned state as flat arrays ------------------------------------------------------------
+    def state_dict(self) -> dict[str, np.ndarray]:
+        """Everything that decides what the agent does next, as a flat dict of numeric numpy arrays:
+        the learner's state, its random generator (``rng``), whether a trial runs (``in_trial``) and
+        how many learning trials have begun (``trials``; a decaying exploration depends on it)."""
+        state = self._state()
+        for key in _RESERVED:
+            if key in state:
+                raise KeyError(
+                    f"{type(self).__name__}._state() must not use the reserved key {key!r}"
+                )
+        if self._rehearsal is not None:
+            state.update(self._rehearsal.state_dict("rehearsal."))
+        state["rng"] = generator_state_array(self.rng)
+        state["in_trial"] = np.array(self._in_trial)
+        state["trials"] = np.array(self.trials_, dtype=np.int64)
+        return state
+
+    def load_state_dict(self, state: Mapping[str, Any]) -> None:
+        """Restore what :meth:`state_dict` returned; the agent then acts exactly as the original.
+
+        Checked first (:meth:`check_state_dict`), so a refused state changes nothing.
+        """
+        arrays = self.check_state_dict(state)
+        self._load_state(
+            {
+                k: v
+                for k, v in arrays.items()
+                if k not in _RESERVED and not k.startswith("rehearsal.")
+            }
+        )
+        if self._rehearsal is not None:
+            self._rehearsal.load_state_dict(arrays, "rehearsal.")
+        set_generator_state(self.rng, arrays["rng"])
+        self._in_trial = bool(arrays["in_trial"])
+        if "trials" in arrays:
+            self.trials_ = int(arrays["trials"])
+
+    def check_state_dict(self, state: Mapping[str, Any]) -> dict[str, np.ndarray]:
+        """The state dict as arrays if this learner can restore it, else ValueError (TypeError for
+        no mapping) naming what is wrong; nothing changes. The one check of every learner, also
+        of every file a resumed run keeps: the keys (none missing, none foreign: a state dict of
+        another learner is called one), each array's dtype and shape against this learner's own
+        state dict, every float finite, then the learner's own rules (``_check_state``: counts
+        and indices in range)."""
+        if not isinstance(state, Mapping):
+            raise TypeError(
+                f"{self.name}: a state dict must be a mapping of names to arrays, got "
+                f"{type(state).__name__}"
+            )
+        own = self.state_dict()
+        missing = sorted(k for k in own if k not in state and not self._may_lack(k))
+        foreign = sorted(k for k in state if k not in own and not self._may_lack(k))
+        if missing or foreign:
+            parts = [f"lacks {_listed(missing)}"] * bool(missing) + [
+                f"has {_listed(foreign)}, which {self.name} does not"
+            ] * bool(foreign)
+            hint = " (a state dict of another learner?)" if missing and foreign else ""
+            raise ValueError(f"{self.name}: the state dict {' and '.join(parts)}{hint}")
+        arrays = {
+            key: self._checked_entry(key, value, own.get(key)) for key, value in state.items()
+        }
+        # Snapshots written before the trial counter existed lack ``trials``; they load unless the
+        # agent's exploration decays, which would then start again from the first trial's noise.
+        if "trials" not in arrays and self._uses_trial_counter:
+            raise ValueError(
+                f"{self.name}: the state dict lacks 'trials', which a decaying "
+                f"exploration or learning rate needs"
+            )
+        if "trials" in arrays and int(arrays["trials"]) < 0:
+            raise ValueError(
+                f"{self.name}: state 'trials' must be >= 0, got {int(arrays['trials'])}"
+            )
+        self._check_state(arrays)
+        return arrays
+
+    def _checked_entry(self, key: str, value: Any, own: np.ndarray | None) -> np.ndarray:
+        """One entry of a state dict to restore, checked against the learner's own (``own``; None
+        for an entry the learner holds only at some moments: its dtype and values are checked).
+
+        The dtype must be the learner's own (a float32 critic would not act as the original), the
+        shape too (for an entry whose length varies, the dimensions after the first), every
+        float finite. The one check of every learner: ValueError naming the key, what it got and
+        what was expected."""
+        array = np.asarray(value)
+        if own is None:
+            if array.dtype.kind not in "fiub":
+                raise ValueError(
+                    f"{self.name}: state {key!r} must hold numbers, got dtype {array.dtype}"
+                )
+        elif array.dtype != own.dtype:
+            raise ValueError(
+                f"{self.name}: state {key!r} must hold {own.dtype}, got dtype {array.dtype}"
+            )
+        if own is not None:
+            varies = self._shape_varies(key)
+            if (
+                (array.ndim != own.ndim or array.shape[1:] != own.shape[1:])
+                if varies
+                else (array.shape != own.shape)
+            ):
+                expected = ("K",) + own.shape[1:] if varies else own.shape
+                raise ValueError(
+                    f"{self.name}: state {key!r} must have shape {expected}, got {array.shape}"
+                )
+        if array.dtype.kind == "f" and not np.all(np.isfinite(array)):
+            raise ValueError(
+                f"{self.name}: state {key!r} must be finite; "
+                f"{int(np.size(array) - np.count_nonzero(np.isfinite(array)))} of "
+                f"{np.size(array)} entries are not"
+            )
+        return array
+
+    def _may_lack(self, key: str) -> bool:
+        """Whether a state dict may lack ``key`` (or hold it though this agent does not now): an
+        entry written only by some versions or at some moments."""
+        return key == "trials"
+
+    def _shape_varies(self, key: str) -> bool:
+        """Whether the shape of state entry ``key`` depends on the moment (e.g. a filling buffer,
+        planning's or replay's stored transitions)."""
+        return key.startswith("rehearsal.")
+
+    def _check_state(self, state: dict[str, np.ndarray]) -> None:  # noqa: B027 (an optional hook)
+        """The learner's own rules on a state dict to restore (counts and indices in range), checked
+        before anything changes; ValueError naming the entry."""
+
+    # -- a refused call changes nothing ---------------------------------------------------------------
+    def _overflow(self, what: Any) -> RefusedTransition:
+        """The error of a transition whose learning overflows (``what``: the quantity, or the
+        reward). A learner raises it before it changes its own arrays (check, then change); the
+        boundary puts back the random generator and the trial counter (:meth:`_refusable`)."""
+        if not isinstance(what, str):
+            what = f"the transition with reward {what!r}"
+        return RefusedTransition(
+            f"{self.name}: {what} overflows the learner's arithmetic (not finite); "
+            f"refused, nothing non-finite was stored"
+        )
+
+    def _check_in_trial(self, method: str) -> None:
+        if not self._in_trial:
+            raise RuntimeError(
+                f"{self.name}: {method}() called outside a trial; call start(x0) first"
+            )
+
+    def _refusable(self, change: Any, *args: Any) -> Any:
+        """``change(*args)``, and if the learner refuses it (:class:`RefusedTransition`) the random
+        generator and the trial counter as they were: the learner refuses before it changes its own
+        arrays, so a refused call leaves ``state_dict()`` exactly as it was."""
+        rng_state, trials = self.rng.bit_generator.state, self.trials_
+        try:
+            return change(*args)
+        except RefusedTransition:
+            self.rng.bit_generator.state, self.trials_ = rng_state, trials
+            raise
+
+    def _all_or_nothing(self, change: Any, *args: Any) -> Any:
+        """``change(*args)`` for a call that runs many updates (a stored trial, planning and replay
+        after a trial): if the learner refuses one, the whole state as it was before the call."""
+        before = self.state_dict()
+        try:
+            return change(*args)
+        except RefusedTransition:
+            self.load_state_dict(before)
+            raise
+
     # -- what each learner implements (arguments already checked) ------------------------------------
     @abc.abstractmethod
-    def _start(self, x0: np.ndarray) -> np.ndarray:
-        """Lines that begin a trial in x0; return u_0."""
+    def _start(self, x0: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
+        """Lines that begin a trial in x0; return u_0 (``u``: the action applied instead)."""
 
     @abc.abstractmethod
-    def _step(self, reward: float, x: np.ndarray) -> np.ndarray:
-        """One control step: learn from (x_{k-1}, u_{k-1}, r_k, x_k), return u_k."""
+    def _step(self, reward: float, x: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
+        """One control step: learn from (x_{k-1}, u_{k-1}, r_k, x_k), return u_k (``u``: the
+        action applied instead)."""
 
     @abc.abstractmethod
     def _stop(self, reward: float, x: np.ndarray, terminal: bool) -> None:
@@ -400,3 +675,9 @@ class Agent(AgentBoundary, StateExchange, abc.ABC):
     def config_dict(self) -> dict[str, Any]:
         """The hyperparameters as JSON-ready data (a dataclass's fields)."""
         return dataclasses.asdict(self.config)  # type: ignore[attr-defined]
+
+
+def _listed(keys: list[str], most: int = 4) -> str:
+    """A few keys for a message: 'a', 'b' (+3 more)."""
+    shown = ", ".join(repr(k) for k in keys[:most])
+    return shown + (f" (+{len(keys) - most} more)" if len(keys) > most else "")

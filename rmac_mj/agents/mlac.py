@@ -13,8 +13,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from rmac_mj.agents.base import Agent
-from rmac_mj.agents.boundary import RefusedTransition
+from rmac_mj.agents.base import Agent, RefusedTransition
 from rmac_mj.agents.critic import LLRCritic, _check_traces
 from rmac_mj.agents.exploration import Exploration, model_uncertainty
 from rmac_mj.agents.planning import REHEARSAL, Planning, Replay
@@ -223,61 +222,18 @@ class MLAC(Agent):
         seed: int | np.random.Generator | None = None,
     ) -> None:
         super().__init__(state_space, action_space, config, seed)
-        config = self.config  # with the task's units (Agent.__init__)
         n, m = state_space.dim, action_space.dim
         self.n, self.m = n, m
         self.period = state_space.period  # (n,), 0 for non-periodic dimensions
-        config = with_task_weights("MLAC", config, state_space, action_space, ("actor", "critic"))
+        config = with_task_weights(
+            "MLAC", self.config, state_space, action_space, ("actor", "critic")
+        )
         self.config = config = with_task_action_cost(
             "MLAC", config, action_space, "the actor's gradient"
         )
         self._action_cost = np.array(config.action_cost)  # P, shape (m,)
-        common = dict(
-            norm=config.norm,
-            conditioning=config.conditioning,
-            rcond=config.rcond,
-            ridge=config.ridge,
-            backend=config.backend,
-        )
-        self.actor = LLRMemory(
-            n,
-            m,
-            config.actor_capacity,
-            config.actor_neighbours,
-            input_weights=config.actor_weights,
-            input_period=self.period,
-            clip=config.actor_clip,
-            replacement=config.actor_replacement,
-            **common,
-        )
-        self.critic = LLRCritic(
-            LLRMemory(
-                n,
-                1,
-                config.critic_capacity,
-                config.critic_neighbours,
-                input_weights=config.critic_weights,
-                input_period=self.period,
-                clip=config.critic_clip,
-                replacement=config.critic_replacement,
-                **common,
-            ),
-            config.gamma,
-            config.lam,
-            config.alpha_c,
-        )
-        self.process = LLRMemory(
-            n + m,
-            n,
-            config.process_capacity,
-            config.process_neighbours,
-            input_weights=config.process_weights,
-            input_period=np.r_[self.period, np.zeros(m)],
-            output_period=self.period,
-            clip=config.process_clip,
-            replacement=config.process_replacement,
-            **common,
-        )
+        self.actor, critic_memory, self.process = self._new_memories(config)
+        self.critic = LLRCritic(critic_memory, config.gamma, config.lam, config.alpha_c)
         #: The middle and half-width of the action box, for the saturation rule.
         self._u_mid = 0.5 * (action_space.low + action_space.high)
         self._u_half = 0.5 * (action_space.high - action_space.low)
@@ -290,6 +246,52 @@ class MLAC(Agent):
         self._pi_prev: tuple[np.ndarray, np.ndarray] | None = None
         #: Whether step 1 inserts a transition in M^P: False while rehearsing (planning, replay).
         self._learns_model = True
+
+    def _new_memories(self, config: MLACConfig) -> tuple[LLRMemory, LLRMemory, LLRMemory]:
+        """The actor [x | u], the critic's [x | V] and the process model [x, u | x'], empty."""
+        n, m, period = self.n, self.m, self.period
+        common = dict(
+            norm=config.norm,
+            conditioning=config.conditioning,
+            rcond=config.rcond,
+            ridge=config.ridge,
+            backend=config.backend,
+        )
+        actor = LLRMemory(
+            n,
+            m,
+            config.actor_capacity,
+            config.actor_neighbours,
+            input_weights=config.actor_weights,
+            input_period=period,
+            clip=config.actor_clip,
+            replacement=config.actor_replacement,
+            **common,
+        )
+        critic = LLRMemory(
+            n,
+            1,
+            config.critic_capacity,
+            config.critic_neighbours,
+            input_weights=config.critic_weights,
+            input_period=period,
+            clip=config.critic_clip,
+            replacement=config.critic_replacement,
+            **common,
+        )
+        process = LLRMemory(
+            n + m,
+            n,
+            config.process_capacity,
+            config.process_neighbours,
+            input_weights=config.process_weights,
+            input_period=np.r_[period, np.zeros(m)],
+            output_period=period,
+            clip=config.process_clip,
+            replacement=config.process_replacement,
+            **common,
+        )
+        return actor, critic, process
 
     def _set_rehearsing(self, rehearsing: bool) -> None:
         """While rehearsing (planning, replay), step 1 leaves M^P unchanged."""

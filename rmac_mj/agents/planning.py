@@ -264,29 +264,29 @@ class TransitionModel:
 
 
 class RehearsedLearner(Protocol):
-    """What a rehearsal needs of a learner (``Agent`` implements it): its generator, a switch that
-    tells it the transitions that follow are rehearsed, and its own updates, unchecked."""
+    """What a rehearsal calls on its learner: the generator and the protected hooks of
+    :class:`~rmac_mj.agents.base.Agent`'s contract, with arguments already clean."""
 
     rng: np.random.Generator
 
-    def set_rehearsing(self, rehearsing: bool) -> None:
+    def _set_rehearsing(self, rehearsing: bool) -> None:
         """Rehearsed transitions follow (True) or real ones again (False)."""
 
-    def rehearse_start(self, x0: np.ndarray) -> np.ndarray:
+    def _start(self, x0: np.ndarray) -> np.ndarray:
         """Begin a simulated trial in x0 (shape (n,)); return u_0 (shape (m,))."""
 
-    def rehearse_step(self, reward: float, x: np.ndarray) -> np.ndarray:
+    def _step(self, reward: float, x: np.ndarray) -> np.ndarray:
         """Learn from a simulated step (r_k, x_k); return u_k."""
 
-    def rehearse_stop(self, reward: float, x: np.ndarray, terminal: bool) -> None:
+    def _stop(self, reward: float, x: np.ndarray, terminal: bool) -> None:
         """The last simulated transition of a rollout."""
 
-    def replay_transition(
+    def _replay_transition(
         self, x: np.ndarray, u: np.ndarray, reward: float, x_next: np.ndarray
     ) -> None:
         """One stored transition learned on its own (backward replay)."""
 
-    def replay_trial(self, states: np.ndarray, actions: np.ndarray, rewards: np.ndarray) -> None:
+    def _learn_trial(self, states: np.ndarray, actions: np.ndarray, rewards: np.ndarray) -> None:
         """A stored trial learned with its applied actions (forward replay)."""
 
 
@@ -298,7 +298,7 @@ class Rehearsal:
     the learner's :class:`RehearsedLearner` interface.
 
     Simulated transitions never enter any model (the learner is told it is rehearsing, see
-    ``RehearsedLearner.set_rehearsing``), so the models hold only what the process did; a predicted
+    ``Agent._set_rehearsing``), so the models hold only what the process did; a predicted
     state is kept inside the task's nominal box (``Planning.clip``). The rehearsal runs after the
     real trial's last transition is learned (``Agent.stop``), so the real trial's bookkeeping is
     never disturbed, and its budget is counted in real transitions of that trial. Simulated and
@@ -385,7 +385,7 @@ class Rehearsal:
         if steps == 0:
             return
         trial = (np.array(self._states), np.array(self._actions), np.array(self._rewards))
-        agent.set_rehearsing(True)
+        agent._set_rehearsing(True)
         try:
             if self.replay.steps:
                 self._store(trial)
@@ -393,7 +393,7 @@ class Rehearsal:
             if self.planning.steps:
                 self._plan(agent, self.planning.steps * steps, trial, steps)
         finally:
-            agent.set_rehearsing(False)
+            agent._set_rehearsing(False)
 
     def _store(self, trial) -> None:
         self.trials_.append(trial)
@@ -408,9 +408,11 @@ class Rehearsal:
             K = min(len(rewards), budget)
             if self.replay.order == "backward":
                 for k in range(len(rewards) - 1, len(rewards) - 1 - K, -1):
-                    agent.replay_transition(states[k], actions[k], float(rewards[k]), states[k + 1])
+                    agent._replay_transition(
+                        states[k], actions[k], float(rewards[k]), states[k + 1]
+                    )
             else:
-                agent.replay_trial(states[: K + 1], actions[:K], rewards[:K])
+                agent._learn_trial(states[: K + 1], actions[:K], rewards[:K])
             budget -= K
 
     def _plan(self, agent: RehearsedLearner, budget: int, trial, steps: int) -> None:
@@ -428,13 +430,13 @@ class Rehearsal:
                     int(agent.rng.integers(model.memory.n_samples_)), : self.n
                 ].copy()
             H = min(horizon, budget)
-            u = agent.rehearse_start(x)
+            u = agent._start(x)
             for k in range(H):
                 x, r = model.predict(x, np.minimum(np.maximum(u, self._low), self._high))
                 if k == H - 1:
-                    agent.rehearse_stop(r, x, False)
+                    agent._stop(r, x, False)
                 else:
-                    u = agent.rehearse_step(r, x)
+                    u = agent._step(r, x)
             budget -= H
 
     # -- state ----------------------------------------------------------------------------------------

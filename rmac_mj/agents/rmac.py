@@ -1,8 +1,11 @@
 """Reference Model Actor-Critic (RMAC): section 5 and Algorithm 2 of Grondman et al.
 
 Three LLR memories (section 4): M^P [x, u | x'], M^R [x | x_hat], M^C [x | V]; u_k = f^-1(x_k,
-R(x_k)) + exploration. The numpy path follows Algorithm 2 line by line, ``backend='numba'`` runs
-:mod:`rmac_mj.agents._rmac_kernels`.
+R(x_k)) + exploration. The class reads in the paper's order: the memories, then Algorithm 2
+(a trial's start, a control step, one transition's learning, lines 1-29), then acting greedily,
+prior knowledge and the learned state; the options beyond the paper (``RMACConfig``'s reachable
+rules other than the vertices) are :mod:`rmac_mj.agents.rmac_variants`. The numpy path follows
+Algorithm 2 line by line, ``backend='numba'`` runs :mod:`rmac_mj.agents._rmac_kernels`.
 """
 
 from __future__ import annotations
@@ -11,9 +14,8 @@ import itertools
 
 import numpy as np
 
-from rmac_mj.agents import _rmac_kernels
-from rmac_mj.agents.base import Agent
-from rmac_mj.agents.boundary import RefusedTransition
+from rmac_mj.agents import _rmac_kernels, rmac_variants
+from rmac_mj.agents.base import Agent, RefusedTransition
 from rmac_mj.agents.critic import LLRCritic, _check_traces
 from rmac_mj.agents.exploration import model_uncertainty
 from rmac_mj.agents.rmac_config import REACHABLE_RULES, RMACConfig
@@ -28,10 +30,6 @@ __all__ = ["RMAC", "RMACConfig"]
 #: neighbour of the process model holds the same action, the truncated fit removes the u direction
 #: and rounding alone would otherwise decide a saturated action's sign.
 BETA_U_ZERO = 1e-9
-#: Absolute tolerance, in action units, of the golden-section refinement of reachable_rule='exact'.
-EXACT_TOLERANCE = 1e-6
-#: 1 / golden ratio, the shrink factor of one golden-section step.
-INV_PHI = (5.0**0.5 - 1.0) / 2.0
 
 
 class RMAC(Agent):
@@ -70,80 +68,18 @@ class RMAC(Agent):
         seed: int | np.random.Generator | None = None,
     ) -> None:
         super().__init__(state_space, action_space, config, seed)
-        config = self.config  # with the task's units (Agent.__init__)
-        n, m = state_space.dim, action_space.dim
-        config = with_task_weights(
-            "RMAC", config, state_space, action_space, ("critic", "reference")
-        )
-        self.config = config = with_task_action_cost(
-            "RMAC",
-            config,
-            action_space,
-            None
-            if config.reachable_rule == "vertices"
-            else f"reachable_rule={config.reachable_rule!r}",
-        )
-        #: P of the reachable rules' score (zeros when the rule does not use it), shape (m,).
-        self._action_cost = np.array(config.action_cost or np.zeros(action_space.dim), dtype=float)
-        self.n, self.m = n, m
+        self.config = config = self._with_task_knowledge(self.config)
+        self.n, self.m = n, m = state_space.dim, action_space.dim
         if config.reachable_rule == "exact" and m != 1:
             raise ValueError(
                 f"RMAC: config.reachable_rule='exact' needs a one-dimensional action, "
                 f"this task has {m}; use 'grid'"
             )
         self.period = state_space.period  # (n,), 0 for non-periodic dimensions
-        common = dict(
-            norm=config.norm,
-            conditioning=config.conditioning,
-            rcond=config.rcond,
-            ridge=config.ridge,
-            redundancy_smoothing=config.redundancy_smoothing,
-            backend=config.backend,
-        )
-        self.process = LLRMemory(
-            n + m,
-            n,
-            config.process_capacity,
-            config.process_neighbours,
-            input_weights=config.process_weights,
-            input_period=np.r_[self.period, np.zeros(m)],
-            output_period=self.period,
-            clip=config.process_clip,
-            replacement=config.process_replacement,
-            redundancy=config.process_redundancy,
-            **common,
-        )
-        self.reference = LLRMemory(
-            n,
-            n,
-            config.reference_capacity,
-            config.reference_neighbours,
-            input_weights=config.reference_weights,
-            input_period=self.period,
-            output_period=self.period,
-            clip=config.reference_clip,
-            replacement=config.reference_replacement,
-            redundancy=config.reference_redundancy,
-            **common,
-        )
+        # Section 4's memories: M^P [x, u | x'], M^R [x | x_hat], and M^C [x | V] in the critic.
+        self.process, self.reference, critic_memory = self._new_memories(config)
         alpha_c, self._alpha_r = config.rates_at(self.trial)
-        self.critic = LLRCritic(
-            LLRMemory(
-                n,
-                1,
-                config.critic_capacity,
-                config.critic_neighbours,
-                input_weights=config.critic_weights,
-                input_period=self.period,
-                clip=config.critic_clip,
-                replacement=config.critic_replacement,
-                redundancy=config.critic_redundancy,
-                **common,
-            ),
-            config.gamma,
-            config.lam,
-            alpha_c,
-        )
+        self.critic = LLRCritic(critic_memory, config.gamma, config.lam, alpha_c)
         self._rates_trial = self.trial
         #: U_R without the state rows: the 2^m combinations of action extremes, (2^m, m), max first.
         self.vertices = np.array(
@@ -154,159 +90,92 @@ class RMAC(Agent):
             ),
             dtype=float,
         )
-        #: The candidate actions of the reachable rule, (c, m): the vertices, or for 'grid' and
-        #: 'exact' the product of ``reachable_grid`` evenly spaced values per action dimension.
-        if config.reachable_rule in ("grid", "exact"):
-            self.candidates = np.array(
-                list(
-                    itertools.product(
-                        *[
-                            np.linspace(lo, hi, config.reachable_grid)
-                            for lo, hi in zip(action_space.low, action_space.high)
-                        ]
-                    )
-                ),
-                dtype=float,
-            )
-        else:
-            self.candidates = self.vertices.copy()
-        #: Golden-section steps of reachable_rule='exact': a bracket of two grid spacings shrinks
-        #: to EXACT_TOLERANCE.
-        span = (
-            2.0 * float(np.max(action_space.high - action_space.low)) / (config.reachable_grid - 1)
-        )
-        self._refine_steps = (
-            int(np.ceil(np.log(EXACT_TOLERANCE / span) / np.log(INV_PHI)))
-            if config.reachable_rule == "exact" and span > EXACT_TOLERANCE
-            else 0
-        )
+        #: The candidate actions of the reachable rule, (c, m), and the golden-section steps of
+        #: 'exact' (:mod:`rmac_mj.agents.rmac_variants`).
+        low, high, grid = action_space.low, action_space.high, config.reachable_grid
+        rule = config.reachable_rule
+        self.candidates = rmac_variants.candidate_actions(rule, grid, low, high, self.vertices)
+        self._refine_steps = rmac_variants.refine_steps(rule, grid, low, high)
+        # The step's bookkeeping: k, and x_{k-1}, u_{k-1} and V_{k-1} updated in place (the
+        # compiled step shares these arrays); the last greedy action.
         self._k = 0
-        # x_{k-1}, u_{k-1} and V_{k-1}, updated in place: the compiled step shares these arrays.
-        self._x_prev = np.zeros(n)
-        self._u_prev = np.zeros(m)
-        self._v_prev = np.zeros(1)
+        self._x_prev, self._u_prev, self._v_prev = np.zeros(n), np.zeros(m), np.zeros(1)
         self._u_greedy = np.zeros(m)
         #: Whether line 14 inserts a transition in M^P: False while rehearsing (planning, replay).
         self._learns_model = True
         self._kernel_state = self._new_kernel_state()
 
-    def _set_rehearsing(self, rehearsing: bool) -> None:
-        """While rehearsing (planning, replay), line 14 leaves M^P unchanged."""
-        self._learns_model = not rehearsing
-
-    @classmethod
-    def _memory_parts(
-        cls, config: RMACConfig, state_space: StateSpace, action_space: ActionSpace
-    ) -> tuple[int, int]:
-        """The three memories and the critic's traces (see :meth:`Agent.memory_estimate`)."""
-        n, m = state_space.dim, action_space.dim
-        memories = (
-            (n + m, n, config.process_capacity, config.process_neighbours),
-            (n, n, config.reference_capacity, config.reference_neighbours),
-            (n, 1, config.critic_capacity, config.critic_neighbours),
+    def _with_task_knowledge(self, config: RMACConfig) -> RMACConfig:
+        """The config with the weightings and the action cost left None taken from the task."""
+        config = with_task_weights(
+            "RMAC", config, self.state_space, self.action_space, ("critic", "reference")
         )
-        traces = 8 * config.critic_capacity
-        return (
-            sum(LLRMemory.memory_estimate(*memory) for memory in memories) + traces,
-            sum(LLRMemory.state_estimate(*memory[:3]) for memory in memories) + traces,
+        config = with_task_action_cost(
+            "RMAC",
+            config,
+            self.action_space,
+            None
+            if config.reachable_rule == "vertices"
+            else f"reachable_rule={config.reachable_rule!r}",
         )
-
-    def _new_kernel_state(self) -> _rmac_kernels.RMACState | None:
-        """The compiled step's view of this agent's arrays (numba back end), else None."""
-        if self.config.backend != "numba":
-            return None
-        cfg = self.config
-        settings = _rmac_kernels.RMACSettings(
-            gamma=float(cfg.gamma),
-            alpha_r=self._alpha_r,
-            beta_u_zero=BETA_U_ZERO,
-            inverse_previous=cfg.inverse_query == "previous",
-            gradient_at_next=cfg.critic_gradient_at == "next",
-            rule=REACHABLE_RULES.index(cfg.reachable_rule),
-            action_cost=self._action_cost,
-            vertices=np.ascontiguousarray(self.vertices),
-            candidates=np.ascontiguousarray(self.candidates),
-            refine_steps=self._refine_steps,
-            insert_rate=float(cfg.reference_insert_rate),
-            period=np.ascontiguousarray(self.period, dtype=float),
-            low=self.action_space.low.copy(),
-            high=self.action_space.high.copy(),
+        #: P of the reachable rules' score (zeros when the rule does not use it), shape (m,).
+        self._action_cost = np.array(
+            config.action_cost or np.zeros(self.action_space.dim), dtype=float
         )
-        return _rmac_kernels.new_state(
-            self.process.kernel_state,
-            self.reference.kernel_state,
-            self.critic.kernel_state,
-            self._x_prev,
-            self._u_prev,
-            self._v_prev,
-            settings,
+        return config
+
+    def _new_memories(self, config: RMACConfig) -> tuple[LLRMemory, LLRMemory, LLRMemory]:
+        """M^P [x, u | x'], M^R [x | x_hat] and M^C [x | V] (section 4), empty."""
+        n, m, period = self.n, self.m, self.period
+        common = dict(
+            norm=config.norm,
+            conditioning=config.conditioning,
+            rcond=config.rcond,
+            ridge=config.ridge,
+            redundancy_smoothing=config.redundancy_smoothing,
+            backend=config.backend,
         )
-
-    @property
-    def _uses_trial_counter(self) -> bool:
-        return super()._uses_trial_counter or self.config.rates_decay
-
-    def _sync_rates(self) -> None:
-        """The running trial's alpha_c and alpha_r (``RMACConfig.rates_at``), set once per trial:
-        the trial counter may also change by ``load_state_dict``."""
-        if self._rates_trial != self.trial:
-            self.critic.alpha, self._alpha_r = self.config.rates_at(self.trial)
-            if self._kernel_state is not None:
-                _rmac_kernels.set_reference_rate(self._kernel_state, self._alpha_r)
-            self._rates_trial = self.trial
-
-    def __getstate__(self) -> dict:
-        # The structref is a view of arrays pickled here; it is made anew when unpickled.
-        return {k: v for k, v in self.__dict__.items() if k != "_kernel_state"}
-
-    def __setstate__(self, state: dict) -> None:
-        self.__dict__.update(state)
-        self._kernel_state = self._new_kernel_state()
-
-    # -- the policy: u = f^-1(x, R(x)) ------------------------------------------------------------------
-    def _inverse(self, x: np.ndarray, x_desired: np.ndarray, u_query: np.ndarray) -> np.ndarray:
-        """f^-1(x, x_desired): least-squares inverse of the local process model (section 5).
-
-        The model is linearised at (x, u_query): x' = f(x, u_query) + beta_u (u - u_query), so
-        u = u_query + pinv(beta_u) wrap(x_desired - f(x, u_query)), which is the paper's
-        u = pinv(beta_u) (x_desired - beta_x x - beta_b) written around the query point. Returns
-        u = 0 when beta_u = 0 (numerically: see BETA_U_ZERO; section 5); saturated to the action bounds.
-        """
-        pred, beta, _ = self.process.query(np.concatenate([x, u_query]))
-        beta_u = beta[:, self.n : self.n + self.m]
-        if np.abs(beta_u).max() <= BETA_U_ZERO * max(1.0, np.abs(beta[:, : self.n]).max()):
-            return np.zeros(self.m)
-        u = u_query + np.linalg.pinv(beta_u) @ wrap(x_desired - pred, self.period)
-        return self.action_space.clip(u)
-
-    def _u_query(self, u_prev: np.ndarray) -> np.ndarray:
-        return u_prev if self.config.inverse_query == "previous" else np.zeros(self.m)
-
-    def _act(self, x: np.ndarray, u_prev: np.ndarray) -> np.ndarray:
-        """The greedy action in x: lines 10-11 without Delta u_k."""
-        x_desired = self.reference.query(x)[0]  # line 10: x_hat_{k+1} = R(x_k)
-        return self._inverse(x, x_desired, self._u_query(u_prev))
-
-    def policy(self, states: np.ndarray, u_query: np.ndarray | None = None) -> np.ndarray:
-        """u = f^-1(x, R(x)) without exploration for a batch of states (policy plots, Fig. 4).
-
-        states: shape (q, n); u_query: shape (m,) or (q, m), where the process model is linearised
-        (default 0). Returns shape (q, m).
-        """
-        states = np.asarray(states, dtype=float).reshape(-1, self.n)
-        if not np.all(np.isfinite(states)):
-            raise ValueError("RMAC.policy: states must be finite")
-        uq = np.broadcast_to(
-            np.zeros(self.m) if u_query is None else np.asarray(u_query, dtype=float),
-            (len(states), self.m),
+        process = LLRMemory(
+            n + m,
+            n,
+            config.process_capacity,
+            config.process_neighbours,
+            input_weights=config.process_weights,
+            input_period=np.r_[period, np.zeros(m)],
+            output_period=period,
+            clip=config.process_clip,
+            replacement=config.process_replacement,
+            redundancy=config.process_redundancy,
+            **common,
         )
-        out = np.empty((len(states), self.m))
-        for i, x in enumerate(states):
-            x = self.state_space.canonical(x)
-            out[i] = self._inverse(x, self.reference.query(x)[0], uq[i])
-        return out
+        reference = LLRMemory(
+            n,
+            n,
+            config.reference_capacity,
+            config.reference_neighbours,
+            input_weights=config.reference_weights,
+            input_period=period,
+            output_period=period,
+            clip=config.reference_clip,
+            replacement=config.reference_replacement,
+            redundancy=config.reference_redundancy,
+            **common,
+        )
+        critic = LLRMemory(
+            n,
+            1,
+            config.critic_capacity,
+            config.critic_neighbours,
+            input_weights=config.critic_weights,
+            input_period=period,
+            clip=config.critic_clip,
+            replacement=config.critic_replacement,
+            redundancy=config.critic_redundancy,
+            **common,
+        )
+        return process, reference, critic
 
-    # -- Agent interface --------------------------------------------------------------------------------
+    # -- Algorithm 2, lines 1-12: a trial's start and a control step -----------------------------
     def _start(self, x0: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
         """Lines 1-6: reset the traces, u_0 = f^-1(x_0, R(x_0)) + Delta u_0 (or the given u_0, when
         replaying)."""
@@ -320,19 +189,6 @@ class RMAC(Agent):
         self._x_prev[:] = x0
         self._u_prev[:] = u
         return u.copy()
-
-    def _noise(self, x: np.ndarray, u_prev: np.ndarray) -> np.ndarray:
-        """Delta u_k of line 8 for step k in x_k, after u_{k-1} (see ``RMACConfig.exploration``)."""
-        exploration = self.config.exploration
-        uncertainty = None
-        if exploration.where == "uncertain":
-            query = np.concatenate([x, self._u_query(u_prev)])
-            uncertainty = lambda: model_uncertainty(self.process, query)  # noqa: E731
-        return exploration.sample(self._k, self.m, self.rng, self.trial, uncertainty)
-
-    def _explore(self, u_greedy: np.ndarray, x: np.ndarray, u_prev: np.ndarray) -> np.ndarray:
-        du = self._noise(x, u_prev)  # line 8
-        return np.minimum(np.maximum(u_greedy + du, self.action_space.low), self.action_space.high)
 
     def _step(self, reward: float, x: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
         """Lines 8-29 for one control step: act with the current models, then learn. A given u_k
@@ -386,7 +242,44 @@ class RMAC(Agent):
             )
         self._u_greedy = np.zeros(self.m)  # a greedy trial that follows starts from u_{-1} = 0
 
-    # -- one transition: lines 13-28 --------------------------------------------------------------------
+    def _noise(self, x: np.ndarray, u_prev: np.ndarray) -> np.ndarray:
+        """Delta u_k of line 8 for step k in x_k, after u_{k-1} (see ``RMACConfig.exploration``)."""
+        exploration = self.config.exploration
+        uncertainty = None
+        if exploration.where == "uncertain":
+            query = np.concatenate([x, self._u_query(u_prev)])
+            uncertainty = lambda: model_uncertainty(self.process, query)  # noqa: E731
+        return exploration.sample(self._k, self.m, self.rng, self.trial, uncertainty)
+
+    def _explore(self, u_greedy: np.ndarray, x: np.ndarray, u_prev: np.ndarray) -> np.ndarray:
+        du = self._noise(x, u_prev)  # line 8
+        return np.minimum(np.maximum(u_greedy + du, self.action_space.low), self.action_space.high)
+
+    # -- the policy: u = f^-1(x, R(x)) (lines 10-11) ---------------------------------------------
+    def _act(self, x: np.ndarray, u_prev: np.ndarray) -> np.ndarray:
+        """The greedy action in x: lines 10-11 without Delta u_k."""
+        x_desired = self.reference.query(x)[0]  # line 10: x_hat_{k+1} = R(x_k)
+        return self._inverse(x, x_desired, self._u_query(u_prev))
+
+    def _inverse(self, x: np.ndarray, x_desired: np.ndarray, u_query: np.ndarray) -> np.ndarray:
+        """f^-1(x, x_desired): least-squares inverse of the local process model (section 5).
+
+        The model is linearised at (x, u_query): x' = f(x, u_query) + beta_u (u - u_query), so
+        u = u_query + pinv(beta_u) wrap(x_desired - f(x, u_query)), which is the paper's
+        u = pinv(beta_u) (x_desired - beta_x x - beta_b) written around the query point. Returns
+        u = 0 when beta_u = 0 (numerically: see BETA_U_ZERO; section 5); saturated to the action bounds.
+        """
+        pred, beta, _ = self.process.query(np.concatenate([x, u_query]))
+        beta_u = beta[:, self.n : self.n + self.m]
+        if np.abs(beta_u).max() <= BETA_U_ZERO * max(1.0, np.abs(beta[:, : self.n]).max()):
+            return np.zeros(self.m)
+        u = u_query + np.linalg.pinv(beta_u) @ wrap(x_desired - pred, self.period)
+        return self.action_space.clip(u)
+
+    def _u_query(self, u_prev: np.ndarray) -> np.ndarray:
+        return u_prev if self.config.inverse_query == "previous" else np.zeros(self.m)
+
+    # -- one transition: lines 13-28 -------------------------------------------------------------
     def _learn_transition(
         self, x: np.ndarray, u: np.ndarray, reward: float, x_next: np.ndarray, v: float, model: bool
     ) -> float:
@@ -450,49 +343,7 @@ class RMAC(Agent):
         self.critic.td_update(x, v, reward, 0.0 if terminal else v_next)
         return v_next
 
-    def _reachable_score(
-        self, u: np.ndarray, pred: np.ndarray, beta_u: np.ndarray, u_model: np.ndarray
-    ) -> tuple[float, np.ndarray]:
-        """-sum_i P_i u_i^2 + gamma V(x'(u)) and x'(u) (canonical), x'(u) = pred + beta_u (u -
-        u_model), the process model's local fit at (x, u_model) extended to u."""
-        x_next = self.state_space.canonical(pred + beta_u @ (u - u_model))
-        value = self.critic.value(x_next)
-        return -float(np.sum(self._action_cost * (u * u))) + self.config.gamma * value, x_next
-
-    def _best_scored(self, pred: np.ndarray, beta_u: np.ndarray, u_model: np.ndarray) -> np.ndarray:
-        """x_r for the reachable rules other than 'vertices' (see ``RMACConfig.reachable_rule``):
-        the candidate action with the highest -P |u|^2 + gamma V(x'(u)) under the full LLR critic
-        (first of equals), refined for 'exact' by golden-section search between the best grid
-        point's neighbours; returns its predicted next state."""
-        best_score, x_r, u_best = -np.inf, None, None
-        for u in self.candidates:
-            score, x_next = self._reachable_score(u, pred, beta_u, u_model)
-            if score > best_score:
-                best_score, x_r, u_best = score, x_next, u
-        if x_r is None:  # no score above -inf (the critic's values overflow): the first candidate
-            u_best = self.candidates[0]
-            x_r = self._reachable_score(u_best, pred, beta_u, u_model)[1]
-        if self._refine_steps:
-            low, high = float(self.action_space.low[0]), float(self.action_space.high[0])
-            h = (high - low) / (self.config.reachable_grid - 1)
-            a, b = max(low, float(u_best[0]) - h), min(high, float(u_best[0]) + h)
-            f = lambda v: self._reachable_score(np.array([v]), pred, beta_u, u_model)  # noqa: E731
-            c, d = b - INV_PHI * (b - a), a + INV_PHI * (b - a)
-            (fc, xc), (fd, xd) = f(c), f(d)
-            for _ in range(self._refine_steps):
-                if fc >= fd:  # the maximum lies in [a, d]
-                    b, d, fd, xd = d, c, fc, xc
-                    c = b - INV_PHI * (b - a)
-                    fc, xc = f(c)
-                else:  # in [c, b]
-                    a, c, fc, xc = c, d, fd, xd
-                    d = a + INV_PHI * (b - a)
-                    fd, xd = f(d)
-            score, x_next = (fc, xc) if fc >= fd else (fd, xd)
-            if score > best_score:
-                x_r = x_next
-        return x_r
-
+    # -- acting without learning -----------------------------------------------------------------
     def begin_greedy_trial(self) -> None:
         """A greedy trial starts, like a learning one, from u_{-1} = 0."""
         self._u_greedy = np.zeros(self.m)
@@ -513,7 +364,49 @@ class RMAC(Agent):
         """V(x), the critic's LLR estimate."""
         return self.critic.value(self.state_space.canonical(x))
 
-    # -- prior knowledge (section 7) --------------------------------------------------------------------
+    def policy(self, states: np.ndarray, u_query: np.ndarray | None = None) -> np.ndarray:
+        """u = f^-1(x, R(x)) without exploration for a batch of states (policy plots, Fig. 4).
+
+        states: shape (q, n); u_query: shape (m,) or (q, m), where the process model is linearised
+        (default 0). Returns shape (q, m).
+        """
+        states = np.asarray(states, dtype=float).reshape(-1, self.n)
+        if not np.all(np.isfinite(states)):
+            raise ValueError("RMAC.policy: states must be finite")
+        uq = np.broadcast_to(
+            np.zeros(self.m) if u_query is None else np.asarray(u_query, dtype=float),
+            (len(states), self.m),
+        )
+        out = np.empty((len(states), self.m))
+        for i, x in enumerate(states):
+            x = self.state_space.canonical(x)
+            out[i] = self._inverse(x, self.reference.query(x)[0], uq[i])
+        return out
+
+    # -- the reachable rules beyond the paper (rmac_variants) ------------------------------------
+    def _reachable_score(
+        self, u: np.ndarray, pred: np.ndarray, beta_u: np.ndarray, u_model: np.ndarray
+    ) -> tuple[float, np.ndarray]:
+        """-sum_i P_i u_i^2 + gamma V(x'(u)) and x'(u) (canonical), x'(u) = pred + beta_u (u -
+        u_model), the process model's local fit at (x, u_model) extended to u."""
+        x_next = self.state_space.canonical(pred + beta_u @ (u - u_model))
+        value = self.critic.value(x_next)
+        return -float(np.sum(self._action_cost * (u * u))) + self.config.gamma * value, x_next
+
+    def _best_scored(self, pred: np.ndarray, beta_u: np.ndarray, u_model: np.ndarray) -> np.ndarray:
+        """x_r for the reachable rules other than 'vertices' (``rmac_variants.best_scored``): the
+        candidate action with the highest -P |u|^2 + gamma V(x'(u)) under the full LLR critic;
+        returns its predicted next state."""
+        return rmac_variants.best_scored(
+            lambda u: self._reachable_score(u, pred, beta_u, u_model),
+            self.candidates,
+            self._refine_steps,
+            float(self.action_space.low[0]),
+            float(self.action_space.high[0]),
+            self.config.reachable_grid,
+        )
+
+    # -- prior knowledge (section 7) -------------------------------------------------------------
     def _seed_from(
         self,
         states: np.ndarray,
@@ -545,7 +438,7 @@ class RMAC(Agent):
             returns = discounted_returns(rewards, trial, self.config.gamma)
             seed_memory(self.critic.memory, x, returns[:, None])
 
-    # -- state ------------------------------------------------------------------------------------------
+    # -- state -----------------------------------------------------------------------------------
     def _state(self) -> dict[str, np.ndarray]:
         """The three memories, the critic's traces and the running trial's bookkeeping."""
         state: dict[str, np.ndarray] = {}
@@ -588,3 +481,77 @@ class RMAC(Agent):
         self._u_prev[:] = state["u_prev"]
         self._v_prev[0] = float(state["v_prev"])
         self._u_greedy = np.array(state["u_greedy"], dtype=float)
+
+    # -- rehearsal, learning rates, memory and the compiled step ---------------------------------
+    def _set_rehearsing(self, rehearsing: bool) -> None:
+        """While rehearsing (planning, replay), line 14 leaves M^P unchanged."""
+        self._learns_model = not rehearsing
+
+    @property
+    def _uses_trial_counter(self) -> bool:
+        return super()._uses_trial_counter or self.config.rates_decay
+
+    def _sync_rates(self) -> None:
+        """The running trial's alpha_c and alpha_r (``RMACConfig.rates_at``), set once per trial:
+        the trial counter may also change by ``load_state_dict``."""
+        if self._rates_trial != self.trial:
+            self.critic.alpha, self._alpha_r = self.config.rates_at(self.trial)
+            if self._kernel_state is not None:
+                _rmac_kernels.set_reference_rate(self._kernel_state, self._alpha_r)
+            self._rates_trial = self.trial
+
+    @classmethod
+    def _memory_parts(
+        cls, config: RMACConfig, state_space: StateSpace, action_space: ActionSpace
+    ) -> tuple[int, int]:
+        """The three memories and the critic's traces (see :meth:`Agent.memory_estimate`)."""
+        n, m = state_space.dim, action_space.dim
+        memories = (
+            (n + m, n, config.process_capacity, config.process_neighbours),
+            (n, n, config.reference_capacity, config.reference_neighbours),
+            (n, 1, config.critic_capacity, config.critic_neighbours),
+        )
+        traces = 8 * config.critic_capacity
+        return (
+            sum(LLRMemory.memory_estimate(*memory) for memory in memories) + traces,
+            sum(LLRMemory.state_estimate(*memory[:3]) for memory in memories) + traces,
+        )
+
+    def _new_kernel_state(self) -> _rmac_kernels.RMACState | None:
+        """The compiled step's view of this agent's arrays (numba back end), else None."""
+        if self.config.backend != "numba":
+            return None
+        cfg = self.config
+        settings = _rmac_kernels.RMACSettings(
+            gamma=float(cfg.gamma),
+            alpha_r=self._alpha_r,
+            beta_u_zero=BETA_U_ZERO,
+            inverse_previous=cfg.inverse_query == "previous",
+            gradient_at_next=cfg.critic_gradient_at == "next",
+            rule=REACHABLE_RULES.index(cfg.reachable_rule),
+            action_cost=self._action_cost,
+            vertices=np.ascontiguousarray(self.vertices),
+            candidates=np.ascontiguousarray(self.candidates),
+            refine_steps=self._refine_steps,
+            insert_rate=float(cfg.reference_insert_rate),
+            period=np.ascontiguousarray(self.period, dtype=float),
+            low=self.action_space.low.copy(),
+            high=self.action_space.high.copy(),
+        )
+        return _rmac_kernels.new_state(
+            self.process.kernel_state,
+            self.reference.kernel_state,
+            self.critic.kernel_state,
+            self._x_prev,
+            self._u_prev,
+            self._v_prev,
+            settings,
+        )
+
+    def __getstate__(self) -> dict:
+        # The structref is a view of arrays pickled here; it is made anew when unpickled.
+        return {k: v for k, v in self.__dict__.items() if k != "_kernel_state"}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._kernel_state = self._new_kernel_state()

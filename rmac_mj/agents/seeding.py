@@ -35,29 +35,12 @@ def check_transitions(
     time order). ``state_dim``/``action_dim``, when given, are the n and m required. ValueError names
     the field that is wrong.
     """
-
-    def matrix(name, value, width):
-        a = np.asarray(value)
-        if a.dtype.kind not in "biuf":
-            raise ValueError(f"{owner}: {name} must be numeric, got dtype {a.dtype}")
-        a = a.astype(float)
-        if a.ndim != 2 or a.shape[0] < 1 or (width is not None and a.shape[1] != width):
-            want = f"(T, {width})" if width is not None else "(T, d)"
-            raise ValueError(f"{owner}: {name} must have shape {want} with T >= 1, got {a.shape}")
-        return a
-
-    states = matrix("states", states, state_dim)
+    states = _matrix(owner, "states", states, state_dim)
     n, T = states.shape[1], states.shape[0]
-    actions = matrix("actions", actions, action_dim)
-    next_states = matrix("next_states", next_states, n)
-    rewards = np.asarray(rewards)
-    if rewards.dtype.kind not in "biuf":
-        raise ValueError(f"{owner}: rewards must be numeric, got dtype {rewards.dtype}")
-    rewards = rewards.astype(float)
-    trial_ids = np.asarray(trial)
-    if trial_ids.dtype.kind not in "biu":
-        raise ValueError(f"{owner}: trial must hold integers, got dtype {trial_ids.dtype}")
-    trial_ids = trial_ids.astype(np.int64)
+    actions = _matrix(owner, "actions", actions, action_dim)
+    next_states = _matrix(owner, "next_states", next_states, n)
+    rewards = _numeric(owner, "rewards", rewards, "biuf", "must be numeric").astype(float)
+    trial_ids = _numeric(owner, "trial", trial, "biu", "must hold integers").astype(np.int64)
     for name, a, shape in (
         ("actions", actions, (T, actions.shape[1])),
         ("next_states", next_states, (T, n)),
@@ -89,6 +72,23 @@ def check_transitions(
             f"{trial_ids[row]}"
         )
     return states, actions, rewards, next_states, trial_ids
+
+
+def _numeric(owner: str, name: str, value: Any, kinds: str, what: str) -> np.ndarray:
+    """``value`` as an array whose dtype is of ``kinds``; ValueError naming ``name`` otherwise."""
+    a = np.asarray(value)
+    if a.dtype.kind not in kinds:
+        raise ValueError(f"{owner}: {name} {what}, got dtype {a.dtype}")
+    return a
+
+
+def _matrix(owner: str, name: str, value: Any, width: int | None) -> np.ndarray:
+    """``value`` as a float array of shape (T, width) with T >= 1 (any width for None)."""
+    a = _numeric(owner, name, value, "biuf", "must be numeric").astype(float)
+    if a.ndim != 2 or a.shape[0] < 1 or (width is not None and a.shape[1] != width):
+        want = f"(T, {width})" if width is not None else "(T, d)"
+        raise ValueError(f"{owner}: {name} must have shape {want} with T >= 1, got {a.shape}")
+    return a
 
 
 def discounted_returns(rewards: np.ndarray, trial: np.ndarray, gamma: float) -> np.ndarray:

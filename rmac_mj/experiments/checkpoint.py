@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from rmac_mj.agents import Agent
-from rmac_mj.agents.random_state import generator_state_array, set_generator_state
+from rmac_mj.agents.base import generator_state_array, set_generator_state
 from rmac_mj.results import files
 
 _AGENT, _CURVE, _ENV = "agent/", "curve/", "env/"

@@ -14,6 +14,7 @@ from rmac_mj.agents import (
     ActionSpace,
     Exploration,
     StateSpace,
+    base,
     config_class,
     make_agent,
 )
@@ -24,6 +25,7 @@ STATES = StateSpace(low=[-np.pi, -25.0], high=[np.pi, 25.0], periodic=[True, Fal
 ACTIONS = ActionSpace(low=[-3.0], high=[3.0], cost=[1.0])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("algorithm", ALGORITHMS)
 def test_constructor_checks_its_arguments_by_name(algorithm):
     agent_cls = type(make_agent(algorithm, STATES, ACTIONS, seed=0))
@@ -64,6 +66,28 @@ def test_spaces_and_exploration_reject_bad_values():
     explore = Exploration(sigma=1.0)
     draws = [explore.sample(k, 1, rng)[0] for k in range(9)]
     assert [d != 0 for d in draws] == [True, False, False] * 3  # every third step, from step 0
+
+
+def test_the_boundary_checks_are_functions_of_a_value_its_space_and_its_name():
+    x = base.check_state([0.5, 2], STATES, "x0", "rmac")
+    assert x.dtype == float and x.tolist() == [0.5, 2.0]
+    assert base.check_state([[0.5], [2.0]], STATES).shape == (2,)  # any (2,)-sized input
+    with pytest.raises(ValueError, match=r"^rmac: x0 must be finite"):
+        base.check_state([np.nan, 0.0], STATES, "x0", "rmac")
+    with pytest.raises(ValueError, match=r"x_next must have shape \(2,\)"):
+        base.check_state([0.0, 0.0, 0.0], STATES, "x_next")
+    with pytest.raises(ValueError, match=r"x\[1\] = 1e\+09 is beyond what a learner accepts"):
+        base.check_state([0.0, 1e9], STATES)
+    assert base.check_action(2.5, ACTIONS).tolist() == [2.5]  # inside or outside the bounds
+    with pytest.raises(ValueError, match=r"u must have shape \(1,\)"):
+        base.check_action([1.0, 2.0], ACTIONS)
+    with pytest.raises(ValueError, match="u must be finite"):
+        base.check_action([np.inf], ACTIONS)
+    assert base.check_reward(np.float32(-1.5)) == -1.5
+    with pytest.raises(ValueError, match="v must be a finite number"):
+        base.check_reward("a", "v")
+    with pytest.raises(ValueError, match="reward must be finite"):
+        base.check_reward(np.nan)
 
 
 # -- the shared boundary and a whole state, for every registered learner ---------------------------
@@ -122,6 +146,7 @@ def _state(timestep):
     return np.r_[timestep.observation["angle"], timestep.observation["velocity"]]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("algorithm", ALGORITHMS)
 def test_a_copy_restored_mid_trial_continues_exactly_like_the_original(algorithm):
     """state_dict holds everything that decides what the agent does next: memories, weights, traces,
@@ -364,6 +389,7 @@ def test_memory_estimate_is_what_the_learner_allocates(algorithm):
     assert 0 < small < estimate
 
 
+@pytest.mark.slow
 def test_memory_estimate_needs_no_memory_for_what_cannot_fit(tmp_path):
     """Issue 20: critic_capacity=1e9 grew to 21 GB before the OOM killer stopped it. The estimate
     says so from the config, under an address-space limit of 2 GB, while building the learner

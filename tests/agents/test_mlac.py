@@ -150,6 +150,7 @@ def _pendulum():
     return env, state_space_of(env), action_space_of(env)
 
 
+@pytest.mark.slow
 def test_back_ends_follow_the_same_trajectory():
     from rmac_mj.rollout import run_trial
 
@@ -164,6 +165,7 @@ def test_back_ends_follow_the_same_trajectory():
     np.testing.assert_allclose(actors["numba"], actors["numpy"], rtol=1e-6, atol=1e-9)
 
 
+@pytest.mark.slow
 def test_mlac_improves_on_pendulum_swingup():
     from rmac_mj.rollout import run_trial
 

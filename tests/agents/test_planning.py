@@ -294,6 +294,7 @@ def test_settings_are_checked_by_name():
         make_agent("s-ac", *undeclared, config=dict(planning=Planning(steps=1, reward="task")))
 
 
+@pytest.mark.slow
 def test_the_bench_prices_planning_and_replay_for_every_learner():
     """``rmac-mj bench`` restores one warm state (planning and replay memories filled) into learners
     configured with either or neither; each keeps the parts it holds and is priced."""

@@ -7,7 +7,7 @@ import plain_pendulum
 import pytest
 
 from rmac_mj.agents import RMAC, ActionSpace, Exploration, RMACConfig, StateSpace
-from rmac_mj.agents.rmac import EXACT_TOLERANCE  # the tolerance of its inverse model, internal
+from rmac_mj.agents.rmac_variants import EXACT_TOLERANCE  # internal: the golden section
 
 BACKENDS = ("numba", "numpy")
 NO_EXPLORATION = Exploration(sigma=0.0)
@@ -497,6 +497,7 @@ def _assert_same_state(fast, slow, when, tol):
             np.testing.assert_array_equal(a[key], b[key], err_msg=f"{key} {when}")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("options", list(_OPTION_VALUES))
 def test_back_ends_take_the_same_steps_for_every_option(options):
     """Lock step: before every step the numpy version is set to the numba agent's state, both take
@@ -571,6 +572,7 @@ def test_a_pickled_copy_continues_like_the_original(backend):
     assert _plain_pendulum_returns(twin, 2, steps=30) == expected
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("config, backend, trials", list(_PINNED))
 def test_seeded_run_is_pinned_bit_for_bit(config, backend, trials):
     S = StateSpace(
@@ -609,6 +611,7 @@ def test_same_seed_same_curve_and_state_dict_round_trip():
     assert a.greedy_action(np.array([np.pi, 0.0])) == c.greedy_action(np.array([np.pi, 0.0]))
 
 
+@pytest.mark.slow
 def test_rmac_improves_on_pendulum_swingup():
     from rmac_mj.rollout import run_trial
 

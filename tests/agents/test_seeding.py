@@ -330,6 +330,7 @@ def test_protocol_refuses_learners_and_parts_that_take_no_prior():
     assert Protocol(prior=None).is_paper_protocol
 
 
+@pytest.mark.slow
 def test_reproduce_with_prior_end_to_end(env, tmp_path, capsys):
     from rmac_mj.cli import main
 

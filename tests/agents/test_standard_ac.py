@@ -242,6 +242,7 @@ def test_boundary_errors_and_config_round_trip():
     assert config_from_dict(StandardACConfig, agent.config_dict()) == agent.config
 
 
+@pytest.mark.slow
 def test_improves_on_swingup():
     """A short run (150 trials, ~2 s): S-AC leaves the hanging-down return (about -4900) behind."""
     from rmac_mj import tasks

@@ -228,6 +228,7 @@ def test_scores_are_kept_only_under_redundancy_replacement():
     np.testing.assert_array_equal(memory.redundancy_, 0.0)
 
 
+@pytest.mark.slow
 def test_back_ends_agree_on_a_random_history():
     rng = np.random.default_rng(3)
     kwargs = dict(

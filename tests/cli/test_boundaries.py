@@ -329,6 +329,7 @@ def _bad_inputs(finished, tmp_path, factories) -> dict[str, list[list]]:
     }
 
 
+@pytest.mark.slow
 def test_every_command_refuses_bad_inputs_in_one_line(finished, tmp_path, factories):
     commands = build_parser()._subparsers._group_actions[0].choices
     bad = _bad_inputs(finished, tmp_path, factories)
@@ -359,6 +360,7 @@ def test_a_deeply_nested_json_option_is_one_line(tmp_path, args, message):
     assert len(lines[0]) < 500
 
 
+@pytest.mark.slow
 def test_a_scheduler_address_of_an_unknown_scheme_is_one_line():
     pytest.importorskip("distributed", reason="needs the [distributed] extra")
     from rmac_mj.experiments import BackendError, connect_dask

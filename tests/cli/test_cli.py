@@ -76,6 +76,7 @@ def test_bad_arguments_give_one_line(tmp_path, args, message):
     assert len(result.stderr.strip().splitlines()) == 1
 
 
+@pytest.mark.slow
 def test_reproduce_and_compare_and_policy(tmp_path):
     out = tmp_path / "run"
     result = rmac_mj(
@@ -160,6 +161,7 @@ def test_bad_hyperparameter_value_is_one_line(tmp_path):
     assert len(result.stderr.strip().splitlines()) == 1
 
 
+@pytest.mark.slow
 def test_version_and_python_dash_m():
     from rmac_mj import __version__
 
@@ -243,6 +245,7 @@ def _fake_run(directory, seed, agent_configs=None, task=None, trial_seconds=3.0)
     (directory / "summary.json").write_text(json.dumps(summary))
 
 
+@pytest.mark.slow
 def test_compare_shows_same_named_directories_apart(tmp_path):
     _fake_run(tmp_path / "a" / "run", 0)
     _fake_run(tmp_path / "b" / "run", 1, {"rmac": {"exploration": {"sigma": 0.5}}})
@@ -256,6 +259,7 @@ def test_compare_shows_same_named_directories_apart(tmp_path):
     assert (tmp_path / "cmp.png").is_file()
 
 
+@pytest.mark.slow
 def test_compare_draws_next_to_the_first_run_by_default(tmp_path):
     _fake_run(tmp_path / "a" / "run", 0)
     _fake_run(tmp_path / "b" / "run", 1)
@@ -356,6 +360,7 @@ def test_an_interrupt_before_any_result_says_nothing_is_saved(tmp_path, monkeypa
     assert "--resume" not in result.stderr  # nothing begun: there is nothing to resume
 
 
+@pytest.mark.slow
 def test_a_resume_takes_its_settings_from_the_directory(tmp_path, capsys):
     out = tmp_path / "run"
     args = [
@@ -409,6 +414,7 @@ def test_a_resume_takes_its_settings_from_the_directory(tmp_path, capsys):
     assert grown["optimal_return"] is None
 
 
+@pytest.mark.slow
 def test_running_a_finished_run_again_prints_its_summary(tmp_path, capsys):
     out = tmp_path / "run"
     args = [

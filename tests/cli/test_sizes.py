@@ -87,6 +87,7 @@ def _limited(code: str, gigabytes: int = 4) -> subprocess.CompletedProcess:
     )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "assignment",
     [
@@ -110,6 +111,7 @@ def test_a_learner_too_large_for_the_memory_is_refused_before_it_is_built(tmp_pa
     assert "Traceback" not in result.stderr and "MemoryError" not in result.stderr
 
 
+@pytest.mark.slow
 def test_compare_says_which_learner_a_summary_lacks(tmp_path):
     run = tmp_path / "run"
     _fake_run(run, 0)
@@ -130,6 +132,7 @@ def _settings(argv: list[str]):
     return runs.settings_from_files(argv, build_parser().parse_args(argv))
 
 
+@pytest.mark.slow
 def test_the_command_lines_env_completes_a_config_file(tmp_path):
     config = tmp_path / "outside.toml"
     config.write_text('[protocol]\nalgorithms = ["s-ac"]\ntrial_steps = 50\n')

@@ -378,6 +378,7 @@ def test_what_is_missing_or_wrong_is_refused_in_one_line(spec, kwargs, message):
     assert "\n" not in str(error.value)
 
 
+@pytest.mark.slow
 def test_a_box_the_specs_do_not_give_is_measured_and_a_declared_one_wins():
     spec = envs.EnvSpec(
         "dm_control:cartpole/swingup",
@@ -598,6 +599,7 @@ def test_env_fields_need_env_and_exclude_a_suite_task():
         tiny_protocol(env="gymnasium:Pendulum-v1", domain="two_link_arm", task="reach")
 
 
+@pytest.mark.slow
 def test_a_sweep_file_takes_env_and_a_learner_state_table(tmp_path):
     from rmac_mj.sweeps import load_sweep
 
@@ -631,6 +633,7 @@ def test_a_sweep_file_takes_env_and_a_learner_state_table(tmp_path):
 # The command line.
 
 
+@pytest.mark.slow
 def test_cli_config_reproduce_policy_resume_on_a_users_factory(tmp_path, capsys):
     from rmac_mj.cli import main
 
@@ -685,6 +688,7 @@ def test_cli_config_reproduce_policy_resume_on_a_users_factory(tmp_path, capsys)
     assert "one trial = 0.6 s of simulated time" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_render_a_dm_control_environment_between_its_control_steps():
     from rmac_mj.videos import render_episode
 
@@ -726,6 +730,7 @@ def test_cli_optimal_and_bench_on_an_outside_environment(capsys):
     assert all(0 < costs[key] < float("inf") for key in ("physics_step_us", "env_step_us"))
 
 
+@pytest.mark.slow
 def test_the_guides_worked_example_runs_as_it_stands(tmp_path, monkeypatch, capsys):
     import pathlib
     import re

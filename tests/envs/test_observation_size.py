@@ -43,6 +43,7 @@ def make_wide():
 '''
 
 
+@pytest.mark.slow
 def test_a_two_million_number_observation_is_refused_before_it_is_probed(tmp_path):
     factory = tmp_path / "wide.py"
     factory.write_text(WIDE)

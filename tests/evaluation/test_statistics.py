@@ -111,6 +111,7 @@ def test_summary_has_the_iqm_of_final_and_first_returns_and_the_cpu_per_simulate
     assert summary["cpu_s_per_simulated_minute"] == 6.0  # 30 s of CPU for 5 simulated minutes
 
 
+@pytest.mark.slow
 def test_reproduce_and_compare_report_the_probability_of_improvement(tmp_path, capsys):
     from rmac_mj.cli import main
     from rmac_mj.experiments import Protocol, run_protocol

@@ -81,6 +81,7 @@ def test_sac_tiles_the_four_dimensional_box(toy):
     assert np.isfinite(first) and np.any(agent.actor_ != 0)
 
 
+@pytest.mark.slow
 def test_runner_summary_and_figure_use_the_tasks_trial_length(toy, tmp_path, monkeypatch):
     from rmac_mj.solvers import optimum
 
@@ -176,6 +177,7 @@ def test_policy_maps_slice_through_the_anchor_over_the_tasks_box(toy):
         policy_slice(agent, learner_state.low, learner_state.high, anchor, dims=(2, 2))
 
 
+@pytest.mark.slow
 def test_episode_render_records_the_tasks_state_and_action(toy):
     env = tasks.load("toy", "settle", task_kwargs={"start_noise": 0.0})  # every episode alike
     policy = lambda x: np.array([5.0, -0.5])  # noqa: E731 - the torque saturates at 1 N m
@@ -250,6 +252,7 @@ def test_bench_measures_the_tasks_own_control_step(toy):
     )
 
 
+@pytest.mark.slow
 def test_cli_reproduce_policy_and_render_on_the_toy(toy, tmp_path, capsys):
     from rmac_mj.cli import main
 

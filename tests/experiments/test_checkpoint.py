@@ -38,6 +38,7 @@ def assert_same_result(a, b):
             assert value.tobytes() == b.snapshots[trial][key].tobytes(), (trial, key)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "algorithm, where",
     [
@@ -93,6 +94,7 @@ def test_a_checkpoint_of_another_protocol_or_damaged_is_not_used(tmp_path):
     np.testing.assert_array_equal(run_experiment(spec).returns, whole.returns)  # from trial 1
 
 
+@pytest.mark.slow
 def test_a_saved_experiment_leaves_no_checkpoint_and_the_run_resumes_from_one(
     tmp_path, monkeypatch
 ):

@@ -10,6 +10,7 @@ from rmac_mj.experiments import panel
 from rmac_mj.rollout import steps_per_trial
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "name, env_steps",
     [
@@ -29,6 +30,7 @@ def test_each_goal_is_read_at_the_issues_budget_in_environment_steps(name, env_s
     )  # the goal is read at an evaluation
 
 
+@pytest.mark.slow
 def test_the_panel_command_runs_every_task_into_its_own_directory(tmp_path, capsys):
     out = tmp_path / "panel"
     assert (

@@ -37,6 +37,7 @@ def test_rehearsal_steps_are_capped(config):
     assert config(steps=200).steps == 200  # what the studies use
 
 
+@pytest.mark.slow
 def test_a_tiling_is_estimated_without_allocating_it():
     script = (
         "import resource\n"

@@ -34,6 +34,7 @@ def returns_of(out, protocol):
     }
 
 
+@pytest.mark.slow
 def test_tiny_protocol_end_to_end(tmp_path, monkeypatch):
     from rmac_mj.solvers import optimum
 
@@ -86,13 +87,14 @@ def test_tiny_protocol_end_to_end(tmp_path, monkeypatch):
     assert lines[0] == "algorithm,experiment,trial,return,env_steps" and len(lines) == 1 + 2 * 4
 
 
+@pytest.mark.slow
 def test_serial_and_parallel_runs_are_identical(tmp_path):
     from learners import quick_config
 
-    from rmac_mj.agents import sb3_config
+    from rmac_mj.agents import sb3
 
     # a deep-RL baseline too, when installed: its torch and numpy streams are the learner's own
-    algorithms = ("s-ac", "sb3-sac") if sb3_config.available() else ("s-ac",)
+    algorithms = ("s-ac", "sb3-sac") if sb3.available() else ("s-ac",)
     protocol = Protocol(
         **{**TINY, "algorithms": algorithms}, agent_configs={"sb3-sac": quick_config("sb3-sac")}
     )
@@ -109,6 +111,7 @@ def test_serial_and_parallel_runs_are_identical(tmp_path):
         )  # independent experiments
 
 
+@pytest.mark.slow
 def test_resume_with_a_changed_config_is_refused(tmp_path):
     run_protocol(Protocol(**TINY), tmp_path, jobs=1, progress=False, figures=False)
     with pytest.raises(ResumeRefused, match="already holds this run, finished"):
@@ -123,6 +126,7 @@ def test_resume_with_a_changed_config_is_refused(tmp_path):
     assert "snapshot_trials: [1, 2, 4] in the directory, [1, 2, 5] now" in str(refusal.value)
 
 
+@pytest.mark.slow
 def test_a_resume_adds_experiments_and_never_drops_any(tmp_path):
     grown, fresh = tmp_path / "grown", tmp_path / "fresh"
     small, large = Protocol(**TINY), Protocol(**{**TINY, "experiments": 3})
@@ -181,6 +185,7 @@ def _wait_for(path: pathlib.Path, process: subprocess.Popen, timeout: float = 24
         time.sleep(0.02)
 
 
+@pytest.mark.slow
 def test_killed_run_resumed_equals_uninterrupted(tmp_path):
     args = [
         "reproduce",
@@ -247,6 +252,7 @@ def test_protocol_validation_names_the_parameter():
     assert not Protocol(experiments=4).is_paper_protocol
 
 
+@pytest.mark.slow
 def test_dask_scheduler_path_matches_local_run(tmp_path):
     distributed = pytest.importorskip("distributed")
     protocol = Protocol(**TINY)
@@ -267,6 +273,7 @@ def test_dask_scheduler_path_matches_local_run(tmp_path):
     )
 
 
+@pytest.mark.slow
 def test_ctrl_c_stops_workers_and_says_how_to_resume(tmp_path):
     out, marker = tmp_path / "run", tmp_path / "saved-one"
     args = [
@@ -308,6 +315,7 @@ def test_ctrl_c_stops_workers_and_says_how_to_resume(tmp_path):
     assert len(list(curves.glob("exp_*.npz"))) == 4
 
 
+@pytest.mark.slow
 @pytest.mark.baselines  # every learner, the deep-RL baselines included
 def test_every_result_file_is_readable_by_others(tmp_path):
     """Under umask 022 every file a run writes (curves, snapshots of every learner, summaries,
@@ -337,6 +345,7 @@ def test_every_result_file_is_readable_by_others(tmp_path):
         assert stat.S_IMODE(path.stat().st_mode) == 0o644, (path, oct(path.stat().st_mode))
 
 
+@pytest.mark.slow
 def test_a_non_terminal_run_prints_plain_progress_lines(tmp_path):
     """Under nohup or Slurm (output not a terminal): periodic plain lines, no carriage returns or
     escape codes; the mean return of the last trials per learner is in them."""
@@ -454,6 +463,7 @@ def _fake_near_optimal(protocol, announce):
     return -748.0, {a: -870.0 for a in protocol.algorithms}
 
 
+@pytest.mark.slow
 def test_the_near_optimal_returns_are_computed_in_a_process_of_their_own():
     messages = []
     service = NearOptimalService(
@@ -489,6 +499,7 @@ def test_compiling_says_what_and_how_long_while_it_lasts(monkeypatch):
     assert lines[-1].startswith("kernels compiled in ")
 
 
+@pytest.mark.slow
 def test_a_resumed_run_reports_the_wall_time_of_all_its_parts(tmp_path):
     protocol = Protocol(**TINY)
     first = run_protocol(protocol, tmp_path, jobs=1, progress=False, figures=False)

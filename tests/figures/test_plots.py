@@ -106,6 +106,7 @@ def test_axes_follow_the_curves_not_the_bands():
     assert summary["rmac"]["ci95_high_per_trial"][50] > 0
 
 
+@pytest.mark.slow
 def test_every_panel_has_a_legend_and_a_trial_axis():
     fig = plots.learning_curves_figure({"run": _summary(6)}, optimal_return=-748.0)
     panels = [
@@ -133,6 +134,7 @@ def test_smoothing_is_a_running_mean_stated_in_the_legend():
         plots.learning_curves_figure({"run": _summary(6)}, smooth=0)
 
 
+@pytest.mark.slow
 def test_the_detail_legend_covers_none_of_the_curves():
     fig = plots.learning_curves_figure({"run": _summary(6)}, optimal_return=-1000.0)
     fig.canvas.draw()
@@ -142,6 +144,7 @@ def test_the_detail_legend_covers_none_of_the_curves():
     assert legend.x0 >= panel.x1  # beside the panel, not over the curves' ends
 
 
+@pytest.mark.slow
 def test_profiles_of_too_few_experiments_draw_no_bands_and_say_why():
     def profile(n):
         rng = np.random.default_rng(0)
@@ -246,6 +249,7 @@ def test_the_greedy_trajectory_is_drawn_from_the_start_state():
     assert len(lines) == 1
 
 
+@pytest.mark.slow
 def test_the_readme_figure_is_redrawn_from_a_run_by_its_script(tmp_path):
     import importlib.util
     import json

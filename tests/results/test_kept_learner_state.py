@@ -78,6 +78,7 @@ def finished(tmp_path_factory) -> pathlib.Path:
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("damage", list(LEARNER_STATE))
 def test_a_snapshot_the_learner_would_refuse_is_redone_equal(finished, tmp_path, damage):
     # A snapshot whose agent/critic was replaced by a finite array of another shape survived a

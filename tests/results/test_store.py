@@ -78,6 +78,7 @@ def _lock_holder(out: pathlib.Path) -> subprocess.Popen:
     return holder
 
 
+@pytest.mark.slow
 def test_a_directory_in_use_is_refused_naming_the_run_that_holds_it(tmp_path, capsys):
     out = tmp_path / "run"
     holder = _lock_holder(out)
@@ -118,6 +119,7 @@ def test_a_lock_file_removed_by_its_last_holder_is_not_shared(tmp_path):
     second.release()
 
 
+@pytest.mark.slow
 def test_a_sweep_directory_in_use_is_refused_before_anything_is_written(tmp_path, capsys):
     """Issue 20 asks the lock of a sweep too: a second sweep on one --out is refused in one line
     naming the holder, and writes neither the index nor a configuration's directory."""
@@ -152,6 +154,7 @@ def test_a_sweep_directory_in_use_is_refused_before_anything_is_written(tmp_path
         holder.wait()
 
 
+@pytest.mark.slow
 def test_two_runs_started_at_once_on_one_directory_never_mix(tmp_path):
     """The issue's reproduction: two reproduce runs with different seeds on one --out at once. One
     runs; the other is refused naming it (or, if the first already finished, naming the setting
@@ -231,6 +234,7 @@ DAMAGE = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("damage", list(DAMAGE))
 def test_a_damaged_file_is_found_and_its_experiment_redone_equal(finished, tmp_path, damage):
     out = tmp_path / "run"
@@ -340,6 +344,7 @@ from test_runner import _hooked_cli as _hooked  # noqa: E402  (tests/ is on sys.
 from test_runner import _wait_for
 
 
+@pytest.mark.slow
 def test_sigterm_is_answered_within_a_second_on_a_huge_plan(tmp_path):
     """As many experiments planned as a protocol may have: nothing is O(planned), so the interrupt
     is answered at once and the bookkeeping (what was saved) counts what finished."""
@@ -377,6 +382,7 @@ def test_sigterm_is_answered_within_a_second_on_a_huge_plan(tmp_path):
     assert "1 finished experiment is saved" in answer and answered < 1.0, (answer, answered)
 
 
+@pytest.mark.slow
 def test_a_sweep_says_its_size_first_and_makes_directories_as_experiments_start(tmp_path):
     sweep = tmp_path / "grid.toml"
     values = ", ".join(str(0.001 * (k + 1)) for k in range(100))
@@ -434,6 +440,7 @@ def _alive(pid: int) -> bool:
     return state != "Z"
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not pathlib.Path("/proc/self/stat").exists(), reason="reads /proc")
 def test_workers_stop_when_the_driver_is_killed(tmp_path):
     out = tmp_path / "run"
@@ -491,6 +498,7 @@ def test_a_full_disk_is_one_line(tmp_path, monkeypatch, capsys):
     )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "address, named",
     [
@@ -527,6 +535,7 @@ def test_a_bad_or_unreachable_scheduler_is_one_line_and_writes_nothing(
     assert not (out / "config.json").exists() and time.monotonic() - started < 20
 
 
+@pytest.mark.slow
 def test_a_scheduler_lost_mid_run_is_one_line_naming_what_is_saved(tmp_path, monkeypatch, capsys):
     """The scheduler goes away once the first experiment is saved: one line naming what is saved
     and how to finish, the saved experiments whole, and a resume without it completes the run."""

@@ -63,6 +63,7 @@ def test_coarse_grid_agrees_with_finer_grid_within_tolerance(coarse_and_finer):
         assert np.all(np.abs(result.states[40:90, 0]) < 0.1)
 
 
+@pytest.mark.slow
 def test_dp_value_approaches_simulated_return_as_grid_refines(coarse_and_finer):
     coarse, finer = coarse_and_finer
     gap_coarse = abs(coarse.dp_value - coarse.simulated_return)
@@ -71,6 +72,7 @@ def test_dp_value_approaches_simulated_return_as_grid_refines(coarse_and_finer):
     assert gap_finer <= 0.02 * abs(finer.simulated_return)
 
 
+@pytest.mark.slow
 def test_greedy_actions_replayed_in_the_task_give_the_same_return(coarse_and_finer):
     """Same model, same reward timing (state before the step), same horizon as the learners' task."""
     result = coarse_and_finer[1]
@@ -172,6 +174,7 @@ _SMALL = OptimalConfig(
 )
 
 
+@pytest.mark.slow
 def test_noisy_rollouts_without_noise_are_the_greedy_rollout():
     grid = problem(steps=40)
     values = optimal.solve_values(_SMALL, grid)
@@ -191,6 +194,7 @@ def test_noisy_rollouts_without_noise_are_the_greedy_rollout():
     assert every_step.mean() < noisy.mean()
 
 
+@pytest.mark.slow
 def test_exploration_floor_is_cached_per_schedule(tmp_path):
     env, identity = swingup(steps=40)
 

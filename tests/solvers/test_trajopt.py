@@ -26,6 +26,7 @@ _COARSE = TrajoptConfig(corner_starts=False, random_starts=0, tolerance=1e-6, fd
 _TINY = TrajoptConfig(corner_starts=False, random_starts=0, max_iterations=1)
 
 
+@pytest.mark.slow
 def test_coarse_setting_recovers_the_pendulums_dp_value():
     result = trajopt.optimise(tasks.load("dc_pendulum", "swingup"), _COARSE)
     assert abs(result.simulated_return - PENDULUM_DP) <= PENDULUM_TOLERANCE
@@ -35,6 +36,7 @@ def test_coarse_setting_recovers_the_pendulums_dp_value():
     assert np.all(np.abs(result.actions) <= 3.0)
 
 
+@pytest.mark.slow
 def test_arm_reference_replayed_in_the_task_gives_the_same_return():
     result = trajopt.optimise(tasks.load("two_link_arm", "reach"), _COARSE)
     assert result.simulated_return > -40.0  # measured -37.65; doing nothing costs -296
@@ -100,6 +102,7 @@ def test_reference_registry_dispatches_and_rejects_unknown_tasks(tmp_path, monke
     assert calls == [("two_link_arm", "reach")] and np.isfinite(value)
 
 
+@pytest.mark.slow
 def test_cli_optimal_takes_domain_and_task(tmp_path, monkeypatch, capsys):
     real = trajopt.cached_optimise
     monkeypatch.setattr(

@@ -188,6 +188,7 @@ name = "uncertain"
     }
 
 
+@pytest.mark.slow
 def test_a_malformed_file_exits_2_with_one_line_before_running_anything(tmp_path):
     path = write(tmp_path, '[protocol]\nalgorithms = ["s-ac"]\n[grid]\n"s-ac.alpha_a" = 0.01\n')
     result = subprocess.run(
@@ -239,6 +240,7 @@ trials = 5
 from test_runner import _hooked_cli  # noqa: E402  (tests/ is on sys.path, as pytest imports it)
 
 
+@pytest.mark.slow
 def test_tiny_sweep_killed_resumed_and_summarised(tmp_path, capsys):
     path = write(tmp_path, TINY)
     killed, marker = tmp_path / "killed", tmp_path / "saved-one"
@@ -324,6 +326,7 @@ def test_tiny_sweep_killed_resumed_and_summarised(tmp_path, capsys):
         run_sweep(load_sweep(other), whole, jobs=1, resume=True, progress=False)
 
 
+@pytest.mark.slow
 def test_a_resumed_sweep_adds_experiments_to_every_configuration(tmp_path):
     out = tmp_path / "out"
     run_sweep(load_sweep(write(tmp_path, TINY)), out, jobs=1, progress=False, figures=False)
@@ -352,6 +355,7 @@ def test_a_resumed_sweep_adds_experiments_to_every_configuration(tmp_path):
         run_sweep(load_sweep(both), out, jobs=1, resume=True, progress=False)
 
 
+@pytest.mark.slow
 def test_a_small_sweep_says_its_final_window_and_that_few_experiments_mean_little(
     tmp_path, monkeypatch
 ):
@@ -443,6 +447,7 @@ def test_a_damaged_sweep_index_is_one_line_not_a_traceback(tmp_path, capsys, tex
     assert not any(p.is_dir() for p in out.iterdir())  # nothing ran
 
 
+@pytest.mark.slow
 def test_reproduce_config_equals_the_same_set_overrides(tmp_path, capsys):
     path = write(
         tmp_path,

@@ -40,6 +40,7 @@ def test_a_grid_of_a_trillion_configurations_is_refused_at_once(tmp_path):
     assert heard == []  # nothing announced, nothing enumerated
 
 
+@pytest.mark.slow
 def test_a_sweep_of_a_tiling_too_large_is_refused_before_its_learner_is_built(tmp_path):
     path = tmp_path / "tiles.toml"
     path.write_text(

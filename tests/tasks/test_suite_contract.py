@@ -84,6 +84,7 @@ def test_a_trial_is_the_declared_number_of_control_steps(domain, task):
     assert all(math.isfinite(t.reward) for t in timesteps[1:])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("domain, task", CASES)
 def test_same_seed_same_trajectory_and_observations_share_no_memory(domain, task):
     def run(seed):

@@ -31,6 +31,7 @@ def _code_strings(path: pathlib.Path) -> list[tuple[int, str]]:
     ]
 
 
+@pytest.mark.slow
 def test_nothing_outside_the_tasks_names_a_task_of_the_suite():
     """No code under rmac_mj/ (docstrings aside) holds a domain of the suite, or one of its task
     names as a whole string: what is task-specific comes from the task (``tasks.knowledge``,

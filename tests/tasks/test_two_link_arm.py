@@ -270,6 +270,7 @@ def test_model_path_finds_folder_models_and_single_files():
             model_path("dc_pendulum", scene=True)
 
 
+@pytest.mark.slow
 def test_a_tiny_reproduce_on_the_arm_end_to_end(tmp_path):
     """Both learners learn the arm through the same runner and command as the pendulum: RMAC with the
     2^2 vertices of its reachable set, S-AC with tile coding over four dimensions."""

@@ -24,6 +24,7 @@ def _arm_rows(image: np.ndarray) -> np.ndarray:
     return np.nonzero((red > 120) & (blue < 0.6 * red))[0]
 
 
+@pytest.mark.slow
 def test_frames_have_the_requested_size_and_are_not_blank():
     env = tasks.load("dc_pendulum", "swingup", task_kwargs=SHORT)
     episode = render_episode(env, energy_pump_agent(), width=160, height=120, overlay=False)
@@ -35,6 +36,7 @@ def test_frames_have_the_requested_size_and_are_not_blank():
     assert not np.array_equal(episode.frames[0], episode.frames[-1])  # it swung
 
 
+@pytest.mark.slow
 def test_arm_pixels_are_above_the_axis_upright_and_below_it_hanging():
     env = tasks.load("dc_pendulum", "swingup")
     up = render_state(env, 0.0, width=160, height=120)
@@ -46,6 +48,7 @@ def test_arm_pixels_are_above_the_axis_upright_and_below_it_hanging():
     assert 0.01 < changed.mean() < 0.2  # the arm moved; the rest of the scene did not
 
 
+@pytest.mark.slow
 def test_substep_frames_follow_the_physics_and_the_episode_is_env_step():
     env = tasks.load("dc_pendulum", "swingup", task_kwargs=SHORT)
     agent = energy_pump_agent()
@@ -70,6 +73,7 @@ def test_substep_frames_follow_the_physics_and_the_episode_is_env_step():
     np.testing.assert_allclose(fine.states[:, 0], angles, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_overlay_and_labels_draw_text():
     env = tasks.load("dc_pendulum", "swingup", task_kwargs={"time_limit": 0.03})
     plain = render_episode(env, energy_pump_agent(), width=160, height=120, overlay=False)
@@ -156,6 +160,7 @@ def _fake_results(tmp_path, monkeypatch, trials=(1, 10)):
     return tmp_path
 
 
+@pytest.mark.slow
 def test_progression_and_comparison_from_a_result_directory(tmp_path, monkeypatch):
     results = _fake_results(tmp_path, monkeypatch)
     options = {"width": 64, "height": 48, "overlay": False}
@@ -200,6 +205,7 @@ def test_missing_backend_gives_one_clear_message(monkeypatch):
         render_episode(env, energy_pump_agent())
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("frames_per_step", [1, 3])
 def test_a_3_s_episode_plays_3_s_as_a_gif(tmp_path, frames_per_step):
     """GIF delays are whole centiseconds: 1000/fps ms truncated played 1.5x too fast, and delays under
@@ -232,6 +238,7 @@ def test_gif_delays_add_up_to_real_time(fps):
     assert delays.sum() / 100 == pytest.approx(len(range(0, 301, step)) * step / fps, abs=0.005)
 
 
+@pytest.mark.slow
 def test_the_camera_frames_the_pendulum():
     """Upright and hanging, the pendulum spans most of the frame's height, centred on the axis."""
     env = tasks.load("dc_pendulum", "swingup")

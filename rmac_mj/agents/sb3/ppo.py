@@ -7,13 +7,13 @@ from typing import Any
 
 import numpy as np
 
-from rmac_mj.agents.sb3_base import SB3Agent, arrays_of_optimizer, load_optimizer, network_bytes
-from rmac_mj.agents.sb3_config import SB3PPOConfig
+from rmac_mj.agents.sb3.config import SB3PPOConfig
+from rmac_mj.agents.sb3.driver import SB3Agent, arrays_of_optimizer, load_optimizer, network_bytes
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
 
 
 class SB3PPO(SB3Agent):
-    """Stable-Baselines3's PPO (see :mod:`rmac_mj.agents.sb3_base`): rollouts of ``n_steps`` control steps
+    """Stable-Baselines3's PPO (see :mod:`rmac_mj.agents.sb3.driver`): rollouts of ``n_steps`` control steps
     across trials, each followed by ``n_epochs`` of minibatch updates (SB3's ``OnPolicyAlgorithm.learn``).
     """
 

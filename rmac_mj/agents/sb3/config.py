@@ -1,7 +1,7 @@
 """The deep-RL baselines' hyperparameters (Stable-Baselines3's defaults); can they run.
 
 Each config is checked by one constraint table (:mod:`rmac_mj.constraints`) and imports without
-torch; the learners are in :mod:`rmac_mj.agents.sb3_base`.
+torch; the learners are in :mod:`rmac_mj.agents.sb3.driver`.
 """
 
 from __future__ import annotations
@@ -65,7 +65,7 @@ class ReplayConfig:
       train_freq: update after every ``train_freq`` control steps (counted over trials).
       gradient_steps: gradient steps per update; -1: as many as ``train_freq``.
       net_arch: hidden units per layer, the same for the actor and each critic.
-      torch_threads: torch's intra-op threads (see :mod:`rmac_mj.agents.sb3_base`).
+      torch_threads: torch's intra-op threads (see :mod:`rmac_mj.agents.sb3.driver`).
     """
 
     learning_rate: float = 3e-4
@@ -214,7 +214,7 @@ class SB3PPOConfig:
       target_kl: stop an update early above this KL divergence; None: never.
       log_std_init: initial log standard deviation of the Gaussian policy.
       net_arch: hidden units per layer, the same for the policy and the value network (tanh).
-      torch_threads: torch's intra-op threads (see :mod:`rmac_mj.agents.sb3_base`).
+      torch_threads: torch's intra-op threads (see :mod:`rmac_mj.agents.sb3.driver`).
     """
 
     learning_rate: float = 3e-4

@@ -27,11 +27,11 @@ exception, TD3's exploration noise (see its config). Learning rates are constant
 need the run's total length, which a learner here does not know.
 
 Needs the ``[baselines]`` extra (torch, stable-baselines3, sb3-contrib); the configs
-(:mod:`rmac_mj.agents.sb3_config`) import without it, the learners raise an ImportError naming the
-extra. They share this module's driver (:class:`SB3Agent`: an SB3 model behind the online interface,
+(:mod:`rmac_mj.agents.sb3.config`) import without it, the learners raise an ImportError naming the
+extra. This module holds their driver (:class:`SB3Agent`: an SB3 model behind the online interface,
 its own random streams swapped in around every call into SB3, its state as flat arrays of torch
 modules and optimisers); SAC, TD3 and sb3-contrib's CrossQ are in
-:mod:`rmac_mj.agents.sb3_off_policy`, PPO in :mod:`rmac_mj.agents.sb3_ppo`.
+:mod:`rmac_mj.agents.sb3.off_policy`, PPO in :mod:`rmac_mj.agents.sb3.ppo`.
 """
 
 from __future__ import annotations
@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 
 from rmac_mj.agents.base import Agent
-from rmac_mj.agents.sb3_config import INSTALL_HINT, available
+from rmac_mj.agents.sb3.config import INSTALL_HINT, available
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
 from rmac_mj.errors import MissingExtra
 

@@ -1,4 +1,4 @@
-"""The deep-RL baselines (rmac_mj.agents.sb3_base): faithful to SB3's own learn(), and run like every learner."""
+"""The deep-RL baselines (rmac_mj.agents.sb3): faithful to SB3's own learn(), and run like every learner."""
 
 import dataclasses
 import inspect
@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from learners import quick_config
 
-from rmac_mj.agents import agent_class, config_class, make_agent, sb3_base, sb3_config
+from rmac_mj.agents import agent_class, config_class, make_agent, sb3
+from rmac_mj.agents.sb3 import driver  # patched: whether the extra is installed
 
 ENV_ID = "rmac_mj/DCPendulum-Swingup-v0"
 
@@ -104,7 +105,7 @@ def _pendulum_spaces():
 
 
 @pytest.mark.baselines
-@pytest.mark.parametrize("algorithm", sb3_config.BASELINES)
+@pytest.mark.parametrize("algorithm", sb3.BASELINES)
 def test_the_defaults_are_sb3s(algorithm):
     """Every hyperparameter SB3's constructor takes defaults to SB3's value, and the networks to SB3's
     default architecture; the exceptions are TD3's exploration noise and CrossQ's critic width
@@ -153,14 +154,12 @@ def test_network_input_is_the_gymnasium_observation():
         dm_env.physics and dm_env.task.get_observation(dm_env.physics), dm_env.task.learner_state
     )
     periodic = np.asarray(dm_env.task.learner_state.periodic)
-    np.testing.assert_array_equal(
-        sb3_base.network_input(x, periodic), observation.astype(np.float32)
-    )
+    np.testing.assert_array_equal(sb3.network_input(x, periodic), observation.astype(np.float32))
     assert tasks  # the suite's ids are registered on import
 
 
 def test_without_the_extra_the_learners_name_it(monkeypatch):  # runs without the extra too
-    monkeypatch.setattr(sb3_base, "available", lambda *package: False)
+    monkeypatch.setattr(driver, "available", lambda *package: False)
     with pytest.raises(ImportError, match=r"\[baselines\]"):
         make_agent("sb3-sac", *_pendulum_spaces(), seed=0)
     assert config_class("sb3-sac")().learning_rate == 3e-4  # the configs need no torch
@@ -180,7 +179,7 @@ def test_without_the_extra_a_run_of_a_baseline_is_refused_naming_it(
     from rmac_mj.cli import main
     from rmac_mj.errors import EXIT_BAD_INPUT
 
-    monkeypatch.setattr(sb3_base, "available", lambda *package: False)
+    monkeypatch.setattr(driver, "available", lambda *package: False)
     code = main([*args, "--out", str(tmp_path / "out")])
     lines = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
     assert code == EXIT_BAD_INPUT and len(lines) == 1, lines

@@ -7,9 +7,9 @@ from typing import Any
 
 import numpy as np
 
-from rmac_mj.agents.random_state import generator_state_array, set_generator_state
-from rmac_mj.agents.sb3_base import SB3Agent, arrays_of_optimizer, load_optimizer, network_bytes
-from rmac_mj.agents.sb3_config import SB3CrossQConfig, SB3SACConfig, SB3TD3Config
+from rmac_mj.agents.base import generator_state_array, set_generator_state
+from rmac_mj.agents.sb3.config import SB3CrossQConfig, SB3SACConfig, SB3TD3Config
+from rmac_mj.agents.sb3.driver import SB3Agent, arrays_of_optimizer, load_optimizer, network_bytes
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
 
 
@@ -195,7 +195,7 @@ class _EntropyRegularised(_OffPolicyAgent):
 
 
 class SB3SAC(_EntropyRegularised):
-    """Stable-Baselines3's SAC (see :mod:`rmac_mj.agents.sb3_base`)."""
+    """Stable-Baselines3's SAC (see :mod:`rmac_mj.agents.sb3.driver`)."""
 
     name = "sb3-sac"
     display_name = "SAC (SB3)"
@@ -214,7 +214,7 @@ class SB3SAC(_EntropyRegularised):
 
 
 class SB3CrossQ(_EntropyRegularised):
-    """sb3-contrib's CrossQ (see :mod:`rmac_mj.agents.sb3_base` and :class:`SB3CrossQConfig`): SAC's
+    """sb3-contrib's CrossQ (see :mod:`rmac_mj.agents.sb3.driver` and :class:`SB3CrossQConfig`): SAC's
     driver; the batch renormalisation statistics are part of the policy's state."""
 
     name = "sb3-crossq"
@@ -240,7 +240,7 @@ class SB3CrossQ(_EntropyRegularised):
 
 
 class SB3TD3(_OffPolicyAgent):
-    """Stable-Baselines3's TD3 (see :mod:`rmac_mj.agents.sb3_base`), with Gaussian exploration noise."""
+    """Stable-Baselines3's TD3 (see :mod:`rmac_mj.agents.sb3.driver`), with Gaussian exploration noise."""
 
     name = "sb3-td3"
     display_name = "TD3 (SB3)"
