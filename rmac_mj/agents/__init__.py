@@ -33,6 +33,8 @@ _REGISTRY = {
     "mlac": ("rmac_mj.agents.mlac", "MLAC", "MLACConfig"),
     # The learner to pick for a new task: S-AC with planning, in the task's units (recommended.py).
     "recommended": ("rmac_mj.agents.recommended", "Recommended", "RecommendedConfig"),
+    # Acts by planning in its learned models, S-AC's critic at the horizon (mpc.py).
+    "mpc": ("rmac_mj.agents.mpc", "MPC", "MPCConfig"),
     # Deep-RL baselines (Stable-Baselines3; the [baselines] extra): the room rmac_mj.agents.sb3.
     "sb3-sac": ("rmac_mj.agents.sb3.off_policy", "SB3SAC", "SB3SACConfig"),
     "sb3-td3": ("rmac_mj.agents.sb3.off_policy", "SB3TD3", "SB3TD3Config"),
@@ -145,6 +147,7 @@ _LEARNERS = {
     for module_name, agent_name, config_name in _REGISTRY.values()
     for class_name in (agent_name, config_name)
 }
+_LEARNERS["SamplingPlanner"] = "rmac_mj.agents.sampling_planner"
 
 
 def __getattr__(name: str) -> Any:
@@ -178,6 +181,9 @@ __all__ = [
     # The learners and their configs (loaded on first use, above)
     "MLAC",
     "MLACConfig",
+    "MPC",
+    "MPCConfig",
+    "SamplingPlanner",
     "RMAC",
     "RMACConfig",
     "Recommended",

@@ -44,8 +44,9 @@ class Planning:
 
     steps: int = 0
     """Simulated transitions per real transition, run after each real trial."""
-    horizon: int = 0
-    """Steps of one simulated rollout; 0: as many as the real trial just run had."""
+    horizon: int | None = 0
+    """Steps of one simulated rollout; 0: as many as the real trial just run had; None: 1 s of the
+    task (33 steps of the paper's 0.03 s)."""
     start: str = "start"
     """Where a rollout starts: 'start' (the real trial's start state), 'trajectory' (a state of the
     real trial just run, drawn uniformly) or 'memory' (a state of the model's memory, uniformly)."""
@@ -64,7 +65,7 @@ class Planning:
 
     parameter_constraints: ClassVar[dict[str, list]] = {
         "steps": [Interval(Integral, 0, REHEARSAL_STEPS)],
-        "horizon": [Interval(Integral, 0, None)],
+        "horizon": [Interval(Integral, 0, None), None],
         "start": [Options("start", "trajectory", "memory")],
         "reward": [Options("learned", "task")],
         "model_capacity": [Interval(Integral, 1, None), None],
@@ -77,6 +78,7 @@ class Planning:
     task_units: ClassVar[dict[str, tuple[str, float]]] = {
         "model_capacity": ("transitions", 2000),
         "model_neighbours": ("transitions", 9),
+        "horizon": ("steps", 33),
     }
 
     def __post_init__(self) -> None:

@@ -106,8 +106,9 @@ PAPER_ACTION_RANGE = 6.0
 #: * 'states', 'transitions': a memory size or neighbour count, grown in proportion to the dimension
 #:   of what the memory holds, n (2 on the pendulum) or n + m (3);
 #: * 'action': an exploration std, the same fraction of the action range as on the paper's +-3 V
-#:   (the mean width over action dimensions).
-TASK_UNIT_RULES = ("horizon", "reward", "states", "transitions", "action")
+#:   (the mean width over action dimensions);
+#: * 'steps': a number of control steps keeping its length in seconds (at least 1).
+TASK_UNIT_RULES = ("horizon", "reward", "states", "transitions", "action", "steps")
 
 
 def step_ratio(state_space: StateSpace) -> float:
@@ -144,6 +145,8 @@ def task_value(
         return float(
             paper_value * np.mean(action_space.high - action_space.low) / PAPER_ACTION_RANGE
         )
+    if rule == "steps":
+        return max(1, int(round(paper_value / step_ratio(state_space))))
     raise ValueError(f"unknown task-unit rule {rule!r}; one of {', '.join(TASK_UNIT_RULES)}")
 
 

@@ -7,6 +7,7 @@ of :mod:`rmac_mj.approximators.llr` (its own ``__all__``), which only compiled c
 """
 
 from rmac_mj.approximators.llr import LLRMemory
+from rmac_mj.approximators.local_fits import LocalFits
 from rmac_mj.approximators.tile_coding import LinearTileApproximator, TileCoder, TileCodingConfig
 
-__all__ = ["LLRMemory", "LinearTileApproximator", "TileCoder", "TileCodingConfig"]
+__all__ = ["LLRMemory", "LocalFits", "LinearTileApproximator", "TileCoder", "TileCodingConfig"]

@@ -1,0 +1,174 @@
+"""MPC: act by planning in the learned models, with S-AC's critic as the terminal value.
+
+Every real and greedy action comes from a sampling planner (:mod:`~rmac_mj.agents.sampling_planner`)
+over a horizon in seconds, in the learned LLR model of the process and the reward
+(:class:`~rmac_mj.agents.planning.TransitionModel`, queried through its cached local fits,
+:mod:`~rmac_mj.approximators.local_fits`); a sequence scores its predicted rewards plus the
+discounted critic value where it ends. The critic and the actor are S-AC's (Algorithm 1), learned
+from the real transitions with the actions applied and from short rollouts in the model branched
+from visited states (Dyna, :class:`~rmac_mj.agents.planning.Planning`); the actor's closed-loop
+rollout is one of the planner's population, and S-AC's exploration is added to the planned action.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import ClassVar
+
+import numpy as np
+
+from rmac_mj.agents.planning import Planning
+from rmac_mj.agents.sampling_planner import Planner, SamplingPlanner
+from rmac_mj.agents.standard_ac import StandardACConfig, StandardActorCritic
+from rmac_mj.agents.task_knowledge import PAPER_TIMESTEP
+from rmac_mj.approximators.local_fits import LocalFits
+from rmac_mj.constraints import InstanceOf
+
+
+@dataclasses.dataclass(frozen=True)
+class MPCConfig(StandardACConfig):
+    """S-AC's settings (:class:`StandardACConfig`: critic, actor, exploration) with a planner.
+
+    Attributes:
+      planner: the sampling planner that chooses every real and greedy action.
+      planning: the critic's rollouts in the learned model: ``steps`` simulated transitions per real
+        one, in rollouts of ``horizon`` control steps (None: 1 s of the task) branched from states of
+        the model's memory (visited states).
+    """
+
+    planner: SamplingPlanner = SamplingPlanner()
+    planning: Planning = Planning(steps=30, start="memory", horizon=None)
+
+    task_units: ClassVar[dict[str, tuple[str, float]]] = {
+        **StandardACConfig.task_units,
+        "alpha_a": ("reward", 0.002),
+    }
+    parameter_constraints: ClassVar[dict[str, list]] = {
+        **StandardACConfig.parameter_constraints,
+        "planner": [InstanceOf(SamplingPlanner)],
+    }
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not self.planning.steps:
+            raise ValueError("MPCConfig.planning.steps must be > 0: the planner needs the model")
+
+
+class MPC(StandardActorCritic):
+    """Model-predictive control on the learned LLR models (:class:`MPCConfig`); S-AC's interface
+    and state, plus the planner's warm start and the greedy trials' seed."""
+
+    name = "mpc"
+    display_name = "MPC (LLR models)"
+    config_class = MPCConfig
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        c, model = self.config, self.rehearsal.model
+        timestep = self.state_space.timestep or PAPER_TIMESTEP
+        self.planner = Planner(c.planner, self.action_space, timestep)
+        #: Greedy trials plan apart, so that evaluating never changes a learning trial's state.
+        self._greedy_planner = Planner(c.planner, self.action_space, timestep)
+        self.fits = LocalFits(model.memory, c.backend)
+        self._box = (model.low, model.high, model.period)
+        coder = self.coder
+        self._coder = (
+            coder.low,
+            coder.high,
+            coder.periodic,
+            coder.scale,
+            coder.offsets,
+            coder.sizes,
+            coder.strides,
+            coder.tiling_size,
+        )
+        #: Greedy trials plan with draws of their own (seeded by this and the trial count), so that
+        #: evaluating a learner never changes what it learns.
+        self.greedy_seed_ = int(self.rng.integers(2**62))
+        self._plan_rng = self.rng
+        self._rehearsing = False
+        self._greedy = False
+
+    @classmethod
+    def _memory_parts(cls, config, state_space, action_space) -> tuple[int, int]:
+        """S-AC's arrays and the model's cached fits (derived data: not in the state)."""
+        arrays, state = super()._memory_parts(config, state_space, action_space)
+        n, m, planning = state_space.dim, action_space.dim, config.planning
+        outputs = n if planning.reward == "task" else n + 1
+        fits = LocalFits.memory_estimate(
+            n + m, outputs, planning.model_capacity, planning.model_neighbours
+        )
+        return arrays + fits, state
+
+    # -- the action -----------------------------------------------------------------------------
+    def _set_rehearsing(self, rehearsing: bool) -> None:
+        super()._set_rehearsing(rehearsing)
+        self._rehearsing = rehearsing
+
+    def _plans(self) -> bool:
+        """Whether this action is planned: in real and greedy trials, once the model can fit."""
+        memory = self.rehearsal.model.memory
+        return not self._rehearsing and memory.n_samples_ >= memory.n_neighbours
+
+    def _planned(self, x: np.ndarray) -> np.ndarray:
+        x = self.state_space.canonical(x)
+        c = self.config
+        bonus = 0.0
+        if c.planner.optimism and not self._greedy:
+            bonus = c.planner.optimism * (
+                self.reward_scale_ or self.state_space.reward_scale or 1.0
+            )
+        planner = self._greedy_planner if self._greedy else self.planner
+        return planner.plan(
+            x,
+            self.fits,
+            self._box,
+            self.critic_,
+            self.actor_,
+            self._coder,
+            c.gamma,
+            self._plan_rng,
+            bonus,
+            initial=self._policy(self.coder.active_tiles(x)),
+        )
+
+    def _start(self, x0: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
+        if not self._rehearsing:
+            self.planner.reset()
+            self._greedy, self._plan_rng = False, self.rng
+        if u is None and self._plans():
+            noise = self.config.exploration.sample(0, self.action_space.dim, self.rng, self.trial)
+            u = self.action_space.clip(self._planned(x0) + noise)
+        return super()._start(x0, u)
+
+    def _step(self, reward: float, x: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
+        if u is None and self._plans():
+            k = self._k + 1
+            noise = self.config.exploration.sample(k, self.action_space.dim, self.rng, self.trial)
+            u = self.action_space.clip(self._planned(x) + noise)
+        return super()._step(reward, x, u)
+
+    def begin_greedy_trial(self) -> None:
+        """A greedy trial plans afresh, with draws seeded by the learner and its trial count."""
+        self._greedy_planner.reset()
+        self._greedy = True
+        self._plan_rng = np.random.default_rng([self.greedy_seed_, self.trials_])
+
+    def _greedy_action(self, x: np.ndarray) -> np.ndarray:
+        return self._planned(x) if self._plans() else super()._greedy_action(x)
+
+    # -- state ------------------------------------------------------------------------------------
+    def _state(self) -> dict[str, np.ndarray]:
+        state = super()._state()
+        state["greedy_seed"] = np.array(self.greedy_seed_, dtype=np.int64)
+        if self.planner.mean_ is not None:
+            state["plan"] = self.planner.mean_.copy()
+        return state
+
+    def _may_lack(self, key: str) -> bool:
+        return super()._may_lack(key) or key == "plan"
+
+    def _load_state(self, state: dict[str, np.ndarray]) -> None:
+        super()._load_state(state)
+        self.greedy_seed_ = int(state["greedy_seed"])
+        self.planner.mean_ = np.array(state["plan"], dtype=float) if "plan" in state else None
