@@ -44,6 +44,8 @@ class SamplingPlanner:
         the horizon.
       optimism: a reward bonus per unit of that ratio (capped at ``trust``), as a fraction of the
         reward's scale per step, in learning trials only: sequences into the unknown are tried.
+      act: the action applied: the refined distribution's 'mean' first step, or the first step of
+        the 'best' sequence scored in any iteration.
       search: how a rollout finds the sample whose local model answers each query: a k-d 'tree' or
         a 'scan' of the memory (the same sample; the scan is the slow reference).
     """
@@ -59,6 +61,7 @@ class SamplingPlanner:
     min_std: float = 0.05
     trust: float = 3.0
     optimism: float = 0.0
+    act: str = "mean"
     search: str = "tree"
 
     parameter_constraints: ClassVar[dict[str, list]] = {
@@ -73,6 +76,7 @@ class SamplingPlanner:
         "min_std": [Interval(Real, 0, None)],
         "trust": [Interval(Real, 0, None)],
         "optimism": [Interval(Real, 0, None)],
+        "act": [Options("mean", "best")],
         "search": [Options("tree", "scan")],
     }
 
@@ -145,6 +149,7 @@ class Planner:
         arrays = fits.kernel_arrays
         memory = fits.memory.kernel_state
         method = _k.CEM if s.method == "cem" else _k.MPPI
+        best_score, best = -np.inf, None
         for _ in range(s.iterations):
             noise = rng.standard_normal((s.population, self.H, m))
             sequences = self.sample(noise, mean, std)
@@ -165,10 +170,12 @@ class Planner:
                 fits.tree if s.search == "tree" else (),
                 self.scores_,
             )
-            _k.update_distribution(
+            top = _k.update_distribution(
                 sequences, self.scores_, s.elites, s.temperature, method, self.min_std, mean, std
             )
-        return mean[0].copy()
+            if self.scores_[top] > best_score:
+                best_score, best = self.scores_[top], sequences[top, 0].copy()
+        return best if s.act == "best" else mean[0].copy()
 
 
 def score_population_numpy(
