@@ -23,7 +23,9 @@ from rmac_mj.constraints import Boolean, Interval
 class RecommendedConfig(StandardACConfig):
     """S-AC's settings (:class:`StandardACConfig`) with planning on: ``planning.steps`` simulated
     transitions per real one, and an actor rate of 0.002 at the paper's reward scale (the smaller
-    step planning wants on the pendulum, docs/planning.md).
+    step planning wants on the pendulum, docs/planning.md), carried to the task's reward scale both
+    ways: planning refreshes the critic 30 times per real step, so it keeps up with the faster actor
+    on small rewards that S-AC's own rule refuses (docs/new-task.md).
 
     Attributes:
       lookahead: candidate actions per action dimension (evenly spaced over the bounds, both

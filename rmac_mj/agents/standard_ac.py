@@ -52,8 +52,10 @@ class StandardACConfig:
         the same horizon in seconds at the task's step dt.
       lam: trace decay lambda per control step. Paper: 0.65; None: 0.65 ** (dt / 0.03).
       alpha_a: actor learning rate (eq. 4). Paper: 0.005 at the pendulum's reward scale; None: 0.005
-        times 5 pi^2 / the task's reward scale (a TD error's size grows with the reward), and where
-        the task declares no scale, the largest |r| of the real transitions so far.
+        times min(1, 5 pi^2 / the task's reward scale): slower on larger rewards (a TD error's size
+        grows with the reward), never faster on smaller ones (the critic, learning once per real
+        step from V = 0, would be outrun; docs/new-task.md). The scale is the task's, or where it
+        declares none, the largest |r| of the real transitions so far.
       alpha_c: critic learning rate (eq. 3). Paper: 0.1.
       rate_split: which learning rates are divided over the ``num_tilings`` active weights:
         ``"both"``, ``"actor"`` or ``"none"`` (not in the paper; measured in docs/standard-ac.md).
@@ -88,7 +90,7 @@ class StandardACConfig:
     task_units: ClassVar[dict[str, tuple[str, float]]] = {
         "gamma": ("horizon", 0.97),
         "lam": ("horizon", 0.65),
-        "alpha_a": ("reward", 0.005),
+        "alpha_a": ("reward_capped", 0.005),
     }
     parameter_constraints: ClassVar[dict[str, list]] = {
         **TD_LAMBDA,
@@ -331,7 +333,8 @@ class StandardActorCritic(Agent):
         """The step per active weight of the actor with the reward's running scale ``reward_scale``."""
         alpha_a = self.config.alpha_a
         if alpha_a is None:
-            alpha_a = reward_rate(type(self.config).task_units["alpha_a"][1], reward_scale)
+            rule, paper_rate = type(self.config).task_units["alpha_a"]
+            alpha_a = reward_rate(paper_rate, reward_scale, rule)
         return alpha_a / self._split_a if self._split_a != 1 else alpha_a
 
     def _set_rehearsing(self, rehearsing: bool) -> None:

@@ -103,12 +103,16 @@ PAPER_ACTION_RANGE = 6.0
 #:   value ** (dt / 0.03) for the task's control step dt;
 #: * 'reward': a rate applied to a TD error, value * PAPER_REWARD_SCALE / the task's reward scale
 #:   (left None when the task declares none: the learner then scales by a running estimate);
+#: * 'reward_capped': as 'reward', but never above the value at the paper's pendulum: a task whose
+#:   rewards are larger slows the rate, one whose rewards are smaller keeps the paper's. For a rate
+#:   that is only safe as slow as its critic learns (S-AC's actor, whose critic learns once per real
+#:   step from V = 0): raised in proportion on small rewards it outruns the critic (docs/new-task.md);
 #: * 'states', 'transitions': a memory size or neighbour count, grown in proportion to the dimension
 #:   of what the memory holds, n (2 on the pendulum) or n + m (3);
 #: * 'action': an exploration std, the same fraction of the action range as on the paper's +-3 V
 #:   (the mean width over action dimensions);
 #: * 'steps': a number of control steps keeping its length in seconds (at least 1).
-TASK_UNIT_RULES = ("horizon", "reward", "states", "transitions", "action", "steps")
+TASK_UNIT_RULES = ("horizon", "reward", "reward_capped", "states", "transitions", "action", "steps")
 
 
 def step_ratio(state_space: StateSpace) -> float:
@@ -118,25 +122,30 @@ def step_ratio(state_space: StateSpace) -> float:
     return 1.0 if dt is None else round(dt / PAPER_TIMESTEP, 9)
 
 
-def reward_rate(paper_rate: float, reward_scale: float) -> float:
+def reward_rate(paper_rate: float, reward_scale: float, rule: str = "reward") -> float:
     """A rate applied to TD errors, ``paper_rate`` at the paper's reward scale, at ``reward_scale``
-    (at most 1); the paper's rate while the scale is unknown (0)."""
+    by ``rule`` ('reward': at most 1; 'reward_capped': at most ``paper_rate``); the paper's rate
+    while the scale is unknown (0)."""
     if not reward_scale > 0:
         return paper_rate
-    return min(1.0, paper_rate * (PAPER_REWARD_SCALE / reward_scale))
+    return min(
+        paper_rate if rule == "reward_capped" else 1.0,
+        paper_rate * (PAPER_REWARD_SCALE / reward_scale),
+    )
 
 
 def task_value(
     rule: str, paper_value: float, state_space: StateSpace, action_space: ActionSpace
 ) -> float | int | None:
     """``paper_value`` (a default at the paper's pendulum) carried to this task by ``rule`` (one of
-    :data:`TASK_UNIT_RULES`); None for 'reward' when the task declares no reward scale."""
+    :data:`TASK_UNIT_RULES`); None for 'reward' and 'reward_capped' when the task declares no reward
+    scale."""
     n, m = state_space.dim, action_space.dim
     if rule == "horizon":
         return float(paper_value ** step_ratio(state_space))
-    if rule == "reward":
+    if rule in ("reward", "reward_capped"):
         scale = getattr(state_space, "reward_scale", None)
-        return None if scale is None else reward_rate(paper_value, scale)
+        return None if scale is None else reward_rate(paper_value, scale, rule)
     if rule == "states":
         return int(round(paper_value * n / PAPER_STATE_DIM))
     if rule == "transitions":

@@ -104,12 +104,19 @@ def test_a_value_set_explicitly_wins():
     assert (config.gamma, config.critic_capacity, config.exploration.sigma) == (0.99, 300, 0.7)
 
 
-def test_s_ac_actor_rate_follows_a_declared_reward_scale():
+def test_s_ac_actor_rate_follows_a_declared_reward_scale_down_but_never_up():
+    state, action = _spaces(m=1, reward_scale=PAPER_REWARD_SCALE * 10)
+    assert make_agent("s-ac", state, action, seed=0).config.alpha_a == pytest.approx(0.0005)
+    for smaller in (PAPER_REWARD_SCALE / 10, 1e-6):
+        state, action = _spaces(m=1, reward_scale=smaller)
+        assert make_agent("s-ac", state, action, seed=0).config.alpha_a == 0.005
+
+
+def test_the_recommended_actor_rate_follows_a_declared_reward_scale_both_ways():
     state, action = _spaces(m=1, reward_scale=PAPER_REWARD_SCALE / 10)
-    agent = make_agent("s-ac", state, action, seed=0)
-    assert agent.config.alpha_a == pytest.approx(0.05)
+    assert make_agent("recommended", state, action, seed=0).config.alpha_a == pytest.approx(0.02)
     state, action = _spaces(m=1, reward_scale=1e-6)
-    assert make_agent("s-ac", state, action, seed=0).config.alpha_a == 1.0  # capped
+    assert make_agent("recommended", state, action, seed=0).config.alpha_a == 1.0  # capped
 
 
 def _drive(agent, rewards, states):
@@ -119,14 +126,14 @@ def _drive(agent, rewards, states):
     agent.stop(rewards[-1], states[-1])
 
 
-def test_s_ac_without_a_declared_scale_learns_alike_at_any_reward_scale():
-    """With the running scale (the largest |r| so far), rewards 100 times larger give the same
-    actions and actor and a critic 100 times larger."""
+def test_s_ac_without_a_declared_scale_learns_alike_at_any_larger_reward_scale():
+    """With the running scale (the largest |r| so far) above the pendulum's, rewards 100 times
+    larger give the same actions and actor and a critic 100 times larger."""
     rng = np.random.default_rng(3)
     states = rng.uniform(-1, 1, size=(41, 2))
     rewards = -rng.uniform(0, 1, size=40)
     agents = []
-    for factor in (1.0, 100.0):
+    for factor in (1e3, 1e5):
         state, action = _spaces(n=2, m=1)
         agent = make_agent("s-ac", state, action, seed=5)
         assert agent.config.alpha_a is None
@@ -136,6 +143,53 @@ def test_s_ac_without_a_declared_scale_learns_alike_at_any_reward_scale():
     assert large.reward_scale_ == pytest.approx(100 * small.reward_scale_)
     np.testing.assert_allclose(large.actor_, small.actor_, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(large.critic_, 100 * small.critic_, rtol=1e-9, atol=1e-12)
+
+
+def test_s_ac_on_smaller_rewards_keeps_the_papers_actor_rate():
+    """Rewards of a few units (a point mass's -x^2 on a box of +-2 m): the running scale is what was
+    seen, the actor's rate the paper's 0.005, not 0.005 * 5 pi^2 / 4.4 = 0.056."""
+    state, action = _spaces(n=2, m=1)
+    agent = make_agent("s-ac", state, action, seed=5)
+    _drive(agent, [-0.2, -4.4, -1.0], np.zeros((4, 2)))
+    assert agent.reward_scale_ == 4.4 and agent.rate_a == 0.005 / 16
+
+
+def _point_mass_trial(agent, x0, learn=True):
+    """One 5 s trial of a 1 kg point mass pushed by a force in [-1, 1] N towards x = 0 from rest at
+    x0 (0.05 s steps, position and speed clipped to +-2, r = -x^2 - 0.1 v^2); its return."""
+    x, total = np.array([x0, 0.0]), 0.0
+    u = agent.start(x) if learn else agent.greedy_action(x)
+    for k in range(100):
+        speed = np.clip(x[1] + 0.05 * np.clip(u[0], -1, 1), -2, 2)
+        x = np.array([np.clip(x[0] + 0.05 * speed, -2, 2), speed])
+        reward = -(x[0] ** 2) - 0.1 * x[1] ** 2
+        total += reward
+        if k == 99:
+            if learn:
+                agent.stop(reward, x)
+            return total
+        u = agent.step(reward, x) if learn else agent.greedy_action(x)
+
+
+def test_s_ac_learns_a_point_mass_with_rewards_smaller_than_the_pendulums():
+    """A user's 1-D point mass, nothing declared but its box and step: after 50 trials from random
+    starts the greedy policy does better than standing still from six starts (mean over four
+    seeds). With the actor's rate raised to 0.005 * 5 pi^2 / max |r| (up to 1 on the first, small
+    rewards, then about 0.056) the actor outran its critic: it pushed the mass away from the goal,
+    worse than standing still on every seed."""
+    starts = (-0.9, -0.6, -0.3, 0.3, 0.6, 0.9)
+    standing_still = sum(-100 * x0**2 for x0 in starts)
+    state = StateSpace(
+        low=-2 * np.ones(2), high=2 * np.ones(2), periodic=np.zeros(2, bool), timestep=0.05
+    )
+    greedy = []
+    for seed in range(4):
+        agent = make_agent("s-ac", state, ActionSpace(low=-np.ones(1), high=np.ones(1)), seed=seed)
+        rng = np.random.default_rng(seed)
+        for _ in range(50):
+            _point_mass_trial(agent, rng.uniform(-1, 1))
+        greedy.append(sum(_point_mass_trial(agent, x0, learn=False) for x0 in starts))
+    assert np.mean(greedy) > 0.85 * standing_still, (greedy, standing_still)
 
 
 def test_s_ac_running_scale_survives_a_restore():
