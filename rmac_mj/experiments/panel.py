@@ -200,7 +200,8 @@ def panel_rows(task: PanelTask, directories: Sequence[str | os.PathLike]) -> lis
     """One row per learner found in ``directories`` (result directories of ``task``'s protocol,
     e.g. the panel's and a separate SAC run): the greedy return at the goal's trial (IQM, its 95%
     stratified-bootstrap interval, the mean), the experiments that reached the goal, the environment
-    steps taken by then, and the CPU per experiment."""
+    steps taken by then, the CPU per experiment and per learning control step (the CPU of the whole
+    experiment, its greedy evaluations included, over the control steps it learned from)."""
     rows = []
     for directory in directories:
         store = ResultStore(directory)
@@ -221,6 +222,14 @@ def panel_rows(task: PanelTask, directories: Sequence[str | os.PathLike]) -> lis
             reached = int(np.sum(greedy >= task.goal))
             counted = curves.env_steps
             steps = counted[:, task.goal_trial - 1] if counted is not None else None
+            cpu = (
+                float(np.mean(curves.cpu_times)) if np.all(np.isfinite(curves.cpu_times)) else None
+            )
+            control_steps = (
+                float(np.mean(counted[:, -1])) / protocol.get("action_repeat", 1)
+                if counted is not None and np.all(np.isfinite(counted[:, -1]))
+                else None
+            )
             rows.append(
                 {
                     "learner": algorithm,
@@ -234,10 +243,9 @@ def panel_rows(task: PanelTask, directories: Sequence[str | os.PathLike]) -> lis
                         if steps is None or not np.all(np.isfinite(steps))
                         else float(np.mean(steps))
                     ),
-                    "cpu_s_per_experiment": (
-                        float(np.mean(curves.cpu_times))
-                        if np.all(np.isfinite(curves.cpu_times))
-                        else None
+                    "cpu_s_per_experiment": cpu,
+                    "ms_per_control_step": (
+                        None if cpu is None or not control_steps else 1000 * cpu / control_steps
                     ),
                     "greedy_trials": trials,
                     "greedy_per_experiment": curves.greedy_returns.tolist(),
@@ -258,8 +266,8 @@ def format_rows(task: PanelTask, rows: list[dict[str, Any]]) -> str:
         f"{task.name}: {task.goal_text}",
         "",
         f"| learner | experiments | greedy at trial {task.goal_trial} (IQM [95% CI]) | reached goal | env steps "
-        "| CPU s / experiment | CPU vs SAC |",
-        "|---|---|---|---|---|---|---|",
+        "| CPU s / experiment | CPU vs SAC | ms / control step |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for row in rows:
         low, high = row["greedy"]["ci95"]
@@ -267,9 +275,10 @@ def format_rows(task: PanelTask, rows: list[dict[str, Any]]) -> str:
         cpu = row["cpu_s_per_experiment"]
         ratio = f"{cpu / sac[0]:.3f}" if sac and cpu else ""
         steps = f"{row['env_steps']:.0f}" if row["env_steps"] is not None else "n/a"
+        ms = "" if row["ms_per_control_step"] is None else f"{row['ms_per_control_step']:.2f}"
         lines.append(
             f"| {row['learner']} | {row['experiments']} | {row['greedy']['iqm']:.1f} {ci} | "
             f"{row['reached']}/{row['experiments']} | {steps} | "
-            f"{'' if cpu is None else f'{cpu:.1f}'} | {ratio} |"
+            f"{'' if cpu is None else f'{cpu:.1f}'} | {ratio} | {ms} |"
         )
     return "\n".join(lines)

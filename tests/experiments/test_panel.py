@@ -60,6 +60,8 @@ def test_the_panel_command_runs_every_task_into_its_own_directory(tmp_path, caps
     (row,) = panel.panel_rows(task, [out / "pendulum_v1"])
     assert row["learner"] == "s-ac" and row["reached"] == 1 and row["env_steps"] == 400
     assert np.isfinite(row["greedy"]["iqm"])
+    # the CPU of the experiment over the 400 control steps it learned from (Pendulum-v1: repeat 1)
+    assert row["ms_per_control_step"] == pytest.approx(1000 * row["cpu_s_per_experiment"] / 400)
     assert "| s-ac | 1 |" in panel.format_rows(task, [row])
 
 
