@@ -130,6 +130,7 @@ def test_the_planner_settings_refuse_what_cannot_run():
     assert SamplingPlanner(horizon=0.5).steps(0.03) == 17 and SamplingPlanner().steps(2.0) == 1
 
 
+@pytest.mark.slow
 def test_mpc_swings_the_pendulum_up_within_five_trials():
     """The paper's pendulum: greedy after 5 learning trials (500 real steps) swings up and holds,
     far above hanging still (-3600 .. -4500)."""
