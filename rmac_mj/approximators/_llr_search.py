@@ -60,7 +60,7 @@ def distances(Xt, start, count, xq, w, period, norm, d):
                 d[i] += e * e
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def place(best, idx, found, k, di, i):
     """Insert the pair (di, i) into the ``found`` smallest pairs so far, ``best``/``idx`` ordered by
     (distance, index), keeping at most k; returns the new count."""
@@ -98,7 +98,7 @@ def lane_minima(d, count, n_lanes, lanes):
         lanes[lane] = v if v < lanes[lane] else lanes[lane]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _block_min(d, i):
     """min(d[i:i+16]) as a tree (independent comparisons)."""
     a0 = min(d[i], d[i + 1])
@@ -112,7 +112,7 @@ def _block_min(d, i):
     return min(min(min(a0, a1), min(a2, a3)), min(min(a4, a5), min(a6, a7)))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _scan_in_order(d, count, nk, idx_out, best, bound):
     """The nk smallest of d[:count] among the values <= bound (there must be nk), visiting values in
     index order, so that a strict comparison keeps ties in index order; blocks of 16 values that
@@ -150,7 +150,7 @@ def _scan_in_order(d, count, nk, idx_out, best, bound):
             i += 1
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _scan_from_seeds(d, count, nk, idx_out, best, seen):
     """Complete a full list of nk seeds (placed, marked in ``seen``) to the nk smallest of d[:count]:
     each value not seen is placed if it ranks before the list's last by (value, index)."""
@@ -168,7 +168,7 @@ def _scan_from_seeds(d, count, nk, idx_out, best, seen):
             i += 1
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def kth_smallest(values, n, k):
     """The k-th smallest of values[:n] (k <= n), by keeping the k smallest in order."""
     top = np.empty(k)
@@ -190,15 +190,15 @@ def kth_smallest(values, n, k):
 
 
 @njit(cache=True)
-def smallest(d, count, k, idx_out, best, seed, n_seed, seen, lanes):
+def smallest(d, count, k, idx_out, best, seed, seen, lanes):
     """The min(k, count) smallest of d[:count], ordered by (value, index): ties go to the lower
     index, as in a stable sort. Indices go to ``idx_out``, values to ``best``; returns how many.
 
     A bound on the k-th smallest value first, then one pass that skips every block of 16 values
-    above it (cheap) and places the rest. The bound comes from ``seed[:n_seed]``, distinct indices
-    of values expected to be small (the neighbours of a nearby point searched before): they fill
-    the list, and each other value is placed if it ranks before the list's last; ``seen`` (count,)
-    marks the seeds (all False before and after). Without enough seeds, from the minima of L
+    above it (cheap) and places the rest. The bound comes from ``seed`` (int64, possibly empty),
+    distinct indices of values expected to be small (the neighbours of a nearby point searched
+    before): they fill the list, and each other value is placed if it ranks before the list's last;
+    ``seen`` (count,) marks the seeds (all False before and after). Without enough seeds, from the minima of L
     interleaved lanes (L = len(lanes), at least 2k): L distinct values, so the k-th smallest of them
     is at least the k-th smallest overall (a few dozen of 2000 values lie below it). Small arrays
     are scanned without a bound. The result never depends on the seeds.
@@ -207,6 +207,7 @@ def smallest(d, count, k, idx_out, best, seed, n_seed, seen, lanes):
     if nk <= 0:
         return 0
     found = 0
+    n_seed = seed.shape[0]
     for h in range(n_seed):
         i = seed[h]
         if 0 <= i < count and not seen[i]:
