@@ -10,6 +10,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from rmac_mj._cache import say_when_compiling
+
+say_when_compiling()  # the first compilation in a process says so (the LLR memories' kernels)
+
 
 @njit(cache=True)
 def wrap(d: float, period: float) -> float:
