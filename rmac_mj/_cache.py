@@ -81,6 +81,16 @@ def numba_cache_location(environ: MutableMapping[str, str] | None = None) -> str
     return f"__pycache__ folders under {_PACKAGE_DIR}"
 
 
+def numba_cache_is_empty(environ: MutableMapping[str, str] | None = None) -> bool:
+    """Whether no kernel at all is cached yet where numba caches them (a first run): no index file
+    (``*.nbi``) in ``NUMBA_CACHE_DIR``."""
+    environ = os.environ if environ is None else environ
+    folder = environ.get(_NUMBA_ENV)
+    if not folder:
+        return False  # numba's in-tree __pycache__ folders: not known, as if warm
+    return not any(pathlib.Path(folder).rglob("*.nbi"))
+
+
 def kernel_stats() -> dict[str, int]:
     """How many of the package's kernel signatures were loaded from the disk cache (``loaded``) and how
     many were compiled (``compiled``) in this process so far (numba's per-dispatcher statistics)."""

@@ -25,6 +25,8 @@ print(json.dumps(_cache.kernel_stats()))
 
 def test_a_second_process_loads_the_kernels_instead_of_compiling_them(tmp_path):
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba")}  # a cold cache of our own
+    (tmp_path / "numba").mkdir()
+    assert _cache.numba_cache_is_empty(env)
 
     def run():
         result = subprocess.run(
@@ -35,12 +37,15 @@ def test_a_second_process_loads_the_kernels_instead_of_compiling_them(tmp_path):
             timeout=120,
             check=True,
         )
-        return json.loads(result.stdout.strip().splitlines()[-1])
+        return json.loads(result.stdout.strip().splitlines()[-1]), result.stderr
 
-    first, second = run(), run()
+    (first, said_first), (second, said_second) = run(), run()
     assert first["compiled"] >= 1  # the cold cache: compiled, and written to disk
-    assert any((tmp_path / "numba").rglob("*.nbi"))
+    assert any((tmp_path / "numba").rglob("*.nbi")) and not _cache.numba_cache_is_empty(env)
     assert second["compiled"] == 0 and second["loaded"] >= 1  # (a callee is loaded with its caller)
+    # Outside the command line (the Python API), a compiling process says so once, on stderr.
+    notice = "rmac-mj: numba is compiling the learners' kernels, first use only"
+    assert said_first.count(notice) == 1 and notice not in said_second
 
 
 def test_kernels_are_cached_per_version_of_their_sources(tmp_path):

@@ -7,8 +7,10 @@ kernels before the workers start.
 
 from __future__ import annotations
 
+import concurrent.futures
 import hashlib
 import json
+import multiprocessing
 import os
 import threading
 import time
@@ -173,15 +175,17 @@ def check_memory(
     )
 
 
-def warm_up(protocol: Protocol) -> None:
-    """Compile the kernels ``protocol``'s learners use, or load them from numba's disk cache: one
-    learning and one greedy trial of a throw-away agent of each learner, in this process.
+def warm_up(protocol: Protocol, algorithms: Iterable[str] | None = None) -> None:
+    """Compile the kernels of ``protocol``'s learners (or of ``algorithms``), or load them from
+    numba's disk cache: one learning and one greedy trial of a throw-away agent of each learner, in
+    this process. numba compiles only what these trials call: the kernels of the learners chosen,
+    with their options.
 
     Run before the worker processes start, so that they load the compiled kernels from the cache
     instead of each compiling them at once.
     """
     env = protocol.make_environment(task_seed=0)
-    for algorithm in protocol.algorithms:
+    for algorithm in protocol.algorithms if algorithms is None else algorithms:
         agent = make_agent(
             algorithm,
             state_space_of(env),
@@ -194,6 +198,20 @@ def warm_up(protocol: Protocol) -> None:
             run_trial(env, agent, learn=False)
 
 
+def warm_up_side_by_side(pairs: list[tuple[Protocol, str]], jobs: int) -> None:
+    """:func:`warm_up` of each (protocol, learner) in ``pairs`` in its own process, ``jobs`` at a
+    time (spawned: numba's compiler holds the interpreter, so threads would take turns): the
+    learners' kernels compile side by side into the shared disk cache. Learners that share kernels
+    (RMAC and MLAC: the LLR memories) may both compile those; the wall time is still the
+    slowest one's."""
+    context = multiprocessing.get_context("spawn")
+    with concurrent.futures.ProcessPoolExecutor(
+        max_workers=min(jobs, len(pairs)), mp_context=context
+    ) as pool:
+        for future in [pool.submit(warm_up, protocol, (a,)) for protocol, a in pairs]:
+            future.result()
+
+
 #: Seconds between two lines of the warm-up's progress while numba compiles.
 COMPILE_PROGRESS_SECONDS = 10.0
 
@@ -202,10 +220,16 @@ def warm_up_announced(
     protocols: Iterable[Protocol],
     log: Callable[[str], None] | None,
     interval: float = COMPILE_PROGRESS_SECONDS,
+    jobs: int = 1,
 ) -> None:
     """:func:`warm_up` once per distinct task, learner and back end (the kernels do not depend on
     the other settings), saying so when numba really compiles (the first run only): which learners'
-    kernels, then every ``interval`` seconds how long it has taken so far, then the total."""
+    kernels, then every ``interval`` seconds how long it has taken so far, then the total.
+
+    From an empty kernel cache with ``jobs`` > 1, the learners compile side by side
+    (:func:`warm_up_side_by_side`, one process each): the run waits for the slowest learner's
+    compile, not for their sum. With some kernels cached (a later run, the common case) they load
+    here, one after another, in about a second: no process to start."""
     from rmac_mj import _cache
 
     seen, chosen = set(), []
@@ -242,13 +266,20 @@ def warm_up_announced(
                     f"{time.perf_counter() - compile_started:.0f} s so far"
                 )
 
+    pairs = [(p, a) for p in chosen for a in p.algorithms]
+    side_by_side = jobs > 1 and len(pairs) > 1 and _cache.numba_cache_is_empty()
+    if side_by_side:
+        first_compile()  # the cache is empty: numba compiles, in the processes started below
     ticker = threading.Thread(target=tick, name="rmac-mj compile progress", daemon=True)
     if log is not None:
         ticker.start()
     try:
-        with _cache.on_first_compile(first_compile):
-            for protocol in chosen:
-                warm_up(protocol)
+        if side_by_side:
+            warm_up_side_by_side(pairs, jobs)
+        else:
+            with _cache.on_first_compile(first_compile):
+                for protocol in chosen:
+                    warm_up(protocol)
     finally:
         done.set()
         if ticker.is_alive():
