@@ -22,15 +22,40 @@ from typing import Any
 #: The learners whose compile ``rmac-mj bench --cold`` measures, one fresh process each.
 COLD_LEARNERS = ("rmac", "s-ac", "mlac")
 
-# The child: imports first (not counted as compiling), then the warm-up of one learner.
+#: Kernels listed per learner in the report, the costliest first.
+TOP_KERNELS = 8
+
+# The child: imports first (not counted as compiling), then the warm-up of one learner, with the
+# CPU seconds of each kernel's compilation (numba's compile events; a kernel's own share, without the
+# kernels it calls, which numba compiles first and separately unless they are inlined).
 _CHILD = """
-import json, sys, time
+import collections, json, sys, time
 started = time.process_time()
+from numba.core import event
 from rmac_mj import _cache, tasks
 from rmac_mj.agents import make_agent
 from rmac_mj.rollout import action_space_of, run_trial, state_space_of
 env = tasks.load(sys.argv[2], sys.argv[3])
 imported = time.process_time()
+own, stack = collections.defaultdict(lambda: [0, 0.0]), []
+
+class Timer(event.Listener):
+    def on_start(self, ev):
+        f = ev.data["dispatcher"].py_func
+        name = f.__module__ + "." + f.__qualname__
+        if not name.startswith("rmac_mj."):
+            name = "(numba's own overloads: np.empty, linalg, ...)"
+        stack.append([name, time.process_time(), 0.0])
+
+    def on_end(self, ev):
+        name, start, inner = stack.pop()
+        spent = time.process_time() - start
+        own[name][0] += 1
+        own[name][1] += spent - inner
+        if stack:
+            stack[-1][2] += spent
+
+event.register("numba:compile", Timer())
 wall = time.perf_counter()
 agent = make_agent(sys.argv[1], state_space_of(env), action_space_of(env), seed=0)
 run_trial(env, agent, learn=True)
@@ -40,6 +65,9 @@ print(json.dumps({
     "compile_cpu_s": time.process_time() - imported,
     "compile_wall_s": time.perf_counter() - wall,
     "kernels": _cache.kernel_stats()["compiled"],
+    "per_kernel": sorted(
+        ([k.removeprefix("rmac_mj."), n, s] for k, (n, s) in own.items()), key=lambda r: -r[2]
+    ),
 }))
 """
 
@@ -60,8 +88,8 @@ def learner_compile(
 ) -> dict[str, Any]:
     """One learner's kernels compiled from an empty cache, in a fresh process: the CPU and wall
     seconds of building it and running its first learning and greedy trial (``compile_*``; the
-    trials themselves take milliseconds), the imports' CPU apart, and how many kernel signatures
-    numba compiled."""
+    trials themselves take milliseconds), the imports' CPU apart, how many kernel signatures numba
+    compiled, and ``per_kernel``: [kernel, signatures, CPU seconds of its own], the costliest first."""
     with tempfile.TemporaryDirectory(prefix="rmac-mj-cold-") as cache:
         out = subprocess.run(
             [sys.executable, "-c", _CHILD, algorithm, domain, task],
@@ -128,6 +156,8 @@ def format_table(report: dict[str, Any]) -> str:
             f"{row['algorithm']:>8} {row['compile_cpu_s']:>10.1f} s {row['compile_wall_s']:>11.1f} s "
             f"{row['kernels']:>8d} {row['import_cpu_s']:>10.1f} s"
         )
+        for name, signatures, seconds in row["per_kernel"][:TOP_KERNELS]:
+            lines.append(f"{'':>8} {seconds:>10.1f} s  {name} ({signatures} signatures)")
     quick = report.get("quick_run")
     if quick is not None:
         lines.append(

@@ -424,3 +424,13 @@ def test_policy_maps_keep_the_labels_the_run_declared():
     other = {"environment": {"learner_state": {"keys": ["observation[0]"], "labels": ["x"]}}}
     assert _declared_labels(inferred, other) == inferred  # another state: nothing borrowed
     assert _declared_labels(inferred, {"domain": "dc_pendulum"}) == inferred
+
+
+def test_bench_cold_compiles_a_learner_from_an_empty_cache():
+    from rmac_mj.bench import cold_start
+
+    row = cold_start.learner_compile("s-ac")  # a fresh process and cache: compiled, not loaded
+    assert row["algorithm"] == "s-ac" and row["kernels"] >= 1 and row["compile_cpu_s"] > 0
+    assert any(name.startswith("agents.standard_ac.") for name, _, _ in row["per_kernel"])
+    text = cold_start.format_table({"cpus": 2, "load_before": 0.5, "learners": [row]})
+    assert text.splitlines()[2].split()[0] == "s-ac" and "agents.standard_ac." in text
