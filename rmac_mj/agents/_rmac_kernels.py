@@ -234,7 +234,7 @@ def act(s, x):
 # -- line 16: the best reachable state ----------------------------------------------------------------
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _reachable_score(s, u, u_model, model, x_next):
     """-sum_i P_i u_i^2 + gamma V(x'(u)) with x'(u) = f(x, u_model) + beta_u (u - u_model), writing
     the canonical x'(u) to x_next; see ``RMAC._reachable_score``."""

@@ -198,7 +198,9 @@ def _search(state, xq, k, idx_out, best, seed):
     distances (``seed``: see ``smallest``); remembers where it searched and the nearest sample (see
     ``insert``)."""
     count = state.counters[COUNT]
-    distances(state.Xt, np.int64(0), count, xq, state.weights, state.in_period, state.norm, state.dist)
+    distances(
+        state.Xt, np.int64(0), count, xq, state.weights, state.in_period, state.norm, state.dist
+    )
     nk = smallest(state.dist, count, k, idx_out, best, seed, state.seen, state.lanes)
     state.last_nearest = idx_out[0] if nk > 0 else -1
     for j in range(xq.shape[0]):
@@ -405,7 +407,14 @@ def insert(state, x, y, nearest):
                     state.dist,
                 )
                 smallest(
-                    state.dist, counters[COUNT], np.int64(1), one, one_d, one[:0], state.seen, state.lanes
+                    state.dist,
+                    counters[COUNT],
+                    np.int64(1),
+                    one,
+                    one_d,
+                    one[:0],
+                    state.seen,
+                    state.lanes,
                 )
                 nearest = one[0]
         one[0] = nearest

@@ -64,7 +64,7 @@ def distances(Xt, start, count, xq, w, period, norm, d):
                 d[i] += e * e
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def place(best, idx, found, k, di, i):
     """Insert the pair (di, i) into the ``found`` smallest pairs so far, ``best``/``idx`` ordered by
     (distance, index), keeping at most k; returns the new count."""
@@ -102,7 +102,7 @@ def lane_minima(d, count, n_lanes, lanes):
         lanes[lane] = v if v < lanes[lane] else lanes[lane]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _block_min(d, i):
     """min(d[i:i+16]) as a tree (independent comparisons)."""
     a0 = min(d[i], d[i + 1])
@@ -116,7 +116,7 @@ def _block_min(d, i):
     return min(min(min(a0, a1), min(a2, a3)), min(min(a4, a5), min(a6, a7)))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _scan_in_order(d, count, nk, idx_out, best, bound):
     """The nk smallest of d[:count] among the values <= bound (there must be nk), visiting values in
     index order, so that a strict comparison keeps ties in index order; blocks of 16 values that
@@ -154,7 +154,7 @@ def _scan_in_order(d, count, nk, idx_out, best, bound):
             i += 1
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _scan_from_seeds(d, count, nk, idx_out, best, seen):
     """Complete a full list of nk seeds (placed, marked in ``seen``) to the nk smallest of d[:count]:
     each value not seen is placed if it ranks before the list's last by (value, index)."""
@@ -172,7 +172,7 @@ def _scan_from_seeds(d, count, nk, idx_out, best, seen):
             i += 1
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def kth_smallest(values, n, k):
     """The k-th smallest of values[:n] (k <= n), by keeping the k smallest in order."""
     top = np.empty(k)
