@@ -159,7 +159,7 @@ def set_reference_rate(s, alpha_r):
     s.alpha_r = alpha_r
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _canonical(x, period):
     """A new array: x with its periodic entries wrapped (LLR's ``canonical``)."""
     out = np.empty(x.shape[0])
@@ -167,7 +167,7 @@ def _canonical(x, period):
     return out
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _joined(x, u):
     """[x, u], a new array."""
     n = x.shape[0]
@@ -179,7 +179,7 @@ def _joined(x, u):
     return z
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _copy(src, dst):
     """dst[:] = src for two vectors of one length (a loop: no shape check to compile)."""
     for j in range(src.shape[0]):

@@ -85,7 +85,7 @@ def value_fit(critic, x):
     return llr_local_fit(memory, xq)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def td_bound(critic, v, reward, v_next):
     """A bound on every value after :func:`td_update` (inf: the update would overflow): |V_i| and
     |v| plus |alpha_c delta|, the traces being at most 1. Known before anything changes, so that
