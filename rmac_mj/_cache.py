@@ -64,8 +64,10 @@ def configure_numba_cache(
     """
     environ = os.environ if environ is None else environ
     if environ.get(_NUMBA_ENV):
+        _remember_start(environ)
         return None
     environ[_NUMBA_ENV] = str(user_cache_dir(environ) / "numba" / kernel_source_hash(package_dir))
+    _remember_start(environ)
     if "numba" in sys.modules and environ is os.environ:  # imported before rmac_mj: too late for
         sys.modules["numba"].config.CACHE_DIR = environ[
             _NUMBA_ENV
@@ -88,7 +90,19 @@ def numba_cache_is_empty(environ: MutableMapping[str, str] | None = None) -> boo
     folder = environ.get(_NUMBA_ENV)
     if not folder:
         return False  # numba's in-tree __pycache__ folders: not known, as if warm
-    return not any(pathlib.Path(folder).rglob("*.nbi"))
+    folder = pathlib.Path(folder)
+    return not folder.is_dir() or not any(folder.rglob("*.nbi"))
+
+
+def _remember_start(environ: MutableMapping[str, str]) -> None:
+    if environ is os.environ:  # this process's own cache, before anything compiles
+        _notice["started_empty"] = numba_cache_is_empty(environ)
+
+
+def started_with_empty_cache() -> bool:
+    """Whether the kernel cache was empty when this process imported rmac_mj (a first run): then
+    nothing it needs is cached, whatever it has compiled since."""
+    return bool(_notice.get("started_empty"))
 
 
 def kernel_stats() -> dict[str, int]:
@@ -149,6 +163,16 @@ def say_when_compiling() -> None:
 
 
 @contextlib.contextmanager
+def compile_notice_muted() -> Iterator[None]:
+    """:func:`say_when_compiling` stays silent inside (the caller says it its own way)."""
+    _notice["muted"] += 1
+    try:
+        yield
+    finally:
+        _notice["muted"] -= 1
+
+
+@contextlib.contextmanager
 def on_first_compile(callback: Callable[[], None]) -> Iterator[None]:
     """Call ``callback()`` once, when numba starts its first real compilation (not a load from the disk
     cache) inside the ``with`` block: the moment to tell the user why nothing else is happening
@@ -166,9 +190,5 @@ def on_first_compile(callback: Callable[[], None]) -> Iterator[None]:
         def on_end(self, ev):
             pass
 
-    _notice["muted"] += 1
-    try:
-        with event.install_listener("numba:compile", _Listener()):
-            yield
-    finally:
-        _notice["muted"] -= 1
+    with compile_notice_muted(), event.install_listener("numba:compile", _Listener()):
+        yield

@@ -19,7 +19,7 @@ from rmac_mj import _cache
 from rmac_mj.approximators import _llr_kernels
 out = np.empty(2)
 _llr_kernels.canonical(np.array([4.0, 1.0]), np.array([2 * np.pi, 0.0]), out)
-print(json.dumps(_cache.kernel_stats()))
+print(json.dumps({**_cache.kernel_stats(), "started_empty": _cache.started_with_empty_cache()}))
 """
 
 
@@ -43,6 +43,7 @@ def test_a_second_process_loads_the_kernels_instead_of_compiling_them(tmp_path):
     assert first["compiled"] >= 1  # the cold cache: compiled, and written to disk
     assert any((tmp_path / "numba").rglob("*.nbi")) and not _cache.numba_cache_is_empty(env)
     assert second["compiled"] == 0 and second["loaded"] >= 1  # (a callee is loaded with its caller)
+    assert first["started_empty"] and not second["started_empty"]  # (run side by side: the first)
     # Outside the command line (the Python API), a compiling process says so once, on stderr.
     notice = "rmac-mj: numba is compiling the learners' kernels, first use only"
     assert said_first.count(notice) == 1 and notice not in said_second

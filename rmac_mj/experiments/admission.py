@@ -89,17 +89,20 @@ def read_prior_file(
 def resolve_agents(protocol: Protocol, spaces: TaskFacts) -> dict[str, dict[str, Any]]:
     """Each learner's resolved hyperparameters (``Agent.config_dict``) on the protocol's task; a
     learner its config cannot build there is refused as a :class:`UserInputError` naming it."""
+    from rmac_mj import _cache
+
     state_space, action_space = spaces.of(protocol)
     resolved = {}
     for algorithm in protocol.algorithms:
         try:
-            agent = make_agent(
-                algorithm,
-                state_space,
-                action_space,
-                config=protocol.agent_configs.get(algorithm),
-                seed=0,
-            )
+            with _cache.compile_notice_muted():  # a second or two; the warm-up says it all
+                agent = make_agent(
+                    algorithm,
+                    state_space,
+                    action_space,
+                    config=protocol.agent_configs.get(algorithm),
+                    seed=0,
+                )
         except (ValueError, TypeError) as error:
             raise UserInputError(f"{algorithm} on {protocol.environment_name}: {error}") from None
         resolved[algorithm] = agent.config_dict()
@@ -226,9 +229,9 @@ def warm_up_announced(
     the other settings), saying so when numba really compiles (the first run only): which learners'
     kernels, then every ``interval`` seconds how long it has taken so far, then the total.
 
-    From an empty kernel cache with ``jobs`` > 1, the learners compile side by side
-    (:func:`warm_up_side_by_side`, one process each): the run waits for the slowest learner's
-    compile, not for their sum. With some kernels cached (a later run, the common case) they load
+    In a process that started with an empty kernel cache, with ``jobs`` > 1, the learners compile
+    side by side (:func:`warm_up_side_by_side`, one process each): the run waits for the slowest
+    learner's compile, not for their sum. With some kernels cached (a later run, the common case) they load
     here, one after another, in about a second: no process to start."""
     from rmac_mj import _cache
 
@@ -267,7 +270,7 @@ def warm_up_announced(
                 )
 
     pairs = [(p, a) for p in chosen for a in p.algorithms]
-    side_by_side = jobs > 1 and len(pairs) > 1 and _cache.numba_cache_is_empty()
+    side_by_side = jobs > 1 and len(pairs) > 1 and _cache.started_with_empty_cache()
     if side_by_side:
         first_compile()  # the cache is empty: numba compiles, in the processes started below
     ticker = threading.Thread(target=tick, name="rmac-mj compile progress", daemon=True)
