@@ -201,6 +201,14 @@ def warm_up(protocol: Protocol, algorithms: Iterable[str] | None = None) -> None
             run_trial(env, agent, learn=False)
 
 
+def _warm_up_one(protocol: Protocol, algorithm: str) -> None:
+    """:func:`warm_up` of one learner in a compiler process, silent: the driver says it."""
+    from rmac_mj import _cache
+
+    with _cache.compile_notice_muted():
+        warm_up(protocol, (algorithm,))
+
+
 def warm_up_side_by_side(pairs: list[tuple[Protocol, str]], jobs: int) -> None:
     """:func:`warm_up` of each (protocol, learner) in ``pairs`` in its own process, ``jobs`` at a
     time (spawned: numba's compiler holds the interpreter, so threads would take turns): the
@@ -211,7 +219,7 @@ def warm_up_side_by_side(pairs: list[tuple[Protocol, str]], jobs: int) -> None:
     with concurrent.futures.ProcessPoolExecutor(
         max_workers=min(jobs, len(pairs)), mp_context=context
     ) as pool:
-        for future in [pool.submit(warm_up, protocol, (a,)) for protocol, a in pairs]:
+        for future in [pool.submit(_warm_up_one, protocol, a) for protocol, a in pairs]:
             future.result()
 
 
