@@ -84,12 +84,16 @@ def _children_cpu() -> float:
 
 
 def learner_compile(
-    algorithm: str, domain: str = "dc_pendulum", task: str = "swingup"
+    algorithm: str, domain: str | None = None, task: str | None = None
 ) -> dict[str, Any]:
     """One learner's kernels compiled from an empty cache, in a fresh process: the CPU and wall
     seconds of building it and running its first learning and greedy trial (``compile_*``; the
     trials themselves take milliseconds), the imports' CPU apart, how many kernel signatures numba
-    compiled, and ``per_kernel``: [kernel, signatures, CPU seconds of its own], the costliest first."""
+    compiled, and ``per_kernel``: [kernel, signatures, CPU seconds of its own], the costliest first.
+    The task: ``domain``/``task``, by default the suite's default task."""
+    from rmac_mj.tasks import DEFAULT_TASK
+
+    domain, task = domain or DEFAULT_TASK[0], task or DEFAULT_TASK[1]
     with tempfile.TemporaryDirectory(prefix="rmac-mj-cold-") as cache:
         out = subprocess.run(
             [sys.executable, "-c", _CHILD, algorithm, domain, task],
