@@ -198,9 +198,7 @@ def _search(state, xq, k, idx_out, best, seed):
     distances (``seed``: see ``smallest``); remembers where it searched and the nearest sample (see
     ``insert``)."""
     count = state.counters[COUNT]
-    distances(
-        state.Xt, np.int64(0), count, xq, state.weights, state.in_period, state.norm, state.dist
-    )
+    distances(state.Xt, 0, count, xq, state.weights, state.in_period, state.norm, state.dist)
     nk = smallest(state.dist, count, k, idx_out, best, seed, state.seen, state.lanes)
     state.last_nearest = idx_out[0] if nk > 0 else -1
     for j in range(xq.shape[0]):
@@ -398,7 +396,7 @@ def insert(state, x, y, nearest):
                 one_d = np.empty(1)
                 distances(
                     state.Xt,
-                    np.int64(0),
+                    0,
                     counters[COUNT],
                     xq,
                     state.weights,
