@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import logging
 import os
 import pathlib
 import sys
@@ -19,6 +20,14 @@ _NUMBA_ENV = "NUMBA_CACHE_DIR"
 _PACKAGE_DIR = pathlib.Path(__file__).resolve().parent
 #: Package folders that hold ``@njit(cache=True)`` kernels (numba's in-tree cache is their __pycache__).
 _KERNEL_DIRS = ("agents", "approximators")
+#: What the first compilation in a process says (:func:`say_when_compiling`), on the ``rmac_mj`` logger.
+COMPILE_NOTICE = (
+    "rmac-mj: numba is compiling the learners' kernels, first use only (about {estimate} on 2 cores; "
+    "cached in {location})"
+)
+#: The notice's estimate: RMAC's kernels, the largest, on 2 idle cores (docs/guide/speed.md).
+COMPILE_ESTIMATE = "half a minute"
+_notice = {"registered": False, "said": False, "muted": 0}
 
 
 def user_cache_dir(environ: MutableMapping[str, str] | None = None) -> pathlib.Path:
@@ -55,8 +64,10 @@ def configure_numba_cache(
     """
     environ = os.environ if environ is None else environ
     if environ.get(_NUMBA_ENV):
+        _remember_start(environ)
         return None
     environ[_NUMBA_ENV] = str(user_cache_dir(environ) / "numba" / kernel_source_hash(package_dir))
+    _remember_start(environ)
     if "numba" in sys.modules and environ is os.environ:  # imported before rmac_mj: too late for
         sys.modules["numba"].config.CACHE_DIR = environ[
             _NUMBA_ENV
@@ -70,6 +81,28 @@ def numba_cache_location(environ: MutableMapping[str, str] | None = None) -> str
     if environ.get(_NUMBA_ENV):
         return environ[_NUMBA_ENV]
     return f"__pycache__ folders under {_PACKAGE_DIR}"
+
+
+def numba_cache_is_empty(environ: MutableMapping[str, str] | None = None) -> bool:
+    """Whether no kernel at all is cached yet where numba caches them (a first run): no index file
+    (``*.nbi``) in ``NUMBA_CACHE_DIR``."""
+    environ = os.environ if environ is None else environ
+    folder = environ.get(_NUMBA_ENV)
+    if not folder:
+        return False  # numba's in-tree __pycache__ folders: not known, as if warm
+    folder = pathlib.Path(folder)
+    return not folder.is_dir() or not any(folder.rglob("*.nbi"))
+
+
+def _remember_start(environ: MutableMapping[str, str]) -> None:
+    if environ is os.environ:  # this process's own cache, before anything compiles
+        _notice["started_empty"] = numba_cache_is_empty(environ)
+
+
+def started_with_empty_cache() -> bool:
+    """Whether the kernel cache was empty when this process imported rmac_mj (a first run): then
+    nothing it needs is cached, whatever it has compiled since."""
+    return bool(_notice.get("started_empty"))
 
 
 def kernel_stats() -> dict[str, int]:
@@ -89,10 +122,61 @@ def kernel_stats() -> dict[str, int]:
     return {"loaded": loaded, "compiled": compiled}
 
 
+def _is_ours(ev) -> bool:
+    dispatcher = ev.data.get("dispatcher")
+    module = getattr(getattr(dispatcher, "py_func", None), "__module__", None) or ""
+    return module.startswith("rmac_mj")
+
+
+def say_when_compiling() -> None:
+    """Make the first compilation of one of the package's kernels in this process (a load from the
+    disk cache is none) say so once: on the ``rmac_mj`` logger when logging is set up to show its
+    INFO lines, else on stderr. Without it a learner built from empty caches is silent for as long
+    as numba compiles.
+
+    Called by every module that defines kernels, when imported (registering twice is a no-op);
+    silent inside :func:`on_first_compile`, whose caller says it its own way.
+    """
+    if _notice["registered"]:
+        return
+    from numba.core import event
+
+    class _Notice(event.Listener):
+        def on_start(self, ev):
+            if _notice["said"] or _notice["muted"] or not _is_ours(ev):
+                return
+            _notice["said"] = True
+            message = COMPILE_NOTICE.format(
+                estimate=COMPILE_ESTIMATE, location=numba_cache_location()
+            )
+            logger = logging.getLogger("rmac_mj")
+            if logger.hasHandlers() and logger.isEnabledFor(logging.INFO):
+                logger.info(message)
+            else:
+                print(message, file=sys.stderr, flush=True)
+
+        def on_end(self, ev):
+            pass
+
+    event.register("numba:compile", _Notice())
+    _notice["registered"] = True
+
+
+@contextlib.contextmanager
+def compile_notice_muted() -> Iterator[None]:
+    """:func:`say_when_compiling` stays silent inside (the caller says it its own way)."""
+    _notice["muted"] += 1
+    try:
+        yield
+    finally:
+        _notice["muted"] -= 1
+
+
 @contextlib.contextmanager
 def on_first_compile(callback: Callable[[], None]) -> Iterator[None]:
     """Call ``callback()`` once, when numba starts its first real compilation (not a load from the disk
-    cache) inside the ``with`` block: the moment to tell the user why nothing else is happening."""
+    cache) inside the ``with`` block: the moment to tell the user why nothing else is happening
+    (:func:`say_when_compiling` stays silent meanwhile)."""
     from numba.core import event
 
     class _Listener(event.Listener):
@@ -106,5 +190,5 @@ def on_first_compile(callback: Callable[[], None]) -> Iterator[None]:
         def on_end(self, ev):
             pass
 
-    with event.install_listener("numba:compile", _Listener()):
+    with compile_notice_muted(), event.install_listener("numba:compile", _Listener()):
         yield

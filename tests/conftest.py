@@ -85,7 +85,7 @@ def pytest_configure(config):
                 return
             with capture.global_and_fixture_disabled():  # inside a test: past its output capture
                 reporter.write_line(
-                    f"compiling the learners' kernels, first run only (about a minute "
+                    f"compiling the learners' kernels, first run only (about half a minute "
                     f"on 2 cores; cached in {_cache.numba_cache_location()})"
                 )
 

@@ -20,13 +20,15 @@ from rmac_mj import _cache
 from rmac_mj.approximators import _llr_kernels
 out = np.empty(2)
 _llr_kernels.canonical(np.array([4.0, 1.0]), np.array([2 * np.pi, 0.0]), out)
-print(json.dumps(_cache.kernel_stats()))
+print(json.dumps({**_cache.kernel_stats(), "started_empty": _cache.started_with_empty_cache()}))
 """
 
 
 @pytest.mark.slow
 def test_a_second_process_loads_the_kernels_instead_of_compiling_them(tmp_path):
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba")}  # a cold cache of our own
+    (tmp_path / "numba").mkdir()
+    assert _cache.numba_cache_is_empty(env)
 
     def run():
         result = subprocess.run(
@@ -37,12 +39,16 @@ def test_a_second_process_loads_the_kernels_instead_of_compiling_them(tmp_path):
             timeout=120,
             check=True,
         )
-        return json.loads(result.stdout.strip().splitlines()[-1])
+        return json.loads(result.stdout.strip().splitlines()[-1]), result.stderr
 
-    first, second = run(), run()
+    (first, said_first), (second, said_second) = run(), run()
     assert first["compiled"] >= 1  # the cold cache: compiled, and written to disk
-    assert any((tmp_path / "numba").rglob("*.nbi"))
+    assert any((tmp_path / "numba").rglob("*.nbi")) and not _cache.numba_cache_is_empty(env)
     assert second["compiled"] == 0 and second["loaded"] >= 1  # (a callee is loaded with its caller)
+    assert first["started_empty"] and not second["started_empty"]  # (run side by side: the first)
+    # Outside the command line (the Python API), a compiling process says so once, on stderr.
+    notice = "rmac-mj: numba is compiling the learners' kernels, first use only"
+    assert said_first.count(notice) == 1 and notice not in said_second
 
 
 def test_kernels_are_cached_per_version_of_their_sources(tmp_path):

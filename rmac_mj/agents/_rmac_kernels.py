@@ -170,16 +170,26 @@ def _canonical(x, period):
 @njit(cache=True)
 def _joined(x, u):
     """[x, u], a new array."""
-    z = np.empty(x.shape[0] + u.shape[0])
-    z[: x.shape[0]] = x
-    z[x.shape[0] :] = u
+    n = x.shape[0]
+    z = np.empty(n + u.shape[0])
+    for j in range(n):
+        z[j] = x[j]
+    for i in range(u.shape[0]):
+        z[n + i] = u[i]
     return z
+
+
+@njit(cache=True)
+def _copy(src, dst):
+    """dst[:] = src for two vectors of one length (a loop: no shape check to compile)."""
+    for j in range(src.shape[0]):
+        dst[j] = src[j]
 
 
 # -- the policy: u = f^-1(x, R(x)) -------------------------------------------------------------------
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def inverse(s, x, x_desired, u_query):
     """f^-1(x, x_desired) linearised at (x, u_query); see ``RMAC._inverse``."""
     P = s.process
@@ -204,13 +214,15 @@ def inverse(s, x, x_desired, u_query):
             be += beta_u[j, 0] * e[j]
         u[0] = u_query[0] + be / bb
     else:
-        u[:] = u_query + np.linalg.pinv(beta_u) @ e
+        du = np.linalg.pinv(beta_u) @ e
+        for i in range(m):
+            u[i] = u_query[i] + du[i]
     for i in range(m):
         u[i] = min(max(u[i], s.low[i]), s.high[i])
     return u
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def act(s, x):
     """The greedy action in a canonical x: lines 10-11 without Delta u_k."""
     xq = _canonical(x, s.period)  # (as LLRMemory.query does)
@@ -245,7 +257,7 @@ def _reachable_score(s, u, u_model, model, x_next):
     return -cost + s.gamma * v[0]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _best_scored(s, u_model, model):
     """x_r for the rules other than 'vertices': the candidate with the highest score, refined by
     golden-section search for 'exact'; see ``RMAC._best_reachable``."""
@@ -261,7 +273,7 @@ def _best_scored(s, u_model, model):
         if score > best_score:
             best_score = score
             best = c
-            x_r[:] = x_next
+            _copy(x_next, x_r)
     if best < 0:  # no score above -inf (the critic's values overflow): the first candidate
         best = 0
         _reachable_score(s, cands[0], u_model, model, x_r)
@@ -283,25 +295,25 @@ def _best_scored(s, u_model, model):
                 b = ud[0]
                 ud[0] = uc[0]
                 fd = fc
-                xd[:] = xc
+                _copy(xc, xd)
                 uc[0] = b - _INV_PHI * (b - a)
                 fc = _reachable_score(s, uc, u_model, model, xc)
             else:  # in [c, b]
                 a = uc[0]
                 uc[0] = ud[0]
                 fc = fd
-                xc[:] = xd
+                _copy(xd, xc)
                 ud[0] = a + _INV_PHI * (b - a)
                 fd = _reachable_score(s, ud, u_model, model, xd)
         if fc >= fd:
             if fc > best_score:
-                x_r[:] = xc
+                _copy(xc, x_r)
         elif fd > best_score:
-            x_r[:] = xd
+            _copy(xd, x_r)
     return x_r
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _best_vertex(s, x, u, x_next, model, value):
     """x_r of the paper's rule: the vertex of X_R = beta^P U_R (linearised at (x, u)) with the
     highest value under the critic's local linear model, fitted at x' (``value``) or at x."""
@@ -338,7 +350,7 @@ def _best_vertex(s, x, u, x_next, model, value):
     return x_r
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def best_reachable(s, x, u, x_next, model, value):
     """Line 16: x_r, the best state reachable from x under the process model's local fit at (x, u)
     (``model``), with the critic's fit at x' (``value``) for the paper's rule."""
@@ -350,7 +362,7 @@ def best_reachable(s, x, u, x_next, model, value):
 # -- lines 17-20: the reference model -------------------------------------------------------------------
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def update_reference(s, x, x_r):
     """Lines 17-20: insert [x | x_r] in M^R (or R(x) moved towards x_r: ``insert_rate``), then move
     the samples K(x) of before the insertion towards x_r by alpha_r."""
@@ -375,7 +387,7 @@ def update_reference(s, x, x_r):
 # -- lines 13-28: one transition ------------------------------------------------------------------------
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def learn(s, x, u, reward, x_next, v, model_learns, terminal):
     """Lines 13-28 for the transition (x, u, r, x') from canonical states, with V(x) = ``v``;
     returns V(x') (line 22, before the critic's update). ``model_learns``: line 14 inserts the
@@ -403,30 +415,28 @@ def learn(s, x, u, reward, x_next, v, model_learns, terminal):
 
 
 @njit(cache=True)
-def step(s, reward, x, du, model_learns):
+def step(s, reward, x, du, model_learns, last, terminal):
     """One control step in one compiled call, for a checked state x (periodic entries are wrapped
     here): u_k = sat(f^-1(x_k, R(x_k)) + Delta u_k) with the models as they are (lines 10-12), then
     lines 13-28 (line 14 only if ``model_learns``: not in a simulated trial); then x_prev, u_prev,
-    v_prev advance to x_k, u_k, V_k. Returns u_k, or NaN when the transition was refused
-    (``learn``)."""
+    v_prev advance to x_k, u_k, V_k. With ``last``, the trial's last transition, into x = x_K: lines
+    13-28 only, no action (``du`` is not read, u_k is empty) and nothing advances; ``terminal``: x_K
+    is terminal, V(x_K) = 0 in the TD error.
+
+    Returns (u_k, V_k), V_k NaN when the transition was refused (``learn``: nothing changed, nothing
+    advances). One kernel for both, so that the learning step is compiled once.
+    """
     x = _canonical(x, s.period)
-    u = act(s, x)
-    for i in range(u.shape[0]):
-        u[i] = min(max(u[i] + du[i], s.low[i]), s.high[i])
-    v_next = learn(s, s.x_prev, s.u_prev, reward, x, s.v_prev[0], model_learns, False)
-    if np.isnan(v_next):
-        u[:] = np.nan  # refused (see ``learn``): the step does not advance
-        return u
+    m = s.u_prev.shape[0]
+    u = np.empty(0 if last else m)
+    if not last:
+        u = act(s, x)
+        for i in range(m):
+            u[i] = min(max(u[i] + du[i], s.low[i]), s.high[i])
+    v_next = learn(s, s.x_prev, s.u_prev, reward, x, s.v_prev[0], model_learns, terminal)
+    if last or np.isnan(v_next):
+        return u, v_next
     s.v_prev[0] = v_next
-    s.x_prev[:] = x
-    s.u_prev[:] = u
-    return u
-
-
-@njit(cache=True)
-def stop(s, reward, x, model_learns, terminal):
-    """The last transition of a trial (lines 13-28, no action) for a checked state x (``terminal``:
-    V(x) = 0 in the TD error); returns V_K (NaN: refused, see ``learn``)."""
-    return learn(
-        s, s.x_prev, s.u_prev, reward, _canonical(x, s.period), s.v_prev[0], model_learns, terminal
-    )
+    _copy(x, s.x_prev)
+    _copy(u, s.u_prev)
+    return u, v_next

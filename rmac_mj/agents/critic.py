@@ -74,7 +74,7 @@ def set_rate(critic, alpha):
     critic.alpha = alpha
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def value_fit(critic, x):
     """V(x) and its local linear model: a ``LocalFit`` (prediction (1,), beta (1, n+1)); periodic
     entries of x are wrapped here (as ``LLRMemory.query`` does). K(x) is kept for the update at x
@@ -101,13 +101,13 @@ def td_bound(critic, v, reward, v_next):
     return bound if np.isfinite(bound) else np.inf
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def td_overflows(critic, v, reward, v_next):
     """Whether the update of :func:`td_update` would overflow (:func:`td_bound`)."""
     return not np.isfinite(td_bound(critic, v, reward, v_next))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def td_update(critic, x, v, reward, v_next):
     """Lines 23-27 for the transition from a canonical x with V(x) = ``v`` to x' with V(x') =
     ``v_next``: insert [x | v], then the TD(lambda) step on every sample. Returns delta; a delta

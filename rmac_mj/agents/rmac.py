@@ -30,6 +30,8 @@ __all__ = ["RMAC", "RMACConfig"]
 #: neighbour of the process model holds the same action, the truncated fit removes the u direction
 #: and rounding alone would otherwise decide a saturated action's sign.
 BETA_U_ZERO = 1e-9
+#: ``du`` of the compiled step's last transition of a trial, which takes no action.
+_NO_ACTION = np.empty(0)
 
 
 class RMAC(Agent):
@@ -207,8 +209,10 @@ class RMAC(Agent):
             du = self._noise(x, self._u_prev)  # line 8
             # Lines 10-28 in one compiled call (x wrapped there), which also advances x_prev,
             # u_prev and v_prev; it returns a new array.
-            u = _rmac_kernels.step(self._kernel_state, reward, x, du, self._learns_model)
-            if u[0] != u[0]:
+            u, v = _rmac_kernels.step(
+                self._kernel_state, reward, x, du, self._learns_model, False, False
+            )
+            if v != v:
                 raise self._overflow(reward)
             return u
         x = self.state_space.canonical(x)
@@ -226,9 +230,10 @@ class RMAC(Agent):
         the TD error), no action."""
         self._sync_rates()
         if self._kernel_state is not None:
-            if np.isnan(
-                _rmac_kernels.stop(self._kernel_state, reward, x, self._learns_model, terminal)
-            ):
+            _, v = _rmac_kernels.step(
+                self._kernel_state, reward, x, _NO_ACTION, self._learns_model, True, bool(terminal)
+            )
+            if v != v:
                 raise self._overflow(reward)
         else:
             self._learn(

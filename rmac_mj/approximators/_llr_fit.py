@@ -10,7 +10,7 @@ from numba import njit
 from rmac_mj.approximators._llr_search import wrap
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def jacobi_eigh(G, evals, evecs):
     """Eigen-decomposition G = evecs diag(evals) evecs^T of a small symmetric matrix (p, p) by cyclic
     Jacobi rotations (evals unsorted; G is overwritten). For p <= 4 this is twice as fast as

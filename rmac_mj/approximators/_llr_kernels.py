@@ -177,13 +177,13 @@ def new_state(arrays, settings):
     return state
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def size(state):
     """The number of samples stored."""
     return state.counters[COUNT]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def version(state):
     """The count of changes to the memory's inputs so far."""
     return state.counters[VERSION]
@@ -193,19 +193,21 @@ def version(state):
 
 
 @njit(cache=True)
-def _search(state, xq, k, idx_out, best, seed, n_seed):
+def _search(state, xq, k, idx_out, best, seed):
     """The min(k, count) nearest samples to a canonical xq, by (distance, index), with their
-    distances; remembers where it searched and the nearest sample (see ``insert``)."""
+    distances (``seed``: see ``smallest``); remembers where it searched and the nearest sample (see
+    ``insert``)."""
     count = state.counters[COUNT]
     distances(state.Xt, 0, count, xq, state.weights, state.in_period, state.norm, state.dist)
-    nk = smallest(state.dist, count, k, idx_out, best, seed, n_seed, state.seen, state.lanes)
+    nk = smallest(state.dist, count, k, idx_out, best, seed, state.seen, state.lanes)
     state.last_nearest = idx_out[0] if nk > 0 else -1
-    state.last_point[:] = xq
+    for j in range(xq.shape[0]):
+        state.last_point[j] = xq[j]
     state.last_version = state.counters[VERSION]
     return nk
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def fit_at(state, xq, idx, nk, beta_out, pred_out):
     """The local model at a canonical xq from the neighbours ``idx[:nk]`` (see ``fit``)."""
     fit(
@@ -234,7 +236,7 @@ def query(state, x, idx_out, beta_out, pred_out):
         return -1
     xq = np.empty(x.shape[0])
     canonical(x, state.in_period, xq)
-    nk = _search(state, xq, state.n_neighbours, idx_out, state.best, idx_out, 0)
+    nk = _search(state, xq, state.n_neighbours, idx_out, state.best, idx_out[:0])
     fit_at(state, xq, idx_out, nk, beta_out, pred_out)
     return nk
 
@@ -243,20 +245,20 @@ def query(state, x, idx_out, beta_out, pred_out):
 def neighbours(state, xq, idx_out):
     """K(xq) for a canonical xq (periodic entries in [-period/2, period/2)): the nearest samples,
     nearest first, written to ``idx_out`` (K,); returns how many."""
-    return _search(state, xq, state.n_neighbours, idx_out, state.best, idx_out, 0)
+    return _search(state, xq, state.n_neighbours, idx_out, state.best, idx_out[:0])
 
 
-@njit(cache=True)
-def candidates(state, xq, idx_out, dist_out, seed, n_seed):
+@njit(cache=True, inline="always")
+def candidates(state, xq, idx_out, dist_out, seed):
     """The min(K+1, count) nearest samples to a canonical xq, nearest first, with their distances
     (``idx_out``, ``dist_out``: shape (K+1,)); returns how many. The first min(K, count) are K(xq),
-    and the list can be carried across one insertion with ``refresh``. ``seed[:n_seed]``: distinct
-    samples likely near xq (e.g. such a list of a point close by), to search faster; n_seed = 0
-    for none. The result does not depend on them."""
-    return _search(state, xq, state.n_neighbours + 1, idx_out, dist_out, seed, n_seed)
+    and the list can be carried across one insertion with ``refresh``. ``seed``: distinct samples
+    likely near xq (e.g. such a list of a point close by), to search faster; empty for none. The
+    result does not depend on them."""
+    return _search(state, xq, state.n_neighbours + 1, idx_out, dist_out, seed)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def refresh(state, xq, idx, dist, n, slot):
     """Carry the complete neighbour list ``idx[:n]`` of a canonical xq (the min(K+1, count) nearest
     samples, as ``candidates`` gives them), with distances ``dist[:n]``, across one insertion into
@@ -283,7 +285,7 @@ def refresh(state, xq, idx, dist, n, slot):
     return n
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _kept_at(state, xq):
     """The kept list searched at the canonical xq on the memory as it is, -1 if none."""
     for c in range(KEPT):
@@ -317,10 +319,11 @@ def nearest(state, xq):
         seeds = int(np.argmax(state.kept_used))  # the last one asked for: near xq on a trajectory
         n_seeds = max(state.kept_count[seeds], 0) if seeds != c else 0
         state.kept_count[c] = candidates(
-            state, xq, state.kept_idx[c], state.kept_dist[c], state.kept_idx[seeds], n_seeds
+            state, xq, state.kept_idx[c], state.kept_dist[c], state.kept_idx[seeds, :n_seeds]
         )
         state.kept_version[c] = state.counters[VERSION]
-        state.kept_point[c, :] = xq
+        for j in range(xq.shape[0]):
+            state.kept_point[c, j] = xq[j]
     state.kept_clock += 1
     state.kept_used[c] = state.kept_clock
     return state.kept_idx[c], min(state.kept_count[c], state.n_neighbours)
@@ -337,7 +340,7 @@ def local_fit(state, xq):
     return LocalFit(prediction, beta)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _carry_kept(state, before, count_before, slot):
     """Carry the kept lists of version ``before`` across the insertion into ``slot`` (``refresh``),
     which the memory took holding ``count_before`` samples. Only a complete list, the min(K+1,
@@ -376,7 +379,7 @@ def insert(state, x, y, nearest):
         xq = np.empty(x.shape[0])
         canonical(x, state.in_period, xq)
         idx = np.empty(state.n_neighbours, dtype=np.int64)
-        nk = _search(state, xq, state.n_neighbours, idx, state.best, idx, 0)
+        nk = _search(state, xq, state.n_neighbours, idx, state.best, idx[:0])
         return insert_among(state, x, y, idx, nk)
     one = np.empty(1, dtype=np.int64)
     if counters[COUNT] >= state.Y.shape[0] and state.replacement == REPLACE_NEAREST:
@@ -402,7 +405,14 @@ def insert(state, x, y, nearest):
                     state.dist,
                 )
                 smallest(
-                    state.dist, counters[COUNT], 1, one, one_d, one, 0, state.seen, state.lanes
+                    state.dist,
+                    counters[COUNT],
+                    np.int64(1),
+                    one,
+                    one_d,
+                    one[:0],
+                    state.seen,
+                    state.lanes,
                 )
                 nearest = one[0]
         one[0] = nearest
@@ -443,7 +453,8 @@ def insert_among(state, x, y, idx, nk):
         slot = int(np.argmin(state.stamp))
     for j in range(Xt.shape[0]):
         Xt[j, slot] = xq[j]
-    state.Y[slot, :] = y
+    for o in range(y.shape[0]):
+        state.Y[slot, o] = y[o]
     state.stamp[slot] = counters[CLOCK]
     if state.replacement == REPLACE_REDUNDANCY:
         state.redundancy[slot] = own

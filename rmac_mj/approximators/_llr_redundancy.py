@@ -16,7 +16,7 @@ MEASURE_DISTANCE = 0
 MEASURE_MISFIT = 1
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def distance_to(state, i, xq):
     """The weighted distance of sample i to a canonical xq: the 1-norm, or the 2-norm (not its
     square, which the search uses), of w * wrap(x_i - xq)."""
@@ -27,7 +27,7 @@ def distance_to(state, i, xq):
     return d if state.norm == 1 else np.sqrt(d)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def misfits(state, xq, y, idx, nk, out):
     """Squared misfits of the new sample [xq | y] (xq canonical) and of its neighbours
     ``idx[:nk]`` under one local model: the affine fit (``fit``, unclipped) to these nk + 1
@@ -39,12 +39,14 @@ def misfits(state, xq, y, idx, nk, out):
     Y2 = np.empty((nk + 1, m))
     for j in range(n):
         Xt2[j, 0] = xq[j]
-    Y2[0, :] = y
+    for o in range(m):
+        Y2[0, o] = y[o]
     for a in range(nk):
         i = idx[a]
         for j in range(n):
             Xt2[j, a + 1] = state.Xt[j, i]
-        Y2[a + 1, :] = state.Y[i, :]
+        for o in range(m):
+            Y2[a + 1, o] = state.Y[i, o]
     rows = np.arange(nk + 1)
     beta = np.empty((m, n + 1))
     pred = np.empty(m)
@@ -59,7 +61,7 @@ def misfits(state, xq, y, idx, nk, out):
         state.out_period,
         state.eig_cutoff,
         state.ridge,
-        False,
+        np.bool_(False),  # unclipped; a bool, not the literal False (one compiled fit)
         beta,
         pred,
     )
@@ -74,7 +76,7 @@ def misfits(state, xq, y, idx, nk, out):
         out[a] = e2
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def score(state, xq, y, idx, nk):
     """Update the redundancy scores of the neighbours ``idx[:nk]`` of a new sample [xq | y] (xq
     canonical) and return the new sample's own score (``LLRMemory`` documents the equations):

@@ -10,6 +10,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from rmac_mj._cache import say_when_compiling
+
+say_when_compiling()  # the first compilation in a process says so (the LLR memories' kernels)
+
 
 @njit(cache=True)
 def wrap(d: float, period: float) -> float:
@@ -190,15 +194,15 @@ def kth_smallest(values, n, k):
 
 
 @njit(cache=True)
-def smallest(d, count, k, idx_out, best, seed, n_seed, seen, lanes):
+def smallest(d, count, k, idx_out, best, seed, seen, lanes):
     """The min(k, count) smallest of d[:count], ordered by (value, index): ties go to the lower
     index, as in a stable sort. Indices go to ``idx_out``, values to ``best``; returns how many.
 
     A bound on the k-th smallest value first, then one pass that skips every block of 16 values
-    above it (cheap) and places the rest. The bound comes from ``seed[:n_seed]``, distinct indices
-    of values expected to be small (the neighbours of a nearby point searched before): they fill
-    the list, and each other value is placed if it ranks before the list's last; ``seen`` (count,)
-    marks the seeds (all False before and after). Without enough seeds, from the minima of L
+    above it (cheap) and places the rest. The bound comes from ``seed`` (int64, possibly empty),
+    distinct indices of values expected to be small (the neighbours of a nearby point searched
+    before): they fill the list, and each other value is placed if it ranks before the list's last;
+    ``seen`` (count,) marks the seeds (all False before and after). Without enough seeds, from the minima of L
     interleaved lanes (L = len(lanes), at least 2k): L distinct values, so the k-th smallest of them
     is at least the k-th smallest overall (a few dozen of 2000 values lie below it). Small arrays
     are scanned without a bound. The result never depends on the seeds.
@@ -207,6 +211,7 @@ def smallest(d, count, k, idx_out, best, seed, n_seed, seen, lanes):
     if nk <= 0:
         return 0
     found = 0
+    n_seed = seed.shape[0]
     for h in range(n_seed):
         i = seed[h]
         if 0 <= i < count and not seen[i]:

@@ -16,7 +16,10 @@ from typing import ClassVar, Literal
 import numba
 import numpy as np
 
+from rmac_mj._cache import say_when_compiling
 from rmac_mj.constraints import Interval, Options, TupleOf, check, check_config
+
+say_when_compiling()  # the first compilation in a process says so (tile coding's kernel)
 
 Backend = Literal["numba", "numpy"]
 

@@ -197,3 +197,10 @@ def add_bench(commands) -> None:
         action="store_true",
         help="print the table as Markdown (the README's speed table)",
     )
+    bench.add_argument(
+        "--cold",
+        action="store_true",
+        help="instead: each learner's compile from an empty cache, in a fresh process (CPU and "
+        "wall seconds), then the quick run (reproduce --experiments 4) from empty caches; with "
+        "--quick, the compiles only",
+    )

@@ -331,6 +331,18 @@ def render(args) -> int:
 def bench(args) -> int:
     from rmac_mj.bench import bench
 
+    if args.cold:
+        from rmac_mj.bench import cold_start
+
+        report = cold_start.run(quick=not args.quick, domain=args.domain, task=args.task)
+        print(cold_start.format_table(report))
+        if args.json:
+            from rmac_mj.results.files import write_json
+
+            write_json(args.json, report)
+            print("json:", args.json)
+        return 0
+
     where = (
         {"domain": args.domain, "task": args.task}
         if args.env is None

@@ -7,9 +7,11 @@ kernels before the workers start.
 
 from __future__ import annotations
 
+import concurrent.futures
 import decimal
 import hashlib
 import json
+import multiprocessing
 import os
 import threading
 import time
@@ -89,17 +91,20 @@ def read_prior_file(
 def resolve_agents(protocol: Protocol, spaces: TaskFacts) -> dict[str, dict[str, Any]]:
     """Each learner's resolved hyperparameters (``Agent.config_dict``) on the protocol's task; a
     learner its config cannot build there is refused as a :class:`UserInputError` naming it."""
+    from rmac_mj import _cache
+
     state_space, action_space = spaces.of(protocol)
     resolved = {}
     for algorithm in protocol.algorithms:
         try:
-            agent = make_agent(
-                algorithm,
-                state_space,
-                action_space,
-                config=protocol.agent_configs.get(algorithm),
-                seed=0,
-            )
+            with _cache.compile_notice_muted():  # a second or two; the warm-up says it all
+                agent = make_agent(
+                    algorithm,
+                    state_space,
+                    action_space,
+                    config=protocol.agent_configs.get(algorithm),
+                    seed=0,
+                )
         except (ValueError, TypeError) as error:
             raise UserInputError(f"{algorithm} on {protocol.environment_name}: {error}") from None
         resolved[algorithm] = agent.config_dict()
@@ -179,15 +184,17 @@ def check_memory(
     )
 
 
-def warm_up(protocol: Protocol) -> None:
-    """Compile the kernels ``protocol``'s learners use, or load them from numba's disk cache: one
-    learning and one greedy trial of a throw-away agent of each learner, in this process.
+def warm_up(protocol: Protocol, algorithms: Iterable[str] | None = None) -> None:
+    """Compile the kernels of ``protocol``'s learners (or of ``algorithms``), or load them from
+    numba's disk cache: one learning and one greedy trial of a throw-away agent of each learner, in
+    this process. numba compiles only what these trials call: the kernels of the learners chosen,
+    with their options.
 
     Run before the worker processes start, so that they load the compiled kernels from the cache
     instead of each compiling them at once.
     """
     env = protocol.make_environment(task_seed=0)
-    for algorithm in protocol.algorithms:
+    for algorithm in protocol.algorithms if algorithms is None else algorithms:
         agent = make_agent(
             algorithm,
             state_space_of(env),
@@ -204,6 +211,28 @@ def warm_up(protocol: Protocol) -> None:
             run_trial(env, agent, learn=False)
 
 
+def _warm_up_one(protocol: Protocol, algorithm: str) -> None:
+    """:func:`warm_up` of one learner in a compiler process, silent: the driver says it."""
+    from rmac_mj import _cache
+
+    with _cache.compile_notice_muted():
+        warm_up(protocol, (algorithm,))
+
+
+def warm_up_side_by_side(pairs: list[tuple[Protocol, str]], jobs: int) -> None:
+    """:func:`warm_up` of each (protocol, learner) in ``pairs`` in its own process, ``jobs`` at a
+    time (spawned: numba's compiler holds the interpreter, so threads would take turns): the
+    learners' kernels compile side by side into the shared disk cache. Learners that share kernels
+    (RMAC and MLAC: the LLR memories) may both compile those; the wall time is still the
+    slowest one's."""
+    context = multiprocessing.get_context("spawn")
+    with concurrent.futures.ProcessPoolExecutor(
+        max_workers=min(jobs, len(pairs)), mp_context=context
+    ) as pool:
+        for future in [pool.submit(_warm_up_one, protocol, a) for protocol, a in pairs]:
+            future.result()
+
+
 #: Seconds between two lines of the warm-up's progress while numba compiles.
 COMPILE_PROGRESS_SECONDS = 10.0
 
@@ -212,10 +241,16 @@ def warm_up_announced(
     protocols: Iterable[Protocol],
     log: Callable[[str], None] | None,
     interval: float = COMPILE_PROGRESS_SECONDS,
+    jobs: int = 1,
 ) -> None:
     """:func:`warm_up` once per distinct task, learner and back end (the kernels do not depend on
     the other settings), saying so when numba really compiles (the first run only): which learners'
-    kernels, then every ``interval`` seconds how long it has taken so far, then the total."""
+    kernels, then every ``interval`` seconds how long it has taken so far, then the total.
+
+    In a process that started with an empty kernel cache, with ``jobs`` > 1, the learners compile
+    side by side (:func:`warm_up_side_by_side`, one process each): the run waits for the slowest
+    learner's compile, not for their sum. With some kernels cached (a later run, the common case) they load
+    here, one after another, in about a second: no process to start."""
     from rmac_mj import _cache
 
     seen, chosen = set(), []
@@ -252,14 +287,22 @@ def warm_up_announced(
                     f"{time.perf_counter() - compile_started:.0f} s so far"
                 )
 
+    pairs = [(p, a) for p in chosen for a in p.algorithms]
+    side_by_side = jobs > 1 and len(pairs) > 1 and _cache.started_with_empty_cache()
+    if side_by_side:
+        first_compile()  # the cache is empty: numba compiles, in the processes started below
     ticker = threading.Thread(target=tick, name="rmac-mj compile progress", daemon=True)
     if log is not None:
         ticker.start()
     try:
-        # while numba compiles, its progress above is the one voice of the first trials
-        with _cache.on_first_compile(first_compile), heartbeat.quiet_while(compiling.is_set):
-            for protocol in chosen:
-                warm_up(protocol)
+        if side_by_side:
+            with heartbeat.quiet_while(compiling.is_set):
+                warm_up_side_by_side(pairs, jobs)
+        else:
+            # while numba compiles, its progress above is the one voice of the first trials
+            with _cache.on_first_compile(first_compile), heartbeat.quiet_while(compiling.is_set):
+                for protocol in chosen:
+                    warm_up(protocol)
     finally:
         done.set()
         if ticker.is_alive():

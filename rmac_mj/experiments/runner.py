@@ -292,7 +292,7 @@ def _run_all(
     local = client is None
     busy = [run for run in state if run.left]
     if busy and local:
-        admission.warm_up_announced([run.protocol for run in busy], log)
+        admission.warm_up_announced([run.protocol for run in busy], log, jobs=jobs)
     display = Progress(
         [run.protocol for run in state],
         [{a: len(run.finished[a]) for a in run.finished} for run in state],

@@ -559,3 +559,13 @@ def test_the_table_carries_the_greedy_return_with_its_interval_at_five_experimen
     )
     without = summary_table({"trial_seconds": 3.0, "s-ac": summarise(returns, trial_seconds=3.0)})
     assert "greedy" not in without  # a run that did not evaluate has no such column
+
+
+def test_bench_cold_compiles_a_learner_from_an_empty_cache():
+    from rmac_mj.bench import cold_start
+
+    row = cold_start.learner_compile("s-ac")  # a fresh process and cache: compiled, not loaded
+    assert row["algorithm"] == "s-ac" and row["kernels"] >= 1 and row["compile_cpu_s"] > 0
+    assert any(name.startswith("agents.standard_ac.") for name, _, _ in row["per_kernel"])
+    text = cold_start.format_table({"cpus": 2, "load_before": 0.5, "learners": [row]})
+    assert text.splitlines()[2].split()[0] == "s-ac" and "agents.standard_ac." in text

@@ -500,6 +500,20 @@ def test_compiling_says_what_and_how_long_while_it_lasts(monkeypatch):
 
 
 @pytest.mark.slow
+def test_learners_compile_side_by_side_into_the_shared_cache(tmp_path, monkeypatch, capfd):
+    from rmac_mj import _cache
+    from rmac_mj.experiments import admission
+
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))  # the compiler processes' cold cache
+    assert _cache.numba_cache_is_empty()
+    protocol = Protocol(**TINY)
+    admission.warm_up_side_by_side([(protocol, "s-ac"), (protocol, "s-ac")], jobs=2)
+    cached = {path.name.split(".")[0] for path in tmp_path.rglob("*.nbi")}
+    assert {"standard_ac", "tile_coding"} <= cached and not _cache.numba_cache_is_empty()
+    assert "numba is compiling" not in capfd.readouterr().err  # the driver says it, once
+
+
+@pytest.mark.slow
 def test_a_resumed_run_reports_the_wall_time_of_all_its_parts(tmp_path):
     protocol = Protocol(**TINY)
     first = run_protocol(protocol, tmp_path, jobs=1, progress=False, figures=False)
