@@ -7,7 +7,6 @@ kernels before the workers start.
 
 from __future__ import annotations
 
-import concurrent.futures
 import decimal
 import hashlib
 import json
@@ -24,6 +23,7 @@ from rmac_mj.agents import make_agent
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
 from rmac_mj.errors import UserInputError, environment_failure_at
 from rmac_mj.experiments import prior_transitions as prior_data
+from rmac_mj.experiments.execution import ctrl_c_ignored_by_new_processes
 from rmac_mj.experiments.protocol import Protocol
 from rmac_mj.rollout import (
     action_space_of,
@@ -226,11 +226,15 @@ def warm_up_side_by_side(pairs: list[tuple[Protocol, str]], jobs: int) -> None:
     (RMAC and MLAC: the LLR memories) may both compile those; the wall time is still the
     slowest one's."""
     context = multiprocessing.get_context("spawn")
-    with concurrent.futures.ProcessPoolExecutor(
-        max_workers=min(jobs, len(pairs)), mp_context=context
-    ) as pool:
-        for future in [pool.submit(_warm_up_one, protocol, a) for protocol, a in pairs]:
-            future.result()
+    with ctrl_c_ignored_by_new_processes():  # Ctrl-C stops them from here, without tracebacks
+        pool = context.Pool(processes=min(jobs, len(pairs)))
+    try:
+        for result in [pool.apply_async(_warm_up_one, pair) for pair in pairs]:
+            result.get()
+        pool.close()
+    finally:
+        pool.terminate()
+        pool.join()
 
 
 #: Seconds between two lines of the warm-up's progress while numba compiles.

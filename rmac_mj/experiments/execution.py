@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import collections
 import concurrent.futures
+import contextlib
 import itertools
 import logging
 import multiprocessing
@@ -54,6 +55,22 @@ def start_worker(driver: int) -> None:
     threading.Thread(target=watch, name="rmac-mj driver watchdog", daemon=True).start()
 
 
+@contextlib.contextmanager
+def ctrl_c_ignored_by_new_processes() -> Iterator[None]:
+    """Processes started inside ignore Ctrl-C from their first instruction: an ignored signal stays
+    ignored through exec, and Python then installs no KeyboardInterrupt of its own. A worker still
+    importing when Ctrl-C reaches the process group would otherwise print a traceback; the driver's
+    own handler is back as soon as they are started (it stops them, :func:`local_outcomes`)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield  # signal handlers belong to the main thread; a caller's thread keeps Python's default
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 def _started(items: Iterable, on_start: Callable[[Any], None] | None) -> Iterator:
     for item in items:
         if on_start is not None:
@@ -85,9 +102,10 @@ def local_outcomes(
     # "spawn": workers start clean (no inherited GL contexts or numba state); the numba cache (filled
     # by the driver's warm-up) makes their start-up cheap.
     context = multiprocessing.get_context("spawn")
-    pool = context.Pool(
-        processes=min(jobs, len(first)), initializer=start_worker, initargs=(os.getpid(),)
-    )
+    with ctrl_c_ignored_by_new_processes():
+        pool = context.Pool(
+            processes=min(jobs, len(first)), initializer=start_worker, initargs=(os.getpid(),)
+        )
     finished: queue.SimpleQueue = queue.SimpleQueue()
     pending = itertools.chain(first, items)
     in_flight = 0

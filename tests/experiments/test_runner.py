@@ -541,3 +541,27 @@ def test_one_progress_display_counts_the_learners_trials_over_several_runs(tmp_p
     display.experiment((0, "s-ac", 0))
     display.experiment((0, "s-ac", 1))
     assert display.progressed == {"all": 23, "s-ac": 23} and display.runs_done == 2
+
+
+def test_workers_start_with_ctrl_c_ignored_and_the_driver_keeps_its_handler():
+    """A worker still importing when Ctrl-C reaches the process group prints no traceback: processes
+    the pool starts ignore SIGINT from their first instruction (kept through exec); the driver's
+    own handler is back at once."""
+    import signal
+    import subprocess
+    import sys
+
+    from rmac_mj.experiments import execution
+
+    before = signal.getsignal(signal.SIGINT)
+    probe = [
+        sys.executable,
+        "-c",
+        "import signal; print(signal.getsignal(signal.SIGINT) == signal.SIG_IGN)",
+    ]
+    with execution.ctrl_c_ignored_by_new_processes():
+        started = subprocess.run(probe, capture_output=True, text=True, check=True)
+    assert started.stdout.strip() == "True"
+    assert signal.getsignal(signal.SIGINT) is before
+    outside = subprocess.run(probe, capture_output=True, text=True, check=True)
+    assert outside.stdout.strip() == "False"
