@@ -12,11 +12,14 @@ rollout is one of the planner's population, and S-AC's exploration is added to t
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+from collections.abc import Iterator
 from typing import ClassVar
 
 import numpy as np
 
+from rmac_mj.agents.base import RefusedTransition
 from rmac_mj.agents.planning import Planning
 from rmac_mj.agents.sampling_planner import Planner, SamplingPlanner
 from rmac_mj.agents.standard_ac import StandardACConfig, StandardActorCritic
@@ -133,20 +136,38 @@ class MPC(StandardActorCritic):
         )
 
     def _start(self, x0: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
-        if not self._rehearsing:
-            self.planner.reset()
-            self._greedy, self._plan_rng = False, self.rng
-        if u is None and self._plans():
-            noise = self.config.exploration.sample(0, self.action_space.dim, self.rng, self.trial)
-            u = self.action_space.clip(self._planned(x0) + noise)
-        return super()._start(x0, u)
+        with self._plan_put_back_if_refused():
+            if not self._rehearsing:
+                self.planner.reset()
+                self._greedy, self._plan_rng = False, self.rng
+            return super()._start(x0, self._explored_plan(x0, 0) if u is None else u)
 
     def _step(self, reward: float, x: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
-        if u is None and self._plans():
-            k = self._k + 1
-            noise = self.config.exploration.sample(k, self.action_space.dim, self.rng, self.trial)
-            u = self.action_space.clip(self._planned(x) + noise)
-        return super()._step(reward, x, u)
+        with self._plan_put_back_if_refused():
+            u = self._explored_plan(x, self._k + 1) if u is None else u
+            return super()._step(reward, x, u)
+
+    def _explored_plan(self, x: np.ndarray, k: int) -> np.ndarray | None:
+        """u_k planned in x plus S-AC's exploration; None (S-AC's actor chooses) while the model
+        cannot fit yet or in a rollout. Refused if the plan's scores overflow."""
+        if not self._plans():
+            return None
+        noise = self.config.exploration.sample(k, self.action_space.dim, self.rng, self.trial)
+        planned = self._planned(x)
+        if not np.isfinite(planned).all():
+            raise self._overflow("the planned action's score")
+        return self.action_space.clip(planned + noise)
+
+    @contextlib.contextmanager
+    def _plan_put_back_if_refused(self) -> Iterator[None]:
+        """A refused call (:class:`RefusedTransition`: the plan's scores or S-AC's update overflow)
+        leaves the warm start as it was; the boundary puts back the random generator."""
+        warm_start = None if self.planner.mean_ is None else self.planner.mean_.copy()
+        try:
+            yield
+        except RefusedTransition:
+            self.planner.mean_ = warm_start
+            raise
 
     def begin_greedy_trial(self) -> None:
         """A greedy trial plans afresh, with draws seeded by the learner and its trial count."""
