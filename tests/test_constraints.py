@@ -152,3 +152,16 @@ def test_the_sweep_checker_expects_what_the_config_expects(tmp_path, key, value,
     assert f"{cls.__name__}.{field} must be {expected}, got {value!r}" == refusal(
         cls, **{field: value}
     )
+
+
+def test_a_nested_setting_given_alone_keeps_the_learners_other_defaults():
+    # `--set recommended.planning.model_capacity=120` changes one setting of MPC's planning
+    # (30 steps from visited states), not of Planning()'s (no planning at all).
+    from rmac_mj.agents import DynaACConfig, MPCConfig, Planning
+
+    mpc = config_from_dict(MPCConfig, {"planning": {"model_capacity": 120}})
+    assert mpc.planning == dataclasses.replace(MPCConfig().planning, model_capacity=120)
+    assert mpc.planning != Planning(model_capacity=120)
+    dyna = config_from_dict(DynaACConfig, {"planning": {"model_capacity": 120}, "lookahead": 3})
+    assert (dyna.planning.steps, dyna.planning.model_capacity, dyna.lookahead) == (30, 120, 3)
+    assert config_from_dict(MPCConfig, dataclasses.asdict(mpc)) == mpc

@@ -13,6 +13,7 @@ and adding a learner is one line there.
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 from typing import Any
 
@@ -85,11 +86,13 @@ def agent_class(name: str) -> type:
     return _lookup(name)[0]
 
 
-def config_from_dict(cls: type, values: dict[str, Any]):
+def config_from_dict(cls: type, values: dict[str, Any], base: Any = None):
     """Rebuild a (possibly nested) frozen config dataclass from ``dataclasses.asdict`` output (or
     any dict of some of its parameters, e.g. a TOML table); the config checks the values against its
     ``parameter_constraints`` (:mod:`rmac_mj.constraints`), and an unknown name is refused with the
-    closest known one."""
+    closest known one. A parameter not given keeps its value in ``base`` (default: ``cls()``), a
+    nested config's too: ``{"planning": {"model_capacity": 500}}`` changes one setting of the
+    learner's own planning defaults, not of ``Planning()``'s."""
     table = cls.parameter_constraints
     for name in values:
         if name not in table:
@@ -98,11 +101,21 @@ def config_from_dict(cls: type, values: dict[str, Any]):
     for name, value in values.items():
         nested = constraints.nested_class(table[name])
         if nested is not None and isinstance(value, dict):
-            value = config_from_dict(nested, value)
+            value = config_from_dict(nested, value, getattr(base or _defaults(cls), name))
         elif isinstance(value, list):
             value = tuple(value)
         kwargs[name] = value
-    return cls(**kwargs)
+    return dataclasses.replace(base, **kwargs) if base is not None else cls(**kwargs)
+
+
+def _defaults(cls: type) -> Any:
+    """``cls()``, the config of every default (built once per class)."""
+    if cls not in _DEFAULTS:
+        _DEFAULTS[cls] = cls()
+    return _DEFAULTS[cls]
+
+
+_DEFAULTS: dict[type, Any] = {}
 
 
 def memory_estimate(
