@@ -1,5 +1,6 @@
 """The learners behind one interface: RMAC (Algorithm 2), S-AC (Algorithm 1), MLAC, the learner
-recommended for a new task and the Stable-Baselines3 baselines.
+recommended for a new task (MPC in the learned models), S-AC with Dyna planning and the
+Stable-Baselines3 baselines.
 
 ``make_agent(name, state_space, action_space, config, seed)`` builds one by its key (:data:`ALGORITHMS`);
 every learner is an :class:`Agent` (``start``/``step``/``stop``, ``greedy_action``, ``state_dict``) on a
@@ -32,10 +33,11 @@ _REGISTRY = {
     "rmac": ("rmac_mj.agents.rmac", "RMAC", "RMACConfig"),
     "s-ac": ("rmac_mj.agents.standard_ac", "StandardActorCritic", "StandardACConfig"),
     "mlac": ("rmac_mj.agents.mlac", "MLAC", "MLACConfig"),
-    # The learner to pick for a new task: S-AC with planning, in the task's units (recommended.py).
-    "recommended": ("rmac_mj.agents.recommended", "Recommended", "RecommendedConfig"),
-    # Acts by planning in its learned models, S-AC's critic at the horizon (mpc.py).
-    "mpc": ("rmac_mj.agents.mpc", "MPC", "MPCConfig"),
+    # The learner to pick for a new task: MPC, acting by planning in its learned models with S-AC's
+    # critic at the horizon (mpc.py).
+    "recommended": ("rmac_mj.agents.mpc", "MPC", "MPCConfig"),
+    # S-AC with Dyna planning in the task's units, the learner recommended before MPC (dyna.py).
+    "s-ac-dyna": ("rmac_mj.agents.dyna", "DynaAC", "DynaACConfig"),
     # Deep-RL baselines (Stable-Baselines3; the [baselines] extra): the room rmac_mj.agents.sb3.
     "sb3-sac": ("rmac_mj.agents.sb3.off_policy", "SB3SAC", "SB3SACConfig"),
     "sb3-td3": ("rmac_mj.agents.sb3.off_policy", "SB3TD3", "SB3TD3Config"),
@@ -52,6 +54,8 @@ _DID_YOU_MEAN = {
     "sb3": "sb3-sac, sb3-td3, sb3-ppo or sb3-crossq",
     "crossq": "sb3-crossq",
     "standard-ac": "s-ac",
+    "mpc": "recommended (model-predictive control in the learned models)",
+    "dyna": "s-ac-dyna",
 }
 
 
@@ -194,13 +198,13 @@ __all__ = [
     # The learners and their configs (loaded on first use, above)
     "MLAC",
     "MLACConfig",
+    "DynaAC",
+    "DynaACConfig",
     "MPC",
     "MPCConfig",
     "SamplingPlanner",
     "RMAC",
     "RMACConfig",
-    "Recommended",
-    "RecommendedConfig",
     "SB3CrossQ",
     "SB3CrossQConfig",
     "SB3PPO",

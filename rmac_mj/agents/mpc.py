@@ -1,4 +1,5 @@
-"""MPC: act by planning in the learned models, with S-AC's critic as the terminal value.
+"""MPC, the learner recommended for a new task (key ``recommended``): act by planning in the learned
+models, with S-AC's critic as the terminal value.
 
 Every real and greedy action comes from a sampling planner (:mod:`~rmac_mj.agents.sampling_planner`)
 over a horizon in seconds, in the learned LLR model of the process and the reward
@@ -61,7 +62,7 @@ class MPC(StandardActorCritic):
     """Model-predictive control on the learned LLR models (:class:`MPCConfig`); S-AC's interface
     and state, plus the planner's warm start and the greedy trials' seed."""
 
-    name = "mpc"
+    name = "recommended"
     display_name = "MPC (LLR models)"
     config_class = MPCConfig
 

@@ -20,7 +20,7 @@ import time
 from typing import Any
 
 #: The learners whose compile ``rmac-mj bench --cold`` measures, one fresh process each.
-COLD_LEARNERS = ("rmac", "s-ac", "mlac", "mpc")
+COLD_LEARNERS = ("rmac", "s-ac", "mlac", "recommended")
 
 #: Kernels listed per learner in the report, the costliest first.
 TOP_KERNELS = 8

@@ -290,7 +290,7 @@ def add_panel(commands) -> None:
     )
     panel.add_argument(
         "--algorithms",
-        default="mpc,recommended,sb3-sac,sb3-crossq",
+        default="recommended,s-ac-dyna,sb3-sac,sb3-crossq",
         metavar="ALGO[,ALGO]",
         help="comma-separated learners",
     )

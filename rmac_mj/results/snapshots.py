@@ -35,7 +35,7 @@ _PREFIX = "agent/"
 
 #: The version of the snapshot format written here (``meta["format"]``); a snapshot without one
 #: is format 1.
-FORMAT = 2
+FORMAT = 3
 
 #: Format 1's names that have changed since, in a learner's config (by algorithm), in its spaces and
 #: in a suite task's keyword arguments (the pendulum's; no other task took that name): old -> name.
@@ -46,30 +46,51 @@ _FORMAT_1_CONFIG = {
 _FORMAT_1_SPACES = {"weights": "input_weights"}
 _FORMAT_1_TASK_KWARGS = {"action_weight": "action_weights"}
 
+#: Learner keys that format 3 gave to other learners: ``recommended`` became MPC's key (formerly
+#: ``mpc``) and S-AC with Dyna planning, recommended before it, became ``s-ac-dyna``.
+LEARNER_KEYS_BEFORE_FORMAT_3 = {"recommended": "s-ac-dyna", "mpc": "recommended"}
+
+
+def _renamed(values: dict[str, Any], names: dict[str, str]) -> dict[str, Any]:
+    return {names.get(key, key): value for key, value in values.items()}
+
+
+def _from_format_1(meta: dict[str, Any]) -> dict[str, Any]:
+    """Format 1 named S-AC's and MLAC's learning rates ``alpha_actor`` and ``alpha_critic``, the
+    spaces' input weightings ``weights`` and the pendulum's reward weighting ``action_weight``."""
+    upgraded = dict(meta, format=2)
+    upgraded["config"] = _renamed(meta["config"], _FORMAT_1_CONFIG.get(meta["algorithm"], {}))
+    for space in ("state_space", "action_space"):
+        upgraded[space] = _renamed(meta[space], _FORMAT_1_SPACES)
+    if "task_kwargs" in meta:
+        upgraded["task_kwargs"] = _renamed(meta["task_kwargs"], _FORMAT_1_TASK_KWARGS)
+    return upgraded
+
+
+def _from_format_2(meta: dict[str, Any]) -> dict[str, Any]:
+    """Format 2 keyed MPC ``mpc`` and S-AC with Dyna planning ``recommended``
+    (:data:`LEARNER_KEYS_BEFORE_FORMAT_3`)."""
+    algorithm = LEARNER_KEYS_BEFORE_FORMAT_3.get(meta["algorithm"], meta["algorithm"])
+    return dict(meta, format=3, algorithm=algorithm)
+
+
+#: Format n -> the step that upgrades a meta document of format n to format n + 1.
+_UPGRADES = {1: _from_format_1, 2: _from_format_2}
+
 
 def upgrade(meta: dict[str, Any]) -> dict[str, Any]:
     """A snapshot's meta document in the format written here (:data:`FORMAT`), from any earlier
-    one: format 1 named S-AC's and MLAC's learning rates ``alpha_actor`` and ``alpha_critic``, the
-    spaces' input weightings ``weights`` and the pendulum's reward weighting ``action_weight``.
-    UserInputError for a format newer than this version reads."""
+    one, one format at a time (:data:`_UPGRADES`). UserInputError for a format this version does
+    not read."""
     version = meta.get("format", 1)
-    if version == FORMAT:
-        return meta
-    if version != 1:
+    if version not in _UPGRADES and version != FORMAT:
         raise UserInputError(
             f"snapshot format {version!r}; this version of rmac-mj reads formats 1 to {FORMAT}"
         )
-
-    def renamed(values: dict[str, Any], names: dict[str, str]) -> dict[str, Any]:
-        return {names.get(key, key): value for key, value in values.items()}
-
-    upgraded = dict(meta, format=FORMAT)
-    upgraded["config"] = renamed(meta["config"], _FORMAT_1_CONFIG.get(meta["algorithm"], {}))
-    for space in ("state_space", "action_space"):
-        upgraded[space] = renamed(meta[space], _FORMAT_1_SPACES)
-    if "task_kwargs" in meta:
-        upgraded["task_kwargs"] = renamed(meta["task_kwargs"], _FORMAT_1_TASK_KWARGS)
-    return upgraded
+    while version != FORMAT:
+        meta = _UPGRADES[version](meta)
+        version = meta["format"]
+    return meta
 
 
 def snapshot_arrays(

@@ -23,6 +23,7 @@ from rmac_mj.errors import MissingInputError
 from rmac_mj.results import documents, files, integrity, run_identity
 from rmac_mj.results.records import Curves, ExperimentResult
 from rmac_mj.results.run_identity import ResumeRefused, added_experiments
+from rmac_mj.results.snapshots import FORMAT, LEARNER_KEYS_BEFORE_FORMAT_3
 
 _EXPERIMENT_FILE = re.compile(r"exp_(\d{3,})\.npz")
 _TRIAL_FILE = re.compile(r"trial_(\d+)\.npz")
@@ -45,12 +46,16 @@ class ResultStore:
 
     An experiment counts as done only once everything it wrote is in place; a run holds
     ``OUT/.lock`` while it writes, and a resumed run checks every saved experiment against the
-    config.
+    config. A directory written before format 3 (``config.json`` without ``format``) keys two
+    learners by their former names (:data:`~rmac_mj.results.snapshots.LEARNER_KEYS_BEFORE_FORMAT_3`):
+    the store reads it under today's keys, so a figure or table never labels one learner with
+    another's name.
     """
 
     def __init__(self, root: str | os.PathLike):
         self.root = pathlib.Path(root)
         self._lock: integrity.DirectoryLock | None = None
+        self._stored_keys: dict[str, str] | None = None
 
     def __repr__(self) -> str:
         return f"ResultStore({str(self.root)!r})"
@@ -84,22 +89,24 @@ class ResultStore:
         return self.root / "wall_times.json"
 
     def curve_path(self, algorithm: str, index: int) -> pathlib.Path:
-        return self.root / "curves" / algorithm / f"{_experiment_name(index)}.npz"
+        return self.root / "curves" / self._stored(algorithm) / f"{_experiment_name(index)}.npz"
 
     def snapshot_dir(self, algorithm: str, index: int) -> pathlib.Path:
-        return self.root / "snapshots" / algorithm / _experiment_name(index)
+        return self.root / "snapshots" / self._stored(algorithm) / _experiment_name(index)
 
     def snapshot_path(self, algorithm: str, index: int, trial: int) -> pathlib.Path:
         return self.snapshot_dir(algorithm, index) / f"trial_{trial:04d}.npz"
 
     def checkpoint_path(self, algorithm: str, index: int) -> pathlib.Path:
         """The checkpoint of an unfinished experiment (:mod:`rmac_mj.experiments.checkpoint`)."""
-        return self.root / "checkpoints" / algorithm / f"{_experiment_name(index)}.npz"
+        return (
+            self.root / "checkpoints" / self._stored(algorithm) / f"{_experiment_name(index)}.npz"
+        )
 
     def checkpointed(self, algorithm: str) -> dict[int, int]:
         """Experiment index -> learning trials done, of ``algorithm``'s unfinished experiments that
         hold a checkpoint."""
-        folder = self.root / "checkpoints" / algorithm
+        folder = self.root / "checkpoints" / self._stored(algorithm)
         found = {}
         for path in folder.glob("exp_*.npz") if folder.is_dir() else ():
             match = _EXPERIMENT_FILE.fullmatch(path.name)
@@ -121,14 +128,14 @@ class ResultStore:
 
     def progress_path(self, algorithm: str, index: int) -> pathlib.Path:
         """The live trial log of an experiment (see :class:`~rmac_mj.results.trial_log.TrialLog`)."""
-        return self.root / "progress" / algorithm / f"{_experiment_name(index)}.csv"
+        return self.root / "progress" / self._stored(algorithm) / f"{_experiment_name(index)}.csv"
 
     # -- config --------------------------------------------------------------------------------------
     def read_config(self) -> dict[str, Any] | None:
         """The directory's ``config.json``, or None when there is none;
         :class:`~rmac_mj.results.run_identity.DamagedDirectory` when it cannot be read as a run's
         config (a JSON object with a ``protocol`` object)."""
-        return documents.read_config(self.config_path)
+        return _with_todays_keys(documents.read_config(self.config_path), self._today())
 
     def read_protocol(self) -> dict[str, Any] | None:
         """The protocol (``Protocol.as_dict``) of the run in this directory, or None when there is none."""
@@ -137,7 +144,22 @@ class ResultStore:
 
     def write_config(self, document: dict[str, Any]) -> None:
         self.root.mkdir(parents=True, exist_ok=True)
-        files.write_json(self.config_path, document)
+        files.write_json(self.config_path, {"format": FORMAT, **document})
+
+    # -- learner keys ----------------------------------------------------------------------------------
+    def _stored(self, algorithm: str) -> str:
+        """The key under which this directory stores today's learner ``algorithm``."""
+        if self._stored_keys is None:
+            config = documents.read_config(self.config_path)
+            before_3 = config is not None and config.get("format", 2) < 3
+            renamed = LEARNER_KEYS_BEFORE_FORMAT_3.items() if before_3 else ()
+            self._stored_keys = {today: stored for stored, today in renamed}
+        return self._stored_keys.get(algorithm, algorithm)
+
+    def _today(self) -> dict[str, str]:
+        """The key in this directory -> today's key, for the learners whose key has changed."""
+        self._stored("")
+        return {stored: today for today, stored in self._stored_keys.items()}
 
     def lock(self) -> integrity.DirectoryLock:
         """The directory's exclusive lock (held while a run writes here; see
@@ -234,7 +256,7 @@ class ResultStore:
     def finished(self, algorithm: str) -> set[int]:
         """The indices of ``algorithm``'s experiments whose results are saved (one directory listing:
         the cost grows with what has finished, not with what is planned)."""
-        folder = self.root / "curves" / algorithm
+        folder = self.root / "curves" / self._stored(algorithm)
         try:
             names = os.listdir(folder)
         except (FileNotFoundError, NotADirectoryError):
@@ -363,7 +385,8 @@ class ResultStore:
     def snapshot_algorithms(self) -> list[str]:
         """The learners with snapshots in this directory, sorted."""
         folder = self.root / "snapshots"
-        return sorted(p.name for p in folder.iterdir() if p.is_dir()) if folder.is_dir() else []
+        names = [p.name for p in folder.iterdir() if p.is_dir()] if folder.is_dir() else []
+        return sorted(self._today().get(name, name) for name in names)
 
     def snapshot_trials(self, algorithm: str, index: int = 0) -> dict[int, pathlib.Path]:
         """Trial number -> snapshot path, for one experiment; MissingInputError when it has none."""
@@ -395,7 +418,7 @@ class ResultStore:
 
     def read_summary(self) -> dict[str, Any]:
         """The run's ``summary.json``; MissingInputError when the run has none (not finished)."""
-        return documents.read_summary(self.summary_path)
+        return _with_todays_keys(documents.read_summary(self.summary_path), self._today())
 
     def read_wall_times(self) -> list[dict[str, Any]]:
         """The parts recorded in ``wall_times.json`` (empty when there is none);
@@ -404,6 +427,28 @@ class ResultStore:
 
     def write_wall_times(self, parts: list[dict[str, Any]]) -> None:
         files.write_json(self.wall_times_path, {"parts": parts})
+
+
+def _with_todays_keys(document: dict[str, Any] | None, today: dict[str, str]) -> Any:
+    """A config or summary document with learner keys renamed by ``today`` (stored -> today's):
+    its ``protocol``'s algorithms and learner settings, and its own keys (a summary's per-learner
+    entries, a config's ``agents``)."""
+    if not today or document is None:
+        return document
+
+    def renamed(mapping: dict[str, Any]) -> dict[str, Any]:
+        return {today.get(key, key): value for key, value in mapping.items()}
+
+    document = renamed(document)
+    if isinstance(document.get("agents"), dict):
+        document["agents"] = renamed(document["agents"])
+    protocol = document.get("protocol")
+    if isinstance(protocol, dict):
+        protocol = dict(protocol, algorithms=[today.get(a, a) for a in protocol["algorithms"]])
+        if isinstance(protocol.get("agent_configs"), dict):
+            protocol["agent_configs"] = renamed(protocol["agent_configs"])
+        document["protocol"] = protocol
+    return document
 
 
 def _padded(rows: list[np.ndarray]) -> np.ndarray:

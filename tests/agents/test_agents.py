@@ -420,7 +420,7 @@ _SIZES = {
     "mlac": ("actor_capacity", 2000, 20000),
     "s-ac": ("tile_coding", {"tiles": 7}, {"tiles": 70}),
     "recommended": ("tile_coding", {"tiles": 7}, {"tiles": 70}),
-    "mpc": ("tile_coding", {"tiles": 7}, {"tiles": 70}),
+    "s-ac-dyna": ("tile_coding", {"tiles": 7}, {"tiles": 70}),
     "sb3-sac": ("buffer_size", 10**4, 10**6),
     "sb3-td3": ("buffer_size", 10**4, 10**6),
     "sb3-ppo": ("n_steps", 256, 8192),

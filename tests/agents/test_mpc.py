@@ -16,7 +16,7 @@ from rmac_mj.rollout import action_space_of, run_trial, state_space_of
 def learned():
     """MPC after 4 trials of the paper's pendulum: a model of 400 real transitions, a critic."""
     env = tasks.load("dc_pendulum", "swingup")
-    agent = make_agent("mpc", state_space_of(env), action_space_of(env), seed=5)
+    agent = make_agent("recommended", state_space_of(env), action_space_of(env), seed=5)
     for _ in range(4):
         run_trial(env, agent)
     return agent
@@ -135,7 +135,7 @@ def test_mpc_swings_the_pendulum_up_within_five_trials():
     """The paper's pendulum: greedy after 5 learning trials (500 real steps) swings up and holds,
     far above hanging still (-3600 .. -4500)."""
     env = tasks.load("dc_pendulum", "swingup")
-    agent = make_agent("mpc", state_space_of(env), action_space_of(env), seed=1)
+    agent = make_agent("recommended", state_space_of(env), action_space_of(env), seed=1)
     for _ in range(5):
         run_trial(env, agent)
     assert run_trial(env, agent, learn=False) > -1100

@@ -23,7 +23,7 @@ from rmac_mj.agents import (
 
 STATES = StateSpace(low=[-np.pi, -25.0], high=[np.pi, 25.0], periodic=[True, False])
 ACTIONS = ActionSpace(low=[-3.0], high=[3.0], cost=[1.0])
-PAPER_LEARNERS = ("rmac", "s-ac", "mlac", "recommended")
+PAPER_LEARNERS = ("rmac", "s-ac", "mlac", "s-ac-dyna", "recommended")
 BACKENDS = ("numba", "numpy")
 #: Finite rewards whose updates drive the arithmetic past the largest float within a few steps.
 OVERFLOWING = (1.7e308, -1.7e308, 1e308, -1e308)

@@ -112,11 +112,11 @@ def test_s_ac_actor_rate_follows_a_declared_reward_scale_down_but_never_up():
         assert make_agent("s-ac", state, action, seed=0).config.alpha_a == 0.005
 
 
-def test_the_recommended_actor_rate_follows_a_declared_reward_scale_both_ways():
+def test_the_dyna_actor_rate_follows_a_declared_reward_scale_both_ways():
     state, action = _spaces(m=1, reward_scale=PAPER_REWARD_SCALE / 10)
-    assert make_agent("recommended", state, action, seed=0).config.alpha_a == pytest.approx(0.02)
+    assert make_agent("s-ac-dyna", state, action, seed=0).config.alpha_a == pytest.approx(0.02)
     state, action = _spaces(m=1, reward_scale=1e-6)
-    assert make_agent("recommended", state, action, seed=0).config.alpha_a == 1.0  # capped
+    assert make_agent("s-ac-dyna", state, action, seed=0).config.alpha_a == 1.0  # capped
 
 
 def _drive(agent, rewards, states):
@@ -203,9 +203,9 @@ def test_s_ac_running_scale_survives_a_restore():
     assert other.reward_scale_ == 7.0 and other.rate_a == agent.rate_a
 
 
-def test_the_recommended_learner_on_the_pendulum():
+def test_s_ac_with_dyna_planning_on_the_pendulum():
     state, action = _pendulum_spaces()
-    agent = make_agent("recommended", state, action, seed=0)
+    agent = make_agent("s-ac-dyna", state, action, seed=0)
     c = agent.config
     assert (c.planning.steps, c.alpha_a, c.gamma, c.exploration.sigma) == (30, 0.002, 0.97, 1.0)
     assert agent.rehearsal is not None and agent.display_name == "S-AC + planning"

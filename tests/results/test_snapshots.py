@@ -55,6 +55,52 @@ def test_a_format_1_snapshot_acts_as_the_version_that_wrote_it(algorithm):
     assert np.isfinite(run_trial(env, agent, learn=False))
 
 
+#: Snapshots of format 2, written by rmac-mj at commit 7850e37 (when MPC's key was ``mpc`` and S-AC
+#: with Dyna planning was ``recommended``): ``rmac-mj reproduce --algorithms mpc,recommended
+#: --experiments 1 --trials 1 --no-optimal`` with 2 tilings of 3 tiles and planning models of 120
+#: samples (``--set 'mpc.planning={"steps": 30, "start": "memory", "horizon": null,
+#: "model_capacity": 120}'``, ``recommended`` likewise with its own planning), after trial 1.
+FORMAT_2 = pathlib.Path(__file__).resolve().parents[1] / "data" / "snapshot_format_2"
+
+#: Written key -> (today's key, its class, what that version answered in one greedy trial from these
+#: states in turn: greedy action, value).
+WRITTEN_2 = {
+    "mpc": (
+        "recommended",
+        "MPC",
+        [
+            ((np.pi, 0.0), (-2.383141429060764, -1088.8670772124246)),
+            ((0.5, -2.0), (-1.6288203392769405, -724.9050969935727)),
+            ((-1.0, 3.0), (-1.5913229236187134, -653.2315629631773)),
+        ],
+    ),
+    "recommended": (
+        "s-ac-dyna",
+        "DynaAC",
+        [
+            ((np.pi, 0.0), (-0.24191664741489624, -1563.5835837483155)),
+            ((0.5, -2.0), (0.0, 0.0)),
+        ],
+    ),
+}
+
+
+@pytest.mark.parametrize("written_key", sorted(WRITTEN_2))
+def test_a_format_2_snapshot_comes_back_under_todays_learner_key(written_key):
+    key, class_name, answers = WRITTEN_2[written_key]
+    path = FORMAT_2 / f"{written_key}.npz"
+    with np.load(path, allow_pickle=False) as data:
+        written = json.loads(str(data["meta"]))
+    assert (written["format"], written["algorithm"]) == (2, written_key)
+    agent, meta = load_snapshot(path)
+    assert (meta["format"], meta["algorithm"], agent.name) == (FORMAT, key, key)
+    assert type(agent).__name__ == class_name
+    agent.begin_greedy_trial()
+    for x, (action, value) in answers:
+        assert agent.greedy_action(np.array(x))[0] == action
+        assert agent.value(np.array(x)) == value
+
+
 def test_format_1_task_kwargs_take_todays_names():
     with np.load(FORMAT_1 / "s-ac.npz", allow_pickle=False) as data:
         written = json.loads(str(data["meta"]))

@@ -20,6 +20,7 @@ import pytest
 from rmac_mj.cli import main
 from rmac_mj.experiments import Protocol, admission, experiment_seeds, run_protocol
 from rmac_mj.results import ResultStore, files
+from rmac_mj.results.snapshots import FORMAT
 
 TINY = dict(algorithms=("s-ac",), experiments=2, trials=4, snapshot_trials=(1, 2), evaluate_every=2)
 CLI = [
@@ -641,3 +642,56 @@ def test_long_computations_say_they_are_alive(monkeypatch):
     )
     assert any("simulated" in line and "transitions" in line for line in said)
     assert any("backup 10/10" in line for line in said)
+
+
+def _row(mean: float) -> dict:
+    return {
+        "experiments": 1,
+        "final_return_mean": mean,
+        "final_return_ci95": [mean, mean],
+        "minutes_to_90pct": None,
+        "final_return_per_experiment": [mean],
+        "mean_return_per_trial": [mean],
+        "ci95_low_per_trial": [mean],
+        "ci95_high_per_trial": [mean],
+    }
+
+
+def test_a_directory_written_before_format_3_is_read_under_todays_learner_keys(tmp_path):
+    # Before format 3, MPC was keyed "mpc" and S-AC with Dyna planning "recommended": read
+    # under today's keys, neither is labelled with the other's name.
+    protocol = {"algorithms": ["mpc", "recommended"], "experiments": 1, "agent_configs": {}}
+    (tmp_path / "config.json").write_text(
+        json.dumps({"protocol": protocol, "agents": {"mpc": {}, "recommended": {"lookahead": 5}}})
+    )
+    summary = {"protocol": protocol, "mpc": _row(-1.0), "recommended": _row(-2.0)}
+    (tmp_path / "summary.json").write_text(json.dumps(summary))
+    for stored, value in (("mpc", -1.0), ("recommended", -2.0)):
+        (tmp_path / "curves" / stored).mkdir(parents=True)
+        (tmp_path / "snapshots" / stored / "exp_000").mkdir(parents=True)
+        np.savez(
+            tmp_path / "curves" / stored / "exp_000.npz",
+            returns=np.array([value]),
+            greedy_trials=np.zeros(0, dtype=int),
+            greedy_returns=np.zeros(0),
+            wall_time_s=1.0,
+            cpu_time_s=1.0,
+            task_seed=0,
+            demonstration_returns=np.zeros(0),
+        )
+    store = ResultStore(tmp_path)
+    assert store.read_protocol()["algorithms"] == ["recommended", "s-ac-dyna"]
+    assert store.read_config()["agents"] == {"recommended": {}, "s-ac-dyna": {"lookahead": 5}}
+    assert store.load_curves("recommended").returns.tolist() == [[-1.0]]
+    assert store.load_curves("s-ac-dyna").returns.tolist() == [[-2.0]]
+    assert store.finished("s-ac-dyna") == {0} and store.snapshot_algorithms() == [
+        "recommended",
+        "s-ac-dyna",
+    ]
+    read = store.read_summary()
+    assert (read["recommended"], read["s-ac-dyna"]) == (_row(-1.0), _row(-2.0))
+    # A directory written today says its format, and its keys are today's.
+    today = ResultStore(tmp_path / "today")
+    today.write_config({"protocol": {"algorithms": ["recommended"]}})
+    assert json.loads(today.config_path.read_text())["format"] == FORMAT
+    assert today.curve_path("recommended", 0).parent.name == "recommended"

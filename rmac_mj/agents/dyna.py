@@ -1,4 +1,4 @@
-"""The learner to pick for a new task: S-AC (Algorithm 1) with Dyna planning.
+"""S-AC (Algorithm 1) with Dyna planning, in the task's units: the learner recommended before MPC.
 
 Every default is in the task's own units (:func:`rmac_mj.agents.task_knowledge.with_task_units`);
 optionally it acts by a one-step lookahead in the learned model, u = argmax_u r(x, u) + gamma V(f(x,
@@ -20,7 +20,7 @@ from rmac_mj.constraints import Boolean, Interval
 
 
 @dataclasses.dataclass(frozen=True)
-class RecommendedConfig(StandardACConfig):
+class DynaACConfig(StandardACConfig):
     """S-AC's settings (:class:`StandardACConfig`) with planning on: ``planning.steps`` simulated
     transitions per real one, and an actor rate of 0.002 at the paper's reward scale (the smaller
     step planning wants on the pendulum, docs/planning.md), carried to the task's reward scale both
@@ -51,20 +51,20 @@ class RecommendedConfig(StandardACConfig):
     }
 
 
-class Recommended(StandardActorCritic):
-    """S-AC with planning (:class:`RecommendedConfig`); interface and state as
+class DynaAC(StandardActorCritic):
+    """S-AC with planning (:class:`DynaACConfig`); interface and state as
     :class:`StandardActorCritic`."""
 
-    name = "recommended"
+    name = "s-ac-dyna"
     display_name = "S-AC + planning"
-    config_class = RecommendedConfig
+    config_class = DynaACConfig
 
     def __init__(self, *args, **kwargs) -> None:
         super().__init__(*args, **kwargs)
         c = self.config
         if c.lookahead and not c.planning.steps:
             raise ValueError(
-                "recommended: config.lookahead needs the planning model (planning.steps > 0)"
+                "s-ac-dyna: config.lookahead needs the planning model (planning.steps > 0)"
             )
         grids = (
             [
