@@ -8,8 +8,14 @@ import pathlib
 from collections.abc import Sequence
 from typing import Any
 
-from rmac_mj.cli.common import STARTED, Interrupted, UsageError, say, user_input, writable_dir
-from rmac_mj.cli.options import build_parser
+from rmac_mj.cli.arguments import (
+    STARTED,
+    Interrupted,
+    UsageError,
+    say,
+    user_input,
+    writable_dir,
+)
 from rmac_mj.cli.run_options import PROTOCOL_OPTIONS, SWEEP_SIZE_OPTIONS
 from rmac_mj.errors import UserInputError
 
@@ -105,6 +111,7 @@ def settings_from_files(argv: Sequence[str] | None, args: argparse.Namespace) ->
     ``reproduce`` has no option for travel in ``args.config_protocol``, its hyperparameters in
     ``args.config_agent_configs`` (``--set`` applies on top). A resumed run started with
     ``--no-optimal`` is finished without the reference too."""
+    from rmac_mj.cli import build_parser
     from rmac_mj.results.store import ResultStore
     from rmac_mj.sweeps import dotted_keys, sweep_file
 

@@ -8,7 +8,7 @@ import os
 import pathlib
 from collections.abc import Sequence
 
-from rmac_mj.cli.common import UsageError, say, user_input
+from rmac_mj.cli.arguments import UsageError, say, user_input
 
 
 def shortest_distinct_suffixes(paths: Sequence[pathlib.Path]) -> list[str]:

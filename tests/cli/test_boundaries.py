@@ -142,7 +142,7 @@ def test_a_failure_mid_run_names_experiment_and_trial_and_keeps_the_traceback(fa
             "fails_later",
             ["--control-timestep", "1e-300"],
             EXIT_BAD_INPUT,
-            "argument --control-timestep: expected a number of seconds >= 1e-06, got '1e-300'",
+            "argument --control-timestep: expected a finite number >= 1e-06, got '1e-300'",
         ),
         (
             "wide",

@@ -110,7 +110,7 @@ def test_reproduce_and_compare_and_policy(tmp_path):
 
 
 def test_set_overrides_parse_into_nested_agent_configs():
-    from rmac_mj.cli.common import UsageError
+    from rmac_mj.cli.arguments import UsageError
     from rmac_mj.cli.runs import parse_overrides
 
     assert parse_overrides(
