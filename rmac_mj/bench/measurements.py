@@ -328,7 +328,7 @@ def real_run(
     """
     import dataclasses
 
-    from rmac_mj.experiments.runner import run_protocol
+    from rmac_mj.experiments import RunOptions, run_protocol
 
     protocol = dataclasses.replace(
         measured_protocol(**where), experiments=experiments, trials=trials
@@ -343,7 +343,7 @@ def real_run(
     with tempfile.TemporaryDirectory(prefix="rmac-mj-bench-") as out:
         cpu_before = _process_cpu_s()
         start = time.perf_counter()
-        summary = run_protocol(protocol, out, jobs=jobs, progress=False, figures=False)
+        summary = run_protocol(protocol, out, RunOptions(jobs=jobs, progress=False, figures=False))
         wall = time.perf_counter() - start
         cpu_after = _process_cpu_s()
     cpu = None if cpu_before is None else (cpu_after - cpu_before) / workers

@@ -163,6 +163,23 @@ def settings_from_files(argv: Sequence[str] | None, args: argparse.Namespace) ->
     return args
 
 
+def run_options(args, **own: Any):
+    """The :class:`~rmac_mj.experiments.runner.RunOptions` a run command's arguments give (its
+    --jobs, --resume, --scheduler, --no-progress, --no-optimal where it has them), with ``own``."""
+    from rmac_mj.experiments import RunOptions
+
+    return RunOptions(
+        jobs=args.jobs,
+        resume=args.resume,
+        scheduler=getattr(args, "scheduler", None),
+        progress=not args.no_progress,
+        references=not getattr(args, "no_optimal", True),
+        log=say,
+        started=STARTED,
+        **own,
+    )
+
+
 def prior_options(args) -> dict[str, Any]:
     """The Protocol's prior knowledge fields that --prior, --prior-trials and --prior-parts give."""
     if args.prior is None and (args.prior_trials is not None or args.prior_parts is not None):
@@ -262,18 +279,7 @@ def run_reproduced(args, protocol, out: pathlib.Path, resume: str) -> dict[str, 
     from rmac_mj.experiments import execution, runner
 
     try:
-        return runner.run_protocol(
-            protocol,
-            out,
-            jobs=args.jobs,
-            resume=args.resume,
-            scheduler=args.scheduler,
-            progress=not args.no_progress,
-            references=not args.no_optimal,
-            smooth=args.smooth,
-            log=say,
-            started=STARTED,
-        )
+        return runner.run_protocol(protocol, out, run_options(args, smooth=args.smooth))
     except execution.BackendError as error:  # e.g. the scheduler lost: what finished is saved
         saved = runner.finished_experiments(out, protocol)
         if not saved:
@@ -337,17 +343,7 @@ def sweep(args) -> int:
     out = writable_dir(args.out)
     say(f"running into {out}/")
     try:
-        rows = sweeps.run_sweep(
-            plan,
-            out,
-            jobs=args.jobs,
-            scheduler=args.scheduler,
-            resume=args.resume,
-            progress=not args.no_progress,
-            references=not args.no_optimal,
-            log=say,
-            started=STARTED,
-        )
+        rows = sweeps.run_sweep(plan, out, run_options(args))
     except KeyboardInterrupt:
         given = "".join(f" --{key} {value}" for key, value in sizes.items())
         again = f"rmac-mj sweep {args.file}{given} --resume --out {out}"
@@ -382,12 +378,8 @@ def panel(args) -> int:
             args.experiments,
             args.seed,
             names,
-            jobs=args.jobs,
-            resume=args.resume,
             trials=args.trials,
-            progress=not args.no_progress,
-            log=say,
-            started=STARTED,
+            options=run_options(args),
         )
     except KeyboardInterrupt:
         raise Interrupted(

@@ -10,7 +10,6 @@ from __future__ import annotations
 import json
 import math
 import pathlib
-from collections.abc import Callable
 from typing import Any
 
 from rmac_mj import constraints
@@ -123,41 +122,25 @@ def _added_experiments(stored: dict[str, Any], document: dict[str, Any]) -> int 
 def run_sweep(
     sweep: Sweep,
     out: str | pathlib.Path,
-    jobs: int | None = None,
-    scheduler: str | None = None,
-    resume: bool = False,
-    progress: bool = True,
-    references: bool = False,
-    figures: bool = True,
-    log: Callable[[str], None] | None = None,
-    started: float | None = None,
+    options: runner.RunOptions | None = None,
 ) -> list[dict[str, Any]]:
-    """Run (or finish, with ``resume``) every configuration of ``sweep`` into ``out``.
+    """Run (or finish, with ``options.resume``) every configuration of ``sweep`` into ``out``.
 
     Writes ``out/sweep.json`` (the index), one result directory per configuration, ``out/sweep.csv``
-    and, with ``figures``, ``out/sweep_<metric>.png``. Returns the csv's rows. ``references``,
-    ``log`` and ``started`` mean what they mean for :func:`runner.run_protocol`.
+    and, with ``options.figures``, ``out/sweep_<metric>.png``. Returns the csv's rows. ``options``:
+    how each configuration is run (:class:`runner.RunOptions`).
     """
+    options = options or runner.RunOptions()
     out = pathlib.Path(out)
     with ResultStore(
         out
     ).lock():  # one sweep at a time in a directory (each run also locks its own)
-        _prepare(out, sweep, resume)
+        _prepare(out, sweep, options.resume)
         runs = [(c.protocol, out / c.name) for c in sweep.configurations]
-        summaries = runner.run_protocols(
-            runs,
-            jobs=jobs,
-            resume=resume,
-            scheduler=scheduler,
-            progress=progress,
-            references=references,
-            figures=figures,
-            log=log,
-            started=started,
-        )
+        summaries = runner.run_protocols(runs, options)
     rows = sweep_rows(sweep, summaries)
     write_csv(out / "sweep.csv", sweep, rows)
-    if figures:
+    if options.figures:
         from rmac_mj.sweeps import figure
 
         figure.plot_sweep(sweep, rows, out)

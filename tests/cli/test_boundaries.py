@@ -18,7 +18,7 @@ import pytest
 
 from rmac_mj.cli import build_parser, main
 from rmac_mj.errors import EXIT_BAD_INPUT, EXIT_ENVIRONMENT
-from rmac_mj.experiments import Protocol, run_protocol
+from rmac_mj.experiments import Protocol, RunOptions, run_protocol
 
 TINY = dict(algorithms=("s-ac",), experiments=2, trials=3, snapshot_trials=(1,))
 RESUME = ["reproduce", "--algorithms", "s-ac", "--experiments", "2", "--trials", "3"]
@@ -105,7 +105,7 @@ def factories(tmp_path, monkeypatch):
 def finished(tmp_path_factory) -> pathlib.Path:
     """One finished tiny run, copied by the tests that damage it."""
     out = tmp_path_factory.mktemp("finished") / "run"
-    run_protocol(Protocol(**TINY), out, jobs=1, progress=False, figures=False)
+    run_protocol(Protocol(**TINY), out, RunOptions(jobs=1, progress=False, figures=False))
     return out
 
 

@@ -14,6 +14,7 @@ import pytest
 
 from rmac_mj import cli
 from rmac_mj.errors import UserInputError
+from rmac_mj.experiments import RunOptions
 from rmac_mj.sweeps import format_table, load_configuration, load_sweep, run_sweep
 
 TINY = """
@@ -285,7 +286,9 @@ def test_tiny_sweep_killed_resumed_and_summarised(tmp_path, capsys):
             "NearOptimalService",
             lambda protocols, log, background: service(protocols, log, background=False),
         )
-        rows = run_sweep(load_sweep(path), whole, jobs=2, progress=False, references=True)
+        rows = run_sweep(
+            load_sweep(path), whole, RunOptions(jobs=2, progress=False, references=True)
+        )
     resumed_curves, whole_curves = curves(killed), curves(whole)
     assert sorted(resumed_curves) == sorted(whole_curves) and len(whole_curves) == 2 * 2
     for key in whole_curves:
@@ -320,39 +323,43 @@ def test_tiny_sweep_killed_resumed_and_summarised(tmp_path, capsys):
         assert (whole / f"sweep_{metric}.png").is_file(), metric
     assert not (whole / "sweep_first_5min.png").exists()  # no window in a 9 s run: nothing drawn
     with pytest.raises(UserInputError, match="already holds a sweep"):
-        run_sweep(load_sweep(path), whole, jobs=1, progress=False)
+        run_sweep(load_sweep(path), whole, RunOptions(jobs=1, progress=False))
     other = write(tmp_path, TINY.replace("0.02]", "0.03]"), "other.toml")
     with pytest.raises(UserInputError, match="a different file"):
-        run_sweep(load_sweep(other), whole, jobs=1, resume=True, progress=False)
+        run_sweep(load_sweep(other), whole, RunOptions(jobs=1, resume=True, progress=False))
 
 
 @pytest.mark.slow
 def test_a_resumed_sweep_adds_experiments_to_every_configuration(tmp_path):
     out = tmp_path / "out"
-    run_sweep(load_sweep(write(tmp_path, TINY)), out, jobs=1, progress=False, figures=False)
+    run_sweep(
+        load_sweep(write(tmp_path, TINY)), out, RunOptions(jobs=1, progress=False, figures=False)
+    )
     larger = write(tmp_path, TINY.replace("experiments = 2", "experiments = 3"), "larger.toml")
     with pytest.raises(UserInputError, match="already holds a sweep"):
-        run_sweep(load_sweep(larger), out, jobs=1, progress=False, figures=False)
-    rows = run_sweep(load_sweep(larger), out, jobs=1, resume=True, progress=False, figures=False)
+        run_sweep(load_sweep(larger), out, RunOptions(jobs=1, progress=False, figures=False))
+    rows = run_sweep(
+        load_sweep(larger), out, RunOptions(jobs=1, resume=True, progress=False, figures=False)
+    )
     assert [r["experiments"] for r in rows] == [3, 3] and len(curves(out)) == 2 * 3
     index = json.loads((out / "sweep.json").read_text())
     assert index["sweep"]["protocol"]["experiments"] == 3 and index["experiments_grown_from"] == [2]
     assert (out / "sweep.toml").read_text() == larger.read_text()
     fresh = tmp_path / "fresh"
-    run_sweep(load_sweep(larger), fresh, jobs=1, progress=False, figures=False)
+    run_sweep(load_sweep(larger), fresh, RunOptions(jobs=1, progress=False, figures=False))
     grown_curves, fresh_curves = curves(out), curves(fresh)
     for key in fresh_curves:
         np.testing.assert_array_equal(grown_curves[key], fresh_curves[key])
     smaller = write(tmp_path, TINY, "smaller.toml")  # a resume never drops experiments
     with pytest.raises(UserInputError, match="a resume may only add experiments"):
-        run_sweep(load_sweep(smaller), out, jobs=1, resume=True, progress=False)
+        run_sweep(load_sweep(smaller), out, RunOptions(jobs=1, resume=True, progress=False))
     both = write(
         tmp_path,
         TINY.replace("experiments = 2", "experiments = 4").replace("trials = 3", "trials = 4"),
         "both.toml",
     )
     with pytest.raises(UserInputError, match="a different file"):
-        run_sweep(load_sweep(both), out, jobs=1, resume=True, progress=False)
+        run_sweep(load_sweep(both), out, RunOptions(jobs=1, resume=True, progress=False))
 
 
 @pytest.mark.slow
