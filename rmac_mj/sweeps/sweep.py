@@ -248,13 +248,7 @@ def format_table(sweep: Sweep, rows: list[dict]) -> str:
     for row, final_ci, greedy_ci in zip(rows, finals, greedies):
         # n/a where the header claims an interval this row has not
         final = f"{row['final_return_mean']:.1f}" + (f" {final_ci or 'n/a'}" if any(finals) else "")
-        greedy = ""
-        if evaluated:
-            mean = row.get("greedy_return_mean")
-            greedy = "n/a" if mean is None else f"{mean:.1f}"
-            if any(greedies) and mean is not None:
-                greedy += f" {greedy_ci or 'n/a'}"
-            greedy = f"{greedy:>24} "
+        greedy = _greedy_cell(row, greedy_ci, any(greedies)) if evaluated else ""
         first = row["mean_return_first_5min"]  # None for a run shorter than the window
         stuck = row["stuck_experiments"]  # None without a reference return to judge "stuck" by
         lines.append(
@@ -262,17 +256,32 @@ def format_table(sweep: Sweep, rows: list[dict]) -> str:
             f"{row['minutes_to_90pct']:>10.1f} {'n/a' if first is None else f'{first:.1f}':>11} "
             f"{'' if stuck is None else stuck:>5}"
         )
+    return "\n".join(lines + _table_notes(rows, evaluated))
+
+
+def _greedy_cell(row: dict, interval: str | None, intervals: bool) -> str:
+    """A row's greedy return at the end (its interval where the column claims ``intervals``)."""
+    mean = row.get("greedy_return_mean")
+    greedy = "n/a" if mean is None else f"{mean:.1f}"
+    if intervals and mean is not None:
+        greedy += f" {interval or 'n/a'}"
+    return f"{greedy:>24} "
+
+
+def _table_notes(rows: list[dict], evaluated: bool) -> list[str]:
+    """The lines under the table: what its final return and greedy return are, and a note where
+    the experiments are too few for intervals."""
     windows = sorted({row["final_window"] for row in rows})
     short = (
         f" (the window is {metrics.FINAL_WINDOW} trials; these runs are shorter)"
         if max(windows) < metrics.FINAL_WINDOW
         else ""
     )
-    lines.append(
+    lines = [
         f"final return: mean of the last {', '.join(map(str, windows))} trials per experiment"
         f"{short}; first 5 min: of the trials within the first {metrics.FIRST_MINUTES:g} "
         "simulated minutes"
-    )
+    ]
     if evaluated:
         trials = sorted({row["greedy_trial"] for row in rows if row.get("greedy_trial")})
         lines.append(
@@ -282,4 +291,4 @@ def format_table(sweep: Sweep, rows: list[dict]) -> str:
     fewest = min(row["experiments"] for row in rows)
     if fewest < metrics.FEW_EXPERIMENTS:
         lines.append(report.few_experiments_note(fewest))
-    return "\n".join(lines)
+    return lines
