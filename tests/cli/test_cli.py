@@ -10,6 +10,7 @@ import io
 import json
 import os
 import pathlib
+import shutil
 import subprocess
 import sys
 
@@ -77,25 +78,9 @@ def test_bad_arguments_give_one_line(tmp_path, args, message):
 
 
 @pytest.mark.slow
-def test_reproduce_and_compare_and_policy(tmp_path):
-    out = tmp_path / "run"
-    result = rmac_mj(
-        "reproduce",
-        "--algorithms",
-        "s-ac",
-        "--experiments",
-        "2",
-        "--trials",
-        "3",
-        "--jobs",
-        "1",
-        "--out",
-        str(out),
-        "--no-optimal",
-        "--no-progress",
-    )
-    assert result.returncode == 0, result.stderr
-    assert "s-ac" in result.stdout and "final return" in result.stdout
+def test_reproduce_and_compare_and_policy(finished_run, tmp_path):
+    out = finished_run.out
+    assert "s-ac" in finished_run.stdout and "final return" in finished_run.stdout
     result = rmac_mj("compare", str(out), str(out), "--out", str(tmp_path / "cmp"))
     assert result.returncode == 0, result.stderr
     assert (tmp_path / "cmp.png").is_file()
@@ -203,6 +188,35 @@ def test_every_option_has_help_and_the_help_shows_defaults():
     reproduce = subparsers.choices["reproduce"].format_help()
     assert "(default: results/reproduce)" in " ".join(reproduce.split())
     assert "(default: 0)" in reproduce  # --seed: a default of 0 is still shown
+
+
+def test_the_run_commands_options_are_the_protocols_and_alike_in_every_command():
+    import argparse
+
+    from rmac_mj.cli import build_parser
+    from rmac_mj.experiments import Protocol
+
+    parser = build_parser()
+    subparsers = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    options = {
+        name: {action.dest: action for action in subparsers.choices[name]._actions}
+        for name in ("reproduce", "sweep", "panel")
+    }
+    given = parser.parse_args(["reproduce"])
+    for field in ("experiments", "trials", "steps", "seed", "evaluate_every", "evaluate_starts"):
+        assert getattr(given, field) == getattr(Protocol(), field), field  # the field's default
+    for dest in ("jobs", "resume", "no_progress", "out", "experiments", "trials", "seed"):
+        declared = [(o[dest].option_strings, o[dest].type, o[dest].metavar, o[dest].nargs)
+                    for o in options.values() if dest in o]  # fmt: skip
+        assert len(declared) >= 2 and len(set(map(repr, declared))) == 1, (dest, declared)
+    # A value the Protocol refuses is refused while parsing, in the words of its constraint.
+    for args, expected in (
+        (["--steps", "0"], "argument --steps: expected an integer >= 1, got '0'"),
+        (["--evaluate-starts", "1001"], "expected an integer in [0, 1000] (every evaluation"),
+        (["--control-timestep", "nan"], "expected a finite number >= 1e-06, got 'nan'"),
+    ):
+        result = rmac_mj("reproduce", *args)
+        assert result.returncode == 2 and expected in result.stderr, result.stderr
 
 
 def test_set_without_algorithms_runs_only_the_learners_it_names(capsys):
@@ -415,25 +429,11 @@ def test_a_resume_takes_its_settings_from_the_directory(tmp_path, capsys):
 
 
 @pytest.mark.slow
-def test_running_a_finished_run_again_prints_its_summary(tmp_path, capsys):
+def test_running_a_finished_run_again_prints_its_summary(finished_run, tmp_path, capsys):
     out = tmp_path / "run"
-    args = [
-        "reproduce",
-        "--algorithms",
-        "s-ac",
-        "--experiments",
-        "2",
-        "--trials",
-        "3",
-        "--jobs",
-        "1",
-        "--no-optimal",
-        "--no-progress",
-        "--out",
-        str(out),
-    ]
-    assert main(args) == 0
-    first = capsys.readouterr().out
+    shutil.copytree(finished_run.out, out)
+    args = [*finished_run.command, "--out", str(out)]
+    first = finished_run.stdout
     stamp = (out / "summary.json").stat().st_mtime_ns
     assert main(args) == 0
     captured = capsys.readouterr()
