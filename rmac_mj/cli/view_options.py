@@ -150,20 +150,13 @@ def add_render(commands) -> None:
         default=None,
         help="agent snapshot to render (or give --progression or --compare)",
     )
-    render.add_argument(
-        "--progression",
-        type=pathlib.Path,
-        default=None,
-        metavar="RESULT_DIR",
-        help="one experiment after trials 1, 10, 50, 200 and the last, in sequence",
-    )
-    render.add_argument(
-        "--compare",
-        type=pathlib.Path,
-        default=None,
-        metavar="RESULT_DIR",
-        help="S-AC and RMAC side by side after the same trial",
-    )
+    for option, what in (
+        ("--progression", "one experiment after trials 1, 10, 50, 200 and the last, in sequence"),
+        ("--compare", "S-AC and RMAC side by side after the same trial"),
+    ):
+        render.add_argument(
+            option, type=pathlib.Path, default=None, metavar="RESULT_DIR", help=what
+        )
     render.add_argument(
         "--experiment",
         type=non_negative_int,
