@@ -283,7 +283,10 @@ def add_panel(commands) -> None:
             "default": "mpc,recommended,sb3-sac,sb3-crossq",
             "help": "comma-separated learners",
         },
-        experiments={"default": 5, "help": "learning experiments per learner and task"},
+        experiments={
+            "default": panel_tasks.EXPERIMENTS,
+            "help": "learning experiments per learner and task",
+        },
     )
     panel.add_argument(
         "--tasks",
