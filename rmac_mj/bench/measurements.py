@@ -140,24 +140,10 @@ def _random_actions(env, count: int, rng: np.random.Generator) -> np.ndarray:
     return rng.uniform(space.low, space.high, (count, space.dim))
 
 
-def step_costs(calls: int, repeats: int, **where: Any) -> dict[str, Any]:
-    """The raw control step, ``env.step`` and the glue per step (us), measured interleaved.
-
-    Each repeat times, one after the other: ``calls`` raw control steps (``n_sub_steps`` x
-    ``mj_step`` with a random action); about ``calls`` ``env.step`` calls with random actions
-    (resets excluded); and
-    the same number of episodes once through ``run_trial`` with a constant-action agent and once
-    through ``env.reset`` and ``env.step`` alone. Returns medians over the repeats:
-    ``physics_step_us``, ``env_step_us`` and ``glue_step_us`` (the median of the per-repeat
-    difference between the two episode loops, per step), and ``raw_step`` (what the raw step is,
-    see :func:`_raw_step`). ``where``: see :func:`measured_protocol`.
-    """
-    physics_env = measured_environment(**where)
-    physics_env.reset()
-    rng = np.random.default_rng(0)
-    raw_batch, raw_label = _raw_step(physics_env, rng, calls)
-
-    env = measured_environment(**where)
+def _episode_batches(env, rng: np.random.Generator, calls: int) -> tuple[Callable[[], float], ...]:
+    """Three timed batches of about ``calls`` steps of ``env`` (us per step): ``env.step`` with
+    random actions (resets excluded); episodes through ``run_trial`` with a constant-action agent;
+    the same episodes through ``env.reset`` and ``env.step`` alone."""
     per_trial = steps_per_trial(env)
     episodes = max(1, round(calls / per_trial))
     actions = _random_actions(env, per_trial, rng)
@@ -191,6 +177,29 @@ def step_costs(calls: int, repeats: int, **where: Any) -> dict[str, Any]:
                 timestep = env.step(constant)
         return (_clock_ns() - start) / (episodes * per_trial) / 1e3
 
+    return env_batch, trial_batch, episode_batch
+
+
+def step_costs(calls: int, repeats: int, **where: Any) -> dict[str, Any]:
+    """The raw control step, ``env.step`` and the glue per step (us), measured interleaved.
+
+    Each repeat times, one after the other: ``calls`` raw control steps (``n_sub_steps`` x
+    ``mj_step`` with a random action); about ``calls`` ``env.step`` calls with random actions
+    (resets excluded); and
+    the same number of episodes once through ``run_trial`` with a constant-action agent and once
+    through ``env.reset`` and ``env.step`` alone. Returns medians over the repeats:
+    ``physics_step_us``, ``env_step_us`` and ``glue_step_us`` (the median of the per-repeat
+    difference between the two episode loops, per step), and ``raw_step`` (what the raw step is,
+    see :func:`_raw_step`). ``where``: see :func:`measured_protocol`.
+    """
+    physics_env = measured_environment(**where)
+    physics_env.reset()
+    rng = np.random.default_rng(0)
+    raw_batch, raw_label = _raw_step(physics_env, rng, calls)
+
+    env_batch, trial_batch, episode_batch = _episode_batches(
+        measured_environment(**where), rng, calls
+    )
     for batch in (raw_batch, env_batch, trial_batch, episode_batch):  # warm-up
         batch()
     raw, env_step, glue = [], [], []
@@ -328,7 +337,7 @@ def real_run(
     """
     import dataclasses
 
-    from rmac_mj.experiments.runner import run_protocol
+    from rmac_mj.experiments import RunOptions, run_protocol
 
     protocol = dataclasses.replace(
         measured_protocol(**where), experiments=experiments, trials=trials
@@ -343,7 +352,7 @@ def real_run(
     with tempfile.TemporaryDirectory(prefix="rmac-mj-bench-") as out:
         cpu_before = _process_cpu_s()
         start = time.perf_counter()
-        summary = run_protocol(protocol, out, jobs=jobs, progress=False, figures=False)
+        summary = run_protocol(protocol, out, RunOptions(jobs=jobs, progress=False, figures=False))
         wall = time.perf_counter() - start
         cpu_after = _process_cpu_s()
     cpu = None if cpu_before is None else (cpu_after - cpu_before) / workers

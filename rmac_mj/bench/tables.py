@@ -40,6 +40,17 @@ def _verdict(ratio: float, target: float | None) -> str:
     return f"<= {target:g} " + ("met" if ratio <= target else "MISSED")
 
 
+def _rows(report: dict[str, Any]) -> list[tuple[str, float, str]]:
+    """The per-step figures of ``report``: each row's label, microseconds and verdict against its
+    target (in multiples of the raw control step)."""
+    rows = []
+    for key, label in ROWS:
+        value = report[key]
+        label = label.format(raw_step=_raw_label(report), env_step=_env_step_label(report))
+        rows.append((label, value, _verdict(value / report["physics_step_us"], TARGETS.get(key))))
+    return rows
+
+
 def format_table(report: dict[str, Any]) -> str:
     """The report as a table: microseconds, multiples of the raw control step and of env.step."""
     physics, env = report["physics_step_us"], report["env_step_us"]
@@ -48,12 +59,9 @@ def format_table(report: dict[str, Any]) -> str:
         f"{'what':<44} {'us':>8} {'x raw step':>10} {'x env.step':>10}  target (x raw)",
         "-" * 90,
     ]
-    for key, label in ROWS:
-        value = report[key]
-        label = label.format(raw_step=_raw_label(report), env_step=_env_step_label(report))
+    for label, value, verdict in _rows(report):
         lines.append(
-            f"{label:<44} {value:>8.1f} {value / physics:>10.2f} {value / env:>10.2f}  "
-            f"{_verdict(value / physics, TARGETS.get(key))}"
+            f"{label:<44} {value:>8.1f} {value / physics:>10.2f} {value / env:>10.2f}  {verdict}"
         )
     lines.append("")
     measured = report.get("experiment_trials_measured", PAPER_TRIALS)
@@ -137,13 +145,8 @@ def format_markdown(report: dict[str, Any]) -> str:
         "| what | us | x raw control step | target |",
         "|---|---|---|---|",
     ]
-    for key, label in ROWS:
-        value = report[key]
-        label = label.format(raw_step=_raw_label(report), env_step=_env_step_label(report))
-        lines.append(
-            f"| {label.strip()} | {value:.1f} | {value / physics:.2f} | "
-            f"{_verdict(value / physics, TARGETS.get(key))} |"
-        )
+    for label, value, verdict in _rows(report):
+        lines.append(f"| {label.strip()} | {value:.1f} | {value / physics:.2f} | {verdict} |")
     per_trial = report["steps_per_trial"]
     for name, seconds in report["experiment_s"].items():
         per_step = seconds / (PAPER_TRIALS * per_trial) * 1e6

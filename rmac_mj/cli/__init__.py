@@ -29,12 +29,13 @@ import signal
 import sys
 import time
 import traceback
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
+from rmac_mj import __version__
 from rmac_mj import _heartbeat as heartbeat
-from rmac_mj.cli import runs, views
-from rmac_mj.cli.common import PROG, say  # first: its import time is the start of the wall time
-from rmac_mj.cli.options import build_parser
+from rmac_mj.cli import run_options, runs, view_options, views
+from rmac_mj.cli.arguments import PROG, HelpFormatter, OneLineErrorParser, say
 from rmac_mj.errors import (
     EXIT_BAD_INPUT,
     EXIT_BUG,
@@ -42,6 +43,33 @@ from rmac_mj.errors import (
     EnvironmentFailure,
     UserInputError,
 )
+
+DESCRIPTION = "The rmac-mj command: reproduce the paper's comparison, draw its figures, render videos, benchmark."
+
+
+def build_parser(reproduce_defaults: Mapping[str, Any] | None = None) -> argparse.ArgumentParser:
+    """The parser of every command. ``reproduce_defaults``: defaults of ``reproduce``'s options that
+    replace its own (the settings of a ``--config`` file or of a directory being resumed), by dest."""
+    parser = OneLineErrorParser(
+        prog=PROG,
+        description=DESCRIPTION,
+        epilog="Run 'rmac-mj COMMAND --help' for a command's options.",
+        formatter_class=HelpFormatter,
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    commands = parser.add_subparsers(
+        dest="command", metavar="COMMAND", title="commands", parser_class=OneLineErrorParser
+    )
+    run_options.add_reproduce(commands, reproduce_defaults)
+    run_options.add_sweep(commands)
+    run_options.add_panel(commands)
+    view_options.add_compare(commands)
+    view_options.add_policy(commands)
+    view_options.add_optimal(commands)
+    view_options.add_render(commands)
+    view_options.add_bench(commands)
+    return parser
+
 
 _COMMANDS = {
     "reproduce": runs.reproduce,

@@ -1,13 +1,63 @@
-"""The building blocks of the commands' options: the parser that reports an error in one line,
-the help formatter, value types that refuse a bad value with what was expected, and the option
-groups several commands share."""
+"""What every command shares: the program's name and start, one-line errors and status lines, and
+the building blocks of the commands' options (the parser that reports an error in one line, the
+help formatter, value types that refuse a bad value with what was expected, the option groups
+several commands share)."""
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
+import pathlib
+import sys
+import time
+from collections.abc import Sequence
+from typing import Any
 
 from rmac_mj import constraints
+from rmac_mj.errors import UserInputError
+
+#: When this process started (near enough: the CLI is imported first); wall times count from here.
+STARTED = time.perf_counter()
+PROG = "rmac-mj"
+
+
+class UsageError(UserInputError):
+    """A bad argument found after parsing: reported as one line, exit status 2."""
+
+
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C or SIGTERM, with what the user needs to know (what was saved, how to resume)."""
+
+
+def say(message: str) -> None:
+    """A status line on stderr, for anything slow that shows no progress of its own."""
+    print(f"{PROG}: {message}", file=sys.stderr, flush=True)
+
+
+@contextlib.contextmanager
+def user_input(what: str = ""):
+    """Validation of what the user gave (a configuration, a file): its ValueError becomes a
+    :class:`UsageError`, reported as one line. Wrap only validation, never a computation, so that a
+    bug elsewhere keeps its traceback."""
+    try:
+        yield
+    except UserInputError:
+        raise
+    except (ValueError, TypeError) as error:
+        raise UsageError(f"{what}{error}") from None
+
+
+def writable_dir(path: pathlib.Path) -> pathlib.Path:
+    """``path``, made if missing; UsageError naming it when it cannot be written to."""
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        probe = path / ".write-probe"
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as error:
+        raise UsageError(f"cannot write to {path}: {error.strerror or error}") from None
+    return path
 
 
 class OneLineErrorParser(argparse.ArgumentParser):
@@ -50,14 +100,13 @@ def int_at_least(minimum: int, expected: str):
 positive_int = int_at_least(1, "a positive integer")
 
 
-def size_within(limit: constraints.Limit):
-    """An argparse type: an integer within ``limit`` (a :class:`rmac_mj.constraints.Limit`), its
-    reason said when refused."""
-    allowed = [limit.constraint()]
+def constrained(allowed: Sequence[Any], number: type = int):
+    """An argparse type: a ``number`` (int or float) that meets one of ``allowed``
+    (:mod:`rmac_mj.constraints`), the constraint said when refused."""
 
-    def parse(text: str) -> int:
+    def parse(text: str):
         try:
-            value = int(text)
+            value = number(text)
         except ValueError:
             value = text
         problem = constraints.unmet(value, allowed)
@@ -68,17 +117,10 @@ def size_within(limit: constraints.Limit):
     return parse
 
 
-def control_seconds(text: str) -> float:
-    """An argparse type: a finite number of seconds, at least
-    :data:`~rmac_mj.constraints.MIN_CONTROL_TIMESTEP` (a control step)."""
-    expected = f"a number of seconds >= {constraints.MIN_CONTROL_TIMESTEP:g}"
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}") from None
-    if not (math.isfinite(value) and value >= constraints.MIN_CONTROL_TIMESTEP):
-        raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}")
-    return value
+def size_within(limit: constraints.Limit):
+    """An argparse type: an integer within ``limit`` (a :class:`rmac_mj.constraints.Limit`), its
+    reason said when refused."""
+    return constrained([limit.constraint()])
 
 
 non_negative_int = int_at_least(0, "an integer >= 0")

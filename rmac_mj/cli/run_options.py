@@ -1,23 +1,27 @@
-"""The options of the commands that run experiments: ``reproduce``, ``sweep``, ``panel``."""
+"""The options of the commands that run experiments: ``reproduce``, ``sweep``, ``panel``.
+
+Every option is declared once, in :data:`OPTIONS`, with ``reproduce``'s help; a command names the
+options it has, in the order of its help, with what is its own (help, default). An option that sets
+a :class:`~rmac_mj.experiments.protocol.Protocol` field has the field's name as dest, and its values'
+type and range are the field's declared constraints."""
 
 from __future__ import annotations
 
+import argparse
 import pathlib
 from collections.abc import Mapping
 from typing import Any
 
-from rmac_mj import constraints
 from rmac_mj.cli.arguments import (
     add_command,
     add_outside_options,
     add_task_options,
     add_trust_env,
-    control_seconds,
-    non_negative_int,
+    constrained,
     positive_int,
-    size_within,
 )
 from rmac_mj.experiments import panel as panel_tasks
+from rmac_mj.experiments.protocol import Protocol
 
 #: The Protocol fields ``reproduce`` has an option for (the option's dest is the field's name);
 #: ``algorithms`` and ``prior_parts`` are given comma-separated.
@@ -41,6 +45,144 @@ PROTOCOL_OPTIONS = (
     "evaluate_starts",
 )
 
+#: The Protocol fields that size a run, which ``sweep`` takes over its file's [protocol] table.
+SWEEP_SIZE_OPTIONS = ("experiments", "trials", "steps")
+
+
+def protocol_value(field: str):
+    """An argparse type: a value of Protocol's ``field`` (a number), refused by the field's own
+    constraints (``Protocol.parameter_constraints``), as a --config file's value is."""
+    allowed = [c for c in Protocol.parameter_constraints[field] if c is not None]
+    number = float if "float" in Protocol.__dataclass_fields__[field].type else int
+    return constrained(allowed, number)
+
+
+def _field(field: str, metavar: str | None = "N") -> dict[str, Any]:
+    """An option setting Protocol's ``field``: its type and default are the field's."""
+    return {
+        "type": protocol_value(field),
+        "default": Protocol.__dataclass_fields__[field].default,
+        "metavar": metavar,
+    }
+
+
+#: Every option of the commands that run experiments, by dest: ``add_argument``'s keywords.
+OPTIONS: dict[str, dict[str, Any]] = {
+    "experiments": {
+        **_field("experiments"),
+        "help": "learning experiments per learner (default: 40, the paper's)",
+    },
+    "trials": {
+        **_field("trials"),
+        "help": "consecutive trials per experiment (default: 600, the paper's, of 3 s); with "
+        "--steps, at most this many",
+    },
+    "steps": {
+        **_field("steps"),
+        "help": "a budget of environment steps per experiment (learner steps x action repeat; "
+        "greedy trials not counted): trials run until it is reached, the last to its end, or "
+        "until --trials",
+    },
+    "algorithms": {"default": None, "metavar": "ALGO[,ALGO]"},
+    "seed": {**_field("seed", None), "help": "root random seed"},
+    "jobs": {
+        "type": positive_int,
+        "default": None,
+        "metavar": "N",
+        "help": "worker processes (default: all cores)",
+    },
+    "out": {
+        "type": pathlib.Path,
+        "default": pathlib.Path("results/reproduce"),
+        "help": "result directory",
+    },
+    "resume": {
+        "action": "store_true",
+        "help": "finish an interrupted run in --out (same settings; a larger --experiments adds "
+        "experiments to it)",
+    },
+    "evaluate_every": {
+        **_field("evaluate_every"),
+        "help": "a greedy trial after every N learning trials (0: none)",
+    },
+    "scheduler": {
+        "default": None,
+        "metavar": "ADDRESS",
+        "help": "Dask scheduler address (tcp://host:8786) to run experiments on",
+    },
+    "set": {
+        "action": "append",
+        "default": [],
+        "metavar": "ALGO.FIELD=VALUE",
+        "help": "override a hyperparameter, e.g. s-ac.rate_split=actor or "
+        "rmac.exploration.sigma=0.5 (JSON values; repeatable). Without --algorithms only the "
+        "learners named here run: an ablation of rmac does not rerun s-ac",
+    },
+    "smooth": {
+        "type": positive_int,
+        "default": 1,
+        "metavar": "N",
+        "help": "Fig. 2: running mean over N trials (1: none)",
+    },
+    "prior": {
+        "default": None,
+        "metavar": "DEMONSTRATOR|FILE.npz",
+        "help": "seed every learner before its first trial with prior knowledge: trials of a "
+        "demonstrator the task declares (e.g. 'demo') or recorded transitions "
+        "(docs/prior-knowledge.md gives the format)",
+    },
+    "prior_trials": {
+        **_field("prior_trials", None),
+        "default": None,  # given or not: a recorded file takes none
+        "help": "demonstrator trials recorded per experiment (default 5)",
+    },
+    "prior_parts": {
+        "default": None,
+        "metavar": "PART,...",
+        "help": "seed only these kinds of knowledge: process, reference, critic, actor "
+        "(default: all a learner takes)",
+    },
+    "trial_steps": {
+        **_field("trial_steps"),
+        "help": "with --env: learner steps after which a trial is truncated (default: the "
+        "environment's own time limit)",
+    },
+    "control_timestep": {
+        **_field("control_timestep", "S"),
+        "help": "with --env: seconds per environment step, for an environment that does not say "
+        "(e.g. MountainCarContinuous-v0)",
+    },
+    "evaluate_starts": {
+        **_field("evaluate_starts"),
+        "help": "an evaluation is the mean of greedy trials from N starts drawn once per "
+        "experiment (0: one greedy trial from the task's next start); for a task that starts "
+        "anywhere, e.g. Pendulum-v1",
+    },
+    "no_optimal": {
+        "action": "store_true",
+        "help": "skip the near-optimal return (dynamic programming, about a minute the first "
+        "time, then cached)",
+    },
+    "no_progress": {
+        "action": "store_true",
+        "help": "no progress display (bars on a terminal, periodic lines otherwise)",
+    },
+    "config": {
+        "type": pathlib.Path,
+        "default": None,
+        "metavar": "FILE.toml",
+        "help": "protocol and hyperparameters from a sweep-style file with single values "
+        "(docs/studies/README.md); options given here override it",
+    },
+}
+
+
+def add_options(parser: argparse.ArgumentParser, *dests: str, **own: dict[str, Any]) -> None:
+    """The options ``dests`` of :data:`OPTIONS`, in that order, each with its keywords in ``own``
+    (by dest) over the declared ones."""
+    for dest in dests:
+        parser.add_argument("--" + dest.replace("_", "-"), **{**OPTIONS[dest], **own.get(dest, {})})
+
 
 def add_reproduce(commands, defaults: Mapping[str, Any] | None = None) -> None:
     """``reproduce``; ``defaults`` replace its own, by dest (a ``--config`` file's settings or
@@ -53,160 +195,25 @@ def add_reproduce(commands, defaults: Mapping[str, Any] | None = None) -> None:
         "run the paper's comparison (section 6): learning curves, summary, Fig. 2, snapshots",
     )
     add_task_options(reproduce, True, "default: the paper's swing-up")
-    reproduce.add_argument(
-        "--experiments",
-        type=size_within(constraints.EXPERIMENTS),
-        default=40,
-        metavar="N",
-        help="learning experiments per learner (default: 40, the paper's)",
-    )
-    reproduce.add_argument(
-        "--trials",
-        type=size_within(constraints.TRIALS),
-        default=600,
-        metavar="N",
-        help="consecutive trials per experiment (default: 600, the "
-        "paper's, of 3 s); with --steps, at most this many",
-    )
-    reproduce.add_argument(
-        "--steps",
-        type=positive_int,
-        default=None,
-        metavar="N",
-        help="a budget of environment steps per experiment (learner steps x "
-        "action repeat; greedy trials not counted): trials run until it is "
-        "reached, the last to its end, or until --trials",
-    )
-    reproduce.add_argument(
-        "--algorithms",
-        default=None,
-        metavar="ALGO[,ALGO]",
-        help=f"comma-separated learners, from {', '.join(ALGORITHMS)} (default: "
-        "rmac,s-ac, the paper's; with --set, only the learners --set names)",
-    )
-    reproduce.add_argument("--seed", type=non_negative_int, default=0, help="root random seed")
-    reproduce.add_argument(
-        "--jobs",
-        type=positive_int,
-        default=None,
-        metavar="N",
-        help="worker processes (default: all cores)",
-    )
-    reproduce.add_argument(
-        "--out",
-        type=pathlib.Path,
-        default=pathlib.Path("results/reproduce"),
-        help="result directory",
-    )
-    reproduce.add_argument(
-        "--resume",
-        action="store_true",
-        help="finish an interrupted run in --out (same settings; a larger "
-        "--experiments adds experiments to it)",
-    )
-    reproduce.add_argument(
-        "--evaluate-every",
-        type=non_negative_int,
-        default=0,
-        metavar="N",
-        help="a greedy trial after every N learning trials (0: none)",
-    )
-    reproduce.add_argument(
-        "--scheduler",
-        default=None,
-        metavar="ADDRESS",
-        help="Dask scheduler address (tcp://host:8786) to run experiments on",
-    )
-    reproduce.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="ALGO.FIELD=VALUE",
-        help="override a hyperparameter, e.g. s-ac.rate_split=actor or "
-        "rmac.exploration.sigma=0.5 (JSON values; repeatable). Without "
-        "--algorithms only the learners named here run: an ablation of "
-        "rmac does not rerun s-ac",
-    )
-    reproduce.add_argument(
-        "--smooth",
-        type=positive_int,
-        default=1,
-        metavar="N",
-        help="Fig. 2: running mean over N trials (1: none)",
-    )
-    reproduce.add_argument(
-        "--prior",
-        default=None,
-        metavar="DEMONSTRATOR|FILE.npz",
-        help="seed every learner before its first trial with prior knowledge: "
-        "trials of a demonstrator the task declares (e.g. 'demo') or "
-        "recorded transitions (docs/prior-knowledge.md gives the format)",
-    )
-    reproduce.add_argument(
-        "--prior-trials",
-        type=size_within(constraints.PRIOR_TRIALS),
-        default=None,
-        help="demonstrator trials recorded per experiment (default 5)",
-    )
-    reproduce.add_argument(
-        "--prior-parts",
-        default=None,
-        metavar="PART,...",
-        help="seed only these kinds of knowledge: process, reference, critic, "
-        "actor (default: all a learner takes)",
+    algorithms = {
+        "help": f"comma-separated learners, from {', '.join(ALGORITHMS)} (default: rmac,s-ac, the "
+        "paper's; with --set, only the learners --set names)"
+    }
+    add_options(
+        reproduce,
+        *("experiments", "trials", "steps", "algorithms", "seed", "jobs", "out", "resume"),
+        *("evaluate_every", "scheduler", "set", "smooth", "prior", "prior_trials", "prior_parts"),
+        algorithms=algorithms,
     )
     add_outside_options(reproduce)
     add_trust_env(reproduce, "the directory being resumed (--resume)")
-    reproduce.add_argument(
-        "--trial-steps",
-        type=size_within(constraints.TRIAL_STEPS),
-        default=None,
-        metavar="N",
-        help="with --env: learner steps after which a trial is truncated "
-        "(default: the environment's own time limit)",
-    )
-    reproduce.add_argument(
-        "--control-timestep",
-        type=control_seconds,
-        default=None,
-        metavar="S",
-        help="with --env: seconds per environment step, for an environment that "
-        "does not say (e.g. MountainCarContinuous-v0)",
-    )
-    reproduce.add_argument(
-        "--evaluate-starts",
-        type=size_within(constraints.EVALUATE_STARTS),
-        default=0,
-        metavar="N",
-        help="an evaluation is the mean of greedy trials from N starts drawn "
-        "once per experiment (0: one greedy trial from the task's next "
-        "start); for a task that starts anywhere, e.g. Pendulum-v1",
-    )
-    reproduce.add_argument(
-        "--no-optimal",
-        action="store_true",
-        help="skip the near-optimal return (dynamic programming, about a "
-        "minute the first time, then cached)",
-    )
-    reproduce.add_argument(
-        "--no-progress",
-        action="store_true",
-        help="no progress display (bars on a terminal, periodic lines otherwise)",
-    )
-    reproduce.add_argument(
-        "--config",
-        type=pathlib.Path,
-        default=None,
-        metavar="FILE.toml",
-        help="protocol and hyperparameters from a sweep-style file with single "
-        "values (docs/studies/README.md); options given here override it",
+    add_options(
+        reproduce,
+        *("trial_steps", "control_timestep", "evaluate_starts", "no_optimal", "no_progress"),
+        "config",
     )
     if defaults:
         reproduce.set_defaults(**defaults)
-
-
-#: The Protocol fields that size a run, which ``sweep`` takes over its file's [protocol] table.
-SWEEP_SIZE_OPTIONS = ("experiments", "trials", "steps")
 
 
 def add_sweep(commands) -> None:
@@ -223,55 +230,35 @@ def add_sweep(commands) -> None:
         metavar="SWEEP.toml",
         help="[protocol], [grid] and [[variant]] tables (docs/studies/README.md)",
     )
-    sweep.add_argument(
-        "--experiments",
-        type=size_within(constraints.EXPERIMENTS),
-        default=None,
-        metavar="N",
-        help="learning experiments per learner and configuration, over the file's",
+    over_the_files = {
+        "experiments": "learning experiments per learner and configuration",
+        "trials": "trials per experiment (with steps: at most this many)",
+        "steps": "a budget of environment steps per experiment",
+    }
+    add_options(
+        sweep,
+        *SWEEP_SIZE_OPTIONS,
+        "out",
+        "jobs",
+        "scheduler",
+        "resume",
+        "no_optimal",
+        "no_progress",
+        **{
+            dest: {"default": None, "help": f"{what}, over the file's"}
+            for dest, what in over_the_files.items()
+        },
+        out={
+            "required": True,
+            "default": None,
+            "help": "directory of the sweep: one result directory per configuration",
+        },
+        jobs={"help": "worker processes shared by all configurations (default: all cores)"},
+        resume={
+            "help": "finish an interrupted sweep in --out (a file that only raises experiments adds them)"
+        },
+        no_optimal={"help": "skip the near-optimal return and exploration floor"},
     )
-    sweep.add_argument(
-        "--trials",
-        type=size_within(constraints.TRIALS),
-        default=None,
-        metavar="N",
-        help="trials per experiment (with steps: at most this many), over the file's",
-    )
-    sweep.add_argument(
-        "--steps",
-        type=positive_int,
-        default=None,
-        metavar="N",
-        help="a budget of environment steps per experiment, over the file's",
-    )
-    sweep.add_argument(
-        "--out",
-        type=pathlib.Path,
-        required=True,
-        help="directory of the sweep: one result directory per configuration",
-    )
-    sweep.add_argument(
-        "--jobs",
-        type=positive_int,
-        default=None,
-        help="worker processes shared by all configurations (default: all cores)",
-    )
-    sweep.add_argument(
-        "--scheduler",
-        default=None,
-        help="Dask scheduler address (tcp://host:8786) to run experiments on",
-    )
-    sweep.add_argument(
-        "--resume",
-        action="store_true",
-        help="finish an interrupted sweep in --out (a file that only raises experiments adds them)",
-    )
-    sweep.add_argument(
-        "--no-optimal",
-        action="store_true",
-        help="skip the near-optimal return and exploration floor",
-    )
-    sweep.add_argument("--no-progress", action="store_true", help="no progress display")
 
 
 def add_panel(commands) -> None:
@@ -282,24 +269,24 @@ def add_panel(commands) -> None:
         "the public panel (docs/panel.md): seven tasks nobody tuned for, every "
         "learner at equal interaction, against fixed goals",
     )
-    panel.add_argument(
-        "--out",
-        type=pathlib.Path,
-        required=True,
-        help="directory of the panel: one result directory per task",
-    )
-    panel.add_argument(
-        "--algorithms",
-        default="recommended,s-ac-dyna,sb3-sac,sb3-crossq",
-        metavar="ALGO[,ALGO]",
-        help="comma-separated learners",
-    )
-    panel.add_argument(
-        "--experiments",
-        type=size_within(constraints.EXPERIMENTS),
-        default=5,
-        metavar="N",
-        help="learning experiments per learner and task",
+    add_options(
+        panel,
+        "out",
+        "algorithms",
+        "experiments",
+        out={
+            "required": True,
+            "default": None,
+            "help": "directory of the panel: one result directory per task",
+        },
+        algorithms={
+            "default": "recommended,s-ac-dyna,sb3-sac,sb3-crossq",
+            "help": "comma-separated learners",
+        },
+        experiments={
+            "default": panel_tasks.EXPERIMENTS,
+            "help": "learning experiments per learner and task",
+        },
     )
     panel.add_argument(
         "--tasks",
@@ -308,20 +295,17 @@ def add_panel(commands) -> None:
         help="some of the panel's tasks (default: all): "
         + ", ".join(task.name for task in panel_tasks.TASKS),
     )
-    panel.add_argument("--seed", type=non_negative_int, default=0, help="root random seed")
-    panel.add_argument(
-        "--jobs",
-        type=positive_int,
-        default=None,
-        metavar="N",
-        help="worker processes shared by all tasks (default: all cores)",
+    add_options(
+        panel,
+        "seed",
+        "jobs",
+        "resume",
+        "trials",
+        "no_progress",
+        jobs={"help": "worker processes shared by all tasks (default: all cores)"},
+        resume={"help": "finish an interrupted panel in --out"},
+        trials={
+            "default": None,
+            "help": "every task only N trials, evaluated after each (a smoke test, not the panel)",
+        },
     )
-    panel.add_argument("--resume", action="store_true", help="finish an interrupted panel in --out")
-    panel.add_argument(
-        "--trials",
-        type=size_within(constraints.TRIALS),
-        default=None,
-        metavar="N",
-        help="every task only N trials, evaluated after each (a smoke test, not the panel)",
-    )
-    panel.add_argument("--no-progress", action="store_true", help="no progress display")

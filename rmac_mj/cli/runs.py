@@ -8,8 +8,14 @@ import pathlib
 from collections.abc import Sequence
 from typing import Any
 
-from rmac_mj.cli.common import STARTED, Interrupted, UsageError, say, user_input, writable_dir
-from rmac_mj.cli.options import build_parser
+from rmac_mj.cli.arguments import (
+    STARTED,
+    Interrupted,
+    UsageError,
+    say,
+    user_input,
+    writable_dir,
+)
 from rmac_mj.cli.run_options import PROTOCOL_OPTIONS, SWEEP_SIZE_OPTIONS
 from rmac_mj.errors import UserInputError
 
@@ -105,6 +111,7 @@ def settings_from_files(argv: Sequence[str] | None, args: argparse.Namespace) ->
     ``reproduce`` has no option for travel in ``args.config_protocol``, its hyperparameters in
     ``args.config_agent_configs`` (``--set`` applies on top). A resumed run started with
     ``--no-optimal`` is finished without the reference too."""
+    from rmac_mj.cli import build_parser
     from rmac_mj.results.store import ResultStore
     from rmac_mj.sweeps import dotted_keys, sweep_file
 
@@ -156,13 +163,25 @@ def settings_from_files(argv: Sequence[str] | None, args: argparse.Namespace) ->
     return args
 
 
-def reproduce(args) -> int:
-    from rmac_mj.evaluation import report
-    from rmac_mj.experiments import execution, runner
-    from rmac_mj.experiments.protocol import Protocol
-    from rmac_mj.results.store import ResultStore
-    from rmac_mj.sweeps import dotted_keys
+def run_options(args, **own: Any):
+    """The :class:`~rmac_mj.experiments.runner.RunOptions` a run command's arguments give (its
+    --jobs, --resume, --scheduler, --no-progress, --no-optimal where it has them), with ``own``."""
+    from rmac_mj.experiments import RunOptions
 
+    return RunOptions(
+        jobs=args.jobs,
+        resume=args.resume,
+        scheduler=getattr(args, "scheduler", None),
+        progress=not args.no_progress,
+        references=not getattr(args, "no_optimal", True),
+        log=say,
+        started=STARTED,
+        **own,
+    )
+
+
+def prior_options(args) -> dict[str, Any]:
+    """The Protocol's prior knowledge fields that --prior, --prior-trials and --prior-parts give."""
     if args.prior is None and (args.prior_trials is not None or args.prior_parts is not None):
         raise UsageError("--prior-trials and --prior-parts need --prior")
     if args.prior is not None and args.prior.endswith(".npz") and args.prior_trials is not None:
@@ -178,10 +197,20 @@ def reproduce(args) -> int:
             )
             if not prior["prior_parts"]:
                 raise UsageError("--prior-parts must name at least one part")
+    return prior
+
+
+def protocol_of(args):
+    """The Protocol ``reproduce``'s arguments describe (with a --config file's or a resumed run's
+    settings, :func:`settings_from_files`); UsageError naming what is wrong with it."""
+    from rmac_mj.experiments.protocol import Protocol
+    from rmac_mj.sweeps import dotted_keys
+
+    prior = prior_options(args)
     overrides = parse_overrides(args.set)
     agent_configs = dotted_keys.merge(getattr(args, "config_agent_configs", {}), overrides)
     with user_input():
-        protocol = Protocol(
+        return Protocol(
             domain=args.domain,
             task=args.task,
             algorithms=algorithms_to_run(args, overrides),
@@ -199,37 +228,58 @@ def reproduce(args) -> int:
             agent_configs=agent_configs,
             **{**getattr(args, "config_protocol", {}), **prior},
         )
-    out = writable_dir(args.out)
-    if args.jobs is not None and args.scheduler:
-        raise UsageError("--jobs and --scheduler exclude each other")
-    store = ResultStore(out)
-    # What finishes this run as it was started (a run without the reference stays without it).
-    resume = f"rmac-mj reproduce --resume --out {out}{' --no-optimal' if args.no_optimal else ''}"
-    if not args.resume and store.holds_finished(protocol):
-        try:
-            finished = store.read_summary()
-        except UserInputError as error:  # damaged since it was written: --resume writes it again
-            raise UsageError(f"{error}; {resume} writes it again") from None
-        say(
-            f"{out} already holds this run, finished; its summary (run with another --out to "
-            "repeat it):"
-        )
-        print(report.summary_table(finished, protocol.algorithms))
-        print(f"results in {out}/ (summary.json, returns.csv, fig2_learning_curves.png)")
-        return 0
+
+
+def show_finished(out: pathlib.Path, protocol, resume: str) -> None:
+    """Say that ``out`` already holds this run, finished, and print its summary."""
+    from rmac_mj.evaluation import report
+    from rmac_mj.results.store import ResultStore
+
     try:
-        summary = runner.run_protocol(
-            protocol,
-            out,
-            jobs=args.jobs,
-            resume=args.resume,
-            scheduler=args.scheduler,
-            progress=not args.no_progress,
-            references=not args.no_optimal,
-            smooth=args.smooth,
-            log=say,
-            started=STARTED,
+        finished = ResultStore(out).read_summary()
+    except UserInputError as error:  # damaged since it was written: --resume writes it again
+        raise UsageError(f"{error}; {resume} writes it again") from None
+    say(
+        f"{out} already holds this run, finished; its summary (run with another --out to repeat it):"
+    )
+    print(report.summary_table(finished, protocol.algorithms))
+    print(f"results in {out}/ (summary.json, returns.csv, fig2_learning_curves.png)")
+
+
+def interrupted(out: pathlib.Path, protocol, resume: str) -> Interrupted:
+    """What a Ctrl-C of ``reproduce`` leaves in ``out``: finished experiments, checkpoints or
+    nothing, and the command that finishes the run."""
+    from rmac_mj.experiments import runner
+    from rmac_mj.results.store import ResultStore
+
+    saved = runner.finished_experiments(out, protocol)
+    again = f"finish it with: {resume}"
+    if saved:
+        return Interrupted(
+            f"{saved} finished experiment{' is' if saved == 1 else 's are'} saved in {out}; {again}"
         )
+    checkpointed = {a: ResultStore(out).checkpointed(a) for a in protocol.algorithms}
+    held = [
+        f"{a} experiment {i} after trial {t}"
+        for a, found in checkpointed.items()
+        for i, t in sorted(found.items())
+    ]
+    if held:
+        return Interrupted(
+            f"no experiment had finished; kept to continue from: {', '.join(held)}; {again}"
+        )
+    if ResultStore(out).read_config() is None:  # nothing begun: nothing to resume
+        return Interrupted("no experiment had started, nothing is saved")
+    return Interrupted(f"no experiment had finished, nothing is saved; {again}")
+
+
+def run_reproduced(args, protocol, out: pathlib.Path, resume: str) -> dict[str, Any]:
+    """Run ``protocol`` into ``out`` as ``reproduce``'s arguments say; a lost scheduler or a Ctrl-C
+    becomes one line saying what is saved and how to finish (``resume``)."""
+    from rmac_mj.experiments import execution, runner
+
+    try:
+        return runner.run_protocol(protocol, out, run_options(args, smooth=args.smooth))
     except execution.BackendError as error:  # e.g. the scheduler lost: what finished is saved
         saved = runner.finished_experiments(out, protocol)
         if not saved:
@@ -239,26 +289,13 @@ def reproduce(args) -> int:
             f"finish with {resume} (with --scheduler or --jobs)"
         ) from None
     except KeyboardInterrupt:
-        saved = runner.finished_experiments(out, protocol)
-        again = f"finish it with: {resume}"
-        if saved:
-            raise Interrupted(
-                f"{saved} finished experiment{' is' if saved == 1 else 's are'} saved "
-                f"in {out}; {again}"
-            ) from None
-        checkpointed = {a: ResultStore(out).checkpointed(a) for a in protocol.algorithms}
-        held = [
-            f"{a} experiment {i} after trial {t}"
-            for a, found in checkpointed.items()
-            for i, t in sorted(found.items())
-        ]
-        if held:
-            raise Interrupted(
-                f"no experiment had finished; kept to continue from: {', '.join(held)}; {again}"
-            ) from None
-        if ResultStore(out).read_config() is None:  # nothing begun: nothing to resume
-            raise Interrupted("no experiment had started, nothing is saved") from None
-        raise Interrupted(f"no experiment had finished, nothing is saved; {again}") from None
+        raise interrupted(out, protocol, resume) from None
+
+
+def show_summary(summary: dict[str, Any], protocol, out: pathlib.Path) -> None:
+    """The finished run's table and its wall time over all its parts."""
+    from rmac_mj.evaluation import report
+
     print(report.summary_table(summary, protocol.algorithms))
     parts = summary["wall_time_parts_s"]
     total = summary["wall_time_s"]
@@ -271,6 +308,22 @@ def reproduce(args) -> int:
         f"wall time {total:.1f} s{detail}, all included (start-up, compiling, experiments, "
         f"reference, figures); results in {out}/ (summary.json, returns.csv, fig2_learning_curves.png)"
     )
+
+
+def reproduce(args) -> int:
+    from rmac_mj.results.store import ResultStore
+
+    protocol = protocol_of(args)
+    out = writable_dir(args.out)
+    if args.jobs is not None and args.scheduler:
+        raise UsageError("--jobs and --scheduler exclude each other")
+    # What finishes this run as it was started (a run without the reference stays without it).
+    resume = f"rmac-mj reproduce --resume --out {out}{' --no-optimal' if args.no_optimal else ''}"
+    if not args.resume and ResultStore(out).holds_finished(protocol):
+        show_finished(out, protocol, resume)
+        return 0
+    summary = run_reproduced(args, protocol, out, resume)
+    show_summary(summary, protocol, out)
     return 0
 
 
@@ -290,17 +343,7 @@ def sweep(args) -> int:
     out = writable_dir(args.out)
     say(f"running into {out}/")
     try:
-        rows = sweeps.run_sweep(
-            plan,
-            out,
-            jobs=args.jobs,
-            scheduler=args.scheduler,
-            resume=args.resume,
-            progress=not args.no_progress,
-            references=not args.no_optimal,
-            log=say,
-            started=STARTED,
-        )
+        rows = sweeps.run_sweep(plan, out, run_options(args))
     except KeyboardInterrupt:
         given = "".join(f" --{key} {value}" for key, value in sizes.items())
         again = f"rmac-mj sweep {args.file}{given} --resume --out {out}"
@@ -335,12 +378,8 @@ def panel(args) -> int:
             args.experiments,
             args.seed,
             names,
-            jobs=args.jobs,
-            resume=args.resume,
             trials=args.trials,
-            progress=not args.no_progress,
-            log=say,
-            started=STARTED,
+            options=run_options(args),
         )
     except KeyboardInterrupt:
         raise Interrupted(

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import argparse
 import pathlib
 
 from rmac_mj import constraints
@@ -77,6 +78,18 @@ def add_policy(commands) -> None:
         default=None,
         help="figure path without suffix (default: beside the first snapshot)",
     )
+    _add_map_options(policy)
+    policy.add_argument(
+        "--no-trajectory",
+        action="store_true",
+        help="do not draw the greedy trial from the start state over the maps",
+    )
+    add_task_options(policy, False, "default: the snapshot's own")
+    add_trust_env(policy, "each snapshot")
+
+
+def _add_map_options(policy: argparse.ArgumentParser) -> None:
+    """``policy``'s options of what the maps show: which dimensions, their ranges, the slice, the grid."""
     policy.add_argument(
         "--dims",
         type=state_dims,
@@ -113,13 +126,6 @@ def add_policy(commands) -> None:
         metavar="N",
         help="grid points along each axis (default 101)",
     )
-    policy.add_argument(
-        "--no-trajectory",
-        action="store_true",
-        help="do not draw the greedy trial from the start state over the maps",
-    )
-    add_task_options(policy, False, "default: the snapshot's own")
-    add_trust_env(policy, "each snapshot")
 
 
 def add_optimal(commands) -> None:
@@ -144,20 +150,13 @@ def add_render(commands) -> None:
         default=None,
         help="agent snapshot to render (or give --progression or --compare)",
     )
-    render.add_argument(
-        "--progression",
-        type=pathlib.Path,
-        default=None,
-        metavar="RESULT_DIR",
-        help="one experiment after trials 1, 10, 50, 200 and the last, in sequence",
-    )
-    render.add_argument(
-        "--compare",
-        type=pathlib.Path,
-        default=None,
-        metavar="RESULT_DIR",
-        help="S-AC and RMAC side by side after the same trial",
-    )
+    for option, what in (
+        ("--progression", "one experiment after trials 1, 10, 50, 200 and the last, in sequence"),
+        ("--compare", "S-AC and RMAC side by side after the same trial"),
+    ):
+        render.add_argument(
+            option, type=pathlib.Path, default=None, metavar="RESULT_DIR", help=what
+        )
     render.add_argument(
         "--experiment",
         type=non_negative_int,

@@ -7,8 +7,9 @@ import json
 import os
 import pathlib
 from collections.abc import Sequence
+from typing import Any
 
-from rmac_mj.cli.common import UsageError, say, user_input
+from rmac_mj.cli.arguments import UsageError, say, user_input
 
 
 def shortest_distinct_suffixes(paths: Sequence[pathlib.Path]) -> list[str]:
@@ -192,10 +193,9 @@ def _declared_labels(learner_state, meta: dict):
     return learner_state
 
 
-def policy(args) -> int:
-    from rmac_mj.figures import policy_plots
+def _load_snapshots(args) -> tuple[list[tuple], list]:
+    """``args.snapshots`` loaded, each as (agent, meta), and each one's environment."""
     from rmac_mj.results.snapshots import load_snapshot, snapshot_environment
-    from rmac_mj.rollout import learner_state_of, state_of
 
     snapshots, envs = [], []
     for path in args.snapshots:
@@ -213,6 +213,14 @@ def policy(args) -> int:
                 log=say,
             )
         )
+    return snapshots, envs
+
+
+def _shared_learner_state(args, snapshots: list[tuple], envs: list):
+    """The learner state every snapshot learned on, labelled as the first declares it; UsageError
+    where they differ."""
+    from rmac_mj.rollout import learner_state_of
+
     learner_state = _declared_labels(learner_state_of(envs[0]), snapshots[0][1])
     for path, env in zip(args.snapshots[1:], envs[1:]):
         if learner_state_of(env) != learner_state:
@@ -220,14 +228,21 @@ def policy(args) -> int:
                 f"{path} learned on another state ({learner_state_of(env).labels}) than "
                 f"{args.snapshots[0]} ({learner_state.labels}); draw them one by one"
             )
-    meta = snapshots[0][1]
+    return learner_state
+
+
+def _map_slice(args, learner_state, env) -> tuple[Any, tuple[int, int], dict]:
+    """Where the maps are drawn: the state they slice through (--at, else the start state), the
+    two dimensions on their axes (--dims) and those dimensions' given ranges (--xlim, --ylim)."""
+    from rmac_mj.rollout import state_of
+
     n = len(learner_state.low)
     if args.at is not None:
         if len(args.at) != n:
             raise UsageError(f"--at needs {n} numbers (the state's dimensions), got {len(args.at)}")
         anchor = args.at
     else:
-        anchor = state_of(envs[0].reset().observation, learner_state)
+        anchor = state_of(env.reset().observation, learner_state)
     if n < 2:
         raise UsageError(f"policy maps need at least two state dimensions; the state has {n}")
     i, j = args.dims
@@ -239,6 +254,15 @@ def policy(args) -> int:
     for option, lim in (("--xlim", args.xlim), ("--ylim", args.ylim)):
         if lim is not None and not lim[0] < lim[1]:
             raise UsageError(f"{option} needs LO < HI, got {lim[0]:g},{lim[1]:g}")
+    return anchor, (i, j), limits
+
+
+def policy(args) -> int:
+    from rmac_mj.figures import policy_plots
+
+    snapshots, envs = _load_snapshots(args)
+    learner_state = _shared_learner_state(args, snapshots, envs)
+    anchor, dims, limits = _map_slice(args, learner_state, envs[0])
     first = args.snapshots[0]
     stem = args.out or first.with_name(
         first.stem + ("_policy" if len(snapshots) == 1 else "_policies")
@@ -248,7 +272,7 @@ def policy(args) -> int:
         stem,
         learner_state,
         anchor,
-        dims=(i, j),
+        dims=dims,
         limits=limits,
         resolution=args.resolution,
         envs=None if args.no_trajectory else envs,

@@ -25,11 +25,17 @@ from rmac_mj.experiments.prior_transitions import (
 )
 from rmac_mj.experiments.progress import Progress, TrialFeed
 from rmac_mj.experiments.protocol import Protocol
-from rmac_mj.experiments.runner import finished_experiments, run_protocol, run_protocols
+from rmac_mj.experiments.runner import (
+    RunOptions,
+    finished_experiments,
+    run_protocol,
+    run_protocols,
+)
 
 __all__ = [
     # What is run, and running it
     "Protocol",
+    "RunOptions",
     "finished_experiments",
     "run_protocol",
     "run_protocols",

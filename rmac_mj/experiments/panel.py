@@ -10,7 +10,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import pathlib
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -172,23 +172,19 @@ def run_panel(
     experiments: int = EXPERIMENTS,
     seed: int = 0,
     tasks: Sequence[str] | None = None,
-    jobs: int | None = None,
-    resume: bool = False,
     trials: int | None = None,
-    progress: bool = True,
-    log: Callable[[str], None] | None = None,
-    started: float | None = None,
+    options: runner.RunOptions | None = None,
 ) -> list[dict[str, Any]]:
     """Run the panel's tasks for ``algorithms`` into ``out/<task>/`` (one worker pool for all);
-    return their summaries. ``trials``: every task this short (a smoke test, not the panel)."""
+    return their summaries. ``trials``: every task this short (a smoke test, not the panel);
+    ``options``: how the tasks are run (:class:`runner.RunOptions`)."""
+    options = options or runner.RunOptions()
     chosen = tasks_named(tasks)
     runs = [
         (task.make_protocol(algorithms, experiments, seed, trials), pathlib.Path(out) / task.name)
         for task in chosen
     ]
-    return runner.run_protocols(
-        runs, jobs=jobs, resume=resume, progress=progress, log=log, started=started
-    )
+    return runner.run_protocols(runs, options)
 
 
 def _score(greedy: np.ndarray) -> dict[str, Any]:

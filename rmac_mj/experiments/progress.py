@@ -86,22 +86,7 @@ class Progress:
             for k, p in enumerate(protocols)
         }
         self.runs_done = sum(1 for left in self.runs_left.values() if left == 0)
-
-        def over_runs(amount) -> dict[str, int]:
-            totals = {
-                a: sum(amount(k, p, a) for k, p in enumerate(protocols) if a in p.algorithms)
-                for a in self.algorithms
-            }
-            return {"all": sum(totals.values()), **totals}
-
-        self.experiments = over_runs(lambda k, p, a: p.experiments)
-        self.done = over_runs(lambda k, p, a: finished[k].get(a, 0))
-        self.total = over_runs(lambda k, p, a: p.experiments * self.budget[k])
-        self.progressed = over_runs(lambda k, p, a: finished[k].get(a, 0) * self.budget[k])
-        #: Trials run, counted as they come (with steps: those of this start only).
-        self.trials_run = over_runs(
-            lambda k, p, a: 0 if self.unit == "step" else finished[k].get(a, 0) * p.trials
-        )
+        self._count(protocols, finished)
         # per experiment in flight: (trials reported, progress credited)
         self.credited: dict[Key, tuple[int, int]] = {}
         self.recent = {a: collections.deque(maxlen=self.RECENT) for a in self.algorithms}
@@ -120,6 +105,30 @@ class Progress:
         if self.plain:
             self._line()
             return
+        self._open_bars()
+
+    def _count(self, protocols: Sequence, finished: Sequence[dict[str, int]]) -> None:
+        """The counts the display starts from, each per learner over the runs and in all: the
+        experiments, those done, the progress to make and made, the trials run."""
+
+        def over_runs(amount) -> dict[str, int]:
+            totals = {
+                a: sum(amount(k, p, a) for k, p in enumerate(protocols) if a in p.algorithms)
+                for a in self.algorithms
+            }
+            return {"all": sum(totals.values()), **totals}
+
+        self.experiments = over_runs(lambda k, p, a: p.experiments)
+        self.done = over_runs(lambda k, p, a: finished[k].get(a, 0))
+        self.total = over_runs(lambda k, p, a: p.experiments * self.budget[k])
+        self.progressed = over_runs(lambda k, p, a: finished[k].get(a, 0) * self.budget[k])
+        #: Trials run, counted as they come (with steps: those of this start only).
+        self.trials_run = over_runs(
+            lambda k, p, a: 0 if self.unit == "step" else finished[k].get(a, 0) * p.trials
+        )
+
+    def _open_bars(self) -> None:
+        """A tqdm bar for all learners, then one per learner (on a terminal)."""
         from tqdm.auto import tqdm
 
         for position, key in enumerate(["all", *self.algorithms]):

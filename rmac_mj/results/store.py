@@ -179,15 +179,45 @@ class ResultStore:
         describes. Call it under :meth:`lock`."""
         existing = self.read_config()
         if existing is None:
-            orphans = [name for name in ("curves", "snapshots") if (self.root / name).exists()]
-            if orphans:
-                raise ResumeRefused(
-                    f"{self.root} holds {' and '.join(orphans)} but no config.json: "
-                    "which run they belong to cannot be told; refusing to mix "
-                    "results (move them away, or choose another --out)"
-                )
-            self.write_config({**document, "provenance": files.provenance()})
+            self._begin_fresh(document)
             return
+        differences, more = self._differences(existing, document, resume)
+        if not resume:
+            self._refuse_another_run(differences, document)
+        if differences:
+            raise ResumeRefused(
+                f"{self.root} was written with a different config "
+                f"({'; '.join(differences)}); refusing to mix results (give the same "
+                "settings, or another --out)"
+            )
+        old, new = existing.get("code", {}), document["code"]
+        if (old.get("package"), old.get("commit")) != (new.get("package"), new.get("commit")):
+            raise ResumeRefused(
+                f"{self.root} was written by another code version "
+                f"({old.get('commit')}, now {new.get('commit')}); refusing to mix "
+                "results"
+            )
+        if more > 0:
+            self._grow(existing, document["protocol"]["experiments"])
+        self.remove_temporaries()
+
+    def _begin_fresh(self, document: dict[str, Any]) -> None:
+        """Write the config of a run starting here, refusing results no config describes."""
+        orphans = [name for name in ("curves", "snapshots") if (self.root / name).exists()]
+        if orphans:
+            raise ResumeRefused(
+                f"{self.root} holds {' and '.join(orphans)} but no config.json: "
+                "which run they belong to cannot be told; refusing to mix "
+                "results (move them away, or choose another --out)"
+            )
+        self.write_config({**document, "provenance": files.provenance()})
+
+    def _differences(
+        self, existing: dict[str, Any], document: dict[str, Any], resume: bool
+    ) -> tuple[list[str], int]:
+        """What differs between the run in the directory (``existing``) and ``document``, said
+        for a refusal (none where a resume only adds experiments), and how many experiments the
+        new protocol adds (negative: drops)."""
         stored = existing.get("protocol", {})
         differences = run_identity.differences(stored, document["protocol"])
         if existing.get("prior_sha256") != document.get("prior_sha256"):
@@ -205,47 +235,38 @@ class ResultStore:
                 " (a resume adds experiments, whose seeds do not depend on the count; "
                 "it never drops any)"
             )
-        if not resume:
-            if differences:
-                raise ResumeRefused(
-                    f"{self.root} already holds another run ({'; '.join(differences)}); "
-                    "choose another --out"
-                )
-            if self._complete(document["protocol"]):
-                raise ResumeRefused(
-                    f"{self.root} already holds this run, finished (summary.json); "
-                    "choose another --out to repeat it"
-                )
-            raise ResumeRefused(
-                f"{self.root} already holds this run, unfinished; pass --resume to "
-                "finish it, or choose another --out"
-            )
+        return differences, more
+
+    def _refuse_another_run(self, differences: list[str], document: dict[str, Any]) -> None:
+        """The refusal of a fresh start where a run is: another, this one finished, or unfinished."""
         if differences:
             raise ResumeRefused(
-                f"{self.root} was written with a different config "
-                f"({'; '.join(differences)}); refusing to mix results (give the same "
-                "settings, or another --out)"
+                f"{self.root} already holds another run ({'; '.join(differences)}); "
+                "choose another --out"
             )
-        old, new = existing.get("code", {}), document["code"]
-        if (old.get("package"), old.get("commit")) != (new.get("package"), new.get("commit")):
+        if self._complete(document["protocol"]):
             raise ResumeRefused(
-                f"{self.root} was written by another code version "
-                f"({old.get('commit')}, now {new.get('commit')}); refusing to mix "
-                "results"
+                f"{self.root} already holds this run, finished (summary.json); "
+                "choose another --out to repeat it"
             )
-        if resume and more > 0:
-            grown = {**stored, "experiments": document["protocol"]["experiments"]}
-            self.write_config(
-                {
-                    **existing,
-                    "protocol": grown,
-                    "experiments_grown_from": [
-                        *existing.get("experiments_grown_from", []),
-                        stored["experiments"],
-                    ],
-                }
-            )
-        self.remove_temporaries()
+        raise ResumeRefused(
+            f"{self.root} already holds this run, unfinished; pass --resume to "
+            "finish it, or choose another --out"
+        )
+
+    def _grow(self, existing: dict[str, Any], experiments: int) -> None:
+        """Record in config.json that a resume grew the run to ``experiments``."""
+        stored = existing["protocol"]
+        self.write_config(
+            {
+                **existing,
+                "protocol": {**stored, "experiments": experiments},
+                "experiments_grown_from": [
+                    *existing.get("experiments_grown_from", []),
+                    stored["experiments"],
+                ],
+            }
+        )
 
     def remove_temporaries(self) -> None:
         """Delete the files a killed run was writing (never renamed into place)."""

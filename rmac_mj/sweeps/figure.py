@@ -12,8 +12,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from rmac_mj.evaluation.metrics import FEW_EXPERIMENTS, FIRST_MINUTES  # noqa: E402
-from rmac_mj.sweeps.configuration_names import is_number, short_names, value_label  # noqa: E402
-from rmac_mj.sweeps.sweep_file import Sweep  # noqa: E402
+from rmac_mj.sweeps.sweep_file import Sweep, is_number, short_names, value_label  # noqa: E402
 
 
 def _axis_values(values: list) -> tuple[list[float], list[str] | None]:

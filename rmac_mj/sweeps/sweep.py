@@ -10,7 +10,6 @@ from __future__ import annotations
 import json
 import math
 import pathlib
-from collections.abc import Callable
 from typing import Any
 
 from rmac_mj import constraints
@@ -123,41 +122,25 @@ def _added_experiments(stored: dict[str, Any], document: dict[str, Any]) -> int 
 def run_sweep(
     sweep: Sweep,
     out: str | pathlib.Path,
-    jobs: int | None = None,
-    scheduler: str | None = None,
-    resume: bool = False,
-    progress: bool = True,
-    references: bool = False,
-    figures: bool = True,
-    log: Callable[[str], None] | None = None,
-    started: float | None = None,
+    options: runner.RunOptions | None = None,
 ) -> list[dict[str, Any]]:
-    """Run (or finish, with ``resume``) every configuration of ``sweep`` into ``out``.
+    """Run (or finish, with ``options.resume``) every configuration of ``sweep`` into ``out``.
 
     Writes ``out/sweep.json`` (the index), one result directory per configuration, ``out/sweep.csv``
-    and, with ``figures``, ``out/sweep_<metric>.png``. Returns the csv's rows. ``references``,
-    ``log`` and ``started`` mean what they mean for :func:`runner.run_protocol`.
+    and, with ``options.figures``, ``out/sweep_<metric>.png``. Returns the csv's rows. ``options``:
+    how each configuration is run (:class:`runner.RunOptions`).
     """
+    options = options or runner.RunOptions()
     out = pathlib.Path(out)
     with ResultStore(
         out
     ).lock():  # one sweep at a time in a directory (each run also locks its own)
-        _prepare(out, sweep, resume)
+        _prepare(out, sweep, options.resume)
         runs = [(c.protocol, out / c.name) for c in sweep.configurations]
-        summaries = runner.run_protocols(
-            runs,
-            jobs=jobs,
-            resume=resume,
-            scheduler=scheduler,
-            progress=progress,
-            references=references,
-            figures=figures,
-            log=log,
-            started=started,
-        )
+        summaries = runner.run_protocols(runs, options)
     rows = sweep_rows(sweep, summaries)
     write_csv(out / "sweep.csv", sweep, rows)
-    if figures:
+    if options.figures:
         from rmac_mj.sweeps import figure
 
         figure.plot_sweep(sweep, rows, out)
@@ -265,13 +248,7 @@ def format_table(sweep: Sweep, rows: list[dict]) -> str:
     for row, final_ci, greedy_ci in zip(rows, finals, greedies):
         # n/a where the header claims an interval this row has not
         final = f"{row['final_return_mean']:.1f}" + (f" {final_ci or 'n/a'}" if any(finals) else "")
-        greedy = ""
-        if evaluated:
-            mean = row.get("greedy_return_mean")
-            greedy = "n/a" if mean is None else f"{mean:.1f}"
-            if any(greedies) and mean is not None:
-                greedy += f" {greedy_ci or 'n/a'}"
-            greedy = f"{greedy:>24} "
+        greedy = _greedy_cell(row, greedy_ci, any(greedies)) if evaluated else ""
         first = row["mean_return_first_5min"]  # None for a run shorter than the window
         stuck = row["stuck_experiments"]  # None without a reference return to judge "stuck" by
         lines.append(
@@ -279,17 +256,32 @@ def format_table(sweep: Sweep, rows: list[dict]) -> str:
             f"{row['minutes_to_90pct']:>10.1f} {'n/a' if first is None else f'{first:.1f}':>11} "
             f"{'' if stuck is None else stuck:>5}"
         )
+    return "\n".join(lines + _table_notes(rows, evaluated))
+
+
+def _greedy_cell(row: dict, interval: str | None, intervals: bool) -> str:
+    """A row's greedy return at the end (its interval where the column claims ``intervals``)."""
+    mean = row.get("greedy_return_mean")
+    greedy = "n/a" if mean is None else f"{mean:.1f}"
+    if intervals and mean is not None:
+        greedy += f" {interval or 'n/a'}"
+    return f"{greedy:>24} "
+
+
+def _table_notes(rows: list[dict], evaluated: bool) -> list[str]:
+    """The lines under the table: what its final return and greedy return are, and a note where
+    the experiments are too few for intervals."""
     windows = sorted({row["final_window"] for row in rows})
     short = (
         f" (the window is {metrics.FINAL_WINDOW} trials; these runs are shorter)"
         if max(windows) < metrics.FINAL_WINDOW
         else ""
     )
-    lines.append(
+    lines = [
         f"final return: mean of the last {', '.join(map(str, windows))} trials per experiment"
         f"{short}; first 5 min: of the trials within the first {metrics.FIRST_MINUTES:g} "
         "simulated minutes"
-    )
+    ]
     if evaluated:
         trials = sorted({row["greedy_trial"] for row in rows if row.get("greedy_trial")})
         lines.append(
@@ -299,4 +291,4 @@ def format_table(sweep: Sweep, rows: list[dict]) -> str:
     fewest = min(row["experiments"] for row in rows)
     if fewest < metrics.FEW_EXPERIMENTS:
         lines.append(report.few_experiments_note(fewest))
-    return "\n".join(lines)
+    return lines

@@ -2,7 +2,8 @@
 
 Tables ``[protocol]`` (:class:`~rmac_mj.experiments.protocol.Protocol` options, fixed
 ``ALGO.FIELD``), ``[grid]`` and ``[[variant]]`` (the format: :func:`load_sweep`); any bad section,
-key or value raises :class:`SweepFileError` naming the file and the key.
+key or value raises :class:`SweepFileError` naming the file and the key. Each configuration is
+named after its swept values (:func:`configuration_name`).
 """
 
 from __future__ import annotations
@@ -13,19 +14,14 @@ import itertools
 import json
 import math
 import pathlib
-from collections.abc import Callable
+import re
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from rmac_mj import constraints
 from rmac_mj.experiments.protocol import Protocol
 from rmac_mj.results import files
 from rmac_mj.sweeps import bounded_toml
-from rmac_mj.sweeps.configuration_names import (
-    configuration_name,
-    is_number,
-    short_names,
-    value_label,
-)
 from rmac_mj.sweeps.dotted_keys import as_toml, flatten, merge, nest
 from rmac_mj.sweeps.sweep_checks import (
     PROTOCOL_KEYS,
@@ -169,6 +165,34 @@ def load_sweep(
     sizes = dict(sizes or {})
     options = {**options, **sizes}
     algorithms = options.get("algorithms", Protocol().algorithms)
+    grid = _grid(check, document, algorithms, fixed)
+    variants = check.variants(document, algorithms, fixed, grid)
+    count = max(1, len(variants)) * math.prod(len(values) for values in grid.values())
+    if count > constraints.SWEEP_CONFIGURATIONS.value:  # counted, never enumerated, before refusing
+        raise check.error(
+            "[grid]",
+            constraints.SWEEP_CONFIGURATIONS.refusal("the number of configurations", count)
+            + f" ({' x '.join(str(n) for n in _factors(variants, grid))}): sweep fewer values",
+        )
+    if announce is not None:
+        announce(_size_said(path, options, sizes, count))
+    configurations = _configurations(check, options, fixed, grid, variants)
+    return Sweep(
+        path=path,
+        options=options,
+        fixed=fixed,
+        grid=grid,
+        variants=variants,
+        configurations=configurations,
+        sizes=sizes,
+    )
+
+
+def _grid(
+    check: SweepFileChecker, document: dict, algorithms: Sequence[str], fixed: dict
+) -> dict[str, list]:
+    """The file's [grid]: each hyperparameter's values to sweep, checked (a list of distinct
+    values the field takes, the key not also fixed in [protocol])."""
     grid = {}
     for key, values in flatten(check.table(document, "grid")).items():
         where = f'[grid] "{key}"'
@@ -188,37 +212,24 @@ def load_sweep(
         if key in fixed:
             raise check.error(where, "is also set in [protocol]; set it in one place")
         grid[key] = values
-    variants = check.variants(document, algorithms, fixed, grid)
-    count = max(1, len(variants)) * math.prod(len(values) for values in grid.values())
-    if count > constraints.SWEEP_CONFIGURATIONS.value:  # counted, never enumerated, before refusing
-        raise check.error(
-            "[grid]",
-            constraints.SWEEP_CONFIGURATIONS.refusal("the number of configurations", count)
-            + f" ({' x '.join(str(n) for n in _factors(variants, grid))}): sweep fewer values",
-        )
-    if announce is not None:
-        per = options.get("experiments", Protocol().experiments) * len(algorithms)
-        trials = options.get("trials", Protocol().trials)
-        size = (
-            f"{trials} trials"
-            if options.get("steps") is None
-            else f"{options['steps']} env steps (at most {trials} trials)"
-        )
-        given = "".join(f" --{key} {value}" for key, value in sizes.items())
-        announce(
-            f"{path}{given and f' with{given}'}: {count} configuration{'s' * (count != 1)} x "
-            f"{per} experiments = {count * per} experiments of {size}; checking every "
-            "configuration"
-        )
-    configurations = _configurations(check, options, fixed, grid, variants)
-    return Sweep(
-        path=path,
-        options=options,
-        fixed=fixed,
-        grid=grid,
-        variants=variants,
-        configurations=configurations,
-        sizes=sizes,
+    return grid
+
+
+def _size_said(path: pathlib.Path, options: dict, sizes: dict[str, int], count: int) -> str:
+    """The sweep's size in one line: configurations x experiments, each of how many trials."""
+    algorithms = options.get("algorithms", Protocol().algorithms)
+    per = options.get("experiments", Protocol().experiments) * len(algorithms)
+    trials = options.get("trials", Protocol().trials)
+    size = (
+        f"{trials} trials"
+        if options.get("steps") is None
+        else f"{options['steps']} env steps (at most {trials} trials)"
+    )
+    given = "".join(f" --{key} {value}" for key, value in sizes.items())
+    return (
+        f"{path}{given and f' with{given}'}: {count} configuration{'s' * (count != 1)} x "
+        f"{per} experiments = {count * per} experiments of {size}; checking every "
+        "configuration"
     )
 
 
@@ -304,3 +315,48 @@ def _configurations(
                 Configuration(name=name, variant=variant, values=values, protocol=protocol)
             )
     return tuple(configurations)
+
+
+# -- a configuration's name from its swept values: each value's label, each key's shortest
+# distinct suffix, a directory name that is safe on any file system
+
+
+def is_number(value: Any) -> bool:
+    """Whether ``value`` is a number (a bool is not): a swept axis of numbers is drawn to scale."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def value_label(value: Any) -> str:
+    if isinstance(value, list):
+        return ",".join(value_label(v) for v in value)
+    if isinstance(value, dict):
+        return "+".join(f"{k}-{value_label(v)}" for k, v in value.items())
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return str(value)
+
+
+def short_names(keys: list[str]) -> dict[str, str]:
+    """Each key's shortest dotted suffix that no other key shares (``rmac.exploration.sigma`` ->
+    ``sigma``; with ``s-ac.exploration.sigma`` beside it, ``rmac.exploration.sigma`` stays whole)."""
+    names = {}
+    for key in keys:
+        parts = key.split(".")
+        for size in range(1, len(parts) + 1):
+            suffix = ".".join(parts[-size:])
+            if sum(other.split(".")[-size:] == parts[-size:] for other in keys) == 1:
+                break
+        names[key] = suffix
+    return names
+
+
+_UNSAFE = re.compile(r"[^A-Za-z0-9._,=+-]")
+
+
+def configuration_name(variant: str | None, values: dict[str, Any], short: dict[str, str]) -> str:
+    """A directory name from the swept values: ``[variant__]sigma=0.5__period=3``."""
+    parts = ([variant] if variant is not None else []) + [
+        f"{short[key]}={value_label(value)}" for key, value in values.items()
+    ]
+    name = _UNSAFE.sub("_", "__".join(parts)) or "base"
+    return name.lstrip(".") or "base"

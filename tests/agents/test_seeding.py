@@ -8,7 +8,13 @@ import pytest
 from rmac_mj import tasks
 from rmac_mj.agents import RMACConfig, discounted_returns, make_agent
 from rmac_mj.errors import MissingInputError, UserInputError
-from rmac_mj.experiments import Protocol, demonstration_for, experiment_seeds, run_protocol
+from rmac_mj.experiments import (
+    Protocol,
+    RunOptions,
+    demonstration_for,
+    experiment_seeds,
+    run_protocol,
+)
 from rmac_mj.experiments import prior_transitions as prior
 from rmac_mj.results import ResumeRefused
 from rmac_mj.rollout import action_space_of, run_trial, state_space_of
@@ -373,14 +379,14 @@ def test_reproduce_with_prior_end_to_end(env, tmp_path, capsys):
         prior=str(path),
         prior_parts=("process", "critic"),
     )
-    run_protocol(from_file, out, jobs=1, progress=False, figures=False)
+    run_protocol(from_file, out, RunOptions(jobs=1, progress=False, figures=False))
     document = json.loads((out / "config.json").read_text())
     assert document["protocol"]["prior_parts"] == ["process", "critic"]
     assert len(document["prior_sha256"]) == 64
-    run_protocol(from_file, out, jobs=1, resume=True, progress=False, figures=False)
+    run_protocol(from_file, out, RunOptions(jobs=1, resume=True, progress=False, figures=False))
     prior.save_demonstration(path, demonstration_for(protocol, 1))  # the file changes
     with pytest.raises(ResumeRefused, match="different config"):
-        run_protocol(from_file, out, jobs=1, resume=True, progress=False, figures=False)
+        run_protocol(from_file, out, RunOptions(jobs=1, resume=True, progress=False, figures=False))
     capsys.readouterr()
 
     for args, message in (

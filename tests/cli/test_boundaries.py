@@ -18,11 +18,6 @@ import pytest
 
 from rmac_mj.cli import build_parser, main
 from rmac_mj.errors import EXIT_BAD_INPUT, EXIT_ENVIRONMENT
-from rmac_mj.experiments import Protocol, run_protocol
-
-TINY = dict(algorithms=("s-ac",), experiments=2, trials=3, snapshot_trials=(1,))
-RESUME = ["reproduce", "--algorithms", "s-ac", "--experiments", "2", "--trials", "3"]
-RESUME += ["--jobs", "1", "--no-optimal", "--no-progress", "--resume", "--out"]
 
 FACTORIES = textwrap.dedent(
     '''
@@ -101,12 +96,16 @@ def factories(tmp_path, monkeypatch):
     return path
 
 
-@pytest.fixture(scope="module")
-def finished(tmp_path_factory) -> pathlib.Path:
-    """One finished tiny run, copied by the tests that damage it."""
-    out = tmp_path_factory.mktemp("finished") / "run"
-    run_protocol(Protocol(**TINY), out, jobs=1, progress=False, figures=False)
-    return out
+@pytest.fixture
+def finished(finished_run) -> pathlib.Path:
+    """The finished tiny run (tests/cli/conftest.py), copied by the tests that damage it."""
+    return finished_run.out
+
+
+@pytest.fixture
+def resume(finished_run) -> list[str]:
+    """The finished run's command as a resume, less the directory."""
+    return [*finished_run.command, "--resume", "--out"]
 
 
 def _copy(finished, tmp_path) -> pathlib.Path:
@@ -142,7 +141,7 @@ def test_a_failure_mid_run_names_experiment_and_trial_and_keeps_the_traceback(fa
             "fails_later",
             ["--control-timestep", "1e-300"],
             EXIT_BAD_INPUT,
-            "argument --control-timestep: expected a number of seconds >= 1e-06, got '1e-300'",
+            "argument --control-timestep: expected a finite number >= 1e-06, got '1e-300'",
         ),
         (
             "wide",
@@ -204,7 +203,7 @@ def _as_device(path):
         ("summary.json", _as_directory, "summary.json is a directory where a file is expected"),
     ],
 )
-def test_a_resume_on_damaged_files_is_one_line(finished, tmp_path, name, damage, message):
+def test_a_resume_on_damaged_files_is_one_line(finished, resume, tmp_path, name, damage, message):
     out = _copy(finished, tmp_path)
     path = out / name
     if damage is None:
@@ -213,7 +212,7 @@ def test_a_resume_on_damaged_files_is_one_line(finished, tmp_path, name, damage,
         path.write_text(json.dumps(config))
     else:
         damage(path)
-    code, lines = run(*RESUME, out)
+    code, lines = run(*resume, out)
     assert code == EXIT_BAD_INPUT and message in lines[-1], lines
     assert not any("Traceback" in line for line in lines)
 

@@ -547,7 +547,7 @@ def tiny_protocol(**fields):
 
 
 def test_a_protocol_runs_an_outside_environment_and_its_snapshot_acts_in_it(tmp_path):
-    from rmac_mj.experiments import run_protocol
+    from rmac_mj.experiments import RunOptions, run_protocol
     from rmac_mj.results import load_snapshot, snapshot_environment
 
     protocol = tiny_protocol(
@@ -558,7 +558,7 @@ def test_a_protocol_runs_an_outside_environment_and_its_snapshot_acts_in_it(tmp_
     )
     assert (protocol.domain, protocol.task) == (None, None)
     assert protocol.environment_name == "gymnasium:Pendulum-v1"
-    summary = run_protocol(protocol, tmp_path, jobs=1, progress=False, figures=False)
+    summary = run_protocol(protocol, tmp_path, RunOptions(jobs=1, progress=False, figures=False))
     assert summary["trial_seconds"] == pytest.approx(0.5)
     assert list(summary["learner_state"]["keys"]) == [
         "atan2(observation[1], observation[0])",

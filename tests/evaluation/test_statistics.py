@@ -11,6 +11,7 @@ from rmac_mj.evaluation import (
     performance_profile,
     probability_of_improvement,
 )
+from rmac_mj.experiments import RunOptions
 
 
 def test_iqm_is_the_mean_of_the_middle_half_and_ignores_outliers():
@@ -121,7 +122,9 @@ def test_reproduce_and_compare_report_the_probability_of_improvement(tmp_path, c
             algorithms=("s-ac", "rmac"), experiments=2, trials=3, seed=seed, snapshot_trials=()
         )
         summary = run_protocol(
-            protocol, tmp_path / f"seed{seed}", jobs=1, progress=False, figures=seed == 1
+            protocol,
+            tmp_path / f"seed{seed}",
+            RunOptions(jobs=1, progress=False, figures=seed == 1),
         )
     pair = summary["probability_of_improvement"]["s-ac > rmac"]
     # 2 experiments each: withheld, saying why, not 1.00 [1.00, 1.00]

@@ -20,7 +20,7 @@ from rmac_mj.bench import (
     step_costs,
 )
 from rmac_mj.evaluation import summary_table
-from rmac_mj.experiments import Protocol, run_protocol
+from rmac_mj.experiments import Protocol, RunOptions, run_protocol
 from rmac_mj.figures import policy_slice
 from rmac_mj.results import ResultStore, load_snapshot
 from rmac_mj.rollout import (
@@ -87,7 +87,7 @@ def test_runner_summary_and_figure_use_the_tasks_trial_length(toy, tmp_path, mon
 
     monkeypatch.setattr(optimum, "run_optimum", lambda protocol, log=None: -1.0)
     protocol = Protocol(**TINY)
-    summary = run_protocol(protocol, tmp_path, jobs=1, progress=False, references=True)
+    summary = run_protocol(protocol, tmp_path, RunOptions(jobs=1, progress=False, references=True))
     on_disk = json.loads((tmp_path / "summary.json").read_text())
     assert on_disk["trial_seconds"] == pytest.approx(0.2)
     for algorithm in ("rmac", "s-ac"):
@@ -121,7 +121,7 @@ def test_the_runner_asks_the_task_for_what_it_declares(toy, tmp_path):
         prior_trials=2,
     )
     summary = run_protocol(
-        protocol, tmp_path, jobs=1, progress=False, figures=False, references=True
+        protocol, tmp_path, RunOptions(jobs=1, progress=False, figures=False, references=True)
     )
     assert summary["plot_hints"] == {"return_margin": 0.5}
     assert summary["optimal_return"] is None and summary["exploration_floor"] is None

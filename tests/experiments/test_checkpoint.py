@@ -8,7 +8,7 @@ import pathlib
 import numpy as np
 import pytest
 
-from rmac_mj.experiments import ExperimentSpec, Protocol, run_experiment, runner
+from rmac_mj.experiments import ExperimentSpec, Protocol, RunOptions, run_experiment, runner
 from rmac_mj.experiments import checkpoint as checkpoints
 from rmac_mj.results import ResultStore
 
@@ -99,7 +99,9 @@ def test_a_saved_experiment_leaves_no_checkpoint_and_the_run_resumes_from_one(
     tmp_path, monkeypatch
 ):
     protocol = Protocol(algorithms=("s-ac",), experiments=1, trials=5, snapshot_trials=(2,))
-    whole = runner.run_protocol(protocol, tmp_path / "whole", jobs=1, progress=False, figures=False)
+    whole = runner.run_protocol(
+        protocol, tmp_path / "whole", RunOptions(jobs=1, progress=False, figures=False)
+    )
 
     def stop_at_3(item, on_trial=None):  # the worker dies after trial 3 (a kill, a lost machine)
         tag, spec = item
@@ -110,10 +112,12 @@ def test_a_saved_experiment_leaves_no_checkpoint_and_the_run_resumes_from_one(
     out = tmp_path / "stopped"
     monkeypatch.setattr(runner, "run_tagged", stop_at_3)
     with pytest.raises(KeyboardInterrupt):
-        runner.run_protocol(protocol, out, jobs=1, progress=False, figures=False)
+        runner.run_protocol(protocol, out, RunOptions(jobs=1, progress=False, figures=False))
     monkeypatch.undo()
     assert ResultStore(out).checkpointed("s-ac") == {0: 3} and not ResultStore(out).finished("s-ac")
-    summary = runner.run_protocol(protocol, out, jobs=1, resume=True, progress=False, figures=False)
+    summary = runner.run_protocol(
+        protocol, out, RunOptions(jobs=1, resume=True, progress=False, figures=False)
+    )
     assert summary["s-ac"]["mean_return_per_trial"] == whole["s-ac"]["mean_return_per_trial"]
     assert not ResultStore(out).checkpoint_path("s-ac", 0).exists()
 
@@ -132,7 +136,9 @@ def test_a_budget_in_environment_steps_ends_each_experiment_where_its_steps_reac
         evaluate_every=1,
         snapshot_trials=(1,),
     )
-    summary = runner.run_protocol(protocol, tmp_path, jobs=1, progress=False, figures=False)
+    summary = runner.run_protocol(
+        protocol, tmp_path, RunOptions(jobs=1, progress=False, figures=False)
+    )
     store = ResultStore(tmp_path)
     curves = store.load_curves("s-ac", 3)
     for row, steps in zip(curves.returns, curves.env_steps):
@@ -154,14 +160,14 @@ def test_a_budget_in_environment_steps_ends_each_experiment_where_its_steps_reac
     assert lines[0].endswith(",env_steps") and len(lines) == 1 + sum(curves.trials_run)
     # a resume trusts the saved experiments as they are (their lengths differ)
     again = runner.run_protocol(
-        protocol, tmp_path, jobs=1, resume=True, progress=False, figures=False
+        protocol, tmp_path, RunOptions(jobs=1, resume=True, progress=False, figures=False)
     )
     assert again["s-ac"]["env_steps_per_experiment"] == row["env_steps_per_experiment"]
 
 
 def test_a_directory_written_before_env_steps_were_counted_still_resumes_and_summarises(tmp_path):
     protocol = Protocol(algorithms=("s-ac",), experiments=2, trials=3, snapshot_trials=())
-    runner.run_protocol(protocol, tmp_path, jobs=1, progress=False, figures=False)
+    runner.run_protocol(protocol, tmp_path, RunOptions(jobs=1, progress=False, figures=False))
     store = ResultStore(tmp_path)
     for index in range(2):  # as an older version wrote them: no env_steps, no steps field
         path = store.curve_path("s-ac", index)
@@ -173,7 +179,7 @@ def test_a_directory_written_before_env_steps_were_counted_still_resumes_and_sum
     store.config_path.write_text(json.dumps(config))
     assert store.holds_finished(protocol)
     summary = runner.run_protocol(
-        protocol, tmp_path, jobs=1, resume=True, progress=False, figures=False
+        protocol, tmp_path, RunOptions(jobs=1, resume=True, progress=False, figures=False)
     )
     assert (
         summary["s-ac"]["minutes_to_90pct"] is not None
@@ -196,7 +202,9 @@ def test_fig2_reads_against_environment_steps_and_refuses_a_summary_without_them
         evaluate_every=1,
         snapshot_trials=(),
     )
-    summary = runner.run_protocol(protocol, tmp_path, jobs=1, progress=False, figures=False)
+    summary = runner.run_protocol(
+        protocol, tmp_path, RunOptions(jobs=1, progress=False, figures=False)
+    )
     figure = learning_curves_figure({"run": summary}, x_axis="env_steps")
     line = figure.axes[0].get_lines()[0]
     np.testing.assert_array_equal(line.get_xdata(), summary["s-ac"]["env_steps_per_trial"])

@@ -16,6 +16,7 @@ from rmac_mj.experiments import (
     NearOptimalService,
     Progress,
     Protocol,
+    RunOptions,
     TrialFeed,
     run_experiment,
     run_protocol,
@@ -43,7 +44,7 @@ def test_tiny_protocol_end_to_end(tmp_path, monkeypatch):
         optimum, "run_exploration_floor", lambda protocol, algorithm, log=None: -950.0
     )
     protocol = Protocol(**TINY)
-    summary = run_protocol(protocol, tmp_path, jobs=1, progress=False, references=True)
+    summary = run_protocol(protocol, tmp_path, RunOptions(jobs=1, progress=False, references=True))
     for name in (
         "config.json",
         "summary.json",
@@ -98,8 +99,8 @@ def test_serial_and_parallel_runs_are_identical(tmp_path):
     protocol = Protocol(
         **{**TINY, "algorithms": algorithms}, agent_configs={"sb3-sac": quick_config("sb3-sac")}
     )
-    run_protocol(protocol, tmp_path / "serial", jobs=1, progress=False, figures=False)
-    run_protocol(protocol, tmp_path / "parallel", jobs=2, progress=False, figures=False)
+    run_protocol(protocol, tmp_path / "serial", RunOptions(jobs=1, progress=False, figures=False))
+    run_protocol(protocol, tmp_path / "parallel", RunOptions(jobs=2, progress=False, figures=False))
     serial, parallel = (
         returns_of(tmp_path / "serial", protocol),
         returns_of(tmp_path / "parallel", protocol),
@@ -113,15 +114,15 @@ def test_serial_and_parallel_runs_are_identical(tmp_path):
 
 @pytest.mark.slow
 def test_resume_with_a_changed_config_is_refused(tmp_path):
-    run_protocol(Protocol(**TINY), tmp_path, jobs=1, progress=False, figures=False)
+    run_protocol(Protocol(**TINY), tmp_path, RunOptions(jobs=1, progress=False, figures=False))
     with pytest.raises(ResumeRefused, match="already holds this run, finished"):
-        run_protocol(Protocol(**TINY), tmp_path, jobs=1, progress=False)
+        run_protocol(Protocol(**TINY), tmp_path, RunOptions(jobs=1, progress=False))
     ResultStore(tmp_path).curve_path("s-ac", 1).unlink()
     with pytest.raises(ResumeRefused, match="already holds this run, unfinished; pass --resume"):
-        run_protocol(Protocol(**TINY), tmp_path, jobs=1, progress=False)
+        run_protocol(Protocol(**TINY), tmp_path, RunOptions(jobs=1, progress=False))
     changed = Protocol(**{**TINY, "trials": 5})
     with pytest.raises(ResumeRefused, match="different config") as refusal:
-        run_protocol(changed, tmp_path, jobs=1, resume=True, progress=False)
+        run_protocol(changed, tmp_path, RunOptions(jobs=1, resume=True, progress=False))
     assert "trials: 4 in the directory, 5 now" in str(refusal.value)  # names what differs
     assert "snapshot_trials: [1, 2, 4] in the directory, [1, 2, 5] now" in str(refusal.value)
 
@@ -130,30 +131,30 @@ def test_resume_with_a_changed_config_is_refused(tmp_path):
 def test_a_resume_adds_experiments_and_never_drops_any(tmp_path):
     grown, fresh = tmp_path / "grown", tmp_path / "fresh"
     small, large = Protocol(**TINY), Protocol(**{**TINY, "experiments": 3})
-    run_protocol(small, grown, jobs=1, progress=False, figures=False)
+    run_protocol(small, grown, RunOptions(jobs=1, progress=False, figures=False))
     first = ResultStore(grown).curve_path("s-ac", 0).stat().st_mtime_ns
     with pytest.raises(ResumeRefused, match="already holds another run"):  # growing needs --resume
-        run_protocol(large, grown, jobs=1, progress=False, figures=False)
-    summary = run_protocol(large, grown, jobs=1, resume=True, progress=False, figures=False)
+        run_protocol(large, grown, RunOptions(jobs=1, progress=False, figures=False))
+    summary = run_protocol(
+        large, grown, RunOptions(jobs=1, resume=True, progress=False, figures=False)
+    )
     assert ResultStore(grown).curve_path("s-ac", 0).stat().st_mtime_ns == first  # kept, not re-run
     config = json.loads((grown / "config.json").read_text())
     assert config["protocol"]["experiments"] == 3 and config["experiments_grown_from"] == [2]
-    whole = run_protocol(large, fresh, jobs=1, progress=False, figures=False)
+    whole = run_protocol(large, fresh, RunOptions(jobs=1, progress=False, figures=False))
     np.testing.assert_array_equal(
         returns_of(grown, large)["s-ac"], returns_of(fresh, large)["s-ac"]
     )
     assert summary["s-ac"]["final_return_mean"] == whole["s-ac"]["final_return_mean"]
     with pytest.raises(ResumeRefused, match="never drops any"):
-        run_protocol(small, grown, jobs=1, resume=True, progress=False)
+        run_protocol(small, grown, RunOptions(jobs=1, resume=True, progress=False))
     with pytest.raises(
         ResumeRefused, match="trials: 4 in the directory, 5 now"
     ):  # and nothing else
         run_protocol(
             Protocol(**{**TINY, "experiments": 4, "trials": 5}),
             grown,
-            jobs=1,
-            resume=True,
-            progress=False,
+            RunOptions(jobs=1, resume=True, progress=False),
         )
 
 
@@ -256,16 +257,14 @@ def test_protocol_validation_names_the_parameter():
 def test_dask_scheduler_path_matches_local_run(tmp_path):
     distributed = pytest.importorskip("distributed")
     protocol = Protocol(**TINY)
-    run_protocol(protocol, tmp_path / "local", jobs=1, progress=False, figures=False)
+    run_protocol(protocol, tmp_path / "local", RunOptions(jobs=1, progress=False, figures=False))
     with distributed.LocalCluster(
         n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
     ) as cluster:
         run_protocol(
             protocol,
             tmp_path / "dask",
-            scheduler=cluster.scheduler_address,
-            progress=False,
-            figures=False,
+            RunOptions(scheduler=cluster.scheduler_address, progress=False, figures=False),
         )
     np.testing.assert_array_equal(
         returns_of(tmp_path / "local", protocol)["s-ac"],
@@ -335,7 +334,7 @@ def test_every_result_file_is_readable_by_others(tmp_path):
     )
     old = os.umask(0o022)
     try:
-        run_protocol(protocol, tmp_path, jobs=1, progress=False)
+        run_protocol(protocol, tmp_path, RunOptions(jobs=1, progress=False))
     finally:
         os.umask(old)
     files = [p for p in tmp_path.rglob("*") if p.is_file()]
@@ -516,10 +515,12 @@ def test_learners_compile_side_by_side_into_the_shared_cache(tmp_path, monkeypat
 @pytest.mark.slow
 def test_a_resumed_run_reports_the_wall_time_of_all_its_parts(tmp_path):
     protocol = Protocol(**TINY)
-    first = run_protocol(protocol, tmp_path, jobs=1, progress=False, figures=False)
+    first = run_protocol(protocol, tmp_path, RunOptions(jobs=1, progress=False, figures=False))
     assert first["wall_time_parts_s"] == [first["wall_time_s"]] and first["wall_time_s"] > 0
     ResultStore(tmp_path).curve_path("s-ac", 1).unlink()  # as if killed before the last experiment
-    resumed = run_protocol(protocol, tmp_path, jobs=1, resume=True, progress=False, figures=False)
+    resumed = run_protocol(
+        protocol, tmp_path, RunOptions(jobs=1, resume=True, progress=False, figures=False)
+    )
     parts = resumed["wall_time_parts_s"]
     assert len(parts) == 2 and parts[0] == pytest.approx(first["wall_time_s"], abs=0.5)
     assert resumed["wall_time_s"] == pytest.approx(sum(parts))

@@ -11,7 +11,7 @@ import shutil
 import numpy as np
 import pytest
 
-from rmac_mj.experiments import ExperimentSpec, Protocol, run_experiment, run_protocol
+from rmac_mj.experiments import ExperimentSpec, Protocol, RunOptions, run_experiment, run_protocol
 from rmac_mj.results import ResultStore
 
 SNAPSHOT = "snapshots/s-ac/exp_001/trial_0002.npz"
@@ -74,7 +74,7 @@ LEARNER_STATE = {
 @pytest.fixture(scope="module")
 def finished(tmp_path_factory) -> pathlib.Path:
     out = tmp_path_factory.mktemp("finished") / "run"
-    run_protocol(Protocol(**TINY), out, jobs=1, progress=False, figures=False)
+    run_protocol(Protocol(**TINY), out, RunOptions(jobs=1, progress=False, figures=False))
     return out
 
 
@@ -89,7 +89,9 @@ def test_a_snapshot_the_learner_would_refuse_is_redone_equal(finished, tmp_path,
     change(out / SNAPSHOT)
     said = []
     run_protocol(
-        Protocol(**TINY), out, jobs=1, resume=True, progress=False, figures=False, log=said.append
+        Protocol(**TINY),
+        out,
+        RunOptions(jobs=1, resume=True, progress=False, figures=False, log=said.append),
     )
     redone = [line for line in said if "run again" in line]
     assert len(redone) == 1, said

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from rmac_mj.cli import main
-from rmac_mj.experiments import Protocol, admission, experiment_seeds, run_protocol
+from rmac_mj.experiments import Protocol, RunOptions, admission, experiment_seeds, run_protocol
 from rmac_mj.results import ResultStore, files
 from rmac_mj.results.snapshots import FORMAT
 
@@ -54,7 +54,7 @@ def arrays_of(out: pathlib.Path) -> dict[str, dict[str, np.ndarray]]:
 def finished(tmp_path_factory) -> pathlib.Path:
     """One finished tiny run, copied by the tests that damage it."""
     out = tmp_path_factory.mktemp("finished") / "run"
-    run_protocol(Protocol(**TINY), out, jobs=1, progress=False, figures=False)
+    run_protocol(Protocol(**TINY), out, RunOptions(jobs=1, progress=False, figures=False))
     return out
 
 
@@ -243,7 +243,9 @@ def test_a_damaged_file_is_found_and_its_experiment_redone_equal(finished, tmp_p
     DAMAGE[damage](out)
     said = []
     summary = run_protocol(
-        Protocol(**TINY), out, jobs=1, resume=True, progress=False, figures=False, log=said.append
+        Protocol(**TINY),
+        out,
+        RunOptions(jobs=1, resume=True, progress=False, figures=False, log=said.append),
     )
     redone = [line for line in said if "run again" in line]  # (a first run also says it compiles)
     assert len(redone) == 1 and redone[0].startswith("s-ac experiment 1 is run again: "), said
@@ -269,10 +271,12 @@ def test_a_failure_while_summarising_leaves_no_summary_to_trust(finished, tmp_pa
 
     monkeypatch.setattr(plots, "plot_learning_curves", broken)
     with pytest.raises(RuntimeError, match="the figure failed"):
-        run_protocol(Protocol(**TINY), out, jobs=1, resume=True, progress=False)
+        run_protocol(Protocol(**TINY), out, RunOptions(jobs=1, resume=True, progress=False))
     assert not (out / "summary.json").exists()
     monkeypatch.undo()
-    run_protocol(Protocol(**TINY), out, jobs=1, resume=True, progress=False, figures=False)
+    run_protocol(
+        Protocol(**TINY), out, RunOptions(jobs=1, resume=True, progress=False, figures=False)
+    )
     assert (out / "summary.json").exists()
 
 
@@ -336,7 +340,7 @@ def test_a_memory_no_machine_holds_is_refused_from_its_estimate(tmp_path, capsys
 
 def test_the_resolved_hyperparameters_of_every_learner_are_in_the_config(tmp_path):
     protocol = Protocol(algorithms=("rmac",), experiments=1, trials=1)
-    run_protocol(protocol, tmp_path, jobs=1, progress=False, figures=False)
+    run_protocol(protocol, tmp_path, RunOptions(jobs=1, progress=False, figures=False))
     agents = json.loads((tmp_path / "config.json").read_text())["agents"]
     assert agents["rmac"]["critic_weights"] == [1.0, 0.1]  # None in the config: the task's
 

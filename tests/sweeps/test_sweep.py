@@ -1,5 +1,7 @@
 """Sweeps: the file format and its validation, a tiny sweep end to end (killed and resumed), and
-``reproduce --config`` against the same ``--set`` overrides."""
+``reproduce --config`` against the same ``--set`` overrides; a sweep's size counted, never
+enumerated, and refused above its limit, and a learner too large for the memory refused before it
+is built."""
 
 import csv
 import json
@@ -7,14 +9,22 @@ import pathlib
 import signal
 import subprocess
 import sys
+import textwrap
 import time
 
 import numpy as np
 import pytest
 
-from rmac_mj import cli
+from rmac_mj import cli, constraints
 from rmac_mj.errors import UserInputError
-from rmac_mj.sweeps import format_table, load_configuration, load_sweep, run_sweep
+from rmac_mj.experiments import RunOptions
+from rmac_mj.sweeps import (
+    SweepFileError,
+    format_table,
+    load_configuration,
+    load_sweep,
+    run_sweep,
+)
 
 TINY = """
 [protocol]
@@ -285,7 +295,9 @@ def test_tiny_sweep_killed_resumed_and_summarised(tmp_path, capsys):
             "NearOptimalService",
             lambda protocols, log, background: service(protocols, log, background=False),
         )
-        rows = run_sweep(load_sweep(path), whole, jobs=2, progress=False, references=True)
+        rows = run_sweep(
+            load_sweep(path), whole, RunOptions(jobs=2, progress=False, references=True)
+        )
     resumed_curves, whole_curves = curves(killed), curves(whole)
     assert sorted(resumed_curves) == sorted(whole_curves) and len(whole_curves) == 2 * 2
     for key in whole_curves:
@@ -320,39 +332,43 @@ def test_tiny_sweep_killed_resumed_and_summarised(tmp_path, capsys):
         assert (whole / f"sweep_{metric}.png").is_file(), metric
     assert not (whole / "sweep_first_5min.png").exists()  # no window in a 9 s run: nothing drawn
     with pytest.raises(UserInputError, match="already holds a sweep"):
-        run_sweep(load_sweep(path), whole, jobs=1, progress=False)
+        run_sweep(load_sweep(path), whole, RunOptions(jobs=1, progress=False))
     other = write(tmp_path, TINY.replace("0.02]", "0.03]"), "other.toml")
     with pytest.raises(UserInputError, match="a different file"):
-        run_sweep(load_sweep(other), whole, jobs=1, resume=True, progress=False)
+        run_sweep(load_sweep(other), whole, RunOptions(jobs=1, resume=True, progress=False))
 
 
 @pytest.mark.slow
 def test_a_resumed_sweep_adds_experiments_to_every_configuration(tmp_path):
     out = tmp_path / "out"
-    run_sweep(load_sweep(write(tmp_path, TINY)), out, jobs=1, progress=False, figures=False)
+    run_sweep(
+        load_sweep(write(tmp_path, TINY)), out, RunOptions(jobs=1, progress=False, figures=False)
+    )
     larger = write(tmp_path, TINY.replace("experiments = 2", "experiments = 3"), "larger.toml")
     with pytest.raises(UserInputError, match="already holds a sweep"):
-        run_sweep(load_sweep(larger), out, jobs=1, progress=False, figures=False)
-    rows = run_sweep(load_sweep(larger), out, jobs=1, resume=True, progress=False, figures=False)
+        run_sweep(load_sweep(larger), out, RunOptions(jobs=1, progress=False, figures=False))
+    rows = run_sweep(
+        load_sweep(larger), out, RunOptions(jobs=1, resume=True, progress=False, figures=False)
+    )
     assert [r["experiments"] for r in rows] == [3, 3] and len(curves(out)) == 2 * 3
     index = json.loads((out / "sweep.json").read_text())
     assert index["sweep"]["protocol"]["experiments"] == 3 and index["experiments_grown_from"] == [2]
     assert (out / "sweep.toml").read_text() == larger.read_text()
     fresh = tmp_path / "fresh"
-    run_sweep(load_sweep(larger), fresh, jobs=1, progress=False, figures=False)
+    run_sweep(load_sweep(larger), fresh, RunOptions(jobs=1, progress=False, figures=False))
     grown_curves, fresh_curves = curves(out), curves(fresh)
     for key in fresh_curves:
         np.testing.assert_array_equal(grown_curves[key], fresh_curves[key])
     smaller = write(tmp_path, TINY, "smaller.toml")  # a resume never drops experiments
     with pytest.raises(UserInputError, match="a resume may only add experiments"):
-        run_sweep(load_sweep(smaller), out, jobs=1, resume=True, progress=False)
+        run_sweep(load_sweep(smaller), out, RunOptions(jobs=1, resume=True, progress=False))
     both = write(
         tmp_path,
         TINY.replace("experiments = 2", "experiments = 4").replace("trials = 3", "trials = 4"),
         "both.toml",
     )
     with pytest.raises(UserInputError, match="a different file"):
-        run_sweep(load_sweep(both), out, jobs=1, resume=True, progress=False)
+        run_sweep(load_sweep(both), out, RunOptions(jobs=1, resume=True, progress=False))
 
 
 @pytest.mark.slow
@@ -549,3 +565,56 @@ def test_a_sweep_takes_its_size_from_the_command_line_over_the_files(tmp_path, c
     with pytest.raises(SystemExit):
         cli.main(["sweep", "--help"])
     assert "run every configuration of a sweep file" in capsys.readouterr().out
+
+
+# -- sizes -------------------------------------------------------------------------------------------
+
+MEMORIES = ("process", "reference", "critic")
+
+
+def test_a_grid_of_a_trillion_configurations_is_refused_at_once(tmp_path):
+    rates = [0.001 * (k + 1) for k in range(10)]
+    counts = list(range(1, 11))
+    grid = {
+        **{f"rmac.{key}": rates for key in ("alpha_r", "alpha_c", "gamma", "lam")},
+        "rmac.exploration.sigma": rates,
+        "rmac.exploration.period": counts,
+        **{f"rmac.{memory}_capacity": [100 * n for n in counts] for memory in MEMORIES},
+        **{f"rmac.{memory}_neighbours": counts for memory in MEMORIES},
+    }
+    grid = "\n".join(f'"{key}" = {values}' for key, values in grid.items())
+    path = tmp_path / "huge.toml"
+    path.write_text(f'[protocol]\nalgorithms = ["rmac"]\n[grid]\n{grid}\n')
+    heard = []
+    started = time.perf_counter()
+    with pytest.raises(SweepFileError) as refused:
+        load_sweep(path, announce=heard.append)
+    assert time.perf_counter() - started < 2.0
+    message = str(refused.value)
+    assert f"must be at most {constraints.SWEEP_CONFIGURATIONS.value}" in message
+    assert "got 1000000000000 (10 x 10 x 10" in message and "\n" not in message
+    assert heard == []  # nothing announced, nothing enumerated
+
+
+@pytest.mark.slow
+def test_a_sweep_of_a_tiling_too_large_is_refused_before_its_learner_is_built(tmp_path):
+    path = tmp_path / "tiles.toml"
+    path.write_text(
+        '[protocol]\nalgorithms = ["s-ac"]\nexperiments = 1\ntrials = 1\n'
+        '[grid]\n"s-ac.tile_coding.num_tilings" = [16, 1000000000]\n'
+    )
+    script = textwrap.dedent(
+        f"""
+        import resource, sys
+        resource.setrlimit(resource.RLIMIT_AS, (4 * 2**30, 4 * 2**30))
+        from rmac_mj.cli import main
+        sys.exit(main(["sweep", {str(path)!r}, "--out", {str(tmp_path / "out")!r}]))
+        """
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=300
+    )
+    assert result.returncode == 2, result.stderr
+    last = result.stderr.strip().splitlines()[-1]
+    assert 'num_tilings" = 1000000000' in last and "needs about" in last, result.stderr
+    assert "MemoryError" not in result.stderr and "Traceback" not in result.stderr

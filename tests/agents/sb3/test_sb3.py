@@ -9,6 +9,7 @@ from learners import quick_config
 
 from rmac_mj.agents import agent_class, config_class, make_agent, sb3
 from rmac_mj.agents.sb3 import driver  # patched: whether the extra is installed
+from rmac_mj.experiments import RunOptions
 
 ENV_ID = "rmac_mj/DCPendulum-Swingup-v0"
 
@@ -208,14 +209,14 @@ def test_reproduce_runs_a_baseline_and_resumes_it_alike(tmp_path):
     from rmac_mj.rollout import run_trial
 
     protocol, store = Protocol(**TINY), ResultStore(tmp_path)
-    summary = run_protocol(protocol, tmp_path, jobs=1, progress=False, figures=False)
+    summary = run_protocol(protocol, tmp_path, RunOptions(jobs=1, progress=False, figures=False))
     assert len(summary["sb3-sac"]["final_return_per_experiment"]) == 2
     expected = store.load_curves("sb3-sac", 2)
     assert not np.array_equal(expected.returns[0], expected.returns[1])  # independent experiments
     assert np.all(expected.cpu_times > 0)
     store.curve_path("sb3-sac", 1).unlink()  # as if killed before the last experiment
     np.random.seed(123)  # whatever the process's global generators hold: the learner has its own
-    run_protocol(protocol, tmp_path, jobs=1, resume=True, progress=False, figures=False)
+    run_protocol(protocol, tmp_path, RunOptions(jobs=1, resume=True, progress=False, figures=False))
     resumed = store.load_curves("sb3-sac", 2)
     np.testing.assert_array_equal(resumed.returns, expected.returns)
     np.testing.assert_array_equal(resumed.greedy_returns, expected.greedy_returns)
