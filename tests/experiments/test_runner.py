@@ -2,7 +2,6 @@
 
 import json
 import os
-import pathlib
 import signal
 import subprocess
 import sys
@@ -10,6 +9,7 @@ import time
 
 import numpy as np
 import pytest
+from stoppable_run import hooked_cli, wait_for  # tests/ is on sys.path
 
 from rmac_mj.experiments import (
     ExperimentSpec,
@@ -158,34 +158,6 @@ def test_a_resume_adds_experiments_and_never_drops_any(tmp_path):
         )
 
 
-def _hooked_cli(marker: pathlib.Path) -> list[str]:
-    """``python -c`` running the CLI with one change: after the driver saves its first experiment it
-    touches ``marker`` and blocks, so a signal sent once ``marker`` exists lands with exactly one
-    experiment saved, however fast or loaded the machine is."""
-    script = (
-        "import pathlib, sys, time\n"
-        "from rmac_mj.experiments import runner\n"
-        "from rmac_mj.results.store import ResultStore\n"
-        "save = ResultStore.save\n"
-        "def save_then_wait(store, result):\n"
-        "    save(store, result)\n"
-        f"    pathlib.Path({str(marker)!r}).touch()\n"
-        "    time.sleep(600)\n"
-        "ResultStore.save = save_then_wait\n"
-        "from rmac_mj.cli import main\n"
-        "sys.exit(main(sys.argv[1:]))\n"
-    )
-    return [sys.executable, "-c", script]
-
-
-def _wait_for(path: pathlib.Path, process: subprocess.Popen, timeout: float = 240) -> None:
-    deadline = time.time() + timeout
-    while not path.exists():
-        assert process.poll() is None, "the run ended before saving its first experiment"
-        assert time.time() < deadline, f"no experiment saved within {timeout} s"
-        time.sleep(0.02)
-
-
 @pytest.mark.slow
 def test_killed_run_resumed_equals_uninterrupted(tmp_path):
     args = [
@@ -203,11 +175,11 @@ def test_killed_run_resumed_equals_uninterrupted(tmp_path):
     ]
     killed, marker = tmp_path / "killed", tmp_path / "saved-one"
     process = subprocess.Popen(
-        [*_hooked_cli(marker), *args, "--out", str(killed)],
+        [*hooked_cli(marker), *args, "--out", str(killed)],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
     )
-    _wait_for(marker, process)
+    wait_for(marker, process)
     process.send_signal(signal.SIGKILL)
     process.wait()
     curves = killed / "curves" / "s-ac"
@@ -291,14 +263,14 @@ def test_ctrl_c_stops_workers_and_says_how_to_resume(tmp_path):
         str(out),
     ]
     process = subprocess.Popen(
-        [*_hooked_cli(marker), *args],
+        [*hooked_cli(marker), *args],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,  # its own process group, like a terminal's
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
-    _wait_for(marker, process)
+    wait_for(marker, process)
     os.killpg(process.pid, signal.SIGINT)  # Ctrl-C reaches the driver and its workers
     _, stderr = process.communicate(timeout=60)
     assert process.returncode == 130

@@ -16,6 +16,7 @@ import time
 
 import numpy as np
 import pytest
+from stoppable_run import hooked_cli, wait_for  # tests/ is on sys.path
 
 from rmac_mj.cli import main
 from rmac_mj.experiments import Protocol, RunOptions, admission, experiment_seeds, run_protocol
@@ -345,10 +346,6 @@ def test_the_resolved_hyperparameters_of_every_learner_are_in_the_config(tmp_pat
     assert agents["rmac"]["critic_weights"] == [1.0, 0.1]  # None in the config: the task's
 
 
-from test_runner import _hooked_cli as _hooked  # noqa: E402  (tests/ is on sys.path)
-from test_runner import _wait_for
-
-
 @pytest.mark.slow
 def test_sigterm_is_answered_within_a_second_on_a_huge_plan(tmp_path):
     """As many experiments planned as a protocol may have: nothing is O(planned), so the interrupt
@@ -362,7 +359,7 @@ def test_sigterm_is_answered_within_a_second_on_a_huge_plan(tmp_path):
     marker, out = tmp_path / "saved-one", tmp_path / "run"
     process = subprocess.Popen(
         [
-            *_hooked(marker),
+            *hooked_cli(marker),
             "reproduce",
             "--config",
             str(config),
@@ -376,7 +373,7 @@ def test_sigterm_is_answered_within_a_second_on_a_huge_plan(tmp_path):
         stderr=subprocess.PIPE,
         text=True,
     )
-    _wait_for(marker, process)
+    wait_for(marker, process)
     sent = time.monotonic()
     process.send_signal(signal.SIGTERM)
     answer = process.stderr.readline()
@@ -398,7 +395,7 @@ def test_a_sweep_says_its_size_first_and_makes_directories_as_experiments_start(
     marker, out = tmp_path / "saved-one", tmp_path / "sweep"
     process = subprocess.Popen(
         [
-            *_hooked(marker),
+            *hooked_cli(marker),
             "sweep",
             str(sweep),
             "--jobs",
@@ -411,7 +408,7 @@ def test_a_sweep_says_its_size_first_and_makes_directories_as_experiments_start(
         stderr=subprocess.PIPE,
         text=True,
     )
-    _wait_for(marker, process)
+    wait_for(marker, process)
     process.send_signal(signal.SIGTERM)
     _, stderr = process.communicate(timeout=30)
     assert stderr.splitlines()[0].endswith(

@@ -14,6 +14,7 @@ import time
 
 import numpy as np
 import pytest
+from stoppable_run import hooked_cli  # tests/ is on sys.path
 
 from rmac_mj import cli, constraints
 from rmac_mj.errors import UserInputError
@@ -247,8 +248,6 @@ trials = 5
 # ----------------------------------------------------------------------------------------------------
 # Running.
 
-from test_runner import _hooked_cli  # noqa: E402  (tests/ is on sys.path, as pytest imports it)
-
 
 @pytest.mark.slow
 def test_tiny_sweep_killed_resumed_and_summarised(tmp_path, capsys):
@@ -265,7 +264,7 @@ def test_tiny_sweep_killed_resumed_and_summarised(tmp_path, capsys):
         str(killed),
     ]
     process = subprocess.Popen(
-        [*_hooked_cli(marker), *args], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+        [*hooked_cli(marker), *args], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
     )
     deadline = time.time() + 240
     while not marker.exists():
