@@ -397,7 +397,7 @@ def finalise(
             cpu_times=curves.cpu_times,
             env_steps=curves.env_steps,
             env_step_seconds=facts.env_step_seconds(protocol),
-        )
+        ).as_dict()
         summary[algorithm]["exploration_floor"] = floors.get(algorithm)
         rows.extend(
             (algorithm, i, t + 1, float(r), "" if not np.isfinite(n) else int(n))

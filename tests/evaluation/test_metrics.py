@@ -51,17 +51,17 @@ def test_summary_keys_shapes_and_stuck_count():
     returns = returns + rng.normal(0, 1, returns.shape)
     greedy = np.array([[-2000.0, -900.0], [-2500.0, -1700.0]])
     summary = summarise(returns, greedy, [100, 200], optimal_return=-800.0, trial_seconds=3.0)
-    assert summary["experiments"] == 2 and summary["trials"] == 300
+    assert summary.experiments == 2 and summary.trials == 300
     for key in ("mean_return_per_trial", "ci95_low_per_trial", "ci95_high_per_trial"):
-        assert len(summary[key]) == 300
-    assert summary["stuck_below"] == -1600.0 and summary["stuck_experiments"] == 1
+        assert len(getattr(summary, key)) == 300
+    assert summary.stuck_below == -1600.0 and summary.stuck_experiments == 1
     finals = returns[:, -50:].mean(axis=1)
-    assert summary["final_return_mean"] == pytest.approx(finals.mean())
-    assert summary["gap_to_optimal"] == pytest.approx(-800.0 - finals.mean())
-    assert summary["mean_return_first_10min"] == pytest.approx(returns[:, :200].mean())
-    assert summary["first_10min_trials"] == 200
-    assert summary["greedy_return_per_eval"] == pytest.approx([-2250.0, -1300.0])
-    json.dumps(summary, allow_nan=False)  # valid JSON, no NaN
+    assert summary.final_return_mean == pytest.approx(finals.mean())
+    assert summary.gap_to_optimal == pytest.approx(-800.0 - finals.mean())
+    assert summary.mean_return_first_10min == pytest.approx(returns[:, :200].mean())
+    assert summary.first_10min_trials == 200
+    assert summary.greedy_return_per_eval == pytest.approx([-2250.0, -1300.0])
+    json.dumps(summary.as_dict(), allow_nan=False)  # valid JSON, no NaN
 
 
 def test_greedy_trial_within_reaches_the_levels_of_issue_23():
@@ -79,9 +79,10 @@ def test_greedy_trial_within_reaches_the_levels_of_issue_23():
     summary = summarise(
         np.full((2, 8), -1000.0), greedy, trials, optimal_return=-748.0, trial_seconds=3.0
     )
-    assert summary["greedy_trial_within_20pct"] == 4 and summary["greedy_trial_within_10pct"] == 8
-    assert "greedy_trial_within_10pct" not in summarise(
-        np.full((2, 8), -1000.0), greedy, trials, trial_seconds=3.0
+    assert summary.greedy_trial_within_20pct == 4 and summary.greedy_trial_within_10pct == 8
+    assert (
+        "greedy_trial_within_10pct"
+        not in summarise(np.full((2, 8), -1000.0), greedy, trials, trial_seconds=3.0).as_dict()
     )
 
 
@@ -89,13 +90,13 @@ def test_first_minutes_and_stuck_follow_the_task_and_the_reference():
     returns = np.tile(np.arange(1.0, 401.0), (2, 1)) * -1.0
     # 6 s trials: the first 10 minutes are 100 trials; 0.05 s x 60 = 3 s trials: 200.
     six = summarise(returns, trial_seconds=6.0)
-    assert six["first_10min_trials"] == 100
-    assert six["mean_return_first_10min"] == pytest.approx(-50.5)
+    assert six.first_10min_trials == 100
+    assert six.mean_return_first_10min == pytest.approx(-50.5)
     assert trials_in(10, 0.05 * 60) == 200 and trials_in(10, 0.03 * 100) == 200
-    assert six["minutes_to_90pct"] == pytest.approx(
+    assert six.minutes_to_90pct == pytest.approx(
         minutes_to_within(returns[0], window=50, trial_seconds=6.0)
     )
-    assert six["stuck_below"] is None and six["stuck_experiments"] is None  # no reference
+    assert six.stuck_below is None and six.stuck_experiments is None  # no reference
     assert stuck_threshold(-748.0) == -1496.0 and stuck_threshold(10.0) == 0.0
 
 
@@ -173,8 +174,8 @@ def test_summary_table_states_significance_and_warns_of_few_experiments():
 
     def summary(n):
         return {
-            "rmac": summarise(-950 + rng.normal(0, 30, (n, 60)), trial_seconds=3.0),
-            "s-ac": summarise(-990 + rng.normal(0, 30, (n, 60)), trial_seconds=3.0),
+            "rmac": summarise(-950 + rng.normal(0, 30, (n, 60)), trial_seconds=3.0).as_dict(),
+            "s-ac": summarise(-990 + rng.normal(0, 30, (n, 60)), trial_seconds=3.0).as_dict(),
         }
 
     small, large = summary_table(summary(4)), summary_table(summary(5))
