@@ -17,7 +17,7 @@ from rmac_mj import constraints
 from rmac_mj.evaluation import metrics, report
 from rmac_mj.experiments import runner
 from rmac_mj.results import files
-from rmac_mj.results.run_identity import ResumeRefused, added_experiments
+from rmac_mj.results.documents import ResumeRefused, added_experiments
 from rmac_mj.results.store import ResultStore
 from rmac_mj.sweeps.sweep_file import Sweep
 
@@ -108,7 +108,7 @@ def _write_index(out: pathlib.Path, sweep: Sweep, document: dict[str, Any]) -> N
 
 def _added_experiments(stored: dict[str, Any], document: dict[str, Any]) -> int | None:
     """The experiments per configuration the sweep ``document`` adds to the ``stored`` index when it
-    differs in nothing else (:func:`~rmac_mj.results.run_identity.added_experiments`)."""
+    differs in nothing else (:func:`~rmac_mj.results.documents.added_experiments`)."""
     before, now = stored.get("sweep"), document["sweep"]
     if not isinstance(before, dict):
         return None
