@@ -504,47 +504,29 @@ def summarise(
     env_steps: np.ndarray | None = None,
     env_step_seconds: float | None = None,
 ) -> LearnerSummary:
-    """The summary of one learner: returns is an ndarray of shape (experiments, trials).
+    """The summary of one learner (:class:`LearnerSummary`): ``returns`` (experiments, trials).
 
-    ``greedy`` (experiments, evaluations) holds the greedy-trial returns after the trials listed in
-    ``greedy_trials``; ``trial_seconds`` is the task's trial length (simulated s), which turns trials
-    into minutes. Stuck experiments are counted only against a reference (``optimal_return``; see
-    :func:`stuck_threshold`), else ``stuck_experiments`` is None. ``wall_times`` and ``cpu_times``
-    (experiments,): each experiment's wall and CPU time (s).
-
-    ``env_steps`` (experiments, trials): the environment steps taken by the end of each trial (NaN
-    after an experiment's last, with ``returns``), ``env_step_seconds`` the seconds of one: with them
-    the times (minutes to 90%, the first minutes, CPU per simulated minute) come from the steps that
-    really ran, not from ``trial_seconds`` (a trial's limit), and the summary lists the steps
-    (``env_steps_per_trial``, ``greedy_eval_env_steps``, ``env_steps_per_experiment``), so that every
-    curve can be read against them. ``returns`` may end early per experiment (NaN after; a budget in
-    environment steps): per-trial means are over the experiments that ran the trial, final levels over
-    each experiment's own last trials.
-
-    Beside the paper's mean and Student-t interval, the final return and the first minutes' return
-    have the interquartile mean with its stratified-bootstrap interval (:mod:`statistics`, the
-    field's estimate since Agarwal et al. 2021: robust to a few stuck experiments).
-
-    With fewer than :data:`FEW_EXPERIMENTS` experiments every interval is None and
-    ``intervals_withheld`` says why (the per-trial band of Fig. 2 is kept, drawn with that note); a
-    window of the first minutes is None when the run is shorter than the window.
+    ``greedy`` (experiments, evaluations): the greedy-trial returns after the trials listed in
+    ``greedy_trials``; ``trial_seconds``: the task's trial length (simulated s), which turns trials
+    into minutes; ``optimal_return``: the reference stuck experiments are counted against
+    (:func:`stuck_threshold`); ``wall_times``, ``cpu_times`` (experiments,): each experiment's (s).
+    ``env_steps`` (experiments, trials): the environment steps by the end of each trial, and
+    ``env_step_seconds`` the seconds of one: with them the times come from the steps that really
+    ran, not from a trial's limit. ``returns`` may end early per experiment (NaN after; a budget in
+    steps): per-trial means are over the experiments that ran the trial, final levels over each
+    experiment's own last trials. Beside the paper's mean and Student-t interval, the final and
+    first minutes' returns have the interquartile mean with its stratified-bootstrap interval
+    (Agarwal et al. 2021). With fewer than :data:`FEW_EXPERIMENTS` experiments every interval is
+    None and ``intervals_withheld`` says why; a window longer than the run is None.
     """
     returns = np.asarray(returns, dtype=float)
     runs = _Runs.of(returns)
     measured = _measured_minutes(env_steps, env_step_seconds, returns, trial_seconds)
     mean, low, high, finals = _curve_and_finals(returns, runs)
-    final_mean, final_low, final_high = interval(finals)
     first, first_minutes = _first_minutes(returns, runs, mean, finals, measured, trial_seconds)
-    first_mean, first_low, first_high = interval(first)
-    stuck_below = stuck_threshold(optimal_return)
     reason = withheld(runs.experiments)
-    if reason is not None:
-        final_low = final_high = first_low = first_high = None
-    if shorter_than(FIRST_MINUTES, runs.trials, trial_seconds):
-        first_mean = first_low = first_high = None
+    short = shorter_than(FIRST_MINUTES, runs.trials, trial_seconds)
     evaluated = greedy is not None and len(greedy_trials) > 0
-    final_iqm = _iqm(finals, reason)
-    first_iqm = (None, [None, None]) if first_mean is None else _iqm(first, reason)
     return LearnerSummary(
         experiments=runs.experiments,
         trials=runs.trials,
@@ -552,19 +534,9 @@ def summarise(
         mean_return_per_trial=mean.tolist(),
         ci95_low_per_trial=_nan_to_none(low),
         ci95_high_per_trial=_nan_to_none(high),
-        final_return_mean=final_mean,
-        final_return_ci95=[final_low, final_high],
         final_return_per_experiment=finals.tolist(),
-        mean_return_first_5min=first_mean,
-        first_5min_ci95=[first_low, first_high],
-        stuck_below=stuck_below,
-        stuck_experiments=None if stuck_below is None else int(np.sum(finals < stuck_below)),
         intervals_withheld=reason,
-        final_return_iqm=final_iqm[0],
-        final_return_iqm_ci95=final_iqm[1],
-        first_5min_iqm=first_iqm[0],
-        first_5min_iqm_ci95=first_iqm[1],
-        gap_to_optimal=None if optimal_return is None else float(optimal_return - final_mean),
+        **_levels(finals, None if short else first, reason, optimal_return),
         **first_minutes,
         **_step_counts(
             env_steps, env_step_seconds, returns, runs, greedy_trials if evaluated else None
@@ -572,6 +544,37 @@ def summarise(
         **(_greedy_fields(greedy, greedy_trials, optimal_return, reason) if evaluated else {}),
         **_time_fields(wall_times, cpu_times, measured, runs, trial_seconds),
     )
+
+
+def _levels(
+    finals: np.ndarray,
+    first: np.ndarray | None,
+    reason: str | None,
+    optimal_return: float | None,
+) -> dict[str, Any]:
+    """The fields of the final levels and the first minutes' returns (``first``: None for a run
+    shorter than the window): means, intervals (withheld for ``reason``), IQMs, stuck experiments
+    and the gap to the near-optimal return."""
+    final_mean, final_low, final_high = interval(finals)
+    first_mean, first_low, first_high = (None, None, None) if first is None else interval(first)
+    if reason is not None:
+        final_low = final_high = first_low = first_high = None
+    final_iqm = _iqm(finals, reason)
+    first_iqm = (None, [None, None]) if first_mean is None else _iqm(first, reason)
+    stuck_below = stuck_threshold(optimal_return)
+    return {
+        "final_return_mean": final_mean,
+        "final_return_ci95": [final_low, final_high],
+        "mean_return_first_5min": first_mean,
+        "first_5min_ci95": [first_low, first_high],
+        "stuck_below": stuck_below,
+        "stuck_experiments": None if stuck_below is None else int(np.sum(finals < stuck_below)),
+        "final_return_iqm": final_iqm[0],
+        "final_return_iqm_ci95": final_iqm[1],
+        "first_5min_iqm": first_iqm[0],
+        "first_5min_iqm_ci95": first_iqm[1],
+        "gap_to_optimal": (None if optimal_return is None else float(optimal_return - final_mean)),
+    }
 
 
 def improvement(finals: dict[str, Sequence[float]]) -> dict[str, dict[str, Any]]:
