@@ -190,22 +190,14 @@ def _draw_runs(ax, summaries, seconds, colours: _Colours, smooth: int, x_axis: s
 
 def _draw_references(ax, optimal_return: float | None, exploration_floor: float | None) -> None:
     """The near-optimal return and the exploration floor as horizontal lines."""
-    if optimal_return is not None:
-        ax.axhline(
-            optimal_return,
-            color="black",
-            linewidth=1.0,
-            linestyle="-.",
-            label=f"near-optimal ({optimal_return:.0f})",
-        )
-    if exploration_floor is not None:
-        ax.axhline(
-            exploration_floor,
-            color="grey",
-            linewidth=1.0,
-            linestyle=":",
-            label=f"near-optimal, exploring ({exploration_floor:.0f})",
-        )
+    for value, colour, style, name in (
+        (optimal_return, "black", "-.", "near-optimal"),
+        (exploration_floor, "grey", ":", "near-optimal, exploring"),
+    ):
+        if value is not None:
+            ax.axhline(
+                value, color=colour, linewidth=1.0, linestyle=style, label=f"{name} ({value:.0f})"
+            )
 
 
 def _label_axes(ax, summaries, seconds: dict[str, float], x_axis: str) -> None:
