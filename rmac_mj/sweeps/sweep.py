@@ -14,7 +14,7 @@ from collections.abc import Callable
 from typing import Any
 
 from rmac_mj import constraints
-from rmac_mj.evaluation import metrics, report
+from rmac_mj.evaluation import LearnerSummary, metrics, report
 from rmac_mj.experiments import runner
 from rmac_mj.results import files
 from rmac_mj.results.documents import ResumeRefused, added_experiments
@@ -170,33 +170,31 @@ def sweep_rows(sweep: Sweep, summaries: list[dict[str, Any]]) -> list[dict]:
     rows = []
     for configuration, summary in zip(sweep.configurations, summaries):
         for algorithm in configuration.protocol.algorithms:
-            learner = summary[algorithm]
+            learner = LearnerSummary.from_dict(summary[algorithm])
             row: dict[str, Any] = {"configuration": configuration.name}
             if sweep.variants:
                 row["variant"] = configuration.variant
             row.update(configuration.values)
             row["algorithm"] = algorithm
-            row["experiments"] = learner["experiments"]
-            row["final_return_mean"] = learner["final_return_mean"]
-            row["final_return_ci95_low"], row["final_return_ci95_high"] = learner[
-                "final_return_ci95"
-            ]
-            if learner.get("greedy_eval_trials"):
-                row["greedy_trial"] = learner["greedy_eval_trials"][-1]
-                row["greedy_return_mean"] = learner["greedy_return_last_mean"]
-                (row["greedy_return_ci95_low"], row["greedy_return_ci95_high"]) = learner[
-                    "greedy_return_last_ci95"
-                ]
-            row["minutes_to_90pct"] = learner["minutes_to_90pct"]
-            row["mean_return_first_5min"] = learner["mean_return_first_5min"]
-            row["first_5min_ci95_low"], row["first_5min_ci95_high"] = learner["first_5min_ci95"]
-            row["stuck_experiments"] = learner["stuck_experiments"]
+            row["experiments"] = learner.experiments
+            row["final_return_mean"] = learner.final_return_mean
+            row["final_return_ci95_low"], row["final_return_ci95_high"] = learner.final_return_ci95
+            if learner.greedy_eval_trials:
+                row["greedy_trial"] = learner.greedy_eval_trials[-1]
+                row["greedy_return_mean"] = learner.greedy_return_last_mean
+                (row["greedy_return_ci95_low"], row["greedy_return_ci95_high"]) = (
+                    learner.greedy_return_last_ci95
+                )
+            row["minutes_to_90pct"] = learner.minutes_to_90pct
+            row["mean_return_first_5min"] = learner.mean_return_first_5min
+            row["first_5min_ci95_low"], row["first_5min_ci95_high"] = learner.first_5min_ci95
+            row["stuck_experiments"] = learner.stuck_experiments
             row["optimal_return"] = summary.get("optimal_return")
-            row["gap_to_optimal"] = learner.get("gap_to_optimal")
-            row["exploration_floor"] = learner.get("exploration_floor")
-            row["wall_time_s"] = learner["experiment_wall_s_total"]
-            row["final_window"] = learner["final_window"]
-            row["stuck_below"] = learner["stuck_below"]
+            row["gap_to_optimal"] = learner.gap_to_optimal
+            row["exploration_floor"] = learner.exploration_floor
+            row["wall_time_s"] = learner.experiment_wall_s_total
+            row["final_window"] = learner.final_window
+            row["stuck_below"] = learner.stuck_below
             rows.append(
                 {
                     k: (None if isinstance(v, float) and not math.isfinite(v) else v)
