@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from rmac_mj.evaluation import (
+    LearnerSummary,
     compare_final_returns,
     confidence_interval,
     first_reaching,
@@ -181,3 +182,36 @@ def test_summary_table_states_significance_and_warns_of_few_experiments():
     small, large = summary_table(summary(4)), summary_table(summary(5))
     assert "final returns" in small and "Welch" in small
     assert "4 experiments per learner" in small and "per learner" not in large
+
+
+def test_a_summary_row_is_written_and_read_back_as_it_was():
+    rng = np.random.default_rng(3)
+    returns = -1000 + rng.normal(0, 50, (5, 40))
+    greedy = np.array([[-2000.0, -900.0]] * 5)
+    steps = np.cumsum(np.full((5, 40), 100.0), axis=1)
+    plain = summarise(returns, trial_seconds=3.0)
+    full = summarise(
+        returns,
+        greedy,
+        [20, 40],
+        optimal_return=-100.0,  # never reached: the trials within 20% and 10% are None
+        trial_seconds=3.0,
+        wall_times=np.ones(5),
+        cpu_times=np.ones(5),
+        env_steps=steps,
+        env_step_seconds=0.03,
+    )
+    for summary in (plain, full):
+        assert LearnerSummary.from_dict(json.loads(json.dumps(summary.as_dict()))) == summary
+    row = full.as_dict()
+    assert row["greedy_trial_within_10pct"] is None and row["greedy_trial_within_20pct"] is None
+    assert row["env_steps_per_experiment"] == [4000] * 5 and "exploration_floor" not in row
+    # without evaluations, a reference or steps, their fields are not in the row at all
+    assert not {"greedy_eval_trials", "greedy_trial_within_10pct", "gap_to_optimal"} & set(
+        plain.as_dict()
+    )
+    assert "env_steps_per_trial" not in plain.as_dict()
+    # a row written before a field existed reads it as None; what it holds beyond them is left out
+    old = {k: v for k, v in plain.as_dict().items() if k != "final_window"}
+    read = LearnerSummary.from_dict({**old, "retired_key": 1})
+    assert read.final_window is None and read.final_return_mean == plain.final_return_mean
