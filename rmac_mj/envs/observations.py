@@ -203,6 +203,25 @@ def infer_learner_state(
       ValueError: in one line, naming what is missing (bounds of an unbounded entry) or ambiguous.
     """
     declared = check_declaration(declared)
+    entries = _entries(declared, layout, samples, owner)
+    mapping = ObservationMap(entries, layout)
+    spec_low, spec_high = mapping.spec_bounds()
+    low = _declared_vector(declared, "low", spec_low, mapping, owner)
+    high = _declared_vector(declared, "high", spec_high, mapping, owner)
+    _apply_bounds(declared, low, high, mapping.dimension_names(), owner)
+    _bound_the_rest(low, high, mapping, measure, measured, owner)
+    action_low = np.asarray(action_low, dtype=float).reshape(-1)
+    action_high = np.asarray(action_high, dtype=float).reshape(-1)
+    inferred = _inferred_fields(entries, low, high, mapping, action_low, action_high)
+    given = _given_fields(declared, action_low.size, owner)
+    try:
+        return LearnerStateSpec(**{**inferred, **given})
+    except ValueError as error:
+        raise ValueError(f"{owner}: {error}") from None
+
+
+def _entries(declared: dict[str, Any], layout: ObservationLayout, samples, owner: str) -> list:
+    """The entries of x: the declared ``keys``, else inferred from the ``samples``."""
     if "bounds" in declared and ("low" in declared or "high" in declared):
         raise ValueError(
             f"{owner}: declare the state box either as learner_state.low and .high or "
@@ -211,24 +230,26 @@ def infer_learner_state(
     keys = declared.get("keys")
     if isinstance(keys, str):
         raise ValueError(f"learner_state.keys must be a list of entries, got the string {keys!r}")
-    entries = list(keys) if keys is not None else inferred_entries(layout, samples)
-    mapping = ObservationMap(entries, layout)
-    n = mapping.dim
-    spec_low, spec_high = mapping.spec_bounds()
+    return list(keys) if keys is not None else inferred_entries(layout, samples)
 
-    def vector(name: str, default: np.ndarray | None) -> np.ndarray | None:
-        if name not in declared:
-            return default
-        value = np.asarray(declared[name], dtype=float).reshape(-1)
-        if value.shape != (n,):
-            raise ValueError(
-                f"{owner}: learner_state.{name} needs {n} values, one per dimension of "
-                f"x = [{', '.join(mapping.dimension_names())}], got {declared[name]!r}"
-            )
-        return value
 
-    low, high = vector("low", spec_low), vector("high", spec_high)
-    names = mapping.dimension_names()
+def _declared_vector(
+    declared: dict[str, Any], name: str, default: np.ndarray, mapping: ObservationMap, owner: str
+) -> np.ndarray:
+    """The declared ``name`` (low or high) as a vector of x's dimension, else ``default``."""
+    if name not in declared:
+        return default
+    value = np.asarray(declared[name], dtype=float).reshape(-1)
+    if value.shape != (mapping.dim,):
+        raise ValueError(
+            f"{owner}: learner_state.{name} needs {mapping.dim} values, one per dimension of "
+            f"x = [{', '.join(mapping.dimension_names())}], got {declared[name]!r}"
+        )
+    return value
+
+
+def _apply_bounds(declared, low: np.ndarray, high: np.ndarray, names: tuple[str, ...], owner: str):
+    """The declared ``bounds`` (dimension name -> [low, high]) written into ``low`` and ``high``."""
     for name, bound in declared.get("bounds", {}).items():
         if name not in names:
             close = difflib.get_close_matches(name, names, n=1)
@@ -244,17 +265,16 @@ def infer_learner_state(
                 f"{declared['bounds'][name]!r}"
             )
         low[names.index(name)], high[names.index(name)] = bound
+
+
+def _bound_the_rest(low, high, mapping: ObservationMap, measure, measured, owner: str) -> None:
+    """The dimensions still without a bound measured in place (``measure``, ``measured``: as for
+    :func:`infer_learner_state`); ValueError naming them where nothing can measure them."""
+    names = mapping.dimension_names()
     missing = [name for name, lo, hi in zip(names, low, high) if math.isnan(lo) or math.isnan(hi)]
-    if missing and measure is not None:
-        at = [names.index(name) for name in missing]
-        box_low, box_high = measured_box(np.asarray(measure(mapping), dtype=float)[:, at])
-        for i, name, lo, hi in zip(at, missing, box_low, box_high):
-            low[i] = lo if math.isnan(low[i]) else low[i]  # a spec's one-sided bound is kept
-            high[i] = hi if math.isnan(high[i]) else high[i]
-            if measured is not None:
-                measured[name] = [float(low[i]), float(high[i])]
-        missing = []
-    if missing:
+    if not missing:
+        return
+    if measure is None:
         example = ", ".join(f'"{name}" = [LOW, HIGH]' for name in missing)
         as_json = ", ".join(f'"{name}": [LOW, HIGH]' for name in missing)
         raise ValueError(
@@ -262,9 +282,19 @@ def infer_learner_state(
             f"gives none); declare them: learner_state.bounds = {{{example}}} in a --config "
             f"file, or --learner-state '{{\"bounds\": {{{as_json}}}}}'"
         )
-    action_low = np.asarray(action_low, dtype=float).reshape(-1)
-    action_high = np.asarray(action_high, dtype=float).reshape(-1)
-    inferred = {
+    at = [names.index(name) for name in missing]
+    box_low, box_high = measured_box(np.asarray(measure(mapping), dtype=float)[:, at])
+    for i, name, lo, hi in zip(at, missing, box_low, box_high):
+        low[i] = lo if math.isnan(low[i]) else low[i]  # a spec's one-sided bound is kept
+        high[i] = hi if math.isnan(high[i]) else high[i]
+        if measured is not None:
+            measured[name] = [float(low[i]), float(high[i])]
+
+
+def _inferred_fields(entries, low, high, mapping: ObservationMap, action_low, action_high):
+    """Every field of the LearnerStateSpec as inferred from the specs."""
+    names = mapping.dimension_names()
+    return {
         "keys": tuple(entries),
         "low": tuple(low),
         "high": tuple(high),
@@ -281,17 +311,18 @@ def infer_learner_state(
         # What the reward charges for the action cannot be read from the specs: only declared.
         "action_cost": None,
     }
+
+
+def _given_fields(declared: dict[str, Any], actions: int, owner: str) -> dict[str, Any]:
+    """The declared fields beside the box, lists as tuples; ``actions``: the action's dimension."""
     given = {
         name: (tuple(value) if isinstance(value, list) else value)
         for name, value in declared.items()
         if name in _FIELDS and name not in ("low", "high")
     }
-    if given.get("action_cost") is not None and len(given["action_cost"]) != action_low.size:
+    if given.get("action_cost") is not None and len(given["action_cost"]) != actions:
         raise ValueError(
-            f"{owner}: learner_state.action_cost needs {action_low.size} values, one per "
+            f"{owner}: learner_state.action_cost needs {actions} values, one per "
             f"action dimension, got {declared['action_cost']!r}"
         )
-    try:
-        return LearnerStateSpec(**{**inferred, **given})
-    except ValueError as error:
-        raise ValueError(f"{owner}: {error}") from None
+    return given

@@ -1,7 +1,7 @@
-"""What the numbers are: the learning-curve metrics of ``summary.json`` (:func:`summarise`, the mean
-with a Student-t interval, Welch's t-test), statistics across experiments and tasks (interquartile
-means, bootstrap intervals, improvement probabilities, performance profiles), and the tables people
-read (:func:`summary_table`).
+"""What the numbers are: the learning-curve metrics of ``summary.json`` (:func:`summarise`, a
+:class:`LearnerSummary` per learner: the mean with a Student-t interval, Welch's t-test),
+statistics across experiments and tasks (interquartile means, bootstrap intervals, improvement
+probabilities, performance profiles), and the tables people read (:func:`summary_table`).
 """
 
 from rmac_mj.evaluation.metrics import (
@@ -11,6 +11,7 @@ from rmac_mj.evaluation.metrics import (
     FIRST_MINUTES,
     GREEDY_WITHIN,
     SIGNIFICANCE_LEVEL,
+    LearnerSummary,
     compare_final_returns,
     confidence_interval,
     early_returns,
@@ -47,6 +48,7 @@ __all__ = [
     "FIRST_MINUTES",
     "GREEDY_WITHIN",
     "SIGNIFICANCE_LEVEL",
+    "LearnerSummary",
     "compare_final_returns",
     "confidence_interval",
     "early_returns",

@@ -7,6 +7,7 @@ interval and Welch's t-test.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from typing import Any
 
@@ -190,66 +191,182 @@ def _nan_interval(returns: np.ndarray):
     return tuple(np.array([c[k] for c in columns], dtype=float) for k in range(3))
 
 
-def summarise(
-    returns: np.ndarray,
-    greedy: np.ndarray | None = None,
-    greedy_trials: Sequence[int] = (),
-    optimal_return: float | None = None,
-    *,
-    trial_seconds: float,
-    wall_times: np.ndarray | None = None,
-    cpu_times: np.ndarray | None = None,
-    env_steps: np.ndarray | None = None,
-    env_step_seconds: float | None = None,
-) -> dict:
-    """The summary of one learner: returns is an ndarray of shape (experiments, trials).
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class LearnerSummary:
+    """One learner's row of ``summary.json``: its curves turned into numbers (:func:`summarise`).
 
-    ``greedy`` (experiments, evaluations) holds the greedy-trial returns after the trials listed in
-    ``greedy_trials``; ``trial_seconds`` is the task's trial length (simulated s), which turns trials
-    into minutes. Stuck experiments are counted only against a reference (``optimal_return``; see
-    :func:`stuck_threshold`), else ``stuck_experiments`` is None. ``wall_times`` and ``cpu_times``
-    (experiments,): each experiment's wall and CPU time (s).
-
-    ``env_steps`` (experiments, trials): the environment steps taken by the end of each trial (NaN
-    after an experiment's last, with ``returns``), ``env_step_seconds`` the seconds of one: with them
-    the times (minutes to 90%, the first minutes, CPU per simulated minute) come from the steps that
-    really ran, not from ``trial_seconds`` (a trial's limit), and the summary lists the steps
-    (``env_steps_per_trial``, ``greedy_eval_env_steps``, ``env_steps_per_experiment``), so that every
-    curve can be read against them. ``returns`` may end early per experiment (NaN after; a budget in
-    environment steps): per-trial means are over the experiments that ran the trial, final levels over
-    each experiment's own last trials.
-
-    Beside the paper's mean and Student-t interval, the final return and the first minutes' return
-    have the interquartile mean with its stratified-bootstrap interval (:mod:`statistics`, the
-    field's estimate since Agarwal et al. 2021: robust to a few stuck experiments).
-
-    With fewer than :data:`FEW_EXPERIMENTS` experiments every interval is None and
-    ``intervals_withheld`` says why (the per-trial band of Fig. 2 is kept, drawn with that note); a
-    window of the first minutes is None when the run is shorter than the window.
+    Returns are sums of rewards per trial; times are simulated minutes unless named otherwise;
+    a ``*_ci95`` is [low, high] of a 95% interval, None where withheld or undefined. The fields
+    after ``first_5min_iqm_ci95`` are written only where their inputs were known (a reference,
+    greedy evaluations, environment steps, wall or CPU times): None, then, and not in the row.
     """
-    from rmac_mj.evaluation import statistics
 
-    returns = np.asarray(returns, dtype=float)
-    n_experiments, n_trials = returns.shape
-    ragged = not np.all(np.isfinite(returns)) and np.all(np.isfinite(returns[:, 0]))
-    ran = np.sum(np.isfinite(returns), axis=1) if ragged else np.full(n_experiments, n_trials)
-    window = min(FINAL_WINDOW, int(ran.min()))
-    measured = _measured_minutes(env_steps, env_step_seconds, returns, trial_seconds)
-    early = trials_in(EARLY_MINUTES, trial_seconds)
-    if ragged:
+    experiments: int
+    """Experiments of the learner."""
+    trials: int | None = None
+    """Trials of the longest experiment."""
+    final_window: int | None = None
+    """Trials averaged for each experiment's final level."""
+    mean_return_per_trial: list[float]
+    """The mean curve, one value per trial (over the experiments that ran it)."""
+    ci95_low_per_trial: list[float | None]
+    """Low end of the per-trial Student-t 95% interval (None: fewer than two experiments)."""
+    ci95_high_per_trial: list[float | None]
+    """High end of the per-trial Student-t 95% interval."""
+    final_return_mean: float | None
+    """Mean over the experiments of their final level."""
+    final_return_ci95: list[float | None]
+    """Student-t 95% interval of ``final_return_mean``."""
+    final_return_per_experiment: list[float]
+    """Each experiment's final level: the mean of its last ``final_window`` trials."""
+    minutes_to_90pct: float
+    """Minutes until the mean curve is within 10% of its final level."""
+    mean_return_first_10min: float | None = None
+    """Mean return of the trials within the first 10 minutes; None for a shorter run."""
+    first_10min_trials: int | None = None
+    """Trials within the first 10 minutes (the fewest of any experiment)."""
+    mean_return_first_5min: float | None = None
+    """Mean over the experiments of their mean return in the first 5 minutes; None for a shorter
+    run."""
+    first_5min_ci95: list[float | None] | None = None
+    """Student-t 95% interval of ``mean_return_first_5min``."""
+    first_5min_trials: int | None = None
+    """Trials within the first 5 minutes (the fewest of any experiment)."""
+    stuck_below: float | None = None
+    """The final level below which an experiment is stuck (:func:`stuck_threshold`)."""
+    stuck_experiments: int | None = None
+    """Experiments whose final level is below ``stuck_below``; None without a reference."""
+    intervals_withheld: str | None = None
+    """Why every interval is withheld (too few experiments), or None."""
+    trials_per_experiment: list[int] | None = None
+    """Trials each experiment ran (runs that end early per experiment, or counted in steps)."""
+    env_steps_per_trial: list[float | None] | None = None
+    """Mean environment steps taken by the end of each trial."""
+    env_steps_per_experiment: list[int] | None = None
+    """Environment steps each experiment took."""
+    simulated_minutes_per_experiment: list[float] | None = None
+    """Simulated minutes each experiment learned for, from its steps."""
+    trial_seconds_mean: float | None = None
+    """Simulated seconds of a trial as run, on average."""
+    greedy_eval_env_steps: list[float | None] | None = None
+    """Mean environment steps by the end of each evaluated trial."""
+    final_return_iqm: float | None = None
+    """Interquartile mean of the final levels."""
+    final_return_iqm_ci95: list[float | None] | None = None
+    """Stratified-bootstrap 95% interval of ``final_return_iqm``."""
+    first_5min_iqm: float | None = None
+    """Interquartile mean of the experiments' first-5-minute returns."""
+    first_5min_iqm_ci95: list[float | None] | None = None
+    """Stratified-bootstrap 95% interval of ``first_5min_iqm``."""
+    gap_to_optimal: float | None = None
+    """The near-optimal return minus ``final_return_mean``."""
+    greedy_eval_trials: list[int] | None = None
+    """Trials after which the greedy policy was evaluated (1-based)."""
+    greedy_return_per_eval: list[float | None] | None = None
+    """Mean greedy return at each evaluation."""
+    greedy_return_last_mean: float | None = None
+    """Mean of each experiment's last greedy return."""
+    greedy_return_last_ci95: list[float | None] | None = None
+    """Student-t 95% interval of ``greedy_return_last_mean``."""
+    greedy_trial_within_20pct: int | None = None
+    """First evaluated trial whose mean greedy return is within 20% of the near-optimal return."""
+    greedy_trial_within_10pct: int | None = None
+    """The same within 10%."""
+    experiment_wall_s_mean: float | None = None
+    """Wall time of an experiment (s), the mean."""
+    experiment_wall_s_total: float | None = None
+    """Wall time of all experiments (s)."""
+    experiment_cpu_s_mean: float | None = None
+    """CPU time of an experiment (s), the mean."""
+    cpu_s_per_simulated_minute: float | None = None
+    """CPU seconds per simulated minute learned."""
+    exploration_floor: float | None = None
+    """The learner's exploration floor, where the run computed one (set by the runner)."""
+
+    def as_dict(self) -> dict[str, Any]:
+        """The row as written to ``summary.json``: every field, but those after
+        ``first_5min_iqm_ci95`` only where known (the greedy fields with the evaluations; the
+        trials within 20% and 10% with the evaluations and a reference)."""
+        row = dataclasses.asdict(self)
+        evaluated, referenced = self.greedy_eval_trials is not None, self.gap_to_optimal is not None
+        kept = {
+            "greedy_return_per_eval": evaluated,
+            "greedy_return_last_mean": evaluated,
+            "greedy_return_last_ci95": evaluated,
+            "greedy_trial_within_20pct": evaluated and referenced,
+            "greedy_trial_within_10pct": evaluated and referenced,
+        }
+        return {
+            key: value
+            for key, value in row.items()
+            if key in _ALWAYS_WRITTEN or kept.get(key, value is not None)
+        }
+
+    @classmethod
+    def from_dict(cls, row: dict[str, Any]) -> LearnerSummary:
+        """A row of ``summary.json`` read back; what it lacks (a summary written before a field
+        existed) is None, what it holds beyond the fields is left out."""
+        return cls(**{key: row[key] for key in _FIELDS if key in row})
+
+
+_FIELDS = [f.name for f in dataclasses.fields(LearnerSummary)]
+_ALWAYS_WRITTEN = set(_FIELDS[: _FIELDS.index("intervals_withheld") + 1]) | {
+    "final_return_iqm",
+    "final_return_iqm_ci95",
+    "first_5min_iqm",
+    "first_5min_iqm_ci95",
+}
+
+
+@dataclasses.dataclass(frozen=True)
+class _Runs:
+    """How far each experiment of a learner ran: ``ran`` (experiments,) trials each, ``ragged``
+    when some ended early (NaN after), ``window`` the trials of a final level."""
+
+    experiments: int
+    trials: int
+    ragged: bool
+    ran: np.ndarray
+    window: int
+
+    @classmethod
+    def of(cls, returns: np.ndarray) -> _Runs:
+        n_experiments, n_trials = returns.shape
+        ragged = bool(not np.all(np.isfinite(returns)) and np.all(np.isfinite(returns[:, 0])))
+        ran = np.sum(np.isfinite(returns), axis=1) if ragged else np.full(n_experiments, n_trials)
+        return cls(n_experiments, n_trials, ragged, ran, min(FINAL_WINDOW, int(ran.min())))
+
+
+def _curve_and_finals(returns: np.ndarray, runs: _Runs):
+    """The per-trial (mean, low, high) of the experiments that ran each trial, and each
+    experiment's final level over its own last trials."""
+    if runs.ragged:
         mean, low, high = _nan_interval(returns)
-        finals = np.array([row[:n][-window:].mean() for row, n in zip(returns, ran)])
+        finals = np.array([row[:n][-runs.window :].mean() for row, n in zip(returns, runs.ran)])
     else:
         mean, low, high = confidence_interval(returns)
-        finals = final_returns(returns, window)
-    final_mean, final_low, final_high = interval(finals)
+        finals = final_returns(returns, runs.window)
+    return mean, low, high, finals
+
+
+def _first_minutes(
+    returns: np.ndarray,
+    runs: _Runs,
+    mean: np.ndarray,
+    finals: np.ndarray,
+    measured: np.ndarray | None,
+    trial_seconds: float,
+) -> tuple[np.ndarray, dict[str, Any]]:
+    """Each experiment's mean return in the first 5 minutes, and the fields of the first minutes
+    and of the minutes to 90%: from the nominal trial times, or from the minutes ``measured``."""
+    early = trials_in(EARLY_MINUTES, trial_seconds)
     if measured is None:
         first = early_returns(returns, FIRST_MINUTES, trial_seconds)
         early_mean = float(returns[:, :early].mean())
-        first_10min_trials = min(early, n_trials)
-        first_5min_trials = min(trials_in(FIRST_MINUTES, trial_seconds), n_trials)
+        first_10min_trials = min(early, runs.trials)
+        first_5min_trials = min(trials_in(FIRST_MINUTES, trial_seconds), runs.trials)
         # trial t (1-based) of the mean curve ends at t * trial_seconds
-        to_90 = minutes_to_within(mean, window=window, trial_seconds=trial_seconds)
+        to_90 = minutes_to_within(mean, window=runs.window, trial_seconds=trial_seconds)
     else:
 
         def within(minutes: float) -> np.ndarray:  # the trials ended by then (at least the first)
@@ -261,104 +378,203 @@ def summarise(
         early_mean = float(np.mean(returns[within(EARLY_MINUTES)]))
         first_10min_trials = int(within(EARLY_MINUTES).sum(axis=1).min())
         first_5min_trials = int(within(FIRST_MINUTES).sum(axis=1).min())
-        final = np.nanmean(mean[-window:]) if not ragged else float(np.mean(finals))
+        final = np.nanmean(mean[-runs.window :]) if not runs.ragged else float(np.mean(finals))
         close = np.abs(mean - final) <= 0.1 * abs(final)
         to_90 = float(np.nanmean(measured[:, int(np.argmax(close))]))
-    first_mean, first_low, first_high = interval(first)
-    stuck_below = stuck_threshold(optimal_return)
-    reason = withheld(n_experiments)
-    if reason is not None:
-        final_low = final_high = first_low = first_high = None
-    if shorter_than(FIRST_MINUTES, n_trials, trial_seconds):
-        first_mean = first_low = first_high = None
-    summary = {
-        "experiments": n_experiments,
-        "trials": n_trials,
-        "final_window": window,
-        "mean_return_per_trial": mean.tolist(),
-        "ci95_low_per_trial": _nan_to_none(low),
-        "ci95_high_per_trial": _nan_to_none(high),
-        "final_return_mean": final_mean,
-        "final_return_ci95": [final_low, final_high],
-        "final_return_per_experiment": finals.tolist(),
+    return first, {
         "minutes_to_90pct": to_90,
         "mean_return_first_10min": (
-            None if shorter_than(EARLY_MINUTES, n_trials, trial_seconds) else early_mean
+            None if shorter_than(EARLY_MINUTES, runs.trials, trial_seconds) else early_mean
         ),
         "first_10min_trials": first_10min_trials,
-        "mean_return_first_5min": first_mean,
-        "first_5min_ci95": [first_low, first_high],
         "first_5min_trials": first_5min_trials,
-        "stuck_below": stuck_below,
-        "stuck_experiments": None if stuck_below is None else int(np.sum(finals < stuck_below)),
-        "intervals_withheld": reason,
     }
-    if ragged:
-        summary["trials_per_experiment"] = [int(n) for n in ran]
+
+
+def _step_counts(
+    env_steps: np.ndarray | None,
+    env_step_seconds: float | None,
+    returns: np.ndarray,
+    runs: _Runs,
+    greedy_trials: Sequence[int] | None,
+) -> dict[str, Any]:
+    """The fields of the environment steps taken (none when they are not known), and the trials
+    each experiment ran where they differ or are counted in steps; ``greedy_trials``: the trials
+    evaluated greedily, or None."""
+    fields: dict[str, Any] = {}
+    if runs.ragged:
+        fields["trials_per_experiment"] = [int(n) for n in runs.ran]
     steps = None if env_steps is None else np.asarray(env_steps, dtype=float)
     if (
-        steps is not None
-        and steps.shape == returns.shape
-        and np.all(np.isfinite(steps[np.isfinite(returns)]))
+        steps is None
+        or steps.shape != returns.shape
+        or not np.all(np.isfinite(steps[np.isfinite(returns)]))
     ):
-        last = steps[np.arange(n_experiments), ran - 1]
-        summary["trials_per_experiment"] = [int(n) for n in ran]
-        summary["env_steps_per_trial"] = _nan_to_none(np.nanmean(steps, axis=0))
-        summary["env_steps_per_experiment"] = [int(v) for v in last]
-        if env_step_seconds is not None:
-            summary["simulated_minutes_per_experiment"] = (last * env_step_seconds / 60.0).tolist()
-            summary["trial_seconds_mean"] = float(np.sum(last) * env_step_seconds / np.sum(ran))
-        if greedy is not None and len(greedy_trials):
-            at = np.asarray(greedy_trials, dtype=int) - 1
-            summary["greedy_eval_env_steps"] = _nan_to_none(np.nanmean(steps[:, at], axis=0))
-    for key, scores in (("final_return", finals), ("first_5min", first)):
-        if key == "first_5min" and first_mean is None:
-            summary[f"{key}_iqm"], summary[f"{key}_iqm_ci95"] = None, [None, None]
-            continue
-        estimate = (
-            statistics.iqm_interval(scores)
-            if reason is None
-            else statistics.Estimate(float(statistics.iqm(scores)), np.nan, np.nan)
-        ).as_dict()
-        summary[f"{key}_iqm"], summary[f"{key}_iqm_ci95"] = estimate["value"], estimate["ci95"]
-    if optimal_return is not None:
-        summary["gap_to_optimal"] = float(optimal_return - final_mean)
-    if greedy is not None and len(greedy_trials):
-        greedy = np.asarray(greedy, dtype=float)
-        summary["greedy_eval_trials"] = [int(t) for t in greedy_trials]
-        if np.all(np.isfinite(greedy)):
-            per_eval, lasts = greedy.mean(axis=0), greedy[:, -1]
-        else:  # experiments that ran fewer trials: over those that ran each; their own last
-            per_eval = np.array(
-                [np.mean(c[np.isfinite(c)]) if np.isfinite(c).any() else np.nan for c in greedy.T]
+        return fields
+    last = steps[np.arange(runs.experiments), runs.ran - 1]
+    fields["trials_per_experiment"] = [int(n) for n in runs.ran]
+    fields["env_steps_per_trial"] = _nan_to_none(np.nanmean(steps, axis=0))
+    fields["env_steps_per_experiment"] = [int(v) for v in last]
+    if env_step_seconds is not None:
+        fields["simulated_minutes_per_experiment"] = (last * env_step_seconds / 60.0).tolist()
+        fields["trial_seconds_mean"] = float(np.sum(last) * env_step_seconds / np.sum(runs.ran))
+    if greedy_trials is not None:
+        at = np.asarray(greedy_trials, dtype=int) - 1
+        fields["greedy_eval_env_steps"] = _nan_to_none(np.nanmean(steps[:, at], axis=0))
+    return fields
+
+
+def _iqm(scores: np.ndarray, reason: str | None) -> tuple[float | None, list[float | None]]:
+    """The interquartile mean of ``scores`` and its bootstrap interval (withheld: no interval)."""
+    from rmac_mj.evaluation import statistics
+
+    estimate = (
+        statistics.iqm_interval(scores)
+        if reason is None
+        else statistics.Estimate(float(statistics.iqm(scores)), np.nan, np.nan)
+    ).as_dict()
+    return estimate["value"], estimate["ci95"]
+
+
+def _greedy_fields(
+    greedy: np.ndarray,
+    greedy_trials: Sequence[int],
+    optimal_return: float | None,
+    reason: str | None,
+) -> dict[str, Any]:
+    """The fields of the greedy evaluations (experiments, evaluations) after ``greedy_trials``."""
+    greedy = np.asarray(greedy, dtype=float)
+    if np.all(np.isfinite(greedy)):
+        per_eval, lasts = greedy.mean(axis=0), greedy[:, -1]
+    else:  # experiments that ran fewer trials: over those that ran each; their own last
+        per_eval = np.array(
+            [np.mean(c[np.isfinite(c)]) if np.isfinite(c).any() else np.nan for c in greedy.T]
+        )
+        lasts = np.array([row[np.isfinite(row)][-1] for row in greedy if np.isfinite(row).any()])
+    last_mean, last_low, last_high = interval(lasts)
+    if reason is not None:
+        last_low = last_high = None
+    fields = {
+        "greedy_eval_trials": [int(t) for t in greedy_trials],
+        "greedy_return_per_eval": _nan_to_none(per_eval),
+        "greedy_return_last_mean": last_mean,
+        "greedy_return_last_ci95": [last_low, last_high],
+    }
+    if optimal_return is not None:  # how soon the mean greedy policy is near-optimal
+        for fraction in GREEDY_WITHIN:
+            fields[f"greedy_trial_within_{round(100 * fraction)}pct"] = first_reaching(
+                per_eval, greedy_trials, within_optimal(optimal_return, fraction)
             )
-            lasts = np.array(
-                [row[np.isfinite(row)][-1] for row in greedy if np.isfinite(row).any()]
-            )
-        summary["greedy_return_per_eval"] = _nan_to_none(per_eval)
-        last_mean, last_low, last_high = interval(lasts)
-        if reason is not None:
-            last_low = last_high = None
-        summary["greedy_return_last_mean"] = last_mean
-        summary["greedy_return_last_ci95"] = [last_low, last_high]
-        if optimal_return is not None:  # how soon the mean greedy policy is near-optimal
-            for fraction in GREEDY_WITHIN:
-                summary[f"greedy_trial_within_{round(100 * fraction)}pct"] = first_reaching(
-                    per_eval, greedy_trials, within_optimal(optimal_return, fraction)
-                )
+    return fields
+
+
+def _time_fields(
+    wall_times: np.ndarray | None,
+    cpu_times: np.ndarray | None,
+    measured: np.ndarray | None,
+    runs: _Runs,
+    trial_seconds: float,
+) -> dict[str, Any]:
+    """The fields of the experiments' wall and CPU times (none where not known)."""
+    fields: dict[str, Any] = {}
     if wall_times is not None:
-        summary["experiment_wall_s_mean"] = float(np.mean(wall_times))
-        summary["experiment_wall_s_total"] = float(np.sum(wall_times))
+        fields["experiment_wall_s_mean"] = float(np.mean(wall_times))
+        fields["experiment_wall_s_total"] = float(np.sum(wall_times))
     if cpu_times is not None and np.all(np.isfinite(cpu_times)):
-        summary["experiment_cpu_s_mean"] = float(np.mean(cpu_times))
+        fields["experiment_cpu_s_mean"] = float(np.mean(cpu_times))
         # CPU of an experiment (its greedy trials and snapshots included) per minute it learned
         learned = (
-            n_trials * trial_seconds / 60.0
+            runs.trials * trial_seconds / 60.0
             if measured is None
-            else float(np.mean(measured[np.arange(n_experiments), ran - 1]))
+            else float(np.mean(measured[np.arange(runs.experiments), runs.ran - 1]))
         )
-        summary["cpu_s_per_simulated_minute"] = float(np.mean(cpu_times) / learned)
-    return summary
+        fields["cpu_s_per_simulated_minute"] = float(np.mean(cpu_times) / learned)
+    return fields
+
+
+def summarise(
+    returns: np.ndarray,
+    greedy: np.ndarray | None = None,
+    greedy_trials: Sequence[int] = (),
+    optimal_return: float | None = None,
+    *,
+    trial_seconds: float,
+    wall_times: np.ndarray | None = None,
+    cpu_times: np.ndarray | None = None,
+    env_steps: np.ndarray | None = None,
+    env_step_seconds: float | None = None,
+) -> LearnerSummary:
+    """The summary of one learner (:class:`LearnerSummary`): ``returns`` (experiments, trials).
+
+    ``greedy`` (experiments, evaluations): the greedy-trial returns after the trials listed in
+    ``greedy_trials``; ``trial_seconds``: the task's trial length (simulated s), which turns trials
+    into minutes; ``optimal_return``: the reference stuck experiments are counted against
+    (:func:`stuck_threshold`); ``wall_times``, ``cpu_times`` (experiments,): each experiment's (s).
+    ``env_steps`` (experiments, trials): the environment steps by the end of each trial, and
+    ``env_step_seconds`` the seconds of one: with them the times come from the steps that really
+    ran, not from a trial's limit. ``returns`` may end early per experiment (NaN after; a budget in
+    steps): per-trial means are over the experiments that ran the trial, final levels over each
+    experiment's own last trials. Beside the paper's mean and Student-t interval, the final and
+    first minutes' returns have the interquartile mean with its stratified-bootstrap interval
+    (Agarwal et al. 2021). With fewer than :data:`FEW_EXPERIMENTS` experiments every interval is
+    None and ``intervals_withheld`` says why; a window longer than the run is None.
+    """
+    returns = np.asarray(returns, dtype=float)
+    runs = _Runs.of(returns)
+    measured = _measured_minutes(env_steps, env_step_seconds, returns, trial_seconds)
+    mean, low, high, finals = _curve_and_finals(returns, runs)
+    first, first_minutes = _first_minutes(returns, runs, mean, finals, measured, trial_seconds)
+    reason = withheld(runs.experiments)
+    short = shorter_than(FIRST_MINUTES, runs.trials, trial_seconds)
+    evaluated = greedy is not None and len(greedy_trials) > 0
+    return LearnerSummary(
+        experiments=runs.experiments,
+        trials=runs.trials,
+        final_window=runs.window,
+        mean_return_per_trial=mean.tolist(),
+        ci95_low_per_trial=_nan_to_none(low),
+        ci95_high_per_trial=_nan_to_none(high),
+        final_return_per_experiment=finals.tolist(),
+        intervals_withheld=reason,
+        **_levels(finals, None if short else first, reason, optimal_return),
+        **first_minutes,
+        **_step_counts(
+            env_steps, env_step_seconds, returns, runs, greedy_trials if evaluated else None
+        ),
+        **(_greedy_fields(greedy, greedy_trials, optimal_return, reason) if evaluated else {}),
+        **_time_fields(wall_times, cpu_times, measured, runs, trial_seconds),
+    )
+
+
+def _levels(
+    finals: np.ndarray,
+    first: np.ndarray | None,
+    reason: str | None,
+    optimal_return: float | None,
+) -> dict[str, Any]:
+    """The fields of the final levels and the first minutes' returns (``first``: None for a run
+    shorter than the window): means, intervals (withheld for ``reason``), IQMs, stuck experiments
+    and the gap to the near-optimal return."""
+    final_mean, final_low, final_high = interval(finals)
+    first_mean, first_low, first_high = (None, None, None) if first is None else interval(first)
+    if reason is not None:
+        final_low = final_high = first_low = first_high = None
+    final_iqm = _iqm(finals, reason)
+    first_iqm = (None, [None, None]) if first_mean is None else _iqm(first, reason)
+    stuck_below = stuck_threshold(optimal_return)
+    return {
+        "final_return_mean": final_mean,
+        "final_return_ci95": [final_low, final_high],
+        "mean_return_first_5min": first_mean,
+        "first_5min_ci95": [first_low, first_high],
+        "stuck_below": stuck_below,
+        "stuck_experiments": None if stuck_below is None else int(np.sum(finals < stuck_below)),
+        "final_return_iqm": final_iqm[0],
+        "final_return_iqm_ci95": final_iqm[1],
+        "first_5min_iqm": first_iqm[0],
+        "first_5min_iqm_ci95": first_iqm[1],
+        "gap_to_optimal": (None if optimal_return is None else float(optimal_return - final_mean)),
+    }
 
 
 def improvement(finals: dict[str, Sequence[float]]) -> dict[str, dict[str, Any]]:

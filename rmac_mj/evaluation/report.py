@@ -11,6 +11,7 @@ from typing import Any
 
 from rmac_mj.agents import ALGORITHMS
 from rmac_mj.evaluation import metrics
+from rmac_mj.evaluation.metrics import LearnerSummary
 
 
 def describe_test(test: dict[str, Any]) -> str:
@@ -95,10 +96,10 @@ def _span(values: Iterable[int]) -> str:
     return str(values[0]) if len(values) == 1 else f"{values[0]} to {values[-1]}"
 
 
-def _trials_ran(row: dict[str, Any]) -> list[int]:
+def _trials_ran(row: LearnerSummary) -> list[int]:
     """The trials each experiment of a learner ran (``trials`` for all, in a summary without
     ``trials_per_experiment``)."""
-    return row.get("trials_per_experiment") or [row["trials"]] * row["experiments"]
+    return row.trials_per_experiment or [row.trials] * row.experiments
 
 
 def what_ran(summary: dict[str, Any], algorithms: Iterable[str]) -> str:
@@ -106,10 +107,10 @@ def what_ran(summary: dict[str, Any], algorithms: Iterable[str]) -> str:
     steps; sb3-sac 24 to 26 trials, 20010 to 20070 steps"`` (steps where the curves recorded them)."""
     ran = []
     for algorithm in algorithms:
-        row = summary[algorithm]
+        row = LearnerSummary.from_dict(summary[algorithm])
         text = f"{algorithm} {_span(_trials_ran(row))} trials"
-        if row.get("env_steps_per_experiment"):
-            text += f", {_span(row['env_steps_per_experiment'])} steps"
+        if row.env_steps_per_experiment:
+            text += f", {_span(row.env_steps_per_experiment)} steps"
         ran.append(text)
     return "; ".join(ran)
 
@@ -127,14 +128,16 @@ def budget_line(summary: dict[str, Any], algorithms: Iterable[str]) -> str | Non
     )
 
 
-def window_lines(summary: dict[str, Any], algorithms: Iterable[str]) -> list[str]:
+def window_lines(rows: dict[str, LearnerSummary]) -> list[str]:
     """What the final and greedy columns average over: the final window in trials (stated for a
     run shorter than :data:`~rmac_mj.evaluation.metrics.FINAL_WINDOW`, and when the experiments
     ran different numbers of trials) and the trial of the last greedy evaluation."""
-    algorithms = list(algorithms)
     lines = []
-    windows = {summary[a].get("final_window", metrics.FINAL_WINDOW) for a in algorithms}
-    ran = [n for a in algorithms for n in _trials_ran(summary[a])]
+    windows = {
+        metrics.FINAL_WINDOW if row.final_window is None else row.final_window
+        for row in rows.values()
+    }
+    ran = [n for row in rows.values() for n in _trials_ran(row)]
     if windows:
         window = _span(windows)
         text = f"final return: each experiment's mean over its last {window} trials"
@@ -147,10 +150,10 @@ def window_lines(summary: dict[str, Any], algorithms: Iterable[str]) -> list[str
         elif len(set(ran)) > 1:
             text += f" (the experiments ran {_span(ran)} trials)"
         lines.append(text + "; then the mean over the experiments, and their IQM")
-    evaluated = [a for a in algorithms if summary[a].get("greedy_eval_trials")]
+    evaluated = [row for row in rows.values() if row.greedy_eval_trials]
     if evaluated:
-        last = {summary[a]["greedy_eval_trials"][-1] for a in evaluated}
-        uniform = all(len(set(_trials_ran(summary[a]))) == 1 for a in evaluated)
+        last = {row.greedy_eval_trials[-1] for row in evaluated}
+        uniform = all(len(set(_trials_ran(row))) == 1 for row in evaluated)
         after = f"trial {_span(last)}" if uniform else "each experiment's last evaluated trial"
         lines.append(
             f"greedy at end: the greedy evaluation (no exploration, no learning) after {after}; "
@@ -159,7 +162,7 @@ def window_lines(summary: dict[str, Any], algorithms: Iterable[str]) -> list[str
     return lines
 
 
-def timing_line(summary: dict[str, Any], algorithms: Iterable[str], shorter: bool) -> str:
+def timing_line(rows: dict[str, LearnerSummary], shorter: bool) -> str:
     """What the time columns average over, and the level below which an experiment is stuck;
     ``shorter``: the first 10 minutes are n/a for a run shorter than them."""
     parts = [
@@ -169,105 +172,114 @@ def timing_line(summary: dict[str, Any], algorithms: Iterable[str], shorter: boo
         else f"first 10 min: the mean return of the trials within the first "
         f"{metrics.EARLY_MINUTES:g} simulated minutes",
     ]
-    below = [summary[a]["stuck_below"] for a in algorithms if summary[a].get("stuck_below")]
+    below = [row.stuck_below for row in rows.values() if row.stuck_below]
     if below:
         parts.append(f"stuck: experiments whose final return is below {below[0]:.0f}")
     return "; ".join(parts)
 
 
-def summary_table(summary: dict[str, Any], algorithms: Iterable[str] | None = None) -> str:
-    """The end-of-run table: one row per learner (with the greedy return at the last evaluation
-    when the run evaluated), what its columns average over, then whether the final returns differ
-    significantly, and a warning when too few experiments make the intervals meaningless."""
-    algorithms = [a for a in (algorithms or ALGORITHMS) if a in summary]
-    greedy = any(summary[a].get("greedy_eval_trials") for a in algorithms)
-    # a column claims an interval only where some row shows one (too few experiments: none)
-    ci = (
-        " [95% CI]"
-        if any(metrics.withheld(summary[a]["experiments"]) is None for a in algorithms)
-        else ""
-    )
-    header = (
+def _header(greedy: bool, ci: str) -> str:
+    """The table's column titles; ``ci`` the interval's title, or empty when every row withholds
+    it; ``greedy`` with the column of the last greedy evaluation."""
+    return (
         f"{'learner':>8} {'experiments':>11} {'final return':>13} {'95% CI':>19} "
         f"{'IQM' + ci:>25} "
         + (f"{'greedy at end' + ci:>25} " if greedy else "")
         + f"{'min to 90%':>10} {'first 10 min':>12} {'stuck':>5}"
     )
-    lines = [header, "-" * len(header)]
-    shorter = False
-    for algorithm in algorithms:
-        row = summary[algorithm]
-        # a summary written before intervals were withheld holds them: they are not shown
-        few = metrics.withheld(row["experiments"]) is not None
-        low, high = row["final_return_ci95"]
-        ci = f"[{low:.0f}, {high:.0f}]" if low is not None and not few else "n/a"
-        stuck = "n/a" if row.get("stuck_experiments") is None else str(row["stuck_experiments"])
-        iqm = _estimate(
-            row.get("final_return_iqm"), None if few else row.get("final_return_iqm_ci95")
+
+
+def _first_10min(row: LearnerSummary, trial_seconds: float | None) -> float | None:
+    """The row's first 10 minutes' return, None for a run shorter than them."""
+    early = row.mean_return_first_10min
+    if (
+        early is not None
+        and trial_seconds
+        and row.trials
+        and metrics.shorter_than(metrics.EARLY_MINUTES, row.trials, trial_seconds)
+    ):
+        return None  # written before the window was left empty for a shorter run
+    return early
+
+
+def _table_row(algorithm: str, row: LearnerSummary, greedy: bool, early: float | None) -> str:
+    """One learner's line of the table (``greedy``: with the greedy column)."""
+    # a summary written before intervals were withheld holds them: they are not shown
+    few = metrics.withheld(row.experiments) is not None
+    low, high = row.final_return_ci95
+    ci = f"[{low:.0f}, {high:.0f}]" if low is not None and not few else "n/a"
+    stuck = "n/a" if row.stuck_experiments is None else str(row.stuck_experiments)
+    iqm = _estimate(row.final_return_iqm, None if few else row.final_return_iqm_ci95)
+    at_end = ""
+    if greedy:
+        at_end = (
+            _estimate(row.greedy_return_last_mean, None if few else row.greedy_return_last_ci95)
+            if row.greedy_eval_trials
+            else "n/a"
         )
-        at_end = ""
-        if greedy:
-            at_end = (
-                _estimate(
-                    row.get("greedy_return_last_mean"),
-                    None if few else row.get("greedy_return_last_ci95"),
-                )
-                if row.get("greedy_eval_trials")
-                else "n/a"
-            )
-            at_end = f"{at_end:>25} "
-        early = row.get("mean_return_first_10min")
-        if (
-            early is not None
-            and summary.get("trial_seconds")
-            and row.get("trials")
-            and metrics.shorter_than(metrics.EARLY_MINUTES, row["trials"], summary["trial_seconds"])
-        ):
-            early = None  # written before the window was left empty for a shorter run
-        shorter = shorter or early is None
-        lines.append(
-            f"{algorithm:>8} {row['experiments']:>11d} {row['final_return_mean']:>13.1f} "
-            f"{ci:>19} {iqm:>25} {at_end}{row['minutes_to_90pct']:>10.1f} "
-            f"{'n/a' if early is None else f'{early:.1f}':>12} {stuck:>5}"
-        )
-    budget = budget_line(summary, algorithms)
-    if budget is not None:
-        lines.append(budget)
-    lines.extend(window_lines(summary, algorithms))
-    lines.append(timing_line(summary, algorithms, shorter))
-    if summary.get("optimal_return") is not None:
-        lines.append(f"near-optimal return: {summary['optimal_return']:.1f}")
-    if summary.get("trial_seconds") is not None:
-        measured = {
-            a: summary[a].get("trial_seconds_mean")
-            for a in algorithms
-            if summary[a].get("trial_seconds_mean") is not None
-        }
-        if measured and any(
-            abs(v - summary["trial_seconds"]) > 1e-9 * summary["trial_seconds"]
-            for v in measured.values()
-        ):
-            lines.append(
-                f"one trial = at most {summary['trial_seconds']:g} s of simulated time; "
-                "as run, on average: " + ", ".join(f"{a} {v:.3g} s" for a, v in measured.items())
-            )
-        else:
-            lines.append(f"one trial = {summary['trial_seconds']:g} s of simulated time")
-    tests = metrics.compare_final_returns(
-        {
-            a: summary[a]["final_return_per_experiment"]
-            for a in algorithms
-            if "final_return_per_experiment" in summary[a]
-        }
+        at_end = f"{at_end:>25} "
+    return (
+        f"{algorithm:>8} {row.experiments:>11d} {row.final_return_mean:>13.1f} "
+        f"{ci:>19} {iqm:>25} {at_end}{row.minutes_to_90pct:>10.1f} "
+        f"{'n/a' if early is None else f'{early:.1f}':>12} {stuck:>5}"
     )
-    lines.extend(describe_test(test) for test in tests)
+
+
+def _trial_length_line(seconds: float, rows: dict[str, LearnerSummary]) -> str:
+    """How long a trial is, and how long it was as run where that differs."""
+    measured = {
+        a: row.trial_seconds_mean for a, row in rows.items() if row.trial_seconds_mean is not None
+    }
+    if measured and any(abs(v - seconds) > 1e-9 * seconds for v in measured.values()):
+        return (
+            f"one trial = at most {seconds:g} s of simulated time; "
+            "as run, on average: " + ", ".join(f"{a} {v:.3g} s" for a, v in measured.items())
+        )
+    return f"one trial = {seconds:g} s of simulated time"
+
+
+def _comparison_lines(summary: dict[str, Any], rows: dict[str, LearnerSummary]) -> list[str]:
+    """The tests between the learners' final returns, their probabilities of improvement, and the
+    note on too few experiments."""
+    tests = metrics.compare_final_returns(
+        {a: row.final_return_per_experiment for a, row in rows.items()}
+    )
+    lines = [describe_test(test) for test in tests]
     improvement = summary.get("probability_of_improvement", {})
     lines.extend(
         describe_improvement(pair, estimate)
         for pair, estimate in improvement.items()
-        if all(name in algorithms for name in pair.split(" > "))
+        if all(name in rows for name in pair.split(" > "))
     )
-    fewest = min((summary[a]["experiments"] for a in algorithms), default=None)
+    fewest = min((row.experiments for row in rows.values()), default=None)
     if fewest is not None and fewest < metrics.FEW_EXPERIMENTS:
         lines.append(few_experiments_note(fewest))
+    return lines
+
+
+def summary_table(summary: dict[str, Any], algorithms: Iterable[str] | None = None) -> str:
+    """The end-of-run table of a run's summary (``summary.json``): one row per learner (with the
+    greedy return at the last evaluation when the run evaluated), what its columns average over,
+    then whether the final returns differ significantly, and a warning when too few experiments
+    make the intervals meaningless."""
+    rows = {
+        a: LearnerSummary.from_dict(summary[a]) for a in (algorithms or ALGORITHMS) if a in summary
+    }
+    greedy = any(row.greedy_eval_trials for row in rows.values())
+    # a column claims an interval only where some row shows one (too few experiments: none)
+    shown = any(metrics.withheld(row.experiments) is None for row in rows.values())
+    header = _header(greedy, " [95% CI]" if shown else "")
+    lines = [header, "-" * len(header)]
+    early = {a: _first_10min(row, summary.get("trial_seconds")) for a, row in rows.items()}
+    lines.extend(_table_row(a, row, greedy, early[a]) for a, row in rows.items())
+    budget = budget_line(summary, list(rows))
+    if budget is not None:
+        lines.append(budget)
+    lines.extend(window_lines(rows))
+    lines.append(timing_line(rows, any(value is None for value in early.values())))
+    if summary.get("optimal_return") is not None:
+        lines.append(f"near-optimal return: {summary['optimal_return']:.1f}")
+    if summary.get("trial_seconds") is not None:
+        lines.append(_trial_length_line(summary["trial_seconds"], rows))
+    lines.extend(_comparison_lines(summary, rows))
     return "\n".join(lines)

@@ -20,10 +20,9 @@ from rmac_mj.experiments import prior_transitions as prior_data
 from rmac_mj.experiments.experiment import build_experiment, evaluation
 from rmac_mj.experiments.protocol import Protocol
 from rmac_mj.results import integrity
-from rmac_mj.results.records import ExperimentResult
+from rmac_mj.results.records import ExperimentResult, TrialLog
 from rmac_mj.results.snapshots import snapshot_arrays, snapshot_state_problem
 from rmac_mj.results.store import ResultStore
-from rmac_mj.results.trial_log import TrialLog
 from rmac_mj.rollout import run_counted_trial
 
 

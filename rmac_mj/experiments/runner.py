@@ -417,7 +417,7 @@ def finalise(
             cpu_times=curves.cpu_times,
             env_steps=curves.env_steps,
             env_step_seconds=summary["env_step_seconds"],
-        )
+        ).as_dict()
         summary[algorithm]["exploration_floor"] = floors.get(algorithm)
         rows.extend(_return_rows(algorithm, curves))
     finals = {a: summary[a]["final_return_per_experiment"] for a in protocol.algorithms}

@@ -17,7 +17,11 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from rmac_mj.agents import display_name  # noqa: E402
-from rmac_mj.evaluation.metrics import FEW_EXPERIMENTS, FINAL_WINDOW  # noqa: E402
+from rmac_mj.evaluation.metrics import (  # noqa: E402
+    FEW_EXPERIMENTS,
+    FINAL_WINDOW,
+    LearnerSummary,
+)
 
 #: Colour per learner (in every figure); in a comparison of runs the line style tells the runs apart.
 _STYLES = {
@@ -84,18 +88,17 @@ X_AXES = ("minutes", "env_steps")
 
 
 def _x_of(
-    row: dict[str, Any],
+    row: LearnerSummary,
     summary: dict[str, Any],
     trials: np.ndarray,
     seconds: float,
     x_axis: str,
     key: str = "env_steps_per_trial",
-    at: np.ndarray | None = None,
 ) -> np.ndarray:
-    """The x of the trials ``trials`` (1-based): their environment steps, or the simulated minutes
-    those steps took; where the summary does not hold the steps (written before they were
-    counted), trials of the task's full length."""
-    steps = row.get(key)
+    """The x of the trials ``trials`` (1-based): their environment steps (the row's field ``key``),
+    or the simulated minutes those steps took; where the summary does not hold the steps (written
+    before they were counted), trials of the task's full length."""
+    steps = getattr(row, key)
     if steps is not None and None not in steps:
         steps = np.asarray(steps, dtype=float)
         if x_axis == "env_steps":
@@ -110,130 +113,131 @@ def _x_of(
     return np.asarray(trials, dtype=float) * seconds / 60.0
 
 
-def learning_curves_figure(
-    summaries: dict[str, dict[str, Any]],
-    optimal_return: float | None = None,
-    detail_ylim: tuple[float, float] | None = None,
-    smooth: int = 1,
-    exploration_floor: float | None = None,
-    x_axis: str = "minutes",
-):
-    """The figure of :func:`plot_learning_curves` (see it), not yet saved."""
+def _check_curve_options(smooth: int, x_axis: str) -> None:
     if not isinstance(smooth, (int, np.integer)) or smooth < 1:
         raise ValueError(f"smooth must be a positive integer (trials), got {smooth!r}")
     if x_axis not in X_AXES:
         raise ValueError(f"x_axis must be one of {', '.join(X_AXES)}, got {x_axis!r}")
-    seconds = {label: _trial_seconds(label, summary) for label, summary in summaries.items()}
-    fig, axes = plt.subplots(1, 2, figsize=(15, 4.8), constrained_layout=True)
-    colours = {algorithm: style["color"] for algorithm, style in _STYLES.items()}
-    palette = [
-        c for c in plt.rcParams["axes.prop_cycle"].by_key()["color"] if c not in colours.values()
-    ]
+
+
+class _Colours:
+    """A learner's colour: its own (:data:`_STYLES`), else the next of matplotlib's cycle that no
+    learner owns, kept for the figure."""
+
+    def __init__(self) -> None:
+        self.colours = {algorithm: style["color"] for algorithm, style in _STYLES.items()}
+        self.palette = [
+            c
+            for c in plt.rcParams["axes.prop_cycle"].by_key()["color"]
+            if c not in self.colours.values()
+        ]
+
+    def __call__(self, algorithm: str) -> str:
+        if algorithm not in self.colours:
+            self.colours[algorithm] = self.palette[len(self.colours) % len(self.palette)]
+        return self.colours[algorithm]
+
+
+def _draw_learner(ax, row: LearnerSummary, name: str, style, x, smooth: int, several: bool):
+    """One learner's mean curve with its band and its greedy trials on ``ax``; ``x(trials, key)``
+    places trials; returns the values drawn (the mean curve first)."""
+    mean = running_mean(row.mean_return_per_trial, smooth)
+    low = running_mean([np.nan if v is None else v for v in row.ci95_low_per_trial], smooth)
+    high = running_mean([np.nan if v is None else v for v in row.ci95_high_per_trial], smooth)
+    minutes = x(np.arange(1, mean.size + 1), "env_steps_per_trial")
+    ax.plot(minutes, mean, label=f"{name} (mean of {row.experiments})", linewidth=1.3, **style)
+    ax.fill_between(
+        minutes, low, high, color=style["color"], alpha=0.15 if several else 0.25, linewidth=0
+    )
+    drawn = [mean]
+    if row.greedy_eval_trials:
+        eval_minutes = x(np.asarray(row.greedy_eval_trials), "greedy_eval_env_steps")
+        ax.plot(
+            eval_minutes,
+            row.greedy_return_per_eval,
+            marker=".",
+            linewidth=0.8,
+            alpha=0.8,
+            label=f"{name}, greedy trial",
+            **style,
+        )
+        drawn.append(np.asarray(row.greedy_return_per_eval, dtype=float))
+    return drawn
+
+
+def _draw_runs(ax, summaries, seconds, colours: _Colours, smooth: int, x_axis: str):
+    """Every learner of every run on ``ax``; returns the values drawn, the curves' last
+    :data:`FINAL_WINDOW` trials, and the fewest experiments of a learner (None: no learner)."""
     several = len(summaries) > 1
     drawn, ends, fewest = [], [], None
-    for ax in axes:
-        for run, (label, summary) in enumerate(summaries.items()):
-            for algorithm in _learners(summary):
-                row = summary[algorithm]
-                mean = running_mean(row["mean_return_per_trial"], smooth)
-                low = running_mean(
-                    [np.nan if v is None else v for v in row["ci95_low_per_trial"]], smooth
-                )
-                high = running_mean(
-                    [np.nan if v is None else v for v in row["ci95_high_per_trial"]], smooth
-                )
-                minutes = _x_of(row, summary, np.arange(1, mean.size + 1), seconds[label], x_axis)
-                name = display_name(algorithm)
-                if algorithm not in colours:
-                    colours[algorithm] = palette[len(colours) % len(palette)]
-                style = {
-                    "color": colours[algorithm],
-                    "linestyle": _RUN_STYLES[run % len(_RUN_STYLES)],
-                }
-                if several:
-                    name = f"{label}: {name}"
-                ax.plot(
-                    minutes,
-                    mean,
-                    label=f"{name} (mean of {row['experiments']})",
-                    linewidth=1.3,
-                    **style,
-                )
-                ax.fill_between(
-                    minutes,
-                    low,
-                    high,
-                    color=style["color"],
-                    alpha=0.15 if several else 0.25,
-                    linewidth=0,
-                )
-                drawn.append(mean)
-                ends.append(mean[-FINAL_WINDOW:])
-                if row.get("greedy_eval_trials"):
-                    eval_minutes = _x_of(
-                        row,
-                        summary,
-                        np.asarray(row["greedy_eval_trials"]),
-                        seconds[label],
-                        x_axis,
-                        key="greedy_eval_env_steps",
-                    )
-                    ax.plot(
-                        eval_minutes,
-                        row["greedy_return_per_eval"],
-                        marker=".",
-                        linewidth=0.8,
-                        alpha=0.8,
-                        label=f"{name}, greedy trial",
-                        **style,
-                    )
-                    drawn.append(np.asarray(row["greedy_return_per_eval"], dtype=float))
-                fewest = row["experiments"] if fewest is None else min(fewest, row["experiments"])
-        if optimal_return is not None:
+    for run, (label, summary) in enumerate(summaries.items()):
+        for algorithm in _learners(summary):
+            row = LearnerSummary.from_dict(summary[algorithm])
+            name = display_name(algorithm)
+            style = {"color": colours(algorithm), "linestyle": _RUN_STYLES[run % len(_RUN_STYLES)]}
+            if several:
+                name = f"{label}: {name}"
+
+            def x(trials, key, row=row, summary=summary, label=label):
+                return _x_of(row, summary, trials, seconds[label], x_axis, key=key)
+
+            curves = _draw_learner(ax, row, name, style, x, smooth, several)
+            drawn.extend(curves)
+            ends.append(curves[0][-FINAL_WINDOW:])
+            fewest = row.experiments if fewest is None else min(fewest, row.experiments)
+    return drawn, ends, fewest
+
+
+def _draw_references(ax, optimal_return: float | None, exploration_floor: float | None) -> None:
+    """The near-optimal return and the exploration floor as horizontal lines."""
+    for value, colour, style, name in (
+        (optimal_return, "black", "-.", "near-optimal"),
+        (exploration_floor, "grey", ":", "near-optimal, exploring"),
+    ):
+        if value is not None:
             ax.axhline(
-                optimal_return,
-                color="black",
-                linewidth=1.0,
-                linestyle="-.",
-                label=f"near-optimal ({optimal_return:.0f})",
+                value, color=colour, linewidth=1.0, linestyle=style, label=f"{name} ({value:.0f})"
             )
-        if exploration_floor is not None:
-            ax.axhline(
-                exploration_floor,
-                color="grey",
-                linewidth=1.0,
-                linestyle=":",
-                label=f"near-optimal, exploring ({exploration_floor:.0f})",
-            )
-        lengths = sorted(set(seconds.values()))
-        if x_axis == "env_steps":
-            ax.set_xlabel("environment steps")
-        else:
-            ax.set_xlabel(
-                "time [min] (simulated"
-                + (f"; one trial = {lengths[0]:g} s)" if len(lengths) == 1 else ")")
-            )
-        ax.set_ylabel("sum of rewards per trial")
-        ax.grid(alpha=0.3)
-        ax.set_xlim(left=0)
-        uniform = all(
-            abs(row.get("trial_seconds_mean", seconds[label]) - seconds[label])
-            <= 1e-9 * seconds[label]
-            for label, summary in summaries.items()
-            for row in (summary[a] for a in _learners(summary))
+
+
+def _label_axes(ax, summaries, seconds: dict[str, float], x_axis: str) -> None:
+    """The axes' labels and grid, and trials on the top axis where every trial is one length."""
+    lengths = sorted(set(seconds.values()))
+    if x_axis == "env_steps":
+        ax.set_xlabel("environment steps")
+    else:
+        ax.set_xlabel(
+            "time [min] (simulated"
+            + (f"; one trial = {lengths[0]:g} s)" if len(lengths) == 1 else ")")
         )
-        if len(lengths) == 1 and x_axis == "minutes" and uniform:
-            # trials on the top axis (with several trial lengths it would be ambiguous)
-            trials_axis = ax.secondary_xaxis(
-                "top",
-                functions=(
-                    lambda m, s=lengths[0]: m * 60.0 / s,
-                    lambda t, s=lengths[0]: t * s / 60.0,
-                ),
-            )
-            trials_axis.set_xlabel("trial")
-    # The axes follow the curves, not the bands: with few experiments a 95% band spans thousands.
-    # Their least margin is the task's (its plot hints): a return difference worth seeing.
+    ax.set_ylabel("sum of rewards per trial")
+    ax.grid(alpha=0.3)
+    ax.set_xlim(left=0)
+    uniform = all(
+        abs(
+            (seconds[label] if row.trial_seconds_mean is None else row.trial_seconds_mean)
+            - seconds[label]
+        )
+        <= 1e-9 * seconds[label]
+        for label, summary in summaries.items()
+        for row in (LearnerSummary.from_dict(summary[a]) for a in _learners(summary))
+    )
+    if len(lengths) == 1 and x_axis == "minutes" and uniform:
+        # trials on the top axis (with several trial lengths it would be ambiguous)
+        trials_axis = ax.secondary_xaxis(
+            "top",
+            functions=(
+                lambda m, s=lengths[0]: m * 60.0 / s,
+                lambda t, s=lengths[0]: t * s / 60.0,
+            ),
+        )
+        trials_axis.set_xlabel("trial")
+
+
+def _set_ranges(axes, summaries, drawn, ends, references, detail_ylim) -> None:
+    """The axes follow the curves, not the bands: with few experiments a 95% band spans
+    thousands. Their least margin is the task's (its plot hints): a return difference worth
+    seeing. The detail shows the range of the curves' last trials and the ``references``."""
     margin = min(
         (
             float(s.get("plot_hints", {}).get("return_margin", _RETURN_MARGIN))
@@ -241,19 +245,19 @@ def learning_curves_figure(
         ),
         default=_RETURN_MARGIN,
     )
-    references = [r for r in (optimal_return, exploration_floor) if r is not None]
     values = np.concatenate([d[np.isfinite(d)] for d in drawn] + [np.array(references)])
     if values.size:
         axes[0].set_ylim(*_padded(values.min(), values.max(), minimum=margin))
-    axes[0].set_title("Learning curves, mean and 95% confidence interval")
-    if detail_ylim is None:  # the range of the curves' last trials, the optimum and the floor
+    if detail_ylim is None:
         last = np.concatenate(ends + [np.array(references)])
         last = last[np.isfinite(last)]
         if last.size:
             detail_ylim = _padded(last.min(), last.max(), fraction=0.1, minimum=2.5 * margin)
     if detail_ylim is not None:
         axes[1].set_ylim(*detail_ylim)
-    axes[1].set_title("Detail: the levels reached")
+
+
+def _legends(axes, smooth: int) -> None:
     legend_title = f"running mean over {smooth} trials" if smooth > 1 else None
     axes[0].legend(loc="lower right", fontsize="small", title=legend_title, title_fontsize="small")
     # The detail's curves fill it up to its right edge (the levels reached): its legend goes beside it.
@@ -265,6 +269,9 @@ def learning_curves_figure(
         title=legend_title,
         title_fontsize="small",
     )
+
+
+def _few_experiments_note(fig, fewest: int | None) -> None:
     if fewest is not None and fewest < FEW_EXPERIMENTS:
         fig.text(
             0.5,
@@ -277,6 +284,34 @@ def learning_curves_figure(
             fontsize="small",
             color="firebrick",
         )
+
+
+def learning_curves_figure(
+    summaries: dict[str, dict[str, Any]],
+    optimal_return: float | None = None,
+    detail_ylim: tuple[float, float] | None = None,
+    smooth: int = 1,
+    exploration_floor: float | None = None,
+    x_axis: str = "minutes",
+):
+    """The figure of :func:`plot_learning_curves` (see it), not yet saved."""
+    _check_curve_options(smooth, x_axis)
+    seconds = {label: _trial_seconds(label, summary) for label, summary in summaries.items()}
+    fig, axes = plt.subplots(1, 2, figsize=(15, 4.8), constrained_layout=True)
+    colours = _Colours()
+    drawn, ends = [], []
+    for ax in axes:
+        on_ax, ends_on_ax, fewest = _draw_runs(ax, summaries, seconds, colours, smooth, x_axis)
+        drawn.extend(on_ax)
+        ends.extend(ends_on_ax)
+        _draw_references(ax, optimal_return, exploration_floor)
+        _label_axes(ax, summaries, seconds, x_axis)
+    references = [r for r in (optimal_return, exploration_floor) if r is not None]
+    _set_ranges(axes, summaries, drawn, ends, references, detail_ylim)
+    axes[0].set_title("Learning curves, mean and 95% confidence interval")
+    axes[1].set_title("Detail: the levels reached")
+    _legends(axes, smooth)
+    _few_experiments_note(fig, fewest)
     return fig
 
 

@@ -123,6 +123,87 @@ def _draw_trajectory(
     ax.plot(x[-1], y[-1], "X", color="black", markerfacecolor="white", markersize=7)
 
 
+def _map_box(learner_state, limits: dict[int, tuple[float, float]] | None):
+    """The (low, high) of the maps per state dimension: the task's box, ``limits`` overriding."""
+    n = len(learner_state.low)
+    low, high = np.array(learner_state.low), np.array(learner_state.high)
+    for d, (lo, hi) in (limits or {}).items():
+        if not (0 <= d < n and np.isfinite(lo) and np.isfinite(hi) and lo < hi):
+            raise ValueError(
+                f"limits[{d}] must be a finite (low, high) with low < high for a state "
+                f"dimension in [0, {n}), got {(lo, hi)!r}"
+            )
+        low[d], high[d] = lo, hi
+    return low, high
+
+
+def _draw_maps(axes_row, agent, meta, grid, action_labels, value_range):
+    """One snapshot's row: a map per action dimension and the critic's; returns their images."""
+    xs, ys, actions, values = grid
+    m = len(action_labels)
+    algorithm = meta.get("algorithm", "")
+    name = display_name(algorithm)
+    policy_name = r"policy $u = f^{-1}(x, R(x))$" if algorithm == "rmac" else r"actor $\pi(x)$"
+    after = f", after {meta['trial']} trials" if meta.get("trial") is not None else ""
+    a_low, a_high = agent.action_space.low, agent.action_space.high
+    extent = (xs[0], xs[-1], ys[0], ys[-1])
+    images = []
+    for k in range(m):
+        images.append(
+            axes_row[k].imshow(
+                actions[..., k],
+                origin="lower",
+                extent=extent,
+                aspect="auto",
+                cmap="RdBu_r",
+                vmin=a_low[k],
+                vmax=a_high[k],
+            )
+        )
+        axes_row[k].set_title(
+            f"{name} {policy_name}" + (f", {action_labels[k]}" if m > 1 else "") + after
+        )
+    images.append(
+        axes_row[m].imshow(
+            values,
+            origin="lower",
+            extent=extent,
+            aspect="auto",
+            cmap="viridis",
+            vmin=value_range[0],
+            vmax=value_range[1],
+        )
+    )
+    axes_row[m].set_title(f"{name} critic $V(x)${after}")
+    return images
+
+
+def _draw_greedy_trial(axes_row, env, agent, dims, learner_state, extent) -> None:
+    """The agent's greedy trial in ``env`` over every map of its row, the maps' ranges kept."""
+    states, total = greedy_trajectory(env, agent)
+    for ax in axes_row:
+        _draw_trajectory(
+            ax, states, dims, learner_state, f"greedy trial from $x_0$ (return {total:.0f})"
+        )
+        ax.set_xlim(extent[0], extent[1])
+        ax.set_ylim(extent[2], extent[3])
+    axes_row[0].legend(loc="lower left", fontsize="small")
+
+
+def _policies_title(snapshots, learner_state, anchor, dims) -> str | None:
+    """The experiment the snapshots share and the slice's other coordinates, or None."""
+    title = []
+    experiments = {meta.get("experiment") for _, meta in snapshots}
+    if len(experiments) == 1 and None not in experiments:
+        title.append(f"experiment {experiments.pop()}")
+    others = [d for d in range(len(learner_state.low)) if d not in dims]
+    if others:
+        title.append(
+            "slice at " + ", ".join(f"{learner_state.labels[d]} = {anchor[d]:.3g}" for d in others)
+        )
+    return "; ".join(title) if title else None
+
+
 def policies_figure(
     snapshots: Sequence[tuple[Any, dict[str, Any]]],
     learner_state,
@@ -138,16 +219,8 @@ def policies_figure(
         {"resolution": [constraints.MAP_RESOLUTION.constraint()]},
         {"resolution": resolution},
     )
-    n = len(learner_state.low)
-    i, j = _check_dims(dims, n)
-    low, high = np.array(learner_state.low), np.array(learner_state.high)
-    for d, (lo, hi) in (limits or {}).items():
-        if not (0 <= d < n and np.isfinite(lo) and np.isfinite(hi) and lo < hi):
-            raise ValueError(
-                f"limits[{d}] must be a finite (low, high) with low < high for a state "
-                f"dimension in [0, {n}), got {(lo, hi)!r}"
-            )
-        low[d], high[d] = lo, hi
+    i, j = _check_dims(dims, len(learner_state.low))
+    low, high = _map_box(learner_state, limits)
     if envs is not None and len(envs) != len(snapshots):
         raise ValueError(
             f"envs must give one environment per snapshot ({len(snapshots)}), got {len(envs)}"
@@ -168,50 +241,11 @@ def policies_figure(
     fig, axes = plt.subplots(
         rows, m + 1, figsize=(5.5 * (m + 1), 4.2 * rows), constrained_layout=True, squeeze=False
     )
-    images = [None] * (m + 1)
-    for row, ((agent, meta), (xs, ys, actions, values)) in enumerate(zip(snapshots, grids)):
-        algorithm = meta.get("algorithm", "")
-        name = display_name(algorithm)
-        policy_name = r"policy $u = f^{-1}(x, R(x))$" if algorithm == "rmac" else r"actor $\pi(x)$"
-        after = f", after {meta['trial']} trials" if meta.get("trial") is not None else ""
-        a_low, a_high = agent.action_space.low, agent.action_space.high
-        extent = (xs[0], xs[-1], ys[0], ys[-1])
-        for k in range(m):
-            images[k] = axes[row, k].imshow(
-                actions[..., k],
-                origin="lower",
-                extent=extent,
-                aspect="auto",
-                cmap="RdBu_r",
-                vmin=a_low[k],
-                vmax=a_high[k],
-            )
-            axes[row, k].set_title(
-                f"{name} {policy_name}" + (f", {action_labels[k]}" if m > 1 else "") + after
-            )
-        images[m] = axes[row, m].imshow(
-            values,
-            origin="lower",
-            extent=extent,
-            aspect="auto",
-            cmap="viridis",
-            vmin=value_range[0],
-            vmax=value_range[1],
-        )
-        axes[row, m].set_title(f"{name} critic $V(x)${after}")
+    for row, ((agent, meta), grid) in enumerate(zip(snapshots, grids)):
+        images = _draw_maps(axes[row], agent, meta, grid, action_labels, value_range)
         if envs is not None:
-            states, total = greedy_trajectory(envs[row], agent)
-            for ax in axes[row]:
-                _draw_trajectory(
-                    ax,
-                    states,
-                    (i, j),
-                    learner_state,
-                    f"greedy trial from $x_0$ (return {total:.0f})",
-                )
-                ax.set_xlim(extent[0], extent[1])
-                ax.set_ylim(extent[2], extent[3])
-            axes[row, 0].legend(loc="lower left", fontsize="small")
+            extent = (grid[0][0], grid[0][-1], grid[1][0], grid[1][-1])
+            _draw_greedy_trial(axes[row], envs[row], agent, (i, j), learner_state, extent)
         for ax in axes[row]:
             ax.set_xlabel(learner_state.labels[i])
             ax.set_ylabel(learner_state.labels[j])
@@ -220,17 +254,9 @@ def policies_figure(
     fig.colorbar(
         images[m], ax=axes[:, m], label="$V(x)$" + (" (one scale for all rows)" if rows > 1 else "")
     )
-    title = []
-    experiments = {meta.get("experiment") for _, meta in snapshots}
-    if len(experiments) == 1 and None not in experiments:
-        title.append(f"experiment {experiments.pop()}")
-    others = [d for d in range(n) if d not in (i, j)]
-    if others:
-        title.append(
-            "slice at " + ", ".join(f"{learner_state.labels[d]} = {anchor[d]:.3g}" for d in others)
-        )
+    title = _policies_title(snapshots, learner_state, anchor, (i, j))
     if title:
-        fig.suptitle("; ".join(title))
+        fig.suptitle(title)
     return fig
 
 

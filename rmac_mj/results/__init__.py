@@ -4,13 +4,12 @@ refusals of a resume, its lock, atomic writes of plain files, and snapshots of l
 ``load_snapshot(path)`` gives back a learner a run saved, ready to act in the user's own loop.
 """
 
+from rmac_mj.results.documents import DamagedDirectory, ResumeRefused
 from rmac_mj.results.files import provenance, write_atomic, write_csv, write_json, write_npz
 from rmac_mj.results.integrity import DirectoryBusy, DirectoryLock
-from rmac_mj.results.records import Curves, ExperimentResult
-from rmac_mj.results.run_identity import DamagedDirectory, ResumeRefused
+from rmac_mj.results.records import Curves, ExperimentResult, TrialLog
 from rmac_mj.results.snapshots import load_snapshot, save_snapshot, snapshot_environment
 from rmac_mj.results.store import ResultStore
-from rmac_mj.results.trial_log import TrialLog
 
 __all__ = [
     # The result directory

@@ -1,6 +1,9 @@
 """A run's JSON documents read back (``config.json``, ``summary.json``, ``wall_times.json``): each
 reader returns the document or raises :class:`~rmac_mj.errors.UserInputError` naming the file and
-what is damaged in it, so no reader downstream meets a malformed one."""
+what is damaged in it, so no reader downstream meets a malformed one; and whether the directory's
+config is the run asked for: the refusals (:class:`ResumeRefused`, :class:`DamagedDirectory`), the
+settings in which two protocols differ, whether one only adds experiments to the other
+(:func:`added_experiments`)."""
 
 from __future__ import annotations
 
@@ -11,7 +14,15 @@ from typing import Any
 from rmac_mj.constraints import RESULT_DOCUMENT_BYTES
 from rmac_mj.errors import MissingInputError, UserInputError
 from rmac_mj.results.files import read_bounded
-from rmac_mj.results.run_identity import DamagedDirectory
+
+
+class ResumeRefused(UserInputError):
+    """The result directory holds a different run; its results must not be mixed with this one's."""
+
+
+class DamagedDirectory(ResumeRefused):
+    """The result directory's config cannot be read: what run it holds cannot be told."""
+
 
 #: The containers a config's readers iterate (the values in them are compared with the run's own).
 _CONFIG_KINDS = {
@@ -162,3 +173,30 @@ def read_wall_times(path: pathlib.Path) -> list[dict[str, Any]]:
             "to resume without the earlier parts' wall times"
         ) from None
     return [dict(part) for part in parts]
+
+
+def added_experiments(stored: Any, protocol: Any) -> int | None:
+    """How many experiments ``protocol`` adds to the ``stored`` protocol (both as data) when it
+    differs from it in nothing else (negative: it has fewer); None when anything else differs or a
+    count is missing. Experiment i's seeds do not depend on the count
+    (:func:`~rmac_mj.experiments.experiment.experiment_seeds`), so a run of N experiments grown to M
+    holds exactly what a fresh run of M would. The runner's and the sweep's resume both ask it."""
+    if not all(
+        isinstance(p, dict) and isinstance(p.get("experiments"), int) for p in (stored, protocol)
+    ):
+        return None
+    if differences({**stored, "experiments": 0}, {**protocol, "experiments": 0}):
+        return None
+    return protocol["experiments"] - stored["experiments"]
+
+
+def differences(old: Any, new: Any, path: str = "") -> list[str]:
+    """``"field: A in the directory, B now"`` for every setting that differs (nested fields dotted)."""
+    if isinstance(old, dict) and isinstance(new, dict):
+        found = []
+        for key in [*old, *(k for k in new if k not in old)]:
+            found += differences(old.get(key), new.get(key), f"{path}{key}.")
+        return found
+    if old == new:
+        return []
+    return [f"{path.rstrip('.')}: {json.dumps(old)} in the directory, {json.dumps(new)} now"]

@@ -221,9 +221,8 @@ def snapshot_environment(
     ``env`` names it again or with ``trust_env``; and only from where it came from when it learned
     (``environment_origin``: a file's digest, a registry's version), else refused naming both.
     ``log`` hears why an environment named by ``env`` is not the one it learned on."""
-    from rmac_mj import envs, tasks
+    from rmac_mj import envs
     from rmac_mj.envs import spec as env_spec
-    from rmac_mj.rollout import action_space_of, state_space_of
 
     learned_on = envs.EnvSpec(**meta["environment"]) if "environment" in meta else None
     name = learned_on.env if learned_on is not None else f"{meta['domain']}/{meta['task']}"
@@ -231,8 +230,8 @@ def snapshot_environment(
         raise UserInputError(
             "give an outside environment (env) or a suite task (domain/task), not both"
         )
-    named = env is not None and learned_on is not None and env_spec.canonical(env) == name
     if (learned_on is not None and domain is None and task is None) or env is not None:
+        named = env is not None and learned_on is not None and env_spec.canonical(env) == name
         if learned_on is not None and env is None and env_spec.user_code(name) and not trust_env:
             raise UserInputError(
                 f"the snapshot learned on env {name!r}, code of yours: opening a snapshot runs "
@@ -244,26 +243,47 @@ def snapshot_environment(
         spec = learned_on if env is None or named else envs.EnvSpec(env)
         if env is not None and not named and log is not None and learned_on is not None:
             log(f"the snapshot learned on {name}; drawn on {spec.env}, as --env asks")
-        try:
-            made = spec.make(render=render)
-        except ValueError as error:
-            raise UserInputError(f"cannot build {spec.env}: {error}") from None
-        own, where = env is None or named, spec.env
+        made, own, where = _built(spec, render), env is None or named, spec.env
     else:
-        domain = domain or meta.get("domain")
-        task = task or (meta.get("task") if domain == meta.get("domain") else None)
-        if task is None:
-            raise UserInputError(
-                f"give the task of domain {domain!r} too (the snapshot learned {name})"
-            )
-        own = learned_on is None and (domain, task) == (meta["domain"], meta["task"])
-        try:
-            made = tasks.load(domain, task, task_kwargs=meta.get("task_kwargs") if own else None)
-        except ValueError as error:
-            raise UserInputError(str(error)) from None
-        where = f"{domain}/{task}"
-    if own:
-        return made
+        made, own, where = _suite_task(meta, learned_on is None, name, domain, task)
+    if not own:
+        _check_dimensions(made, agent, where, name)
+    return made
+
+
+def _built(spec, render: bool) -> control.Environment:
+    """The outside environment ``spec`` built (drawing its frames when ``render``)."""
+    try:
+        return spec.make(render=render)
+    except ValueError as error:
+        raise UserInputError(f"cannot build {spec.env}: {error}") from None
+
+
+def _suite_task(meta: dict, of_suite: bool, name: str, domain: str | None, task: str | None):
+    """A suite task for a snapshot: ``domain``/``task``, the snapshot's where not given (its
+    task_kwargs when it is the one it learned on, ``of_suite``); (environment, whether it is
+    the one it learned on, its name)."""
+    from rmac_mj import tasks
+
+    domain = domain or meta.get("domain")
+    task = task or (meta.get("task") if domain == meta.get("domain") else None)
+    if task is None:
+        raise UserInputError(
+            f"give the task of domain {domain!r} too (the snapshot learned {name})"
+        )
+    own = of_suite and (domain, task) == (meta["domain"], meta["task"])
+    try:
+        made = tasks.load(domain, task, task_kwargs=meta.get("task_kwargs") if own else None)
+    except ValueError as error:
+        raise UserInputError(str(error)) from None
+    return made, own, f"{domain}/{task}"
+
+
+def _check_dimensions(made: control.Environment, agent: Agent, where: str, name: str) -> None:
+    """UserInputError unless ``made`` (named ``where``) has the agent's state and action
+    dimensions (it learned on ``name``)."""
+    from rmac_mj.rollout import action_space_of, state_space_of
+
     n, m = state_space_of(made).dim, action_space_of(made).dim
     if (n, m) != (agent.state_space.dim, agent.action_space.dim):
         raise UserInputError(
@@ -271,7 +291,6 @@ def snapshot_environment(
             f"(learned on {name}) {agent.state_space.dim} and "
             f"{agent.action_space.dim}"
         )
-    return made
 
 
 def _check_origin(meta: dict, name: str, named: bool, log: Callable[[str], None] | None) -> None:

@@ -4,7 +4,7 @@ The runner, the sweep, rendering, ``compare`` and the scripts go through it, nev
 Files are written atomically (:mod:`rmac_mj.results.files`), snapshots before the curve, so a killed
 run leaves only whole files. The records it saves and loads are in :mod:`~rmac_mj.results.records`,
 its JSON documents are read by :mod:`~rmac_mj.results.documents`, and whether it holds the run asked
-for is decided by :mod:`~rmac_mj.results.run_identity`.
+for is decided by :mod:`~rmac_mj.results.documents`.
 """
 
 from __future__ import annotations
@@ -20,9 +20,9 @@ import numpy as np
 
 from rmac_mj.envs.spec import origin_problem
 from rmac_mj.errors import MissingInputError
-from rmac_mj.results import documents, files, integrity, run_identity
+from rmac_mj.results import documents, files, integrity
+from rmac_mj.results.documents import ResumeRefused, added_experiments
 from rmac_mj.results.records import Curves, ExperimentResult
-from rmac_mj.results.run_identity import ResumeRefused, added_experiments
 from rmac_mj.results.snapshots import FORMAT, LEARNER_KEYS_BEFORE_FORMAT_3
 
 _EXPERIMENT_FILE = re.compile(r"exp_(\d{3,})\.npz")
@@ -127,13 +127,13 @@ class ResultStore:
             return {key: data[key] for key in data.files}
 
     def progress_path(self, algorithm: str, index: int) -> pathlib.Path:
-        """The live trial log of an experiment (see :class:`~rmac_mj.results.trial_log.TrialLog`)."""
+        """The live trial log of an experiment (see :class:`~rmac_mj.results.records.TrialLog`)."""
         return self.root / "progress" / self._stored(algorithm) / f"{_experiment_name(index)}.csv"
 
     # -- config --------------------------------------------------------------------------------------
     def read_config(self) -> dict[str, Any] | None:
         """The directory's ``config.json``, or None when there is none;
-        :class:`~rmac_mj.results.run_identity.DamagedDirectory` when it cannot be read as a run's
+        :class:`~rmac_mj.results.documents.DamagedDirectory` when it cannot be read as a run's
         config (a JSON object with a ``protocol`` object)."""
         return _with_todays_keys(documents.read_config(self.config_path), self._today())
 
@@ -219,7 +219,7 @@ class ResultStore:
         for a refusal (none where a resume only adds experiments), and how many experiments the
         new protocol adds (negative: drops)."""
         stored = existing.get("protocol", {})
-        differences = run_identity.differences(stored, document["protocol"])
+        differences = documents.differences(stored, document["protocol"])
         if existing.get("prior_sha256") != document.get("prior_sha256"):
             differences.append("the prior knowledge file's contents (sha256)")
         changed = origin_problem(

@@ -19,8 +19,7 @@ from rmac_mj.solvers.optimum import (
     run_optimum,
 )
 from rmac_mj.solvers.problem import TrialProblem, problem_identity
-from rmac_mj.solvers.trajopt import TrajoptResult
-from rmac_mj.solvers.trajopt_config import TrajoptConfig
+from rmac_mj.solvers.trajopt import TrajoptConfig, TrajoptResult
 
 __all__ = [
     # A task's near-optimal return and exploration floor

@@ -198,6 +198,30 @@ def exploration_floor(
       rollouts: noisy trials to average, >= 2.
       seed: seed of the noise.
     """
+    sigma, period, phase, rollouts, seed = _checked(config, sigma, period, phase, rollouts, seed)
+    dp_key = optimal.cache_key(env, identity, config)
+    key = hashlib.sha256(
+        json.dumps([dp_key, sigma, period, phase, rollouts, seed]).encode()
+    ).hexdigest()[:20]
+    directory = cache_directory(cache_dir)
+    return cached_json(
+        directory / f"exploration-floor-{key}.json",
+        lambda document: ExplorationFloor.from_json_dict(document, from_cache=True),
+        lambda: _computed_floor(
+            env, identity, config, (sigma, period, phase, rollouts, seed), announce
+        ),
+        refresh=refresh,
+        announce=announce,
+        message=(
+            f"computing the exploration floor ({rollouts} noisy trials of the near-optimal "
+            f"policy, after its dynamic programming: about a minute; cached after, in "
+            f"{directory})"
+        ),
+    )
+
+
+def _checked(config, sigma, period, phase, rollouts, seed) -> tuple[float, int, int, int, int]:
+    """:func:`exploration_floor`'s settings checked, as (sigma, period, phase, rollouts, seed)."""
     if not isinstance(config, OptimalConfig):
         raise TypeError(
             f"exploration_floor: config must be an OptimalConfig, got {type(config).__name__}"
@@ -216,57 +240,43 @@ def exploration_floor(
             )
     if phase >= period:
         raise ValueError(f"exploration_floor: phase must be in [0, period={period}), got {phase}")
-    sigma, period, phase, rollouts, seed = (
-        float(sigma),
-        int(period),
-        int(phase),
-        int(rollouts),
-        int(seed),
+    return float(sigma), int(period), int(phase), int(rollouts), int(seed)
+
+
+def _computed_floor(
+    env: control.Environment,
+    identity: dict[str, Any],
+    config: OptimalConfig,
+    exploration: tuple[float, int, int, int, int],
+    announce: Callable[[str], None] | None,
+) -> ExplorationFloor:
+    """The floor computed: the DP's values, then the noisy trials of ``exploration`` (sigma,
+    period, phase, rollouts, seed)."""
+    sigma, period, phase, rollouts, seed = exploration
+    start = time.perf_counter()
+    problem, values = optimal.solved_values(env, identity, config, announce)
+    returns = noisy_rollouts(
+        config,
+        problem,
+        values,
+        sigma,
+        period,
+        phase,
+        rollouts,
+        np.random.default_rng(seed),
+        announce,
     )
-    dp_key = optimal.cache_key(env, identity, config)
-    key = hashlib.sha256(
-        json.dumps([dp_key, sigma, period, phase, rollouts, seed]).encode()
-    ).hexdigest()[:20]
-    directory = cache_directory(cache_dir)
-
-    def compute() -> ExplorationFloor:
-        start = time.perf_counter()
-        problem, values = optimal.solved_values(env, identity, config, announce)
-        returns = noisy_rollouts(
-            config,
-            problem,
-            values,
-            sigma,
-            period,
-            phase,
-            rollouts,
-            np.random.default_rng(seed),
-            announce,
-        )
-        mean, low, high = confidence_interval(returns)
-        return ExplorationFloor(
-            mean=float(mean),
-            std=float(returns.std(ddof=1)),
-            ci95=(float(low), float(high)),
-            returns=returns,
-            sigma=sigma,
-            period=period,
-            phase=phase,
-            rollouts=rollouts,
-            seed=seed,
-            config=config,
-            runtime_s=time.perf_counter() - start,
-        )
-
-    return cached_json(
-        directory / f"exploration-floor-{key}.json",
-        lambda document: ExplorationFloor.from_json_dict(document, from_cache=True),
-        compute,
-        refresh=refresh,
-        announce=announce,
-        message=(
-            f"computing the exploration floor ({rollouts} noisy trials of the near-optimal "
-            f"policy, after its dynamic programming: about a minute; cached after, in "
-            f"{directory})"
-        ),
+    mean, low, high = confidence_interval(returns)
+    return ExplorationFloor(
+        mean=float(mean),
+        std=float(returns.std(ddof=1)),
+        ci95=(float(low), float(high)),
+        returns=returns,
+        sigma=sigma,
+        period=period,
+        phase=phase,
+        rollouts=rollouts,
+        seed=seed,
+        config=config,
+        runtime_s=time.perf_counter() - start,
     )

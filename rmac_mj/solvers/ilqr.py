@@ -13,11 +13,20 @@ on early actions (balancing near an unstable upright; docs/optimal.md).
 from __future__ import annotations
 
 import itertools
+from typing import Protocol
 
 import numpy as np
 
-from rmac_mj.solvers.trajopt_config import TrajoptConfig
 from rmac_mj.solvers.trajopt_problem import Problem
+
+
+class Settings(Protocol):
+    """What iLQR reads of its settings (:class:`~rmac_mj.solvers.trajopt.TrajoptConfig`'s)."""
+
+    max_iterations: int
+    tolerance: float
+    fd_step: float
+    reward_fd_step: float
 
 
 def box_qp(
@@ -91,7 +100,7 @@ def _backward_pass(problem: Problem, derivatives, u: np.ndarray, mu: float):
 
 
 def ilqr(
-    problem: Problem, actions: np.ndarray, config: TrajoptConfig, wrap: bool = True
+    problem: Problem, actions: np.ndarray, config: Settings, wrap: bool = True
 ) -> tuple[np.ndarray, float, int, str]:
     """Improve an action sequence of shape (h, m) by iLQR; return (actions, return, iterations, why).
 

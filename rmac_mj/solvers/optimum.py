@@ -17,7 +17,7 @@ from rmac_mj.solvers import dynamic_programming, trajopt
 from rmac_mj.solvers import exploration_floor as floors
 from rmac_mj.solvers.dynamic_programming_config import OptimalConfig
 from rmac_mj.solvers.problem import Announce, problem_identity
-from rmac_mj.solvers.trajopt_config import TrajoptConfig
+from rmac_mj.solvers.trajopt import TrajoptConfig
 
 
 class Optimum(Interface):

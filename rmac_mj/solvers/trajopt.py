@@ -6,8 +6,8 @@ over the action sequence u_0..u_{H-1} (inside the action box) of
     J(u) = sum_{k=1..H} r_k,   r_k = rho(x_{k-1}, u_{k-1}),   z_k = f(z_{k-1}, u_{k-1}),   x_k = s(z_k),
 
 on the task's own model and reward (:mod:`rmac_mj.solvers.trajopt_problem`), maximised by iLQR with
-control limits (:mod:`rmac_mj.solvers.ilqr`) from several starts. This module owns the starts, the
-result and its cache.
+control limits (:mod:`rmac_mj.solvers.ilqr`) from several starts. This module owns how hard it
+searches (:class:`TrajoptConfig`), the starts, the result and its cache.
 
 Each start runs in two phases: phase 1 optimises the reward of the angles *continued* from x_0 (not
 wrapped, ``Problem.state_of(wrap=False)``), which charges every full turn, so that no start settles
@@ -41,7 +41,6 @@ from rmac_mj.results.files import cached_json
 from rmac_mj.solvers.ilqr import box_qp, ilqr
 from rmac_mj.solvers.problem import cache_directory, versions
 from rmac_mj.solvers.problem import cache_key as problem_cache_key
-from rmac_mj.solvers.trajopt_config import TrajoptConfig
 from rmac_mj.solvers.trajopt_problem import MAX_ACTION_DIM, Problem
 
 __all__ = [
@@ -61,6 +60,54 @@ __all__ = [
 #: Bumped whenever a change to the solver (this module, ``ilqr``, ``trajopt_problem``) changes the
 #: numbers it computes: old cache entries are ignored.
 SOLVER_VERSION = 1
+
+
+@dataclasses.dataclass(frozen=True)
+class TrajoptConfig:
+    """How hard to search. The problem itself (model, horizon, reward, x_0) comes from the environment."""
+
+    max_iterations: int = 300
+    """iLQR iterations per start and phase (each: derivatives, a backward pass, a line search)."""
+    tolerance: float = 1e-9
+    """A phase stops when the gain its quadratic model predicts for a full step is below this fraction
+    of (1 + |return|)."""
+    random_starts: int = 2
+    """Random starts (uniform in the action box) in addition to the zero, corner and switched starts."""
+    corner_starts: bool = True
+    """Also start from every corner of the action box held throughout, and from every corner switched
+    to its opposite half way through the trial (2 * 2^m starts)."""
+    fd_step: float = 1e-6
+    """Finite-difference step of the dynamics: in each of qpos and qvel (rad, rad/s) and as a fraction of
+    each action's range."""
+    reward_fd_step: float = 1e-4
+    """Finite-difference step of the reward's gradient and Hessian in x and u (exact for a quadratic
+    reward up to rounding)."""
+    seed: int = 0
+    """Seed of the random starts."""
+    n_threads: int = 0
+    """Threads for the batched rollouts; 0 means ``os.cpu_count()``. Does not change results."""
+
+    def __post_init__(self) -> None:
+        for name in ("max_iterations", "random_starts", "seed", "n_threads"):
+            value = getattr(self, name)
+            if not isinstance(value, (int, np.integer)) or isinstance(value, bool):
+                raise TypeError(f"TrajoptConfig.{name} must be an int, got {value!r}")
+            if value < 0:
+                raise ValueError(f"TrajoptConfig.{name} must be >= 0, got {value}")
+        if self.max_iterations < 1:
+            raise ValueError(
+                f"TrajoptConfig.max_iterations must be >= 1, got {self.max_iterations}"
+            )
+        if not isinstance(self.corner_starts, (bool, np.bool_)):
+            raise TypeError(
+                f"TrajoptConfig.corner_starts must be a bool, got {self.corner_starts!r}"
+            )
+        for name in ("tolerance", "fd_step", "reward_fd_step"):
+            value = getattr(self, name)
+            if not (np.isscalar(value) and np.isfinite(value) and 0 < value < 1):
+                raise ValueError(f"TrajoptConfig.{name} must be a number in (0, 1), got {value!r}")
+            object.__setattr__(self, name, float(value))
+        object.__setattr__(self, "corner_starts", bool(self.corner_starts))
 
 
 @dataclasses.dataclass(frozen=True)

@@ -13,10 +13,10 @@ import pathlib
 from typing import Any
 
 from rmac_mj import constraints
-from rmac_mj.evaluation import metrics, report
+from rmac_mj.evaluation import LearnerSummary, metrics, report
 from rmac_mj.experiments import runner
 from rmac_mj.results import files
-from rmac_mj.results.run_identity import ResumeRefused, added_experiments
+from rmac_mj.results.documents import ResumeRefused, added_experiments
 from rmac_mj.results.store import ResultStore
 from rmac_mj.sweeps.sweep_file import Sweep
 
@@ -107,7 +107,7 @@ def _write_index(out: pathlib.Path, sweep: Sweep, document: dict[str, Any]) -> N
 
 def _added_experiments(stored: dict[str, Any], document: dict[str, Any]) -> int | None:
     """The experiments per configuration the sweep ``document`` adds to the ``stored`` index when it
-    differs in nothing else (:func:`~rmac_mj.results.run_identity.added_experiments`)."""
+    differs in nothing else (:func:`~rmac_mj.results.documents.added_experiments`)."""
     before, now = stored.get("sweep"), document["sweep"]
     if not isinstance(before, dict):
         return None
@@ -153,33 +153,31 @@ def sweep_rows(sweep: Sweep, summaries: list[dict[str, Any]]) -> list[dict]:
     rows = []
     for configuration, summary in zip(sweep.configurations, summaries):
         for algorithm in configuration.protocol.algorithms:
-            learner = summary[algorithm]
+            learner = LearnerSummary.from_dict(summary[algorithm])
             row: dict[str, Any] = {"configuration": configuration.name}
             if sweep.variants:
                 row["variant"] = configuration.variant
             row.update(configuration.values)
             row["algorithm"] = algorithm
-            row["experiments"] = learner["experiments"]
-            row["final_return_mean"] = learner["final_return_mean"]
-            row["final_return_ci95_low"], row["final_return_ci95_high"] = learner[
-                "final_return_ci95"
-            ]
-            if learner.get("greedy_eval_trials"):
-                row["greedy_trial"] = learner["greedy_eval_trials"][-1]
-                row["greedy_return_mean"] = learner["greedy_return_last_mean"]
-                (row["greedy_return_ci95_low"], row["greedy_return_ci95_high"]) = learner[
-                    "greedy_return_last_ci95"
-                ]
-            row["minutes_to_90pct"] = learner["minutes_to_90pct"]
-            row["mean_return_first_5min"] = learner["mean_return_first_5min"]
-            row["first_5min_ci95_low"], row["first_5min_ci95_high"] = learner["first_5min_ci95"]
-            row["stuck_experiments"] = learner["stuck_experiments"]
+            row["experiments"] = learner.experiments
+            row["final_return_mean"] = learner.final_return_mean
+            row["final_return_ci95_low"], row["final_return_ci95_high"] = learner.final_return_ci95
+            if learner.greedy_eval_trials:
+                row["greedy_trial"] = learner.greedy_eval_trials[-1]
+                row["greedy_return_mean"] = learner.greedy_return_last_mean
+                (row["greedy_return_ci95_low"], row["greedy_return_ci95_high"]) = (
+                    learner.greedy_return_last_ci95
+                )
+            row["minutes_to_90pct"] = learner.minutes_to_90pct
+            row["mean_return_first_5min"] = learner.mean_return_first_5min
+            row["first_5min_ci95_low"], row["first_5min_ci95_high"] = learner.first_5min_ci95
+            row["stuck_experiments"] = learner.stuck_experiments
             row["optimal_return"] = summary.get("optimal_return")
-            row["gap_to_optimal"] = learner.get("gap_to_optimal")
-            row["exploration_floor"] = learner.get("exploration_floor")
-            row["wall_time_s"] = learner["experiment_wall_s_total"]
-            row["final_window"] = learner["final_window"]
-            row["stuck_below"] = learner["stuck_below"]
+            row["gap_to_optimal"] = learner.gap_to_optimal
+            row["exploration_floor"] = learner.exploration_floor
+            row["wall_time_s"] = learner.experiment_wall_s_total
+            row["final_window"] = learner.final_window
+            row["stuck_below"] = learner.stuck_below
             rows.append(
                 {
                     k: (None if isinstance(v, float) and not math.isfinite(v) else v)

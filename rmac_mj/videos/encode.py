@@ -94,6 +94,18 @@ def _pad_time(frames: np.ndarray, length: int) -> np.ndarray:
     return np.concatenate([frames, np.repeat(frames[-1:], length - len(frames), axis=0)])
 
 
+def _check_clips(clips: Sequence[np.ndarray], caller: str) -> list[np.ndarray]:
+    """``clips`` checked as frames of one size, at least one (``caller`` names who needs them)."""
+    clips = [_check_frames(clip, f"clips[{i}]") for i, clip in enumerate(clips)]
+    if not clips:
+        raise ValueError(f"{caller} needs at least one clip")
+    if len({clip.shape[1:] for clip in clips}) != 1:
+        raise ValueError(
+            f"clips must share one frame size, got {[clip.shape[1:3] for clip in clips]}"
+        )
+    return clips
+
+
 def side_by_side(
     clips: Sequence[np.ndarray], labels: Sequence[str] | None = None, gap: int = _PANEL_GAP
 ) -> np.ndarray:
@@ -101,13 +113,7 @@ def side_by_side(
 
     Shorter clips hold their last frame; ``labels`` (one per clip) are drawn top-left of each panel.
     """
-    clips = [_check_frames(clip, f"clips[{i}]") for i, clip in enumerate(clips)]
-    if not clips:
-        raise ValueError("side_by_side needs at least one clip")
-    if len({clip.shape[1:] for clip in clips}) != 1:
-        raise ValueError(
-            f"clips must share one frame size, got {[clip.shape[1:3] for clip in clips]}"
-        )
+    clips = _check_clips(clips, "side_by_side")
     labels = _check_labels(labels, len(clips))
     length = max(len(clip) for clip in clips)
     panels = [
@@ -130,13 +136,7 @@ def sequence(
 
     ``labels`` (one per clip) are drawn top-left; each clip's last frame is held ``hold`` extra frames.
     """
-    clips = [_check_frames(clip, f"clips[{i}]") for i, clip in enumerate(clips)]
-    if not clips:
-        raise ValueError("sequence needs at least one clip")
-    if len({clip.shape[1:] for clip in clips}) != 1:
-        raise ValueError(
-            f"clips must share one frame size, got {[clip.shape[1:3] for clip in clips]}"
-        )
+    clips = _check_clips(clips, "sequence")
     if not isinstance(hold, (int, np.integer)) or hold < 0:
         raise ValueError(f"hold must be an integer >= 0 (frames), got {hold!r}")
     labels = _check_labels(labels, len(clips))

@@ -111,8 +111,21 @@ def render_episode(
                 f"frames, got {frames_per_step!r}"
             )
         return _render_own_frames(env, act, overlay, label)
-    learner_state = learner_state_of(env)
-    n_sub = n_sub_steps(env)
+    _check_frames_per_step(frames_per_step, n_sub_steps(env))
+    recorder = _Recorder(learner_state_of(env))
+    with open_renderer(physics.model.ptr, width, height) as renderer:  # checks the frame size
+        _check_frames(1 + steps_per_trial(env) * frames_per_step, width, height)
+        camera = _camera(physics.model.ptr, camera)
+
+        def draw(source) -> np.ndarray:
+            renderer.update_scene(source.data.ptr, camera=camera)
+            return renderer.render()
+
+        _run_drawn_episode(env, act, frames_per_step, recorder, draw)
+    return recorder.episode(frames_per_step / env.control_timestep(), overlay, label)
+
+
+def _check_frames_per_step(frames_per_step, n_sub: int) -> None:
     if (
         not isinstance(frames_per_step, (int, np.integer))
         or isinstance(frames_per_step, bool)
@@ -123,63 +136,81 @@ def render_episode(
             f"frames_per_step must be a positive divisor of the {n_sub} physics substeps "
             f"per control step, got {frames_per_step!r}"
         )
+
+
+def _action_bounds(env) -> tuple[np.ndarray, np.ndarray]:
+    """The action spec's (low, high), each of its shape."""
+    spec = env.action_spec()
+    return np.broadcast_to(spec.minimum, spec.shape), np.broadcast_to(spec.maximum, spec.shape)
+
+
+class _Recorder:
+    """The frames of an episode as they are drawn, with the time, state, action and running
+    return of each."""
+
+    def __init__(self, learner_state) -> None:
+        self.learner_state = learner_state
+        self.frames, self.times, self.states, self.actions, self.returns = [], [], [], [], []
+
+    def record(self, frame, time: float, x: np.ndarray, u: np.ndarray, total: float) -> None:
+        self.frames.append(frame)
+        self.times.append(time)
+        self.states.append(x)
+        self.actions.append(u)
+        self.returns.append(total)
+
+    def episode(self, fps: float, overlay: bool, label: str | None) -> RenderedEpisode:
+        """The recorded episode, played at ``fps``; with its overlay drawn when ``overlay``."""
+        episode = RenderedEpisode(
+            frames=np.stack(self.frames),
+            times=np.array(self.times),
+            states=np.array(self.states),
+            actions=np.array(self.actions).reshape(len(self.frames), -1),
+            returns=np.array(self.returns),
+            fps=fps,
+            state_labels=self.learner_state.labels,
+            action_labels=self.learner_state.action_labels,
+        )
+        if overlay:
+            episode = dataclasses.replace(episode, frames=draw_overlay(episode, label=label))
+        return episode
+
+
+def _run_drawn_episode(env, act: Policy, frames_per_step: int, recorder: _Recorder, draw) -> None:
+    """One greedy episode of ``env`` into ``recorder``, ``draw(physics)`` giving a frame: the
+    start state, then ``frames_per_step`` frames per control step, the ones between steps from a
+    scratch copy of the physics stepped with the same control."""
     import mujoco
 
-    spec = env.action_spec()
-    a_low, a_high = (
-        np.broadcast_to(spec.minimum, spec.shape),
-        np.broadcast_to(spec.maximum, spec.shape),
-    )
+    physics, learner_state = env.physics, recorder.learner_state
+    n_sub = n_sub_steps(env)
     substeps_per_frame = n_sub // frames_per_step
-    frames, times, states, actions, returns = [], [], [], [], []
+    a_low, a_high = _action_bounds(env)
     total = 0.0
-    with open_renderer(physics.model.ptr, width, height) as renderer:  # checks the frame size
-        _check_frames(1 + steps_per_trial(env) * frames_per_step, width, height)
-        camera = _camera(physics.model.ptr, camera)
 
-        def record(source, x: np.ndarray, u: np.ndarray) -> None:
-            renderer.update_scene(source.data.ptr, camera=camera)
-            frames.append(renderer.render())
-            times.append(float(source.data.time))
-            states.append(x)
-            actions.append(u)
-            returns.append(total)
+    def record(source, x: np.ndarray, u: np.ndarray) -> None:
+        recorder.record(draw(source), float(source.data.time), x, u, total)
 
-        timestep = env.reset()
-        record(physics, state_of(timestep.observation, learner_state), np.zeros(spec.shape))
-        scratch = physics.copy(share_model=True) if frames_per_step > 1 else None
-        # The observation of the scratch physics: the task's, or an outside environment's (rmac_mj.envs)
-        observe = getattr(env, "observation_at", None) or env.task.get_observation
-        while not timestep.last():
-            u = act(state_of(timestep.observation, learner_state))
-            if scratch is not None:
-                mujoco.mj_copyData(scratch.data.ptr, physics.model.ptr, physics.data.ptr)
-            timestep = env.step(u)
-            applied = np.clip(np.asarray(u, dtype=float).reshape(spec.shape), a_low, a_high)
-            if scratch is not None:
-                scratch.data.ctrl[:] = physics.data.ctrl
-                for substep in range(1, n_sub):
-                    mujoco.mj_step(scratch.model.ptr, scratch.data.ptr)
-                    if substep % substeps_per_frame == 0:
-                        mujoco.mj_forward(
-                            scratch.model.ptr, scratch.data.ptr
-                        )  # positions for drawing
-                        record(scratch, state_of(observe(scratch), learner_state), applied)
-            total += float(timestep.reward)
-            record(physics, state_of(timestep.observation, learner_state), applied)
-    episode = RenderedEpisode(
-        frames=np.stack(frames),
-        times=np.array(times),
-        states=np.array(states),
-        actions=np.array(actions).reshape(len(frames), -1),
-        returns=np.array(returns),
-        fps=frames_per_step / env.control_timestep(),
-        state_labels=learner_state.labels,
-        action_labels=learner_state.action_labels,
-    )
-    if overlay:
-        episode = dataclasses.replace(episode, frames=draw_overlay(episode, label=label))
-    return episode
+    timestep = env.reset()
+    record(physics, state_of(timestep.observation, learner_state), np.zeros(a_low.shape))
+    scratch = physics.copy(share_model=True) if frames_per_step > 1 else None
+    # The observation of the scratch physics: the task's, or an outside environment's (rmac_mj.envs)
+    observe = getattr(env, "observation_at", None) or env.task.get_observation
+    while not timestep.last():
+        u = act(state_of(timestep.observation, learner_state))
+        if scratch is not None:
+            mujoco.mj_copyData(scratch.data.ptr, physics.model.ptr, physics.data.ptr)
+        timestep = env.step(u)
+        applied = np.clip(np.asarray(u, dtype=float).reshape(a_low.shape), a_low, a_high)
+        if scratch is not None:
+            scratch.data.ctrl[:] = physics.data.ctrl
+            for substep in range(1, n_sub):
+                mujoco.mj_step(scratch.model.ptr, scratch.data.ptr)
+                if substep % substeps_per_frame == 0:
+                    mujoco.mj_forward(scratch.model.ptr, scratch.data.ptr)  # positions for drawing
+                    record(scratch, state_of(observe(scratch), learner_state), applied)
+        total += float(timestep.reward)
+        record(physics, state_of(timestep.observation, learner_state), applied)
 
 
 def _check_frames(count: int, width: int, height: int) -> None:
@@ -195,40 +226,20 @@ def _check_frames(count: int, width: int, height: int) -> None:
 
 def _render_own_frames(env, act: Policy, overlay: bool, label: str | None) -> RenderedEpisode:
     """A greedy episode of an environment that draws its own frames (``env.render_frame()``)."""
-    learner_state = learner_state_of(env)
-    spec = env.action_spec()
-    a_low, a_high = (
-        np.broadcast_to(spec.minimum, spec.shape),
-        np.broadcast_to(spec.maximum, spec.shape),
-    )
-    frames, states, actions, returns = [], [], [], []
-    total, u = 0.0, np.zeros(spec.shape)
+    recorder = _Recorder(learner_state_of(env))
+    a_low, a_high = _action_bounds(env)
+    dt = env.control_timestep()
+    total, u = 0.0, np.zeros(a_low.shape)
     timestep = env.reset()
     while True:
-        x = state_of(timestep.observation, learner_state)
-        frames.append(env.render_frame())
-        states.append(x)
-        actions.append(u)
-        returns.append(total)
+        x = state_of(timestep.observation, recorder.learner_state)
+        recorder.record(env.render_frame(), dt * len(recorder.frames), x, u, total)
         if timestep.last():
             break
-        u = np.clip(np.asarray(act(x), dtype=float).reshape(spec.shape), a_low, a_high)
+        u = np.clip(np.asarray(act(x), dtype=float).reshape(a_low.shape), a_low, a_high)
         timestep = env.step(u)
         total += float(timestep.reward)
-    dt = env.control_timestep()
-    episode = RenderedEpisode(
-        frames=np.stack(frames),
-        times=dt * np.arange(len(frames)),
-        states=np.array(states),
-        actions=np.array(actions).reshape(len(frames), -1),
-        returns=np.array(returns),
-        fps=1.0 / dt,
-        state_labels=learner_state.labels,
-        action_labels=learner_state.action_labels,
-    )
-    if overlay:
-        episode = dataclasses.replace(episode, frames=draw_overlay(episode, label=label))
-    return episode
+    return recorder.episode(1.0 / dt, overlay, label)
 
 
 def _camera(model, camera):

@@ -140,18 +140,7 @@ def render_progression(
     if layout not in ("sequence", "side_by_side"):
         raise UserInputError(f"layout must be 'sequence' or 'side_by_side', got {layout!r}")
     if algorithm is None:
-        algorithms = ResultStore(result_dir).snapshot_algorithms()
-        if not algorithms:
-            raise MissingInputError(
-                f"no snapshots in {result_dir} (expected {result_dir}/snapshots/"
-                "<algorithm>/exp_<iii>/trial_<tttt>.npz)"
-            )
-        if "rmac" not in algorithms and len(algorithms) > 1:
-            raise UserInputError(
-                f"several algorithms have snapshots in {result_dir} ({algorithms}); "
-                "choose one with algorithm="
-            )
-        algorithm = "rmac" if "rmac" in algorithms else algorithms[0]
+        algorithm = _snapshot_algorithm(result_dir)
     available = ResultStore(result_dir).snapshot_trials(algorithm, experiment)
     chosen = _pick_trials(
         available,
@@ -180,6 +169,23 @@ def render_progression(
         else video.side_by_side(clips)
     )
     return video.write_video(frames, out_path, fps, scale=scale, frame_step=frame_step)
+
+
+def _snapshot_algorithm(result_dir: str | os.PathLike) -> str:
+    """The learner whose snapshots a directory's videos show: "rmac" when it has snapshots, else
+    the only one; UserInputError when several others have them."""
+    algorithms = ResultStore(result_dir).snapshot_algorithms()
+    if not algorithms:
+        raise MissingInputError(
+            f"no snapshots in {result_dir} (expected {result_dir}/snapshots/"
+            "<algorithm>/exp_<iii>/trial_<tttt>.npz)"
+        )
+    if "rmac" not in algorithms and len(algorithms) > 1:
+        raise UserInputError(
+            f"several algorithms have snapshots in {result_dir} ({algorithms}); "
+            "choose one with algorithm="
+        )
+    return "rmac" if "rmac" in algorithms else algorithms[0]
 
 
 def render_comparison(

@@ -17,13 +17,13 @@ from __future__ import annotations
 import argparse
 import json
 import pathlib
-from typing import Any
 
 import numpy as np
 
 from rmac_mj.agents import config_class, display_name
 from rmac_mj.evaluation import (
     Estimate,
+    LearnerSummary,
     final_returns,
     iqm,
     iqm_interval,
@@ -81,7 +81,7 @@ class Task:
         column = list(curve.greedy_trials).index(trials_in(minutes, self.seconds))
         return curve.greedy_returns[:, column]
 
-    def summary(self, learner: str) -> dict[str, Any]:
+    def summary(self, learner: str) -> LearnerSummary:
         curve = self.curves[learner]
         return summarise(
             curve.returns,
@@ -108,13 +108,13 @@ def table(task: Task) -> list[str]:
         c, s = task.curves[learner], task.summary(learner)
         n, trials = c.returns.shape
         greedy10 = iqm_interval(task.greedy_at(learner))
-        first = Estimate(s["first_5min_iqm"], *s["first_5min_iqm_ci95"])
-        final = Estimate(s["final_return_iqm"], *s["final_return_iqm_ci95"])
+        first = Estimate(s.first_5min_iqm, *s.first_5min_iqm_ci95)
+        final = Estimate(s.final_return_iqm, *s.final_return_iqm_ci95)
         rows.append(
             f"| {display_name(learner)} | {n} ({task.planned[learner]}) | {trials} "
-            f"({trials * task.seconds / 60:g}) | {s['minutes_to_90pct']:.1f} | {fmt(first)} | "
+            f"({trials * task.seconds / 60:g}) | {s.minutes_to_90pct:.1f} | {fmt(first)} | "
             f"{fmt(final)} | {fmt(greedy10)} | {iqm(c.greedy_returns[:, -1]):.0f} | "
-            f"{s['stuck_experiments']}/{n} | {s['cpu_s_per_simulated_minute']:.3g} |"
+            f"{s.stuck_experiments}/{n} | {s.cpu_s_per_simulated_minute:.3g} |"
         )
     return rows
 
@@ -137,15 +137,15 @@ def headline(loaded: dict[str, Task]) -> list[str]:
                     column.append("-")
                 continue
             s, (n, trials) = task.summary(learner), task.curves[learner].returns.shape
-            final = Estimate(s["final_return_iqm"], *s["final_return_iqm_ci95"])
+            final = Estimate(s.final_return_iqm, *s.final_return_iqm_ci95)
             for column, value in zip(
                 cells,
                 (
                     f"{n} x {trials}",
                     fmt(final),
                     f"{iqm(task.greedy_at(learner)):.0f}",
-                    f"{s['minutes_to_90pct']:.1f}",
-                    f"{s['cpu_s_per_simulated_minute']:.2g}",
+                    f"{s.minutes_to_90pct:.1f}",
+                    f"{s.cpu_s_per_simulated_minute:.2g}",
                 ),
             ):
                 column.append(value)
@@ -192,7 +192,10 @@ def aggregate(loaded: dict[str, Task]) -> list[str]:
 def figures(key: str, task: Task, out: pathlib.Path) -> None:
     """Fig. 2 of every learner (the package's own figure: mean, t-interval, greedy trials) and the
     performance profiles of the greedy return at 10 simulated minutes."""
-    summary = {"trial_seconds": task.seconds, **{n: task.summary(n) for n in task.learners()}}
+    summary = {
+        "trial_seconds": task.seconds,
+        **{n: task.summary(n).as_dict() for n in task.learners()},
+    }
     fig = learning_curves_figure(
         {task.name: summary},
         task.facts.get("optimal_return"),

@@ -261,7 +261,7 @@ def _fake_run(directory, seed, agent_configs=None, task=None, trial_seconds=3.0)
             "agent_configs": agent_configs or {},
             **(task or {}),
         },
-        "rmac": summarise(-1000 + rng.normal(0, 50, (3, 60)), trial_seconds=3.0),
+        "rmac": summarise(-1000 + rng.normal(0, 50, (3, 60)), trial_seconds=3.0).as_dict(),
     }
     (directory / "summary.json").write_text(json.dumps(summary))
 
@@ -555,16 +555,18 @@ def test_the_table_carries_the_greedy_return_with_its_interval_at_five_experimen
     returns = -1000 + rng.normal(0, 50, (5, 60))
     greedy = -400 + rng.normal(0, 20, (5, 3))
     row = summarise(returns, greedy, greedy_trials=(20, 40, 60), trial_seconds=3.0)
-    table = summary_table({"trial_seconds": 3.0, "s-ac": row}).splitlines()
+    table = summary_table({"trial_seconds": 3.0, "s-ac": row.as_dict()}).splitlines()
     assert "greedy at end [95% CI]" in table[0] and "IQM [95% CI]" in table[0]
-    low, high = row["greedy_return_last_ci95"]
-    assert f"{row['greedy_return_last_mean']:.0f} [{low:.0f}, {high:.0f}]" in table[2]
+    low, high = row.greedy_return_last_ci95
+    assert f"{row.greedy_return_last_mean:.0f} [{low:.0f}, {high:.0f}]" in table[2]
     assert "final return: each experiment's mean over its last 50 trials; then" in table[3]
     assert (
         "greedy at end: the greedy evaluation (no exploration, no learning) after trial 60"
         in (table[4])
     )
-    without = summary_table({"trial_seconds": 3.0, "s-ac": summarise(returns, trial_seconds=3.0)})
+    without = summary_table(
+        {"trial_seconds": 3.0, "s-ac": summarise(returns, trial_seconds=3.0).as_dict()}
+    )
     assert "greedy" not in without  # a run that did not evaluate has no such column
 
 

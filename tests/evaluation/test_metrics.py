@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from rmac_mj.evaluation import (
+    LearnerSummary,
     compare_final_returns,
     confidence_interval,
     first_reaching,
@@ -51,17 +52,17 @@ def test_summary_keys_shapes_and_stuck_count():
     returns = returns + rng.normal(0, 1, returns.shape)
     greedy = np.array([[-2000.0, -900.0], [-2500.0, -1700.0]])
     summary = summarise(returns, greedy, [100, 200], optimal_return=-800.0, trial_seconds=3.0)
-    assert summary["experiments"] == 2 and summary["trials"] == 300
+    assert summary.experiments == 2 and summary.trials == 300
     for key in ("mean_return_per_trial", "ci95_low_per_trial", "ci95_high_per_trial"):
-        assert len(summary[key]) == 300
-    assert summary["stuck_below"] == -1600.0 and summary["stuck_experiments"] == 1
+        assert len(getattr(summary, key)) == 300
+    assert summary.stuck_below == -1600.0 and summary.stuck_experiments == 1
     finals = returns[:, -50:].mean(axis=1)
-    assert summary["final_return_mean"] == pytest.approx(finals.mean())
-    assert summary["gap_to_optimal"] == pytest.approx(-800.0 - finals.mean())
-    assert summary["mean_return_first_10min"] == pytest.approx(returns[:, :200].mean())
-    assert summary["first_10min_trials"] == 200
-    assert summary["greedy_return_per_eval"] == pytest.approx([-2250.0, -1300.0])
-    json.dumps(summary, allow_nan=False)  # valid JSON, no NaN
+    assert summary.final_return_mean == pytest.approx(finals.mean())
+    assert summary.gap_to_optimal == pytest.approx(-800.0 - finals.mean())
+    assert summary.mean_return_first_10min == pytest.approx(returns[:, :200].mean())
+    assert summary.first_10min_trials == 200
+    assert summary.greedy_return_per_eval == pytest.approx([-2250.0, -1300.0])
+    json.dumps(summary.as_dict(), allow_nan=False)  # valid JSON, no NaN
 
 
 def test_greedy_trial_within_reaches_the_levels_of_issue_23():
@@ -79,9 +80,10 @@ def test_greedy_trial_within_reaches_the_levels_of_issue_23():
     summary = summarise(
         np.full((2, 8), -1000.0), greedy, trials, optimal_return=-748.0, trial_seconds=3.0
     )
-    assert summary["greedy_trial_within_20pct"] == 4 and summary["greedy_trial_within_10pct"] == 8
-    assert "greedy_trial_within_10pct" not in summarise(
-        np.full((2, 8), -1000.0), greedy, trials, trial_seconds=3.0
+    assert summary.greedy_trial_within_20pct == 4 and summary.greedy_trial_within_10pct == 8
+    assert (
+        "greedy_trial_within_10pct"
+        not in summarise(np.full((2, 8), -1000.0), greedy, trials, trial_seconds=3.0).as_dict()
     )
 
 
@@ -89,13 +91,13 @@ def test_first_minutes_and_stuck_follow_the_task_and_the_reference():
     returns = np.tile(np.arange(1.0, 401.0), (2, 1)) * -1.0
     # 6 s trials: the first 10 minutes are 100 trials; 0.05 s x 60 = 3 s trials: 200.
     six = summarise(returns, trial_seconds=6.0)
-    assert six["first_10min_trials"] == 100
-    assert six["mean_return_first_10min"] == pytest.approx(-50.5)
+    assert six.first_10min_trials == 100
+    assert six.mean_return_first_10min == pytest.approx(-50.5)
     assert trials_in(10, 0.05 * 60) == 200 and trials_in(10, 0.03 * 100) == 200
-    assert six["minutes_to_90pct"] == pytest.approx(
+    assert six.minutes_to_90pct == pytest.approx(
         minutes_to_within(returns[0], window=50, trial_seconds=6.0)
     )
-    assert six["stuck_below"] is None and six["stuck_experiments"] is None  # no reference
+    assert six.stuck_below is None and six.stuck_experiments is None  # no reference
     assert stuck_threshold(-748.0) == -1496.0 and stuck_threshold(10.0) == 0.0
 
 
@@ -173,10 +175,43 @@ def test_summary_table_states_significance_and_warns_of_few_experiments():
 
     def summary(n):
         return {
-            "rmac": summarise(-950 + rng.normal(0, 30, (n, 60)), trial_seconds=3.0),
-            "s-ac": summarise(-990 + rng.normal(0, 30, (n, 60)), trial_seconds=3.0),
+            "rmac": summarise(-950 + rng.normal(0, 30, (n, 60)), trial_seconds=3.0).as_dict(),
+            "s-ac": summarise(-990 + rng.normal(0, 30, (n, 60)), trial_seconds=3.0).as_dict(),
         }
 
     small, large = summary_table(summary(4)), summary_table(summary(5))
     assert "final returns" in small and "Welch" in small
     assert "4 experiments per learner" in small and "per learner" not in large
+
+
+def test_a_summary_row_is_written_and_read_back_as_it_was():
+    rng = np.random.default_rng(3)
+    returns = -1000 + rng.normal(0, 50, (5, 40))
+    greedy = np.array([[-2000.0, -900.0]] * 5)
+    steps = np.cumsum(np.full((5, 40), 100.0), axis=1)
+    plain = summarise(returns, trial_seconds=3.0)
+    full = summarise(
+        returns,
+        greedy,
+        [20, 40],
+        optimal_return=-100.0,  # never reached: the trials within 20% and 10% are None
+        trial_seconds=3.0,
+        wall_times=np.ones(5),
+        cpu_times=np.ones(5),
+        env_steps=steps,
+        env_step_seconds=0.03,
+    )
+    for summary in (plain, full):
+        assert LearnerSummary.from_dict(json.loads(json.dumps(summary.as_dict()))) == summary
+    row = full.as_dict()
+    assert row["greedy_trial_within_10pct"] is None and row["greedy_trial_within_20pct"] is None
+    assert row["env_steps_per_experiment"] == [4000] * 5 and "exploration_floor" not in row
+    # without evaluations, a reference or steps, their fields are not in the row at all
+    assert not {"greedy_eval_trials", "greedy_trial_within_10pct", "gap_to_optimal"} & set(
+        plain.as_dict()
+    )
+    assert "env_steps_per_trial" not in plain.as_dict()
+    # a row written before a field existed reads it as None; what it holds beyond them is left out
+    old = {k: v for k, v in plain.as_dict().items() if k != "final_window"}
+    read = LearnerSummary.from_dict({**old, "retired_key": 1})
+    assert read.final_window is None and read.final_return_mean == plain.final_return_mean

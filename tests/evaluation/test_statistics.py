@@ -105,11 +105,11 @@ def test_summary_has_the_iqm_of_final_and_first_returns_and_the_cpu_per_simulate
     # in every trial, so its final and first-5-minute returns are -100 i.
     returns = -100.0 * np.arange(5)[:, None] * np.ones((1, 100))
     summary = summarise(returns, trial_seconds=3.0, cpu_times=np.full(5, 30.0))
-    assert summary["final_return_iqm"] == -200.0  # the middle three of 0, -100, ..., -400
-    low, high = summary["final_return_iqm_ci95"]
+    assert summary.final_return_iqm == -200.0  # the middle three of 0, -100, ..., -400
+    low, high = summary.final_return_iqm_ci95
     assert low < -200.0 < high
-    assert summary["first_5min_iqm"] == -200.0 and len(summary["first_5min_iqm_ci95"]) == 2
-    assert summary["cpu_s_per_simulated_minute"] == 6.0  # 30 s of CPU for 5 simulated minutes
+    assert summary.first_5min_iqm == -200.0 and len(summary.first_5min_iqm_ci95) == 2
+    assert summary.cpu_s_per_simulated_minute == 6.0  # 30 s of CPU for 5 simulated minutes
 
 
 @pytest.mark.slow
@@ -179,12 +179,12 @@ def test_intervals_of_too_few_experiments_are_withheld_with_the_reason():
         "first_5min_iqm_ci95",
         "greedy_return_last_ci95",
     ):
-        assert few[key] == [None, None], key
-    assert few["final_return_mean"] is not None and few["final_return_iqm"] is not None
-    assert few["intervals_withheld"].startswith("2 experiments: too few for a 95% interval")
+        assert getattr(few, key) == [None, None], key
+    assert few.final_return_mean is not None and few.final_return_iqm is not None
+    assert few.intervals_withheld.startswith("2 experiments: too few for a 95% interval")
     enough = summarise(-1000 + rng.normal(0, 500, (5, 300)), trial_seconds=3.0)
-    assert enough["intervals_withheld"] is None and None not in enough["final_return_ci95"]
-    table = summary_table({"rmac": few, "trial_seconds": 3.0}, ["rmac"])
+    assert enough.intervals_withheld is None and None not in enough.final_return_ci95
+    table = summary_table({"rmac": few.as_dict(), "trial_seconds": 3.0}, ["rmac"])
     row = table.splitlines()[2]
     assert "n/a" in row and "[" not in row  # no interval printed from 2 experiments
 
@@ -193,11 +193,11 @@ def test_a_window_longer_than_the_run_is_empty():
     from rmac_mj.evaluation import summarise, summary_table
 
     short = summarise(np.full((5, 20), -1048.5), trial_seconds=3.0)  # one simulated minute
-    assert short["mean_return_first_10min"] is None and short["mean_return_first_5min"] is None
-    assert short["first_5min_ci95"] == [None, None] and short["first_5min_iqm"] is None
-    assert short["final_return_mean"] == -1048.5
-    table = summary_table({"rmac": short, "trial_seconds": 3.0}, ["rmac"])
+    assert short.mean_return_first_10min is None and short.mean_return_first_5min is None
+    assert short.first_5min_ci95 == [None, None] and short.first_5min_iqm is None
+    assert short.final_return_mean == -1048.5
+    table = summary_table({"rmac": short.as_dict(), "trial_seconds": 3.0}, ["rmac"])
     assert "-1048.5" in table.splitlines()[2] and table.splitlines()[2].count("-1048.5") == 1
     assert "first 10 min: n/a, the run is shorter than 10 simulated minutes" in table
     long = summarise(np.full((5, 200), -900.0), trial_seconds=3.0)  # exactly 10 minutes
-    assert long["mean_return_first_10min"] == -900.0 and long["mean_return_first_5min"] == -900.0
+    assert long.mean_return_first_10min == -900.0 and long.mean_return_first_5min == -900.0

@@ -87,8 +87,8 @@ def _summary(n_experiments, seed=0, level=-1000.0, **protocol):
     return {
         "trial_seconds": 3.0,
         "protocol": protocol,
-        "rmac": summarise(curves, trial_seconds=3.0),
-        "s-ac": summarise(curves - 50.0, trial_seconds=3.0),
+        "rmac": summarise(curves, trial_seconds=3.0).as_dict(),
+        "s-ac": summarise(curves - 50.0, trial_seconds=3.0).as_dict(),
     }
 
 
