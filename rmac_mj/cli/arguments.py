@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import math
+import os
 import pathlib
 import sys
 import time
@@ -46,6 +47,19 @@ def user_input(what: str = ""):
         raise
     except (ValueError, TypeError) as error:
         raise UsageError(f"{what}{error}") from None
+
+
+def refuse_unwritable(path: pathlib.Path) -> None:
+    """UsageError naming ``path`` when it cannot be made: checked without making anything, so that
+    a command refuses a bad ``--out`` before the work that comes before writing (a panel measures
+    its tasks' boxes first)."""
+    existing = path
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        raise UsageError(f"cannot write to {path}: {existing} is not a directory")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise UsageError(f"cannot write to {path}: {existing} is not writable")
 
 
 def writable_dir(path: pathlib.Path) -> pathlib.Path:

@@ -12,6 +12,7 @@ from rmac_mj.cli.arguments import (
     STARTED,
     Interrupted,
     UsageError,
+    refuse_unwritable,
     say,
     user_input,
     writable_dir,
@@ -366,10 +367,12 @@ def panel(args) -> int:
     names = None if args.tasks is None else [t.strip() for t in args.tasks.split(",") if t.strip()]
     with user_input():
         chosen = panels.tasks_named(names)
-        for task in chosen:  # every protocol is checked before anything runs
-            task.make_protocol(algorithms, args.experiments, args.seed, args.trials)
     if args.resume and not any((args.out / task.name / "config.json").is_file() for task in chosen):
         raise nothing_to_resume(args.out, "task's run (<task>/config.json)", "rmac-mj panel")
+    refuse_unwritable(args.out)
+    with user_input():
+        for task in chosen:  # every protocol is checked before anything runs
+            task.make_protocol(algorithms, args.experiments, args.seed, args.trials)
     out = writable_dir(args.out)
     try:
         panels.run_panel(
