@@ -59,7 +59,8 @@ def test_a_format_1_snapshot_acts_as_the_version_that_wrote_it(algorithm):
 #: with Dyna planning was ``recommended``): ``rmac-mj reproduce --algorithms mpc,recommended
 #: --experiments 1 --trials 1 --no-optimal`` with 2 tilings of 3 tiles and planning models of 120
 #: samples (``--set 'mpc.planning={"steps": 30, "start": "memory", "horizon": null,
-#: "model_capacity": 120}'``, ``recommended`` likewise with its own planning), after trial 1.
+#: "model_capacity": 120}'``, ``--set 'recommended.planning={"steps": 30, "model_capacity": 120}'``),
+#: after trial 1.
 FORMAT_2 = pathlib.Path(__file__).resolve().parents[1] / "data" / "snapshot_format_2"
 
 #: Written key -> (today's key, its class, what that version answered in one greedy trial from these
