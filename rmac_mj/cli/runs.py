@@ -367,12 +367,11 @@ def panel(args) -> int:
     names = None if args.tasks is None else [t.strip() for t in args.tasks.split(",") if t.strip()]
     with user_input():
         chosen = panels.tasks_named(names)
-    if args.resume and not any((args.out / task.name / "config.json").is_file() for task in chosen):
-        raise nothing_to_resume(args.out, "task's run (<task>/config.json)", "rmac-mj panel")
-    refuse_unwritable(args.out)
-    with user_input():
+        refuse_unwritable(args.out)  # before the protocols, which measure the tasks' boxes
         for task in chosen:  # every protocol is checked before anything runs
             task.make_protocol(algorithms, args.experiments, args.seed, args.trials)
+    if args.resume and not any((args.out / task.name / "config.json").is_file() for task in chosen):
+        raise nothing_to_resume(args.out, "task's run (<task>/config.json)", "rmac-mj panel")
     out = writable_dir(args.out)
     try:
         panels.run_panel(
