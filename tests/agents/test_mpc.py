@@ -161,7 +161,7 @@ def _optimistic_agents(trials):
     for value in (0.0, 1.0):
         env = tasks.load("dc_pendulum", "swingup")
         spaces = state_space_of(env), action_space_of(env)
-        agent = make_agent("mpc", *spaces, config={"unknown_value": value}, seed=3)
+        agent = make_agent("recommended", *spaces, config={"unknown_value": value}, seed=3)
         for _ in range(trials):
             run_trial(env, agent)
         agents.append(agent)
