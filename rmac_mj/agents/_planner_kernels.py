@@ -55,6 +55,8 @@ def score_population(
     gamma,
     trust,
     bonus,
+    potential,
+    visits,
     tree,
     scores,
 ):
@@ -67,7 +69,8 @@ def score_population(
     radii from data (0: never) and takes V there; ``bonus`` per unit of that ratio (capped at
     ``trust``) is added to the reward (optimism; 0 in greedy trials). The first ``policy_rows``
     rows are the actor's closed-loop rollouts: their actions are pi(x_t), written back into
-    ``sequences``. ``tree``: the fits' k-d tree, which finds each query's nearest sample (an empty
+    ``sequences``. ``potential`` > 0 adds optimism to the terminal value: ``potential`` x the mean
+    over the active tiles of 1 / sqrt(1 + ``visits``[tile]) (the learner's real visits). ``tree``: the fits' k-d tree, which finds each query's nearest sample (an empty
     tuple: a scan, the reference). Writes ``scores`` (P,).
     """
     P, H, m = sequences.shape
@@ -111,7 +114,13 @@ def score_population(
                 else:
                     v = min(max(v, s_low[j]), s_high[j])
                 x[j] = v
-        scores[p] = total + discount * tile_sum(critic, x, coder, tiles)
+        value = tile_sum(critic, x, coder, tiles)
+        if potential > 0.0:
+            novelty = 0.0
+            for t in tiles:
+                novelty += 1.0 / math.sqrt(1.0 + visits[t])
+            value += potential * novelty / tiles.shape[0]
+        scores[p] = total + discount * value
 
 
 @njit(cache=True)

@@ -16,6 +16,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 from collections.abc import Iterator
+from numbers import Real
 from typing import ClassVar
 
 import numpy as np
@@ -26,7 +27,7 @@ from rmac_mj.agents.sampling_planner import Planner, SamplingPlanner
 from rmac_mj.agents.standard_ac import StandardACConfig, StandardActorCritic
 from rmac_mj.agents.task_knowledge import PAPER_TIMESTEP
 from rmac_mj.approximators.local_fits import LocalFits
-from rmac_mj.constraints import InstanceOf
+from rmac_mj.constraints import InstanceOf, Interval
 
 
 @dataclasses.dataclass(frozen=True)
@@ -38,10 +39,21 @@ class MPCConfig(StandardACConfig):
       planning: the critic's rollouts in the learned model: ``steps`` simulated transitions per real
         one, in rollouts of ``horizon`` control steps (None: 1 s of the task) branched from states of
         the model's memory (visited states).
+      unknown_value: optimism in the face of uncertainty that reaches the critic (R-MAX's value of
+        the unknown, as an optimistic initial value that fades with visits): the planner values a
+        state by V(x) + Phi(x), with Phi(x) = ``unknown_value`` x the reward's scale / (1 - gamma) x
+        the state's novelty, the mean over the critic's tilings of 1 / sqrt(1 + n), n the real
+        learning steps that visited the tile (1 where none did). The critic learns V from rewards
+        shaped by that potential, r + gamma Phi(x') - Phi(x) (Ng, Harada and Russell 1999), so that
+        V + Phi is the learned value where data is and Phi where none is: the horizon's terminal
+        value pulls towards where the learner has not been, and the pull vanishes as data arrives.
+        Greedy trials plan with the same V + Phi (V alone undervalues the states that are rarely
+        visited). 0: none (S-AC's critic, no visits counted).
     """
 
     planner: SamplingPlanner = SamplingPlanner()
     planning: Planning = Planning(steps=30, start="memory", horizon=None)
+    unknown_value: float = 0.0
 
     task_units: ClassVar[dict[str, tuple[str, float]]] = {
         **StandardACConfig.task_units,
@@ -50,6 +62,7 @@ class MPCConfig(StandardACConfig):
     parameter_constraints: ClassVar[dict[str, list]] = {
         **StandardACConfig.parameter_constraints,
         "planner": [InstanceOf(SamplingPlanner)],
+        "unknown_value": [Interval(Real, 0, None)],
     }
 
     def __post_init__(self) -> None:
@@ -92,6 +105,8 @@ class MPC(StandardActorCritic):
         self._plan_rng = self.rng
         self._rehearsing = False
         self._greedy = False
+        #: Real learning steps per tile of the critic's coder (with ``unknown_value``; else None).
+        self.visits_ = np.zeros(self.coder.num_features) if c.unknown_value else None
 
     @classmethod
     def _memory_parts(cls, config, state_space, action_space) -> tuple[int, int]:
@@ -103,6 +118,45 @@ class MPC(StandardActorCritic):
             n + m, outputs, planning.model_capacity, planning.model_neighbours
         )
         return arrays + fits, state
+
+    # -- optimism in the critic -------------------------------------------------------------------
+    def novelty_of(self, tiles: np.ndarray) -> float:
+        """The novelty of the state whose active tiles are ``tiles``: the mean over the tilings of
+        1 / sqrt(1 + n), n the real learning steps that visited each tile (1 where none did)."""
+        return float(np.mean(1.0 / np.sqrt(1.0 + self.visits_[tiles])))
+
+    def potential_scale(self) -> float:
+        """Phi of a never-visited state: ``unknown_value`` x the reward's scale / (1 - gamma)."""
+        scale = self.reward_scale_ or self.state_space.reward_scale or 1.0
+        return self.config.unknown_value * scale / (1.0 - self.config.gamma)
+
+    def potential(self, x: np.ndarray) -> float:
+        """Phi(x), the optimism of the canonical state x (0 without ``unknown_value``)."""
+        if self.visits_ is None:
+            return 0.0
+        return self.potential_scale() * self.novelty_of(self.coder.active_tiles(x))
+
+    def _learn(self, reward: float, gamma: float, tiles: np.ndarray) -> None:
+        """S-AC's update; with ``unknown_value``, from the reward shaped by the potential Phi (the
+        reward's scale follows the unshaped reward), and a real transition counts its visit."""
+        if self.visits_ is None:
+            return super()._learn(reward, gamma, tiles)
+        scale = self.reward_scale_
+        if scale is not None and self._learns_scale and abs(reward) > scale:
+            scale = abs(reward)
+        phi = self.config.unknown_value * (scale or self.state_space.reward_scale or 1.0)
+        phi /= 1.0 - self.config.gamma
+        shaped = reward + phi * (gamma * self.novelty_of(tiles) - self.novelty_of(self._prev_tiles))
+        learns, self._learns_scale = self._learns_scale, False
+        try:
+            super()._learn(shaped, gamma, tiles)
+        finally:
+            self._learns_scale = learns
+        if scale != self.reward_scale_:
+            self.reward_scale_ = scale
+            self._set_rate_a()
+        if not self._rehearsing:
+            self.visits_[tiles] += 1.0
 
     # -- the action -----------------------------------------------------------------------------
     def _set_rehearsing(self, rehearsing: bool) -> None:
@@ -134,6 +188,8 @@ class MPC(StandardActorCritic):
             self._plan_rng,
             bonus,
             initial=self._policy(self.coder.active_tiles(x)),
+            potential=self.potential_scale() if self.visits_ is not None else 0.0,
+            visits=self.visits_,
         )
 
     def _start(self, x0: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
@@ -183,14 +239,18 @@ class MPC(StandardActorCritic):
     def _state(self) -> dict[str, np.ndarray]:
         state = super()._state()
         state["greedy_seed"] = np.array(self.greedy_seed_, dtype=np.int64)
+        if self.visits_ is not None:
+            state["visits"] = self.visits_.copy()
         if self.planner.mean_ is not None:
             state["plan"] = self.planner.mean_.copy()
         return state
 
     def _may_lack(self, key: str) -> bool:
-        return super()._may_lack(key) or key == "plan"
+        return super()._may_lack(key) or key == "plan" or (key == "visits" and self.visits_ is None)
 
     def _load_state(self, state: dict[str, np.ndarray]) -> None:
         super()._load_state(state)
         self.greedy_seed_ = int(state["greedy_seed"])
         self.planner.mean_ = np.array(state["plan"], dtype=float) if "plan" in state else None
+        if self.visits_ is not None:
+            self.visits_ = np.array(state["visits"], dtype=float)

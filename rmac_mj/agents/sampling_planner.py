@@ -24,6 +24,9 @@ from rmac_mj.approximators.llr_numpy import wrap
 from rmac_mj.approximators.local_fits import LocalFits
 from rmac_mj.constraints import Field, Interval, Options, check_config
 
+#: The visit counts passed to the scoring kernel without optimism (never read).
+_NO_VISITS = np.zeros(0)
+
 
 @dataclasses.dataclass(frozen=True)
 class SamplingPlanner:
@@ -129,13 +132,17 @@ class Planner:
         rng: np.random.Generator,
         bonus: float = 0.0,
         initial: np.ndarray | None = None,
+        potential: float = 0.0,
+        visits: np.ndarray | None = None,
     ) -> np.ndarray:
         """The action (m,) for the canonical state x: the first step of the refined mean.
 
         ``fits``: the model's cached fits (refreshed here); ``box``: (low, high, period) of the
         state; ``critic``, ``actor``, ``coder``: the tile-coded V and pi and their coder's arrays;
         ``rng``: the draws; ``bonus``: the optimism per unit of uncertainty (0: none);
-        ``initial``: the mean's first plan of a trial (default: the middle of the bounds).
+        ``initial``: the mean's first plan of a trial (default: the middle of the bounds);
+        ``potential``, ``visits``: the optimism added to the terminal value, ``potential`` x the
+        mean over the tilings of 1 / sqrt(1 + visits[tile]) (0: none).
         """
         s = self.settings
         m = self.low.shape[0]
@@ -167,6 +174,8 @@ class Planner:
                 gamma,
                 s.trust,
                 bonus,
+                potential,
+                _NO_VISITS if visits is None else visits,
                 fits.tree if s.search == "tree" else (),
                 self.scores_,
             )

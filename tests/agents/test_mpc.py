@@ -22,7 +22,18 @@ def learned():
     return agent
 
 
-def _score(agent, x0, sequences, policy_rows=0, trust=0.0, bonus=0.0, search="tree", critic=None):
+def _score(
+    agent,
+    x0,
+    sequences,
+    policy_rows=0,
+    trust=0.0,
+    bonus=0.0,
+    search="tree",
+    critic=None,
+    potential=0.0,
+    visits=None,
+):
     fits = agent.fits
     fits.refresh()
     scores = np.empty(len(sequences))
@@ -40,6 +51,8 @@ def _score(agent, x0, sequences, policy_rows=0, trust=0.0, bonus=0.0, search="tr
         agent.config.gamma,
         trust,
         bonus,
+        potential,
+        np.zeros(0) if visits is None else visits,
         fits.tree if search == "tree" else (),
         scores,
     )
@@ -139,3 +152,66 @@ def test_mpc_swings_the_pendulum_up_within_five_trials():
     for _ in range(5):
         run_trial(env, agent)
     assert run_trial(env, agent, learn=False) > -1100
+
+
+def _optimistic_agents(trials):
+    """The same MPC without and with ``unknown_value`` after ``trials`` trials of the paper's
+    pendulum."""
+    agents = []
+    for value in (0.0, 1.0):
+        env = tasks.load("dc_pendulum", "swingup")
+        spaces = state_space_of(env), action_space_of(env)
+        agent = make_agent("recommended", *spaces, config={"unknown_value": value}, seed=3)
+        for _ in range(trials):
+            run_trial(env, agent)
+        agents.append(agent)
+    return agents
+
+
+def test_the_unknown_is_valued_optimistically_until_visited():
+    """Phi is the full R-MAX value, unknown_value x scale / (1 - gamma), on a state no real step
+    visited, less where the learner has been, and vanishes as 1 / sqrt(1 + visits); the planner
+    adds it to the terminal value (gamma^H Phi(x_H))."""
+    plain, hopeful = _optimistic_agents(trials=2)
+    far = np.array([0.3, 25.0])  # near upright and fast: never visited
+    full = hopeful.potential_scale()
+    scale = hopeful.reward_scale_ or hopeful.state_space.reward_scale
+    assert full == pytest.approx(scale / (1 - hopeful.config.gamma))
+    assert hopeful.potential(far) == pytest.approx(full)
+    assert hopeful.potential(np.array([np.pi, 0.0])) < 0.5 * full  # the start: visited each trial
+    assert plain.potential(far) == 0.0
+    sequences = _sequences(hopeful, 4, 3, seed=2)
+    plain_scores = _score(hopeful, far, sequences.copy())
+    for visits, novelty in ((0.0, 1.0), (3.0, 0.5)):  # every tile visited alike: Phi known
+        counts = np.full_like(hopeful.visits_, visits)
+        scores = _score(hopeful, far, sequences.copy(), potential=full, visits=counts)
+        gain = hopeful.config.gamma**3 * full * novelty
+        np.testing.assert_allclose(scores - plain_scores, gain, rtol=1e-9)
+    tiles = hopeful.coder.active_tiles(far)
+    hopeful.visits_[tiles] += 10_000
+    assert hopeful.potential(far) == pytest.approx(full / np.sqrt(10_001))
+
+
+def test_the_critic_learns_from_rewards_shaped_by_the_potential():
+    """A simulated transition x -> x' is learned with r + gamma Phi(x') - Phi(x): its TD error is
+    larger by that much than S-AC's on the same critic, and a real one counts the visit of x'
+    (kept in the state; without optimism nothing is counted)."""
+    plain, hopeful = _optimistic_agents(trials=2)
+    assert plain.visits_ is None and "visits" not in plain.state_dict()
+    x, x_next = np.array([np.pi, 0.0]), np.array([0.3, 25.0])
+    shaping = hopeful.config.gamma * hopeful.potential(x_next) - hopeful.potential(x)
+    deltas = []
+    for agent in (plain, hopeful):
+        agent.critic_[:] = 0.0  # a like-for-like TD error: V = 0 on both
+        agent._set_rehearsing(True)
+        agent._start(x)
+        agent._step(-1.0, x_next)
+        agent._set_rehearsing(False)
+        deltas.append(agent.last_delta_)
+    assert deltas[1] - deltas[0] == pytest.approx(shaping)
+    tiles = hopeful.coder.active_tiles(x_next)
+    before = hopeful.visits_[tiles].copy()
+    hopeful._start(x)
+    hopeful._step(-1.0, x_next)
+    np.testing.assert_array_equal(hopeful.visits_[tiles], before + 1)
+    np.testing.assert_array_equal(hopeful.state_dict()["visits"], hopeful.visits_)
