@@ -741,9 +741,9 @@ def test_render_refuses_a_frame_size_in_one_line(tmp_path, option, named):
 
 
 def test_neighbours_beyond_the_capacity_the_task_sets_are_one_line(tmp_path):
-    # critic_capacity is left to the task's units; the memory estimate resolves it, and refuses
+    # critic.capacity is left to the task's units; the memory estimate resolves it, and refuses
     error = _refused_in_one_line(
-        "reproduce", "--algorithms", "rmac", "--set", "rmac.critic_neighbours=1000000000",
+        "reproduce", "--algorithms", "rmac", "--set", "rmac.critic.neighbours=1000000000",
         "--out", str(tmp_path / "x"),
     )  # fmt: skip
-    assert "rmac on dc_pendulum/swingup: RMACConfig.critic_neighbours must be an integer" in error
+    assert "rmac on dc_pendulum/swingup: RMACConfig.critic.neighbours must be an integer" in error

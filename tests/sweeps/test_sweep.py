@@ -578,8 +578,8 @@ def test_a_grid_of_a_trillion_configurations_is_refused_at_once(tmp_path):
         **{f"rmac.{key}": rates for key in ("alpha_r", "alpha_c", "gamma", "lam")},
         "rmac.exploration.sigma": rates,
         "rmac.exploration.period": counts,
-        **{f"rmac.{memory}_capacity": [100 * n for n in counts] for memory in MEMORIES},
-        **{f"rmac.{memory}_neighbours": counts for memory in MEMORIES},
+        **{f"rmac.{memory}.capacity": [100 * n for n in counts] for memory in MEMORIES},
+        **{f"rmac.{memory}.neighbours": counts for memory in MEMORIES},
     }
     grid = "\n".join(f'"{key}" = {values}' for key, values in grid.items())
     path = tmp_path / "huge.toml"
