@@ -162,7 +162,7 @@ rmac.critic.replacement = "oldest"
         ("[grid\n", "not valid TOML"),
         (
             '[[variant]]\nname = "u"\n"rmac.exploration.where" = "uncertain"\n',
-            '[[variant]] "u" "rmac.exploration.where": Exploration.uncertainty_threshold must be a finite number >= 0 with where=\'uncertain\'',
+            '[[variant]] "u" "rmac.exploration.where": RMACConfig.exploration.uncertainty_threshold must be a finite number >= 0 with where=\'uncertain\'',
         ),
     ],
 )
