@@ -176,6 +176,10 @@ def test_todays_snapshot_and_config_pass_the_upgrader_as_they_are(tmp_path):
         meta = json.loads(str(data["meta"]))
     assert meta["config"]["process"]["capacity"] == 30 and upgrade(meta) == meta
     assert upgrade_config("rmac", meta["config"]) is meta["config"]
+    # format 3 as first written (before the memories nested; nothing released in between)
+    flat = {k: v for k, v in meta["config"].items() if k != "process"}
+    flat.update({f"process_{k}": v for k, v in meta["config"]["process"].items()})
+    assert upgrade(dict(meta, config=flat)) == meta
     # flat and nested names of one memory, as a config of some fields may hold them, end nested
     assert upgrade_config(
         "mlac", {"actor_capacity": 5, "actor": {"clip": True}, "alpha_a": 0.1}
