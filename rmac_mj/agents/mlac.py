@@ -19,7 +19,11 @@ from rmac_mj.agents.exploration import Exploration, model_uncertainty
 from rmac_mj.agents.planning import REHEARSAL, Planning, Replay
 from rmac_mj.agents.seeding import discounted_returns, seed_memory
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
-from rmac_mj.agents.task_knowledge import with_task_action_cost, with_task_weights
+from rmac_mj.agents.task_knowledge import (
+    memory_units,
+    with_task_action_cost,
+    with_task_weights,
+)
 from rmac_mj.approximators.llr import (
     SHARED_CONSTRAINTS,
     LLRConfig,
@@ -122,12 +126,9 @@ class MLACConfig:
     task_units: ClassVar[dict[str, tuple[str, float]]] = {
         "gamma": ("horizon", 0.97),
         "lam": ("horizon", 0.65),
-        "actor.capacity": ("states", 2000),
-        "actor.neighbours": ("states", 25),
-        "critic.capacity": ("states", 2000),
-        "critic.neighbours": ("states", 15),
-        "process.capacity": ("transitions", 100),
-        "process.neighbours": ("transitions", 10),
+        **memory_units("actor", "states", 2000, 25),
+        **memory_units("critic", "states", 2000, 15),
+        **memory_units("process", "transitions", 100, 10),
     }
     parameter_constraints: ClassVar[dict[str, list]] = {
         **TD_LAMBDA,

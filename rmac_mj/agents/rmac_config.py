@@ -12,6 +12,7 @@ from typing import ClassVar
 
 from rmac_mj.agents.exploration import Exploration
 from rmac_mj.agents.planning import REHEARSAL, Planning, Replay
+from rmac_mj.agents.task_knowledge import memory_units
 from rmac_mj.approximators.llr import SHARED_CONSTRAINTS, LLRConfig, with_memory_defaults
 from rmac_mj.constraints import (
     BACKEND,
@@ -165,12 +166,10 @@ class RMACConfig:
     task_units: ClassVar[dict[str, tuple[str, float]]] = {
         "gamma": ("horizon", 0.97),
         "lam": ("horizon", 0.65),
-        "critic.capacity": ("states", 2000),
-        "critic.neighbours": ("states", 20),
-        "process.capacity": ("transitions", 100),
-        "process.neighbours": ("transitions", 9),
-        "reference.capacity": ("states", 2000),
-        "reference.neighbours": ("states", 20),
+        # Table 2: N and K of each memory
+        **memory_units("critic", "states", 2000, 20),
+        **memory_units("process", "transitions", 100, 9),
+        **memory_units("reference", "states", 2000, 20),
     }
 
     parameter_constraints: ClassVar[dict[str, list]] = {

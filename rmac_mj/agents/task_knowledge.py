@@ -119,6 +119,13 @@ PAPER_ACTION_RANGE = 6.0
 TASK_UNIT_RULES = ("horizon", "reward", "reward_capped", "states", "transitions", "action", "steps")
 
 
+def memory_units(memory: str, rule: str, capacity: int, neighbours: int) -> dict:
+    """A config's ``task_units`` of its LLR memory ``memory`` (an ``LLRConfig`` field): its size and
+    K at the paper's pendulum, grown by ``rule`` ('states' for a memory over x, 'transitions' for
+    one over [x, u])."""
+    return {f"{memory}.capacity": (rule, capacity), f"{memory}.neighbours": (rule, neighbours)}
+
+
 def step_ratio(state_space: StateSpace) -> float:
     """dt / 0.03 s for the task's control step dt (1 when the task does not say), to 9 decimals, so
     that a step computed as sub-steps times the physics step counts as its nominal value."""
