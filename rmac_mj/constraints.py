@@ -335,11 +335,25 @@ def invalid(owner: str, name: str, value: Any, expected: str) -> InvalidParamete
     return InvalidParameterError(f"{owner}.{name} must be {expected}, got {value!r}")
 
 
-def unknown(owner: str, name: str, known: Iterable[str]) -> InvalidParameterError:
-    """The one message of a parameter ``owner`` does not have, with the closest known name."""
+def unknown(owner: str, name: str, known: Iterable[str], prefix: str = "") -> InvalidParameterError:
+    """The one message of a parameter ``owner`` does not have, with the closest known name as the
+    user writes it (after ``prefix``, e.g. ``"rmac."``). ``known`` may be the owner's table: then a
+    flat name of a nested config's parameter (``critic_capacity``) is told its dotted name
+    (``critic.capacity``)."""
+    table = known if isinstance(known, Mapping) else None
     known = list(known)
     close = difflib.get_close_matches(name, known, n=1)
-    hint = f" (did you mean {close[0]!r}?)" if close else f"; it has {', '.join(known)}"
+    for field in sorted(known, key=len, reverse=True) if table is not None else ():
+        nested = nested_class(table[field])
+        leaf = name[len(field) + 1 :]
+        if (
+            nested is not None
+            and name.startswith(f"{field}_")
+            and leaf in nested.parameter_constraints
+        ):
+            close = [f"{field}.{leaf}"]
+            break
+    hint = f" (did you mean {prefix + close[0]!r}?)" if close else f"; it has {', '.join(known)}"
     return InvalidParameterError(f"{owner} has no parameter {name!r}{hint}")
 
 
@@ -381,10 +395,11 @@ def check_config(config: Any) -> None:
             object.__setattr__(config, name, value)
 
 
-def lookup(cls: type, path: Sequence[str]) -> list:
+def lookup(cls: type, path: Sequence[str], prefix: str = "") -> list:
     """The constraints of the (possibly nested) parameter ``path`` of config class ``cls``, e.g.
     ``lookup(RMACConfig, ["exploration", "sigma"])``; descends through :class:`InstanceOf` a
-    dataclass. Raises :class:`InvalidParameterError` for an unknown name (with the closest one)."""
+    dataclass. Raises :class:`InvalidParameterError` for an unknown name (with the closest one,
+    written as the dotted key after ``prefix``, e.g. ``"rmac."``)."""
     constraints: list = []
     owner = cls
     for depth, name in enumerate(path):
@@ -392,7 +407,9 @@ def lookup(cls: type, path: Sequence[str]) -> list:
         if table is None:
             raise InvalidParameterError(f"{owner.__name__} has no parameters (no {name!r})")
         if name not in table:
-            raise unknown(owner.__name__, name, table)
+            raise unknown(
+                owner.__name__, name, table, prefix + "".join(f"{p}." for p in path[:depth])
+            )
         constraints = list(table[name])
         if depth < len(path) - 1:
             nested = [

@@ -32,7 +32,7 @@ loss against another directory run with the same seeds (experiment i against exp
 Interventions, with the same learned memories (only RMAC's are wired here):
 
 * ``--set FIELD=VALUE`` rebuilds the agent with that config field changed before loading its learned
-  state (a JSON value; e.g. ``reference_neighbours=5``); fields that size the memories cannot change;
+  state (a JSON value; e.g. ``reference.neighbours=5``); fields that size the memories cannot change;
 * ``--continue N`` first runs N more learning trials (exploring, with the overrides), continuing the
   experiment's own random stream from the snapshot, then the greedy trial;
 * ``--policy critic-greedy`` replaces u = f^-1(x, R(x)) by the one-step lookahead on the learned
@@ -58,7 +58,8 @@ from rmac_mj import rollout as episode
 from rmac_mj import tasks
 from rmac_mj.agents import ActionSpace, StateSpace, make_agent
 from rmac_mj.evaluation import confidence_interval
-from rmac_mj.results import load_snapshot
+from rmac_mj.results import ResultStore, load_snapshot
+from rmac_mj.results.snapshots import upgrade
 
 SETTLE_ANGLE = 0.05  # rad, |phi - phi_ss| from the settle step on
 SETTLE_SPEED = 0.5  # rad/s, |phi_dot| from the settle step on
@@ -199,7 +200,7 @@ def load_agent(path: pathlib.Path, overrides: dict, index: int):
     if not overrides:
         return load_snapshot(path)
     with np.load(path, allow_pickle=False) as data:
-        meta = json.loads(str(data["meta"]))
+        meta = upgrade(json.loads(str(data["meta"])))  # an earlier format's names as today's
         state = {key[len("agent/") :]: data[key] for key in data.files if key.startswith("agent/")}
     agent = make_agent(
         meta["algorithm"],
@@ -500,10 +501,9 @@ def persistence(rows: list[dict]) -> None:
 
 
 def agent_capacity(group: list[dict]) -> str:
-    config = json.loads((pathlib.Path(group[0]["directory"]) / "config.json").read_text())
-    return str(
-        config["protocol"].get("agent_configs", {}).get("rmac", {}).get("critic_capacity", 2000)
-    )
+    config = ResultStore(pathlib.Path(group[0]["directory"])).read_config()
+    rmac = config["protocol"].get("agent_configs", {}).get("rmac", {})
+    return str(rmac.get("critic", {}).get("capacity", 2000))
 
 
 def _per_experiment(rows: list[dict]) -> dict[tuple[str, str, int], dict[str, float]]:
@@ -612,7 +612,7 @@ def main(argv: list[str] | None = None) -> None:
         action="append",
         default=[],
         metavar="ALGO.FIELD=VALUE",
-        help="evaluate with this config field changed, e.g. rmac.reference_neighbours=5",
+        help="evaluate with this config field changed, e.g. rmac.reference.neighbours=5",
     )
     parser.add_argument(
         "--continue",

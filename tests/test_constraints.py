@@ -8,17 +8,18 @@ import pytest
 
 from rmac_mj import constraints
 from rmac_mj.agents import Exploration, MLACConfig, RMACConfig, StandardACConfig, config_from_dict
-from rmac_mj.approximators import LLRMemory, TileCodingConfig
+from rmac_mj.approximators import LLRConfig, LLRMemory, TileCodingConfig
 from rmac_mj.errors import UserInputError
 from rmac_mj.sweeps import load_sweep
 
-CONFIGS = (RMACConfig, StandardACConfig, MLACConfig, Exploration, TileCodingConfig)
+CONFIGS = (RMACConfig, StandardACConfig, MLACConfig, Exploration, TileCodingConfig, LLRConfig)
 LEARNERS = (RMACConfig, StandardACConfig, MLACConfig)
 
 
 def refusal(cls, **kwargs) -> str:
+    """The message refusing ``kwargs`` (a nested config's as a dict of some of its fields)."""
     with pytest.raises(constraints.InvalidParameterError) as error:
-        cls(**kwargs)
+        config_from_dict(cls, kwargs)
     return str(error.value)
 
 
@@ -51,8 +52,8 @@ def test_gamma_1_is_refused_by_every_learner(cls):
 def test_a_bool_norm_and_a_string_clip_are_refused_by_rmac_and_mlac_alike(cls):
     assert refusal(cls, norm=True) == f"{cls.__name__}.norm must be 1 or 2, got True"
     assert (
-        refusal(cls, critic_clip="no")
-        == f"{cls.__name__}.critic_clip must be True or False, got 'no'"
+        refusal(cls, critic={"clip": "no"})
+        == f"{cls.__name__}.critic.clip must be True or False or None, got 'no'"
     )
 
 
@@ -71,8 +72,8 @@ def test_integers_are_integers_everywhere():
     # A float is no integer, whichever config holds it.
     assert refusal(Exploration, period=3.0) == "Exploration.period must be an integer >= 1, got 3.0"
     assert (
-        refusal(RMACConfig, critic_capacity=2000.0)
-        == "RMACConfig.critic_capacity must be an integer >= 1 or None, got 2000.0"
+        refusal(RMACConfig, critic={"capacity": 2000.0})
+        == "RMACConfig.critic.capacity must be an integer >= 1 or None, got 2000.0"
     )
     assert (
         refusal(TileCodingConfig, num_tilings=16.0)
@@ -87,9 +88,8 @@ def test_integers_are_integers_everywhere():
 
 def test_a_bound_named_after_another_parameter_shows_its_value():
     assert (
-        refusal(RMACConfig, critic_capacity=2000, critic_neighbours=3000)
-        == "RMACConfig.critic_neighbours must be an integer in [1, critic_capacity=2000], or None, "
-        "got 3000"
+        refusal(RMACConfig, critic={"capacity": 2000, "neighbours": 3000})
+        == "RMACConfig.critic.neighbours must be an integer in [1, capacity=2000], or None, got 3000"
     )
     with pytest.raises(
         constraints.InvalidParameterError,
@@ -106,18 +106,32 @@ def test_an_unknown_name_suggests_the_closest_known_one():
         config_from_dict(RMACConfig, {"alpha_x": 0.1})
     with pytest.raises(
         constraints.InvalidParameterError,
-        match=r"^Exploration has no parameter 'sigmaa' \(did you mean 'sigma'\?\)$",
+        match=r"^RMACConfig.exploration has no parameter 'sigmaa' \(did you mean 'sigma'\?\)$",
     ):
         config_from_dict(RMACConfig, {"exploration": {"sigmaa": 0.5}})
 
 
+@pytest.mark.parametrize("cls, memory", [(RMACConfig, "reference"), (MLACConfig, "actor")])
+def test_a_memory_setting_by_its_flat_name_is_told_its_nested_one(cls, memory):
+    with pytest.raises(
+        constraints.InvalidParameterError,
+        match=rf"^{cls.__name__} has no parameter '{memory}_neighbours' "
+        rf"\(did you mean '{memory}.neighbours'\?\)$",
+    ):
+        config_from_dict(cls, {f"{memory}_neighbours": 5})
+    with pytest.raises(
+        constraints.InvalidParameterError, match=r"\(did you mean 'rmac.critic.clip'\?\)$"
+    ):
+        constraints.lookup(RMACConfig, ["critic_clip"], "rmac.")
+
+
 def test_sequences_are_kept_as_tuples_of_floats():
-    config = RMACConfig(critic_weights=[1, 0.1])
-    assert config.critic_weights == (1.0, 0.1) and hash(config)
+    config = RMACConfig(critic=LLRConfig(weights=[1, 0.1]))
+    assert config.critic.weights == (1.0, 0.1) and hash(config)
     assert StandardACConfig(tile_low=[None, -5]).tile_low == (None, -5.0)
     assert (
-        refusal(RMACConfig, critic_weights=())
-        == "RMACConfig.critic_weights must be a list of finite numbers >= 0 or None, got ()"
+        refusal(RMACConfig, critic={"weights": ()})
+        == "RMACConfig.critic.weights must be a list of finite numbers >= 0 or None, got ()"
     )
 
 
@@ -136,7 +150,7 @@ def test_invalid_parameter_error_is_a_value_and_a_type_error():
         ("rmac.norm", True, RMACConfig, "norm"),
         ("rmac.exploration.period", 3.5, Exploration, "period"),
         ("s-ac.alpha_c", True, StandardACConfig, "alpha_c"),
-        ("mlac.critic_clip", "no", MLACConfig, "critic_clip"),
+        ("mlac.critic.clip", "no", LLRConfig, "clip"),
     ],
 )
 def test_the_sweep_checker_expects_what_the_config_expects(tmp_path, key, value, cls, field):

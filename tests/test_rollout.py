@@ -81,17 +81,17 @@ def test_state_is_angle_then_velocity():
 def test_rmac_weightings_default_to_table_2_from_the_task_and_explicit_ones_win():
     env = tasks.load("dc_pendulum", "swingup")
     agent = make_agent("rmac", state_space_of(env), action_space_of(env), seed=0)
-    assert agent.config.critic_weights == agent.config.reference_weights == (1.0, 0.1)
-    assert agent.config.process_weights == (1.0, 0.1, 1.0)
+    assert agent.config.critic.weights == agent.config.reference.weights == (1.0, 0.1)
+    assert agent.config.process.weights == (1.0, 0.1, 1.0)
     np.testing.assert_array_equal(agent.process.input_weights, [1.0, 0.1, 1.0])
     agent = make_agent(
         "rmac",
         state_space_of(env),
         action_space_of(env),
         seed=0,
-        config={"critic_weights": (1.0, 0.3)},
+        config={"critic": {"weights": (1.0, 0.3)}},
     )
-    assert agent.config.critic_weights == (1.0, 0.3) and agent.config.reference_weights == (
+    assert agent.config.critic.weights == (1.0, 0.3) and agent.config.reference.weights == (
         1.0,
         0.1,
     )

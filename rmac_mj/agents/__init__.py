@@ -5,9 +5,9 @@ Stable-Baselines3 baselines.
 ``make_agent(name, state_space, action_space, config, seed)`` builds one by its key (:data:`ALGORITHMS`);
 every learner is an :class:`Agent` (``start``/``step``/``stop``, ``greedy_action``, ``state_dict``) on a
 :class:`StateSpace` and an :class:`ActionSpace`, configured by a frozen dataclass of the paper's values
-(``RMACConfig``, ``StandardACConfig``, ``MLACConfig``, ...), exploring by :class:`Exploration`,
-planning or replaying by :class:`Planning` or :class:`Replay`, seeded from prior knowledge by
-:func:`seed_memory`. Each learner is a module holding its config dataclass and its :class:`Agent`
+(``RMACConfig``, ``StandardACConfig``, ``MLACConfig``, ...; each LLR memory's by :class:`LLRConfig`),
+exploring by :class:`Exploration`, planning or replaying by :class:`Planning` or :class:`Replay`,
+seeded from prior knowledge by :func:`seed_memory`. Each learner is a module holding its config dataclass and its :class:`Agent`
 subclass; the registry ``_REGISTRY`` (key -> module, agent class, config class) builds them by name,
 and adding a learner is one line there.
 """
@@ -27,6 +27,7 @@ from rmac_mj.agents.planning import Planning, Replay
 from rmac_mj.agents.scripted import PolicyAgent
 from rmac_mj.agents.seeding import PRIOR_PARTS, check_transitions, discounted_returns, seed_memory
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
+from rmac_mj.approximators.llr import LLRConfig
 
 #: Algorithm key -> (module, agent class, config class). Imported lazily: numba kernels compile on use.
 _REGISTRY = {
@@ -105,7 +106,13 @@ def config_from_dict(cls: type, values: dict[str, Any], base: Any = None):
     for name, value in values.items():
         nested = constraints.nested_class(table[name])
         if nested is not None and isinstance(value, dict):
-            value = config_from_dict(nested, value, getattr(base or _defaults(cls), name))
+            try:
+                value = config_from_dict(nested, value, getattr(base or _defaults(cls), name))
+            except constraints.InvalidParameterError as error:  # named by its path from here
+                message = str(error)
+                if message.startswith(nested.__name__):
+                    message = f"{cls.__name__}.{name}{message[len(nested.__name__) :]}"
+                raise constraints.InvalidParameterError(message) from None
         elif isinstance(value, list):
             value = tuple(value)
         kwargs[name] = value
@@ -215,8 +222,9 @@ __all__ = [
     "SB3TD3Config",
     "StandardACConfig",
     "StandardActorCritic",
-    # Exploration, planning and replay, prior knowledge
+    # A memory's settings, exploration, planning and replay, prior knowledge
     "Exploration",
+    "LLRConfig",
     "PRIOR_PARTS",
     "Planning",
     "Replay",

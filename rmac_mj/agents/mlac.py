@@ -19,8 +19,19 @@ from rmac_mj.agents.exploration import Exploration, model_uncertainty
 from rmac_mj.agents.planning import REHEARSAL, Planning, Replay
 from rmac_mj.agents.seeding import discounted_returns, seed_memory
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
-from rmac_mj.agents.task_knowledge import with_task_action_cost, with_task_weights
-from rmac_mj.approximators.llr import SHARED_CONSTRAINTS, LLRMemory, memory_constraints, wrap
+from rmac_mj.agents.task_knowledge import (
+    memory_units,
+    with_task_action_cost,
+    with_task_weights,
+)
+from rmac_mj.approximators.llr import (
+    SHARED_CONSTRAINTS,
+    LLRConfig,
+    LLRMemory,
+    shared_settings,
+    with_memory_defaults,
+    wrap,
+)
 from rmac_mj.constraints import (
     BACKEND,
     TD_LAMBDA,
@@ -50,28 +61,21 @@ class MLACConfig:
     alpha_c: float = 0.3
     """Critic learning rate alpha_c of the TD(lambda) update on the critic's samples."""
 
-    actor_capacity: int | None = None
-    """Actor memory size (2000 for n = 2); None: 2000 n / 2."""
-    actor_neighbours: int | None = None
-    """Actor nearest neighbours K: the samples that define pi(x) and move in an update (25 for
-    n = 2); None: 25 n / 2."""
-    actor_weights: tuple[float, ...] | None = None
-    """Actor input weighting over x (n entries). None: the task's, ``StateSpace.input_weights``: (1, 0.1)
-    for dc_pendulum, as the authors' group's code uses."""
-    critic_capacity: int | None = None
-    """Critic memory size (2000 for n = 2); None: 2000 n / 2."""
-    critic_neighbours: int | None = None
-    """Critic nearest neighbours K (15 for n = 2); None: 15 n / 2."""
-    critic_weights: tuple[float, ...] | None = None
-    """Critic input weighting over x (n entries). None: the task's, ``StateSpace.input_weights`` ((1, 0.1)
-    for dc_pendulum)."""
-    process_capacity: int | None = None
-    """Process memory size (100 for n + m = 3); None: 100 (n + m) / 3."""
-    process_neighbours: int | None = None
-    """Process nearest neighbours K (10 for n + m = 3); None: 10 (n + m) / 3."""
-    process_weights: tuple[float, ...] | None = None
-    """Process input weighting over [x, u] (n + m entries). None: the task's, ``StateSpace.input_weights``
-    then ``ActionSpace.input_weights`` ((1, 0.1, 1) for dc_pendulum, as the authors' group's code)."""
+    actor: LLRConfig = LLRConfig(clip=False, replacement="nearest", redundancy="distance")
+    """The actor's memory M^A [x | u] (2000 samples and K = 25 for n = 2, K being the samples that
+    define pi(x) and move in an update; None: grown to 2000 n / 2 and 25 n / 2; weighting over x,
+    None: the task's, ``StateSpace.input_weights``: (1, 0.1) for dc_pendulum, as the authors' group's
+    code uses). Predictions not clipped to the neighbours' range: pi(x) is always saturated to the
+    action bounds, and the actor's samples always stay inside them."""
+    critic: LLRConfig = LLRConfig(clip=True, replacement="nearest", redundancy="distance")
+    """The critic's memory M^C [x | V] (2000 samples and K = 15 for n = 2; None: grown to 2000 n / 2
+    and 15 n / 2; weighting as the actor's). Predictions clipped to the neighbours' values (as
+    RMACConfig.critic)."""
+    process: LLRConfig = LLRConfig(clip=False, replacement="nearest", redundancy="misfit")
+    """The process model M^P [x, u | x'] (100 samples and K = 10 for n + m = 3; None: grown to
+    100 (n + m) / 3 and 10 (n + m) / 3; weighting over [x, u], None: the task's,
+    ``StateSpace.input_weights`` then ``ActionSpace.input_weights``: (1, 0.1, 1) for dc_pendulum,
+    as the authors' group's code). Predictions not clipped; redundancy as RMACConfig.process."""
 
     exploration: Exploration = Exploration()
     """Exploration Delta u_k: N(0, 1) every third step, the S-AC schedule of the RMAC paper (6.1).
@@ -107,19 +111,8 @@ class MLACConfig:
     """Relative singular value cutoff for conditioning='svd'."""
     ridge: float = 1e-3
     """Ridge term for conditioning='ridge', in weighted input units squared."""
-    actor_clip: bool = False
-    """Clip the actor's prediction to its neighbours' range (it is always saturated to the action
-    bounds, and the actor's samples always stay inside them)."""
-    critic_clip: bool = True
-    """Clip critic predictions to the range of the neighbours' values (as RMACConfig)."""
-    process_clip: bool = False
-    """Clip process model predictions to the neighbours' next states."""
-    actor_replacement: str = "nearest"
-    """Actor memory management when full: 'nearest' (the most redundant sample) or 'oldest'."""
-    critic_replacement: str = "nearest"
-    """Critic memory management when full."""
-    process_replacement: str = "nearest"
-    """Process memory management when full."""
+    redundancy_smoothing: float = 0.1
+    """eta in (0, 1], the smoothing of every redundancy score (as RMACConfig)."""
     planning: Planning = Planning()
     """Simulated transitions in learned models between trials (``agents.planning``): the
     rollouts run this algorithm, step 1 excepted. None by default."""
@@ -133,23 +126,14 @@ class MLACConfig:
     task_units: ClassVar[dict[str, tuple[str, float]]] = {
         "gamma": ("horizon", 0.97),
         "lam": ("horizon", 0.65),
-        "actor_capacity": ("states", 2000),
-        "actor_neighbours": ("states", 25),
-        "critic_capacity": ("states", 2000),
-        "critic_neighbours": ("states", 15),
-        "process_capacity": ("transitions", 100),
-        "process_neighbours": ("transitions", 10),
+        **memory_units("actor", "states", 2000, 25),
+        **memory_units("critic", "states", 2000, 15),
+        **memory_units("process", "transitions", 100, 10),
     }
     parameter_constraints: ClassVar[dict[str, list]] = {
         **TD_LAMBDA,
         "alpha_a": [Interval(Real, 0, 1)],
-        **{
-            name: constraints
-            for memory in _MEMORIES
-            for name, constraints in memory_constraints(
-                memory, ("nearest", "oldest"), redundancy=False
-            ).items()
-        },
+        **{memory: [InstanceOf(LLRConfig)] for memory in _MEMORIES},
         "exploration": [InstanceOf(Exploration)],
         "action_cost": [Interval(Real, 0, None), WEIGHTS, None],
         "saturation_threshold": [Interval(Real, 0, 1, closed="right")],
@@ -163,6 +147,7 @@ class MLACConfig:
 
     def __post_init__(self) -> None:
         check_config(self)
+        with_memory_defaults(self)
 
 
 #: Values (of the critic, after an update) beyond which the actor's gradient may overflow: a
@@ -249,49 +234,14 @@ class MLAC(Agent):
 
     def _new_memories(self, config: MLACConfig) -> tuple[LLRMemory, LLRMemory, LLRMemory]:
         """The actor [x | u], the critic's [x | V] and the process model [x, u | x'], empty."""
-        n, m, period = self.n, self.m, self.period
-        common = dict(
-            norm=config.norm,
-            conditioning=config.conditioning,
-            rcond=config.rcond,
-            ridge=config.ridge,
-            backend=config.backend,
+        n, m, period, shared = self.n, self.m, self.period, shared_settings(config)
+        return (
+            config.actor.memory(n, m, shared, input_period=period),
+            config.critic.memory(n, 1, shared, input_period=period),
+            config.process.memory(
+                n + m, n, shared, input_period=np.r_[period, np.zeros(m)], output_period=period
+            ),
         )
-        actor = LLRMemory(
-            n,
-            m,
-            config.actor_capacity,
-            config.actor_neighbours,
-            input_weights=config.actor_weights,
-            input_period=period,
-            clip=config.actor_clip,
-            replacement=config.actor_replacement,
-            **common,
-        )
-        critic = LLRMemory(
-            n,
-            1,
-            config.critic_capacity,
-            config.critic_neighbours,
-            input_weights=config.critic_weights,
-            input_period=period,
-            clip=config.critic_clip,
-            replacement=config.critic_replacement,
-            **common,
-        )
-        process = LLRMemory(
-            n + m,
-            n,
-            config.process_capacity,
-            config.process_neighbours,
-            input_weights=config.process_weights,
-            input_period=np.r_[period, np.zeros(m)],
-            output_period=period,
-            clip=config.process_clip,
-            replacement=config.process_replacement,
-            **common,
-        )
-        return actor, critic, process
 
     def _set_rehearsing(self, rehearsing: bool) -> None:
         """While rehearsing (planning, replay), step 1 leaves M^P unchanged."""
@@ -303,16 +253,13 @@ class MLAC(Agent):
     ) -> tuple[int, int]:
         """The three memories and the critic's traces (see :meth:`Agent.memory_estimate`)."""
         n, m = state_space.dim, action_space.dim
-        memories = (
-            (n, m, config.actor_capacity, config.actor_neighbours),
-            (n, 1, config.critic_capacity, config.critic_neighbours),
-            (n + m, n, config.process_capacity, config.process_neighbours),
+        parts = (
+            config.actor.estimate(n, m),
+            config.critic.estimate(n, 1),
+            config.process.estimate(n + m, n),
         )
-        traces = 8 * config.critic_capacity
-        return (
-            sum(LLRMemory.memory_estimate(*memory) for memory in memories) + traces,
-            sum(LLRMemory.state_estimate(*memory[:3]) for memory in memories) + traces,
-        )
+        traces = 8 * config.critic.capacity
+        return tuple(sum(part) + traces for part in zip(*parts))
 
     # -- the policy -----------------------------------------------------------------------------------
     def _pi(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

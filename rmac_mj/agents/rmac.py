@@ -22,7 +22,7 @@ from rmac_mj.agents.rmac_config import REACHABLE_RULES, RMACConfig
 from rmac_mj.agents.seeding import discounted_returns, seed_memory
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
 from rmac_mj.agents.task_knowledge import with_task_action_cost, with_task_weights
-from rmac_mj.approximators.llr import LLRMemory, wrap
+from rmac_mj.approximators.llr import LLRMemory, shared_settings, wrap
 
 __all__ = ["RMAC", "RMACConfig"]
 
@@ -128,54 +128,14 @@ class RMAC(Agent):
 
     def _new_memories(self, config: RMACConfig) -> tuple[LLRMemory, LLRMemory, LLRMemory]:
         """M^P [x, u | x'], M^R [x | x_hat] and M^C [x | V] (section 4), empty."""
-        n, m, period = self.n, self.m, self.period
-        common = dict(
-            norm=config.norm,
-            conditioning=config.conditioning,
-            rcond=config.rcond,
-            ridge=config.ridge,
-            redundancy_smoothing=config.redundancy_smoothing,
-            backend=config.backend,
+        n, m, period, shared = self.n, self.m, self.period, shared_settings(config)
+        return (
+            config.process.memory(
+                n + m, n, shared, input_period=np.r_[period, np.zeros(m)], output_period=period
+            ),
+            config.reference.memory(n, n, shared, input_period=period, output_period=period),
+            config.critic.memory(n, 1, shared, input_period=period),
         )
-        process = LLRMemory(
-            n + m,
-            n,
-            config.process_capacity,
-            config.process_neighbours,
-            input_weights=config.process_weights,
-            input_period=np.r_[period, np.zeros(m)],
-            output_period=period,
-            clip=config.process_clip,
-            replacement=config.process_replacement,
-            redundancy=config.process_redundancy,
-            **common,
-        )
-        reference = LLRMemory(
-            n,
-            n,
-            config.reference_capacity,
-            config.reference_neighbours,
-            input_weights=config.reference_weights,
-            input_period=period,
-            output_period=period,
-            clip=config.reference_clip,
-            replacement=config.reference_replacement,
-            redundancy=config.reference_redundancy,
-            **common,
-        )
-        critic = LLRMemory(
-            n,
-            1,
-            config.critic_capacity,
-            config.critic_neighbours,
-            input_weights=config.critic_weights,
-            input_period=period,
-            clip=config.critic_clip,
-            replacement=config.critic_replacement,
-            redundancy=config.critic_redundancy,
-            **common,
-        )
-        return process, reference, critic
 
     # -- Algorithm 2, lines 1-12: a trial's start and a control step -----------------------------
     def _start(self, x0: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
@@ -511,16 +471,13 @@ class RMAC(Agent):
     ) -> tuple[int, int]:
         """The three memories and the critic's traces (see :meth:`Agent.memory_estimate`)."""
         n, m = state_space.dim, action_space.dim
-        memories = (
-            (n + m, n, config.process_capacity, config.process_neighbours),
-            (n, n, config.reference_capacity, config.reference_neighbours),
-            (n, 1, config.critic_capacity, config.critic_neighbours),
+        parts = (
+            config.process.estimate(n + m, n),
+            config.reference.estimate(n, n),
+            config.critic.estimate(n, 1),
         )
-        traces = 8 * config.critic_capacity
-        return (
-            sum(LLRMemory.memory_estimate(*memory) for memory in memories) + traces,
-            sum(LLRMemory.state_estimate(*memory[:3]) for memory in memories) + traces,
-        )
+        traces = 8 * config.critic.capacity
+        return tuple(sum(part) + traces for part in zip(*parts))
 
     def _new_kernel_state(self) -> _rmac_kernels.RMACState | None:
         """The compiled step's view of this agent's arrays (numba back end), else None."""

@@ -12,7 +12,8 @@ from typing import ClassVar
 
 from rmac_mj.agents.exploration import Exploration
 from rmac_mj.agents.planning import REHEARSAL, Planning, Replay
-from rmac_mj.approximators.llr import SHARED_CONSTRAINTS, LLRMemory, memory_constraints
+from rmac_mj.agents.task_knowledge import memory_units
+from rmac_mj.approximators.llr import SHARED_CONSTRAINTS, LLRConfig, with_memory_defaults
 from rmac_mj.constraints import (
     BACKEND,
     TD_LAMBDA,
@@ -51,27 +52,23 @@ class RMACConfig:
     rate_decay_trials: int = 200
     """Learning trials over which ``alpha_c`` and ``alpha_r`` reach their final values."""
 
-    critic_capacity: int | None = None
-    """Critic memory size (Table 2: 2000 for n = 2); None: 2000 n / 2."""
-    critic_neighbours: int | None = None
-    """Critic nearest neighbours K (Table 2: 20); None: 20 n / 2."""
-    critic_weights: tuple[float, ...] | None = None
-    """Critic input weighting over x; None: the task's (``StateSpace.input_weights``; dc_pendulum: Table 2's
-    (1, 0.1))."""
-    process_capacity: int | None = None
-    """Process memory size (Table 2: 100 for n + m = 3); None: 100 (n + m) / 3."""
-    process_neighbours: int | None = None
-    """Process nearest neighbours K (Table 2: 9); None: 9 (n + m) / 3."""
-    process_weights: tuple[float, ...] | None = None
-    """Process input weighting over [x, u]; None: the task's (``StateSpace.input_weights`` then
-    ``ActionSpace.input_weights``; dc_pendulum: Table 2's (1, 0.1, 1))."""
-    reference_capacity: int | None = None
-    """Reference memory size (Table 2: 2000 for n = 2); None: 2000 n / 2."""
-    reference_neighbours: int | None = None
-    """Reference nearest neighbours K (Table 2: 20); None: 20 n / 2."""
-    reference_weights: tuple[float, ...] | None = None
-    """Reference input weighting over x; None: the task's (``StateSpace.input_weights``; dc_pendulum: Table
-    2's (1, 0.1))."""
+    critic: LLRConfig = LLRConfig(clip=True, replacement="nearest", redundancy="distance")
+    """The critic's memory M^C [x | V] (Table 2: 2000 samples and K = 20 for n = 2; None: grown to
+    2000 n / 2 and 20 n / 2; weighting over x, None: the task's, ``StateSpace.input_weights``;
+    dc_pendulum: Table 2's (1, 0.1)). Predictions clipped to the neighbours' values (as GRL does):
+    the values stay sane when a fit extrapolates. Redundancy measured by distance: as the authors'
+    code is described, for the critic and reference memories, whose outputs move while learning (a
+    misfit measured now says little about the sample later)."""
+    process: LLRConfig = LLRConfig(clip=False, replacement="nearest", redundancy="misfit")
+    """The process model M^P [x, u | x'] (Table 2: 100 samples and K = 9 for n + m = 3; None: grown
+    to 100 (n + m) / 3 and 9 (n + m) / 3; weighting over [x, u], None: the task's,
+    ``StateSpace.input_weights`` then ``ActionSpace.input_weights``; dc_pendulum: Table 2's (1, 0.1,
+    1)). Predictions not clipped. Redundancy measured by the squared misfit: its samples are fixed
+    observations of the dynamics."""
+    reference: LLRConfig = LLRConfig(clip=True, replacement="nearest", redundancy="distance")
+    """The reference model M^R [x | x_hat] (Table 2: 2000 samples and K = 20 for n = 2, as the
+    critic). Predictions clipped to the neighbours' desired states, so that no desired state lies
+    beyond those once found reachable; a safeguard (docs/rmac.md)."""
 
     exploration: Exploration = Exploration()
     """Exploration Delta u_k. The paper says RMAC still needs it but not how; the default is the S-AC
@@ -89,35 +86,6 @@ class RMACConfig:
     """Relative singular value cutoff for conditioning='svd'."""
     ridge: float = 1e-3
     """Ridge term for conditioning='ridge', in weighted input units squared."""
-    critic_clip: bool = True
-    """Clip critic predictions to the range of the neighbours' values (as GRL does); keeps the values
-    sane when a fit extrapolates."""
-    reference_clip: bool = True
-    """Clip reference predictions to the range of the neighbours' desired states, so that no desired
-    state lies beyond those once found reachable; a safeguard (docs/rmac.md)."""
-    process_clip: bool = False
-    """Clip process model predictions to the neighbours' next states."""
-    critic_replacement: str = "nearest"
-    """Critic memory management when full: 'nearest' (the sample most redundant with the new one),
-    'oldest', or 'redundancy' (the sample of highest smoothed redundancy score, measured by
-    ``critic_redundancy``; see :mod:`rmac_mj.approximators.llr` for the equations)."""
-    process_replacement: str = "nearest"
-    """Process memory management when full (same choices)."""
-    reference_replacement: str = "nearest"
-    """Reference memory management when full (same choices)."""
-    critic_redundancy: str = "distance"
-    """What the critic's redundancy score measures under critic_replacement='redundancy':
-    'distance' (a sample close to new samples is redundant) or 'misfit' (a sample its local model
-    predicts well is redundant). As the authors' code is described: distance for the critic
-    and reference memories, whose outputs move while learning (a misfit measured now says little
-    about the sample later); the squared misfit for the process memory, whose samples are fixed
-    observations of the dynamics."""
-    process_redundancy: str = "misfit"
-    """What the process memory's redundancy score measures under process_replacement='redundancy'
-    (see critic_redundancy)."""
-    reference_redundancy: str = "distance"
-    """What the reference memory's redundancy score measures under
-    reference_replacement='redundancy' (see critic_redundancy)."""
     redundancy_smoothing: float = 0.1
     """eta in (0, 1], the exponential smoothing of every redundancy score,
     rho_i <- (1 - eta) rho_i + eta c_i each time sample i is a neighbour of a new sample (our
@@ -198,12 +166,10 @@ class RMACConfig:
     task_units: ClassVar[dict[str, tuple[str, float]]] = {
         "gamma": ("horizon", 0.97),
         "lam": ("horizon", 0.65),
-        "critic_capacity": ("states", 2000),
-        "critic_neighbours": ("states", 20),
-        "process_capacity": ("transitions", 100),
-        "process_neighbours": ("transitions", 9),
-        "reference_capacity": ("states", 2000),
-        "reference_neighbours": ("states", 20),
+        # Table 2: N and K of each memory
+        **memory_units("critic", "states", 2000, 20),
+        **memory_units("process", "transitions", 100, 9),
+        **memory_units("reference", "states", 2000, 20),
     }
 
     parameter_constraints: ClassVar[dict[str, list]] = {
@@ -212,12 +178,9 @@ class RMACConfig:
         "alpha_c_final": [Interval(Real, 0, 1), None],
         "alpha_r_final": [Interval(Real, 0, 1), None],
         "rate_decay_trials": [Interval(Integral, 1, None)],
-        **memory_constraints("critic"),
-        **memory_constraints("process"),
-        **memory_constraints("reference"),
+        **{memory: [InstanceOf(LLRConfig)] for memory in ("critic", "process", "reference")},
         "exploration": [InstanceOf(Exploration)],
         **SHARED_CONSTRAINTS,
-        "redundancy_smoothing": LLRMemory.parameter_constraints["redundancy_smoothing"],
         "inverse_query": [Options("previous", "zero")],
         "critic_gradient_at": [Options("next", "previous")],
         "reachable_rule": [Options(*REACHABLE_RULES)],
@@ -231,3 +194,4 @@ class RMACConfig:
 
     def __post_init__(self) -> None:
         check_config(self)
+        with_memory_defaults(self)

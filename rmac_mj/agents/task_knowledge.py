@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
+from rmac_mj.constraints import InvalidParameterError
 
 
 def with_task_weights(
@@ -24,9 +25,10 @@ def with_task_weights(
     state_memories: tuple[str, ...],
     process_memories: tuple[str, ...] = ("process",),
 ) -> Any:
-    """``config`` with every ``<memory>_weights`` left None taken from the task's hints: the
-    StateSpace's ``input_weights`` for a memory over x, those then the ActionSpace's for one over
-    [x, u]; every weighting checked against n or n + m (ValueError naming ``owner``)."""
+    """``config`` with the ``weights`` of every memory it names (an ``LLRConfig`` field) left None
+    taken from the task's hints: the StateSpace's ``input_weights`` for a memory over x, those then
+    the ActionSpace's for one over [x, u]; every weighting checked against n or n + m (ValueError
+    naming ``owner``)."""
     n, m = state_space.dim, action_space.dim
     hints = {name: state_space.input_weights for name in state_memories}
     hints.update(
@@ -38,17 +40,19 @@ def with_task_weights(
     config = dataclasses.replace(
         config,
         **{
-            f"{name}_weights": tuple(float(w) for w in weights)
+            name: dataclasses.replace(
+                getattr(config, name), weights=tuple(float(w) for w in weights)
+            )
             for name, weights in hints.items()
-            if getattr(config, f"{name}_weights") is None
+            if getattr(config, name).weights is None
         },
     )
     for name in hints:
         size = n + m if name in process_memories else n
-        weights = getattr(config, f"{name}_weights")
+        weights = getattr(config, name).weights
         if len(weights) != size:
             raise ValueError(
-                f"{owner}: config.{name}_weights has {len(weights)} "
+                f"{owner}: config.{name}.weights has {len(weights)} "
                 f"entries, this task needs {size} "
                 f"({'[x, u]' if name in process_memories else 'x'})"
             )
@@ -115,6 +119,13 @@ PAPER_ACTION_RANGE = 6.0
 TASK_UNIT_RULES = ("horizon", "reward", "reward_capped", "states", "transitions", "action", "steps")
 
 
+def memory_units(memory: str, rule: str, capacity: int, neighbours: int) -> dict:
+    """A config's ``task_units`` of its LLR memory ``memory`` (an ``LLRConfig`` field): its size and
+    K at the paper's pendulum, grown by ``rule`` ('states' for a memory over x, 'transitions' for
+    one over [x, u])."""
+    return {f"{memory}.capacity": (rule, capacity), f"{memory}.neighbours": (rule, neighbours)}
+
+
 def step_ratio(state_space: StateSpace) -> float:
     """dt / 0.03 s for the task's control step dt (1 when the task does not say), to 9 decimals, so
     that a step computed as sub-steps times the physics step counts as its nominal value."""
@@ -161,21 +172,36 @@ def task_value(
 
 def with_task_units(config: Any, state_space: StateSpace, action_space: ActionSpace) -> Any:
     """``config`` with every field its class lists in ``task_units`` (field -> (rule, value at the
-    paper's pendulum)) and leaves None set from the task (:func:`task_value`), nested configs
+    paper's pendulum); a dotted name, e.g. ``"critic.capacity"``, is a field of a nested config) and
+    leaves None set from the task (:func:`task_value`), nested configs with task units of their own
     (exploration, planning) likewise. A field set explicitly is kept; on the paper's pendulum every
     resolved value is the paper's. A learner without a config (a scripted policy) has none."""
     if config is None:
         return None
-    changes = {}
+    changes: dict[str, Any] = {}
     for field in dataclasses.fields(config):
         value = getattr(config, field.name)
         if dataclasses.is_dataclass(value) and hasattr(type(value), "task_units"):
             resolved = with_task_units(value, state_space, action_space)
             if resolved != value:
                 changes[field.name] = resolved
+    nested: dict[str, dict[str, Any]] = {}
     for name, (rule, paper_value) in getattr(type(config), "task_units", {}).items():
-        if getattr(config, name) is None:
+        owner, _, leaf = name.rpartition(".")
+        holder = changes.get(owner, getattr(config, owner)) if owner else config
+        if getattr(holder, leaf) is None:
             resolved = task_value(rule, paper_value, state_space, action_space)
-            if resolved is not None:
+            if resolved is None:
+                continue
+            if owner:
+                nested.setdefault(owner, {})[leaf] = resolved
+            else:
                 changes[name] = resolved
+    for owner, values in nested.items():
+        memory = changes.get(owner, getattr(config, owner))
+        try:
+            changes[owner] = dataclasses.replace(memory, **values)
+        except InvalidParameterError as error:  # named by its path in the learner's config
+            message = str(error).removeprefix(type(memory).__name__)
+            raise InvalidParameterError(f"{type(config).__name__}.{owner}{message}") from None
     return dataclasses.replace(config, **changes) if changes else config

@@ -7,8 +7,9 @@ choices the paper leaves open are :class:`LLRMemory` parameters. Compiled learne
 
 from __future__ import annotations
 
+import dataclasses
 from numbers import Integral, Real
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -22,7 +23,16 @@ from rmac_mj.approximators.llr_numpy import (
     search_numpy,
     wrap,
 )
-from rmac_mj.constraints import WEIGHTS, Boolean, Field, Interval, Options, TupleOf, check
+from rmac_mj.constraints import (
+    WEIGHTS,
+    Boolean,
+    Field,
+    Interval,
+    Options,
+    TupleOf,
+    check,
+    check_config,
+)
 
 #: The compiled interface: the functions take an LLRState first (``_llr_kernels`` has the details);
 #: ``wrap_scalar(d, period)`` is ``wrap`` for one number, for compiled callers.
@@ -39,6 +49,7 @@ llr_canonical = _k.canonical
 wrap_scalar = _k.wrap
 
 __all__ = [
+    "LLRConfig",
     "LLRMemory",
     "LLRState",
     "LLR_STATE_TYPE",
@@ -54,7 +65,8 @@ __all__ = [
     "llr_nearest",
     "llr_query",
     "llr_size",
-    "memory_constraints",
+    "shared_settings",
+    "with_memory_defaults",
     "wrap",
     "wrap_scalar",
 ]
@@ -627,30 +639,105 @@ class LLRMemory:
         )
 
 
-def memory_constraints(
-    memory: str, replacements: tuple[str, ...] = tuple(_REPLACEMENTS), redundancy: bool = True
-) -> dict[str, list]:
-    """A learner config's constraints on the settings of its LLR memory ``memory`` (e.g. 'critic'),
-    LLRMemory's own rules under the config's names: ``{memory}_capacity``, ``{memory}_neighbours``
-    (at most the capacity; both None: grown from the paper's with the task's dimension),
-    ``{memory}_weights`` (None: the task's; the length is checked against
-    the task), ``{memory}_clip``, ``{memory}_replacement`` (one of ``replacements``) and, with
-    ``redundancy``, ``{memory}_redundancy``."""
-    own = LLRMemory.parameter_constraints
-    table = {
-        f"{memory}_capacity": [*own["capacity"], None],
-        f"{memory}_neighbours": [Interval(Integral, 1, Field(f"{memory}_capacity")), None],
-        f"{memory}_weights": [WEIGHTS, None],
-        f"{memory}_clip": own["clip"],
-        f"{memory}_replacement": [Options(*replacements)],
+@dataclasses.dataclass(frozen=True)
+class LLRConfig:
+    """The settings of one of a learner's LLR memories (section 4), e.g. ``RMACConfig.critic``;
+    the settings all its memories share (norm, conditioning, back end) are the learner's own.
+
+    A learner's config declares one field per memory, its default that memory's settings
+    (:func:`with_memory_defaults` fills a setting left None from it, so ``critic=LLRConfig(capacity=
+    60)`` changes the size alone), and Table 2's sizes and K in its ``task_units`` (e.g.
+    ``"critic.capacity": ("states", 2000)``: None is resolved on the task); :meth:`memory` builds
+    it."""
+
+    capacity: int | None = None
+    """Samples the memory holds; None: the learner's default for the task (Table 2 at n = 2, grown
+    with the dimension of what the memory holds)."""
+    neighbours: int | None = None
+    """Nearest neighbours K of a local fit, at most ``capacity``; None: the learner's default for the
+    task."""
+    weights: tuple[float, ...] | None = None
+    """Input weighting, one entry per input dimension (x, or [x, u] for a process model); None: the
+    task's (``StateSpace.input_weights``, then ``ActionSpace.input_weights``)."""
+    clip: bool | None = None
+    """Clip a prediction to the range of its neighbours' outputs. None here and in the next two
+    settings: the learner's for this memory (its config's field default)."""
+    replacement: str | None = None
+    """Which sample a full memory drops for a new one: 'nearest' (the one most redundant with the new
+    sample), 'oldest', or 'redundancy' (the highest smoothed redundancy score; see ``redundancy``)."""
+    redundancy: str | None = None
+    """What the redundancy score measures under replacement='redundancy': 'distance' (a sample close
+    to new samples is redundant) or 'misfit' (a sample its local model predicts well is redundant)."""
+
+    parameter_constraints: ClassVar[dict[str, list]] = {
+        "capacity": [*LLRMemory.parameter_constraints["capacity"], None],
+        "neighbours": [Interval(Integral, 1, Field("capacity")), None],
+        "weights": [WEIGHTS, None],
+        "clip": [*LLRMemory.parameter_constraints["clip"], None],
+        "replacement": [*LLRMemory.parameter_constraints["replacement"], None],
+        "redundancy": [*LLRMemory.parameter_constraints["redundancy"], None],
     }
-    if redundancy:
-        table[f"{memory}_redundancy"] = own["redundancy"]
-    return table
+
+    def __post_init__(self) -> None:
+        check_config(self)
+
+    def memory(
+        self,
+        input_dim: int,
+        output_dim: int,
+        shared: dict[str, Any],
+        input_period: Any = None,
+        output_period: Any = None,
+    ) -> LLRMemory:
+        """An empty :class:`LLRMemory` with these settings (capacity and K resolved) and the
+        learner's ``shared`` ones (:func:`shared_settings`)."""
+        return LLRMemory(
+            input_dim,
+            output_dim,
+            self.capacity,
+            self.neighbours,
+            input_weights=self.weights,
+            input_period=input_period,
+            output_period=output_period,
+            clip=self.clip,
+            replacement=self.replacement,
+            redundancy=self.redundancy,
+            **shared,
+        )
+
+    def estimate(self, input_dim: int, output_dim: int) -> tuple[int, int]:
+        """(bytes of the arrays, bytes of one state dict) of :meth:`memory`, nothing allocated."""
+        return (
+            LLRMemory.memory_estimate(input_dim, output_dim, self.capacity, self.neighbours),
+            LLRMemory.state_estimate(input_dim, output_dim, self.capacity),
+        )
 
 
 #: The settings every memory of a learner shares, as LLRMemory checks them.
 SHARED_CONSTRAINTS = {
     name: LLRMemory.parameter_constraints[name]
-    for name in ("norm", "conditioning", "rcond", "ridge")
+    for name in ("norm", "conditioning", "rcond", "ridge", "redundancy_smoothing")
 }
+
+
+def with_memory_defaults(config: Any) -> None:
+    """Fill, in place (a frozen config's ``__post_init__``), the ``clip``, ``replacement`` and
+    ``redundancy`` left None in each of ``config``'s :class:`LLRConfig` fields from that field's
+    default: the learner's settings of that memory."""
+    for field in dataclasses.fields(config):
+        memory = getattr(config, field.name)
+        if not isinstance(memory, LLRConfig) or not isinstance(field.default, LLRConfig):
+            continue
+        unset = {
+            name: getattr(field.default, name)
+            for name in ("clip", "replacement", "redundancy")
+            if getattr(memory, name) is None
+        }
+        if unset:
+            object.__setattr__(config, field.name, dataclasses.replace(memory, **unset))
+
+
+def shared_settings(config: Any) -> dict[str, Any]:
+    """The settings a learner's ``config`` gives all its memories (:data:`SHARED_CONSTRAINTS` and
+    its back end), as :class:`LLRMemory` keywords."""
+    return {name: getattr(config, name) for name in (*SHARED_CONSTRAINTS, "backend")}

@@ -22,7 +22,11 @@ from rmac_mj.errors import UserInputError
 
 
 def parse_overrides(assignments: Sequence[str]) -> dict[str, dict]:
-    """``["rmac.exploration.sigma=0.5", ...]`` -> ``{"rmac": {"exploration": {"sigma": 0.5}}}``."""
+    """``["rmac.exploration.sigma=0.5", ...]`` -> ``{"rmac": {"exploration": {"sigma": 0.5}}}``;
+    a key its learner's config does not have is refused naming the closest one
+    (``rmac.critic_capacity``: did you mean 'rmac.critic.capacity'?)."""
+    from rmac_mj import constraints
+    from rmac_mj.agents import ALGORITHMS, config_class
     from rmac_mj.sweeps.dotted_keys import nest
 
     flat: dict[str, Any] = {}
@@ -31,6 +35,11 @@ def parse_overrides(assignments: Sequence[str]) -> dict[str, dict]:
         path = key.strip().split(".")
         if not separator or len(path) < 2 or not all(path):
             raise UsageError(f"--set expects ALGO.FIELD=VALUE, got {assignment!r}")
+        if path[0] in ALGORITHMS:  # an unknown learner is refused with the others, by Protocol
+            try:
+                constraints.lookup(config_class(path[0]), path[1:], f"{path[0]}.")
+            except constraints.InvalidParameterError as error:
+                raise UsageError(f"--set {key.strip()}: {error}") from None
         try:
             flat[".".join(path)] = json.loads(text)
         except json.JSONDecodeError:

@@ -14,6 +14,7 @@ from typing import Any
 from rmac_mj.constraints import RESULT_DOCUMENT_BYTES
 from rmac_mj.errors import MissingInputError, UserInputError
 from rmac_mj.results.files import read_bounded
+from rmac_mj.results.snapshots import upgrade_run_config
 
 
 class ResumeRefused(UserInputError):
@@ -101,8 +102,10 @@ def summary_problem(summary: Any) -> str | None:
 
 
 def read_config(path: pathlib.Path) -> dict[str, Any] | None:
-    """The directory's ``config.json``, or None when there is none; :class:`DamagedDirectory`
-    when it cannot be read as a run's config (a JSON object with a ``protocol`` object)."""
+    """The directory's ``config.json`` in today's form (one an earlier version wrote upgraded:
+    :func:`~rmac_mj.results.snapshots.upgrade_run_config`), or None when there is none;
+    :class:`DamagedDirectory` when it cannot be read as a run's config (a JSON object with a
+    ``protocol`` object)."""
     try:
         text = _read_text(path)
     except FileNotFoundError:
@@ -129,7 +132,7 @@ def read_config(path: pathlib.Path) -> dict[str, Any] | None:
                 f"{path} is damaged ({key} is {value!r}, not a "
                 f"{kind.__name__}); choose another --out"
             )
-    return document
+    return upgrade_run_config(document)
 
 
 def read_summary(path: pathlib.Path) -> dict[str, Any]:

@@ -67,11 +67,66 @@ def _from_format_1(meta: dict[str, Any]) -> dict[str, Any]:
     return upgraded
 
 
+#: Up to format 2 a learner's config held each LLR memory's settings flat (``critic_capacity``);
+#: since format 3, one nested ``LLRConfig`` per memory (``critic.capacity``): the memories by
+#: algorithm and the settings of each.
+_FLAT_MEMORIES = {
+    "rmac": ("critic", "process", "reference"),
+    "mlac": ("actor", "critic", "process"),
+}
+_FLAT_SETTINGS = ("capacity", "neighbours", "weights", "clip", "replacement", "redundancy")
+
+
+def upgrade_config(algorithm: str, config: dict[str, Any]) -> dict[str, Any]:
+    """A learner's config (``dataclasses.asdict`` form, or some of its fields) with the LLR memories'
+    settings that format 2 and earlier kept flat (``critic_capacity``) nested as today
+    (``{"critic": {"capacity": ...}}``); a config in today's form comes back as it is. The one
+    upgrade of a learner's settings: snapshots (:func:`upgrade`) and a run's config.json
+    (:func:`upgrade_run_config`) both go through it. ``algorithm`` is the learner's key of today."""
+    memories = _FLAT_MEMORIES.get(algorithm, ())
+    flat = {f"{memory}_{name}": (memory, name) for memory in memories for name in _FLAT_SETTINGS}
+    if not any(key in flat for key in config):
+        return config
+    upgraded: dict[str, Any] = {}
+    for key, value in config.items():
+        if key in flat:
+            memory, name = flat[key]
+            upgraded.setdefault(memory, {})[name] = value
+        elif key in memories and isinstance(value, dict):
+            upgraded[key] = {**upgraded.get(key, {}), **value}
+        else:
+            upgraded[key] = value
+    return upgraded
+
+
+def upgrade_run_config(document: dict[str, Any]) -> dict[str, Any]:
+    """A run's config.json (its ``protocol``'s ``agent_configs`` and its resolved ``agents``) in
+    today's form, from any earlier version's (:func:`upgrade_config` for each learner)."""
+
+    def learners(configs: Any) -> Any:
+        if not isinstance(configs, dict):
+            return configs  # damaged: its readers say so
+        return {
+            name: upgrade_config(name, config) if isinstance(config, dict) else config
+            for name, config in configs.items()
+        }
+
+    upgraded = dict(document)
+    if isinstance(document.get("protocol"), dict) and "agent_configs" in document["protocol"]:
+        protocol = document["protocol"]
+        upgraded["protocol"] = dict(protocol, agent_configs=learners(protocol["agent_configs"]))
+    if "agents" in document:
+        upgraded["agents"] = learners(document["agents"])
+    return upgraded
+
+
 def _from_format_2(meta: dict[str, Any]) -> dict[str, Any]:
     """Format 2 keyed MPC ``mpc`` and S-AC with Dyna planning ``recommended``
-    (:data:`LEARNER_KEYS_BEFORE_FORMAT_3`)."""
+    (:data:`LEARNER_KEYS_BEFORE_FORMAT_3`), and kept each LLR memory's settings flat in a learner's
+    config (:func:`upgrade_config`)."""
     algorithm = LEARNER_KEYS_BEFORE_FORMAT_3.get(meta["algorithm"], meta["algorithm"])
-    return dict(meta, format=3, algorithm=algorithm)
+    config = upgrade_config(algorithm, meta["config"])
+    return dict(meta, format=3, algorithm=algorithm, config=config)
 
 
 #: Format n -> the step that upgrades a meta document of format n to format n + 1.
@@ -90,7 +145,10 @@ def upgrade(meta: dict[str, Any]) -> dict[str, Any]:
     while version != FORMAT:
         meta = _UPGRADES[version](meta)
         version = meta["format"]
-    return meta
+    # Format 3 as first written (on main, the morning it was introduced) still kept the memories'
+    # settings flat; nothing was released in between, so they are nested here, not by a format 4.
+    config = upgrade_config(meta["algorithm"], meta["config"])
+    return meta if config is meta["config"] else dict(meta, config=config)
 
 
 def snapshot_arrays(

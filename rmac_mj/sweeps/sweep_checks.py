@@ -175,7 +175,7 @@ class SweepFileChecker:
                 f"{as_toml(list(algorithms))})",
             )
         try:
-            return constraints.lookup(config_class(algorithm), path)
+            return constraints.lookup(config_class(algorithm), path, f"{algorithm}.")
         except constraints.InvalidParameterError as error:
             raise self.error(where, str(error)) from None
 

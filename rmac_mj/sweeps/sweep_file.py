@@ -145,14 +145,14 @@ def load_sweep(
         [protocol]                  # any Protocol option, plus fixed hyperparameters "ALGO.FIELD"
         algorithms = ["rmac"] experiments = 10 evaluate_every = 10
         [grid]                      # every combination of these values
-        "rmac.alpha_r" = [0.005, 0.01, 0.02] "rmac.critic_weights" = [[1, 0.1], [1, 0.3]]
+        "rmac.alpha_r" = [0.005, 0.01, 0.02] "rmac.critic.weights" = [[1, 0.1], [1, 0.3]]
         [[variant]]                 # optional: named sets of overrides, crossed with the grid
-        name = "oldest" "rmac.critic_replacement" = "oldest"
+        name = "oldest" "rmac.critic.replacement" = "oldest"
 
     Hyperparameter keys name fields of the learner's config dataclass, nested fields allowed
     (``rmac.exploration.sigma``); ``agent_configs`` is made up from them. Each configuration
     (variant x grid point) is a Protocol named after its swept values
-    (``alpha_r=0.01__critic_weights=1,0.1``); a ``--config`` file is the same tables with single
+    (``alpha_r=0.01__weights=1,0.1``); a ``--config`` file is the same tables with single
     values.
 
     ``announce`` hears the sweep's size (configurations, experiments) as soon as it is known, before

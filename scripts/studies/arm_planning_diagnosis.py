@@ -33,12 +33,9 @@ ARM_FASTEST = {
     "lam": 0.65,
     "alpha_r": 0.05,
     "planning": {"steps": 30},
-    "critic_capacity": 2000,
-    "critic_neighbours": 20,
-    "process_capacity": 100,
-    "process_neighbours": 9,
-    "reference_capacity": 2000,
-    "reference_neighbours": 20,
+    "critic": {"capacity": 2000, "neighbours": 20},
+    "process": {"capacity": 100, "neighbours": 9},
+    "reference": {"capacity": 2000, "neighbours": 20},
     "exploration": {"sigma": 1.0},
 }
 
@@ -111,7 +108,7 @@ def run(seed: int, trials: int, config: dict, every: int) -> dict[str, np.ndarra
     agent = make_agent("rmac", space, actions_space, config=config, seed=seed)
     gamma = agent.config.gamma
     speed = ~space.periodic
-    weights = np.asarray(agent.config.critic_weights)
+    weights = np.asarray(agent.config.critic.weights)
     intervals = {"critic": [], "reference": []}
     clipped = [0, 0]
     rewards_seen = [-np.inf, 0, 0]  # the largest real reward; simulated rewards, those above it

@@ -13,6 +13,7 @@ from rmac_mj.agents import (
     ALGORITHMS,
     ActionSpace,
     Exploration,
+    LLRConfig,
     StateSpace,
     base,
     config_class,
@@ -213,21 +214,15 @@ def test_learn_is_the_update_of_a_control_step(learner, backend):
     U = ActionSpace(low=-3.0 * np.ones(1), high=3.0 * np.ones(1), cost=np.ones(1))
     small = (
         dict(
-            critic_capacity=30,
-            reference_capacity=25,
-            process_capacity=12,
-            critic_neighbours=5,
-            reference_neighbours=4,
-            process_neighbours=4,
+            critic=LLRConfig(capacity=30, neighbours=5),
+            reference=LLRConfig(capacity=25, neighbours=4),
+            process=LLRConfig(capacity=12, neighbours=4),
         )
         if learner == "rmac"
         else dict(
-            critic_capacity=30,
-            actor_capacity=25,
-            process_capacity=12,
-            critic_neighbours=5,
-            actor_neighbours=4,
-            process_neighbours=4,
+            critic=LLRConfig(capacity=30, neighbours=5),
+            actor=LLRConfig(capacity=25, neighbours=4),
+            process=LLRConfig(capacity=12, neighbours=4),
         )
     )
     agent = make_agent(learner, S, U, config=dict(backend=backend, **small), seed=1)
@@ -374,8 +369,16 @@ def test_memory_estimate_is_what_the_learner_allocates(algorithm):
     from rmac_mj.agents import memory_estimate
 
     big = {
-        "rmac": dict(critic_capacity=60000, reference_capacity=50000, process_capacity=20000),
-        "mlac": dict(critic_capacity=60000, actor_capacity=50000, process_capacity=20000),
+        "rmac": {
+            "critic": {"capacity": 60000},
+            "reference": {"capacity": 50000},
+            "process": {"capacity": 20000},
+        },
+        "mlac": {
+            "critic": {"capacity": 60000},
+            "actor": {"capacity": 50000},
+            "process": {"capacity": 20000},
+        },
         "s-ac": dict(tile_coding={"num_tilings": 64, "tiles": 60}),
     }[algorithm]
     estimate = memory_estimate(algorithm, STATES, ACTIONS, big)
@@ -391,7 +394,7 @@ def test_memory_estimate_is_what_the_learner_allocates(algorithm):
 
 @pytest.mark.slow
 def test_memory_estimate_needs_no_memory_for_what_cannot_fit(tmp_path):
-    """Issue 20: critic_capacity=1e9 grew to 21 GB before the OOM killer stopped it. The estimate
+    """Issue 20: critic.capacity=1e9 grew to 21 GB before the OOM killer stopped it. The estimate
     says so from the config, under an address-space limit of 2 GB, while building the learner
     there fails."""
     script = (
@@ -400,7 +403,7 @@ def test_memory_estimate_needs_no_memory_for_what_cannot_fit(tmp_path):
         "from rmac_mj.agents import ActionSpace, StateSpace, make_agent, memory_estimate\n"
         "S = StateSpace(low=[-3.2, -25.0], high=[3.2, 25.0], periodic=[True, False])\n"
         "U = ActionSpace(low=[-3.0], high=[3.0], cost=[1.0])\n"
-        "big = {'critic_capacity': 10**9}\n"
+        "big = {'critic': {'capacity': 10**9}}\n"
         "print(memory_estimate('rmac', S, U, big))\n"
         "try:\n"
         "    make_agent('rmac', S, U, config=big)\n"
@@ -416,8 +419,8 @@ def test_memory_estimate_needs_no_memory_for_what_cannot_fit(tmp_path):
 
 #: Per learner, the hyperparameter its memory grows with, at two sizes.
 _SIZES = {
-    "rmac": ("critic_capacity", 2000, 20000),
-    "mlac": ("actor_capacity", 2000, 20000),
+    "rmac": ("critic", {"capacity": 2000}, {"capacity": 20000}),
+    "mlac": ("actor", {"capacity": 2000}, {"capacity": 20000}),
     "s-ac": ("tile_coding", {"tiles": 7}, {"tiles": 70}),
     "recommended": ("tile_coding", {"tiles": 7}, {"tiles": 70}),
     "s-ac-dyna": ("tile_coding", {"tiles": 7}, {"tiles": 70}),

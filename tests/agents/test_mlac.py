@@ -3,7 +3,15 @@
 import numpy as np
 import pytest
 
-from rmac_mj.agents import MLAC, ActionSpace, Exploration, MLACConfig, StateSpace
+from rmac_mj.agents import (
+    MLAC,
+    ActionSpace,
+    Exploration,
+    LLRConfig,
+    MLACConfig,
+    StateSpace,
+    config_from_dict,
+)
 
 BACKENDS = ("numba", "numpy")
 NO_EXPLORATION = Exploration(sigma=0.0)
@@ -20,13 +28,12 @@ def _agent(backend="numba", n=2, m=1, low=-3.0, high=3.0, **config):
     state_space = StateSpace(low=-10 * np.ones(n), high=10 * np.ones(n), periodic=np.zeros(n, bool))
     action_space = ActionSpace(low=low * np.ones(m), high=high * np.ones(m), cost=np.ones(m))
     defaults = dict(
-        actor_weights=(1.0,) * n,
-        critic_weights=(1.0,) * n,
-        process_weights=(1.0,) * (n + m),
+        actor=LLRConfig(weights=(1.0,) * n),
+        critic=LLRConfig(weights=(1.0,) * n, clip=False),  # the critic's slope is what is tested
+        process=LLRConfig(weights=(1.0,) * (n + m)),
         exploration=NO_EXPLORATION,
         backend=backend,
         conditioning="svd",  # exact local fits of affine data
-        critic_clip=False,  # the critic's slope is what is tested
         alpha_c=0.0,
     )  # the critic stays the known linear function
     defaults.update(config)
@@ -66,7 +73,7 @@ def test_actor_samples_move_by_the_hand_worked_model_based_step(backend):
     np.testing.assert_allclose(agent.actor.X_[agent.actor.n_samples_ - 1], x0)
     rest = np.setdiff1d(np.arange(len(before)), near)
     np.testing.assert_array_equal(after[rest], before[rest])  # the others stay
-    assert len(near) == agent.config.actor_neighbours
+    assert len(near) == agent.config.actor.neighbours
 
 
 def test_each_term_of_the_gradient_and_two_actions():
@@ -187,11 +194,11 @@ def test_mlac_improves_on_pendulum_swingup():
         (dict(alpha_a=-0.1), "alpha_a"),
         (dict(alpha_c=float("nan")), "alpha_c"),
         (dict(lam=2), "lam"),
-        (dict(actor_capacity=0), "actor_capacity"),
-        (dict(process_capacity=100, process_neighbours=200), "process_neighbours"),
-        (dict(critic_neighbours=True), "critic_neighbours"),
-        (dict(actor_weights=(1.0, -1.0)), "actor_weights"),
-        (dict(process_weights="ab"), "process_weights"),
+        (dict(actor={"capacity": 0}), "actor.capacity"),
+        (dict(process={"capacity": 100, "neighbours": 200}), "process.neighbours"),
+        (dict(critic={"neighbours": True}), "critic.neighbours"),
+        (dict(actor={"weights": (1.0, -1.0)}), "actor.weights"),
+        (dict(process={"weights": "ab"}), "process.weights"),
         (dict(action_cost=-1.0), "action_cost"),
         (dict(saturation_threshold=0.0), "saturation_threshold"),
         (dict(saturation_threshold=1.5), "saturation_threshold"),
@@ -200,15 +207,15 @@ def test_mlac_improves_on_pendulum_swingup():
         (dict(initial_value="one"), "initial_value"),
         (dict(norm=3), "norm"),
         (dict(conditioning="qr"), "conditioning"),
-        (dict(actor_replacement="lru"), "actor_replacement"),
-        (dict(critic_clip="yes"), "critic_clip"),
+        (dict(actor={"replacement": "lru"}), "actor.replacement"),
+        (dict(critic={"clip": "yes"}), "critic.clip"),
         (dict(exploration=1.0), "exploration"),
         (dict(backend="jax"), "backend"),
     ],
 )
 def test_bad_configuration_names_the_field(kwargs, name):
     with pytest.raises(ValueError, match=rf"MLACConfig\.{name} must be"):
-        MLACConfig(**kwargs)
+        config_from_dict(MLACConfig, kwargs)
 
 
 def test_weightings_must_match_the_task_or_come_from_its_hints():
@@ -216,14 +223,14 @@ def test_weightings_must_match_the_task_or_come_from_its_hints():
         low=-np.ones(3), high=np.ones(3), periodic=np.zeros(3, bool), input_weights=[1.0, 0.5, 0.2]
     )
     U = ActionSpace(low=-np.ones(1), high=np.ones(1), cost=[0.5])
-    with pytest.raises(ValueError, match="actor_weights has 2 entries, this task needs 3"):
-        MLAC(S3, U, MLACConfig(actor_weights=(1.0, 0.1)))  # an explicit weighting for n = 2
+    with pytest.raises(ValueError, match=r"actor\.weights has 2 entries, this task needs 3"):
+        MLAC(S3, U, MLACConfig(actor=LLRConfig(weights=(1.0, 0.1))))  # a weighting for n = 2
     # By default the task's weights fill in every weighting, and the config records them.
     agent = MLAC(S3, U)
-    assert agent.config.actor_weights == agent.config.critic_weights == (1.0, 0.5, 0.2)
-    assert agent.config.process_weights == (1.0, 0.5, 0.2, 1.0)
-    agent = MLAC(S3, U, MLACConfig(actor_weights=(1, 1, 1)))  # explicit values win
-    assert agent.config.actor_weights == (1.0, 1.0, 1.0)
+    assert agent.config.actor.weights == agent.config.critic.weights == (1.0, 0.5, 0.2)
+    assert agent.config.process.weights == (1.0, 0.5, 0.2, 1.0)
+    agent = MLAC(S3, U, MLACConfig(actor=LLRConfig(weights=(1, 1, 1))))  # explicit values win
+    assert agent.config.actor.weights == (1.0, 1.0, 1.0)
 
 
 def test_the_action_cost_comes_from_the_task():

@@ -7,7 +7,7 @@ import numpy as np
 import plain_pendulum
 import pytest
 
-from rmac_mj.agents import ActionSpace, Planning, Replay, StateSpace, make_agent
+from rmac_mj.agents import ActionSpace, LLRConfig, Planning, Replay, StateSpace, make_agent
 from rmac_mj.agents.task_knowledge import PAPER_REWARD_SCALE
 from rmac_mj.constraints import InvalidParameterError
 
@@ -28,20 +28,14 @@ PENDULUM = (
 #: Memories small enough to fill (and replace) within the first trials of these tests.
 SMALL = {
     "rmac": dict(
-        critic_capacity=60,
-        reference_capacity=50,
-        process_capacity=20,
-        critic_neighbours=5,
-        reference_neighbours=4,
-        process_neighbours=4,
+        critic=LLRConfig(capacity=60, neighbours=5),
+        reference=LLRConfig(capacity=50, neighbours=4),
+        process=LLRConfig(capacity=20, neighbours=4),
     ),
     "mlac": dict(
-        actor_capacity=60,
-        critic_capacity=60,
-        process_capacity=20,
-        actor_neighbours=5,
-        critic_neighbours=5,
-        process_neighbours=4,
+        actor=LLRConfig(capacity=60, neighbours=5),
+        critic=LLRConfig(capacity=60, neighbours=5),
+        process=LLRConfig(capacity=20, neighbours=4),
     ),
     "s-ac": {},
 }

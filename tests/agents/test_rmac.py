@@ -6,7 +6,15 @@ import numpy as np
 import plain_pendulum
 import pytest
 
-from rmac_mj.agents import RMAC, ActionSpace, Exploration, RMACConfig, StateSpace
+from rmac_mj.agents import (
+    RMAC,
+    ActionSpace,
+    Exploration,
+    LLRConfig,
+    RMACConfig,
+    StateSpace,
+    config_from_dict,
+)
 from rmac_mj.agents.rmac_variants import EXACT_TOLERANCE  # internal: the golden section
 
 BACKENDS = ("numba", "numpy")
@@ -25,9 +33,9 @@ def _agent(n, m, backend, **config):
     state_space = StateSpace(low=-10 * np.ones(n), high=10 * np.ones(n), periodic=np.zeros(n, bool))
     action_space = ActionSpace(low=-3 * np.ones(m), high=3 * np.ones(m), cost=np.ones(m))
     defaults = dict(
-        critic_weights=(1.0,) * n,
-        reference_weights=(1.0,) * n,
-        process_weights=(1.0,) * (n + m),
+        critic=LLRConfig(weights=(1.0,) * n),
+        reference=LLRConfig(weights=(1.0,) * n),
+        process=LLRConfig(weights=(1.0,) * (n + m)),
         exploration=NO_EXPLORATION,
         backend=backend,
         conditioning="svd",
@@ -69,7 +77,7 @@ def test_reference_target_is_best_vertex_under_a_linear_critic(backend, m):
     n = 2
     A, B, c = _linear_system(n, m, seed=3)
     g = np.array([-2.0, 0.7])
-    agent = _agent(n, m, backend, critic_clip=False)
+    agent = _agent(n, m, backend, critic=LLRConfig(clip=False))
     rng = np.random.default_rng(2)
     X, U = rng.uniform(-1, 1, (100, n)), rng.uniform(-3, 3, (100, m))
     agent.process.fit(np.c_[X, U], X @ A.T + U @ B.T + c)
@@ -101,10 +109,8 @@ def test_reference_insert_rate_writes_the_target_or_the_moved_estimate(backend, 
         n,
         m,
         backend,
-        critic_clip=False,
-        reference_clip=False,
-        reference_capacity=60,
-        reference_neighbours=6,
+        critic=LLRConfig(clip=False),
+        reference=LLRConfig(clip=False, capacity=60, neighbours=6),
         alpha_r=alpha_r,
         reference_insert_rate=rate,
     )
@@ -206,16 +212,12 @@ def _lq_reachable_case(rule, backend, action_cost):
         1,
         1,
         backend,
-        critic_neighbours=2,
-        critic_capacity=1000,
-        critic_clip=False,
+        critic=LLRConfig(neighbours=2, capacity=1000, clip=False),
         conditioning="none",
         reachable_rule=rule,
         action_cost=action_cost,
-        process_capacity=100,
-        process_neighbours=9,
-        reference_capacity=2000,
-        reference_neighbours=20,
+        process=LLRConfig(capacity=100, neighbours=9),
+        reference=LLRConfig(capacity=2000, neighbours=20),
     )
     rng = np.random.default_rng(0)
     X, U = rng.uniform(-2, 2, (100, 1)), rng.uniform(-3, 3, (100, 1))
@@ -278,9 +280,7 @@ def test_traces_and_td_updates_on_a_hand_worked_example(backend):
         gamma=gamma,
         lam=lam,
         alpha_c=alpha,
-        critic_neighbours=1,
-        critic_capacity=10,
-        critic_clip=True,
+        critic=LLRConfig(neighbours=1, capacity=10, clip=True),
     )
     agent.start(np.array([0.0]))  # V_0 = V(x_0) = 0 on the empty critic
     # k = 1: V_1 = V(1) = 0 (empty), insert [0 | 0] in slot 0, delta = -1, e = [1].
@@ -319,20 +319,14 @@ _plain_pendulum_returns = plain_pendulum.returns
 
 #: Every option away from its default, with memories small enough to fill up within a trial.
 _SMALL_OPTIONS = dict(
-    critic_capacity=150,
-    reference_capacity=120,
-    process_capacity=30,
-    critic_neighbours=7,
-    reference_neighbours=6,
-    process_neighbours=5,
-    critic_replacement="oldest",
+    critic=LLRConfig(capacity=150, neighbours=7, replacement="oldest"),
+    reference=LLRConfig(capacity=120, neighbours=6, clip=False),
+    process=LLRConfig(capacity=30, neighbours=5, clip=True),
     conditioning="svd",
     norm=2,
     critic_gradient_at="previous",
     inverse_query="zero",
     initial_value="zero",
-    process_clip=True,
-    reference_clip=False,
 )
 
 #: (config, backend, trials) -> first return, last return, sum of returns, and the sums of the
@@ -385,12 +379,9 @@ _PINNED = {
 #: Memories that fill up within the first of the two trials of the lock-step comparison, so that
 #: every replacement policy acts.
 _SMALL_MEMORIES = dict(
-    critic_capacity=30,
-    reference_capacity=25,
-    process_capacity=12,
-    critic_neighbours=5,
-    reference_neighbours=4,
-    process_neighbours=4,
+    critic=LLRConfig(capacity=30, neighbours=5),
+    reference=LLRConfig(capacity=25, neighbours=4),
+    process=LLRConfig(capacity=12, neighbours=4),
 )
 
 #: One entry per value of every option of RMACConfig and of the LLR memories (replacement,
@@ -400,50 +391,49 @@ _SMALL_MEMORIES = dict(
 _OPTION_VALUES = {
     "defaults": {},
     "replacement oldest everywhere": dict(
-        critic_replacement="oldest", process_replacement="oldest", reference_replacement="oldest"
+        critic={"replacement": "oldest"},
+        process={"replacement": "oldest"},
+        reference={"replacement": "oldest"},
     ),
-    "critic replacement oldest": dict(critic_replacement="oldest"),
-    "process replacement oldest": dict(process_replacement="oldest"),
-    "reference replacement oldest": dict(reference_replacement="oldest"),
+    "critic replacement oldest": dict(critic={"replacement": "oldest"}),
+    "process replacement oldest": dict(process={"replacement": "oldest"}),
+    "reference replacement oldest": dict(reference={"replacement": "oldest"}),
     "replacement redundancy everywhere": dict(
-        critic_replacement="redundancy",
-        process_replacement="redundancy",
-        reference_replacement="redundancy",
+        critic={"replacement": "redundancy"},
+        process={"replacement": "redundancy"},
+        reference={"replacement": "redundancy"},
     ),
-    "critic replacement redundancy": dict(critic_replacement="redundancy"),
-    "process replacement redundancy": dict(process_replacement="redundancy"),
-    "reference replacement redundancy": dict(reference_replacement="redundancy"),
+    "critic replacement redundancy": dict(critic={"replacement": "redundancy"}),
+    "process replacement redundancy": dict(process={"replacement": "redundancy"}),
+    "reference replacement redundancy": dict(reference={"replacement": "redundancy"}),
     "redundancy by the other measures, smoothing 0.5": dict(
-        critic_replacement="redundancy",
-        process_replacement="redundancy",
-        reference_replacement="redundancy",
-        critic_redundancy="misfit",
-        process_redundancy="distance",
-        reference_redundancy="misfit",
+        critic={"replacement": "redundancy", "redundancy": "misfit"},
+        process={"replacement": "redundancy", "redundancy": "distance"},
+        reference={"replacement": "redundancy", "redundancy": "misfit"},
         redundancy_smoothing=0.5,
     ),
     "conditioning svd": dict(conditioning="svd"),
     "conditioning svd rcond 0.2": dict(conditioning="svd", rcond=0.2),
     "conditioning none": dict(conditioning="none"),
     "conditioning ridge 0.1": dict(conditioning="ridge", ridge=0.1),
-    "critic unclipped": dict(critic_clip=False),
-    "reference unclipped": dict(reference_clip=False),
-    "process clipped": dict(process_clip=True),
+    "critic unclipped": dict(critic={"clip": False}),
+    "reference unclipped": dict(reference={"clip": False}),
+    "process clipped": dict(process={"clip": True}),
     "nothing clipped, no conditioning": dict(
-        critic_clip=False, reference_clip=False, conditioning="none"
+        critic={"clip": False}, reference={"clip": False}, conditioning="none"
     ),
     "norm 2": dict(norm=2),
     "critic gradient at previous": dict(critic_gradient_at="previous"),
     "inverse query zero": dict(inverse_query="zero"),
     "initial value zero": dict(initial_value="zero"),
-    "two actions": dict(process_weights=(1.0, 0.1, 1.0, 0.5)),
+    "two actions": dict(process={"weights": (1.0, 0.1, 1.0, 0.5)}),
     "reachable vertices_value": dict(reachable_rule="vertices_value"),
     "reachable vertices_value, two actions": dict(
-        reachable_rule="vertices_value", process_weights=(1.0, 0.1, 1.0, 0.5)
+        reachable_rule="vertices_value", process={"weights": (1.0, 0.1, 1.0, 0.5)}
     ),
     "reachable grid, action cost 0.3": dict(reachable_rule="grid", action_cost=0.3),
     "reachable grid 5, two actions": dict(
-        reachable_rule="grid", reachable_grid=5, process_weights=(1.0, 0.1, 1.0, 0.5)
+        reachable_rule="grid", reachable_grid=5, process={"weights": (1.0, 0.1, 1.0, 0.5)}
     ),
     "reachable exact": dict(reachable_rule="exact"),
     "reachable exact, grid 4": dict(reachable_rule="exact", reachable_grid=4),
@@ -469,7 +459,7 @@ _OPTION_VALUES = {
     "critic rate decays alone": dict(alpha_c=0.3, alpha_c_final=0.05, rate_decay_trials=2),
     "reference insert rate 0.3": dict(reference_insert_rate=0.3),
     "reference insert rate 0, oldest": dict(
-        reference_insert_rate=0.0, reference_replacement="oldest"
+        reference_insert_rate=0.0, reference={"replacement": "oldest"}
     ),
 }
 
@@ -519,9 +509,9 @@ def test_back_ends_take_the_same_steps_for_every_option(options):
         input_weights=[1.0, 0.1],
     )  # Table 2's weighting, as the dc_pendulum task gives
     U = ActionSpace(low=-3.0 * np.ones(m), high=3.0 * np.ones(m), cost=np.ones(m))
-    kwargs = dict(_SMALL_MEMORIES, **_OPTION_VALUES[options])
-    fast = RMAC(S, U, RMACConfig(backend="numba", **kwargs), seed=3)
-    slow = RMAC(S, U, RMACConfig(backend="numpy", **kwargs), seed=3)
+    small, option = RMACConfig(**_SMALL_MEMORIES), _OPTION_VALUES[options]
+    fast = RMAC(S, U, config_from_dict(RMACConfig, {**option, "backend": "numba"}, small), seed=3)
+    slow = RMAC(S, U, config_from_dict(RMACConfig, {**option, "backend": "numpy"}, small), seed=3)
     for trial in range(2):
         x = np.array([-np.pi + 0.3 * trial, 0.0])
         slow.load_state_dict(fast.state_dict())
@@ -637,26 +627,26 @@ def test_rmac_improves_on_pendulum_swingup():
     [
         (dict(gamma=1.5), "gamma"),
         (dict(alpha_r=-0.1), "alpha_r"),
-        (dict(critic_capacity=0), "critic_capacity"),
-        (dict(process_capacity=100, process_neighbours=200), "process"),
-        (dict(reference_weights=(1.0, -1.0)), "reference_weights"),
+        (dict(critic={"capacity": 0}), "critic.capacity"),
+        (dict(process={"capacity": 100, "neighbours": 200}), "process.neighbours"),
+        (dict(reference={"weights": (1.0, -1.0)}), "reference.weights"),
         (dict(conditioning="qr"), "conditioning"),
         (dict(inverse_query="x"), "inverse_query"),
-        (dict(critic_replacement="lru"), "critic_replacement"),
+        (dict(critic={"replacement": "lru"}), "critic.replacement"),
         (dict(backend="jax"), "backend"),
-        (dict(process_redundancy="age"), "process_redundancy"),
-        (dict(critic_redundancy=None), "critic_redundancy"),
+        (dict(process={"redundancy": "age"}), "process.redundancy"),
+        (dict(critic={"redundancy": 1}), "critic.redundancy"),
         (dict(redundancy_smoothing=0.0), "redundancy_smoothing"),
         (dict(redundancy_smoothing=float("nan")), "redundancy_smoothing"),
     ],
 )
 def test_bad_configuration_names_the_parameter(kwargs, name):
-    with pytest.raises(ValueError, match=name):
-        RMACConfig(**kwargs)
+    with pytest.raises(ValueError, match=f"^RMACConfig.{name} must be"):
+        config_from_dict(RMACConfig, kwargs)
 
 
 def test_each_memory_gets_its_redundancy_measure():
-    # process_replacement='redundancy' scores by misfit, the critic and reference by distance
+    # process.replacement='redundancy' scores by misfit, the critic and reference by distance
     # (issue 14's account of the authors' code), unless told otherwise.
     S = StateSpace(low=-np.ones(2), high=np.ones(2), periodic=np.zeros(2, bool))
     U = ActionSpace(low=-np.ones(1), high=np.ones(1), cost=[1.0])
@@ -664,9 +654,9 @@ def test_each_memory_gets_its_redundancy_measure():
         S,
         U,
         RMACConfig(
-            critic_replacement="redundancy",
-            process_replacement="redundancy",
-            reference_replacement="redundancy",
+            critic=LLRConfig(replacement="redundancy"),
+            process=LLRConfig(replacement="redundancy"),
+            reference=LLRConfig(replacement="redundancy"),
             redundancy_smoothing=0.3,
         ),
     )
@@ -687,8 +677,8 @@ def test_each_memory_gets_its_redundancy_measure():
 def test_weighting_must_match_the_task_dimensions():
     S = StateSpace(low=-np.ones(3), high=np.ones(3), periodic=np.zeros(3, bool))
     U = ActionSpace(low=-np.ones(1), high=np.ones(1), cost=[1.0])
-    with pytest.raises(ValueError, match="critic_weights"):
-        RMAC(S, U, RMACConfig(critic_weights=(1.0, 0.1)))  # Table 2's weighting is for n = 2
+    with pytest.raises(ValueError, match=r"critic\.weights has 2 entries, this task needs 3"):
+        RMAC(S, U, RMACConfig(critic=LLRConfig(weights=(1.0, 0.1))))  # Table 2's is for n = 2
 
 
 def test_the_action_cost_comes_from_the_task_where_a_reachable_rule_scores_it():

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from rmac_mj import tasks
-from rmac_mj.agents import RMACConfig, discounted_returns, make_agent
+from rmac_mj.agents import LLRConfig, RMACConfig, discounted_returns, make_agent
 from rmac_mj.errors import MissingInputError, UserInputError
 from rmac_mj.experiments import (
     Protocol,
@@ -99,7 +99,10 @@ def test_mlac_memories_hold_exactly_the_given_samples(env):
 
 def test_more_samples_than_capacity_pass_through_the_replacement_rule(env):
     data = synthetic(T=150)
-    cfg = RMACConfig(process_replacement="oldest", critic_capacity=40, critic_neighbours=10)
+    cfg = RMACConfig(
+        process=LLRConfig(replacement="oldest"),
+        critic=LLRConfig(capacity=40, neighbours=10),
+    )
     agent = make_agent("rmac", *spaces(env), config=cfg, seed=0)
     agent.seed_from(**data)
     # 'oldest': the process memory (capacity 100) keeps the last 100 transitions.
@@ -123,10 +126,8 @@ def test_redundancy_replacement_scores_the_seeded_samples_and_keeps_recorded_one
     memories = []
     for backend in ("numba", "numpy"):
         cfg = RMACConfig(
-            process_replacement="redundancy",
-            critic_replacement="redundancy",
-            critic_capacity=40,
-            critic_neighbours=10,
+            process=LLRConfig(replacement="redundancy"),
+            critic=LLRConfig(replacement="redundancy", capacity=40, neighbours=10),
             backend=backend,
         )
         agent = make_agent("rmac", *spaces(env), config=cfg, seed=0)

@@ -40,17 +40,17 @@ def test_resolved_on_the_paper_pendulum_every_default_is_table_2():
     state, action = _pendulum_spaces()
     rmac = make_agent("rmac", state, action, seed=0, config={"planning": {"steps": 1}}).config
     assert (rmac.gamma, rmac.lam, rmac.alpha_c, rmac.alpha_r) == (0.97, 0.65, 0.1, 0.005)
-    assert (rmac.critic_capacity, rmac.critic_neighbours, rmac.critic_weights) == (
+    assert (rmac.critic.capacity, rmac.critic.neighbours, rmac.critic.weights) == (
         2000,
         20,
         (1.0, 0.1),
     )
-    assert (rmac.process_capacity, rmac.process_neighbours, rmac.process_weights) == (
+    assert (rmac.process.capacity, rmac.process.neighbours, rmac.process.weights) == (
         100,
         9,
         (1.0, 0.1, 1.0),
     )
-    assert (rmac.reference_capacity, rmac.reference_neighbours, rmac.reference_weights) == (
+    assert (rmac.reference.capacity, rmac.reference.neighbours, rmac.reference.weights) == (
         2000,
         20,
         (1.0, 0.1),
@@ -63,12 +63,12 @@ def test_resolved_on_the_paper_pendulum_every_default_is_table_2():
     mlac = make_agent("mlac", state, action, seed=0).config
     assert (mlac.gamma, mlac.lam, mlac.alpha_a, mlac.alpha_c) == (0.97, 0.65, 0.05, 0.3)
     assert (
-        mlac.actor_capacity,
-        mlac.actor_neighbours,
-        mlac.critic_capacity,
-        mlac.critic_neighbours,
-        mlac.process_capacity,
-        mlac.process_neighbours,
+        mlac.actor.capacity,
+        mlac.actor.neighbours,
+        mlac.critic.capacity,
+        mlac.critic.neighbours,
+        mlac.process.capacity,
+        mlac.process.neighbours,
     ) == (2000, 25, 2000, 15, 100, 10)
     for config in (rmac, c, mlac):
         assert (config.exploration.sigma, config.exploration.period) == (1.0, 3)
@@ -85,10 +85,10 @@ def test_elsewhere_the_settings_follow_the_task(name):
     assert (config.planning.model_capacity, config.planning.model_neighbours) == (4000, 18)
     if name == "rmac":
         assert (
-            config.critic_capacity,
-            config.critic_neighbours,
-            config.process_capacity,
-            config.process_neighbours,
+            config.critic.capacity,
+            config.critic.neighbours,
+            config.process.capacity,
+            config.process.neighbours,
         ) == (4000, 40, 200, 18)
 
 
@@ -99,9 +99,15 @@ def test_a_value_set_explicitly_wins():
         state,
         action,
         seed=0,
-        config={"gamma": 0.99, "critic_capacity": 300, "exploration": {"sigma": 0.7}},
+        config={"gamma": 0.99, "critic": {"capacity": 300}, "exploration": {"sigma": 0.7}},
     ).config
-    assert (config.gamma, config.critic_capacity, config.exploration.sigma) == (0.99, 300, 0.7)
+    assert (config.gamma, config.critic.capacity, config.exploration.sigma) == (0.99, 300, 0.7)
+    # the critic's other settings stay RMAC's: K from the task (20 n / 2 at n = 4), clipped
+    assert (config.critic.neighbours, config.critic.clip, config.critic.weights) == (
+        40,
+        True,
+        (1.0,) * 4,
+    )
 
 
 def test_s_ac_actor_rate_follows_a_declared_reward_scale_down_but_never_up():

@@ -116,6 +116,41 @@ def test_set_overrides_parse_into_nested_agent_configs():
             parse_overrides([bad])
 
 
+def test_set_addresses_a_memory_by_dotted_keys_and_keeps_its_other_settings():
+    from rmac_mj.agents import MLACConfig, config_from_dict
+    from rmac_mj.cli.runs import parse_overrides
+
+    overrides = parse_overrides(
+        ["mlac.process.capacity=300", "mlac.process.replacement=oldest", "mlac.critic.clip=false"]
+    )
+    assert overrides == {
+        "mlac": {"process": {"capacity": 300, "replacement": "oldest"}, "critic": {"clip": False}}
+    }
+    config = config_from_dict(MLACConfig, overrides["mlac"])
+    assert (config.process.capacity, config.process.replacement) == (300, "oldest")
+    assert config.process.redundancy == "misfit" and config.actor == MLACConfig().actor
+    assert not config.critic.clip
+
+
+@pytest.mark.parametrize(
+    "assignment, hint",
+    [
+        ("rmac.critic_capacity=2000", "rmac.critic.capacity"),
+        ("mlac.actor_neighbours=5", "mlac.actor.neighbours"),
+        ("rmac.reference.neighbour=5", "rmac.reference.neighbours"),
+    ],
+)
+def test_a_flat_memory_name_is_one_line_naming_the_dotted_key(tmp_path, capsys, assignment, hint):
+    out = tmp_path / "x"
+    assert main(["reproduce", "--set", assignment, "--no-progress", "--out", str(out)]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    key = assignment.partition("=")[0]
+    assert line.startswith(f"rmac-mj: error: --set {key}: ") and line.endswith(
+        f"(did you mean {hint!r}?)"
+    )
+    assert not out.exists()
+
+
 def test_unknown_hyperparameter_is_one_line(tmp_path):
     result = rmac_mj(
         "reproduce", "--algorithms", "s-ac", "--out", str(tmp_path / "x"), "--set", "s-ac.bogus=1"
@@ -741,9 +776,9 @@ def test_render_refuses_a_frame_size_in_one_line(tmp_path, option, named):
 
 
 def test_neighbours_beyond_the_capacity_the_task_sets_are_one_line(tmp_path):
-    # critic_capacity is left to the task's units; the memory estimate resolves it, and refuses
+    # critic.capacity is left to the task's units; the memory estimate resolves it, and refuses
     error = _refused_in_one_line(
-        "reproduce", "--algorithms", "rmac", "--set", "rmac.critic_neighbours=1000000000",
+        "reproduce", "--algorithms", "rmac", "--set", "rmac.critic.neighbours=1000000000",
         "--out", str(tmp_path / "x"),
     )  # fmt: skip
-    assert "rmac on dc_pendulum/swingup: RMACConfig.critic_neighbours must be an integer" in error
+    assert "rmac on dc_pendulum/swingup: RMACConfig.critic.neighbours must be an integer" in error

@@ -64,8 +64,8 @@ def test_rmac_has_four_vertices_and_weightings_from_the_task(toy):
     env = tasks.load("toy", "settle", task_kwargs={"random": 0})
     agent = make_agent("rmac", state_space_of(env), action_space_of(env), seed=0)
     assert {tuple(v) for v in agent.vertices} == {(1, 2), (1, -2), (-1, 2), (-1, -2)}
-    assert agent.config.critic_weights == agent.config.reference_weights == (1.0, 1.0, 0.1, 0.2)
-    assert agent.config.process_weights == (1.0, 1.0, 0.1, 0.2, 1.0, 0.5)
+    assert agent.config.critic.weights == agent.config.reference.weights == (1.0, 1.0, 0.1, 0.2)
+    assert agent.config.process.weights == (1.0, 1.0, 0.1, 0.2, 1.0, 0.5)
     returns = [run_trial(env, agent) for _ in range(3)]
     assert all(np.isfinite(returns)) and agent.process.n_samples_ == 30
     u = agent.greedy_action(state_of(env.reset().observation, env.task.learner_state))

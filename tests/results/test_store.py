@@ -325,7 +325,7 @@ def test_a_memory_no_machine_holds_is_refused_from_its_estimate(tmp_path, capsys
                 "--algorithms",
                 "rmac",
                 "--set",
-                "rmac.critic_capacity=1000000000",
+                "rmac.critic.capacity=1000000000",
                 "--no-optimal",
                 "--no-progress",
                 "--out",
@@ -335,7 +335,7 @@ def test_a_memory_no_machine_holds_is_refused_from_its_estimate(tmp_path, capsys
         == 2
     )
     error = capsys.readouterr().err
-    assert 'rmac with {"critic_capacity": 1000000000} needs about' in error
+    assert 'rmac with {"critic": {"capacity": 1000000000}} needs about' in error
     assert "more than this machine's" in error and not (out / "config.json").exists()
 
 
@@ -343,7 +343,7 @@ def test_the_resolved_hyperparameters_of_every_learner_are_in_the_config(tmp_pat
     protocol = Protocol(algorithms=("rmac",), experiments=1, trials=1)
     run_protocol(protocol, tmp_path, RunOptions(jobs=1, progress=False, figures=False))
     agents = json.loads((tmp_path / "config.json").read_text())["agents"]
-    assert agents["rmac"]["critic_weights"] == [1.0, 0.1]  # None in the config: the task's
+    assert agents["rmac"]["critic"]["weights"] == [1.0, 0.1]  # None in the config: the task's
 
 
 @pytest.mark.slow
@@ -614,7 +614,7 @@ def test_a_hyperparameter_the_task_cannot_take_is_one_line_before_anything_runs(
                 "--trials",
                 "1",
                 "--set",
-                "rmac.critic_weights=[1]",
+                "rmac.critic.weights=[1]",
                 "--no-optimal",
                 "--out",
                 str(out),
@@ -623,7 +623,7 @@ def test_a_hyperparameter_the_task_cannot_take_is_one_line_before_anything_runs(
         == 2
     )
     error = capsys.readouterr().err
-    assert "rmac on dc_pendulum/swingup: " in error and "critic_weights" in error
+    assert "rmac on dc_pendulum/swingup: " in error and "critic.weights" in error
     assert len(error.strip().splitlines()) == 1 and not (out / "config.json").exists()
 
 

@@ -67,12 +67,12 @@ experiments = 3
 [grid]
 rmac.exploration.sigma = [0.5, 2]              # a bare dotted key means the same as a quoted one
 "s-ac.exploration.sigma" = [1.0]
-"rmac.critic_weights" = [[1, 0.1], [1, 0.3]]
+"rmac.critic.weights" = [[1, 0.1], [1, 0.3]]
 [[variant]]
 name = "paper"
 [[variant]]
 name = "oldest"
-"rmac.critic_replacement" = "oldest"
+rmac.critic.replacement = "oldest"
 """,
     )
     plan = load_sweep(path)
@@ -80,30 +80,27 @@ name = "oldest"
         "variant",
         "rmac.exploration.sigma",
         "s-ac.exploration.sigma",
-        "rmac.critic_weights",
+        "rmac.critic.weights",
     ]
     names = [c.name for c in plan.configurations]
     assert len(names) == 2 * 2 * 1 * 2 == len(set(names))
     # The same last field in two learners keeps its learner in the name; others are shortened.
     assert (
-        names[0]
-        == "paper__rmac.exploration.sigma=0.5__s-ac.exploration.sigma=1.0__critic_weights=1,0.1"
+        names[0] == "paper__rmac.exploration.sigma=0.5__s-ac.exploration.sigma=1.0__weights=1,0.1"
     )
     assert (
-        names[-1]
-        == "oldest__rmac.exploration.sigma=2__s-ac.exploration.sigma=1.0__critic_weights=1,0.3"
+        names[-1] == "oldest__rmac.exploration.sigma=2__s-ac.exploration.sigma=1.0__weights=1,0.3"
     )
     last = plan.configurations[-1].protocol
     assert last.experiments == 3 and last.algorithms == ("rmac", "s-ac")
     assert last.agent_configs == {
         "rmac": {
             "exploration": {"sigma": 2},
-            "critic_weights": [1, 0.3],
-            "critic_replacement": "oldest",
+            "critic": {"weights": [1, 0.3], "replacement": "oldest"},
         },
         "s-ac": {"rate_split": "actor", "exploration": {"sigma": 1.0}},
     }
-    assert "critic_replacement" not in plan.configurations[0].protocol.agent_configs["rmac"]
+    assert "replacement" not in plan.configurations[0].protocol.agent_configs["rmac"]["critic"]
 
 
 @pytest.mark.parametrize(
@@ -116,7 +113,12 @@ name = "oldest"
         ),
         (
             '[grid]\n"rmac.alpha_rr" = [0.01]\n',
-            "\"rmac.alpha_rr\": RMACConfig has no parameter 'alpha_rr' (did you mean 'alpha_r'?)",
+            "\"rmac.alpha_rr\": RMACConfig has no parameter 'alpha_rr' (did you mean 'rmac.alpha_r'?)",
+        ),
+        (
+            '[grid]\n"rmac.critic_capacity" = [3000]\n',
+            "\"rmac.critic_capacity\": RMACConfig has no parameter 'critic_capacity' "
+            "(did you mean 'rmac.critic.capacity'?)",
         ),
         ('[grid]\n"rmac.exploration.sigmaa" = [1]\n', "Exploration has no parameter 'sigmaa'"),
         ('[grid]\n"dqn.alpha" = [1]\n', "\"dqn.alpha\": unknown algorithm 'dqn'"),
@@ -129,8 +131,8 @@ name = "oldest"
             '"rmac.alpha_r" value "fast": expected a number in [0, 1]',
         ),
         (
-            '[grid]\n"rmac.critic_capacity" = [2000.5]\n',
-            '"rmac.critic_capacity" value 2000.5: expected an integer >= 1',
+            '[grid]\n"rmac.critic.capacity" = [2000.5]\n',
+            '"rmac.critic.capacity" value 2000.5: expected an integer >= 1',
         ),
         (
             '[protocol]\nexperiments = "ten"\n',
@@ -138,17 +140,18 @@ name = "oldest"
         ),
         ('[grid]\n"rmac.alpha_r" = 0.01\n', '"rmac.alpha_r": expected a list of values to sweep'),
         (
-            '[grid]\n"rmac.critic_weights" = [1, 0.1]\n',
-            '"rmac.critic_weights" value 1: expected a list of finite numbers >= 0',
+            '[grid]\n"rmac.critic.weights" = [1, 0.1]\n',
+            '"rmac.critic.weights" value 1: expected a list of finite numbers >= 0',
         ),
         (
             '[grid]\n"rmac.gamma" = [0.9, 1.5]\n',
             '"rmac.gamma" value 1.5: expected a number in [0, 1)',
         ),
-        ('[grid]\n"rmac.critic_weights" = [[1, 0.1, 3]]\n', "config.critic_weights has 3 entries"),
+        ('[grid]\n"rmac.critic.weights" = [[1, 0.1, 3]]\n', "config.critic.weights has 3 entries"),
         (
-            '[protocol]\n"rmac.critic_replacement" = "newest"\n',
-            "\"rmac.critic_replacement\": expected one of 'oldest', 'nearest', 'redundancy', got \"newest\"",
+            '[protocol]\n"rmac.critic.replacement" = "newest"\n',
+            "\"rmac.critic.replacement\": expected one of 'oldest', 'nearest', 'redundancy', or None, "
+            'got "newest"',
         ),
         ('[grid]\n"rmac.alpha_r" = [0.01, 0.01]\n', '"rmac.alpha_r": repeats a value'),
         ('[[variant]]\n"rmac.alpha_r" = 0.01\n', "[[variant]] #1 name: each variant needs a name"),
@@ -159,7 +162,7 @@ name = "oldest"
         ("[grid\n", "not valid TOML"),
         (
             '[[variant]]\nname = "u"\n"rmac.exploration.where" = "uncertain"\n',
-            '[[variant]] "u" "rmac.exploration.where": Exploration.uncertainty_threshold must be a finite number >= 0 with where=\'uncertain\'',
+            '[[variant]] "u" "rmac.exploration.where": RMACConfig.exploration.uncertainty_threshold must be a finite number >= 0 with where=\'uncertain\'',
         ),
     ],
 )
@@ -226,14 +229,14 @@ algorithms = ["rmac"]
 trials = 5
 "rmac.alpha_c" = 0.2
 [grid]
-"rmac.critic_weights" = [1, 0.3]     # one value of a list-valued field
+"rmac.critic.weights" = [1, 0.3]     # one value of a list-valued field
 "rmac.alpha_r" = [0.01]              # a one-value grid is one configuration
 """,
         )
     )
     assert single.options == {"algorithms": ("rmac",), "trials": 5}
     assert single.agent_configs == {
-        "rmac": {"alpha_c": 0.2, "critic_weights": [1, 0.3], "alpha_r": 0.01}
+        "rmac": {"alpha_c": 0.2, "critic": {"weights": [1, 0.3]}, "alpha_r": 0.01}
     }
     with pytest.raises(
         UserInputError,
@@ -578,8 +581,8 @@ def test_a_grid_of_a_trillion_configurations_is_refused_at_once(tmp_path):
         **{f"rmac.{key}": rates for key in ("alpha_r", "alpha_c", "gamma", "lam")},
         "rmac.exploration.sigma": rates,
         "rmac.exploration.period": counts,
-        **{f"rmac.{memory}_capacity": [100 * n for n in counts] for memory in MEMORIES},
-        **{f"rmac.{memory}_neighbours": counts for memory in MEMORIES},
+        **{f"rmac.{memory}.capacity": [100 * n for n in counts] for memory in MEMORIES},
+        **{f"rmac.{memory}.neighbours": counts for memory in MEMORIES},
     }
     grid = "\n".join(f'"{key}" = {values}' for key, values in grid.items())
     path = tmp_path / "huge.toml"
