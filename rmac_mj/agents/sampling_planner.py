@@ -120,6 +120,16 @@ class Planner:
         """Sequences (P, H, m) = clip(mean + std * noise) inside the action bounds."""
         return np.clip(mean + std * noise, self.low, self.high)
 
+    def _warm_start(self, initial: np.ndarray | None) -> np.ndarray:
+        """The mean this step refines: the last plan shifted by one step, or at a trial's first
+        step ``initial`` (default: the middle of the bounds) at every step of the horizon."""
+        if self.mean_ is None:
+            self.mean_ = np.empty((self.H, self.low.shape[0]))
+            self.mean_[:] = 0.5 * (self.low + self.high) if initial is None else initial
+        else:
+            self.mean_[:-1] = self.mean_[1:]
+        return self.mean_
+
     def plan(
         self,
         x: np.ndarray,
@@ -146,12 +156,7 @@ class Planner:
         """
         s = self.settings
         m = self.low.shape[0]
-        if self.mean_ is None:
-            self.mean_ = np.empty((self.H, m))
-            self.mean_[:] = 0.5 * (self.low + self.high) if initial is None else initial
-        else:
-            self.mean_[:-1] = self.mean_[1:]
-        mean, std = self.mean_, np.broadcast_to(self.init_std, (self.H, m)).copy()
+        mean, std = self._warm_start(initial), np.broadcast_to(self.init_std, (self.H, m)).copy()
         fits.refresh()
         arrays = fits.kernel_arrays
         memory = fits.memory.kernel_state
