@@ -27,7 +27,7 @@ def parse_overrides(assignments: Sequence[str]) -> dict[str, dict]:
     (``rmac.critic_capacity``: did you mean 'rmac.critic.capacity'?)."""
     from rmac_mj import constraints
     from rmac_mj.agents import ALGORITHMS, config_class
-    from rmac_mj.sweeps.dotted_keys import nest
+    from rmac_mj.sweeps.bounded_toml import nest
 
     flat: dict[str, Any] = {}
     for assignment in assignments:
@@ -123,7 +123,7 @@ def settings_from_files(argv: Sequence[str] | None, args: argparse.Namespace) ->
     ``--no-optimal`` is finished without the reference too."""
     from rmac_mj.cli import build_parser
     from rmac_mj.results.store import ResultStore
-    from rmac_mj.sweeps import dotted_keys, sweep_file
+    from rmac_mj.sweeps import bounded_toml, sweep_file
 
     layers: list[tuple[dict[str, Any], dict[str, dict]]] = []
     without_references = False
@@ -162,7 +162,7 @@ def settings_from_files(argv: Sequence[str] | None, args: argparse.Namespace) ->
                 defaults[key] = ",".join(value) if key in ("algorithms", "prior_parts") else value
             else:
                 extra[key] = value
-        agent_configs = dotted_keys.merge(agent_configs, configs)
+        agent_configs = bounded_toml.merge(agent_configs, configs)
     if defaults.get("prior") is None or str(defaults["prior"]).endswith(".npz"):
         defaults.pop("prior_trials", None)  # a demonstrator's only
     if not defaults.get("prior_parts"):
@@ -214,11 +214,11 @@ def protocol_of(args):
     """The Protocol ``reproduce``'s arguments describe (with a --config file's or a resumed run's
     settings, :func:`settings_from_files`); UsageError naming what is wrong with it."""
     from rmac_mj.experiments.protocol import Protocol
-    from rmac_mj.sweeps import dotted_keys
+    from rmac_mj.sweeps import bounded_toml
 
     prior = prior_options(args)
     overrides = parse_overrides(args.set)
-    agent_configs = dotted_keys.merge(getattr(args, "config_agent_configs", {}), overrides)
+    agent_configs = bounded_toml.merge(getattr(args, "config_agent_configs", {}), overrides)
     with user_input():
         return Protocol(
             domain=args.domain,

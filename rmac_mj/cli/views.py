@@ -32,7 +32,7 @@ def _settings_line(summary: dict) -> str:
     steps with the trials and steps each learner ran), seed and --set overrides."""
     from rmac_mj.agents import ALGORITHMS
     from rmac_mj.evaluation import report
-    from rmac_mj.sweeps.dotted_keys import flatten
+    from rmac_mj.sweeps.bounded_toml import flatten
 
     protocol = summary.get("protocol", {})
     overrides = [

@@ -4,7 +4,7 @@ each configuration a result directory with the same seeds), their table and figu
 ``ALGO.FIELD`` keys of settings.
 """
 
-from rmac_mj.sweeps.dotted_keys import as_toml, flatten, merge, nest
+from rmac_mj.sweeps.bounded_toml import as_toml, flatten, merge, nest
 from rmac_mj.sweeps.figure import plot_sweep
 from rmac_mj.sweeps.sweep import COLUMNS, SweepResumeRefused, format_table, run_sweep, sweep_rows
 from rmac_mj.sweeps.sweep_checks import SweepFileError

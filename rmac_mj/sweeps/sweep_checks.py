@@ -13,7 +13,7 @@ from rmac_mj import constraints
 from rmac_mj.agents import ALGORITHMS, config_class, config_from_dict
 from rmac_mj.errors import UserInputError
 from rmac_mj.experiments.protocol import Protocol
-from rmac_mj.sweeps.dotted_keys import as_toml, flatten, nest
+from rmac_mj.sweeps.bounded_toml import as_toml, flatten, nest
 
 #: The tables a sweep file may have. [learner_state] is the Protocol option of that name written as a
 #: table of its own: what x is in an outside environment (``env``) where it cannot be inferred.

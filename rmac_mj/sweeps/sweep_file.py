@@ -22,7 +22,7 @@ from rmac_mj import constraints
 from rmac_mj.experiments.protocol import Protocol
 from rmac_mj.results import files
 from rmac_mj.sweeps import bounded_toml
-from rmac_mj.sweeps.dotted_keys import as_toml, flatten, merge, nest
+from rmac_mj.sweeps.bounded_toml import as_toml, flatten, merge, nest
 from rmac_mj.sweeps.sweep_checks import (
     PROTOCOL_KEYS,
     SECTIONS,
