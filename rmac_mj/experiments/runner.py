@@ -291,8 +291,14 @@ def _run_all(
 ) -> list[dict[str, Any]]:
     local = client is None
     busy = [run for run in state if run.left]
+    compiles = None  # or left to the workers: each learner's experiments after its own compile
     if busy and local:
-        admission.warm_up_announced([run.protocol for run in busy], log, jobs=jobs)
+        compiles = admission.warm_up_announced(
+            [run.protocol for run in busy],
+            log,
+            jobs=jobs,
+            learner_of=lambda item: (item[1].protocol, item[1].algorithm),
+        )
     display = Progress(
         [run.protocol for run in state],
         [{a: len(run.finished[a]) for a in run.finished} for run in state],
@@ -320,6 +326,7 @@ def _run_all(
             on_trial=display.trial,
             poll=feed.poll if display.enabled else None,
             on_start=on_start,
+            prerequisites=compiles,
         )
         if local
         else execution.dask_outcomes(pending, run_tagged, client, on_start=on_start)
