@@ -416,8 +416,9 @@ def insert(state, x, y, nearest):
                 )
                 nearest = one[0]
         one[0] = nearest
-        return insert_among(state, x, y, one, 1)
-    return insert_among(state, x, y, one, 0)
+        return insert_among(state, x, y, one, np.int64(1))
+    # np.int64: a literal count would make numba compile insert_among once per value
+    return insert_among(state, x, y, one, np.int64(0))
 
 
 @njit(cache=True)

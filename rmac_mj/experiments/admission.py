@@ -275,10 +275,12 @@ class _CompileNotes:
             self.so_far()
 
     def compiled(self, key: str) -> None:
-        """One learner's kernels are compiled (side by side); its experiments start."""
+        """One learner's kernels are compiled (side by side): its experiments may start."""
         learner, seconds = self.left.pop(key), time.perf_counter() - self.started
         if self.left:
-            self._say(f"kernels of {learner} compiled in {seconds:.0f} s: its experiments start")
+            self._say(
+                f"kernels of {learner} compiled in {seconds:.0f} s ({self._names()} still compiling)"
+            )
         else:
             self._say(f"kernels compiled in {seconds:.0f} s")
 
