@@ -271,7 +271,7 @@ def refresh(state, xq, idx, dist, n, slot):
     """
     capacity = idx.shape[0]
     distances(state.Xt, slot, slot + 1, xq, state.weights, state.in_period, state.norm, state.dist)
-    kept = 0
+    kept = np.int64(0)  # not a literal 0, for which numba would compile place once more
     for a in range(n):
         if idx[a] != slot:
             idx[kept] = idx[a]
