@@ -189,9 +189,20 @@ def _copy(src, dst):
 # -- the policy: u = f^-1(x, R(x)) -------------------------------------------------------------------
 
 
+@njit(cache=True)
+def _pinv_times(beta_u, e, several_actions):
+    """pinv(beta_u) @ e, for a learner with several actions (``several_actions`` True). With one
+    (None) the caller solves it itself and never calls this; numba prunes the branch on a None
+    argument before typing, so that ``np.linalg.pinv`` (2 s of compiling) is not compiled then."""
+    if several_actions is None:
+        return np.empty(0)
+    return np.linalg.pinv(beta_u) @ e
+
+
 @njit(cache=True, inline="always")
-def inverse(s, x, x_desired, u_query):
-    """f^-1(x, x_desired) linearised at (x, u_query); see ``RMAC._inverse``."""
+def inverse(s, x, x_desired, u_query, several_actions):
+    """f^-1(x, x_desired) linearised at (x, u_query); see ``RMAC._inverse``. ``several_actions``: see
+    :func:`step`."""
     P = s.process
     n = x.shape[0]
     m = u_query.shape[0]
@@ -214,7 +225,7 @@ def inverse(s, x, x_desired, u_query):
             be += beta_u[j, 0] * e[j]
         u[0] = u_query[0] + be / bb
     else:
-        du = np.linalg.pinv(beta_u) @ e
+        du = _pinv_times(beta_u, e, several_actions)
         for i in range(m):
             u[i] = u_query[i] + du[i]
     for i in range(m):
@@ -223,12 +234,12 @@ def inverse(s, x, x_desired, u_query):
 
 
 @njit(cache=True, inline="always")
-def act(s, x):
+def act(s, x, several_actions):
     """The greedy action in a canonical x: lines 10-11 without Delta u_k."""
     xq = _canonical(x, s.period)  # (as LLRMemory.query does)
     x_desired = llr_local_fit(s.reference, xq).prediction  # line 10: x_hat_{k+1} = R(x_k)
     u_query = s.u_prev.copy() if s.inverse_previous else np.zeros(s.u_prev.shape[0])
-    return inverse(s, x, x_desired, u_query)  # line 11
+    return inverse(s, x, x_desired, u_query, several_actions)  # line 11
 
 
 # -- line 16: the best reachable state ----------------------------------------------------------------
@@ -415,13 +426,16 @@ def learn(s, x, u, reward, x_next, v, model_learns, terminal):
 
 
 @njit(cache=True)
-def step(s, reward, x, du, model_learns, last, terminal):
+def step(s, reward, x, du, model_learns, last, terminal, several_actions):
     """One control step in one compiled call, for a checked state x (periodic entries are wrapped
     here): u_k = sat(f^-1(x_k, R(x_k)) + Delta u_k) with the models as they are (lines 10-12), then
     lines 13-28 (line 14 only if ``model_learns``: not in a simulated trial); then x_prev, u_prev,
     v_prev advance to x_k, u_k, V_k. With ``last``, the trial's last transition, into x = x_K: lines
     13-28 only, no action (``du`` is not read, u_k is empty) and nothing advances; ``terminal``: x_K
     is terminal, V(x_K) = 0 in the TD error.
+
+    ``several_actions``: True for a learner with several actions, None with one (a type, not a
+    value: only the first compiles ``np.linalg.pinv``, see :func:`_pinv_times`).
 
     Returns (u_k, V_k), V_k NaN when the transition was refused (``learn``: nothing changed, nothing
     advances). One kernel for both, so that the learning step is compiled once.
@@ -430,7 +444,7 @@ def step(s, reward, x, du, model_learns, last, terminal):
     m = s.u_prev.shape[0]
     u = np.empty(0 if last else m)
     if not last:
-        u = act(s, x)
+        u = act(s, x, several_actions)
         for i in range(m):
             u[i] = min(max(u[i] + du[i], s.low[i]), s.high[i])
     v_next = learn(s, s.x_prev, s.u_prev, reward, x, s.v_prev[0], model_learns, terminal)

@@ -106,6 +106,8 @@ class RMAC(Agent):
         #: Whether line 14 inserts a transition in M^P: False while rehearsing (planning, replay).
         self._learns_model = True
         self._kernel_state = self._new_kernel_state()
+        # the compiled step's type switch: np.linalg.pinv is compiled only for several actions
+        self._several_actions = True if m > 1 else None
 
     def _with_task_knowledge(self, config: RMACConfig) -> RMACConfig:
         """The config with the weightings and the action cost left None taken from the task."""
@@ -170,7 +172,14 @@ class RMAC(Agent):
             # Lines 10-28 in one compiled call (x wrapped there), which also advances x_prev,
             # u_prev and v_prev; it returns a new array.
             u, v = _rmac_kernels.step(
-                self._kernel_state, reward, x, du, self._learns_model, False, False
+                self._kernel_state,
+                reward,
+                x,
+                du,
+                self._learns_model,
+                False,
+                False,
+                self._several_actions,
             )
             if v != v:
                 raise self._overflow(reward)
@@ -191,7 +200,14 @@ class RMAC(Agent):
         self._sync_rates()
         if self._kernel_state is not None:
             _, v = _rmac_kernels.step(
-                self._kernel_state, reward, x, _NO_ACTION, self._learns_model, True, bool(terminal)
+                self._kernel_state,
+                reward,
+                x,
+                _NO_ACTION,
+                self._learns_model,
+                True,
+                bool(terminal),
+                self._several_actions,
             )
             if v != v:
                 raise self._overflow(reward)

@@ -271,7 +271,7 @@ def refresh(state, xq, idx, dist, n, slot):
     """
     capacity = idx.shape[0]
     distances(state.Xt, slot, slot + 1, xq, state.weights, state.in_period, state.norm, state.dist)
-    kept = 0
+    kept = np.int64(0)  # not a literal 0, for which numba would compile place once more
     for a in range(n):
         if idx[a] != slot:
             idx[kept] = idx[a]
@@ -416,8 +416,9 @@ def insert(state, x, y, nearest):
                 )
                 nearest = one[0]
         one[0] = nearest
-        return insert_among(state, x, y, one, 1)
-    return insert_among(state, x, y, one, 0)
+        return insert_among(state, x, y, one, np.int64(1))
+    # np.int64: a literal count would make numba compile insert_among once per value
+    return insert_among(state, x, y, one, np.int64(0))
 
 
 @njit(cache=True)

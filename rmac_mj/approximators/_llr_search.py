@@ -124,7 +124,7 @@ def _scan_in_order(d, count, nk, idx_out, best, bound):
     found = 0
     last = bound  # what a value must not exceed to enter (then: be below, once the list is full)
     full = False
-    i = 0
+    i = np.int64(0)  # not a literal 0: numba would compile _block_min and place for it too
     while i < count:
         if i + 16 <= count:
             lo = _block_min(d, i)
@@ -158,7 +158,7 @@ def _scan_in_order(d, count, nk, idx_out, best, bound):
 def _scan_from_seeds(d, count, nk, idx_out, best, seen):
     """Complete a full list of nk seeds (placed, marked in ``seen``) to the nk smallest of d[:count]:
     each value not seen is placed if it ranks before the list's last by (value, index)."""
-    i = 0
+    i = np.int64(0)  # not a literal 0: numba would compile _block_min and place for it too
     while i < count:
         if i + 16 <= count:
             if _block_min(d, i) > best[nk - 1]:
@@ -210,7 +210,7 @@ def smallest(d, count, k, idx_out, best, seed, seen, lanes):
     nk = min(k, count)
     if nk <= 0:
         return 0
-    found = 0
+    found = np.int64(0)  # (see _scan_from_seeds)
     n_seed = seed.shape[0]
     for h in range(n_seed):
         i = seed[h]

@@ -8,9 +8,9 @@ kernels before the workers start.
 from __future__ import annotations
 
 import decimal
+import functools
 import hashlib
 import json
-import multiprocessing
 import os
 import threading
 import time
@@ -22,8 +22,8 @@ from rmac_mj import agents
 from rmac_mj.agents import make_agent
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
 from rmac_mj.errors import UserInputError, environment_failure_at
+from rmac_mj.experiments import execution
 from rmac_mj.experiments import prior_transitions as prior_data
-from rmac_mj.experiments.execution import ctrl_c_ignored_by_new_processes
 from rmac_mj.experiments.protocol import Protocol
 from rmac_mj.rollout import (
     action_space_of,
@@ -212,33 +212,83 @@ def warm_up(protocol: Protocol, algorithms: Iterable[str] | None = None) -> None
 
 
 def _warm_up_one(protocol: Protocol, algorithm: str) -> None:
-    """:func:`warm_up` of one learner in a compiler process, silent: the driver says it."""
+    """:func:`warm_up` of one learner in a worker, silent: the driver says it."""
     from rmac_mj import _cache
 
     with _cache.compile_notice_muted():
         warm_up(protocol, (algorithm,))
 
 
-def warm_up_side_by_side(pairs: list[tuple[Protocol, str]], jobs: int) -> None:
-    """:func:`warm_up` of each (protocol, learner) in ``pairs`` in its own process, ``jobs`` at a
-    time (spawned: numba's compiler holds the interpreter, so threads would take turns): the
-    learners' kernels compile side by side into the shared disk cache. Learners that share kernels
-    (RMAC and MLAC: the LLR memories) may both compile those; the wall time is still the
-    slowest one's."""
-    context = multiprocessing.get_context("spawn")
-    with ctrl_c_ignored_by_new_processes():  # Ctrl-C stops them from here, without tracebacks
-        pool = context.Pool(processes=min(jobs, len(pairs)))
-    try:
-        for result in [pool.apply_async(_warm_up_one, pair) for pair in pairs]:
-            result.get()
-        pool.close()
-    finally:
-        pool.terminate()
-        pool.join()
+def _kernel_key(protocol: Protocol, algorithm: str) -> str:
+    """What decides a learner's kernels: its task and back end (not its other settings)."""
+    backend = protocol.agent_configs.get(algorithm, {}).get("backend")
+    return json.dumps(
+        [protocol.environment_description(), algorithm, backend], sort_keys=True, default=repr
+    )
 
 
 #: Seconds between two lines of the warm-up's progress while numba compiles.
 COMPILE_PROGRESS_SECONDS = 10.0
+
+
+class _CompileNotes:
+    """What a run says while numba compiles (the first run only): which learners' kernels, every
+    ``interval`` seconds how long so far, then how long each learner's took and the total."""
+
+    def __init__(
+        self, learners: dict[str, str], log: Callable[[str], None] | None, interval: float
+    ):
+        self.left, self.log, self.interval = dict(learners), log, interval
+        self.started: float | None = None
+        self.last = 0.0
+
+    def _say(self, message: str) -> None:
+        self.last = time.perf_counter()
+        if self.log is not None:
+            self.log(message)
+
+    def _names(self) -> str:
+        return ", ".join(dict.fromkeys(self.left.values()))
+
+    def compiling(self) -> bool:
+        return self.started is not None and bool(self.left)
+
+    def begin(self) -> None:
+        from rmac_mj import _cache
+
+        self.started = time.perf_counter()
+        self._say(
+            f"compiling the kernels of {self._names()}, first run only (cached in "
+            f"{_cache.numba_cache_location()})"
+        )
+
+    def so_far(self) -> None:
+        if self.compiling():
+            self._say(
+                f"compiling the kernels of {self._names()}: "
+                f"{time.perf_counter() - self.started:.0f} s so far"
+            )
+
+    def tick(self) -> None:
+        """:meth:`so_far`, if ``interval`` seconds passed since the last line."""
+        if time.perf_counter() - self.last >= self.interval:
+            self.so_far()
+
+    def compiled(self, key: str) -> None:
+        """One learner's kernels are compiled (side by side): its experiments may start."""
+        learner, seconds = self.left.pop(key), time.perf_counter() - self.started
+        if self.left:
+            self._say(
+                f"kernels of {learner} compiled in {seconds:.0f} s ({self._names()} still compiling)"
+            )
+        else:
+            self._say(f"kernels compiled in {seconds:.0f} s")
+
+    def end(self) -> None:
+        """All compiled (one after another, here)."""
+        if self.compiling():
+            self.left.clear()
+            self._say(f"kernels compiled in {time.perf_counter() - self.started:.0f} s")
 
 
 def warm_up_announced(
@@ -246,70 +296,59 @@ def warm_up_announced(
     log: Callable[[str], None] | None,
     interval: float = COMPILE_PROGRESS_SECONDS,
     jobs: int = 1,
-) -> None:
+    learner_of: Callable[[Any], tuple[Protocol, str]] | None = None,
+) -> execution.Prerequisites | None:
     """:func:`warm_up` once per distinct task, learner and back end (the kernels do not depend on
     the other settings), saying so when numba really compiles (the first run only): which learners'
     kernels, then every ``interval`` seconds how long it has taken so far, then the total.
 
-    In a process that started with an empty kernel cache, with ``jobs`` > 1, the learners compile
-    side by side (:func:`warm_up_side_by_side`, one process each): the run waits for the slowest
-    learner's compile, not for their sum. With some kernels cached (a later run, the common case) they load
-    here, one after another, in about a second: no process to start."""
+    In a process that started with an empty kernel cache, with ``jobs`` > 1 and ``learner_of``
+    (an item of the run's: its protocol and learner), the compiles are left to the workers: returned
+    as :class:`~rmac_mj.experiments.execution.Prerequisites` of the items, one worker per learner,
+    so that each learner's experiments start as soon as its own kernels are compiled, side by side
+    with the others' compiles. Otherwise the kernels load (or compile) here, one learner after
+    another, and None is returned: with some kernels cached (a later run, the common case) that
+    takes about a second and starts no process."""
     from rmac_mj import _cache
 
-    seen, chosen = set(), []
+    pairs: dict[str, tuple[Protocol, str]] = {}
     for protocol in protocols:
-        key = json.dumps(
-            [
-                protocol.environment_description(),
-                protocol.algorithms,
-                [protocol.agent_configs.get(a, {}).get("backend") for a in protocol.algorithms],
-            ],
-            sort_keys=True,
-            default=repr,
+        for algorithm in protocol.algorithms:
+            pairs.setdefault(_kernel_key(protocol, algorithm), (protocol, algorithm))
+    notes = _CompileNotes({key: a for key, (_, a) in pairs.items()}, log, interval)
+    if jobs > 1 and len(pairs) > 1 and learner_of is not None and _cache.started_with_empty_cache():
+        notes.begin()  # the cache is empty: numba compiles, in the workers
+        return execution.Prerequisites(
+            {key: functools.partial(_warm_up_one, *pair) for key, pair in pairs.items()},
+            needs=lambda item: _kernel_key(*learner_of(item)),
+            done=notes.compiled,
+            poll=notes.tick,
         )
-        if key not in seen:
-            seen.add(key)
-            chosen.append(protocol)
-    learners = ", ".join(dict.fromkeys(a for p in chosen for a in p.algorithms))
-    compile_started = time.perf_counter()
-    compiling, done = threading.Event(), threading.Event()
+    _warm_up_here(list(pairs.values()), notes)
+    return None
 
-    def first_compile() -> None:
-        compiling.set()
-        if log is not None:
-            log(
-                f"compiling the kernels of {learners}, first run only (cached in "
-                f"{_cache.numba_cache_location()})"
-            )
 
-    def tick() -> None:  # numba holds the interpreter for seconds at a time: a line now and then
-        while not done.wait(interval):
-            if compiling.is_set():
-                log(
-                    f"compiling the kernels of {learners}: "
-                    f"{time.perf_counter() - compile_started:.0f} s so far"
-                )
+def _warm_up_here(pairs: list[tuple[Protocol, str]], notes: _CompileNotes) -> None:
+    """:func:`warm_up` of each (protocol, learner) in this process, with ``notes`` said from a
+    thread (numba holds the interpreter for seconds at a time: a line now and then)."""
+    from rmac_mj import _cache
 
-    pairs = [(p, a) for p in chosen for a in p.algorithms]
-    side_by_side = jobs > 1 and len(pairs) > 1 and _cache.started_with_empty_cache()
-    if side_by_side:
-        first_compile()  # the cache is empty: numba compiles, in the processes started below
+    done = threading.Event()
+
+    def tick() -> None:
+        while not done.wait(notes.interval):
+            notes.so_far()
+
     ticker = threading.Thread(target=tick, name="rmac-mj compile progress", daemon=True)
-    if log is not None:
+    if notes.log is not None:
         ticker.start()
     try:
-        if side_by_side:
-            with heartbeat.quiet_while(compiling.is_set):
-                warm_up_side_by_side(pairs, jobs)
-        else:
-            # while numba compiles, its progress above is the one voice of the first trials
-            with _cache.on_first_compile(first_compile), heartbeat.quiet_while(compiling.is_set):
-                for protocol in chosen:
-                    warm_up(protocol)
+        # while numba compiles, its progress is the one voice of the first trials
+        with _cache.on_first_compile(notes.begin), heartbeat.quiet_while(notes.compiling):
+            for protocol, algorithm in pairs:
+                warm_up(protocol, (algorithm,))
     finally:
         done.set()
         if ticker.is_alive():
             ticker.join()
-    if log is not None and compiling.is_set():
-        log(f"kernels compiled in {time.perf_counter() - compile_started:.0f} s")
+    notes.end()

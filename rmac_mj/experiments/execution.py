@@ -20,7 +20,7 @@ import socket
 import struct
 import threading
 import time
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Hashable, Iterable, Iterator
 from typing import Any
 
 from rmac_mj.errors import UserInputError
@@ -71,11 +71,48 @@ def ctrl_c_ignored_by_new_processes() -> Iterator[None]:
         signal.signal(signal.SIGINT, previous)
 
 
-def _started(items: Iterable, on_start: Callable[[Any], None] | None) -> Iterator:
-    for item in items:
-        if on_start is not None:
-            on_start(item)
-        yield item
+class Prerequisites:
+    """Work the workers do before the items that need it: ``tasks`` maps a key to a picklable
+    callable, run first, one per worker; ``needs(item)`` is the key an item waits for (None: none);
+    the driver calls ``done(key)`` as each task finishes and ``poll()`` every :data:`POLL_SECONDS`
+    while it waits. An item whose key is done runs before the earlier items still waiting."""
+
+    def __init__(
+        self,
+        tasks: dict[Hashable, Callable[[], Any]],
+        needs: Callable[[Any], Hashable | None],
+        done: Callable[[Hashable], None] | None = None,
+        poll: Callable[[], None] | None = None,
+    ) -> None:
+        self.tasks, self.needs = tasks, needs
+        self.done = done or (lambda key: None)
+        self.poll = poll or (lambda: None)
+
+
+class _Gate:
+    """The items in their order, handed out only once their prerequisite is done; those still
+    waiting are held, without holding back the ready ones behind them."""
+
+    def __init__(self, items: Iterator, before: Prerequisites) -> None:
+        self.items, self.needs, self.tasks = items, before.needs, before.tasks
+        self.held: collections.deque = collections.deque()
+        self.done: set[Hashable] = set()
+
+    def _ready(self, item: Any) -> bool:
+        key = self.needs(item)
+        return key in self.done or key not in self.tasks
+
+    def next(self) -> Any | None:
+        """The first item that may run now; None when none may (yet)."""
+        for item in self.held:
+            if self._ready(item):
+                self.held.remove(item)
+                return item
+        for item in self.items:
+            if self._ready(item):
+                return item
+            self.held.append(item)
+        return None
 
 
 def local_outcomes(
@@ -85,57 +122,94 @@ def local_outcomes(
     on_trial: Callable[..., None] | None = None,
     poll: Callable[[], None] | None = None,
     on_start: Callable[[Any], None] | None = None,
+    prerequisites: Prerequisites | None = None,
 ) -> Iterator:
-    """``run(item)`` of every item, in the order they finish.
+    """``run(item)`` of every item, in the order they finish; ``on_start(item)`` as each starts.
 
     With ``jobs == 1``, or a single item, they run in this process, one after another, as
-    ``run(item, on_trial)``, and ``on_trial`` sees every trial. Otherwise ``jobs`` worker processes
-    run them and the driver calls ``poll()`` every :data:`POLL_SECONDS` while it waits. Closing the
-    generator (an interrupt) terminates the workers at once: only the items in flight are lost.
+    ``run(item, on_trial)``, and ``on_trial`` sees every trial (after the ``prerequisites``, here).
+    Otherwise ``jobs`` worker processes run the prerequisites' tasks first, then the items, each as
+    soon as its prerequisite is done, and the driver calls ``poll()`` every :data:`POLL_SECONDS`
+    while it waits. Closing the generator (an interrupt) terminates the workers at once: only the
+    items in flight are lost.
     """
-    items = _started(items, on_start)
+    before = prerequisites or Prerequisites({}, lambda item: None)
+    items = iter(items)
     first = list(itertools.islice(items, 1 if jobs == 1 else jobs + _AHEAD))
     if len(first) <= 1:
+        for key, task in before.tasks.items():
+            task()
+            before.done(key)
         for item in itertools.chain(first, items):
+            if on_start is not None:
+                on_start(item)
             yield run(item, on_trial)
         return
     # "spawn": workers start clean (no inherited GL contexts or numba state); the numba cache (filled
-    # by the driver's warm-up) makes their start-up cheap.
+    # by the driver's warm-up or the prerequisites) makes their start-up cheap.
     context = multiprocessing.get_context("spawn")
     with ctrl_c_ignored_by_new_processes():
         pool = context.Pool(
             processes=min(jobs, len(first)), initializer=start_worker, initargs=(os.getpid(),)
         )
-    finished: queue.SimpleQueue = queue.SimpleQueue()
-    pending = itertools.chain(first, items)
-    in_flight = 0
     try:
-        while True:
-            for item in itertools.islice(pending, max(0, jobs + _AHEAD - in_flight)):
-                pool.apply_async(
-                    run,
-                    (item,),
-                    callback=lambda result: finished.put((True, result)),
-                    error_callback=lambda error: finished.put((False, error)),
-                )
-                in_flight += 1
-            if not in_flight:
-                break
-            while True:
-                try:
-                    ok, outcome = finished.get(timeout=POLL_SECONDS)
-                    break
-                except queue.Empty:
-                    if poll is not None:
-                        poll()
-            in_flight -= 1
-            if not ok:
-                raise outcome
-            yield outcome
+        yield from _pooled(
+            pool,
+            _Gate(itertools.chain(first, items), before),
+            run,
+            jobs,
+            poll,
+            on_start,
+            before,
+        )
         pool.close()
     finally:
         pool.terminate()
         pool.join()
+
+
+def _pooled(
+    pool, gate: _Gate, run: Callable, jobs: int, poll, on_start, before: Prerequisites
+) -> Iterator:
+    """:func:`local_outcomes` on the workers of ``pool``: the prerequisites' tasks first, then the
+    items the gate lets through, ``jobs`` + :data:`_AHEAD` in flight at most."""
+    finished: queue.SimpleQueue = queue.SimpleQueue()
+
+    def submit(task: Callable, args: tuple, key: Hashable) -> None:
+        pool.apply_async(
+            task,
+            args,
+            callback=lambda result: finished.put((key, True, result)),
+            error_callback=lambda error: finished.put((key, False, error)),
+        )
+
+    for key, task in before.tasks.items():
+        submit(task, (), key)
+    in_flight, item_key = len(before.tasks), object()  # the key of an item's result
+    while True:
+        while in_flight < jobs + _AHEAD and (item := gate.next()) is not None:
+            if on_start is not None:
+                on_start(item)
+            submit(run, (item,), item_key)
+            in_flight += 1
+        if not in_flight:
+            break
+        while True:
+            try:
+                key, ok, outcome = finished.get(timeout=POLL_SECONDS)
+                break
+            except queue.Empty:
+                before.poll()
+                if poll is not None:
+                    poll()
+        in_flight -= 1
+        if not ok:
+            raise outcome
+        if key is item_key:
+            yield outcome
+        else:
+            gate.done.add(key)
+            before.done(key)
 
 
 def connect_dask(address: str, timeout: float | None = None):
@@ -213,6 +287,13 @@ def _greeted(address: str, timeout: float) -> None:
             f"the peer at {address} answered, but not as a Dask scheduler (its first frame "
             f"would hold {size} bytes)"
         )
+
+
+def _started(items: Iterable, on_start: Callable[[Any], None] | None) -> Iterator:
+    for item in items:
+        if on_start is not None:
+            on_start(item)
+        yield item
 
 
 def dask_outcomes(

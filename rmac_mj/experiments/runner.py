@@ -322,9 +322,13 @@ def _run_all(
     """Every pending experiment of every run, through one pool or cluster; each run summarised as
     soon as its last experiment is saved."""
     busy = [run for run in state if run.left]
+    compiles = None  # or left to the workers: each learner's experiments after its own compile
     if busy and client is None:
-        admission.warm_up_announced(
-            [run.protocol for run in busy], options.log, jobs=options.workers
+        compiles = admission.warm_up_announced(
+            [run.protocol for run in busy],
+            options.log,
+            jobs=options.workers,
+            learner_of=lambda item: (item[1].protocol, item[1].algorithm),
         )
     display = Progress(
         [run.protocol for run in state],
@@ -332,7 +336,7 @@ def _run_all(
         options.progress and bool(busy),
     )
     feed = TrialFeed(display)
-    outcomes = _outcomes(state, client, options, display, feed)
+    outcomes = _outcomes(state, client, options, display, feed, compiles)
     try:
         with contextlib.closing(outcomes):  # on an interrupt, stop the workers at once
             for k, result in outcomes:
@@ -352,10 +356,16 @@ def _run_all(
 
 
 def _outcomes(
-    state: list[_Run], client, options: RunOptions, display: Progress, feed: TrialFeed
+    state: list[_Run],
+    client,
+    options: RunOptions,
+    display: Progress,
+    feed: TrialFeed,
+    compiles: execution.Prerequisites | None = None,
 ) -> Iterator[tuple[int, ExperimentResult]]:
     """The runs' pending experiments handed to local workers (``client`` None) or to Dask, as
-    ``(run, result)`` in the order they finish; a run is begun as its first experiment starts."""
+    ``(run, result)`` in the order they finish; a run is begun as its first experiment starts, a
+    learner's experiments after its ``compiles`` (local workers only)."""
 
     def on_start(item: tuple[int, ExperimentSpec]) -> None:
         k, spec = item
@@ -379,6 +389,7 @@ def _outcomes(
         on_trial=display.trial,
         poll=feed.poll if display.enabled else None,
         on_start=on_start,
+        prerequisites=compiles,
     )
 
 

@@ -2,6 +2,7 @@
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -20,6 +21,7 @@ from rmac_mj.experiments import (
     TrialFeed,
     run_experiment,
     run_protocol,
+    run_protocols,
 )
 from rmac_mj.experiments import progress as progress_module
 from rmac_mj.results import ResultStore, ResumeRefused, load_snapshot
@@ -454,7 +456,7 @@ def test_compiling_says_what_and_how_long_while_it_lasts(monkeypatch):
 
     lines = []
 
-    def warm_up(protocol):  # a kernel compiled afresh, then as long as it takes to see a tick
+    def warm_up(protocol, algorithms):  # a kernel compiled afresh, then until a tick is seen
         numba.njit(lambda x: x + 1)(1)
         deadline = time.monotonic() + 60
         while not any("so far" in line for line in lines) and time.monotonic() < deadline:
@@ -471,17 +473,31 @@ def test_compiling_says_what_and_how_long_while_it_lasts(monkeypatch):
 
 
 @pytest.mark.slow
-def test_learners_compile_side_by_side_into_the_shared_cache(tmp_path, monkeypatch, capfd):
+def test_a_cold_run_compiles_in_its_workers_each_learner_before_its_experiments(
+    tmp_path, monkeypatch, capfd
+):
     from rmac_mj import _cache
-    from rmac_mj.experiments import admission
 
-    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))  # the compiler processes' cold cache
-    assert _cache.numba_cache_is_empty()
-    protocol = Protocol(**TINY)
-    admission.warm_up_side_by_side([(protocol, "s-ac"), (protocol, "s-ac")], jobs=2)
-    cached = {path.name.split(".")[0] for path in tmp_path.rglob("*.nbi")}
-    assert {"standard_ac", "tile_coding"} <= cached and not _cache.numba_cache_is_empty()
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "numba"))  # the workers' cold cache
+    monkeypatch.setattr(_cache, "started_with_empty_cache", lambda: True)
+    runs = [(Protocol(**TINY), tmp_path / "a"), (Protocol(**TINY, task="balance"), tmp_path / "b")]
+    lines = []
+    run_protocols(runs, RunOptions(jobs=2, progress=False, figures=False, log=lines.append))
+    cached = {path.name.split(".")[0] for path in (tmp_path / "numba").rglob("*.nbi")}
+    assert {"standard_ac", "tile_coding"} <= cached  # compiled by the workers, into the cache
+    lines = [line for line in lines if not line.endswith(" s so far")]  # a slow machine's
+    assert lines[0].startswith("compiling the kernels of s-ac, first run only (cached in ")
+    assert lines[1].startswith("kernels of s-ac compiled in ")  # one task's: its experiments start
+    assert lines[2].startswith("kernels compiled in ")
     assert "numba is compiling" not in capfd.readouterr().err  # the driver says it, once
+    for protocol, out in runs:  # the same results as one process gives
+        run_protocol(
+            protocol, tmp_path / "alone", RunOptions(jobs=1, progress=False, figures=False)
+        )
+        np.testing.assert_array_equal(
+            returns_of(out, protocol)["s-ac"], returns_of(tmp_path / "alone", protocol)["s-ac"]
+        )
+        shutil.rmtree(tmp_path / "alone")
 
 
 @pytest.mark.slow
