@@ -32,6 +32,20 @@ def _weights(owner: str, weights, n: int, name: str = "weights") -> np.ndarray:
     return w
 
 
+def _keep_box(
+    space: StateSpace | ActionSpace, owner: str, low: np.ndarray, high: np.ndarray
+) -> None:
+    """Store the checked bounds of a frozen ``space``, and its input weights and cost as checked
+    vectors of their dimension (:func:`_weights`)."""
+    object.__setattr__(space, "low", low)
+    object.__setattr__(space, "high", high)
+    object.__setattr__(
+        space, "input_weights", _weights(owner, space.input_weights, low.shape[0], "input_weights")
+    )
+    if space.cost is not None:
+        object.__setattr__(space, "cost", _weights(owner, space.cost, low.shape[0], "cost"))
+
+
 @dataclasses.dataclass(frozen=True)
 class StateSpace:
     """The box a flat state lives in, and how its dimensions compare.
@@ -72,18 +86,8 @@ class StateSpace:
             )
         if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high)) and np.all(high > low)):
             raise ValueError(f"StateSpace: need finite low < high, got low={low}, high={high}")
-        object.__setattr__(self, "low", low)
-        object.__setattr__(self, "high", high)
         object.__setattr__(self, "periodic", periodic)
-        object.__setattr__(
-            self,
-            "input_weights",
-            _weights("StateSpace", self.input_weights, low.shape[0], "input_weights"),
-        )
-        if self.cost is not None:
-            object.__setattr__(
-                self, "cost", _weights("StateSpace", self.cost, low.shape[0], "cost")
-            )
+        _keep_box(self, "StateSpace", low, high)
         for name in ("timestep", "reward_scale"):
             value = getattr(self, name)
             if value is not None:
@@ -154,17 +158,7 @@ class ActionSpace:
             np.isfinite(low) & np.isfinite(high) & (high > low)
         ):
             raise ValueError(f"ActionSpace: need finite low < high of one shape, got {low}, {high}")
-        object.__setattr__(self, "low", low)
-        object.__setattr__(self, "high", high)
-        object.__setattr__(
-            self,
-            "input_weights",
-            _weights("ActionSpace", self.input_weights, low.shape[0], "input_weights"),
-        )
-        if self.cost is not None:
-            object.__setattr__(
-                self, "cost", _weights("ActionSpace", self.cost, low.shape[0], "cost")
-            )
+        _keep_box(self, "ActionSpace", low, high)
 
     @property
     def dim(self) -> int:

@@ -30,32 +30,11 @@ class Optimum(Interface):
     def describe(self) -> str: ...
 
 
-def _dynamic_programming(env, identity, settings, cache_dir, refresh, announce) -> Optimum:
-    return dynamic_programming.optimal_return(
-        env,
-        identity,
-        OptimalConfig(**settings),
-        cache_dir=cache_dir,
-        refresh=refresh,
-        announce=announce,
-    )
-
-
-def _trajectory_optimisation(env, identity, settings, cache_dir, refresh, announce) -> Optimum:
-    return trajopt.cached_optimise(
-        env,
-        identity,
-        TrajoptConfig(**settings),
-        cache_dir=cache_dir,
-        refresh=refresh,
-        announce=announce,
-    )
-
-
-#: Solver name (``Optimum.method``) -> the function that computes and caches it.
-SOLVERS: dict[str, Callable[..., Optimum]] = {
-    "dynamic programming": _dynamic_programming,
-    "trajectory optimisation": _trajectory_optimisation,
+#: Solver name (``Optimum.method``) -> the function that computes and caches it, and the config
+#: class its settings fill.
+SOLVERS: dict[str, tuple[Callable[..., Optimum], type]] = {
+    "dynamic programming": (dynamic_programming.optimal_return, OptimalConfig),
+    "trajectory optimisation": (trajopt.cached_optimise, TrajoptConfig),
 }
 
 
@@ -92,14 +71,14 @@ def optimum_result(
         raise ValueError(
             f"{domain}/{task} declares the solver {declared.method!r}; known: {', '.join(SOLVERS)}"
         )
-    env = tasks.load(domain, task)
-    return SOLVERS[declared.method](
-        env,
+    solve, config_class = SOLVERS[declared.method]
+    return solve(
+        tasks.load(domain, task),
         problem_identity(domain, task),
-        {**declared.settings, **(settings or {})},
-        cache_dir,
-        refresh,
-        announce,
+        config_class(**{**declared.settings, **(settings or {})}),
+        cache_dir=cache_dir,
+        refresh=refresh,
+        announce=announce,
     )
 
 

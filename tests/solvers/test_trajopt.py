@@ -9,6 +9,7 @@ import pytest
 
 from rmac_mj import cli, tasks
 from rmac_mj.solvers import (
+    SOLVERS,
     TrajoptConfig,
     has_optimum,
     optimum_result,
@@ -97,7 +98,7 @@ def test_reference_registry_dispatches_and_rejects_unknown_tasks(tmp_path, monke
         calls.append((identity["domain"], identity["task"]))
         return real(env, identity, _TINY, cache_dir=tmp_path, refresh=refresh)
 
-    monkeypatch.setattr(trajopt, "cached_optimise", tiny)
+    monkeypatch.setitem(SOLVERS, "trajectory optimisation", (tiny, TrajoptConfig))
     value = optimum_return("two_link_arm", "reach")
     assert calls == [("two_link_arm", "reach")] and np.isfinite(value)
 
@@ -105,11 +106,14 @@ def test_reference_registry_dispatches_and_rejects_unknown_tasks(tmp_path, monke
 @pytest.mark.slow
 def test_cli_optimal_takes_domain_and_task(tmp_path, monkeypatch, capsys):
     real = trajopt.cached_optimise
-    monkeypatch.setattr(
-        trajopt,
-        "cached_optimise",
-        lambda env, identity, config=None, cache_dir=None, refresh=False, announce=None: real(
-            env, identity, _TINY, cache_dir=tmp_path, refresh=refresh
+    monkeypatch.setitem(
+        SOLVERS,
+        "trajectory optimisation",
+        (
+            lambda env, identity, config=None, cache_dir=None, refresh=False, announce=None: real(
+                env, identity, _TINY, cache_dir=tmp_path, refresh=refresh
+            ),
+            TrajoptConfig,
         ),
     )
     assert cli.main(["optimal", "--domain", "two_link_arm", "--task", "reach"]) == 0

@@ -173,6 +173,13 @@ class _EntropyRegularised(_OffPolicyAgent):
     def _greedy_scaled_action(self, observation):
         return self.model.actor(observation, deterministic=True)
 
+    def _sb3_kwargs(self) -> dict[str, Any]:
+        return {
+            **super()._sb3_kwargs(),
+            "ent_coef": self.config.ent_coef,
+            "target_entropy": self.config.target_entropy,
+        }
+
     def _optimizers(self) -> dict[str, Any]:
         optimizers = super()._optimizers()
         if self.model.ent_coef_optimizer is not None:
@@ -207,8 +214,6 @@ class SB3SAC(_EntropyRegularised):
         return {
             **super()._sb3_kwargs(),
             "tau": c.tau,
-            "ent_coef": c.ent_coef,
-            "target_entropy": c.target_entropy,
             "target_update_interval": c.target_update_interval,
         }
 
@@ -227,8 +232,6 @@ class SB3CrossQ(_EntropyRegularised):
         c = self.config
         return {
             **super()._sb3_kwargs(),
-            "ent_coef": c.ent_coef,
-            "target_entropy": c.target_entropy,
             "policy_delay": c.policy_delay,
             "policy_kwargs": {
                 "net_arch": {"pi": list(c.net_arch), "qf": list(c.critic_net_arch)},
