@@ -99,9 +99,34 @@ def upgrade_config(algorithm: str, config: dict[str, Any]) -> dict[str, Any]:
     return upgraded
 
 
+def with_learner_keys_of_today(document: dict[str, Any]) -> dict[str, Any]:
+    """A config or summary document of a directory written before format 3 under today's learner
+    keys (:data:`LEARNER_KEYS_BEFORE_FORMAT_3`): its own per-learner keys (a summary's rows), its
+    ``agents`` and its ``protocol``'s algorithms and learner settings."""
+    today = LEARNER_KEYS_BEFORE_FORMAT_3
+
+    def renamed(mapping: dict[str, Any]) -> dict[str, Any]:
+        return {today.get(key, key): value for key, value in mapping.items()}
+
+    document = renamed(document)
+    if isinstance(document.get("agents"), dict):
+        document["agents"] = renamed(document["agents"])
+    protocol = document.get("protocol")
+    if isinstance(protocol, dict):
+        protocol = dict(protocol)
+        if isinstance(protocol.get("algorithms"), list):
+            protocol["algorithms"] = [today.get(a, a) for a in protocol["algorithms"]]
+        if isinstance(protocol.get("agent_configs"), dict):
+            protocol["agent_configs"] = renamed(protocol["agent_configs"])
+        document["protocol"] = protocol
+    return document
+
+
 def upgrade_run_config(document: dict[str, Any]) -> dict[str, Any]:
     """A run's config.json (its ``protocol``'s ``agent_configs`` and its resolved ``agents``) in
-    today's form, from any earlier version's (:func:`upgrade_config` for each learner)."""
+    today's form, from any earlier version's: learner keys of today
+    (:func:`with_learner_keys_of_today`, before format 3), then :func:`upgrade_config` for each
+    learner. Its ``format`` stays the one written: it says how the directory names its files."""
 
     def learners(configs: Any) -> Any:
         if not isinstance(configs, dict):
@@ -111,6 +136,8 @@ def upgrade_run_config(document: dict[str, Any]) -> dict[str, Any]:
             for name, config in configs.items()
         }
 
+    if document.get("format", 2) < 3:
+        document = with_learner_keys_of_today(document)
     upgraded = dict(document)
     if isinstance(document.get("protocol"), dict) and "agent_configs" in document["protocol"]:
         protocol = document["protocol"]

@@ -23,7 +23,11 @@ from rmac_mj.errors import MissingInputError
 from rmac_mj.results import documents, files, integrity
 from rmac_mj.results.documents import ResumeRefused, added_experiments
 from rmac_mj.results.records import Curves, ExperimentResult
-from rmac_mj.results.snapshots import FORMAT, LEARNER_KEYS_BEFORE_FORMAT_3
+from rmac_mj.results.snapshots import (
+    FORMAT,
+    LEARNER_KEYS_BEFORE_FORMAT_3,
+    with_learner_keys_of_today,
+)
 
 _EXPERIMENT_FILE = re.compile(r"exp_(\d{3,})\.npz")
 _TRIAL_FILE = re.compile(r"trial_(\d+)\.npz")
@@ -135,7 +139,7 @@ class ResultStore:
         """The directory's ``config.json``, or None when there is none;
         :class:`~rmac_mj.results.documents.DamagedDirectory` when it cannot be read as a run's
         config (a JSON object with a ``protocol`` object)."""
-        return _with_todays_keys(documents.read_config(self.config_path), self._today())
+        return documents.read_config(self.config_path)
 
     def read_protocol(self) -> dict[str, Any] | None:
         """The protocol (``Protocol.as_dict``) of the run in this directory, or None when there is none."""
@@ -147,19 +151,19 @@ class ResultStore:
         files.write_json(self.config_path, {"format": FORMAT, **document})
 
     # -- learner keys ----------------------------------------------------------------------------------
-    def _stored(self, algorithm: str) -> str:
-        """The key under which this directory stores today's learner ``algorithm``."""
+    def _renamed_keys(self) -> dict[str, str]:
+        """Today's learner key -> the key this directory's files use, for the learners whose key
+        changed (in a directory written before format 3; read once)."""
         if self._stored_keys is None:
             config = documents.read_config(self.config_path)
             before_3 = config is not None and config.get("format", 2) < 3
             renamed = LEARNER_KEYS_BEFORE_FORMAT_3.items() if before_3 else ()
             self._stored_keys = {today: stored for stored, today in renamed}
-        return self._stored_keys.get(algorithm, algorithm)
+        return self._stored_keys
 
-    def _today(self) -> dict[str, str]:
-        """The key in this directory -> today's key, for the learners whose key has changed."""
-        self._stored("")
-        return {stored: today for today, stored in self._stored_keys.items()}
+    def _stored(self, algorithm: str) -> str:
+        """The key under which this directory stores today's learner ``algorithm``."""
+        return self._renamed_keys().get(algorithm, algorithm)
 
     def lock(self) -> integrity.DirectoryLock:
         """The directory's exclusive lock (held while a run writes here; see
@@ -407,7 +411,8 @@ class ResultStore:
         """The learners with snapshots in this directory, sorted."""
         folder = self.root / "snapshots"
         names = [p.name for p in folder.iterdir() if p.is_dir()] if folder.is_dir() else []
-        return sorted(self._today().get(name, name) for name in names)
+        today = {stored: key for key, stored in self._renamed_keys().items()}
+        return sorted(today.get(name, name) for name in names)
 
     def snapshot_trials(self, algorithm: str, index: int = 0) -> dict[int, pathlib.Path]:
         """Trial number -> snapshot path, for one experiment; MissingInputError when it has none."""
@@ -439,7 +444,8 @@ class ResultStore:
 
     def read_summary(self) -> dict[str, Any]:
         """The run's ``summary.json``; MissingInputError when the run has none (not finished)."""
-        return _with_todays_keys(documents.read_summary(self.summary_path), self._today())
+        summary = documents.read_summary(self.summary_path)
+        return with_learner_keys_of_today(summary) if self._renamed_keys() else summary
 
     def read_wall_times(self) -> list[dict[str, Any]]:
         """The parts recorded in ``wall_times.json`` (empty when there is none);
@@ -448,28 +454,6 @@ class ResultStore:
 
     def write_wall_times(self, parts: list[dict[str, Any]]) -> None:
         files.write_json(self.wall_times_path, {"parts": parts})
-
-
-def _with_todays_keys(document: dict[str, Any] | None, today: dict[str, str]) -> Any:
-    """A config or summary document with learner keys renamed by ``today`` (stored -> today's):
-    its ``protocol``'s algorithms and learner settings, and its own keys (a summary's per-learner
-    entries, a config's ``agents``)."""
-    if not today or document is None:
-        return document
-
-    def renamed(mapping: dict[str, Any]) -> dict[str, Any]:
-        return {today.get(key, key): value for key, value in mapping.items()}
-
-    document = renamed(document)
-    if isinstance(document.get("agents"), dict):
-        document["agents"] = renamed(document["agents"])
-    protocol = document.get("protocol")
-    if isinstance(protocol, dict):
-        protocol = dict(protocol, algorithms=[today.get(a, a) for a in protocol["algorithms"]])
-        if isinstance(protocol.get("agent_configs"), dict):
-            protocol["agent_configs"] = renamed(protocol["agent_configs"])
-        document["protocol"] = protocol
-    return document
 
 
 def _padded(rows: list[np.ndarray]) -> np.ndarray:
