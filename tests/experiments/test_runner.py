@@ -114,6 +114,19 @@ def test_serial_and_parallel_runs_are_identical(tmp_path):
         )  # independent experiments
 
 
+def test_a_learners_experiments_do_not_depend_on_the_other_learners_of_the_run(tmp_path):
+    # experiment i of every learner sees the same task seeds, whoever shares the run: so runs of
+    # some learners each, on one protocol, read together are one run of all of them (docs/panel.md)
+    together = Protocol(**{**TINY, "algorithms": ("mlac", "s-ac")})
+    alone = Protocol(**TINY)
+    run_protocol(together, tmp_path / "together", RunOptions(jobs=1, progress=False, figures=False))
+    run_protocol(alone, tmp_path / "alone", RunOptions(jobs=1, progress=False, figures=False))
+    np.testing.assert_array_equal(
+        returns_of(tmp_path / "together", together)["s-ac"],
+        returns_of(tmp_path / "alone", alone)["s-ac"],
+    )
+
+
 @pytest.mark.slow
 def test_resume_with_a_changed_config_is_refused(tmp_path):
     run_protocol(Protocol(**TINY), tmp_path, RunOptions(jobs=1, progress=False, figures=False))
