@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from rmac_mj.agents.planning import Rehearsal
-from rmac_mj.agents.seeding import check_transitions
+from rmac_mj.agents.seeding import Transitions, check_transitions
 from rmac_mj.agents.spaces import STATE_LIMIT_WIDTHS, ActionSpace, StateSpace
 from rmac_mj.agents.task_knowledge import with_task_units
 
@@ -452,7 +452,7 @@ class Agent(abc.ABC):
             raise ValueError(
                 f"{self.name}: parts must name some of {self.prior_parts}, got {parts!r}"
             )
-        arrays = check_transitions(
+        transitions = check_transitions(
             states,
             actions,
             rewards,
@@ -462,17 +462,9 @@ class Agent(abc.ABC):
             self.action_space.dim,
             owner=self.name,
         )
-        self._seed_from(*arrays, parts=tuple(p for p in self.prior_parts if p in chosen))
+        self._seed_from(transitions, parts=tuple(p for p in self.prior_parts if p in chosen))
 
-    def _seed_from(
-        self,
-        states: np.ndarray,
-        actions: np.ndarray,
-        rewards: np.ndarray,
-        next_states: np.ndarray,
-        trial: np.ndarray,
-        parts: tuple[str, ...],
-    ) -> None:
+    def _seed_from(self, transitions: Transitions, parts: tuple[str, ...]) -> None:
         """Put the checked transitions into the ``parts`` they seed (learners with prior_parts)."""
         raise NotImplementedError(f"{self.name} does not take prior knowledge")
 

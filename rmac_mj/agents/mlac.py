@@ -17,7 +17,7 @@ from rmac_mj.agents.base import Agent, RefusedTransition
 from rmac_mj.agents.critic import LLRCritic, _check_traces
 from rmac_mj.agents.exploration import Exploration, model_uncertainty
 from rmac_mj.agents.planning import REHEARSAL, Planning, Replay
-from rmac_mj.agents.seeding import discounted_returns, seed_memory
+from rmac_mj.agents.seeding import Transitions, discounted_returns, seed_memory
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
 from rmac_mj.agents.task_knowledge import (
     memory_units,
@@ -440,15 +440,7 @@ class MLAC(Agent):
     #: What :meth:`Agent.seed_from` can initialise from recorded transitions.
     prior_parts = ("process", "critic", "actor")
 
-    def _seed_from(
-        self,
-        states: np.ndarray,
-        actions: np.ndarray,
-        rewards: np.ndarray,
-        next_states: np.ndarray,
-        trial: np.ndarray,
-        parts: tuple[str, ...],
-    ) -> None:
+    def _seed_from(self, transitions: Transitions, parts: tuple[str, ...]) -> None:
         """Initialise the memories from a demonstration (section 7 of the RMAC paper): the actor with
         its (x_t, u_t), the critic with its discounted returns-to-go (this agent's gamma, 0 after a
         trial's last transition), the process model with its transitions [x_t, u_t] -> x_{t+1}.
@@ -456,12 +448,13 @@ class MLAC(Agent):
         Up to each memory's capacity the memory holds exactly these samples; the rest are inserted
         in time order through its replacement rule (``seed_memory``).
         """
-        period = self.period
-        x = wrap(states, period)
-        x_next = wrap(next_states, period)
+        actions = transitions.actions
+        x = wrap(transitions.states, self.period)
+        x_next = wrap(transitions.next_states, self.period)
+        returns = discounted_returns(transitions.rewards, transitions.trial, self.config.gamma)
         data = {
             "actor": (x, actions),
-            "critic": (x, discounted_returns(rewards, trial, self.config.gamma)[:, None]),
+            "critic": (x, returns[:, None]),
             "process": (np.hstack([x, actions]), x_next),
         }
         if "actor" in parts and np.any(
@@ -472,21 +465,25 @@ class MLAC(Agent):
                 f"[{self.action_space.low}, {self.action_space.high}]"
             )
         for name in parts:
-            seed_memory(self._memory(name), *data[name])
+            seed_memory(self._memories()[name], *data[name])
         self._pi_prev = None
         if "critic" in parts:
             self.critic.begin_trial()
 
     # -- state ----------------------------------------------------------------------------------------
-    def _memory(self, name: str) -> LLRMemory:
-        """The memory ``name`` of _MEMORIES ('actor', 'critic', 'process')."""
-        return self.critic.memory if name == "critic" else getattr(self, name)
+    def _memories(self) -> dict[str, LLRMemory]:
+        """The actor's, the critic's and the process model's memories, by their names in the
+        learner's state and config (_MEMORIES)."""
+        return {
+            name: self.critic.memory if name == "critic" else getattr(self, name)
+            for name in _MEMORIES
+        }
 
     def _state(self) -> dict[str, np.ndarray]:
         """The three memories, the critic's traces and the running trial's bookkeeping."""
         state: dict[str, np.ndarray] = {}
-        for name in _MEMORIES:
-            state.update(self._memory(name).state_dict(prefix=f"{name}."))
+        for name, memory in self._memories().items():
+            state.update(memory.state_dict(prefix=f"{name}."))
         state["traces"] = self.critic.traces.copy()
         state["k"] = np.array(self._k)
         state["x_prev"] = self._x_prev.copy()
@@ -498,13 +495,13 @@ class MLAC(Agent):
         return super()._may_lack(key) or key.endswith(".redundancy")  # older snapshots
 
     def _check_state(self, state: dict[str, np.ndarray]) -> None:
-        for name in _MEMORIES:
-            self._memory(name).check_state_dict(state, prefix=f"{name}.")
+        for name, memory in self._memories().items():
+            memory.check_state_dict(state, prefix=f"{name}.")
         _check_traces(self.name, state)
 
     def _load_state(self, state: dict[str, np.ndarray]) -> None:
-        for name in _MEMORIES:
-            self._memory(name).load_state_dict(state, prefix=f"{name}.")
+        for name, memory in self._memories().items():
+            memory.load_state_dict(state, prefix=f"{name}.")
         self.critic.traces[:] = state["traces"]
         self._k = int(state["k"])
         self._x_prev = np.array(state["x_prev"], dtype=float)

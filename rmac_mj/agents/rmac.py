@@ -19,7 +19,7 @@ from rmac_mj.agents.base import Agent, RefusedTransition
 from rmac_mj.agents.critic import LLRCritic, _check_traces
 from rmac_mj.agents.exploration import model_uncertainty
 from rmac_mj.agents.rmac_config import REACHABLE_RULES, RMACConfig
-from rmac_mj.agents.seeding import discounted_returns, seed_memory
+from rmac_mj.agents.seeding import Transitions, discounted_returns, seed_memory
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
 from rmac_mj.agents.task_knowledge import with_task_action_cost, with_task_weights
 from rmac_mj.approximators.llr import LLRMemory, shared_settings, wrap
@@ -388,15 +388,7 @@ class RMAC(Agent):
         )
 
     # -- prior knowledge (section 7) -------------------------------------------------------------
-    def _seed_from(
-        self,
-        states: np.ndarray,
-        actions: np.ndarray,
-        rewards: np.ndarray,
-        next_states: np.ndarray,
-        trial: np.ndarray,
-        parts: tuple[str, ...],
-    ) -> None:
+    def _seed_from(self, transitions: Transitions, parts: tuple[str, ...]) -> None:
         """Initialise the memories from recorded transitions instead of empty (section 7).
 
         * 'process': M^P <- [x_t, u_t | x_{t+1}], the recorded dynamics;
@@ -408,26 +400,25 @@ class RMAC(Agent):
         Each memory holds exactly the samples when they fit, otherwise they pass through its
         replacement rule in time order (``prior_knowledge.seed_memory``). Angles are wrapped as when learning.
         """
-        period = self.state_space.period
-        x = wrap(states, period)
-        x_next = wrap(next_states, period)
+        x = wrap(transitions.states, self.state_space.period)
+        x_next = wrap(transitions.next_states, self.state_space.period)
         if "process" in parts:
-            seed_memory(self.process, np.hstack([x, actions]), x_next)
+            seed_memory(self.process, np.hstack([x, transitions.actions]), x_next)
         if "reference" in parts:
             seed_memory(self.reference, x, x_next)
         if "critic" in parts:
-            returns = discounted_returns(rewards, trial, self.config.gamma)
+            returns = discounted_returns(transitions.rewards, transitions.trial, self.config.gamma)
             seed_memory(self.critic.memory, x, returns[:, None])
 
     # -- state -----------------------------------------------------------------------------------
+    def _memories(self) -> dict[str, LLRMemory]:
+        """M^P, M^R and the critic's M^C, by their names in the learner's state and config."""
+        return {"process": self.process, "reference": self.reference, "critic": self.critic.memory}
+
     def _state(self) -> dict[str, np.ndarray]:
         """The three memories, the critic's traces and the running trial's bookkeeping."""
         state: dict[str, np.ndarray] = {}
-        for name, memory in (
-            ("process", self.process),
-            ("reference", self.reference),
-            ("critic", self.critic.memory),
-        ):
+        for name, memory in self._memories().items():
             state.update(memory.state_dict(prefix=f"{name}."))
         state["traces"] = self.critic.traces.copy()
         state["k"] = np.array(self._k)
@@ -441,20 +432,12 @@ class RMAC(Agent):
         return super()._may_lack(key) or key.endswith(".redundancy")  # older snapshots
 
     def _check_state(self, state: dict[str, np.ndarray]) -> None:
-        for name, memory in (
-            ("process", self.process),
-            ("reference", self.reference),
-            ("critic", self.critic.memory),
-        ):
+        for name, memory in self._memories().items():
             memory.check_state_dict(state, prefix=f"{name}.")
         _check_traces(self.name, state)
 
     def _load_state(self, state: dict[str, np.ndarray]) -> None:
-        for name, memory in (
-            ("process", self.process),
-            ("reference", self.reference),
-            ("critic", self.critic.memory),
-        ):
+        for name, memory in self._memories().items():
             memory.load_state_dict(state, prefix=f"{name}.")
         self.critic.traces[:] = state["traces"]
         self._k = int(state["k"])

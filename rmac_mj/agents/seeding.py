@@ -7,7 +7,7 @@ memory samples (returns-to-go: :func:`discounted_returns`) and fills its memorie
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -16,6 +16,17 @@ import numpy as np
 #: closed loop (the desired behaviour); 'critic' the demonstration's discounted returns-to-go;
 #: 'actor' the demonstrated (x, u) pairs.
 PRIOR_PARTS = ("process", "reference", "critic", "actor")
+
+
+class Transitions(NamedTuple):
+    """Recorded transitions as :func:`check_transitions` returns them: states and next_states
+    float (T, n), actions float (T, m), rewards float (T,), trial int64 (T,) non-decreasing."""
+
+    states: np.ndarray
+    actions: np.ndarray
+    rewards: np.ndarray
+    next_states: np.ndarray
+    trial: np.ndarray
 
 
 def check_transitions(
@@ -27,7 +38,7 @@ def check_transitions(
     state_dim: int | None = None,
     action_dim: int | None = None,
     owner: str = "transitions",
-) -> tuple[np.ndarray, ...]:
+) -> Transitions:
     """Recorded transitions as float arrays (and int64 trial ids), checked once.
 
     Shapes: states and next_states (T, n), actions (T, m), rewards (T,), trial (T,) with T >= 1;
@@ -71,7 +82,7 @@ def check_transitions(
             f"in time order); row {row} goes back from {trial_ids[row - 1]} to "
             f"{trial_ids[row]}"
         )
-    return states, actions, rewards, next_states, trial_ids
+    return Transitions(states, actions, rewards, next_states, trial_ids)
 
 
 def _numeric(owner: str, name: str, value: Any, kinds: str, what: str) -> np.ndarray:
