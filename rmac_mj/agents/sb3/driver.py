@@ -37,6 +37,7 @@ modules and optimisers); SAC, TD3 and sb3-contrib's CrossQ are in
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import math
 from typing import Any
 
@@ -174,9 +175,21 @@ class SB3Agent(Agent):
             self._set_global_random_states(outer)
         self.model.set_logger(Logger(folder=None, output_formats=[]))  # record, never write
 
+    #: The config's fields that SB3 takes inside ``policy_kwargs`` (:meth:`_policy_kwargs`).
+    policy_fields: tuple[str, ...] = ("net_arch",)
+
     def _sb3_kwargs(self) -> dict[str, Any]:
-        """The SB3 constructor's arguments from the config."""
-        raise NotImplementedError
+        """The SB3 constructor's arguments: every config field under its own name (the configs use
+        SB3's names) but ``torch_threads`` and the :attr:`policy_fields`, which make
+        ``policy_kwargs``."""
+        c = self.config
+        skip = ("torch_threads", *self.policy_fields)
+        kwargs = {f.name: getattr(c, f.name) for f in dataclasses.fields(c) if f.name not in skip}
+        return {**kwargs, "policy_kwargs": self._policy_kwargs()}
+
+    def _policy_kwargs(self) -> dict[str, Any]:
+        """SB3's ``policy_kwargs`` from the config's :attr:`policy_fields`."""
+        return {"net_arch": list(self.config.net_arch)}
 
     # -- randomness: the learner's own streams, swapped in around every call into SB3 -------------------
     def _global_random_states(self) -> tuple[Any, Any]:

@@ -17,19 +17,6 @@ class _OffPolicyAgent(SB3Agent):
     """SAC, TD3 and CrossQ: act, store the transition, and update every ``train_freq`` steps (SB3's
     ``OffPolicyAlgorithm.learn``: ``collect_rollouts`` of ``train_freq`` steps, then ``train``)."""
 
-    def _sb3_kwargs(self) -> dict[str, Any]:
-        c = self.config
-        return dict(
-            learning_rate=c.learning_rate,
-            buffer_size=c.buffer_size,
-            learning_starts=c.learning_starts,
-            batch_size=c.batch_size,
-            gamma=c.gamma,
-            train_freq=c.train_freq,
-            gradient_steps=c.gradient_steps,
-            policy_kwargs={"net_arch": list(c.net_arch)},
-        )
-
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self._buffer_action: np.ndarray | None = (
@@ -173,13 +160,6 @@ class _EntropyRegularised(_OffPolicyAgent):
     def _greedy_scaled_action(self, observation):
         return self.model.actor(observation, deterministic=True)
 
-    def _sb3_kwargs(self) -> dict[str, Any]:
-        return {
-            **super()._sb3_kwargs(),
-            "ent_coef": self.config.ent_coef,
-            "target_entropy": self.config.target_entropy,
-        }
-
     def _optimizers(self) -> dict[str, Any]:
         optimizers = super()._optimizers()
         if self.model.ent_coef_optimizer is not None:
@@ -209,14 +189,6 @@ class SB3SAC(_EntropyRegularised):
     config_class = SB3SACConfig
     sb3_class = "SAC"
 
-    def _sb3_kwargs(self) -> dict[str, Any]:
-        c = self.config
-        return {
-            **super()._sb3_kwargs(),
-            "tau": c.tau,
-            "target_update_interval": c.target_update_interval,
-        }
-
 
 class SB3CrossQ(_EntropyRegularised):
     """sb3-contrib's CrossQ (see :mod:`rmac_mj.agents.sb3.driver` and :class:`SB3CrossQConfig`): SAC's
@@ -227,18 +199,21 @@ class SB3CrossQ(_EntropyRegularised):
     config_class = SB3CrossQConfig
     sb3_class = "CrossQ"
     sb3_package = "sb3_contrib"
+    policy_fields = (
+        "net_arch",
+        "critic_net_arch",
+        "batch_norm_momentum",
+        "batch_norm_eps",
+        "renorm_warmup_steps",
+    )
 
-    def _sb3_kwargs(self) -> dict[str, Any]:
+    def _policy_kwargs(self) -> dict[str, Any]:
         c = self.config
         return {
-            **super()._sb3_kwargs(),
-            "policy_delay": c.policy_delay,
-            "policy_kwargs": {
-                "net_arch": {"pi": list(c.net_arch), "qf": list(c.critic_net_arch)},
-                "batch_norm_momentum": c.batch_norm_momentum,
-                "batch_norm_eps": c.batch_norm_eps,
-                "renorm_warmup_steps": c.renorm_warmup_steps,
-            },
+            "net_arch": {"pi": list(c.net_arch), "qf": list(c.critic_net_arch)},
+            "batch_norm_momentum": c.batch_norm_momentum,
+            "batch_norm_eps": c.batch_norm_eps,
+            "renorm_warmup_steps": c.renorm_warmup_steps,
         }
 
 
@@ -260,14 +235,7 @@ class SB3TD3(_OffPolicyAgent):
             if c.action_noise > 0
             else None
         )
-        return {
-            **super()._sb3_kwargs(),
-            "tau": c.tau,
-            "policy_delay": c.policy_delay,
-            "target_policy_noise": c.target_policy_noise,
-            "target_noise_clip": c.target_noise_clip,
-            "action_noise": noise,
-        }
+        return {**super()._sb3_kwargs(), "action_noise": noise}  # SB3 takes the noise as an object
 
     def _greedy_scaled_action(self, observation):
         return self.model.actor(observation)

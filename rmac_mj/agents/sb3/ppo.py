@@ -21,6 +21,7 @@ class SB3PPO(SB3Agent):
     display_name = "PPO (SB3)"
     config_class = SB3PPOConfig
     sb3_class = "PPO"
+    policy_fields = ("net_arch", "log_std_init")
 
     @classmethod
     def _memory_parts(
@@ -39,24 +40,8 @@ class SB3PPO(SB3Agent):
         self.model._last_episode_starts = np.ones((1,), dtype=bool)
         self._pending: tuple[Any, Any, Any] | None = None  # the step's (action, value, log prob)
 
-    def _sb3_kwargs(self) -> dict[str, Any]:
-        c = self.config
-        return dict(
-            learning_rate=c.learning_rate,
-            n_steps=c.n_steps,
-            batch_size=c.batch_size,
-            n_epochs=c.n_epochs,
-            gamma=c.gamma,
-            gae_lambda=c.gae_lambda,
-            clip_range=c.clip_range,
-            clip_range_vf=c.clip_range_vf,
-            normalize_advantage=c.normalize_advantage,
-            ent_coef=c.ent_coef,
-            vf_coef=c.vf_coef,
-            max_grad_norm=c.max_grad_norm,
-            target_kl=c.target_kl,
-            policy_kwargs={"net_arch": list(c.net_arch), "log_std_init": c.log_std_init},
-        )
+    def _policy_kwargs(self) -> dict[str, Any]:
+        return {"net_arch": list(self.config.net_arch), "log_std_init": self.config.log_std_init}
 
     def _act(self) -> np.ndarray:
         """One step of SB3's ``collect_rollouts``: sample from the policy, clip to the bounds."""
