@@ -102,7 +102,7 @@ def origin(spec: str) -> dict[str, Any]:
     digested, not the modules it imports."""
     source, target = parse(spec)
     if source in SOURCES:
-        found: dict[str, Any] = {"package": source, "version": _version(source)}
+        found: dict[str, Any] = {"package": source, "version": installed_version(source)}
         if source == "gymnasium" and ":" in target:
             found.update(_module_origin(target.partition(":")[0]))
         return found
@@ -154,9 +154,11 @@ def _digest(path: pathlib.Path) -> str | None:
         return None
 
 
-def _version(package: str) -> str | None:
+def installed_version(distribution: str) -> str | None:
+    """The installed version of a distribution (``"gymnasium"``, ``"rmac-mj"``), None if it is not
+    installed."""
     try:
-        return importlib.metadata.version(package)
+        return importlib.metadata.version(distribution)
     except importlib.metadata.PackageNotFoundError:
         return None
 

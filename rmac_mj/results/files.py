@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import csv
 import dataclasses
-import importlib.metadata
 import io
 import json
 import math
@@ -25,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from rmac_mj.constraints import Limit
+from rmac_mj.envs.spec import installed_version
 from rmac_mj.errors import MissingInputError, UserInputError
 
 
@@ -142,7 +142,7 @@ def write_npz(path: str | os.PathLike, **arrays: np.ndarray) -> pathlib.Path:
 
 def code_version() -> dict[str, Any]:
     """The package version and, in a git checkout, the commit and whether the tree is dirty."""
-    version = {"package": _version("rmac-mj")}
+    version = {"package": installed_version("rmac-mj")}
     root = pathlib.Path(__file__).resolve().parents[2]
 
     def git(*args: str) -> str:
@@ -160,19 +160,12 @@ def code_version() -> dict[str, Any]:
     return version
 
 
-def _version(distribution: str) -> str | None:
-    try:
-        return importlib.metadata.version(distribution)
-    except importlib.metadata.PackageNotFoundError:
-        return None
-
-
 def provenance() -> dict[str, Any]:
     """Package versions, code version and machine: stored beside every result."""
     return {
         "code": code_version(),
         "packages": {
-            name: _version(name)
+            name: installed_version(name)
             for name in ("mujoco", "dm-control", "numpy", "scipy", "numba", "matplotlib")
         },
         "python": platform.python_version(),
