@@ -29,6 +29,7 @@ __all__ = [
     "TupleOf",
     "WEIGHTS",
     "check",
+    "finite_vector",
     "invalid",
     "lookup",
     "unknown",
@@ -382,6 +383,19 @@ def check(owner: str, table: Mapping[str, Sequence[Any]], values: Mapping[str, A
             raise invalid(owner, name, value, unmet(value, constraints, values))
         normalised[name] = value if chosen is _NONE_ALLOWED else chosen.normalise(value)
     return normalised
+
+
+def finite_vector(value: Any, dim: int, name: str, owner: str = "") -> np.ndarray:
+    """``value`` (any array of ``dim`` entries) as a new float64 vector of shape (dim,); ValueError
+    naming ``name`` (after ``owner: ``) when it has another size or an entry that is not finite.
+    The check of an input vector at a boundary: an action, a state to encode."""
+    v = np.array(value, dtype=float).reshape(-1)
+    said = f"{owner}: {name}" if owner else name
+    if v.shape != (dim,):
+        raise ValueError(f"{said} must have shape ({dim},), got shape {np.shape(value)}")
+    if not np.all(np.isfinite(v)):
+        raise ValueError(f"{said} must be finite, got {value!r}")
+    return v
 
 
 def check_config(config: Any) -> None:

@@ -22,6 +22,7 @@ from rmac_mj.agents.planning import Rehearsal
 from rmac_mj.agents.seeding import Transitions, check_transitions
 from rmac_mj.agents.spaces import STATE_LIMIT_WIDTHS, ActionSpace, StateSpace
 from rmac_mj.agents.task_knowledge import with_task_units
+from rmac_mj.constraints import finite_vector
 
 #: State dict entries :class:`Agent` writes itself; a learner's ``_state`` must not use them.
 _RESERVED = ("rng", "in_trial", "trials")
@@ -61,12 +62,7 @@ def check_state(x: Any, space: StateSpace, name: str = "x", owner: str = "") -> 
 
 def check_action(u: Any, space: ActionSpace, name: str = "u", owner: str = "") -> np.ndarray:
     """u as a new float64 vector of shape (m,); ValueError naming ``name`` if not finite or wrong."""
-    v = np.array(u, dtype=float).reshape(-1)
-    if v.shape != (space.dim,):
-        raise ValueError(f"{owner}: {name} must have shape ({space.dim},), got shape {np.shape(u)}")
-    if not np.all(np.isfinite(v)):
-        raise ValueError(f"{owner}: {name} must be finite, got {u!r}")
-    return v
+    return finite_vector(u, space.dim, name, owner)
 
 
 def check_reward(reward: Any, name: str = "reward", owner: str = "") -> float:

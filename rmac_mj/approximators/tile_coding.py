@@ -17,7 +17,7 @@ import numba
 import numpy as np
 
 from rmac_mj._cache import say_when_compiling
-from rmac_mj.constraints import Interval, Options, TupleOf, check, check_config
+from rmac_mj.constraints import Interval, Options, TupleOf, check, check_config, finite_vector
 
 say_when_compiling()  # the first compilation in a process says so (tile coding's kernel)
 
@@ -187,12 +187,7 @@ class TileCoder:
 
     def check_state(self, x: np.ndarray, name: str = "x") -> np.ndarray:
         """``x`` as a float ndarray of shape (n,); raises ValueError if the shape is wrong or non-finite."""
-        x = np.asarray(x, dtype=float).reshape(-1)
-        if x.shape != (self.dim,):
-            raise ValueError(f"{name} must have shape ({self.dim},), got {x.shape}")
-        if not np.all(np.isfinite(x)):
-            raise ValueError(f"{name} must be finite, got {x}")
-        return x
+        return finite_vector(x, self.dim, name)
 
     def active_tiles(self, x: np.ndarray) -> np.ndarray:
         """Indices of the active tiles of state ``x``.
