@@ -325,28 +325,28 @@ def render(args) -> int:
         raise UsageError("give exactly one of SNAPSHOT, --progression DIR or --compare DIR")
     from rmac_mj.videos import result_videos
 
-    options = {
-        "width": args.width,
-        "height": args.height,
-        "overlay": not args.no_overlay,
-        "frames_per_step": args.frames_per_step,
-        "env": args.env,
-        "trust_env": args.trust_env,
-        "log": say,
-    }
+    options = result_videos.VideoOptions(
+        width=args.width,
+        height=args.height,
+        overlay=not args.no_overlay,
+        frames_per_step=args.frames_per_step,
+        env=args.env,
+        trust_env=args.trust_env,
+        log=say,
+    )
     if args.snapshot is not None:
         path = result_videos.render_snapshot(
-            args.snapshot, args.out, domain=args.domain, task=args.task, **options
+            args.snapshot, args.out, options, domain=args.domain, task=args.task
         )
     elif args.domain is not None or args.task is not None:
         raise UsageError("--domain/--task apply to a single SNAPSHOT only")
     elif args.progression is not None:
         path = result_videos.render_progression(
-            args.progression, args.out, experiment=args.experiment, **options
+            args.progression, args.out, experiment=args.experiment, options=options
         )
     else:
         path = result_videos.render_comparison(
-            args.compare, args.out, experiment=args.experiment, **options
+            args.compare, args.out, experiment=args.experiment, options=options
         )
     print("video:", path)
     return 0

@@ -23,6 +23,7 @@ from rmac_mj.videos.render import (
     render_state,
 )
 from rmac_mj.videos.result_videos import (
+    VideoOptions,
     render_comparison,
     render_progression,
     render_snapshot,
@@ -48,6 +49,7 @@ __all__ = [
     "side_by_side",
     "write_video",
     # Videos of a result directory's snapshots
+    "VideoOptions",
     "render_comparison",
     "render_progression",
     "render_snapshot",

@@ -2,11 +2,13 @@
 progression over its snapshots, learners side by side after the same trial (``rmac-mj render``).
 
 The snapshots are found through the directory's :class:`~rmac_mj.results.store.ResultStore`,
-rendered by :mod:`rmac_mj.videos.render` and written by :mod:`rmac_mj.videos.encode`.
+rendered by :mod:`rmac_mj.videos.render` and written by :mod:`rmac_mj.videos.encode`; how, is one
+:class:`VideoOptions` for all three.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import pathlib
 from collections.abc import Callable, Sequence
@@ -19,32 +21,57 @@ from rmac_mj.videos import encode as video
 from rmac_mj.videos.render import Camera, RenderedEpisode, render_episode
 
 
+@dataclasses.dataclass(frozen=True)
+class VideoOptions:
+    """How the videos of a result directory's snapshots are rendered, on which environment, and
+    written (``rmac-mj render``'s options).
+
+    Attributes:
+      width, height, camera, frames_per_step, overlay: the frames, as for
+        :func:`~rmac_mj.videos.render.render_episode`.
+      scale, frame_step: the written video, as for :func:`~rmac_mj.videos.encode.write_video`.
+      env: run the episodes on this outside environment (a SPEC) instead of the snapshot's task;
+        the learner's state and action must have the same dimensions there.
+      trust_env: run an outside environment of the user's code that the snapshot names without
+        ``env`` naming it again (:func:`~rmac_mj.results.snapshots.snapshot_environment`).
+      log: hears the environment's notes.
+    """
+
+    width: int = 320
+    height: int = 240
+    camera: Camera = None
+    frames_per_step: int = 1
+    overlay: bool = True
+    scale: float = 1.0
+    frame_step: int = 1
+    env: str | None = None
+    trust_env: bool = False
+    log: Callable[[str], None] | None = None
+
+    def write(self, frames, out_path: str | os.PathLike, fps: float) -> pathlib.Path:
+        """Write ``frames`` to ``out_path`` at ``fps`` (:func:`~rmac_mj.videos.encode.write_video`)."""
+        return video.write_video(
+            frames, out_path, fps, scale=self.scale, frame_step=self.frame_step
+        )
+
+
 def render_snapshot_episode(
     snapshot_path: str | os.PathLike,
-    width: int = 320,
-    height: int = 240,
-    camera: Camera = None,
-    frames_per_step: int = 1,
-    overlay: bool = True,
+    options: VideoOptions = VideoOptions(),
     label: str | None = None,
     domain: str | None = None,
     task: str | None = None,
-    env: str | None = None,
-    trust_env: bool = False,
-    log: Callable[[str], None] | None = None,
 ) -> RenderedEpisode:
     """Render the greedy episode of the agent saved at ``snapshot_path``.
 
     The episode runs on the task the agent learned on, or on ``domain``/``task`` when given (with
-    their default task_kwargs), or on the outside environment ``env`` (a SPEC); the learner's state
-    and action must have the same dimensions there. An outside environment of the user's code that
-    the snapshot names runs only when ``env`` names it again or with ``trust_env``
-    (:func:`~rmac_mj.results.snapshots.snapshot_environment`; ``log`` hears its notes).
+    their default task_kwargs), or on the outside environment ``options.env``.
     ``label`` defaults to e.g. "RMAC, trial 600" from the snapshot's meta data.
     """
+    o = options
     agent, meta = load_snapshot(snapshot_path)
     env = snapshot_environment(
-        agent, meta, domain, task, env, render=True, trust_env=trust_env, log=log
+        agent, meta, domain, task, o.env, render=True, trust_env=o.trust_env, log=o.log
     )
     if label is None:
         label = display_name(meta["algorithm"])
@@ -53,11 +80,11 @@ def render_snapshot_episode(
     return render_episode(
         env,
         agent,
-        width=width,
-        height=height,
-        camera=camera,
-        frames_per_step=frames_per_step,
-        overlay=overlay,
+        width=o.width,
+        height=o.height,
+        camera=o.camera,
+        frames_per_step=o.frames_per_step,
+        overlay=o.overlay,
         label=label,
     )
 
@@ -65,38 +92,15 @@ def render_snapshot_episode(
 def render_snapshot(
     snapshot_path: str | os.PathLike,
     out_path: str | os.PathLike,
-    width: int = 320,
-    height: int = 240,
-    camera: Camera = None,
-    frames_per_step: int = 1,
-    overlay: bool = True,
-    scale: float = 1.0,
-    frame_step: int = 1,
+    options: VideoOptions = VideoOptions(),
     domain: str | None = None,
     task: str | None = None,
-    env: str | None = None,
-    trust_env: bool = False,
-    log: Callable[[str], None] | None = None,
 ) -> pathlib.Path:
     """Render a snapshot's greedy episode to ``out_path`` (.mp4 or .gif) at real-time speed (on
-    ``domain``/``task`` or ``env`` when given, see :func:`render_snapshot_episode`)."""
+    ``domain``/``task`` or ``options.env`` when given, see :func:`render_snapshot_episode`)."""
     video.check_video_path(out_path)
-    episode = render_snapshot_episode(
-        snapshot_path,
-        width,
-        height,
-        camera,
-        frames_per_step,
-        overlay,
-        domain=domain,
-        task=task,
-        env=env,
-        trust_env=trust_env,
-        log=log,
-    )
-    return video.write_video(
-        episode.frames, out_path, episode.fps, scale=scale, frame_step=frame_step
-    )
+    episode = render_snapshot_episode(snapshot_path, options, domain=domain, task=task)
+    return options.write(episode.frames, out_path, episode.fps)
 
 
 def _pick_trials(
@@ -117,15 +121,7 @@ def render_progression(
     algorithm: str | None = None,
     trials: Sequence[int] | None = None,
     layout: str = "sequence",
-    width: int = 320,
-    height: int = 240,
-    frames_per_step: int = 1,
-    overlay: bool = True,
-    scale: float = 1.0,
-    frame_step: int = 1,
-    env: str | None = None,
-    trust_env: bool = False,
-    log: Callable[[str], None] | None = None,
+    options: VideoOptions = VideoOptions(),
 ) -> pathlib.Path:
     """One experiment's greedy episode after several trials, labelled, to ``out_path``.
 
@@ -134,7 +130,6 @@ def render_progression(
       trials: which snapshots (trial numbers); None takes all of them (1, 10, 50, 200 and the last,
         with the runner's defaults).
       layout: "sequence" (one after another, each last frame held 0.5 s) or "side_by_side".
-      env, trust_env, log: the environment, as for :func:`render_snapshot_episode`.
     """
     video.check_video_path(out_path)
     if layout not in ("sequence", "side_by_side"):
@@ -148,17 +143,7 @@ def render_progression(
         f"{result_dir} ({algorithm}, experiment {experiment})",
     )
     episodes = [
-        render_snapshot_episode(
-            available[t],
-            width,
-            height,
-            frames_per_step=frames_per_step,
-            overlay=overlay,
-            label=f"{display_name(algorithm)}, trial {t}",
-            env=env,
-            trust_env=trust_env,
-            log=log,
-        )
+        render_snapshot_episode(available[t], options, f"{display_name(algorithm)}, trial {t}")
         for t in chosen
     ]
     clips = [episode.frames for episode in episodes]
@@ -168,7 +153,7 @@ def render_progression(
         if layout == "sequence"
         else video.side_by_side(clips)
     )
-    return video.write_video(frames, out_path, fps, scale=scale, frame_step=frame_step)
+    return options.write(frames, out_path, fps)
 
 
 def _snapshot_algorithm(result_dir: str | os.PathLike) -> str:
@@ -194,18 +179,10 @@ def render_comparison(
     trial: int | None = None,
     experiment: int = 0,
     algorithms: Sequence[str] = ("s-ac", "rmac"),
-    width: int = 320,
-    height: int = 240,
-    frames_per_step: int = 1,
-    overlay: bool = True,
-    scale: float = 1.0,
-    frame_step: int = 1,
-    env: str | None = None,
-    trust_env: bool = False,
-    log: Callable[[str], None] | None = None,
+    options: VideoOptions = VideoOptions(),
 ) -> pathlib.Path:
     """``algorithms`` side by side after the same ``trial`` (None: the last both have), to
-    ``out_path``; ``env``, ``trust_env``, ``log``: as for :func:`render_snapshot_episode`."""
+    ``out_path``."""
     video.check_video_path(out_path)
     store = ResultStore(result_dir)
     available = {a: store.snapshot_trials(a, experiment) for a in algorithms}
@@ -220,18 +197,6 @@ def render_comparison(
         trial = max(common)
     for algorithm, trials in available.items():
         _pick_trials(trials, [trial], f"{result_dir} ({algorithm}, experiment {experiment})")
-    episodes = [
-        render_snapshot_episode(
-            available[a][trial],
-            width,
-            height,
-            frames_per_step=frames_per_step,
-            overlay=overlay,
-            env=env,
-            trust_env=trust_env,
-            log=log,
-        )
-        for a in algorithms
-    ]
+    episodes = [render_snapshot_episode(available[a][trial], options) for a in algorithms]
     frames = video.side_by_side([episode.frames for episode in episodes])
-    return video.write_video(frames, out_path, episodes[0].fps, scale=scale, frame_step=frame_step)
+    return options.write(frames, out_path, episodes[0].fps)

@@ -163,14 +163,16 @@ def _fake_results(tmp_path, monkeypatch, trials=(1, 10)):
 @pytest.mark.slow
 def test_progression_and_comparison_from_a_result_directory(tmp_path, monkeypatch):
     results = _fake_results(tmp_path, monkeypatch)
-    options = {"width": 64, "height": 48, "overlay": False}
-    path = result_videos.render_progression(results, tmp_path / "progression.mp4", **options)
+    options = result_videos.VideoOptions(width=64, height=48, overlay=False)
+    path = result_videos.render_progression(results, tmp_path / "progression.mp4", options=options)
     assert len(imageio.mimread(path)) == 2 * (4 + 17)  # 4 frames each, last held 0.5 s at 33.3 fps
     # (a GIF merges the held frames into one long frame, so its count would not tell)
-    path = result_videos.render_comparison(results, tmp_path / "comparison.gif", **options)
+    path = result_videos.render_comparison(results, tmp_path / "comparison.gif", options=options)
     assert imageio.mimread(path)[0].shape[:2] == (48, 64 + 4 + 64)
     with pytest.raises(FileNotFoundError, match=r"available: \[1, 10\]"):
-        result_videos.render_progression(results, tmp_path / "p.gif", trials=(1, 600), **options)
+        result_videos.render_progression(
+            results, tmp_path / "p.gif", trials=(1, 600), options=options
+        )
 
 
 def test_backend_selection_prefers_egl_then_osmesa(monkeypatch):
