@@ -12,6 +12,9 @@ from rmac_mj.agents.sb3.config import SB3CrossQConfig, SB3SACConfig, SB3TD3Confi
 from rmac_mj.agents.sb3.driver import SB3Agent, arrays_of_optimizer, load_optimizer, network_bytes
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
 
+#: The arrays of SB3's replay buffer that a learner's state holds (``replay.<name>``, filled rows).
+_REPLAY_ARRAYS = ("observations", "next_observations", "actions", "rewards", "dones", "timeouts")
+
 
 class _OffPolicyAgent(SB3Agent):
     """SAC, TD3 and CrossQ: act, store the transition, and update every ``train_freq`` steps (SB3's
@@ -111,14 +114,7 @@ class _OffPolicyAgent(SB3Agent):
             state.update(arrays_of_optimizer(prefix, optimizer))
         buffer = self.model.replay_buffer
         filled = buffer.buffer_size if buffer.full else buffer.pos
-        for name in (
-            "observations",
-            "next_observations",
-            "actions",
-            "rewards",
-            "dones",
-            "timeouts",
-        ):
+        for name in _REPLAY_ARRAYS:
             state[f"replay.{name}"] = getattr(buffer, name)[:filled].copy()
         state["replay.position"] = np.array([buffer.pos, buffer.full], dtype=np.int64)
         state["action_space_rng"] = generator_state_array(self.model.action_space.np_random)
@@ -135,14 +131,7 @@ class _OffPolicyAgent(SB3Agent):
         buffer = self.model.replay_buffer
         buffer.reset()
         position, full = (int(v) for v in state["replay.position"])
-        for name in (
-            "observations",
-            "next_observations",
-            "actions",
-            "rewards",
-            "dones",
-            "timeouts",
-        ):
+        for name in _REPLAY_ARRAYS:
             saved = state[f"replay.{name}"]
             getattr(buffer, name)[: len(saved)] = saved
         buffer.pos, buffer.full = position, bool(full)
