@@ -19,7 +19,7 @@ from typing import Any
 
 from rmac_mj import _heartbeat as heartbeat
 from rmac_mj import agents
-from rmac_mj.agents import make_agent
+from rmac_mj.agents import Agent, make_agent
 from rmac_mj.agents.spaces import ActionSpace, StateSpace
 from rmac_mj.errors import UserInputError, environment_failure_at
 from rmac_mj.experiments import execution
@@ -88,23 +88,24 @@ def read_prior_file(
     return demonstration, hashlib.sha256(path.read_bytes()).hexdigest()
 
 
+def configured_agent(protocol: Protocol, algorithm: str, spaces: TaskFacts) -> Agent:
+    """The learner ``algorithm`` with the protocol's config for it, built on the protocol's task
+    (seed 0): how a config is checked against what only the task reveals. ValueError or TypeError
+    from the learner when its config cannot build there."""
+    config = protocol.agent_configs.get(algorithm)
+    return make_agent(algorithm, *spaces.of(protocol), config=config, seed=0)
+
+
 def resolve_agents(protocol: Protocol, spaces: TaskFacts) -> dict[str, dict[str, Any]]:
     """Each learner's resolved hyperparameters (``Agent.config_dict``) on the protocol's task; a
     learner its config cannot build there is refused as a :class:`UserInputError` naming it."""
     from rmac_mj import _cache
 
-    state_space, action_space = spaces.of(protocol)
     resolved = {}
     for algorithm in protocol.algorithms:
         try:
             with _cache.compile_notice_muted():  # a second or two; the warm-up says it all
-                agent = make_agent(
-                    algorithm,
-                    state_space,
-                    action_space,
-                    config=protocol.agent_configs.get(algorithm),
-                    seed=0,
-                )
+                agent = configured_agent(protocol, algorithm, spaces)
         except (ValueError, TypeError) as error:
             raise UserInputError(f"{algorithm} on {protocol.environment_name}: {error}") from None
         resolved[algorithm] = agent.config_dict()

@@ -141,20 +141,12 @@ class SweepFileChecker:
         """Build each learner of ``protocol`` on its task: catches what only the task's spaces
         reveal (e.g. input weights of the wrong length) before anything runs; a learner whose
         estimated memory cannot fit the machine is refused before it is built."""
-        from rmac_mj.agents import make_agent
         from rmac_mj.experiments import admission
 
-        state_space, action_space = self._facts.of(protocol)
         for algorithm in protocol.algorithms:
             try:
                 admission.check_memory([protocol], 1, self._facts, algorithms=[algorithm])
-                make_agent(
-                    algorithm,
-                    state_space,
-                    action_space,
-                    config=protocol.agent_configs.get(algorithm),
-                    seed=0,
-                )
+                admission.configured_agent(protocol, algorithm, self._facts)
             except (ValueError, TypeError) as error:
                 raise self.error(where, f"{algorithm}: {error}") from None
 
