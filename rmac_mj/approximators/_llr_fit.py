@@ -11,6 +11,17 @@ from rmac_mj.approximators._llr_search import wrap
 
 
 @njit(cache=True, inline="always")
+def _rotate(M, a, b, c, s):
+    """Columns a and b of M turned by the Jacobi rotation J (cosine c, sine s), in place:
+    M[:, a], M[:, b] <- c M[:, a] - s M[:, b], s M[:, a] + c M[:, b]."""
+    for k in range(M.shape[0]):
+        mka = M[k, a]
+        mkb = M[k, b]
+        M[k, a] = c * mka - s * mkb
+        M[k, b] = s * mka + c * mkb
+
+
+@njit(cache=True, inline="always")
 def jacobi_eigh(G, evals, evecs):
     """Eigen-decomposition G = evecs diag(evals) evecs^T of a small symmetric matrix (p, p) by cyclic
     Jacobi rotations (evals unsorted; G is overwritten). For p <= 4 this is twice as fast as
@@ -37,28 +48,18 @@ def jacobi_eigh(G, evals, evecs):
                 t = (1.0 if theta >= 0 else -1.0) / (abs(theta) + np.sqrt(theta * theta + 1.0))
                 c = 1.0 / np.sqrt(t * t + 1.0)
                 s = t * c
-                for k in range(p):
-                    gka = G[k, a]
-                    gkb = G[k, b]
-                    G[k, a] = c * gka - s * gkb
-                    G[k, b] = s * gka + c * gkb
-                for k in range(p):
-                    gak = G[a, k]
-                    gbk = G[b, k]
-                    G[a, k] = c * gak - s * gbk
-                    G[b, k] = s * gak + c * gbk
-                for k in range(p):
-                    vka = evecs[k, a]
-                    vkb = evecs[k, b]
-                    evecs[k, a] = c * vka - s * vkb
-                    evecs[k, b] = s * vka + c * vkb
+                _rotate(G, a, b, c, s)  # G <- G J, then J^T G: its columns, then its rows
+                _rotate(G.T, a, b, c, s)
+                _rotate(evecs, a, b, c, s)
     for a in range(p):
         evals[a] = G[a, a]
 
 
 @njit(cache=True)
-def fit(Xt, Y, idx, nk, xq, w, in_period, out_period, eig_cutoff, ridge, clip, beta_out, pred_out):
-    """Affine least-squares fit to the neighbours ``idx[:nk]``, centred on and valid around ``xq``.
+def fit(Xt, Y, idx, nk, xq, settings, clip, beta_out, pred_out):
+    """Affine least-squares fit to the neighbours ``idx[:nk]``, centred on and valid around ``xq``,
+    with a memory's ``settings`` (its LLRState: ``weights``, ``in_period``, ``out_period``,
+    ``eig_cutoff``, ``ridge``).
 
     The regressors are the weighted, wrapped offsets z_i = w * wrap(x_i - xq) plus a 1. The normal
     matrix G = A^T A (+ ridge on the slopes) is inverted through its eigen-decomposition, dropping
@@ -68,6 +69,8 @@ def fit(Xt, Y, idx, nk, xq, w, in_period, out_period, eig_cutoff, ridge, clip, b
     input units, with beta @ [xq; 1] == prediction, and the prediction (m,), clipped to the
     neighbours' output range when ``clip``.
     """
+    w, in_period, out_period = settings.weights, settings.in_period, settings.out_period
+    eig_cutoff, ridge = settings.eig_cutoff, settings.ridge
     n = Xt.shape[0]
     m = Y.shape[1]
     p = n + 1

@@ -210,21 +210,7 @@ def _search(state, xq, k, idx_out, best, seed):
 @njit(cache=True, inline="always")
 def fit_at(state, xq, idx, nk, beta_out, pred_out):
     """The local model at a canonical xq from the neighbours ``idx[:nk]`` (see ``fit``)."""
-    fit(
-        state.Xt,
-        state.Y,
-        idx,
-        nk,
-        xq,
-        state.weights,
-        state.in_period,
-        state.out_period,
-        state.eig_cutoff,
-        state.ridge,
-        state.clip,
-        beta_out,
-        pred_out,
-    )
+    fit(state.Xt, state.Y, idx, nk, xq, state, state.clip, beta_out, pred_out)
 
 
 @njit(cache=True)

@@ -56,11 +56,7 @@ def misfits(state, xq, y, idx, nk, out):
         rows,
         nk + 1,
         xq,
-        state.weights,
-        state.in_period,
-        state.out_period,
-        state.eig_cutoff,
-        state.ridge,
+        state,
         np.bool_(False),  # unclipped; a bool, not the literal False (one compiled fit)
         beta,
         pred,

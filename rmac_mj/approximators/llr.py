@@ -17,6 +17,7 @@ from rmac_mj.approximators import _llr_kernels as _k
 from rmac_mj.approximators._llr_kernels import LLR_STATE_TYPE, LLRState, LocalFit
 from rmac_mj.approximators._llr_redundancy import MEASURE_DISTANCE, MEASURE_MISFIT
 from rmac_mj.approximators.llr_numpy import (
+    FitSettings,
     distance_numpy,
     fit_numpy,
     misfit_numpy,
@@ -273,6 +274,9 @@ class LLRMemory:
         else:
             self._eig_cutoff = _NUMERICAL_EIG_CUTOFF
         self._ridge = float(self.ridge) if self.conditioning == "ridge" else 0.0
+        self._fit_settings = FitSettings(
+            self._w, self._pin, self._pout, self._eig_cutoff, self._ridge
+        )
 
     @staticmethod
     def _vector(value: tuple | None, size: int, default: float) -> np.ndarray:
@@ -378,14 +382,7 @@ class LLRMemory:
             d = distance_numpy(self.X_[idx], x, self._w, self._pin, self.norm)
             return np.r_[d[0], d]
         return misfit_numpy(
-            np.vstack([x, self.X_[idx]]),
-            np.vstack([y, self.Y_[idx]]),
-            x,
-            self._w,
-            self._pin,
-            self._pout,
-            self._eig_cutoff,
-            self._ridge,
+            np.vstack([x, self.X_[idx]]), np.vstack([y, self.Y_[idx]]), x, self._fit_settings
         )
 
     def state_dict(self, prefix: str = "") -> dict[str, np.ndarray]:
@@ -491,17 +488,7 @@ class LLRMemory:
             return self._pred, self._beta, self._idx[: max(nk, 0)]
         xq = self._canonical(xq)
         idx = self._neighbours(xq)
-        pred, beta = fit_numpy(
-            self.X_[idx],
-            self.Y_[idx],
-            xq,
-            self._w,
-            self._pin,
-            self._pout,
-            self._eig_cutoff,
-            self._ridge,
-            bool(self.clip),
-        )
+        pred, beta = fit_numpy(self.X_[idx], self.Y_[idx], xq, self._fit_settings, bool(self.clip))
         return pred, beta, idx
 
     def predict(self, X: Any) -> np.ndarray:

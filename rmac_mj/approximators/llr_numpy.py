@@ -7,7 +7,21 @@ neighbours' affine model in the weighted, query-centred space; :func:`distance_n
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
+
+
+class FitSettings(NamedTuple):
+    """What a memory's local fit takes besides its samples (the compiled fit reads the same fields
+    from the memory's LLRState): the input weighting (n,), the input and output periods (n,) and
+    (m,) (0: not periodic), the relative eigenvalue cutoff and the ridge term."""
+
+    weights: np.ndarray
+    in_period: np.ndarray
+    out_period: np.ndarray
+    eig_cutoff: float
+    ridge: float
 
 
 def wrap(d: np.ndarray, period: np.ndarray) -> np.ndarray:
@@ -27,21 +41,15 @@ def search_numpy(
 
 
 def fit_numpy(
-    X: np.ndarray,
-    Y: np.ndarray,
-    xq: np.ndarray,
-    weights: np.ndarray,
-    in_period: np.ndarray,
-    out_period: np.ndarray,
-    eig_cutoff: float,
-    ridge: float,
-    clip: bool,
+    X: np.ndarray, Y: np.ndarray, xq: np.ndarray, settings: FitSettings, clip: bool
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Local affine model of neighbours X (k, n) -> Y (k, m) around xq (n,).
+    """Local affine model of neighbours X (k, n) -> Y (k, m) around xq (n,), with a memory's
+    ``settings``.
 
     Returns (prediction of shape (m,), beta of shape (m, n+1)) with beta @ [xq; 1] == prediction.
     See ``_llr_fit.fit`` for the method; this is the same computation in numpy.
     """
+    weights, in_period, out_period, eig_cutoff, ridge = settings
     k, n = X.shape
     m = Y.shape[1]
     if k == 0:
@@ -72,20 +80,11 @@ def distance_numpy(
     return np.abs(e).sum(axis=1) if norm == 1 else np.sqrt((e * e).sum(axis=1))
 
 
-def misfit_numpy(
-    X: np.ndarray,
-    Y: np.ndarray,
-    xq: np.ndarray,
-    weights: np.ndarray,
-    in_period: np.ndarray,
-    out_period: np.ndarray,
-    eig_cutoff: float,
-    ridge: float,
-) -> np.ndarray:
+def misfit_numpy(X: np.ndarray, Y: np.ndarray, xq: np.ndarray, settings: FitSettings) -> np.ndarray:
     """Squared residuals (shape (k,)) of the samples X (k, n) -> Y (k, m) under their one affine
     fit at xq (``fit_numpy``, unclipped): |wrap(y - pred - beta_x wrap(x - xq))|^2."""
-    pred, beta = fit_numpy(X, Y, xq, weights, in_period, out_period, eig_cutoff, ridge, False)
+    pred, beta = fit_numpy(X, Y, xq, settings, False)
     n = X.shape[1]
-    fitted = pred + wrap(X - xq, in_period) @ beta[:, :n].T
-    r = wrap(Y - fitted, out_period)
+    fitted = pred + wrap(X - xq, settings.in_period) @ beta[:, :n].T
+    r = wrap(Y - fitted, settings.out_period)
     return (r * r).sum(axis=1)

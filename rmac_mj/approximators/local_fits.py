@@ -63,11 +63,7 @@ def _refit(state, i, nbr, origin, slope, low, high):
         nbr[i],
         nk,
         x,
-        state.weights,
-        state.in_period,
-        state.out_period,
-        state.eig_cutoff,
-        state.ridge,
+        state,
         False,  # the range is applied where the model is evaluated (``predict_at``)
         beta,
         pred,
@@ -465,9 +461,7 @@ class LocalFits:
         d = distance_numpy(X, z, w, pin, memory.norm)
         i = int(np.argmin(d))
         idx = search_numpy(X, X[i], w, pin, memory.norm, memory.n_neighbours)
-        pred, beta = fit_numpy(
-            X[idx], Y[idx], X[i], w, pin, pout, memory._eig_cutoff, memory._ridge, False
-        )
+        pred, beta = fit_numpy(X[idx], Y[idx], X[i], memory._fit_settings, False)
         out = pred + beta[:, :-1] @ wrap_array(z - X[i], pin)
         if memory.clip:
             Yn = Y[idx].copy()
