@@ -7,7 +7,6 @@ import json
 import os
 import pathlib
 from collections.abc import Sequence
-from typing import Any
 
 from rmac_mj.cli.arguments import UsageError, say, user_input
 
@@ -231,9 +230,11 @@ def _shared_learner_state(args, snapshots: list[tuple], envs: list):
     return learner_state
 
 
-def _map_slice(args, learner_state, env) -> tuple[Any, tuple[int, int], dict]:
-    """Where the maps are drawn: the state they slice through (--at, else the start state), the
-    two dimensions on their axes (--dims) and those dimensions' given ranges (--xlim, --ylim)."""
+def _map_view(args, learner_state, env):
+    """What the maps show (a ``MapView``): the state they slice through (--at, else the start
+    state), the two dimensions on their axes (--dims), those dimensions' given ranges (--xlim,
+    --ylim) and the grid (--resolution)."""
+    from rmac_mj.figures.policy_plots import MapView
     from rmac_mj.rollout import state_of
 
     n = len(learner_state.low)
@@ -254,7 +255,7 @@ def _map_slice(args, learner_state, env) -> tuple[Any, tuple[int, int], dict]:
     for option, lim in (("--xlim", args.xlim), ("--ylim", args.ylim)):
         if lim is not None and not lim[0] < lim[1]:
             raise UsageError(f"{option} needs LO < HI, got {lim[0]:g},{lim[1]:g}")
-    return anchor, (i, j), limits
+    return MapView(anchor, (i, j), limits, args.resolution)
 
 
 def policy(args) -> int:
@@ -262,20 +263,13 @@ def policy(args) -> int:
 
     snapshots, envs = _load_snapshots(args)
     learner_state = _shared_learner_state(args, snapshots, envs)
-    anchor, dims, limits = _map_slice(args, learner_state, envs[0])
+    view = _map_view(args, learner_state, envs[0])
     first = args.snapshots[0]
     stem = args.out or first.with_name(
         first.stem + ("_policy" if len(snapshots) == 1 else "_policies")
     )
     paths = policy_plots.plot_policies(
-        snapshots,
-        stem,
-        learner_state,
-        anchor,
-        dims=dims,
-        limits=limits,
-        resolution=args.resolution,
-        envs=None if args.no_trajectory else envs,
+        snapshots, stem, learner_state, view, envs=None if args.no_trajectory else envs
     )
     print("figure:", ", ".join(map(str, paths)))
     return 0

@@ -13,6 +13,7 @@ from rmac_mj.figures.plots import (
     save_figure,
 )
 from rmac_mj.figures.policy_plots import (
+    MapView,
     greedy_trajectory,
     plot_policies,
     plot_policy,
@@ -31,6 +32,7 @@ __all__ = [
     "running_mean",
     "save_figure",
     # Policy and critic maps of snapshots
+    "MapView",
     "greedy_trajectory",
     "plot_policies",
     "plot_policy",

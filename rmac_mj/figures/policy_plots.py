@@ -6,6 +6,7 @@ and the action bounds, learner names from the agents.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import pathlib
 from collections.abc import Sequence
@@ -20,6 +21,32 @@ import numpy as np  # noqa: E402
 from rmac_mj import constraints  # noqa: E402
 from rmac_mj.agents import display_name  # noqa: E402
 from rmac_mj.figures.plots import save_figure  # noqa: E402
+
+
+@dataclasses.dataclass(frozen=True)
+class MapView:
+    """What the policy and critic maps show: the state they slice through, the two dimensions on
+    their axes and those dimensions' ranges, and how finely a grid samples them.
+
+    Attributes:
+      anchor: a state of shape (n,) through which the maps slice when n > 2 (e.g. the start state).
+      dims: the state dimensions on the horizontal and vertical axes.
+      limits: per state dimension, a (low, high) range overriding the task's box.
+      resolution: grid points along each axis (checked against ``constraints.MAP_RESOLUTION``
+        before a grid of resolution**2 states is allocated).
+    """
+
+    anchor: Sequence[float]
+    dims: tuple[int, int] = (0, 1)
+    limits: dict[int, tuple[float, float]] | None = None
+    resolution: int = 101
+
+    def __post_init__(self) -> None:
+        constraints.check(
+            "MapView",
+            {"resolution": [constraints.MAP_RESOLUTION.constraint()]},
+            {"resolution": self.resolution},
+        )
 
 
 def policy_actions(agent, states: np.ndarray) -> np.ndarray:
@@ -207,20 +234,13 @@ def _policies_title(snapshots, learner_state, anchor, dims) -> str | None:
 def policies_figure(
     snapshots: Sequence[tuple[Any, dict[str, Any]]],
     learner_state,
-    anchor: Sequence[float],
-    dims: tuple[int, int] = (0, 1),
-    limits: dict[int, tuple[float, float]] | None = None,
-    resolution: int = 101,
+    view: MapView,
     envs: Sequence[Any] | None = None,
 ):
     """The figure of :func:`plot_policies` (see it), not yet saved."""
-    constraints.check(
-        "policies_figure",
-        {"resolution": [constraints.MAP_RESOLUTION.constraint()]},
-        {"resolution": resolution},
-    )
-    i, j = _check_dims(dims, len(learner_state.low))
-    low, high = _map_box(learner_state, limits)
+    i, j = _check_dims(view.dims, len(learner_state.low))
+    low, high = _map_box(learner_state, view.limits)
+    anchor, resolution = view.anchor, view.resolution
     if envs is not None and len(envs) != len(snapshots):
         raise ValueError(
             f"envs must give one environment per snapshot ({len(snapshots)}), got {len(envs)}"
@@ -264,10 +284,7 @@ def plot_policies(
     snapshots: Sequence[tuple[Any, dict[str, Any]]],
     stem: str | os.PathLike,
     learner_state,
-    anchor: Sequence[float],
-    dims: tuple[int, int] = (0, 1),
-    limits: dict[int, tuple[float, float]] | None = None,
-    resolution: int = 101,
+    view: MapView,
     envs: Sequence[Any] | None = None,
 ) -> list[pathlib.Path]:
     """Figs. 3 and 4 for one or more agents: the policy (one map per action dimension) and the critic
@@ -282,36 +299,16 @@ def plot_policies(
       stem: output path without suffix; a .png and a .pdf are written.
       learner_state: the task's ``LearnerStateSpec``: the axes' ranges (its box) and labels, the actions'
         labels.
-      anchor: a state of shape (n,) through which the maps slice when n > 2 (e.g. the start state).
-      dims: the state dimensions on the horizontal and vertical axes.
-      limits: per state dimension, a (low, high) range overriding the task's box.
+      view: the slice the maps show, its ranges and its grid.
       envs: per snapshot, the environment of its greedy trial from the start state, drawn over its
         maps (start: circle, end: cross); None draws none.
     """
-    return save_figure(
-        policies_figure(snapshots, learner_state, anchor, dims, limits, resolution, envs), stem
-    )
+    return save_figure(policies_figure(snapshots, learner_state, view, envs), stem)
 
 
 def plot_policy(
-    agent,
-    meta: dict[str, Any],
-    stem: str | os.PathLike,
-    learner_state,
-    anchor: Sequence[float],
-    dims: tuple[int, int] = (0, 1),
-    limits: dict[int, tuple[float, float]] | None = None,
-    resolution: int = 101,
-    env=None,
+    agent, meta: dict[str, Any], stem: str | os.PathLike, learner_state, view: MapView, env=None
 ) -> list[pathlib.Path]:
     """Figs. 3 and 4 for one agent (see :func:`plot_policies`); ``env``: draw its greedy trial."""
-    return plot_policies(
-        [(agent, meta)],
-        stem,
-        learner_state,
-        anchor,
-        dims,
-        limits,
-        resolution,
-        envs=None if env is None else [env],
-    )
+    envs = None if env is None else [env]
+    return plot_policies([(agent, meta)], stem, learner_state, view, envs)

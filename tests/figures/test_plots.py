@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from rmac_mj.evaluation import summarise, summary_table
-from rmac_mj.figures import greedy_trajectory, plots, policies_figure
+from rmac_mj.figures import MapView, greedy_trajectory, plots, policies_figure
 
 
 def old_summary(trial_seconds: float, trials: int = 4) -> dict:
@@ -210,8 +210,7 @@ def test_side_by_side_policies_share_their_colour_scales():
     fig = policies_figure(
         [(_MapAgent(10.0), {"algorithm": "rmac"}), (_MapAgent(1000.0), {"algorithm": "s-ac"})],
         learner_state,
-        anchor=[np.pi, 0.0],
-        resolution=9,
+        MapView(anchor=[np.pi, 0.0], resolution=9),
     )
     images = [ax.images[0] for ax in fig.axes if ax.images]
     assert len(images) == 4
@@ -237,8 +236,7 @@ def test_the_greedy_trajectory_is_drawn_from_the_start_state():
     fig = policies_figure(
         [(agent, {"algorithm": "rmac"})],
         learner_state,
-        anchor=[np.pi, 0.0],
-        resolution=5,
+        MapView(anchor=[np.pi, 0.0], resolution=5),
         envs=[env],
     )
     lines = [
