@@ -219,22 +219,13 @@ def protocol_of(args):
     prior = prior_options(args)
     overrides = parse_overrides(args.set)
     agent_configs = bounded_toml.merge(getattr(args, "config_agent_configs", {}), overrides)
+    # Each option's value is the Protocol field of its name, but those read their own way here.
+    own_way = ("algorithms", "prior", "prior_trials", "prior_parts")
+    given = {field: getattr(args, field) for field in PROTOCOL_OPTIONS if field not in own_way}
     with user_input():
         return Protocol(
-            domain=args.domain,
-            task=args.task,
+            **given,
             algorithms=algorithms_to_run(args, overrides),
-            experiments=args.experiments,
-            trials=args.trials,
-            steps=args.steps,
-            seed=args.seed,
-            evaluate_every=args.evaluate_every,
-            evaluate_starts=args.evaluate_starts,
-            env=args.env,
-            learner_state=args.learner_state,
-            action_repeat=args.action_repeat,
-            trial_steps=args.trial_steps,
-            control_timestep=args.control_timestep,
             agent_configs=agent_configs,
             **{**getattr(args, "config_protocol", {}), **prior},
         )
