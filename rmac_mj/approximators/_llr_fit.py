@@ -58,8 +58,7 @@ def jacobi_eigh(G, evals, evecs):
 @njit(cache=True)
 def fit(Xt, Y, idx, nk, xq, settings, clip, beta_out, pred_out):
     """Affine least-squares fit to the neighbours ``idx[:nk]``, centred on and valid around ``xq``,
-    with a memory's ``settings`` (its LLRState: ``weights``, ``in_period``, ``out_period``,
-    ``eig_cutoff``, ``ridge``).
+    with the ``settings`` (weights w, periods, cutoff, ridge) of a memory's LLRState.
 
     The regressors are the weighted, wrapped offsets z_i = w * wrap(x_i - xq) plus a 1. The normal
     matrix G = A^T A (+ ridge on the slopes) is inverted through its eigen-decomposition, dropping
@@ -70,9 +69,7 @@ def fit(Xt, Y, idx, nk, xq, settings, clip, beta_out, pred_out):
     neighbours' output range when ``clip``.
     """
     w, in_period, out_period = settings.weights, settings.in_period, settings.out_period
-    eig_cutoff, ridge = settings.eig_cutoff, settings.ridge
-    n = Xt.shape[0]
-    m = Y.shape[1]
+    n, m = Xt.shape[0], Y.shape[1]
     p = n + 1
     if nk == 0:
         beta_out[:, :] = 0.0
@@ -92,14 +89,14 @@ def fit(Xt, Y, idx, nk, xq, settings, clip, beta_out, pred_out):
                 Yn[a, o] = Y[i, o]
     G = A.T @ A
     for j in range(n):
-        G[j, j] += ridge
+        G[j, j] += settings.ridge
     evals = np.empty(p)
     evecs = np.empty((p, p))
     jacobi_eigh(G, evals, evecs)
     top = evals.max()
     Ginv = np.zeros((p, p))
     for c in range(p):
-        if evals[c] > eig_cutoff * top and evals[c] > 0.0:
+        if evals[c] > settings.eig_cutoff * top and evals[c] > 0.0:
             for a in range(p):
                 for b in range(p):
                     Ginv[a, b] += evecs[a, c] * evecs[b, c] / evals[c]
