@@ -68,10 +68,16 @@ def render_snapshot_episode(
     their default task_kwargs), or on the outside environment ``options.env``.
     ``label`` defaults to e.g. "RMAC, trial 600" from the snapshot's meta data.
     """
-    o = options
     agent, meta = load_snapshot(snapshot_path)
     env = snapshot_environment(
-        agent, meta, domain, task, o.env, render=True, trust_env=o.trust_env, log=o.log
+        agent,
+        meta,
+        domain,
+        task,
+        options.env,
+        render=True,
+        trust_env=options.trust_env,
+        log=options.log,
     )
     if label is None:
         label = display_name(meta["algorithm"])
@@ -80,11 +86,11 @@ def render_snapshot_episode(
     return render_episode(
         env,
         agent,
-        width=o.width,
-        height=o.height,
-        camera=o.camera,
-        frames_per_step=o.frames_per_step,
-        overlay=o.overlay,
+        width=options.width,
+        height=options.height,
+        camera=options.camera,
+        frames_per_step=options.frames_per_step,
+        overlay=options.overlay,
         label=label,
     )
 
