@@ -215,3 +215,135 @@ def test_the_critic_learns_from_rewards_shaped_by_the_potential():
     hopeful._step(-1.0, x_next)
     np.testing.assert_array_equal(hopeful.visits_[tiles], before + 1)
     np.testing.assert_array_equal(hopeful.state_dict()["visits"], hopeful.visits_)
+
+
+# -- optimism decided by the learner's own data (sparse_unknown_value, on by default) ---------------
+def _toy_agent(config=None, reward_scale=None, seed=4, cost=0.1):
+    """MPC on a small task of its own: a car on a line (position, velocity), a push u in [-1, 1]
+    whose declared cost is ``cost`` u^2 (MountainCar's protocol: 0.1; dm-control's: 0)."""
+    from rmac_mj.agents import ActionSpace, StateSpace
+
+    states = StateSpace(
+        low=[-1.2, -0.07],
+        high=[0.6, 0.07],
+        periodic=[False, False],
+        timestep=0.05,
+        reward_scale=reward_scale,
+    )
+    actions = ActionSpace(low=[-1.0], high=[1.0], cost=[cost])
+    return make_agent("recommended", states, actions, config=config, seed=seed)
+
+
+def _drive(agent, steps, reward_of, trials=1):
+    """``trials`` trials of ``steps`` real steps of the toy car; the reward of each step is
+    ``reward_of(x_next, u)`` with u as the environment saw it (float32, as Gymnasium's)."""
+    for _ in range(trials):
+        x = np.array([-0.5, 0.0])
+        u = agent.start(x)
+        for k in range(steps):
+            u32 = float(np.float32(u[0]))
+            v = float(np.clip(x[1] + 0.0015 * u32 - 0.0025 * np.cos(3 * x[0]), -0.07, 0.07))
+            x = np.array([float(np.clip(x[0] + v, -1.2, 0.6)), v])
+            r = reward_of(x, u32)
+            if k == steps - 1:
+                agent.stop(r, x)
+            else:
+                u = agent.step(r, x)
+    return agent
+
+
+def _action_cost_only(x, u):
+    return -(u**2) * 0.1
+
+
+def test_the_unknown_is_optimistic_while_every_reward_is_the_action_cost():
+    """Rewards that are only the declared action cost (MountainCar before its flag) tell nothing:
+    from the second one the unknown is worth sparse_unknown_value x one reward unit / (1 - gamma),
+    and the critic learns from the shaped rewards; 0 switches it off."""
+    agent = _toy_agent()
+    assert not agent.optimistic()
+    agent.start(np.array([-0.5, 0.0]))
+    agent.step(
+        _action_cost_only(None, float(np.float32(agent._prev_u[0]))), np.array([-0.5, 0.001])
+    )
+    assert not agent.optimistic() and agent.sparse_rewards_ == 1  # one reward: nothing decided
+    agent = _drive(_toy_agent(), 60, _action_cost_only)
+    assert agent.optimistic() and agent.sparse_rewards_ == 60
+    assert agent.sparse_reward_ == pytest.approx(0.0, abs=1e-9)  # u rounded to float32 by the env
+    full = 0.1 / (1 - agent.config.gamma)
+    assert agent.potential_scale() == pytest.approx(full)
+    assert agent.potential(np.array([0.5, 0.06])) == pytest.approx(full)  # never visited
+    assert agent.potential(np.array([-0.5, 0.0])) < 0.5 * full  # the start
+    state = agent.state_dict()
+    for key in ("visits", "sparse_reward", "sparse_rewards", "prev_u"):
+        assert key in state
+    off = _drive(_toy_agent({"sparse_unknown_value": 0.0}), 60, _action_cost_only)
+    assert not off.optimistic() and off.visits_ is None and off.potential_scale() == 0.0
+
+
+def test_the_scale_of_a_sparse_reward_is_the_tasks_declared_one_else_one_unit():
+    """All rewards 0 (dm-control's pendulum/swingup before the top) or only action costs
+    (MountainCar) give one rule: a declared reward scale, else one reward unit per step."""
+    zero = _drive(_toy_agent(cost=0.0), 30, lambda x, u: 0.0)
+    costs = _drive(_toy_agent(), 30, _action_cost_only)
+    declared = _drive(_toy_agent(reward_scale=4.0), 30, _action_cost_only)
+    gamma = zero.config.gamma
+    assert zero.potential_scale() == pytest.approx(0.1 / (1 - gamma))
+    assert costs.potential_scale() == zero.potential_scale()
+    assert declared.potential_scale() == pytest.approx(0.4 / (1 - gamma))
+    halved = _drive(_toy_agent({"sparse_unknown_value": 0.05}), 30, _action_cost_only)
+    assert halved.potential_scale() == pytest.approx(0.05 / (1 - gamma))
+    # Zero rewards where the task declares an action cost are a state-dependent residual: dense.
+    assert not _drive(_toy_agent(), 30, lambda x, u: 0.0).optimistic()
+
+
+def test_a_state_dependent_reward_after_a_sparse_start_keeps_the_potential_as_it_was():
+    """The flag (a reward of 100) ends the watch; the potential stays on with the scale it had
+    (not the new reward's), fading with visits as before."""
+    agent = _drive(_toy_agent(), 40, _action_cost_only)
+    scale = agent.potential_scale()
+    _drive(agent, 20, lambda x, u: 100.0 if x[1] > 0.0 else _action_cost_only(x, u))
+    assert agent.sparse_reward_ is None and agent.optimistic()
+    assert agent.potential_scale() == scale and agent.reward_scale_ == 100.0
+    assert "sparse_reward" not in agent.state_dict() and "visits" in agent.state_dict()
+
+
+def test_a_dense_reward_leaves_mpc_bit_for_bit_as_without_the_option():
+    """On the paper's pendulum the second reward already differs from the first: the optimism is
+    never on, nothing is counted, and the learner (state, keys, greedy return) is bit for bit MPC
+    with sparse_unknown_value=0."""
+    runs = []
+    for config in (None, {"sparse_unknown_value": 0.0}):
+        env = tasks.load("dc_pendulum", "swingup")
+        agent = make_agent("recommended", state_space_of(env), action_space_of(env), config, seed=6)
+        for _ in range(3):
+            run_trial(env, agent)
+        runs.append((agent, run_trial(env, agent, learn=False)))
+    (auto, auto_return), (plain, plain_return) = runs
+    assert auto.sparse_reward_ is None and auto.visits_ is None and not auto.optimistic()
+    assert auto_return == plain_return
+    a, b = auto.state_dict(), plain.state_dict()
+    assert a.keys() == b.keys()
+    for key in a:
+        assert a[key].tobytes() == b[key].tobytes(), key
+
+
+def test_the_watch_of_a_sparse_reward_is_carried_by_the_state():
+    """A learner restored mid-watch acts and decides as the original; a state without the watch
+    (a dense learner's, or one written before it existed) restores a learner never optimistic."""
+    agent = _drive(_toy_agent(), 30, _action_cost_only)
+    twin = _toy_agent(seed=99)
+    twin.load_state_dict(agent.state_dict())
+    for learner in (agent, twin):
+        _drive(learner, 10, lambda x, u: 1.0 if x[0] > -0.49 else _action_cost_only(x, u))
+    a, b = agent.state_dict(), twin.state_dict()
+    assert a.keys() == b.keys()
+    for key in a:
+        np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+    dense = _toy_agent()
+    state = {k: v for k, v in agent.state_dict().items() if k not in agent._OPTIMISM_KEYS}
+    dense.load_state_dict(state)
+    assert not dense.optimistic() and dense.visits_ is None and dense.sparse_reward_ is None
+    broken = dict(agent.state_dict(), sparse_rewards=np.array(-1))
+    with pytest.raises(ValueError, match="sparse_rewards"):
+        _toy_agent().load_state_dict(broken)
