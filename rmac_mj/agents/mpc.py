@@ -9,6 +9,9 @@ discounted critic value where it ends. The critic and the actor are S-AC's (Algo
 from the real transitions with the actions applied and from short rollouts in the model branched
 from visited states (Dyna, :class:`~rmac_mj.agents.planning.Planning`); the actor's closed-loop
 rollout is one of the planner's population, and S-AC's exploration is added to the planned action.
+Where the reward is sparse (every real reward so far one constant, less the declared action cost),
+the unknown is valued optimistically (R-MAX, ``MPCConfig.sparse_unknown_value``); a dense reward
+leaves that off from its second step.
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ from rmac_mj.agents.sampling_planner import Planner, SamplingPlanner
 from rmac_mj.agents.standard_ac import StandardACConfig, StandardActorCritic
 from rmac_mj.agents.task_knowledge import PAPER_TIMESTEP
 from rmac_mj.approximators.local_fits import LocalFits
+from rmac_mj.approximators.tile_coding import feature_count
 from rmac_mj.constraints import InstanceOf, Interval
 
 
@@ -51,13 +55,15 @@ class MPCConfig(StandardACConfig):
         trials plan with the same V + Phi (V alone undervalues the states that are rarely
         visited). 0: none unless the reward is sparse (``sparse_unknown_value``).
       sparse_unknown_value: the same optimism, decided by the learner's own data: on while the
-        reward is sparse so far, that is while every real reward minus the task's declared action
-        cost (``ActionSpace.cost``, r + sum_i P_i u_i^2) has been one constant, from the second such
-        reward on; the scale of Phi is then the task's declared ``reward_scale``, else one reward
-        unit per control step (the rewards have told nothing of it), and stays so. Once a reward
-        differs from that constant, Phi stays with that scale, fading with visits; if the second
-        real reward already differs (a dense reward), the optimism is never on and the learner is
-        bit for bit MPC without it. 0: off. Unused with ``unknown_value``.
+        reward is sparse so far, that is while every real reward less the task's declared action
+        cost (``ActionSpace.cost`` P: r + sum_i P_i u_i^2) has been one constant, from the second
+        such reward on. The rewards then tell nothing of their scale, so the unknown is worth, per
+        step, the most an action can cost (sum_i P_i max(low_i^2, high_i^2): the push that reaching
+        it may take) plus ``sparse_unknown_value`` x the task's declared ``reward_scale``, else one
+        reward unit: Phi of a never-visited state is that / (1 - gamma). Once a reward differs from
+        the constant, Phi stays with that scale, fading with visits; if the second real reward
+        already differs (a dense reward), the optimism is never on and the learner is bit for bit
+        MPC without it. 0: off. Unused with ``unknown_value``.
     """
 
     planner: SamplingPlanner = SamplingPlanner()
@@ -135,17 +141,25 @@ class MPC(StandardActorCritic):
             if self.action_space.cost is None
             else np.asarray(self.action_space.cost, dtype=float)
         )
+        #: The most a step's action can cost, sum_i P_i max(low_i^2, high_i^2).
+        self._largest_action_cost = float(
+            self._action_cost @ np.maximum(self.action_space.low**2, self.action_space.high**2)
+        )
 
     @classmethod
     def _memory_parts(cls, config, state_space, action_space) -> tuple[int, int]:
-        """S-AC's arrays and the model's cached fits (derived data: not in the state)."""
+        """S-AC's arrays, the model's cached fits (derived data: not in the state) and, with the
+        optimism, the visits of each tile (in the state too)."""
         arrays, state = super()._memory_parts(config, state_space, action_space)
         n, m, planning = state_space.dim, action_space.dim, config.planning
         outputs = n if planning.reward == "task" else n + 1
         fits = LocalFits.memory_estimate(
             n + m, outputs, planning.model_capacity, planning.model_neighbours
         )
-        return arrays + fits, state
+        visits = 0
+        if config.unknown_value or config.sparse_unknown_value:
+            visits = 8 * feature_count(state_space.periodic, config.tile_coding)
+        return arrays + fits + visits, state + visits
 
     # -- optimism in the critic -------------------------------------------------------------------
     def optimistic(self) -> bool:
@@ -164,15 +178,17 @@ class MPC(StandardActorCritic):
     def potential_scale(self, reward_scale: float | None = None) -> float:
         """Phi of a never-visited state (0 while not :meth:`optimistic`): with ``unknown_value``,
         ``unknown_value`` x the reward's scale (``reward_scale``, default the running one) /
-        (1 - gamma); with ``sparse_unknown_value``, that value x the task's declared reward scale,
-        else one reward unit, / (1 - gamma)."""
+        (1 - gamma); with ``sparse_unknown_value``, (the largest action's declared cost + that value
+        x the task's declared reward scale, else one reward unit) / (1 - gamma)."""
         if not self.optimistic():
             return 0.0
         c, declared = self.config, self.state_space.reward_scale
         if c.unknown_value:
             scale = self.reward_scale_ if reward_scale is None else reward_scale
             return c.unknown_value * (scale or declared or 1.0) / (1.0 - c.gamma)
-        return c.sparse_unknown_value * (declared or 1.0) / (1.0 - c.gamma)
+        return (self._largest_action_cost + c.sparse_unknown_value * (declared or 1.0)) / (
+            1.0 - c.gamma
+        )
 
     def potential(self, x: np.ndarray) -> float:
         """Phi(x), the optimism of the canonical state x (0 while not :meth:`optimistic`)."""

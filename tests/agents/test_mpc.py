@@ -258,8 +258,8 @@ def _action_cost_only(x, u):
 
 def test_the_unknown_is_optimistic_while_every_reward_is_the_action_cost():
     """Rewards that are only the declared action cost (MountainCar before its flag) tell nothing:
-    from the second one the unknown is worth sparse_unknown_value x one reward unit / (1 - gamma),
-    and the critic learns from the shaped rewards; 0 switches it off."""
+    from the second one the unknown is worth the largest push's cost plus sparse_unknown_value x
+    one reward unit, per step, / (1 - gamma); 0 switches it off."""
     agent = _toy_agent()
     assert not agent.optimistic()
     agent.start(np.array([-0.5, 0.0]))
@@ -270,7 +270,7 @@ def test_the_unknown_is_optimistic_while_every_reward_is_the_action_cost():
     agent = _drive(_toy_agent(), 60, _action_cost_only)
     assert agent.optimistic() and agent.sparse_rewards_ == 60
     assert agent.sparse_reward_ == pytest.approx(0.0, abs=1e-9)  # u rounded to float32 by the env
-    full = 0.1 / (1 - agent.config.gamma)
+    full = (0.1 + 0.1) / (1 - agent.config.gamma)
     assert agent.potential_scale() == pytest.approx(full)
     assert agent.potential(np.array([0.5, 0.06])) == pytest.approx(full)  # never visited
     assert agent.potential(np.array([-0.5, 0.0])) < 0.5 * full  # the start
@@ -281,18 +281,19 @@ def test_the_unknown_is_optimistic_while_every_reward_is_the_action_cost():
     assert not off.optimistic() and off.visits_ is None and off.potential_scale() == 0.0
 
 
-def test_the_scale_of_a_sparse_reward_is_the_tasks_declared_one_else_one_unit():
-    """All rewards 0 (dm-control's pendulum/swingup before the top) or only action costs
-    (MountainCar) give one rule: a declared reward scale, else one reward unit per step."""
+def test_the_scale_of_a_sparse_reward_is_the_largest_push_plus_a_declared_scale_else_one_unit():
+    """All rewards 0 (dm-control's pendulum/swingup before the top, no action cost) or only action
+    costs (MountainCar) give one rule: Phi of the unknown is (the largest action's declared cost +
+    sparse_unknown_value x the task's declared reward scale, else one reward unit) / (1 - gamma)."""
     zero = _drive(_toy_agent(cost=0.0), 30, lambda x, u: 0.0)
     costs = _drive(_toy_agent(), 30, _action_cost_only)
     declared = _drive(_toy_agent(reward_scale=4.0), 30, _action_cost_only)
+    halved = _drive(_toy_agent({"sparse_unknown_value": 0.05}), 30, _action_cost_only)
     gamma = zero.config.gamma
     assert zero.potential_scale() == pytest.approx(0.1 / (1 - gamma))
-    assert costs.potential_scale() == zero.potential_scale()
-    assert declared.potential_scale() == pytest.approx(0.4 / (1 - gamma))
-    halved = _drive(_toy_agent({"sparse_unknown_value": 0.05}), 30, _action_cost_only)
-    assert halved.potential_scale() == pytest.approx(0.05 / (1 - gamma))
+    assert costs.potential_scale() == pytest.approx((0.1 + 0.1) / (1 - gamma))
+    assert declared.potential_scale() == pytest.approx((0.1 + 0.4) / (1 - gamma))
+    assert halved.potential_scale() == pytest.approx((0.1 + 0.05) / (1 - gamma))
     # Zero rewards where the task declares an action cost are a state-dependent residual: dense.
     assert not _drive(_toy_agent(), 30, lambda x, u: 0.0).optimistic()
 
