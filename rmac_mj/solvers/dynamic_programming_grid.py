@@ -59,7 +59,7 @@ class Problem(TrialProblem):
         spec = env.action_spec()
         self.low, self.high = float(np.min(spec.minimum)), float(np.max(spec.maximum))
         self.horizon = steps_per_trial(env)
-        self.dynamics = stepped_model(model)
+        self.dynamics = stepped_model(env)
         env.reset()
         self.start = self._full_state(physics.data.ptr)
         self._check_deterministic_start(self.start)
