@@ -407,7 +407,7 @@ def optimal_return(
         refresh=refresh,
         announce=announce,
         message=(
-            f"computing the near-optimal return by dynamic programming (about a minute on 2 "
-            f"idle cores; cached after, in {directory})"
+            f"computing the near-optimal return by dynamic programming (about 20 s of CPU, "
+            f"shared by the cores; cached after, in {directory})"
         ),
     )

@@ -214,7 +214,7 @@ def exploration_floor(
         announce=announce,
         message=(
             f"computing the exploration floor ({rollouts} noisy trials of the near-optimal "
-            f"policy, after its dynamic programming: about a minute; cached after, in "
+            f"policy, after its dynamic programming: about 10 s of CPU more; cached after, in "
             f"{directory})"
         ),
     )
