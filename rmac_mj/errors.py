@@ -9,6 +9,17 @@ bug, one line naming where its traceback was written (:data:`EXIT_BUG`).
 import contextlib
 from collections.abc import Iterator
 
+__all__ = [
+    "EXIT_BAD_INPUT",
+    "EXIT_BUG",
+    "EXIT_ENVIRONMENT",
+    "EnvironmentFailure",
+    "MissingExtra",
+    "MissingInputError",
+    "UserInputError",
+    "environment_failure_at",
+]
+
 #: Exit status of a bad input (as argparse's own): nothing was changed.
 EXIT_BAD_INPUT = 2
 #: Exit status of an outside environment's failure: its own message, and where it happened.
