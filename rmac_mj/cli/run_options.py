@@ -160,7 +160,7 @@ OPTIONS: dict[str, dict[str, Any]] = {
     },
     "no_optimal": {
         "action": "store_true",
-        "help": "skip the near-optimal return (dynamic programming, about a minute the first "
+        "help": "skip the near-optimal return (dynamic programming, about 30 s of CPU the first "
         "time, then cached)",
     },
     "no_progress": {

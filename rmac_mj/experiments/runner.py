@@ -46,8 +46,8 @@ class RunOptions:
       progress: show progress (bars on a terminal, periodic plain lines otherwise) on stderr: the
         trials done overall and per learner, with each learner's recent mean return.
       references: ask the task for its near-optimal return and each learner's exploration floor
-        (``optimum.run_optimum``, ``run_exploration_floor``; computed once, a minute or two,
-        then cached) for the summary and Fig. 2 (the command line's default; off here).
+        (``optimum.run_optimum``, ``run_exploration_floor``; computed once, about 30 s of CPU
+        on the paper's pendulum, then cached) for the summary and Fig. 2 (the command line's default; off here).
       figures: draw Fig. 2 and the performance profiles of each finished run.
       log: called with a one-line message before anything slow that shows no progress (compiling the
         kernels the first time); None says nothing.
