@@ -19,6 +19,74 @@ import pytest  # noqa: E402
 
 import rmac_mj  # noqa: E402,F401  (rmac_mj/__init__.py selects the GL back end; see rmac_mj._gl)
 
+#: Most processes the tests start on a machine with many cores (each imports numba, MuJoCo and, for
+#: the baselines, torch: about 1 GB at its peak).
+_MOST_WORKERS = 4
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_cmdline_main(config):
+    """With pytest-xdist installed (the [dev] extra), the tests run in one process per core, at most
+    ``_MOST_WORKERS``, unless the command line says ``-n``: on 2 cores the suite takes about half the
+    time. Tests go where a core is free (``--dist worksteal``). ``-n 0`` runs them in this process."""
+    if (
+        config.pluginmanager.hasplugin("xdist")
+        and config.option.numprocesses is None
+        and not hasattr(config, "workerinput")  # not in a worker
+        and not config.option.collectonly
+        and not config.getoption("usepdb", False)
+    ):
+        config.option.numprocesses = "auto"
+        if config.option.dist == "no":
+            config.option.dist = "worksteal"
+
+
+def pytest_xdist_auto_num_workers(config):
+    """``-n auto``: one worker per core this process may use, at most ``_MOST_WORKERS``."""
+    return max(1, min(len(os.sched_getaffinity(0)), _MOST_WORKERS))
+
+
+#: The learners whose kernels numba compiles (the deep-RL baselines have none), in the order the
+#: first worker compiles them; the next worker starts from the other end, and so on.
+_COMPILED_LEARNERS = ("rmac", "s-ac", "mlac", "recommended", "s-ac-dyna")
+
+
+def pytest_configure_node(node):
+    """(xdist's controller, for each worker) Whether the kernel cache was empty when the tests
+    started: then the workers compile the kernels once between them (``_kernels_compiled_once``)."""
+    from rmac_mj import _cache
+
+    node.workerinput["rmac_mj_cold_cache"] = _cache.numba_cache_is_empty()
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _kernels_compiled_once(request, tmp_path_factory):
+    """In a worker of a run that started with an empty kernel cache: compile the learners' kernels
+    before the first test, each learner under a lock that every worker takes, the workers starting
+    from different learners. A learner another worker compiled loads from the cache: so the kernels
+    compile once, side by side, not once in each worker (about a minute of CPU per worker on 2
+    cores). A warm cache, or a run in one process, does nothing here."""
+    workerinput = getattr(request.config, "workerinput", None)
+    if not workerinput or not workerinput.get("rmac_mj_cold_cache"):
+        return
+    import fcntl
+
+    from rmac_mj.agents import make_agent
+    from rmac_mj.experiments import Protocol
+    from rmac_mj.rollout import action_space_of, run_trial, state_space_of
+
+    index = int(workerinput["workerid"].removeprefix("gw"))
+    order = _COMPILED_LEARNERS[::-1] if index % 2 else _COMPILED_LEARNERS
+    order = order[index // 2 % len(order) :] + order[: index // 2 % len(order)]
+    locks = tmp_path_factory.getbasetemp().parent  # one folder for the run's workers
+    env = Protocol().make_environment(task_seed=0)
+    for algorithm in order:
+        with open(locks / f"compile-{algorithm}.lock", "w") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)  # released when closed
+            agent = make_agent(algorithm, state_space_of(env), action_space_of(env), seed=0)
+            run_trial(env, agent, learn=True)
+            run_trial(env, agent, learn=False)
+
 
 @pytest.fixture
 def toy(monkeypatch):
