@@ -41,6 +41,7 @@ def pytest_cmdline_main(config):
             config.option.dist = "worksteal"
 
 
+@pytest.hookimpl(optionalhook=True)  # xdist's hook: unknown without it
 def pytest_xdist_auto_num_workers(config):
     """``-n auto``: one worker per core this process may use, at most ``_MOST_WORKERS``."""
     return max(1, min(len(os.sched_getaffinity(0)), _MOST_WORKERS))
@@ -51,6 +52,7 @@ def pytest_xdist_auto_num_workers(config):
 _COMPILED_LEARNERS = ("rmac", "s-ac", "mlac", "recommended", "s-ac-dyna")
 
 
+@pytest.hookimpl(optionalhook=True)  # xdist's hook: unknown without it
 def pytest_configure_node(node):
     """(xdist's controller, for each worker) Whether the kernel cache was empty when the tests
     started: then the workers compile the kernels once between them (``_kernels_compiled_once``)."""
